@@ -1,0 +1,75 @@
+#!/usr/bin/env bash
+# Idempotent set-up: Debian EGL/Mesa libraries for headless rendering, the .venv, and the
+# Python dependencies (torch pinned to the local CPU build). Safe to run repeatedly; the
+# second run is a few seconds. Works from any directory.
+set -euo pipefail
+
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+ROOT="$PWD"
+VENV="$ROOT/.venv"
+STAMP="$VENV/.zebra_sim_setup_stamp"
+
+log() { echo "[setup] $*"; }
+die() { echo "[setup] error: $*" >&2; exit 1; }
+
+# (a) System libraries for moderngl on headless EGL (Mesa llvmpipe without a GPU). opencv is the
+# headless wheel, which needs no libGL or glib from the system.
+APT_PACKAGES=(libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri)
+if ! command -v dpkg-query >/dev/null 2>&1; then
+    log "no dpkg here: make sure EGL and Mesa (${APT_PACKAGES[*]}) are installed"
+else
+    missing=()
+    for pkg in "${APT_PACKAGES[@]}"; do
+        status="$(dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null || true)"
+        [[ "$status" == "install ok installed" ]] || missing+=("$pkg")
+    done
+    if ((${#missing[@]} == 0)); then
+        log "system libraries present (${APT_PACKAGES[*]})"
+    else
+        log "installing system libraries: ${missing[*]}"
+        SUDO=()
+        if [[ "$(id -u)" -ne 0 ]]; then
+            command -v sudo >/dev/null 2>&1 || die "need root or sudo to install: ${missing[*]}"
+            SUDO=(sudo)
+        fi
+        "${SUDO[@]}" apt-get update -qq
+        "${SUDO[@]}" env DEBIAN_FRONTEND=noninteractive \
+            apt-get install -y -qq --no-install-recommends "${missing[@]}"
+    fi
+fi
+
+# (b) The virtual environment, on Python >= 3.11.
+if [[ ! -x "$VENV/bin/python" ]]; then
+    PY=""
+    if command -v python3.11 >/dev/null 2>&1; then
+        PY=python3.11
+    elif command -v python3 >/dev/null 2>&1 \
+        && python3 -c 'import sys; raise SystemExit(sys.version_info < (3, 11))'; then
+        PY=python3
+    else
+        die "need Python >= 3.11 (python3.11 or python3); found: $(python3 --version 2>&1 || echo none)"
+    fi
+    log "creating .venv with $PY ($("$PY" --version 2>&1))"
+    "$PY" -m venv "$VENV" || die "'$PY -m venv' failed (on Debian: apt-get install python3-venv)"
+else
+    log ".venv present ($("$VENV/bin/python" --version 2>&1))"
+fi
+
+# (c) Python packages, skipped when the inputs have not changed since the last success.
+want="$(cat requirements.txt setup.py setup.cfg | sha256sum | cut -d' ' -f1)"
+have="$(cat "$STAMP" 2>/dev/null || true)"
+if [[ "$want" == "$have" && -x "$VENV/bin/zebra-sim" ]]; then
+    log "python packages up to date (stamp matches)"
+else
+    PIP=("$VENV/bin/python" -m pip install -q)
+    # torch first and pinned: 2.13.0 resolves to the local CPU build; unpinned, pip would
+    # fetch several GB of CUDA packages.
+    log "pip: torch==2.13.0 (CPU build)"
+    "${PIP[@]}" "torch==2.13.0"
+    log "pip: requirements.txt"
+    "${PIP[@]}" -r requirements.txt
+    log "pip: zebra_sim_ros (editable; console scripts in .venv/bin)"
+    "${PIP[@]}" --no-deps -e .
+    echo "$want" >"$STAMP"
+fi
+log "done"
