@@ -1,0 +1,1 @@
+"""Small pure-numpy geometry modules: rotations and boxes. No ROS, no rendering."""
