@@ -1,0 +1,77 @@
+"""``zebra-sim asset ...`` as a user runs it: a real process, JSON summary last, clear errors."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import pytest
+
+from zebra_sim_ros.zebra.asset import ZebraLibrary
+
+
+def _run(args: list[str], cache: Path, timeout: float = 120) -> subprocess.CompletedProcess[str]:
+    env = dict(os.environ, ZEBRA_SIM_CACHE=str(cache))
+    return subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", *args], env=env, capture_output=True,
+                          text=True, timeout=timeout)
+
+
+def test_every_subcommand_has_help(zebra_cache: Path) -> None:
+    for args in (["--help"], ["asset", "--help"], ["asset", "build", "--help"], ["asset", "info", "--help"],
+                 ["asset", "preview", "--help"]):
+        proc = _run(args, zebra_cache)
+        assert proc.returncode == 0, (args, proc.stderr)
+        assert "usage:" in proc.stdout
+
+
+def test_build_writes_usd_and_a_json_summary(library: ZebraLibrary, zebra_cache: Path, tmp_path: Path) -> None:
+    proc = _run(["asset", "build", "--out", str(tmp_path / "usd"), "--coat-size", "128", "--json"], zebra_cache)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert summary["frames"] == library.n_frames
+    assert summary["cache"] == str(library.root)
+    for name in ("plains", "grevy", "foal"):
+        assert (tmp_path / "usd" / f"zebra_{name}.usd").stat().st_size > 100_000
+        assert cv2.imread(str(tmp_path / "usd" / f"zebra_{name}_coat.png")).shape == (128, 128, 3)
+
+
+def test_info_json(library: ZebraLibrary, zebra_cache: Path) -> None:
+    proc = _run(["asset", "info", "--json"], zebra_cache)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert summary["keypoints"] >= 20 and summary["joints"] >= 25
+    assert summary["triangles"]["lod0"] >= 4000
+    assert sum(summary["clips"].values()) == library.n_frames
+
+
+def test_preview_sheet(library: ZebraLibrary, zebra_cache: Path, tmp_path: Path) -> None:
+    out = tmp_path / "sheet.png"
+    proc = _run(["asset", "preview", str(out), "--clips", "walk,graze", "--frames-per-clip", "3",
+                 "--cell", "100", "--json"], zebra_cache)
+    assert proc.returncode == 0, proc.stderr
+    img = cv2.imread(str(out))
+    summary = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert img.shape[:2] == (summary["height"], summary["width"])
+    # One row of six individuals, then two clip rows of a side view (100 px) over a top view (50 px).
+    strip = min(100, summary["width"] // 6)
+    assert img.shape[0] == strip + 2 * 150
+    # The zebras are drawn: plenty of dark stripe pixels on the light background.
+    assert (img.mean(axis=2) < 80).mean() > 0.01
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (["asset", "preview", "x.png", "--clips", "moonwalk"], "--clips"),
+    (["asset", "preview", "x.png", "--frames-per-clip", "0"], "--frames-per-clip"),
+    (["asset", "preview", "x.jpg"], "out"),
+    (["asset", "preview", "x.png", "--morph", "quagga"], "morph"),
+])
+def test_bad_arguments_stop_with_a_message_naming_them(library: ZebraLibrary, zebra_cache: Path, tmp_path: Path,
+                                                       args: list[str], needle: str) -> None:
+    args = [str(tmp_path / a) if a.endswith((".png", ".jpg")) else a for a in args]
+    proc = _run(args, zebra_cache)
+    assert proc.returncode == 2
+    assert needle in proc.stderr and "invalid" in proc.stderr

@@ -1,0 +1,60 @@
+"""``zebra-sim``: the batch and tooling side of zebra_sim_ros, one subcommand per job.
+
+Every subcommand has ``--help``; those that compute something accept ``--json`` and then print one
+machine-readable summary line last on stdout. Errors print one line naming the bad value and exit 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from zebra_sim_ros import __version__
+from zebra_sim_ros.errors import ZebraSimError
+
+Summary = dict[str, Any]
+Command = Callable[[argparse.Namespace], Summary]
+
+
+def add_json_flag(p: argparse.ArgumentParser) -> None:
+    """Give a computing subcommand the shared ``--json`` flag."""
+    p.add_argument("--json", action="store_true", help="print one JSON summary line last on stdout")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full ``zebra-sim`` argument parser."""
+    from zebra_sim_ros.cli import asset
+
+    parser = argparse.ArgumentParser(
+        prog="zebra-sim",
+        description="Synthetic drone imagery of zebras with exact ground truth: batch tools.",
+    )
+    parser.add_argument("--version", action="version", version=f"zebra_sim_ros {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    asset.register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``zebra-sim`` console script; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    func: Command = args.func
+    try:
+        summary = func(args)
+    except ZebraSimError as exc:
+        print(f"zebra-sim: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("zebra-sim: interrupted", file=sys.stderr)
+        return 130
+    if getattr(args, "json", False):
+        print(json.dumps(summary, sort_keys=True))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

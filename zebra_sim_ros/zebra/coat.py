@@ -1,0 +1,162 @@
+"""Per-individual zebra coats: procedural stripe textures drawn from a seed.
+
+The stripes are a solid texture: a stripe phase defined on the bind-pose body (vertical bands on the
+barrel, arcs over the haunch, rings round the legs, bands across the neck and a fine pattern on the
+face), warped by smooth random waves. Baking it into each part's atlas rectangle through the mesh
+makes stripes continue across part seams. Each individual draws its own warp, stripe width, stripe
+spacing and colours from a ``numpy.random.Generator``; the same seed gives the same coat, bit for bit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.zebra.mesh import ZebraMesh, build_mesh
+from zebra_sim_ros.zebra.skeleton import JOINT_INDEX, Morph, bind_positions
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class CoatParams:
+    """What makes one coat differ from another. Colours are linear-ish sRGB in [0, 1]."""
+
+    seed: int
+    period_scale: float  # multiplies the morph's stripe period
+    black_fraction: float  # share of each stripe period that is black
+    warp_amplitude: float  # in stripe periods
+    wave_k: tuple[tuple[float, float, float], ...]  # warp wave vectors, radians per metre
+    wave_phase: tuple[float, ...]
+    base_rgb: tuple[float, float, float]
+    stripe_rgb: tuple[float, float, float]
+    shadow_stripes: bool
+
+
+def random_coat(seed: int, morph: Morph) -> CoatParams:
+    """Draw a coat for one individual from ``seed``."""
+    if seed < 0:
+        raise ParameterError("coat seed", seed, "an integer >= 0")
+    rng = np.random.default_rng([seed, 0xC0A7])
+    n = 6
+    direction = rng.normal(size=(n, 3))
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    k = direction * rng.uniform(5.0, 14.0, size=(n, 1))
+    cream = rng.uniform(0.0, 1.0)
+    base = (0.93 - 0.05 * cream, 0.91 - 0.08 * cream, 0.86 - 0.16 * cream)
+    if morph.name == "foal":  # foals' stripes are brown
+        stripe = tuple(rng.uniform([0.22, 0.14, 0.08], [0.32, 0.22, 0.14]))
+    else:
+        d = rng.uniform(0.03, 0.09)
+        stripe = (d + rng.uniform(0, 0.04), d + rng.uniform(0, 0.02), d)
+    return CoatParams(
+        seed=seed,
+        period_scale=float(rng.uniform(0.85, 1.15)),
+        black_fraction=float(rng.uniform(0.40, 0.55)),
+        warp_amplitude=float(rng.uniform(0.12, 0.35)),
+        wave_k=tuple((float(row[0]), float(row[1]), float(row[2])) for row in k),
+        wave_phase=tuple(float(v) for v in rng.uniform(0, 2 * np.pi, size=n)),
+        base_rgb=tuple(float(v) for v in base),  # type: ignore[arg-type]
+        stripe_rgb=tuple(float(v) for v in stripe),  # type: ignore[arg-type]
+        shadow_stripes=morph.name == "plains" and bool(rng.uniform() < 0.8),
+    )
+
+
+def _smoothstep(e0: float, e1: float, x: FloatArray) -> FloatArray:
+    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
+    return np.asarray(t * t * (3 - 2 * t))
+
+
+def _part_samples(mesh: ZebraMesh, name: str, size: int) -> tuple[NDArray[np.int64], NDArray[np.int64],
+                                                                   FloatArray, FloatArray, FloatArray]:
+    """Texel rows/cols inside a part's rectangle and the bind position, along, around under each."""
+    pg = mesh.part(name)
+    u0, v0, u1, v1 = pg.rect
+    c0, c1 = int(np.floor(u0 * size)), int(np.ceil(u1 * size))
+    r0, r1 = int(np.floor((1 - v1) * size)), int(np.ceil((1 - v0) * size))
+    rows, cols = np.meshgrid(np.arange(r0, r1), np.arange(c0, c1), indexing="ij")
+    u = (cols + 0.5) / size
+    v = 1.0 - (rows + 0.5) / size
+    fu = np.clip((u - u0) / (u1 - u0), 0, 1)
+    fv = np.clip((v - v0) / (v1 - v0), 0, 1)
+    along, around = (fu, fv) if pg.along_u else (fv, fu)
+    n_rings, n = pg.grid.shape
+    rr = along * (n_rings - 1)
+    kk = around * n
+    r_lo = np.clip(np.floor(rr).astype(int), 0, n_rings - 2)
+    k_lo = np.floor(kk).astype(int) % n
+    fr = (rr - r_lo)[..., None]
+    fk = (kk - np.floor(kk))[..., None]
+    vtx = mesh.vertices
+    g = pg.grid
+    p = ((1 - fr) * ((1 - fk) * vtx[g[r_lo, k_lo]] + fk * vtx[g[r_lo, (k_lo + 1) % n]])
+         + fr * ((1 - fk) * vtx[g[r_lo + 1, k_lo]] + fk * vtx[g[r_lo + 1, (k_lo + 1) % n]]))
+    return rows, cols, p, along, around
+
+
+def bake_coat(morph: Morph, params: CoatParams, size: int = 512, mesh: ZebraMesh | None = None) -> NDArray[np.uint8]:
+    """The coat atlas (size, size, 3) uint8 RGB for one individual; row 0 is the top (v = 1)."""
+    if not 32 <= size <= 4096:
+        raise ParameterError("coat size", size, "32..4096 texels")
+    mesh = mesh or build_mesh(morph, 0)
+    j = bind_positions(morph)
+    period = morph.stripe_period * params.period_scale
+    img = np.zeros((size, size, 3))
+    base = np.array(params.base_rgb)
+    black = np.array(params.stripe_rgb)
+    k = np.array(params.wave_k)
+    ph = np.array(params.wave_phase)
+    pel, n1, hd = j[JOINT_INDEX["pelvis"]], j[JOINT_INDEX["neck_1"]], j[JOINT_INDEX["head"]]
+    nd = (hd - n1) / np.linalg.norm(hd - n1)
+    hdir = np.array([np.cos(np.radians(-52)), 0.0, np.sin(np.radians(-52))])
+    haunch = pel + np.array([0.45, 0.0, -0.55]) * morph.withers_height / 1.3
+    edge = 0.06  # soft edge, in stripe periods, so the texture is anti-aliased already
+
+    for pg in mesh.parts:
+        rows, cols, p, along, around = _part_samples(mesh, pg.name, size)
+        warp = params.warp_amplitude * np.mean(np.sin(p @ k.T + ph), axis=-1) * 2.0
+        x, z = p[..., 0], p[..., 2]
+        name = pg.name
+        dark_extra = np.zeros_like(x)
+        white_extra = np.zeros_like(x)
+        if name == "barrel":
+            rump = _smoothstep(pel[0] + 0.25, pel[0] - 0.15, x)
+            phase_body = x / period
+            phase_rump = np.linalg.norm((p - haunch)[..., [0, 2]], axis=-1) / (1.2 * period)
+            phase = (1 - rump) * phase_body + rump * phase_rump
+            ang = np.abs(around - 0.5)  # 0.5 = straight down; 0 or 1 = along the spine
+            dark_extra = (ang > 0.47).astype(float)  # dorsal stripe
+            if morph.white_belly:
+                white_extra = _smoothstep(0.14, 0.08, ang)
+        elif name in ("neck", "mane"):
+            phase = (p @ nd) / (0.9 * period)
+        elif name == "head":
+            phase = (p @ hdir) / (0.35 * period)
+            dark_extra = _smoothstep(0.80, 0.88, along)  # the dark muzzle
+        elif name.startswith("leg"):
+            phase = z / (0.45 * period) ** 0.95
+            dark_extra = _smoothstep(0.955, 0.97, along)  # hooves
+            if morph.white_belly:
+                white_extra = _smoothstep(0.30, 0.20, z)  # Grévy's fade to white low on the legs
+        elif name.startswith("ear"):
+            phase = z / (0.5 * period)
+            dark_extra = _smoothstep(0.72, 0.8, along)
+            white_extra = 0.6 * _smoothstep(0.5, 0.3, around % 1.0)
+        else:  # tail: striped at the root, black tuft
+            phase = z / (0.5 * period)
+            dark_extra = _smoothstep(0.62, 0.7, along)
+        f = (phase + warp) % 1.0
+        # Black where f < black_fraction, with soft edges at both ends of the band.
+        b = _smoothstep(-edge, edge, f) * _smoothstep(params.black_fraction + edge, params.black_fraction - edge, f)
+        b = b + _smoothstep(1 - edge, 1 + edge, f)
+        b = np.clip(np.maximum(b, dark_extra) * (1 - white_extra), 0, 1)
+        col = base * (1 - b[..., None]) + black * b[..., None]
+        if params.shadow_stripes and name == "barrel":
+            mid = params.black_fraction + (1 - params.black_fraction) / 2
+            sh = _smoothstep(0.12, 0.0, np.abs(f - mid)) * _smoothstep(pel[0] + 0.4, pel[0], x) * 0.45
+            col = col * (1 - sh[..., None]) + np.array([0.55, 0.45, 0.36]) * sh[..., None]
+        img[rows, cols] = col
+    return np.clip(np.round(img * 255), 0, 255).astype(np.uint8)

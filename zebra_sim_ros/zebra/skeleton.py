@@ -1,0 +1,228 @@
+"""Zebra skeleton: joint hierarchy, body proportions and forward kinematics.
+
+Every joint's bind orientation is the asset frame (x forward, y left, z up), so a joint's local
+rotation is expressed in axes everyone can picture: rotation about +y swings a hanging leg backwards
+and tips a head nose-down, rotation about +z turns left, rotation about +x rolls towards the right.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.geometry.rotations import rigid
+
+FloatArray = NDArray[np.float64]
+
+# (name, parent). Parents come before children, so forward kinematics is one pass in this order.
+JOINTS: tuple[tuple[str, str | None], ...] = (
+    ("root", None),
+    ("pelvis", "root"),
+    ("spine_1", "pelvis"),
+    ("spine_2", "spine_1"),
+    ("chest", "spine_2"),
+    ("neck_1", "chest"),
+    ("neck_2", "neck_1"),
+    ("head", "neck_2"),
+    ("jaw", "head"),
+    ("ear_l", "head"),
+    ("ear_r", "head"),
+    ("tail_1", "pelvis"),
+    ("tail_2", "tail_1"),
+    ("tail_3", "tail_2"),
+    ("shoulder_fl", "chest"),
+    ("elbow_fl", "shoulder_fl"),
+    ("knee_fl", "elbow_fl"),
+    ("fetlock_fl", "knee_fl"),
+    ("hoof_fl", "fetlock_fl"),
+    ("shoulder_fr", "chest"),
+    ("elbow_fr", "shoulder_fr"),
+    ("knee_fr", "elbow_fr"),
+    ("fetlock_fr", "knee_fr"),
+    ("hoof_fr", "fetlock_fr"),
+    ("hip_hl", "pelvis"),
+    ("stifle_hl", "hip_hl"),
+    ("hock_hl", "stifle_hl"),
+    ("fetlock_hl", "hock_hl"),
+    ("hoof_hl", "fetlock_hl"),
+    ("hip_hr", "pelvis"),
+    ("stifle_hr", "hip_hr"),
+    ("hock_hr", "stifle_hr"),
+    ("fetlock_hr", "hock_hr"),
+    ("hoof_hr", "fetlock_hr"),
+)
+JOINT_NAMES: tuple[str, ...] = tuple(n for n, _ in JOINTS)
+JOINT_INDEX: dict[str, int] = {n: i for i, n in enumerate(JOINT_NAMES)}
+PARENTS: NDArray[np.int64] = np.array([-1 if p is None else JOINT_INDEX[p] for _, p in JOINTS])
+LEGS: tuple[str, ...] = ("fl", "fr", "hl", "hr")
+LEG_CHAINS: dict[str, tuple[str, ...]] = {
+    "fl": ("shoulder_fl", "elbow_fl", "knee_fl", "fetlock_fl", "hoof_fl"),
+    "fr": ("shoulder_fr", "elbow_fr", "knee_fr", "fetlock_fr", "hoof_fr"),
+    "hl": ("hip_hl", "stifle_hl", "hock_hl", "fetlock_hl", "hoof_hl"),
+    "hr": ("hip_hr", "stifle_hr", "hock_hr", "fetlock_hr", "hoof_hr"),
+}
+
+
+@dataclass(frozen=True)
+class Morph:
+    """Body proportions of one kind of zebra, in metres.
+
+    ``withers_height`` is the shoulder height of a standing animal; ``body_length`` runs from the
+    point of the shoulder to the point of the buttock (the head and neck come on top of it).
+    """
+
+    name: str
+    withers_height: float = 1.30
+    body_length: float = 1.45
+    leg_fraction: float = 0.56  # elbow height over withers height: longer in foals
+    girth_radius: float = 0.27  # half the body depth at the belly
+    neck_length: float = 0.72
+    head_length: float = 0.56
+    ear_length: float = 0.17
+    ear_width: float = 0.045
+    tail_length: float = 0.62
+    mane_height: float = 0.08
+    stripe_period: float = 0.11  # metres between black stripes on the barrel
+    white_belly: bool = False
+    extra: dict[str, float] = field(default_factory=dict)
+
+    def validate(self) -> None:
+        """Raise :class:`ParameterError` for proportions no zebra has."""
+        checks = {
+            "withers_height": (0.5, 1.7),
+            "body_length": (0.6, 2.0),
+            "leg_fraction": (0.4, 0.7),
+            "girth_radius": (0.1, 0.4),
+            "neck_length": (0.3, 1.0),
+            "head_length": (0.3, 0.8),
+            "ear_length": (0.05, 0.35),
+            "tail_length": (0.2, 1.0),
+            "stripe_period": (0.03, 0.3),
+        }
+        for name, (lo, hi) in checks.items():
+            v = getattr(self, name)
+            if not lo <= v <= hi:
+                raise ParameterError(f"morph.{self.name}.{name}", v, f"[{lo}, {hi}] m")
+
+
+# Plains zebra (Equus quagga): ~1.3 m at the withers, broad stripes, shadow stripes on the rump.
+PLAINS = Morph(name="plains")
+# Grévy's zebra (Equus grevyi): taller, longer head, big round ears, narrow stripes, white belly.
+GREVY = Morph(
+    name="grevy",
+    withers_height=1.45,
+    body_length=1.62,
+    girth_radius=0.29,
+    neck_length=0.80,
+    head_length=0.66,
+    ear_length=0.24,
+    ear_width=0.07,
+    tail_length=0.68,
+    mane_height=0.10,
+    stripe_period=0.065,
+    white_belly=True,
+)
+# A foal of a few months: long legs, short body, big head and ears for its size.
+FOAL = Morph(
+    name="foal",
+    withers_height=0.95,
+    body_length=0.85,
+    leg_fraction=0.64,
+    girth_radius=0.17,
+    neck_length=0.45,
+    head_length=0.40,
+    ear_length=0.14,
+    ear_width=0.04,
+    tail_length=0.38,
+    mane_height=0.07,
+    stripe_period=0.075,
+)
+MORPHS: dict[str, Morph] = {m.name: m for m in (PLAINS, GREVY, FOAL)}
+
+
+def get_morph(name: str) -> Morph:
+    """Look a built-in morph up by name."""
+    try:
+        return MORPHS[name]
+    except KeyError:
+        raise ParameterError("morph", name, f"one of {sorted(MORPHS)}") from None
+
+
+def bind_positions(m: Morph) -> FloatArray:
+    """Joint positions (J, 3) of the standing bind pose in the asset frame, metres."""
+    m.validate()
+    h = m.withers_height
+    half = m.body_length / 2
+    back = h - 0.17 * h / 1.3  # spine line, a little below the withers' top
+    elbow = m.leg_fraction * h
+    knee = 0.32 * h
+    fet = 0.10 * h
+    hoof = 0.025 * h / 1.3 + 0.012
+    leg_y = 0.55 * m.girth_radius
+    s = h / 1.3  # generic scale for small offsets
+    neck_dir = np.array([0.55, 0.0, 0.835])  # neck rises ~57 degrees from horizontal
+    p: dict[str, tuple[float, float, float]] = {
+        "root": (0.0, 0.0, 0.0),
+        "pelvis": (-half * 0.70, 0.0, back + 0.02 * s),
+        "spine_1": (-half * 0.25, 0.0, back - 0.01 * s),
+        "spine_2": (half * 0.20, 0.0, back - 0.01 * s),
+        "chest": (half * 0.66, 0.0, back),
+    }
+    n1 = np.array([half * 0.95, 0.0, back + 0.14 * s])
+    n2 = n1 + neck_dir * m.neck_length * 0.5
+    hd = n1 + neck_dir * m.neck_length
+    p["neck_1"] = tuple(n1)
+    p["neck_2"] = tuple(n2)
+    p["head"] = tuple(hd)
+    p["jaw"] = tuple(hd + np.array([0.10, 0.0, -0.12]) * (m.head_length / 0.56))
+    ey = 0.055 * m.head_length / 0.56
+    p["ear_l"] = tuple(hd + np.array([-0.02 * s, ey, 0.05 * s]))
+    p["ear_r"] = tuple(hd + np.array([-0.02 * s, -ey, 0.05 * s]))
+    tb = np.array([-half * 1.07, 0.0, back + 0.08 * s])
+    seg = m.tail_length / 3.2
+    p["tail_1"] = tuple(tb)
+    p["tail_2"] = tuple(tb + np.array([-0.25 * seg, 0.0, -0.97 * seg]))
+    p["tail_3"] = tuple(tb + np.array([-0.35 * seg, 0.0, -1.97 * seg]))
+    fx = half * 0.74
+    hx = -half * 0.62
+    for side, sy in (("l", 1.0), ("r", -1.0)):
+        y = sy * leg_y
+        p[f"shoulder_f{side}"] = (fx + 0.06 * s, y, elbow + 0.26 * s)
+        p[f"elbow_f{side}"] = (fx - 0.08 * s, y * 1.05, elbow)
+        p[f"knee_f{side}"] = (fx - 0.05 * s, y, knee)
+        p[f"fetlock_f{side}"] = (fx - 0.04 * s, y, fet)
+        p[f"hoof_f{side}"] = (fx + 0.01 * s, y, hoof)
+        p[f"hip_h{side}"] = (hx + 0.02 * s, y * 1.05, back - 0.04 * s)
+        p[f"stifle_h{side}"] = (hx + 0.14 * s, y * 1.15, elbow - 0.02 * s)
+        p[f"hock_h{side}"] = (hx - 0.10 * s, y, knee + 0.09 * s)
+        p[f"fetlock_h{side}"] = (hx - 0.07 * s, y, fet)
+        p[f"hoof_h{side}"] = (hx - 0.03 * s, y, hoof)
+    return np.array([p[n] for n in JOINT_NAMES], dtype=np.float64)
+
+
+def forward_kinematics(bind: FloatArray, local_rot: FloatArray, root: FloatArray) -> FloatArray:
+    """Global joint transforms from local rotations.
+
+    Args:
+        bind: (J, 3) bind-pose joint positions.
+        local_rot: (..., J, 3, 3) rotation of each joint relative to its parent, in bind-aligned axes.
+        root: (..., 4, 4) extra transform of the root joint (in-place clips move it only up and down,
+            and tip it, e.g. when lying down).
+
+    Returns:
+        (..., J, 4, 4) joint-to-asset transforms. With identity rotations and root they are pure
+        translations to ``bind``.
+    """
+    local_rot = np.asarray(local_rot, dtype=np.float64)
+    batch = local_rot.shape[:-3]
+    n = len(JOINT_NAMES)
+    out = np.zeros(batch + (n, 4, 4))
+    offsets = bind - np.where(PARENTS[:, None] >= 0, bind[np.maximum(PARENTS, 0)], 0.0)
+    for j in range(n):
+        local = rigid(local_rot[..., j, :, :], np.broadcast_to(offsets[j], batch + (3,)))
+        parent = root if PARENTS[j] < 0 else out[..., PARENTS[j], :, :]
+        out[..., j, :, :] = parent @ local
+    return out
