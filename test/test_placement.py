@@ -1,0 +1,251 @@
+"""The placer core: the paper's distributions, exact footprints, ground contact, determinism."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.geometry.boxes import box_axes, obb_corners, obb_overlap
+from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical, optical_rotation
+from zebra_sim_ros.placement.cameras import CameraRanges, sample_cameras
+from zebra_sim_ros.placement.config import PlacerConfig
+from zebra_sim_ros.placement.herd import HerdPlacer, make_pool
+from zebra_sim_ros.placement.placer import Placer
+from zebra_sim_ros.placement.scene import parse_scene
+from zebra_sim_ros.placement.sun import lighting_for, sample_time_of_day
+from zebra_sim_ros.world.world import World, generate_world
+from zebra_sim_ros.zebra.animation import STANDING_CLIPS
+from zebra_sim_ros.zebra.asset import ZebraLibrary
+from zebra_sim_ros.zebra.mesh import PART_NAMES
+
+
+@pytest.fixture(scope="module")
+def savanna() -> World:
+    return generate_world("savanna", 0)
+
+
+@pytest.fixture(scope="module")
+def woodland() -> World:
+    return generate_world("woodland", 1)
+
+
+def _herd_placer(world: World, library: ZebraLibrary) -> HerdPlacer:
+    return HerdPlacer(world.terrain, world.placeable, world.max_slope_deg, world.obstacles.positions[:, :2],
+                      world.obstacles.radii, library)
+
+
+def _uniform_ok(x: np.ndarray, lo: float, hi: float) -> None:
+    """Within [lo, hi], spread over all of it, and flat (loose chi-square over 10 bins)."""
+    assert x.min() >= lo - 1e-9 and x.max() <= hi + 1e-9
+    span = hi - lo
+    assert x.min() < lo + 0.02 * span and x.max() > hi - 0.02 * span
+    counts, _ = np.histogram(x, bins=10, range=(lo, hi))
+    expected = len(x) / 10
+    chi2 = float(((counts - expected) ** 2 / expected).sum())
+    assert chi2 < 40, f"not uniform: {counts}"
+
+
+def test_placement_draws_follow_the_paper(savanna: World, library: ZebraLibrary) -> None:
+    hp = _herd_placer(savanna, library)
+    pool = make_pool(0, 250, (0.6, 0.25, 0.15), 3)
+    rng = np.random.default_rng(123)
+    sides, counts, scales, yaws = [], [], [], []
+    for _ in range(2000):
+        d = hp.draw(rng, pool, (2, 250), (0.4, 1.0), (40.0, 120.0), np.arange(len(library.clip_names)), 4)
+        sides += list(d.rect_size)
+        counts.append(len(d.ids))
+        scales.append(d.scale)
+        yaws.append(d.yaw)
+        assert len(set(d.ids.tolist())) == len(d.ids)  # distinct individuals
+        x0, y0, x1, y1 = savanna.placeable
+        (cx, cy), (w, h) = d.rect_center, d.rect_size
+        assert x0 <= cx - w / 2 and cx + w / 2 <= x1 and y0 <= cy - h / 2 and cy + h / 2 <= y1
+    _uniform_ok(np.array(sides), 40, 120)
+    c = np.array(counts)
+    assert c.min() >= 2 and c.max() <= 250 and c.min() < 10 and c.max() > 240
+    assert abs(c.mean() - 126) < 6
+    _uniform_ok(np.concatenate(scales), 0.4, 1.0)
+    _uniform_ok(np.concatenate(yaws), -np.pi, np.pi)
+
+
+def test_pool_mixes_morphs_by_weight() -> None:
+    pool = make_pool(3, 5000, (0.6, 0.25, 0.15), 3)
+    share = np.bincount(pool.morph, minlength=3) / 5000
+    np.testing.assert_allclose(share, [0.6, 0.25, 0.15], atol=0.03)
+    assert np.array_equal(make_pool(3, 50, (1, 1, 1), 3).coat_seed, make_pool(3, 50, (1, 1, 1), 3).coat_seed)
+
+
+def test_time_of_day_split_90_10() -> None:
+    rng = np.random.default_rng(5)
+    h = np.array([sample_time_of_day(rng) for _ in range(20000)])
+    day = (h >= 5) & (h < 20)
+    assert abs(day.mean() - 0.9) < 0.01
+    _uniform_ok(h[day], 5, 20)
+    night = np.where(h[~day] < 5, h[~day] + 24, h[~day])
+    _uniform_ok(night, 20, 29)
+
+
+def test_lighting_follows_the_sun() -> None:
+    noon, dawn, night = lighting_for(12.0, 80, -2.3), lighting_for(6.3, 80, -2.3), lighting_for(23.0, 80, -2.3)
+    assert noon.sun_elevation_deg > 80 and not noon.is_night
+    assert 0 < dawn.sun_elevation_deg < 10 and dawn.light_rgb[2] < dawn.light_rgb[0]  # warm low sun
+    assert dawn.sun_direction[0] > 0.9  # rises in the east
+    assert lighting_for(17.7, 80, -2.3).sun_direction[0] < -0.9  # sets in the west
+    assert night.is_night and night.light_intensity < 0.1 * noon.light_intensity
+    assert night.light_rgb[2] > night.light_rgb[0]  # bluish moonlight
+    with pytest.raises(ParameterError, match="time_of_day_h"):
+        lighting_for(24.5, 1, 0)
+
+
+@pytest.mark.parametrize("strategy", ["far", "closeby"])
+def test_camera_poses_follow_the_paper(savanna: World, strategy: str) -> None:
+    rng = np.random.default_rng(11)
+    cam = PinholeCamera(1280, 720, 80.0)
+    r = CameraRanges()
+    jitter = 30.0 if strategy == "far" else 15.0
+    rows = []
+    for _ in range(700):
+        n = int(rng.integers(2, 60))
+        centre = rng.uniform(-150, 150, 2)
+        xy = centre + rng.uniform(-40, 40, (n, 2))
+        zebras = np.column_stack([xy, savanna.terrain.height_at(xy[:, 0], xy[:, 1])])
+        poses = sample_cameras(rng, zebras, strategy, ["drone_0", "drone_1", "drone_2"], r, savanna.terrain, cam)
+        pivot = zebras.mean(axis=0)
+        lo, hi = zebras[:, :2].min(axis=0), zebras[:, :2].max(axis=0)
+        for i, p in enumerate(poses):
+            pos = np.array(p.position)
+            height = pos[2] - pivot[2]
+            assert 5.0 <= height <= 20.0
+            if strategy == "far":
+                assert np.all(np.abs(pos[:2] - pivot[:2]) <= 100.0)
+            else:
+                assert np.all(pos[:2] >= lo - 5.0) and np.all(pos[:2] <= hi + 5.0)
+            d = pivot[:2] - pos[:2]
+            bearing = np.degrees(np.arctan2(d[1], d[0]))
+            dyaw = (p.yaw_deg - bearing + 180) % 360 - 180
+            assert abs(dyaw) <= jitter + 1e-6
+            elev = np.degrees(np.arctan2(pivot[2] - pos[2], np.hypot(*d)))
+            assert p.pitch_deg == pytest.approx(elev + 15.0, abs=1e-6)
+            assert abs(p.roll_deg) <= 10.0
+            # The pivot projects inside the image, in front of the camera.
+            r_opt = optical_rotation(np.radians(p.yaw_deg), np.radians(p.pitch_deg), np.radians(p.roll_deg))
+            np.testing.assert_allclose(r_opt, p.r_optical, atol=1e-12)
+            assert cam.in_image(map_to_optical(pivot[None], pos, r_opt))[0]
+            assert pos[2] >= float(savanna.terrain.height_at(pos[0], pos[1])) + 2.0
+            for q in poses[:i]:
+                assert np.linalg.norm(pos - np.array(q.position)) >= 0.5
+            rows.append((height, dyaw, p.roll_deg))
+    a = np.array(rows)
+    _uniform_ok(a[:, 0], 5, 20)
+    _uniform_ok(a[:, 2], -10, 10)
+    assert a[:, 1].min() < -0.9 * jitter and a[:, 1].max() > 0.9 * jitter
+
+
+def test_optical_frame_convention() -> None:
+    # Level camera looking east: optical z = east, x = south (right), y = down.
+    r = optical_rotation(0.0, 0.0, 0.0)
+    np.testing.assert_allclose(r[:, 2], [1, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(r[:, 0], [0, -1, 0], atol=1e-12)
+    np.testing.assert_allclose(r[:, 1], [0, 0, -1], atol=1e-12)
+    # Pitch -90 degrees looks straight down.
+    np.testing.assert_allclose(optical_rotation(0.3, -np.pi / 2, 0.0)[:, 2], [0, 0, -1], atol=1e-12)
+    cam = PinholeCamera(640, 480, 90.0)
+    assert cam.fx == pytest.approx(320.0)
+    uv, front = cam.project(np.array([[0.0, 0.0, 5.0], [1.0, 0.5, 2.0], [0, 0, -1.0]]))
+    np.testing.assert_allclose(uv[:2], [[320, 240], [480, 320]])
+    assert front.tolist() == [True, True, False]
+
+
+def _footprints(world: World, library: ZebraLibrary, seed: int, n_placements: int, count: tuple[int, int]):  # type: ignore[no-untyped-def]
+    cfg = PlacerConfig.from_params({"seed": seed, "count_min": count[0], "count_max": count[1]})
+    placer = Placer(cfg, world, library)
+    return placer, [placer.herd_for(p) for p in range(n_placements)]
+
+
+@pytest.mark.parametrize("world_name", ["savanna", "woodland"])
+def test_footprints_never_overlap_each_other_or_obstacles(world_name: str, savanna: World, woodland: World,
+                                                          library: ZebraLibrary) -> None:
+    world = savanna if world_name == "savanna" else woodland
+    _, herds = _footprints(world, library, 7, 6, (150, 250))
+    obs_xy, obs_r = world.obstacles.positions[:, :2], world.obstacles.radii
+    for herd in herds:
+        assert herd.count >= 0.5 * herd.requested  # most of them find room
+        axes = box_axes(herd.yaw)
+        c, e = herd.footprint_center, herd.footprint_half
+        hit = obb_overlap(c[:, None], e[:, None], axes[:, None], c[None], e[None], axes[None])
+        np.fill_diagonal(hit, False)
+        assert not hit.any(), "two footprints overlap"
+        # Exact circle-vs-box distance for trees and rocks.
+        for i in range(herd.count):
+            rel = (obs_xy - c[i]) @ axes[i].T
+            closest = np.clip(rel, -e[i], e[i])
+            dist = np.linalg.norm(rel - closest, axis=1)
+            assert np.all(dist >= obs_r - 1e-9), "a zebra stands in a tree or rock"
+        # Footprints match the posed, scaled mesh: every vertex projects inside its footprint.
+        for i in range(0, herd.count, 17):
+            v = library.vertices(int(herd.morph[i]), int(herd.global_frame[i])).astype(np.float64)
+            v_xy = (v[:, :2] * herd.scale[i]) @ axes[i] + herd.position[i, :2]
+            rel = (v_xy - c[i]) @ axes[i].T
+            assert np.all(np.abs(rel) <= e[i] + 1e-4)
+
+
+def test_every_zebra_stands_on_the_terrain(woodland: World, library: ZebraLibrary) -> None:
+    placer, herds = _footprints(woodland, library, 3, 4, (200, 250))
+    faces, part = library.faces(0), library.face_part(0)
+    legs = [np.unique(faces[part == PART_NAMES.index(f"leg_{leg}")]) for leg in ("fl", "fr", "hl", "hr")]
+    standing = [library.clip_names.index(c) for c in STANDING_CLIPS]
+    checked = 0
+    for herd in herds:
+        posed = library.pose(herd.morph, herd.global_frame, herd.scale, herd.rotation, herd.position)
+        for i in range(herd.count):
+            ground = woodland.terrain.height_at(posed.vertices[i, :, 0], posed.vertices[i, :, 1])
+            gap = posed.vertices[i, :, 2] - ground
+            assert gap.min() > -0.10, "a zebra sinks into the ground"
+            if herd.clip[i] in standing:
+                soles = np.array([gap[idx].min() for idx in legs])
+                assert np.all(np.abs(soles) < 0.05), f"hooves off the ground by {soles}"
+                checked += 1
+    assert checked > 50
+
+
+def test_same_seed_same_scenes_any_step_alone(savanna: World, library: ZebraLibrary) -> None:
+    cfg = PlacerConfig.from_params({"seed": 42, "count_max": 60, "strategy": "mixed"})
+    a = Placer(cfg, savanna, library)
+    seq = [a.scene(k).to_json() for k in range(5)]
+    b = Placer(cfg, savanna, library)
+    assert b.scene(4).to_json() == seq[4]
+    assert [b.scene(k).to_json() for k in range(5)] == seq
+    other = Placer(PlacerConfig.from_params({"seed": 43, "count_max": 60}), savanna, library)
+    assert other.scene(0).to_json() != seq[0]
+    d = parse_scene(seq[4])
+    assert d["step"] == 4 and d["placement"] == 1 and d["reroll"] == 1 and d["seed"] == 42
+    assert len(d["cameras"]) == 3 and d["placed"] == len(d["zebras"]) <= d["requested"]
+    # Three re-rolls of one placement share the zebras and differ in cameras and time of day.
+    s3, s4 = parse_scene(seq[3]), parse_scene(seq[4])
+    assert s3["zebras"] == s4["zebras"] and s3["cameras"] != s4["cameras"]
+
+
+def test_bad_parameters_name_themselves() -> None:
+    for bad, name in (({"strategy": "near"}, "strategy"), ({"count_max": 300}, "count_max"),
+                      ({"rect_min": 200.0}, "rect_min"), ({"mode": "fast"}, "mode"), ({"seed": "x"}, "seed")):
+        with pytest.raises(ParameterError, match=f"'{name}'"):
+            PlacerConfig.from_params(bad)
+
+
+def test_corners_helper_matches_overlap() -> None:
+    c, e = np.array([0.0, 0.0]), np.array([1.0, 0.5])
+    corners = obb_corners(c, e, box_axes(np.array(np.pi / 2)))
+    np.testing.assert_allclose(np.sort(corners[:, 0]), [-0.5, -0.5, 0.5, 0.5], atol=1e-12)
+    assert not obb_overlap(c, e, box_axes(np.array(0.0)), np.array([2.01, 0.0]), e, box_axes(np.array(0.0)))
+    assert obb_overlap(c, e, box_axes(np.array(0.0)), np.array([1.99, 0.0]), e, box_axes(np.array(0.0)))
+
+
+def test_shipped_yaml_matches_the_defaults() -> None:
+    from pathlib import Path
+
+    from zebra_sim_ros.params import load_params_file
+
+    values = load_params_file(str(Path(__file__).resolve().parents[1] / "config" / "placer.yaml"), "placer")
+    assert PlacerConfig.from_params(values) == PlacerConfig()
+    assert set(values) == {f for f in PlacerConfig().as_params()}

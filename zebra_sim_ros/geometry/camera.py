@@ -1,0 +1,89 @@
+"""Pinhole cameras and the frames around them.
+
+Frames (REP 103): a camera *body* frame is x forward, y left, z up; the camera *optical* frame is
+z forward (along the optical axis), x right, y down, which is the frame of every image and of
+``sensor_msgs/CameraInfo``. Pixel (u, v) has its origin at the top-left corner of the top-left pixel;
+the centre of pixel (0, 0) is at (0.5, 0.5).
+
+Camera attitude is given as yaw, pitch, roll of the body frame in ``map`` (ENU):
+``R_body = Rz(yaw) @ Ry(-pitch) @ Rx(roll)``, where **pitch is the elevation of the optical axis above the
+horizon** (negative looks down) and yaw is the heading of the optical axis, counter-clockwise from east.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.geometry.rotations import rot_x, rot_y, rot_z
+
+FloatArray = NDArray[np.float64]
+
+# Columns are the optical axes (x right, y down, z forward) expressed in the body frame.
+BODY_FROM_OPTICAL: FloatArray = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+
+
+@dataclass(frozen=True)
+class PinholeCamera:
+    """An ideal pinhole camera (no distortion) of ``width`` x ``height`` pixels and horizontal FOV."""
+
+    width: int
+    height: int
+    hfov_deg: float
+
+    def __post_init__(self) -> None:
+        if not (16 <= self.width <= 16384):
+            raise ParameterError("width", self.width, "16..16384 pixels")
+        if not (16 <= self.height <= 16384):
+            raise ParameterError("height", self.height, "16..16384 pixels")
+        if not (1.0 <= self.hfov_deg <= 170.0):
+            raise ParameterError("hfov_deg", self.hfov_deg, "1..170 degrees")
+
+    @property
+    def fx(self) -> float:
+        """Focal length in pixels (square pixels: fy == fx)."""
+        return self.width / 2 / float(np.tan(np.radians(self.hfov_deg) / 2))
+
+    @property
+    def vfov_deg(self) -> float:
+        """Vertical field of view in degrees."""
+        return float(np.degrees(2 * np.arctan(self.height / 2 / self.fx)))
+
+    @property
+    def K(self) -> FloatArray:  # noqa: N802 - the standard name of the intrinsic matrix
+        """3x3 intrinsic matrix, principal point at the image centre."""
+        return np.array([[self.fx, 0.0, self.width / 2], [0.0, self.fx, self.height / 2], [0.0, 0.0, 1.0]])
+
+    def project(self, points_optical: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
+        """Pixels (..., 2) of points in the optical frame, and whether each lies in front of the camera."""
+        p = np.asarray(points_optical, dtype=np.float64)
+        z = p[..., 2]
+        front = z > 1e-9
+        zs = np.where(front, z, 1.0)
+        u = self.fx * p[..., 0] / zs + self.width / 2
+        v = self.fx * p[..., 1] / zs + self.height / 2
+        return np.stack([u, v], axis=-1), front
+
+    def in_image(self, points_optical: FloatArray, margin_px: float = 0.0) -> NDArray[np.bool_]:
+        """Whether points project inside the image (at least ``margin_px`` from its border) and lie in front."""
+        uv, front = self.project(points_optical)
+        return np.asarray(front & (uv[..., 0] >= margin_px) & (uv[..., 0] <= self.width - margin_px)
+                          & (uv[..., 1] >= margin_px) & (uv[..., 1] <= self.height - margin_px))
+
+
+def body_rotation(yaw: FloatArray | float, pitch: FloatArray | float, roll: FloatArray | float) -> FloatArray:
+    """Body-to-map rotation(s) from yaw, pitch (optical-axis elevation, up positive) and roll, radians."""
+    return np.asarray(rot_z(yaw) @ rot_y(-np.asarray(pitch)) @ rot_x(roll))
+
+
+def optical_rotation(yaw: FloatArray | float, pitch: FloatArray | float, roll: FloatArray | float) -> FloatArray:
+    """Optical-to-map rotation(s): columns are the optical x (right), y (down), z (forward) axes in map."""
+    return np.asarray(body_rotation(yaw, pitch, roll) @ BODY_FROM_OPTICAL)
+
+
+def map_to_optical(points: FloatArray, position: FloatArray, r_optical: FloatArray) -> FloatArray:
+    """Points (..., 3) from ``map`` into the optical frame of a camera at ``position`` with ``r_optical``."""
+    return np.asarray((np.asarray(points, dtype=np.float64) - position) @ r_optical)

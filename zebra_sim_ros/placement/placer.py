@@ -1,0 +1,96 @@
+"""The placer core: seed + world + zebra library -> a deterministic sequence of scenes.
+
+Randomness: every step's draws come from generators seeded by ``[seed, placement]`` (zebras) and
+``[seed, placement, reroll]`` (time of day, strategy, cameras); the pool from ``[seed, 0x9001]``. So the
+same seed gives the same sequence bit for bit, and any step can be regenerated alone from (seed, step).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.geometry.camera import PinholeCamera
+from zebra_sim_ros.placement.cameras import CameraRanges, sample_cameras
+from zebra_sim_ros.placement.config import PlacerConfig
+from zebra_sim_ros.placement.herd import Herd, HerdPlacer, PlacementError, make_pool
+from zebra_sim_ros.placement.scene import Scene
+from zebra_sim_ros.placement.sun import lighting_for, sample_time_of_day
+from zebra_sim_ros.world.world import World
+from zebra_sim_ros.zebra.asset import ZebraLibrary
+
+
+class Placer:
+    """Generates :class:`Scene` objects for steps 0, 1, 2, ... of one experiment."""
+
+    def __init__(self, cfg: PlacerConfig, world: World, library: ZebraLibrary) -> None:
+        self.cfg = cfg
+        self.world = world
+        self.library = library
+        self.pool = make_pool(cfg.seed, cfg.pool_size, cfg.morph_weights, len(library.morphs))
+        if cfg.clips == ("all",):
+            self.clip_ids = np.arange(len(library.clip_names))
+        else:
+            unknown = [c for c in cfg.clips if c not in library.clip_names]
+            if unknown:
+                raise ParameterError("clips", list(cfg.clips), f"names among {list(library.clip_names)} or [all]")
+            self.clip_ids = np.array([library.clip_names.index(c) for c in cfg.clips])
+        max_slope = world.max_slope_deg if cfg.max_slope_deg < 0 else cfg.max_slope_deg
+        self.herds = HerdPlacer(world.terrain, world.placeable, max_slope, world.obstacles.positions[:, :2],
+                                world.obstacles.radii, library)
+        self.camera = PinholeCamera(cfg.camera_width, cfg.camera_height, cfg.camera_hfov_deg)
+        self.ranges = CameraRanges(
+            height_min=cfg.camera_height_min, height_max=cfg.camera_height_max, far_radius=cfg.far_radius,
+            closeby_margin=cfg.closeby_margin, roll_max_deg=cfg.roll_max_deg,
+            far_yaw_jitter_deg=cfg.far_yaw_jitter_deg, closeby_yaw_jitter_deg=cfg.closeby_yaw_jitter_deg,
+            pitch_offset_deg=cfg.pitch_offset_deg, min_separation=cfg.min_camera_separation,
+            min_clearance=cfg.min_camera_clearance)
+        self.camera_names = [f"drone_{i}" for i in range(cfg.num_cameras)]
+        self._cache: tuple[int, Herd] | None = None
+        self._world_info = {"name": world.name, "source": world.source, "seed": world.seed,
+                            "terrain_prim": cfg.terrain_prim}
+
+    def herd_for(self, placement: int) -> Herd:
+        """The herd of ``placement`` (kept while its camera re-rolls are generated).
+
+        If every zebra of a draw was dropped (rare: steep or crowded ground), the placement is drawn again
+        from ``[seed, placement, 0, attempt]``, up to 10 times.
+        """
+        if self._cache is not None and self._cache[0] == placement:
+            return self._cache[1]
+        c = self.cfg
+        for attempt in range(10):
+            rng = np.random.default_rng([c.seed, placement] + ([0, attempt] if attempt else []))
+            herd = self.herds.place(rng, self.pool, (c.count_min, c.count_max), (c.scale_min, c.scale_max),
+                                    (c.rect_min, c.rect_max), self.clip_ids, c.max_attempts)
+            if herd.count:
+                self._cache = (placement, herd)
+                return herd
+        raise PlacementError("world", self.world.name,
+                             "ground where at least one zebra can stand (10 draws placed none)")
+
+    def scene(self, step: int) -> Scene:
+        """The scene of step ``step`` (any step, in any order)."""
+        if step < 0:
+            raise ParameterError("step", step, ">= 0")
+        c = self.cfg
+        placement, reroll = divmod(step, c.camera_rerolls)
+        herd = self.herd_for(placement)
+        rng = np.random.default_rng([c.seed, placement, reroll + 1])
+        tod = sample_time_of_day(rng, c.night_fraction, c.day_start_h, c.day_end_h)
+        doy = int(rng.integers(1, 366))
+        strategy = c.strategy if c.strategy != "mixed" else ("far" if rng.uniform() < 0.5 else "closeby")
+        cams = sample_cameras(rng, herd.position, strategy, self.camera_names, self.ranges, self.world.terrain,
+                              self.camera)
+        lib = self.library
+        boxes = np.asarray(lib.boxes()[herd.morph, herd.global_frame], dtype=np.float64)  # (N, 2, 3)
+        centre_local = boxes.mean(axis=1) * herd.scale[:, None]
+        box_center = np.einsum("nij,nj->ni", herd.rotation, centre_local) + herd.position
+        box_size = (boxes[:, 1] - boxes[:, 0]) * herd.scale[:, None]
+        stamp_ns = int(round(step * 1e9 / c.rate_hz))
+        return Scene(
+            step=step, placement=placement, reroll=reroll, seed=c.seed, stamp_ns=stamp_ns, world=self._world_info,
+            asset_digest=str(lib.manifest["digest"]), morph_names=lib.morphs, clip_names=lib.clip_names,
+            coat_seeds=self.pool.coat_seed[herd.ids], herd=herd, box_center=box_center, box_size=box_size,
+            lighting=lighting_for(tod, doy, c.latitude_deg), cameras=tuple(cams),
+        )

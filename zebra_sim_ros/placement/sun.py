@@ -1,0 +1,108 @@
+"""Time of day and the light it gives: sun direction, colour and sky/ambient light.
+
+Directions are unit vectors in ``map`` (ENU: x east, y north, z up) pointing *towards* the light.
+The sun's position follows the standard solar geometry for a latitude, day of year and local solar
+time; at night the light is a dim, bluish moon opposite the sun's azimuth.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from zebra_sim_ros.errors import ParameterError
+
+
+@dataclass(frozen=True)
+class Lighting:
+    """The lighting of one frame. Intensities are relative (1.0 = clear noon sun)."""
+
+    time_of_day_h: float
+    day_of_year: int
+    latitude_deg: float
+    sun_direction: tuple[float, float, float]  # towards the sun, ENU
+    sun_elevation_deg: float
+    sun_azimuth_deg: float  # clockwise from north
+    light_direction: tuple[float, float, float]  # towards the key light (sun by day, moon by night)
+    light_rgb: tuple[float, float, float]
+    light_intensity: float
+    ambient_rgb: tuple[float, float, float]
+    ambient_intensity: float
+    is_night: bool
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready dictionary (see the scene schema)."""
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+
+
+def sample_time_of_day(rng: np.random.Generator, night_fraction: float = 0.1, day_start_h: float = 5.0,
+                       day_end_h: float = 20.0) -> float:
+    """Hours in [0, 24): ``1 - night_fraction`` of draws U(day_start, day_end), the rest in the other hours.
+
+    The paper: 90% between 5 am and 8 pm, 10% in the remaining hours (dusk to night).
+    """
+    if not 0.0 <= night_fraction <= 1.0:
+        raise ParameterError("night_fraction", night_fraction, "0..1")
+    if not 0.0 <= day_start_h < day_end_h <= 24.0:
+        raise ParameterError("day_start_h/day_end_h", (day_start_h, day_end_h), "0 <= start < end <= 24")
+    if rng.uniform() >= night_fraction:
+        return float(rng.uniform(day_start_h, day_end_h))
+    return float(rng.uniform(day_end_h, day_start_h + 24.0) % 24.0)
+
+
+def solar_direction(time_of_day_h: float, day_of_year: int, latitude_deg: float) -> tuple[np.ndarray, float, float]:
+    """(unit vector towards the sun in ENU, elevation deg, azimuth deg clockwise from north)."""
+    decl = np.radians(-23.44) * np.cos(2 * np.pi * (day_of_year + 10) / 365.0)
+    hour = np.radians(15.0 * (time_of_day_h - 12.0))
+    lat = np.radians(latitude_deg)
+    east = -np.cos(decl) * np.sin(hour)
+    north = np.sin(decl) * np.cos(lat) - np.cos(decl) * np.cos(hour) * np.sin(lat)
+    up = np.sin(decl) * np.sin(lat) + np.cos(decl) * np.cos(hour) * np.cos(lat)
+    v = np.array([east, north, up])
+    v /= np.linalg.norm(v)
+    elev = float(np.degrees(np.arcsin(np.clip(v[2], -1, 1))))
+    azim = float(np.degrees(np.arctan2(v[0], v[1])) % 360.0)
+    return v, elev, azim
+
+
+def lighting_for(time_of_day_h: float, day_of_year: int, latitude_deg: float) -> Lighting:
+    """Sun or moon light, colour and ambient for a time of day.
+
+    Noon is white-yellow; low sun is warm orange; civil twilight (sun 0..6 degrees below the horizon)
+    keeps a dim blue-purple sky light; night is a faint, bluish moon.
+    """
+    if not 0.0 <= time_of_day_h < 24.0:
+        raise ParameterError("time_of_day_h", time_of_day_h, "[0, 24) hours")
+    if not 1 <= day_of_year <= 366:
+        raise ParameterError("day_of_year", day_of_year, "1..366")
+    if not -90.0 <= latitude_deg <= 90.0:
+        raise ParameterError("latitude_deg", latitude_deg, "-90..90 degrees")
+    sun, elev, azim = solar_direction(time_of_day_h, day_of_year, latitude_deg)
+    if elev > 0.0:
+        warm = float(np.clip(1.0 - elev / 25.0, 0.0, 1.0))  # 1 at the horizon, 0 above 25 degrees
+        rgb = np.array([1.0, 0.97, 0.92]) * (1 - warm) + np.array([1.0, 0.62, 0.36]) * warm
+        intensity = float(np.clip(np.sin(np.radians(elev)) * 1.6, 0.08, 1.0))
+        ambient_rgb = np.array([0.62, 0.72, 0.90]) * (1 - warm) + np.array([0.72, 0.62, 0.70]) * warm
+        ambient = 0.35 * (0.4 + 0.6 * (1 - warm))
+        light, night = sun, False
+    else:
+        # Below the horizon: twilight sky fading into moonlight.
+        twilight = float(np.clip(1.0 + elev / 6.0, 0.0, 1.0))  # 1 at sunset, 0 at 6 degrees below
+        moon_az = np.radians(azim + 180.0)
+        moon = np.array([np.sin(moon_az) * np.cos(np.radians(40)), np.cos(moon_az) * np.cos(np.radians(40)),
+                         np.sin(np.radians(40))])
+        light = moon / np.linalg.norm(moon)
+        rgb = np.array([0.55, 0.65, 0.95])
+        intensity = 0.06
+        ambient_rgb = np.array([0.45, 0.45, 0.75]) * twilight + np.array([0.30, 0.36, 0.55]) * (1 - twilight)
+        ambient = 0.03 + 0.12 * twilight
+        night = True
+    return Lighting(
+        time_of_day_h=float(time_of_day_h), day_of_year=int(day_of_year), latitude_deg=float(latitude_deg),
+        sun_direction=(float(sun[0]), float(sun[1]), float(sun[2])), sun_elevation_deg=elev, sun_azimuth_deg=azim,
+        light_direction=(float(light[0]), float(light[1]), float(light[2])),
+        light_rgb=(float(rgb[0]), float(rgb[1]), float(rgb[2])), light_intensity=intensity,
+        ambient_rgb=(float(ambient_rgb[0]), float(ambient_rgb[1]), float(ambient_rgb[2])),
+        ambient_intensity=float(ambient), is_night=night,
+    )
