@@ -26,7 +26,7 @@ def add_json_flag(p: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The full ``zebra-sim`` argument parser."""
-    from zebra_sim_ros.cli import asset
+    from zebra_sim_ros.cli import asset, place, world
 
     parser = argparse.ArgumentParser(
         prog="zebra-sim",
@@ -35,6 +35,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"zebra_sim_ros {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     asset.register(sub)
+    world.register(sub)
+    place.register(sub)
     return parser
 
 

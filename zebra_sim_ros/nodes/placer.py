@@ -1,15 +1,150 @@
-"""The ``placer`` node: zebra placements and camera poses, one seeded frame at a time."""
+"""The ``placer`` node: publishes one scene per step (``ros2 run zebra_sim_ros placer``).
 
-from zebra_sim_ros.nodes import stub_main
+Topics (all stamped with the scene's simulated time, frame ``map`` = ENU):
 
-USAGE = """Publishes one zebra placement per frame: a random terrain rectangle, 2..250 zebras
-with animation clip, frame, scale and yaw, packed without collisions, plus the three
-aerial camera poses. Seeded: the seed goes into every frame's metadata."""
+- ``/zebra_sim/scene`` (std_msgs/String): the scene JSON (schema in ``zebra_sim_ros.placement.scene``);
+  reliable, transient local, so a camera that starts late still gets the current step.
+- ``/zebra_sim/zebras/markers`` (visualization_msgs/MarkerArray): the zebras' oriented 3D boxes.
+- ``/drone_{i}/camera/pose`` (geometry_msgs/PoseStamped): pose of ``drone_{i}_camera_optical`` in ``map``.
+
+Modes: ``rate`` publishes a step every 1/rate_hz s; ``lockstep`` publishes step k+1 only after every name
+in ``lockstep_ack_from`` has acknowledged step k on ``/zebra_sim/frame_done`` (std_msgs/Header: stamp = the
+scene's stamp, frame_id = the acknowledging node's name, e.g. ``drone_0``).
+"""
+
+from __future__ import annotations
+
+import time
+
+from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3
+from rclpy.node import Node
+from std_msgs.msg import ColorRGBA, Header, String
+from visualization_msgs.msg import Marker, MarkerArray
+
+from zebra_sim_ros.nodes.ros_adapter import declare_and_read, describe_qos, help_text, qos, run_node, stamp, stamp_ns
+from zebra_sim_ros.placement.config import PLACER_PARAMS, PlacerConfig
+from zebra_sim_ros.placement.placer import Placer
+from zebra_sim_ros.placement.scene import Scene
+from zebra_sim_ros.world.world import load_world
+from zebra_sim_ros.zebra.asset import load_library
+
+SCENE_TOPIC = "/zebra_sim/scene"
+ACK_TOPIC = "/zebra_sim/frame_done"
+MARKER_TOPIC = "/zebra_sim/zebras/markers"
+_MORPH_RGBA = {"plains": (0.95, 0.85, 0.2, 0.5), "grevy": (0.3, 0.7, 1.0, 0.5), "foal": (1.0, 0.4, 0.6, 0.5)}
+
+
+class PlacerNode(Node):
+    """Thin adapter around :class:`zebra_sim_ros.placement.placer.Placer`."""
+
+    def __init__(self) -> None:
+        super().__init__("placer")
+        self.cfg = PlacerConfig.from_params(declare_and_read(self, PLACER_PARAMS))
+        c = self.cfg
+        t0 = time.perf_counter()
+        world = load_world(c.world, c.terrain_prim, c.world_seed)
+        self.placer = Placer(c, world, load_library())
+        self.get_logger().info(
+            f"world '{world.name}' ({world.source}), asset {self.placer.library.manifest['digest']}, seed {c.seed}, "
+            f"strategy {c.strategy}, mode {c.mode}, ready in {time.perf_counter() - t0:.1f} s")
+        latched = qos(c.qos_reliability, 1, transient_local=True)
+        stream = qos(c.qos_reliability, c.qos_depth)
+        self.get_logger().info(f"QoS {SCENE_TOPIC}: {describe_qos(latched)}; markers and poses: {describe_qos(stream)}")
+        self.scene_pub = self.create_publisher(String, SCENE_TOPIC, latched)
+        self.marker_pub = self.create_publisher(MarkerArray, MARKER_TOPIC, stream)
+        self.pose_pubs = [self.create_publisher(PoseStamped, f"/{n}/camera/pose", stream)
+                          for n in self.placer.camera_names]
+        self.step = c.start_step
+        self.published = 0
+        self.done = False
+        self.exit_code = 0
+        self.pending: Scene | None = None
+        self.acked: set[str] = set()
+        self.sent_at = 0.0
+        if c.mode == "rate":
+            self.timer = self.create_timer(1.0 / c.rate_hz, self._publish_next)
+        else:
+            ack_qos = qos("reliable", 100)
+            self.get_logger().info(f"lockstep: waiting for {list(c.lockstep_ack_from)} on {ACK_TOPIC} "
+                                   f"({describe_qos(ack_qos)})")
+            self.create_subscription(Header, ACK_TOPIC, self._on_ack, ack_qos)
+            self.timer = self.create_timer(0.05, self._lockstep_tick)
+
+    def _finished(self) -> bool:
+        return self.cfg.max_steps > 0 and self.published >= self.cfg.max_steps
+
+    def _publish_next(self) -> None:
+        if self._finished():
+            self.get_logger().info(f"published {self.published} steps; stopping")
+            self.done = True
+            return
+        scene = self.placer.scene(self.step)
+        self._publish(scene)
+        self.step += 1
+        self.published += 1
+
+    def _publish(self, scene: Scene) -> None:
+        header = Header(stamp=stamp(scene.stamp_ns), frame_id="map")
+        self.scene_pub.publish(String(data=scene.to_json()))
+        self.marker_pub.publish(self._markers(scene, header))
+        for pub, cam in zip(self.pose_pubs, scene.cameras, strict=True):
+            x, y, z, w = cam.quaternion_xyzw()
+            pose = Pose(position=Point(x=cam.position[0], y=cam.position[1], z=cam.position[2]),
+                        orientation=Quaternion(x=x, y=y, z=z, w=w))
+            pub.publish(PoseStamped(header=header, pose=pose))
+        self.sent_at = time.monotonic()
+        self.get_logger().debug(f"step {scene.step}: {scene.herd.count}/{scene.herd.requested} zebras placed")
+
+    def _markers(self, scene: Scene, header: Header) -> MarkerArray:
+        d = scene.to_dict()
+        markers = [Marker(header=header, ns="zebras", action=Marker.DELETEALL)]
+        for z in d["zebras"]:
+            box = z["box"]
+            q = box["orientation_xyzw"]
+            r, g, b, a = _MORPH_RGBA.get(z["morph"], (1.0, 1.0, 1.0, 0.5))
+            markers.append(Marker(
+                header=header, ns="zebras", id=int(z["id"]), type=Marker.CUBE, action=Marker.ADD,
+                pose=Pose(position=Point(x=box["center"][0], y=box["center"][1], z=box["center"][2]),
+                          orientation=Quaternion(x=q[0], y=q[1], z=q[2], w=q[3])),
+                scale=Vector3(x=box["size"][0], y=box["size"][1], z=box["size"][2]),
+                color=ColorRGBA(r=r, g=g, b=b, a=a)))
+        return MarkerArray(markers=markers)
+
+    # -- lockstep ---------------------------------------------------------------------------------
+    def _lockstep_tick(self) -> None:
+        c = self.cfg
+        if self.pending is None:
+            if self._finished():
+                self.get_logger().info(f"all {self.published} steps acknowledged; stopping")
+                self.done = True
+                return
+            # Start once an acknowledger is on the graph; later ones still get the step (transient local).
+            if self.published == 0 and self.count_publishers(ACK_TOPIC) == 0:
+                return
+            self.pending = self.placer.scene(self.step)
+            self.acked = set()
+            self._publish(self.pending)
+        elif time.monotonic() - self.sent_at > c.lockstep_timeout_s:
+            missing = sorted(set(c.lockstep_ack_from) - self.acked)
+            self.get_logger().warning(f"step {self.pending.step}: no acknowledgement from {missing} after "
+                                      f"{c.lockstep_timeout_s:.1f} s; publishing it again")
+            self._publish(self.pending)
+
+    def _on_ack(self, msg: Header) -> None:
+        if self.pending is None or stamp_ns(msg.stamp) != self.pending.stamp_ns:
+            return  # a late or duplicate acknowledgement of an earlier step
+        if msg.frame_id in self.cfg.lockstep_ack_from:
+            self.acked.add(msg.frame_id)
+        if self.acked >= set(self.cfg.lockstep_ack_from):
+            self.pending = None
+            self.step += 1
+            self.published += 1
+            self._lockstep_tick()
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``ros2 run zebra_sim_ros placer``; returns the exit status."""
-    return stub_main("placer", "the placement core", USAGE, argv)
+    return run_node("placer", PlacerNode, argv, help_text("placer", __doc__ or "", PLACER_PARAMS))
 
 
 if __name__ == "__main__":

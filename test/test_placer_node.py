@@ -1,0 +1,132 @@
+"""The placer as a real process over DDS: scenes and camera poses arrive, in rate and lockstep modes."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import rclpy
+from geometry_msgs.msg import PoseStamped
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from ros_helpers import fresh_domain_id, node_process, param_args, ros_env, spin_until
+from std_msgs.msg import Header, String
+from visualization_msgs.msg import MarkerArray
+
+pytestmark = pytest.mark.integration
+SMALL = {"count_max": 40, "world": "savanna"}
+
+
+class Listener:
+    """A test-side node collecting what the placer publishes."""
+
+    def __init__(self, domain: int) -> None:
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain)
+        self.node = rclpy.create_node("test_listener", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        latched = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.scenes: list[dict] = []
+        self.scene_times: list[float] = []
+        self.poses: dict[str, list[PoseStamped]] = {f"drone_{i}": [] for i in range(3)}
+        self.markers: list[MarkerArray] = []
+        self.node.create_subscription(String, "/zebra_sim/scene", self._on_scene, latched)
+        for name in self.poses:
+            self.node.create_subscription(PoseStamped, f"/{name}/camera/pose",
+                                          lambda m, n=name: self.poses[n].append(m), 10)
+        self.node.create_subscription(MarkerArray, "/zebra_sim/zebras/markers", self.markers.append, 10)
+        self.ack_pub = self.node.create_publisher(Header, "/zebra_sim/frame_done", 100)
+
+    def _on_scene(self, msg: String) -> None:
+        self.scenes.append(json.loads(msg.data))
+        self.scene_times.append(time.monotonic())
+
+    def spin_until(self, cond, timeout: float) -> bool:  # type: ignore[no-untyped-def]
+        return spin_until(self.node, self.executor, cond, timeout)
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+
+@pytest.fixture
+def domain() -> int:
+    return fresh_domain_id()
+
+
+def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path) -> None:
+    listener = Listener(domain)
+    try:
+        params = dict(SMALL, mode="rate", rate_hz=4.0, max_steps=5, seed=9)
+        with node_process("placer", params, domain, tmp_path / "placer.log") as proc:
+            assert listener.spin_until(lambda: len(listener.scenes) >= 5 and
+                                       all(len(p) >= 5 for p in listener.poses.values()), 60), \
+                (tmp_path / "placer.log").read_text()
+            assert proc.wait(timeout=20) == 0  # stops by itself after max_steps
+        steps = [s["step"] for s in listener.scenes]
+        assert steps == sorted(steps) and steps[-1] == 4
+        for name, poses in listener.poses.items():
+            by_stamp = {(p.header.stamp.sec, p.header.stamp.nanosec): p for p in poses}
+            for s in listener.scenes:
+                cam = next(c for c in s["cameras"] if c["name"] == name)
+                pose = by_stamp[(s["stamp"]["sec"], s["stamp"]["nanosec"])]
+                assert pose.header.frame_id == "map"
+                assert pose.pose.position.x == pytest.approx(cam["position"][0])
+                assert pose.pose.orientation.w == pytest.approx(cam["orientation_xyzw"][3])
+        assert listener.markers and len(listener.markers[-1].markers) == listener.scenes[-1]["placed"] + 1
+        # The node's scenes are exactly the command line's (same parameters, no ROS).
+        cli = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "place", "--steps", "2",
+                              "--set", "count_max=40", "--set", "rate_hz=4.0", "--seed", "9"],
+                             capture_output=True, text=True, timeout=120)
+        assert cli.returncode == 0, cli.stderr
+        assert [json.loads(line) for line in cli.stdout.splitlines()[:2]] == listener.scenes[:2]
+    finally:
+        listener.close()
+
+
+def test_lockstep_waits_for_every_camera(domain: int, tmp_path: Path) -> None:
+    listener = Listener(domain)
+    try:
+        params = dict(SMALL, mode="lockstep", max_steps=4, seed=5, lockstep_timeout_s=30.0)
+        with node_process("placer", params, domain, tmp_path / "placer.log") as proc:
+            for k in range(4):
+                assert listener.spin_until(lambda k=k: any(s["step"] == k for s in listener.scenes), 60), \
+                    (tmp_path / "placer.log").read_text()
+                scene = next(s for s in listener.scenes if s["step"] == k)
+                newest = lambda: max(s["step"] for s in listener.scenes)  # noqa: E731
+                listener.spin_until(lambda: False, 0.5)
+                assert newest() == k, "the placer did not wait for acknowledgements"
+                for i in range(2):
+                    listener.ack_pub.publish(Header(stamp=_time(scene["stamp"]), frame_id=f"drone_{i}"))
+                listener.spin_until(lambda: False, 0.5)
+                assert newest() == k, "two of three acknowledgements advanced the step"
+                listener.ack_pub.publish(Header(stamp=_time(scene["stamp"]), frame_id="drone_2"))
+            assert proc.wait(timeout=30) == 0, (tmp_path / "placer.log").read_text()
+        assert [s["step"] for s in listener.scenes] == [0, 1, 2, 3]
+    finally:
+        listener.close()
+
+
+def _time(stamp: dict):  # type: ignore[no-untyped-def]
+    from builtin_interfaces.msg import Time
+
+    return Time(sec=stamp["sec"], nanosec=stamp["nanosec"])
+
+
+@pytest.mark.parametrize(("params", "needle"), [
+    ({"strategy": "sideways"}, "strategy"),
+    ({"count_min": 10, "count_max": 5}, "count_min"),
+    ({"world": "atlantis"}, "world"),
+])
+def test_bad_parameter_stops_the_node_naming_it(domain: int, params: dict, needle: str) -> None:
+    proc = subprocess.run([sys.executable, "-m", "zebra_sim_ros.nodes.placer", *param_args(params)],
+                          env=ros_env(domain), capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert needle in proc.stderr + proc.stdout
