@@ -153,7 +153,7 @@ def test_optical_frame_convention() -> None:
     cam = PinholeCamera(640, 480, 90.0)
     assert cam.fx == pytest.approx(320.0)
     uv, front = cam.project(np.array([[0.0, 0.0, 5.0], [1.0, 0.5, 2.0], [0, 0, -1.0]]))
-    np.testing.assert_allclose(uv[:2], [[320, 240], [480, 320]])
+    np.testing.assert_allclose(uv[:2], [[319.5, 239.5], [479.5, 319.5]])
     assert front.tolist() == [True, True, False]
 
 

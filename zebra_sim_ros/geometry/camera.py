@@ -2,8 +2,9 @@
 
 Frames (REP 103): a camera *body* frame is x forward, y left, z up; the camera *optical* frame is
 z forward (along the optical axis), x right, y down, which is the frame of every image and of
-``sensor_msgs/CameraInfo``. Pixel (u, v) has its origin at the top-left corner of the top-left pixel;
-the centre of pixel (0, 0) is at (0.5, 0.5).
+``sensor_msgs/CameraInfo``. Pixel coordinates follow OpenCV and ROS CameraInfo: the centre of the top-left
+pixel is (0, 0), so the image spans -0.5 .. width - 0.5 and the principal point of a centred camera is
+((width - 1) / 2, (height - 1) / 2).
 
 Camera attitude is given as yaw, pitch, roll of the body frame in ``map`` (ENU):
 ``R_body = Rz(yaw) @ Ry(-pitch) @ Rx(roll)``, where **pitch is the elevation of the optical axis above the
@@ -54,8 +55,9 @@ class PinholeCamera:
 
     @property
     def K(self) -> FloatArray:  # noqa: N802 - the standard name of the intrinsic matrix
-        """3x3 intrinsic matrix, principal point at the image centre."""
-        return np.array([[self.fx, 0.0, self.width / 2], [0.0, self.fx, self.height / 2], [0.0, 0.0, 1.0]])
+        """3x3 intrinsic matrix (OpenCV / CameraInfo convention), principal point at the image centre."""
+        return np.array([[self.fx, 0.0, (self.width - 1) / 2], [0.0, self.fx, (self.height - 1) / 2],
+                         [0.0, 0.0, 1.0]])
 
     def project(self, points_optical: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
         """Pixels (..., 2) of points in the optical frame, and whether each lies in front of the camera."""
@@ -63,15 +65,16 @@ class PinholeCamera:
         z = p[..., 2]
         front = z > 1e-9
         zs = np.where(front, z, 1.0)
-        u = self.fx * p[..., 0] / zs + self.width / 2
-        v = self.fx * p[..., 1] / zs + self.height / 2
+        u = self.fx * p[..., 0] / zs + (self.width - 1) / 2
+        v = self.fx * p[..., 1] / zs + (self.height - 1) / 2
         return np.stack([u, v], axis=-1), front
 
     def in_image(self, points_optical: FloatArray, margin_px: float = 0.0) -> NDArray[np.bool_]:
         """Whether points project inside the image (at least ``margin_px`` from its border) and lie in front."""
         uv, front = self.project(points_optical)
-        return np.asarray(front & (uv[..., 0] >= margin_px) & (uv[..., 0] <= self.width - margin_px)
-                          & (uv[..., 1] >= margin_px) & (uv[..., 1] <= self.height - margin_px))
+        lo = margin_px - 0.5
+        return np.asarray(front & (uv[..., 0] >= lo) & (uv[..., 0] <= self.width - 1 - lo)
+                          & (uv[..., 1] >= lo) & (uv[..., 1] <= self.height - 1 - lo))
 
 
 def body_rotation(yaw: FloatArray | float, pitch: FloatArray | float, roll: FloatArray | float) -> FloatArray:
