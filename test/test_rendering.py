@@ -1,0 +1,163 @@
+"""The renderer against known geometry: metric depth, exact masks, CameraInfo's projection, occlusion."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from render_helpers import cube_mesh, flat_world
+
+from zebra_sim_ros.errors import DependencyError
+from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical, optical_rotation
+from zebra_sim_ros.placement.sun import lighting_for
+from zebra_sim_ros.rendering.effects import CameraEffects
+from zebra_sim_ros.rendering.renderer import CameraView, Renderer, RenderOptions, ZebraSet
+from zebra_sim_ros.zebra.asset import ZebraLibrary
+
+W, H, HFOV = 320, 240, 60.0
+NOON = lighting_for(12.0, 80, -2.3)
+
+
+def _zebras(library: ZebraLibrary, positions: list[tuple[float, float]], yaw: float = 0.0) -> ZebraSet:
+    n = len(positions)
+    c, s = np.cos(yaw), np.sin(yaw)
+    rot = np.tile(np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]]), (n, 1, 1))
+    return ZebraSet(ids=np.arange(n, dtype=np.int64) + 10,  # masks hold id + 1: 11, 12, ...
+                    morph=np.zeros(n, dtype=np.int64),
+                    global_frame=np.full(n, library.frame_index("idle", 0), dtype=np.int64), scale=np.ones(n),
+                    rotation=rot, position=np.array([[x, y, 0.0] for x, y in positions]),
+                    coat_seed=np.arange(n, dtype=np.int64))
+
+
+def _view(pos: tuple[float, float, float], yaw_deg: float, pitch_deg: float) -> CameraView:
+    return CameraView("cam", np.array(pos, dtype=np.float64),
+                      optical_rotation(np.radians(yaw_deg), np.radians(pitch_deg), 0.0))
+
+
+@pytest.fixture(scope="module")
+def options() -> RenderOptions:
+    return RenderOptions(width=W, height=H, hfov_deg=HFOV, coat_size=64, max_coats=16)
+
+
+def test_cube_depth_silhouette_and_projection(library: ZebraLibrary, options: RenderOptions) -> None:
+    # A 2 m cube whose near face is 20 m in front of a level camera at 1 m height, looking east.
+    world = flat_world({"cube": (cube_mesh(2.0), [(21.0, 0.0, 1.0)])})
+    r = Renderer(world, library, options)
+    try:
+        view = _view((0.0, 0.0, 1.0), 0.0, 0.0)
+        out = r.render(_zebras(library, []), NOON, [view])[0]
+    finally:
+        r.release()
+    cam = PinholeCamera(W, H, HFOV)
+    np.testing.assert_allclose(out.K, cam.K)
+    # Depth along the optical axis of the near face (x = 20) is 20 m everywhere on it.
+    corners = np.array([[20.0, y, z] for y in (-1.0, 1.0) for z in (0.0, 2.0)])
+    uv, _ = cam.project(map_to_optical(corners, view.position, view.r_optical))
+    poly = cv2.convexHull(uv.astype(np.float32))
+    expected = np.zeros((H, W), np.uint8)
+    # Pixel centres inside the projected face: that is the silhouette a perfect rasteriser draws.
+    ys, xs = np.mgrid[0:H, 0:W]
+    inside = np.array([cv2.pointPolygonTest(poly, (float(x), float(y)), False) >= 0
+                       for x, y in zip(xs.ravel(), ys.ravel(), strict=True)]).reshape(H, W)
+    expected[inside] = 1
+    got = (np.abs(out.depth - 20.0) < 0.2).astype(np.uint8)
+    assert expected.sum() > 500
+    iou = (expected & got).sum() / (expected | got).sum()
+    assert iou > 0.95, iou
+    face = out.depth[inside]
+    np.testing.assert_allclose(np.median(face), 20.0, rtol=0.01)
+    assert np.abs(face - 20.0).max() < 0.2  # within 1% everywhere inside
+    # The ground's depth is metric too: the ray through pixel row v hits z = 0 at a known distance.
+    v_row = int(H * 0.9)
+    z_expected = 1.0 / ((v_row - (H - 1) / 2) / cam.fx)
+    assert out.depth[v_row, 5] == pytest.approx(z_expected, rel=0.01)
+    assert np.all(out.instances == 0)  # no zebra, no mask
+    assert np.isinf(out.depth[0, 0])  # sky
+
+
+def test_zebra_mask_is_the_projected_posed_mesh(library: ZebraLibrary, options: RenderOptions) -> None:
+    world = flat_world()
+    r = Renderer(world, library, options)
+    try:
+        view = _view((0.0, -12.0, 6.0), 90.0, -25.0)
+        zebras = _zebras(library, [(0.0, 0.0)], yaw=0.4)
+        a = r.render(zebras, NOON, [view])[0]
+        b = r.render(zebras, lighting_for(19.5, 80, -2.3), [view])[0]
+    finally:
+        r.release()
+    cam = PinholeCamera(W, H, HFOV)
+    posed = library.pose(zebras.morph, zebras.global_frame, zebras.scale, zebras.rotation, zebras.position)
+    uv, _ = cam.project(map_to_optical(posed.vertices[0].astype(np.float64), view.position, view.r_optical))
+    faces = library.faces(0)
+    # Rasterise every projected triangle at 8x, then average to pixels: the mesh's exact coverage.
+    k = 8
+    big = np.zeros((H * k, W * k), np.uint8)
+    pts = np.round((uv[faces] + 0.5) * k - 0.5).astype(np.int32)
+    for tri in pts:  # one by one: fillPoly on many polygons at once is not a union
+        cv2.fillConvexPoly(big, tri, 1)
+    coverage = big.reshape(H, k, W, k).mean(axis=(1, 3))
+    mask = a.instances == 11
+    assert mask.sum() > 400
+    core, outside = coverage > 0.75, coverage < 0.25
+    assert mask[core].mean() > 0.99  # pixels mostly covered by the zebra are labelled
+    assert not mask[outside].any()  # pixels mostly not covered are not
+    # Same geometry, other light: the same mask, pixel for pixel; and a different image.
+    assert np.array_equal(a.instances, b.instances)
+    assert not np.array_equal(a.rgb, b.rgb)
+    # Depth on the zebra agrees with the mesh: nearest and farthest labelled depths bracket the vertices.
+    z = map_to_optical(posed.vertices[0].astype(np.float64), view.position, view.r_optical)[:, 2]
+    assert a.depth[mask].min() >= z.min() - 0.05 and a.depth[mask].max() <= z.max() + 0.05
+
+
+def test_a_zebra_behind_a_tree_has_no_mask_where_the_tree_is(library: ZebraLibrary, options: RenderOptions) -> None:
+    view = _view((0.0, -15.0, 1.5), 90.0, 0.0)
+    zebras = _zebras(library, [(0.0, 0.0)])
+    renders = {}
+    for name, things in (("open", None), ("tree", {"trunk": (cube_mesh(0.5, height=4.0), [(0.3, -6.0, 1.0)])})):
+        r = Renderer(flat_world(things), library, options)
+        try:
+            renders[name] = r.render(zebras, NOON, [view])[0]
+        finally:
+            r.release()
+    open_, tree = renders["open"], renders["tree"]
+    hidden = (open_.instances == 11) & (tree.depth < open_.depth - 0.5)  # the trunk is in front of the zebra
+    assert hidden.sum() > 100
+    assert not (tree.instances[hidden] > 0).any()
+    assert np.all(tree.instances[tree.instances > 0] == 11)
+    assert ((tree.instances == 11) <= (open_.instances == 11)).all()
+    assert (tree.instances == 11).sum() < (open_.instances == 11).sum()
+
+
+def test_same_scene_renders_the_same_twice(library: ZebraLibrary, options: RenderOptions) -> None:
+    world = flat_world({"cube": (cube_mesh(1.0), [(5.0, 5.0, 1.0)])})
+    zebras = _zebras(library, [(0.0, 0.0), (3.0, 1.0), (-2.0, 2.0)], yaw=1.0)
+    view = _view((0.0, -20.0, 15.0), 90.0, -35.0)
+    outs = []
+    for _ in range(2):
+        r = Renderer(world, library, options)
+        try:
+            outs.append(r.render(zebras, NOON, [view])[0])
+        finally:
+            r.release()
+    assert np.array_equal(outs[0].instances, outs[1].instances)
+    assert np.array_equal(outs[0].depth, outs[1].depth)
+    assert set(np.unique(outs[0].instances)) == {0, 11, 12, 13}
+
+
+def test_effects_touch_rgb_only_and_are_seeded() -> None:
+    rgb = np.full((40, 60, 3), 128, np.uint8)
+    fx = CameraEffects(blur_sigma_px=1.0, noise_std=5.0, jpeg_quality=70)
+    a = fx.apply(rgb, np.random.default_rng(1))
+    assert np.array_equal(a, fx.apply(rgb, np.random.default_rng(1)))
+    assert not np.array_equal(a, rgb) and a.shape == rgb.shape and a.dtype == np.uint8
+    assert abs(float(a.mean()) - 128) < 3
+
+
+def test_missing_egl_names_the_debian_packages(monkeypatch: pytest.MonkeyPatch) -> None:
+    import ctypes.util
+
+    from zebra_sim_ros.rendering import gl
+
+    monkeypatch.setattr(ctypes.util, "find_library", lambda name: None)
+    with pytest.raises(DependencyError, match="libegl1"):
+        gl.create_context()

@@ -1,0 +1,520 @@
+"""The renderer: one world loaded once, zebras posed per frame, three outputs per camera view.
+
+Per view it returns RGB (8-bit sRGB), depth along the optical axis in metres (float32; +inf where the ray
+meets only sky, REP 118) and the instance mask (uint16: zebra id + 1, 0 for anything that is not a zebra),
+all three from the same rasterisation, so they agree pixel for pixel. Anti-aliasing (FXAA) touches RGB only.
+
+Cost control on a CPU: the terrain is drawn in 64 m tiles at 1 m resolution near the camera and 4 m
+farther away, tiles and vegetation outside the view are culled, grass is drawn only near the camera,
+zebras far away use the low-detail mesh, and only vegetation and zebras cast shadows (the terrain shades
+itself by its normal). Each view has its own shadow map fitted to the ground it sees.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.geometry.camera import PinholeCamera
+from zebra_sim_ros.placement.sun import Lighting
+from zebra_sim_ros.rendering import shaders
+from zebra_sim_ros.rendering.gl import create_context
+from zebra_sim_ros.world.world import World
+from zebra_sim_ros.zebra.asset import ZebraLibrary
+from zebra_sim_ros.zebra.coat import bake_coat, random_coat
+from zebra_sim_ros.zebra.skeleton import MORPHS
+
+FloatArray = NDArray[np.float64]
+TILE_M = 64
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    """How to render. Sizes in pixels, distances in metres."""
+
+    width: int = 1280
+    height: int = 720
+    hfov_deg: float = 80.0
+    shadows: bool = True
+    shadow_size: int = 2048
+    shadow_radius_m: float = 120.0
+    antialias: bool = True
+    exposure: float = 1.2
+    near_m: float = 0.1
+    far_m: float = 4000.0
+    grass_distance_m: float = 60.0
+    bush_distance_m: float = 400.0
+    terrain_detail_distance_m: float = 180.0
+    zebra_detail_distance_m: float = 60.0
+    coat_size: int = 256
+    max_coats: int = 1024
+
+    def check(self) -> None:
+        """Raise :class:`ParameterError` for values outside their range."""
+        PinholeCamera(self.width, self.height, self.hfov_deg)
+        if not 256 <= self.shadow_size <= 8192:
+            raise ParameterError("shadow_size", self.shadow_size, "256..8192 px")
+        if not 0.001 <= self.near_m < self.far_m:
+            raise ParameterError("near_m", self.near_m, f"0.001..far_m ({self.far_m})")
+        if self.coat_size not in (64, 128, 256, 512, 1024):
+            raise ParameterError("coat_size", self.coat_size, "64, 128, 256, 512 or 1024 texels")
+
+
+@dataclass(frozen=True)
+class ZebraSet:
+    """Placed zebras to draw: ids (pool indices), library morph indices and global frames, scale,
+    asset-to-map rotation (N, 3, 3), position (N, 3), coat seeds."""
+
+    ids: NDArray[np.int64]
+    morph: NDArray[np.int64]
+    global_frame: NDArray[np.int64]
+    scale: FloatArray
+    rotation: FloatArray
+    position: FloatArray
+    coat_seed: NDArray[np.int64]
+
+    @property
+    def count(self) -> int:
+        """Number of zebras."""
+        return int(len(self.ids))
+
+
+@dataclass(frozen=True)
+class CameraView:
+    """Where a camera is: position in map (m) and ``r_optical`` (columns: optical x, y, z in map)."""
+
+    name: str
+    position: FloatArray
+    r_optical: FloatArray
+
+
+@dataclass
+class RenderedView:
+    """One camera's images; ``K`` is the pinhole intrinsic matrix the images follow."""
+
+    name: str
+    rgb: NDArray[np.uint8]
+    depth: NDArray[np.float32]
+    instances: NDArray[np.uint16]
+    K: FloatArray
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def perspective(cam: PinholeCamera, near: float, far: float) -> FloatArray:
+    """OpenGL projection of a pinhole camera (principal point at the centre, square pixels)."""
+    fx = cam.fx
+    return np.array([
+        [2 * fx / cam.width, 0, 0, 0],
+        [0, 2 * fx / cam.height, 0, 0],
+        [0, 0, -(far + near) / (far - near), -2 * far * near / (far - near)],
+        [0, 0, -1, 0],
+    ])
+
+
+def view_matrix(position: FloatArray, r_optical: FloatArray) -> FloatArray:
+    """Map to OpenGL eye coordinates (x right, y up, looking down -z) for an optical frame pose."""
+    gl_from_optical = np.diag([1.0, -1.0, -1.0])
+    m = np.eye(4)
+    m[:3, :3] = gl_from_optical @ r_optical.T
+    m[:3, 3] = -m[:3, :3] @ position
+    return m
+
+
+def _frustum_planes(view_proj: FloatArray) -> FloatArray:
+    """(6, 4) planes (a, b, c, d), inside where a x + b y + c z + d >= 0, normalised."""
+    m = view_proj
+    planes = np.array([m[3] + m[0], m[3] - m[0], m[3] + m[1], m[3] - m[1], m[3] + m[2], m[3] - m[2]])
+    return planes / np.linalg.norm(planes[:, :3], axis=1, keepdims=True)
+
+
+def _spheres_visible(planes: FloatArray, centres: FloatArray, radii: FloatArray) -> NDArray[np.bool_]:
+    d = centres @ planes[:, :3].T + planes[:, 3]
+    return np.asarray(np.all(d >= -radii[:, None], axis=1))
+
+
+def _gl(m: FloatArray) -> bytes:
+    """A 4x4 matrix as GLSL expects it (column-major float32)."""
+    return np.asarray(m, dtype=np.float32).T.tobytes()
+
+
+def _vertex_normals(v: FloatArray, f: NDArray[np.int64]) -> NDArray[np.float32]:
+    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    n = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(n, f[:, k], fn)
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    # Two-sided cards (grass blades) cancel out: light them like the ground they grow from.
+    n = np.where(length > 1e-9, n / np.maximum(length, 1e-12), np.array([0.0, 0.0, 1.0]))
+    return n.astype(np.float32)
+
+
+def _unweld(faces: NDArray[np.int64], uv: NDArray[np.float32]) -> tuple[NDArray[np.int64], NDArray[np.float32],
+                                                                         NDArray[np.int32]]:
+    """Per-vertex UVs from face-varying ones: (source vertex per new vertex, uv per new vertex, new faces)."""
+    q = np.round(uv.reshape(-1, 2) * 65536).astype(np.int64)
+    key = faces.reshape(-1) * (1 << 40) + q[:, 0] * (1 << 20) + q[:, 1]
+    uniq, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+    src = faces.reshape(-1)[first]
+    return src, uv.reshape(-1, 2)[first].astype(np.float32), inverse.reshape(-1, 3).astype(np.int32)
+
+
+class Renderer:
+    """Renders views of one world with zebras; create once, call :meth:`render` per frame."""
+
+    def __init__(self, world: World, library: ZebraLibrary, options: RenderOptions | None = None) -> None:
+        self.options = options or RenderOptions()
+        self.options.check()
+        self.world = world
+        self.library = library
+        self.camera = PinholeCamera(self.options.width, self.options.height, self.options.hfov_deg)
+        t0 = time.perf_counter()
+        self.ctx, self.info = create_context()
+        ctx = self.ctx
+        o = self.options
+        self.p_terrain = ctx.program(vertex_shader=shaders.TERRAIN_VS, fragment_shader=shaders.TERRAIN_FS)
+        self.p_veg = ctx.program(vertex_shader=shaders.VEG_VS, fragment_shader=shaders.VEG_FS)
+        self.p_zebra = ctx.program(vertex_shader=shaders.ZEBRA_VS, fragment_shader=shaders.ZEBRA_FS)
+        self.p_sky = ctx.program(vertex_shader=shaders.SKY_VS, fragment_shader=shaders.SKY_FS)
+        self.p_fxaa = ctx.program(vertex_shader=shaders.FXAA_VS, fragment_shader=shaders.FXAA_FS)
+        self.p_dveg = ctx.program(vertex_shader=shaders.DEPTH_VEG_VS, fragment_shader=shaders.DEPTH_FS)
+        self.p_dzebra = ctx.program(vertex_shader=shaders.DEPTH_ZEBRA_VS, fragment_shader=shaders.DEPTH_FS)
+        self.empty_vao = ctx.vertex_array(self.p_sky, [])
+        self.fxaa_vao = ctx.vertex_array(self.p_fxaa, [])
+        # Framebuffers: colour, depth in metres, instance id, and a depth buffer.
+        size = (o.width, o.height)
+        self.t_color = ctx.texture(size, 4)
+        self.t_color.filter = (ctx.LINEAR, ctx.LINEAR)
+        self.t_depth = ctx.texture(size, 1, dtype="f4")
+        self.t_id = ctx.texture(size, 1, dtype="u4")
+        self.zbuf = ctx.depth_renderbuffer(size)
+        self.fbo = ctx.framebuffer([self.t_color, self.t_depth, self.t_id], self.zbuf)
+        self.t_final = ctx.texture(size, 4)
+        self.fbo_final = ctx.framebuffer([self.t_final])
+        self.shadow_tex = ctx.depth_texture((o.shadow_size, o.shadow_size))
+        self.shadow_tex.compare_func = "<="
+        self.shadow_tex.filter = (ctx.LINEAR, ctx.LINEAR)
+        self.fbo_shadow = ctx.framebuffer(depth_attachment=self.shadow_tex)
+        self._upload_terrain()
+        self._upload_vegetation()
+        self._upload_zebra_templates()
+        self.coats = ctx.texture_array((o.coat_size, o.coat_size, o.max_coats), 3)
+        self.coats.build_mipmaps()
+        self.coats.filter = (ctx.LINEAR_MIPMAP_LINEAR, ctx.LINEAR)
+        self._coat_layer: dict[tuple[int, int], int] = {}
+        self.setup_seconds = time.perf_counter() - t0
+
+    # -- static uploads --------------------------------------------------------------------------
+    def _upload_terrain(self) -> None:
+        ctx, t = self.ctx, self.world.terrain
+        h = t.heights.astype(np.float64)
+        ny, nx = h.shape
+        dx, dy = np.gradient(h, t.resolution)
+        normal = np.stack([-dx, -dy, np.ones_like(h)], axis=-1)
+        normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+        gc = self.world.ground_colors()
+        self.ground_mean = tuple(float(v) for v in gc.reshape(-1, 3).mean(axis=0))
+        self.t_ground = ctx.texture((nx, ny), 3, np.ascontiguousarray(gc, dtype=np.float32).tobytes(), dtype="f4")
+        self.t_ground.filter = (ctx.LINEAR, ctx.LINEAR)
+        self.t_ground.repeat_x = self.t_ground.repeat_y = False
+        x0, y0, x1, y1 = t.bounds
+        self.ground_xform = (x0, y0, 1.0 / (x1 - x0 + t.resolution) , 1.0 / (y1 - y0 + t.resolution))
+        step_per_tile = max(1, int(round(TILE_M / t.resolution)))
+        self.tiles: list[tuple[FloatArray, float, dict[int, object]]] = []
+        for j0 in range(0, ny - 1, step_per_tile):
+            for i0 in range(0, nx - 1, step_per_tile):
+                j1, i1 = min(j0 + step_per_tile, ny - 1), min(i0 + step_per_tile, nx - 1)
+                lods = {}
+                for lod, stride in ((0, 1), (1, 4)):
+                    lods[lod] = self._tile_vao(h, normal, i0, i1, j0, j1, stride)
+                cx = x0 + (i0 + i1) / 2 * t.resolution
+                cy = y0 + (j0 + j1) / 2 * t.resolution
+                sub = h[j0:j1 + 1, i0:i1 + 1]
+                centre = np.array([cx, cy, (sub.max() + sub.min()) / 2])
+                radius = float(np.hypot((i1 - i0) * t.resolution, (j1 - j0) * t.resolution) / 2
+                               + (sub.max() - sub.min()) / 2 + 2)
+                self.tiles.append((centre, radius, lods))
+        # An apron beyond the terrain's edge, so the world does not end at the horizon.
+        edge = float(np.concatenate([h[0], h[-1], h[:, 0], h[:, -1]]).mean())
+        big = 6000.0
+        ring = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0 - big, y0 - big], [x1 + big, y0 - big],
+                         [x1 + big, y1 + big], [x0 - big, y1 + big]])
+        verts = np.column_stack([ring, np.full(8, edge - 0.5)]).astype(np.float32)
+        norms = np.tile(np.array([0, 0, 1], dtype=np.float32), (8, 1))
+        idx = np.array([0, 4, 5, 0, 5, 1, 1, 5, 6, 1, 6, 2, 2, 6, 7, 2, 7, 3, 3, 7, 4, 3, 4, 0], dtype=np.int32)
+        self.apron = ctx.vertex_array(self.p_terrain, [(ctx.buffer(np.hstack([verts, norms]).tobytes()),
+                                                         "3f 3f", "in_pos", "in_normal")],
+                                      ctx.buffer(idx.tobytes()))
+
+    def _tile_vao(self, h: FloatArray, normal: FloatArray, i0: int, i1: int, j0: int, j1: int,
+                  stride: int) -> object:
+        t = self.world.terrain
+        ii = np.unique(np.append(np.arange(i0, i1 + 1, stride), i1))
+        jj = np.unique(np.append(np.arange(j0, j1 + 1, stride), j1))
+        gi, gj = np.meshgrid(ii, jj)
+        pos = np.stack([t.origin[0] + gi * t.resolution, t.origin[1] + gj * t.resolution, h[gj, gi]], -1)
+        nrm = normal[gj, gi]
+        ny, nx = gi.shape
+        idx = np.arange(ny * nx).reshape(ny, nx)
+        a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
+        faces = [np.stack([a, b, c], 1), np.stack([a, c, d], 1)]
+        verts = [pos.reshape(-1, 3)]
+        norms = [nrm.reshape(-1, 3)]
+        # Skirts hang 2 m down from the border, hiding cracks between tiles of different detail.
+        border = np.concatenate([idx[0, :], idx[1:, -1], idx[-1, -2::-1], idx[-2:0:-1, 0]])
+        n0 = ny * nx
+        drop = verts[0][border] - np.array([0, 0, 2.0])
+        verts.append(drop)
+        norms.append(norms[0][border])
+        k = np.arange(len(border))
+        top0, top1 = border, np.roll(border, -1)
+        bot0, bot1 = n0 + k, n0 + np.roll(k, -1)
+        faces += [np.stack([top0, bot0, bot1], 1), np.stack([top0, bot1, top1], 1)]
+        data = np.hstack([np.concatenate(verts), np.concatenate(norms)]).astype(np.float32)
+        ibo = self.ctx.buffer(np.concatenate(faces).astype(np.int32).tobytes())
+        vbo = self.ctx.buffer(data.tobytes())
+        return self.ctx.vertex_array(self.p_terrain, [(vbo, "3f 3f", "in_pos", "in_normal")], ibo)
+
+    def _upload_vegetation(self) -> None:
+        ctx = self.ctx
+        self.veg: list[dict[str, object]] = []
+        for name, inst in self.world.vegetation.items():
+            if not len(inst) or name not in self.world.prototypes:
+                continue
+            v, f, c = self.world.prototypes[name]
+            v64 = np.asarray(v, dtype=np.float64)
+            n = _vertex_normals(v64, np.asarray(f, dtype=np.int64))
+            vbo = ctx.buffer(np.hstack([v, n, c]).astype(np.float32).tobytes())
+            ibo = ctx.buffer(np.asarray(f, dtype=np.int32).tobytes())
+            cap = len(inst)
+            ibuf = ctx.buffer(reserve=max(cap, 1) * 20, dynamic=True)
+            vao = ctx.vertex_array(self.p_veg, [(vbo, "3f 3f 3f", "in_pos", "in_normal", "in_color"),
+                                                (ibuf, "3f 1f 1f/i", "i_pos", "i_yaw", "i_scale")], ibo)
+            dvao = ctx.vertex_array(self.p_dveg, [(vbo, "3f 36x", "in_pos"),
+                                                  (ibuf, "3f 1f 1f/i", "i_pos", "i_yaw", "i_scale")], ibo)
+            radius = float(np.linalg.norm(v64, axis=1).max())
+            data = np.column_stack([inst.positions, inst.yaw, inst.scale]).astype(np.float32)
+            limit = {"grass": self.options.grass_distance_m, "bush": self.options.bush_distance_m}.get(inst.kind, 1e9)
+            self.veg.append({"name": name, "kind": inst.kind, "vao": vao, "dvao": dvao, "ibuf": ibuf, "data": data,
+                             "radius": radius, "limit": limit, "casts": inst.kind != "grass"})
+
+    def _upload_zebra_templates(self) -> None:
+        ctx = self.ctx
+        self.zebra_lod: dict[int, dict[str, object]] = {}
+        for lod in (0, 1):
+            src, uv, faces = _unweld(self.library.faces(lod), self.library.uv(lod))
+            uv_buf = ctx.buffer(uv.tobytes())
+            ibo = ctx.buffer(faces.tobytes())
+            inst = ctx.buffer(reserve=8 * 1024, dynamic=True)
+            vao = ctx.vertex_array(self.p_zebra, [(uv_buf, "2f", "in_uv"), (inst, "1u 1f/i", "i_id", "i_layer")], ibo)
+            dvao = ctx.vertex_array(self.p_dzebra, [], ibo)
+            self.zebra_lod[lod] = {"src": src, "vao": vao, "dvao": dvao, "inst": inst, "verts": len(src),
+                                   "ssbo": ctx.buffer(reserve=4, dynamic=True)}
+
+    def _layer(self, morph: int, seed: int) -> int:
+        key = (morph, seed)
+        layer = self._coat_layer.get(key)
+        if layer is None:
+            if len(self._coat_layer) >= self.options.max_coats:
+                self._coat_layer.clear()  # rare: more individuals than layers; start over
+            layer = len(self._coat_layer)
+            name = self.library.morphs[morph]
+            tex = bake_coat(MORPHS[name], random_coat(int(seed), MORPHS[name]), self.options.coat_size)
+            s = self.options.coat_size
+            self.coats.write(np.ascontiguousarray(tex[::-1]).tobytes(), viewport=(0, 0, layer, s, s, 1))
+            self._coat_layer[key] = layer
+            self._coats_dirty = True
+        return layer
+
+    # -- per frame -------------------------------------------------------------------------------
+    def render(self, zebras: ZebraSet, lighting: Lighting, views: list[CameraView]) -> list[RenderedView]:
+        """Render every view of one frame."""
+        self._coats_dirty = False
+        layers = np.array([self._layer(int(m), int(s)) for m, s in zip(zebras.morph, zebras.coat_seed, strict=True)],
+                          dtype=np.float32)
+        if self._coats_dirty:
+            self.coats.build_mipmaps()
+        return [self._render_view(zebras, layers, lighting, v) for v in views]
+
+    def _zebra_buffers(self, zebras: ZebraSet, layers: NDArray[np.float32], sel: NDArray[np.int64],
+                       lod: int) -> int:
+        z = self.zebra_lod[lod]
+        if len(sel) == 0:
+            return 0
+        posed = self.library.pose(zebras.morph[sel], zebras.global_frame[sel], zebras.scale[sel],
+                                  zebras.rotation[sel], zebras.position[sel], lod=lod)
+        data = np.ascontiguousarray(posed.vertices[:, z["src"]], dtype=np.float32)  # type: ignore[index]
+        ssbo = z["ssbo"]
+        if ssbo.size < data.nbytes:  # type: ignore[attr-defined]
+            ssbo.orphan(data.nbytes)  # type: ignore[attr-defined]
+        ssbo.write(data.tobytes())  # type: ignore[attr-defined]
+        inst = np.zeros(len(sel), dtype=[("id", "<u4"), ("layer", "<f4")])
+        inst["id"] = zebras.ids[sel] + 1
+        inst["layer"] = layers[sel]
+        buf = z["inst"]
+        if buf.size < inst.nbytes:  # type: ignore[attr-defined]
+            buf.orphan(inst.nbytes)  # type: ignore[attr-defined]
+        buf.write(inst.tobytes())  # type: ignore[attr-defined]
+        return len(sel)
+
+    def _light_matrix(self, view: CameraView, lighting: Lighting) -> FloatArray:
+        """Orthographic light view-projection covering the ground this view sees (up to shadow_radius_m)."""
+        o = self.options
+        fwd = view.r_optical[:, 2]
+        ground = float(self.world.terrain.height_at(view.position[0], view.position[1]))
+        height = max(view.position[2] - ground, 1.0)
+        dist = height / max(-fwd[2], 0.05) if fwd[2] < 0 else o.shadow_radius_m
+        centre = view.position + fwd * min(dist, o.shadow_radius_m * 0.8)
+        centre[2] = float(self.world.terrain.height_at(centre[0], centre[1]))
+        r = o.shadow_radius_m
+        ld = np.array(lighting.light_direction)
+        up = np.array([0.0, 0.0, 1.0]) if abs(ld[2]) < 0.99 else np.array([0.0, 1.0, 0.0])
+        zaxis = ld / np.linalg.norm(ld)
+        xaxis = np.cross(up, zaxis)
+        xaxis /= np.linalg.norm(xaxis)
+        yaxis = np.cross(zaxis, xaxis)
+        eye = centre + zaxis * 400.0
+        view_m = np.eye(4)
+        view_m[:3, :3] = np.stack([xaxis, yaxis, zaxis])
+        view_m[:3, 3] = -view_m[:3, :3] @ eye
+        near, far = 1.0, 800.0
+        proj = np.array([[1 / r, 0, 0, 0], [0, 1 / r, 0, 0], [0, 0, -2 / (far - near), -(far + near) / (far - near)],
+                         [0, 0, 0, 1]])
+        return proj @ view_m
+
+    def _render_view(self, zebras: ZebraSet, layers: NDArray[np.float32], lighting: Lighting,
+                     view: CameraView) -> RenderedView:
+        ctx, o = self.ctx, self.options
+        times: dict[str, float] = {}
+        t0 = time.perf_counter()
+        pos = np.asarray(view.position, dtype=np.float64)
+        vp = perspective(self.camera, o.near_m, o.far_m) @ view_matrix(pos, view.r_optical)
+        planes = _frustum_planes(vp)
+        fwd = view.r_optical[:, 2]
+        # Zebras: cull, split by distance into the two levels of detail.
+        counts = {0: 0, 1: 0}
+        if zebras.count:
+            d = np.linalg.norm(zebras.position - pos, axis=1)
+            vis = _spheres_visible(planes, zebras.position, 2.5 * zebras.scale + 0.5)
+            for lod, mask in ((0, d < o.zebra_detail_distance_m), (1, d >= o.zebra_detail_distance_m)):
+                counts[lod] = self._zebra_buffers(zebras, layers, np.flatnonzero(vis & mask), lod)
+        # Vegetation: cull by distance and frustum, fill instance buffers.
+        veg_counts = []
+        for g in self.veg:
+            data = g["data"]
+            p = data[:, :3].astype(np.float64)  # type: ignore[index]
+            keep = np.linalg.norm(p[:, :2] - pos[:2], axis=1) < g["limit"]  # type: ignore[operator]
+            keep &= _spheres_visible(planes, p, g["radius"] * data[:, 4].astype(np.float64))  # type: ignore[index,operator]
+            sel = data[keep]  # type: ignore[index]
+            if len(sel):
+                g["ibuf"].write(np.ascontiguousarray(sel).tobytes())  # type: ignore[attr-defined]
+            veg_counts.append(len(sel))
+        times["prepare"] = time.perf_counter() - t0
+
+        t1 = time.perf_counter()
+        light_vp = self._light_matrix(view, lighting)
+        use_shadow = o.shadows and lighting.light_direction[2] > 0.02
+        if use_shadow:
+            self.fbo_shadow.use()
+            self.fbo_shadow.clear(depth=1.0)
+            ctx.enable(ctx.DEPTH_TEST)
+            for prog in (self.p_dveg, self.p_dzebra):
+                prog["u_light_view_proj"].write(_gl(light_vp))
+            for g, n in zip(self.veg, veg_counts, strict=True):
+                if n and g["casts"]:
+                    g["dvao"].render(instances=n)  # type: ignore[attr-defined]
+            for lod in (0, 1):
+                if counts[lod]:
+                    z = self.zebra_lod[lod]
+                    z["ssbo"].bind_to_storage_buffer(0)  # type: ignore[attr-defined]
+                    self.p_dzebra["u_verts"].value = z["verts"]
+                    z["dvao"].render(instances=counts[lod])  # type: ignore[attr-defined]
+        times["shadow"] = time.perf_counter() - t1
+
+        t2 = time.perf_counter()
+        self.fbo.use()
+        self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        ctx.enable(ctx.DEPTH_TEST)
+        ctx.disable(ctx.CULL_FACE)
+        sky = self.world.sky
+        light_rgb = np.array(lighting.light_rgb) * lighting.light_intensity * sky.sun * 2.2
+        ambient = np.array(lighting.ambient_rgb) * lighting.ambient_intensity * (sky.ambient / 0.35) * 1.6
+        uniforms = {
+            "u_view_proj": _gl(vp), "u_light_view_proj": _gl(light_vp),
+            "u_cam_pos": pos.astype(np.float32).tobytes(), "u_cam_fwd": fwd.astype(np.float32).tobytes(),
+            "u_light_dir": np.array(lighting.light_direction, dtype=np.float32).tobytes(),
+            "u_light_rgb": light_rgb.astype(np.float32).tobytes(),
+            "u_ambient_rgb": ambient.astype(np.float32).tobytes(),
+            "u_horizon_rgb": np.array(sky.horizon_rgb, dtype=np.float32).tobytes(),
+            "u_zenith_rgb": np.array(sky.zenith_rgb, dtype=np.float32).tobytes(),
+        }
+        self.shadow_tex.use(location=1)
+        for prog in (self.p_terrain, self.p_veg, self.p_zebra, self.p_sky):
+            for k, val in uniforms.items():
+                if k in prog:
+                    prog[k].write(val)
+            for k, val2 in (("u_haze", sky.haze_per_m), ("u_exposure", o.exposure)):
+                if k in prog:
+                    prog[k].value = float(val2)
+            if "u_shadow" in prog:
+                prog["u_shadow"].value = 1
+            if "u_use_shadow" in prog:
+                prog["u_use_shadow"].value = int(use_shadow)
+        # Terrain tiles.
+        self.t_ground.use(location=2)
+        self.p_terrain["u_ground"].value = 2
+        self.p_terrain["u_ground_xform"].value = self.ground_xform
+        self.p_terrain["u_ground_mean"].value = self.ground_mean
+        for centre, radius, lods in self.tiles:
+            if not _spheres_visible(planes, centre[None], np.array([radius]))[0]:
+                continue
+            near = np.linalg.norm(centre[:2] - pos[:2]) - radius < o.terrain_detail_distance_m
+            lods[0 if near else 1].render()  # type: ignore[attr-defined]
+        self.apron.render()
+        for g, n in zip(self.veg, veg_counts, strict=True):
+            if n:
+                g["vao"].render(instances=n)  # type: ignore[attr-defined]
+        self.coats.use(location=3)
+        self.p_zebra["u_coats"].value = 3
+        for lod in (0, 1):
+            if counts[lod]:
+                z = self.zebra_lod[lod]
+                z["ssbo"].bind_to_storage_buffer(0)  # type: ignore[attr-defined]
+                self.p_zebra["u_verts"].value = z["verts"]
+                z["vao"].render(instances=counts[lod])  # type: ignore[attr-defined]
+        # Sky where nothing else was drawn.
+        ctx.depth_func = "<="
+        self.p_sky["u_inv_view_proj"].write(_gl(np.asarray(np.linalg.inv(vp), dtype=np.float64)))
+        self.p_sky["u_sun_dir"].value = tuple(float(x) for x in lighting.sun_direction)
+        self.p_sky["u_sun_visible"].value = 1.0 if lighting.sun_elevation_deg > -1 else 0.0
+        self.empty_vao.render(vertices=3)
+        ctx.depth_func = "<"
+        times["draw"] = time.perf_counter() - t2
+
+        t3 = time.perf_counter()
+        w, h = o.width, o.height
+        if o.antialias:
+            self.fbo_final.use()
+            ctx.disable(ctx.DEPTH_TEST)
+            self.t_color.use(location=0)
+            self.p_fxaa["u_src"].value = 0
+            self.fxaa_vao.render(vertices=3)
+            rgba = np.frombuffer(self.fbo_final.read(components=4, attachment=0), dtype=np.uint8)
+        else:
+            rgba = np.frombuffer(self.fbo.read(components=4, attachment=0), dtype=np.uint8)
+        rgb = rgba.reshape(h, w, 4)[::-1, :, :3].copy()
+        depth = np.frombuffer(self.fbo.read(components=1, attachment=1, dtype="f4"), dtype=np.float32)
+        depth = depth.reshape(h, w)[::-1].copy()
+        depth[depth <= 0] = np.inf
+        ids = np.frombuffer(self.fbo.read(components=1, attachment=2, dtype="u4"), dtype=np.uint32)
+        id16: NDArray[np.uint16] = ids.reshape(h, w)[::-1].astype(np.uint16)
+        times["read"] = time.perf_counter() - t3
+        times["zebras_lod0"], times["zebras_lod1"] = counts[0], counts[1]
+        return RenderedView(view.name, rgb, depth, id16, self.camera.K, times)
+
+    def release(self) -> None:
+        """Free the GL context."""
+        self.ctx.release()
