@@ -49,10 +49,12 @@ def param_args(params: dict[str, Any]) -> list[str]:
 
 
 @contextmanager
-def node_process(module: str, params: dict[str, Any], domain: int, log: Path) -> Iterator[subprocess.Popen[bytes]]:
-    """Run ``python -m zebra_sim_ros.nodes.<module>`` with parameters; kill its process group on exit."""
+def node_process(module: str, params: dict[str, Any], domain: int, log: Path,
+                 ns: str | None = None) -> Iterator[subprocess.Popen[bytes]]:
+    """Run ``python -m zebra_sim_ros.nodes.<module>`` with parameters (and a namespace); always killed at the end."""
+    args = param_args(params) + (["-r", f"__ns:={ns}"] if ns else [])
     with open(log, "wb") as out:
-        proc = subprocess.Popen([sys.executable, "-m", f"zebra_sim_ros.nodes.{module}", *param_args(params)],
+        proc = subprocess.Popen([sys.executable, "-m", f"zebra_sim_ros.nodes.{module}", *args],
                                 env=ros_env(domain), stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
         try:
             yield proc

@@ -26,7 +26,7 @@ def add_json_flag(p: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The full ``zebra-sim`` argument parser."""
-    from zebra_sim_ros.cli import asset, place, world
+    from zebra_sim_ros.cli import asset, place, render, world
 
     parser = argparse.ArgumentParser(
         prog="zebra-sim",
@@ -37,6 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
     asset.register(sub)
     world.register(sub)
     place.register(sub)
+    render.register(sub)
     return parser
 
 

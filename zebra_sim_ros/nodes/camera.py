@@ -1,14 +1,151 @@
-"""The ``camera`` node: renders RGB, depth and instance masks for each placement."""
+"""The ``camera`` node: one drone's RGB, metric depth and instance mask per scene.
 
-from zebra_sim_ros.nodes import stub_main
+Run one per drone, each in its namespace::
 
-USAGE = """Renders each placement from each camera (headless EGL through moderngl):
-RGB (rgb8), metric depth in metres (32FC1) and instance ids, with camera_info."""
+    ros2 run zebra_sim_ros camera --ros-args -r __ns:=/drone_0 -p drone_index:=0
+
+Subscribes ``/zebra_sim/scene`` (std_msgs/String, reliable, transient local) and publishes, all four with
+the scene's stamp and frame_id ``drone_{i}_camera_optical`` (z forward, x right, y down):
+
+- ``image_raw`` (sensor_msgs/Image ``rgb8``), gamma-encoded sRGB;
+- ``depth`` (sensor_msgs/Image ``32FC1``): metres along the optical axis; +inf where only sky (REP 118);
+- ``instances`` (sensor_msgs/Image ``mono16``): 0 = not a zebra, else the zebra's scene id + 1;
+- ``camera_info`` (sensor_msgs/CameraInfo): K and P of the ideal pinhole, no distortion.
+
+Then, with ``ack`` true, it acknowledges the step on ``/zebra_sim/frame_done`` (std_msgs/Header, stamp = the
+scene's, frame_id = ``drone_{i}``) so a lockstep placer can go on. A scene it cannot read is logged, counted
+and skipped; a repeated scene (same stamp) is published again but rendered once.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from rclpy.node import Node
+from sensor_msgs.msg import CameraInfo, Image
+from std_msgs.msg import Header, String
+
+from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.nodes.placer import ACK_TOPIC, SCENE_TOPIC
+from zebra_sim_ros.nodes.ros_adapter import declare_and_read, describe_qos, help_text, qos, run_node, stamp
+from zebra_sim_ros.placement.scene import parse_scene
+from zebra_sim_ros.rendering.config import CAMERA_PARAMS, CameraConfig
+from zebra_sim_ros.rendering.renderer import RenderedView, Renderer
+from zebra_sim_ros.rendering.views import lighting_from_scene, views_from_scene, world_source, zebras_from_scene
+from zebra_sim_ros.world.world import load_world
+from zebra_sim_ros.zebra.asset import load_library
+
+
+def image_msg(header: Header, array: np.ndarray, encoding: str) -> Image:
+    """A sensor_msgs/Image of a C-contiguous little-endian array (H, W[, C])."""
+    a = np.ascontiguousarray(array)
+    h, w = a.shape[:2]
+    return Image(header=header, height=h, width=w, encoding=encoding, is_bigendian=0, step=int(a.strides[0]),
+                 data=a.tobytes())
+
+
+def camera_info_msg(header: Header, K: np.ndarray, width: int, height: int) -> CameraInfo:  # noqa: N803
+    """CameraInfo of an ideal pinhole with intrinsics K (OpenCV convention)."""
+    p = np.zeros((3, 4))
+    p[:, :3] = K
+    return CameraInfo(header=header, width=width, height=height, distortion_model="plumb_bob", d=[0.0] * 5,
+                      k=[float(v) for v in K.ravel()], r=[1.0, 0, 0, 0, 1.0, 0, 0, 0, 1.0],
+                      p=[float(v) for v in p.ravel()])
+
+
+class CameraNode(Node):
+    """Thin adapter around :class:`zebra_sim_ros.rendering.renderer.Renderer`."""
+
+    def __init__(self) -> None:
+        super().__init__("camera")
+        self.cfg = CameraConfig.from_params(declare_and_read(self, CAMERA_PARAMS))
+        c = self.cfg
+        self.library = load_library()
+        self.renderer: Renderer | None = None
+        self.world_key: tuple[str, str, int] | None = None
+        self.effects = c.effects()
+        self.frame_id = f"{c.name}_camera_optical"
+        out_qos = qos(c.qos_reliability, c.qos_depth)
+        scene_qos = qos("reliable", 1, transient_local=True)
+        self.pub_rgb = self.create_publisher(Image, "image_raw", out_qos)
+        self.pub_depth = self.create_publisher(Image, "depth", out_qos)
+        self.pub_ids = self.create_publisher(Image, "instances", out_qos)
+        self.pub_info = self.create_publisher(CameraInfo, "camera_info", out_qos)
+        self.pub_ack = self.create_publisher(Header, ACK_TOPIC, qos("reliable", 100))
+        self.create_subscription(String, SCENE_TOPIC, self._on_scene, scene_qos)
+        self.get_logger().info(
+            f"{c.name}: {c.width}x{c.height}, hfov {c.hfov_deg} deg, shadows {c.shadows}, effects "
+            f"{self.effects if self.effects.active else 'off'}; QoS images: {describe_qos(out_qos)}; "
+            f"scene: {describe_qos(scene_qos)}; publishing in namespace '{self.get_namespace()}'")
+        self.last: tuple[int, Header, RenderedView] | None = None
+        self.frames = 0
+        self.skipped = 0
+        self.render_seconds = 0.0
+
+    def _ensure_renderer(self, scene: dict[str, Any]) -> Renderer:
+        key = world_source(scene)
+        if self.renderer is None or key != self.world_key:
+            t0 = time.perf_counter()
+            world = load_world(*key)
+            if self.renderer is not None:
+                self.renderer.release()
+            self.renderer = Renderer(world, self.library, self.cfg.render_options())
+            self.world_key = key
+            self.get_logger().info(f"world '{world.name}' loaded; OpenGL {self.renderer.info['GL_RENDERER']} "
+                                   f"({self.renderer.info['device']}) in {time.perf_counter() - t0:.1f} s")
+        return self.renderer
+
+    def _on_scene(self, msg: String) -> None:
+        try:
+            scene = parse_scene(msg.data)
+            stamp_ns = int(scene["stamp"]["sec"]) * 1_000_000_000 + int(scene["stamp"]["nanosec"])
+            if self.last is not None and self.last[0] == stamp_ns:
+                self._publish(self.last[1], self.last[2], scene)  # a re-sent step: same images again
+                return
+            views = views_from_scene(scene, [self.cfg.name])
+            if not views:
+                raise ZebraSimError(f"scene {scene['step']} has no camera named {self.cfg.name}")
+            renderer = self._ensure_renderer(scene)
+            t0 = time.perf_counter()
+            view = renderer.render(zebras_from_scene(scene, self.library), lighting_from_scene(scene), views)[0]
+            if self.effects.active:
+                rng = np.random.default_rng([int(scene["seed"]), int(scene["step"]), self.cfg.drone_index])
+                view.rgb = self.effects.apply(view.rgb, rng)
+            self.render_seconds += time.perf_counter() - t0
+        except (ZebraSimError, KeyError, TypeError, ValueError) as exc:
+            self.skipped += 1
+            self.get_logger().error(f"scene skipped ({self.skipped} so far): {exc}")
+            return
+        header = Header(stamp=stamp(stamp_ns), frame_id=self.frame_id)
+        self.last = (stamp_ns, header, view)
+        self._publish(header, view, scene)
+
+    def _publish(self, header: Header, view: RenderedView, scene: dict[str, Any]) -> None:
+        c = self.cfg
+        self.pub_rgb.publish(image_msg(header, view.rgb, "rgb8"))
+        self.pub_depth.publish(image_msg(header, view.depth.astype("<f4"), "32FC1"))
+        self.pub_ids.publish(image_msg(header, view.instances.astype("<u2"), "mono16"))
+        self.pub_info.publish(camera_info_msg(header, view.K, c.width, c.height))
+        self.frames += 1
+        if c.ack:
+            self.pub_ack.publish(Header(stamp=header.stamp, frame_id=c.name))
+        if self.frames % 20 == 1:
+            self.get_logger().info(f"step {scene['step']}: frame {self.frames}, "
+                                   f"{self.render_seconds / max(self.frames, 1):.2f} s/frame render, "
+                                   f"{self.skipped} scenes skipped")
+
+    def close(self) -> None:
+        """Release the GL context."""
+        if self.renderer is not None:
+            self.renderer.release()
+            self.renderer = None
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``ros2 run zebra_sim_ros camera``; returns the exit status."""
-    return stub_main("camera", "the renderer", USAGE, argv)
+    return run_node("camera", CameraNode, argv, help_text("camera", __doc__ or "", CAMERA_PARAMS))
 
 
 if __name__ == "__main__":

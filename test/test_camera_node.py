@@ -1,0 +1,98 @@
+"""Placer + three camera processes over real DDS: every camera publishes all four topics, same stamps."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from contextlib import ExitStack
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from ros_helpers import fresh_domain_id, node_process, param_args, ros_env, spin_until
+from sensor_msgs.msg import CameraInfo, Image
+from std_msgs.msg import String
+
+pytestmark = pytest.mark.integration
+STEPS = 3
+
+
+def test_placer_and_three_cameras_in_lockstep(tmp_path: Path) -> None:
+    domain = fresh_domain_id()
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=domain)
+    node = rclpy.create_node("test_cameras", context=ctx)
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(node)
+    got: dict[tuple[str, str], dict[int, object]] = {}
+    scenes: dict[int, dict] = {}
+
+    def keep(name: str, topic: str):  # type: ignore[no-untyped-def]
+        def cb(msg) -> None:  # type: ignore[no-untyped-def]
+            got.setdefault((name, topic), {})[msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec] = msg
+        return cb
+
+    latched = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+    def on_scene(m: String) -> None:
+        d = json.loads(m.data)
+        scenes[d["stamp"]["sec"] * 10**9 + d["stamp"]["nanosec"]] = d
+
+    node.create_subscription(String, "/zebra_sim/scene", on_scene, latched)
+    for i in range(3):
+        for topic, typ in (("image_raw", Image), ("depth", Image), ("instances", Image), ("camera_info", CameraInfo)):
+            node.create_subscription(typ, f"/drone_{i}/{topic}", keep(f"drone_{i}", topic), 10)
+    try:
+        with ExitStack() as stack:
+            cams = [stack.enter_context(node_process(
+                "camera", {"drone_index": i, "width": 256, "height": 144, "shadow_size": 512},
+                domain, tmp_path / f"camera_{i}.log", ns=f"/drone_{i}")) for i in range(3)]
+            placer = stack.enter_context(node_process(
+                "placer", {"mode": "lockstep", "max_steps": STEPS, "count_max": 40, "seed": 2, "rate_hz": 2.0,
+                           "camera_width": 256, "camera_height": 144}, domain, tmp_path / "placer.log"))
+
+            def complete() -> bool:
+                return all(len(got.get((f"drone_{i}", t), {})) >= STEPS for i in range(3)
+                           for t in ("image_raw", "depth", "instances", "camera_info"))
+
+            ok = spin_until(node, ex, complete, 180)
+            logs = "\n".join(p.read_text()[-2000:] for p in sorted(tmp_path.glob("*.log")))
+            assert ok, logs
+            assert placer.wait(timeout=60) == 0, logs
+            assert all(c.poll() is None for c in cams), logs
+        stamps = sorted(scenes)[:STEPS]
+        assert len(stamps) == STEPS
+        for i in range(3):
+            name = f"drone_{i}"
+            for topic in ("image_raw", "depth", "instances", "camera_info"):
+                assert sorted(got[(name, topic)])[:STEPS] == stamps, (name, topic)
+            for s in stamps:
+                rgb, depth, ids = (got[(name, t)][s] for t in ("image_raw", "depth", "instances"))
+                info = got[(name, "camera_info")][s]
+                for m in (rgb, depth, ids, info):
+                    assert m.header.frame_id == f"{name}_camera_optical"
+                assert (rgb.encoding, depth.encoding, ids.encoding) == ("rgb8", "32FC1", "mono16")
+                assert rgb.width == depth.width == ids.width == info.width == 256
+                assert rgb.height == info.height == 144
+                d = np.frombuffer(bytes(depth.data), dtype="<f4").reshape(144, 256)
+                assert np.isfinite(d).any() and (d[np.isfinite(d)] > 0).all()
+                mask = np.frombuffer(bytes(ids.data), dtype="<u2")
+                scene_ids = {z["id"] + 1 for z in scenes[s]["zebras"]}
+                assert set(np.unique(mask)) - {0} <= scene_ids
+                assert info.k[0] == pytest.approx(128 / np.tan(np.radians(40)))  # fx of 80 deg over 256 px
+    finally:
+        ex.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)
+
+
+def test_bad_camera_parameter_stops_the_node() -> None:
+    proc = subprocess.run([sys.executable, "-m", "zebra_sim_ros.nodes.camera",
+                           *param_args({"jpeg_quality": 150})], env=ros_env(fresh_domain_id()),
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert "jpeg_quality" in proc.stderr + proc.stdout
