@@ -46,10 +46,10 @@ class RenderOptions:
     exposure: float = 1.2
     near_m: float = 0.1
     far_m: float = 4000.0
-    grass_distance_m: float = 60.0
+    grass_distance_m: float = 45.0
     bush_distance_m: float = 400.0
     terrain_detail_distance_m: float = 180.0
-    zebra_detail_distance_m: float = 60.0
+    zebra_detail_distance_m: float = 35.0
     coat_size: int = 256
     max_coats: int = 1024
 
