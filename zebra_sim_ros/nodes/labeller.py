@@ -1,15 +1,195 @@
-"""The ``labeller`` node: ground-truth boxes and overlays from instance masks."""
+"""The ``labeller`` node: exact ground truth for every drone frame (``ros2 run zebra_sim_ros labeller``).
 
-from zebra_sim_ros.nodes import stub_main
+Subscribes ``/zebra_sim/scene`` and, per drone in ``drones``, ``/<drone>/instances``, ``/<drone>/depth`` and
+``/<drone>/camera_info``; matches them by stamp (frames whose inputs do not all arrive within ``sync_window``
+newer stamps are dropped and counted) and publishes per drone, with the image's stamp:
 
-USAGE = """Turns instance masks and posed meshes into per-zebra labels: tight (visible) and
-amodal 2D boxes, visible and in-frame fractions, YOLO label files, and one
-LINE_LIST ImageMarker per frame for Foxglove."""
+- ``/<drone>/labels`` (std_msgs/String): the label JSON (schema in ``zebra_sim_ros.labels.labeller``);
+- ``/<drone>/labels/markers`` (visualization_msgs/ImageMarker): one LINE_LIST with every zebra's visible box
+  (green) and full box (orange), frame_id of the image, for Foxglove's image panel;
+- ``/<drone>/labels/boxes3d`` (visualization_msgs/MarkerArray): the zebras' oriented 3D boxes in ``map``.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
+from rclpy.node import Node
+from sensor_msgs.msg import CameraInfo, Image
+from std_msgs.msg import ColorRGBA, Header, String
+from visualization_msgs.msg import ImageMarker, Marker, MarkerArray
+
+from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.geometry.camera import PinholeCamera
+from zebra_sim_ros.labels.config import LABELLER_PARAMS, LabellerConfig
+from zebra_sim_ros.labels.labeller import label_view
+from zebra_sim_ros.labels.silhouettes import SilhouetteCounter
+from zebra_sim_ros.nodes.placer import ACK_TOPIC, SCENE_TOPIC
+from zebra_sim_ros.nodes.ros_adapter import declare_and_read, describe_qos, help_text, qos, run_node, stamp_ns
+from zebra_sim_ros.placement.scene import parse_scene
+from zebra_sim_ros.zebra.asset import load_library
+
+_ENCODING = {"mono16": "<u2", "16UC1": "<u2", "32SC1": "<i4", "32FC1": "<f4"}
+
+
+def image_array(msg: Image) -> np.ndarray:
+    """A single-channel image message as a 2D array; raises ValueError for encodings we do not read."""
+    dtype = _ENCODING.get(msg.encoding)
+    if dtype is None:
+        raise ValueError(f"unsupported encoding {msg.encoding!r} (want one of {sorted(_ENCODING)})")
+    dt = np.dtype(dtype).newbyteorder(">" if msg.is_bigendian else "<")
+    row = msg.width * dt.itemsize
+    buf = np.frombuffer(bytes(msg.data), dtype=np.uint8).reshape(msg.height, msg.step)[:, :row]
+    return np.ascontiguousarray(buf).view(dt).reshape(msg.height, msg.width).astype(dt.newbyteorder("="))
+
+
+def box_markers(header: Header, labels: dict[str, Any]) -> ImageMarker:
+    """One LINE_LIST ImageMarker with every zebra's visible (green) and full (orange) box."""
+    points, colors = [], []
+    green, orange = ColorRGBA(r=0.1, g=1.0, b=0.2, a=1.0), ColorRGBA(r=1.0, g=0.6, b=0.0, a=1.0)
+    for z in labels["zebras"]:
+        for box, col in ((z["box_full"], orange), (z["box_visible"], green)):
+            x0, y0, x1, y1 = box
+            corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+            for a, b in zip(corners, corners[1:] + corners[:1], strict=True):
+                points += [Point(x=float(a[0]), y=float(a[1])), Point(x=float(b[0]), y=float(b[1]))]
+                colors += [col, col]
+    return ImageMarker(header=header, ns="zebra_boxes", id=0, type=ImageMarker.LINE_LIST, action=ImageMarker.ADD,
+                       scale=1.0, outline_color=green, points=points, outline_colors=colors)
+
+
+def boxes3d(header: Header, labels: dict[str, Any]) -> MarkerArray:
+    """The labelled zebras' 3D boxes in ``map`` as CUBE markers (after a DELETEALL)."""
+    h = Header(stamp=header.stamp, frame_id="map")
+    out = [Marker(header=h, ns="zebra_boxes3d", action=Marker.DELETEALL)]
+    for z in labels["zebras"]:
+        b = z["box3d_map"]
+        q = b["orientation_xyzw"]
+        out.append(Marker(header=h, ns="zebra_boxes3d", id=int(z["id"]), type=Marker.CUBE, action=Marker.ADD,
+                          pose=Pose(position=Point(x=b["center"][0], y=b["center"][1], z=b["center"][2]),
+                                    orientation=Quaternion(x=q[0], y=q[1], z=q[2], w=q[3])),
+                          scale=Vector3(x=b["size"][0], y=b["size"][1], z=b["size"][2]),
+                          color=ColorRGBA(r=0.1, g=1.0, b=0.2, a=0.35 if z["kept"] else 0.1)))
+    return MarkerArray(markers=out)
+
+
+class LabellerNode(Node):
+    """Synchronises scene, masks, depth and camera info by stamp; thin adapter around ``label_view``."""
+
+    def __init__(self) -> None:
+        super().__init__("labeller")
+        self.cfg = LabellerConfig.from_params(declare_and_read(self, LABELLER_PARAMS))
+        c = self.cfg
+        self.library = load_library()
+        self.filters = c.filters()
+        self.counters: dict[tuple[int, int, float], SilhouetteCounter] = {}
+        q = qos(c.qos_reliability, c.qos_depth)
+        scene_qos = qos("reliable", 1, transient_local=True)
+        self.scenes: dict[int, dict[str, Any]] = {}
+        self.pending: dict[tuple[str, int], dict[str, Any]] = {}
+        self.done_drones: dict[int, set[str]] = {}
+        self.stats = {"labelled": 0, "unmatched": 0, "bad_messages": 0}
+        self.create_subscription(String, SCENE_TOPIC, self._on_scene, scene_qos)
+        self.pubs: dict[str, tuple[Any, Any, Any]] = {}
+        for d in c.drones:
+            for topic, kind, typ in (("instances", "instances", Image), ("depth", "depth", Image),
+                                     ("camera_info", "info", CameraInfo)):
+                self.create_subscription(typ, f"/{d}/{topic}", self._handler(d, kind), q)
+            self.pubs[d] = (self.create_publisher(String, f"/{d}/labels", q),
+                            self.create_publisher(ImageMarker, f"/{d}/labels/markers", q),
+                            self.create_publisher(MarkerArray, f"/{d}/labels/boxes3d", q))
+        self.ack_pub = self.create_publisher(Header, ACK_TOPIC, qos("reliable", 100)) if c.ack_name else None
+        self.get_logger().info(f"labelling {list(c.drones)}; QoS inputs and outputs: {describe_qos(q)}; "
+                               f"scene: {describe_qos(scene_qos)}; filters {self.filters.to_dict()}")
+        self.seconds = 0.0
+
+    def _handler(self, drone: str, kind: str) -> Any:
+        def on_message(msg: Any) -> None:
+            self._on_input(drone, kind, msg)
+        return on_message
+
+    def _on_scene(self, msg: String) -> None:
+        try:
+            scene = parse_scene(msg.data)
+        except ZebraSimError as exc:
+            self.stats["bad_messages"] += 1
+            self.get_logger().error(f"bad scene skipped ({self.stats['bad_messages']} bad so far): {exc}")
+            return
+        t = int(scene["stamp"]["sec"]) * 1_000_000_000 + int(scene["stamp"]["nanosec"])
+        self.scenes[t] = scene
+        for old in sorted(self.scenes)[:-self.cfg.sync_window]:
+            del self.scenes[old]
+        for d in self.cfg.drones:
+            self._try(d, t)
+
+    def _on_input(self, drone: str, kind: str, msg: Any) -> None:
+        t = stamp_ns(msg.header.stamp)
+        self.pending.setdefault((drone, t), {})[kind] = msg
+        self._try(drone, t)
+        # Forget what can no longer be matched: older than the window of newest stamps.
+        stamps = sorted({s for _, s in self.pending})
+        if len(stamps) > self.cfg.sync_window:
+            cutoff = stamps[-self.cfg.sync_window]
+            for key in [k for k in self.pending if k[1] < cutoff]:
+                del self.pending[key]
+                self.stats["unmatched"] += 1
+                self.get_logger().warning(f"{key[0]}: inputs of stamp {key[1]} never all arrived; dropped "
+                                          f"({self.stats['unmatched']} so far)")
+
+    def _counter(self, width: int, height: int, fx: float) -> SilhouetteCounter:
+        hfov = float(np.degrees(2 * np.arctan(width / 2 / fx)))
+        key = (width, height, round(hfov, 6))
+        if key not in self.counters:
+            self.counters[key] = SilhouetteCounter(self.library, PinholeCamera(width, height, hfov),
+                                                   self.cfg.zebra_detail_distance_m)
+        return self.counters[key]
+
+    def _try(self, drone: str, t: int) -> None:
+        got = self.pending.get((drone, t))
+        if not got or len(got) < 3 or t not in self.scenes:
+            return
+        del self.pending[(drone, t)]
+        t0 = time.perf_counter()
+        try:
+            info: CameraInfo = got["info"]
+            counter = self._counter(int(info.width), int(info.height), float(info.k[0]))
+            labels = label_view(self.scenes[t], drone, image_array(got["instances"]), image_array(got["depth"]),
+                                counter.camera, self.library, counter, self.filters, self.cfg.zebra_detail_distance_m)
+        except (ZebraSimError, KeyError, ValueError) as exc:
+            self.stats["bad_messages"] += 1
+            self.get_logger().error(f"{drone} stamp {t}: frame skipped ({exc})")
+            return
+        import json
+
+        header = got["instances"].header
+        labels_pub, markers_pub, boxes_pub = self.pubs[drone]
+        labels_pub.publish(String(data=json.dumps(labels, separators=(",", ":"))))
+        markers_pub.publish(box_markers(header, labels))
+        boxes_pub.publish(boxes3d(header, labels))
+        self.stats["labelled"] += 1
+        self.seconds += time.perf_counter() - t0
+        done = self.done_drones.setdefault(t, set())
+        done.add(drone)
+        if self.ack_pub is not None and done >= set(self.cfg.drones):
+            self.ack_pub.publish(Header(stamp=header.stamp, frame_id=self.cfg.ack_name))
+        for old in sorted(self.done_drones)[:-self.cfg.sync_window]:
+            del self.done_drones[old]
+        if self.stats["labelled"] % 30 == 1:
+            self.get_logger().info(f"{self.stats}; {self.seconds / self.stats['labelled']:.3f} s per frame")
+
+    def close(self) -> None:
+        """Release GL resources."""
+        for c in self.counters.values():
+            c.release()
+        self.get_logger().info(f"labeller stopping: {self.stats}")
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``ros2 run zebra_sim_ros labeller``; returns the exit status."""
-    return stub_main("labeller", "the label generator", USAGE, argv)
+    return run_node("labeller", LabellerNode, argv, help_text("labeller", __doc__ or "", LABELLER_PARAMS))
 
 
 if __name__ == "__main__":

@@ -1,0 +1,84 @@
+"""Placer + three cameras + labeller over real DDS: labels for every camera and frame, with the image's stamp."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from contextlib import ExitStack
+from pathlib import Path
+
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from ros_helpers import fresh_domain_id, node_process, param_args, ros_env, spin_until
+from sensor_msgs.msg import Image
+from std_msgs.msg import String
+from visualization_msgs.msg import ImageMarker, MarkerArray
+
+pytestmark = pytest.mark.integration
+STEPS = 3
+DRONES = ("drone_0", "drone_1", "drone_2")
+
+
+def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
+    domain = fresh_domain_id()
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=domain)
+    node = rclpy.create_node("test_labels", context=ctx)
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(node)
+    labels: dict[str, dict[int, dict]] = {d: {} for d in DRONES}
+    image_stamps: dict[str, set[int]] = {d: set() for d in DRONES}
+    markers: dict[str, list[ImageMarker]] = {d: [] for d in DRONES}
+    boxes: dict[str, list[MarkerArray]] = {d: [] for d in DRONES}
+    for d in DRONES:
+        def on_labels(m: String, d: str = d) -> None:
+            x = json.loads(m.data)
+            labels[d][x["stamp"]["sec"] * 10**9 + x["stamp"]["nanosec"]] = x
+
+        def on_image(m: Image, d: str = d) -> None:
+            image_stamps[d].add(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec)
+
+        node.create_subscription(String, f"/{d}/labels", on_labels, 10)
+        node.create_subscription(Image, f"/{d}/image_raw", on_image, 10)
+        node.create_subscription(ImageMarker, f"/{d}/labels/markers", markers[d].append, 10)
+        node.create_subscription(MarkerArray, f"/{d}/labels/boxes3d", boxes[d].append, 10)
+    try:
+        with ExitStack() as stack:
+            for i, d in enumerate(DRONES):
+                params = {"drone_index": i, "width": 256, "height": 144, "shadow_size": 512}
+                stack.enter_context(node_process("camera", params, domain, tmp_path / f"{d}.log", ns=f"/{d}"))
+            stack.enter_context(node_process("labeller", {"ack_name": "labeller"}, domain, tmp_path / "labeller.log"))
+            placer = stack.enter_context(node_process(
+                "placer", {"mode": "lockstep", "max_steps": STEPS, "count_max": 60, "seed": 8,
+                           "lockstep_ack_from": ["drone_0", "drone_1", "drone_2", "labeller"],
+                           "camera_width": 256, "camera_height": 144}, domain, tmp_path / "placer.log"))
+            ok = spin_until(node, ex, lambda: all(len(labels[d]) >= STEPS for d in DRONES), 180)
+            logs = "\n".join(p.read_text()[-1500:] for p in sorted(tmp_path.glob("*.log")))
+            assert ok, logs
+            assert placer.wait(timeout=60) == 0, logs
+        for d in DRONES:
+            assert set(labels[d]) <= image_stamps[d]  # every label carries the stamp of an image
+            for x in labels[d].values():
+                assert x["camera"] == d and x["frame_id"] == f"{d}_camera_optical"
+                assert x["width"] == 256 and x["in_view"] == len(x["zebras"])
+                for z in x["zebras"]:
+                    assert z["visible_pixels"] <= z["silhouette_pixels"] + 2
+                    assert len(z["keypoints"]) == 26
+            assert markers[d] and markers[d][-1].type == ImageMarker.LINE_LIST
+            assert markers[d][-1].header.frame_id == f"{d}_camera_optical"
+            assert len(markers[d][-1].points) % 2 == 0
+            assert boxes[d]
+    finally:
+        ex.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)
+
+
+def test_bad_labeller_parameter_stops_the_node() -> None:
+    proc = subprocess.run([sys.executable, "-m", "zebra_sim_ros.nodes.labeller",
+                           *param_args({"min_visible_fraction": 1.5})], env=ros_env(fresh_domain_id()),
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert "min_visible_fraction" in proc.stderr + proc.stdout
