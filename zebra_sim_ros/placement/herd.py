@@ -306,9 +306,19 @@ class HerdPlacer:
         return np.column_stack([centre, z]), rotation
 
 
+_CONTACTS: dict[str, FloatArray] = {}
+
+
 def _contact_points(library: ZebraLibrary) -> FloatArray:
-    """(M, F, 5, 3) lowest vertex of each leg (fl, fr, hl, hr) and of the barrel, per morph and frame."""
+    """(M, F, 5, 3) lowest vertex of each leg (fl, fr, hl, hr) and of the barrel, per morph and frame.
+
+    Computed once per baked library and process (it reads every frame's vertices).
+    """
     from zebra_sim_ros.zebra.mesh import PART_NAMES
+
+    key = str(library.root)
+    if key in _CONTACTS:
+        return _CONTACTS[key]
 
     faces, part = library.faces(0), library.face_part(0)
     out = np.zeros((len(library.morphs), library.n_frames, 5, 3))
@@ -318,4 +328,5 @@ def _contact_points(library: ZebraLibrary) -> FloatArray:
             v = np.asarray(library.vertices(m, np.arange(library.n_frames)), dtype=np.float64)[:, idx]  # (F, V, 3)
             low = np.argmin(v[..., 2], axis=1)
             out[m, :, k] = v[np.arange(library.n_frames), low]
+    _CONTACTS[key] = out
     return out

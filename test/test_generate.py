@@ -1,0 +1,119 @@
+"""``zebra-sim generate``: YOLO and COCO that agree, deterministic, resumable, shardable, split by placement."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+from pycocotools.coco import COCO
+
+from zebra_sim_ros.dataset.generate import GenerateConfig, Job, frame_name, generate, plan
+
+SMALL = {"frames": 12, "strategy": "both", "worlds": ("savanna",), "seed": 5, "width": 320, "height": 180,
+         "placer": {"count_max": 60}}
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("ds") / "a"
+    stats = generate(GenerateConfig(out=str(out), **SMALL), progress=lambda *a: None)
+    assert stats["frames_written"] == 12
+    return out
+
+
+def test_layout_and_yaml(dataset: Path) -> None:
+    y = yaml.safe_load((dataset / "dataset.yaml").read_text())
+    assert y["names"] == {0: "zebra"} and y["nc"] == 1
+    images = sorted((dataset / y["train"]).glob("*.jpg")) + sorted((dataset / y["val"]).glob("*.jpg"))
+    assert len(images) == 12
+    for img in images:
+        split = img.parent.name
+        assert (dataset / "labels" / split / f"{img.stem}.txt").exists()
+        assert (dataset / "masks" / f"{img.stem}.png").exists()
+        assert np.load(dataset / "depth" / f"{img.stem}.npz")["depth"].dtype == np.float32
+        assert cv2.imread(str(img)).shape == (180, 320, 3)
+
+
+def test_coco_loads_and_equals_yolo(dataset: Path) -> None:
+    checked = 0
+    for split in ("train", "val"):
+        coco = COCO(str(dataset / "coco" / f"{split}.json"))
+        cat = coco.loadCats(1)[0]
+        assert cat["name"] == "zebra" and len(cat["keypoints"]) == 26 and cat["skeleton"]
+        for img in coco.loadImgs(coco.getImgIds()):
+            stem = Path(img["file_name"]).stem
+            anns = coco.loadAnns(coco.getAnnIds(imgIds=img["id"]))
+            lines = (dataset / "labels" / split / f"{stem}.txt").read_text().split()
+            yolo = np.array(lines, dtype=float).reshape(-1, 5) if lines else np.zeros((0, 5))
+            assert len(yolo) == len(anns)
+            mask = cv2.imread(str(dataset / "masks" / f"{stem}.png"), cv2.IMREAD_UNCHANGED)
+            for a, row in zip(anns, yolo, strict=True):
+                x, y, w, h = a["bbox"]
+                np.testing.assert_allclose(row[1:], [(x + w / 2) / 320, (y + h / 2) / 180, w / 320, h / 180],
+                                           atol=1e-6)
+                m = coco.annToMask(a)
+                assert np.array_equal(m.astype(bool), mask == a["zebra_id"] + 1)
+                assert m.sum() == a["area"]
+                assert len(a["keypoints"]) == 78
+                checked += 1
+    assert checked > 20
+
+
+def test_split_is_by_placement(dataset: Path) -> None:
+    splits: dict[tuple[str, int, int], set[str]] = {}
+    for p in (dataset / "annotations").glob("*.json"):
+        m = json.loads(p.read_text())
+        splits.setdefault((m["strategy"], m["seed"], m["placement"]), set()).add(m["split"])
+        assert m["labels"]["camera"] in m["frame"] and m["camera"]["name"] == m["labels"]["camera"]
+    assert all(len(s) == 1 for s in splits.values())
+
+
+def test_same_seed_same_bytes_and_resume(dataset: Path, tmp_path: Path) -> None:
+    out = tmp_path / "b"
+    generate(GenerateConfig(out=str(out), **SMALL), progress=lambda *a: None)
+    for sub in ("annotations", "masks", "labels/train", "labels/val"):
+        for p in (dataset / sub).glob("*"):
+            assert p.read_bytes() == (out / sub / p.name).read_bytes(), p.name
+    assert (dataset / "coco" / "train.json").read_bytes() == (out / "coco" / "train.json").read_bytes()
+    # Interrupted run: one camera's frame is missing; a rerun redoes that step only and nothing else.
+    victim = sorted((out / "annotations").glob("*.json"))[4]
+    before = {p.name: p.stat().st_mtime_ns for p in (out / "annotations").glob("*.json")}
+    victim.unlink()
+    stats = generate(GenerateConfig(out=str(out), **SMALL), progress=lambda *a: None)
+    assert stats["frames_written"] == 3 and stats["frames_skipped_complete"] == 9
+    assert victim.read_bytes() == (dataset / "annotations" / victim.name).read_bytes()
+    after = {p.name: p.stat().st_mtime_ns for p in (out / "annotations").glob("*.json")}
+    step = victim.name.rsplit("_drone_", 1)[0]
+    untouched = [n for n in before if not n.startswith(step)]
+    assert all(before[n] == after[n] for n in untouched)
+
+
+def test_shards_partition_the_steps() -> None:
+    cfg = GenerateConfig(out="x", frames=90, worlds=("savanna", "meadow"))
+    full = set(plan(cfg, 3))
+    parts = [set(plan(GenerateConfig(out="x", frames=90, worlds=("savanna", "meadow"), shard=(i, 3)), 3))
+             for i in range(3)]
+    assert set().union(*parts) == full and sum(len(p) for p in parts) == len(full)
+    assert frame_name(Job("savanna", "far", 0, 7), "drone_2") == "savanna_far_0_000007_drone_2"
+
+
+def test_cli_summary_and_bad_arguments(tmp_path: Path) -> None:
+    base = [sys.executable, "-m", "zebra_sim_ros.cli", "generate"]
+    proc = subprocess.run(base + ["--frames", "3", "--strategy", "SC", "--imgsz", "256x144", "--out",
+                                  str(tmp_path / "c"), "--set", "count_max=20", "--json", "--quiet"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert summary["frames_written"] == 3
+    assert all("closeby" in p.name for p in (tmp_path / "c" / "annotations").glob("*.json"))
+    for args, needle in ((["--frames", "0"], "--frames"), (["--frames", "3", "--strategy", "sideways"], "--strategy"),
+                         (["--frames", "3", "--imgsz", "big"], "--imgsz"), (["--frames", "3", "--shard", "3/2"],
+                                                                            "--shard")):
+        bad = subprocess.run(base + args + ["--out", str(tmp_path / "d")], capture_output=True, text=True, timeout=60)
+        assert bad.returncode == 2 and needle in bad.stderr, (args, bad.stderr)

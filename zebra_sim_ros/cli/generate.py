@@ -1,0 +1,93 @@
+"""``zebra-sim generate``: a labelled dataset (YOLO and COCO) from the in-process pipeline."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from zebra_sim_ros.cli import Summary, add_json_flag
+from zebra_sim_ros.errors import ParameterError
+
+
+def register(sub: Any) -> None:
+    """Add the ``generate`` subcommand."""
+    from zebra_sim_ros.dataset.generate import __doc__ as layout
+
+    p = sub.add_parser("generate", help="generate a labelled dataset (images, masks, depth, YOLO, COCO)",
+                       description=(layout or "").strip(), formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--frames", type=int, required=True, help="camera images in all (the paper: 36000)")
+    p.add_argument("--strategy", default="both",
+                   help="far, closeby, both (half each), or the paper's sets SF (= both) and SC (= closeby)")
+    p.add_argument("--worlds", default="savanna", help="comma-separated world presets or USD paths, or 'all'")
+    p.add_argument("--seed", type=int, default=0, help="seed of the placements (closeby uses seed + 1000003)")
+    p.add_argument("--world-seed", type=int, default=0, help="seed of the procedural worlds")
+    p.add_argument("--out", type=Path, required=True, help="output folder (reruns continue in it)")
+    p.add_argument("--workers", type=int, default=1, help="worker processes (each renders on its own)")
+    p.add_argument("--shard", default="0/1", help="i/n: make only steps with step %% n == i")
+    p.add_argument("--imgsz", default="1280x720", help="WxH, or W for 16:9 (e.g. 1920)")
+    p.add_argument("--hfov", type=float, default=80.0, help="horizontal field of view, deg")
+    p.add_argument("--format", default="jpg", help="jpg or png for the RGB images")
+    p.add_argument("--jpeg-quality", type=int, default=95, help="JPEG quality 1..100")
+    p.add_argument("--yolo-box", default="visible", help="box in the YOLO labels: visible (tight) or full (amodal)")
+    p.add_argument("--depth", default="float32", help="depth images: float32 (exact), float16 (half size) or none")
+    p.add_argument("--val-fraction", type=float, default=0.2, help="share of placements in val")
+    p.add_argument("--min-visible-pixels", type=int, default=10, help="label filter: fewest visible pixels")
+    p.add_argument("--min-visible-fraction", type=float, default=0.0, help="label filter: least visible fraction")
+    p.add_argument("--min-box-px", type=float, default=3.0, help="label filter: smallest box side, px")
+    p.add_argument("--max-aspect-ratio", type=float, default=100.0, help="label filter: largest box side ratio")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="override a placer parameter")
+    p.add_argument("--finalize-only", action="store_true", help="only rebuild COCO, split lists and dataset.yaml")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_json_flag(p)
+    p.set_defaults(func=cmd_generate)
+
+
+def parse_imgsz(text: str) -> tuple[int, int]:
+    """'1280x720' or '1920' (16:9) to (width, height)."""
+    try:
+        if "x" in text:
+            w, h = (int(v) for v in text.lower().split("x"))
+        else:
+            w = int(text)
+            h = int(round(w * 9 / 16))
+    except ValueError:
+        raise ParameterError("--imgsz", text, "WxH or W, integers") from None
+    if not (16 <= w <= 8192 and 16 <= h <= 8192):
+        raise ParameterError("--imgsz", text, "16..8192 pixels per side")
+    return w, h
+
+
+def cmd_generate(args: argparse.Namespace) -> Summary:
+    """Generate (or continue generating) the dataset."""
+    from zebra_sim_ros.dataset.generate import NAMED_SETS, GenerateConfig, finalize, generate
+    from zebra_sim_ros.labels.config import LabelFilters
+    from zebra_sim_ros.world.presets import PRESETS
+
+    width, height = parse_imgsz(args.imgsz)
+    try:
+        i, n = (int(v) for v in args.shard.split("/"))
+    except ValueError:
+        raise ParameterError("--shard", args.shard, "i/n, integers") from None
+    worlds = tuple(PRESETS) if args.worlds == "all" else tuple(w.strip() for w in args.worlds.split(",") if w.strip())
+    placer: dict[str, Any] = {}
+    for item in args.set:
+        if "=" not in item:
+            raise ParameterError("--set", item, "NAME=VALUE")
+        name, raw = item.split("=", 1)
+        placer[name.strip()] = yaml.safe_load(raw)
+    cfg = GenerateConfig(
+        out=str(args.out), frames=args.frames, strategy=NAMED_SETS.get(args.strategy, args.strategy), worlds=worlds,
+        seed=args.seed, world_seed=args.world_seed, width=width, height=height, hfov_deg=args.hfov,
+        image_format=args.format, jpeg_quality=args.jpeg_quality, workers=args.workers, shard=(i, n),
+        yolo_box=args.yolo_box, val_fraction=args.val_fraction, depth=args.depth, placer=placer,
+        filters=LabelFilters(args.min_visible_pixels, args.min_visible_fraction, args.min_box_px,
+                             args.max_aspect_ratio))
+    if args.finalize_only:
+        stats = finalize(args.out, cfg)
+    else:
+        stats = generate(cfg, (lambda d, t, s: None) if args.quiet else None)
+    print(f"dataset at {args.out}: {stats}")
+    return {"out": str(args.out), **stats}

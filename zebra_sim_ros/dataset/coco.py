@@ -1,0 +1,88 @@
+"""COCO export: images, zebra annotations with boxes, keypoints (with skeleton), visibility and RLE masks.
+
+Boxes are ``[x, y, w, h]`` in pixel-edge coordinates (COCO's). Segmentation is uncompressed RLE
+(``{"counts": [...], "size": [h, w]}``, column-major runs starting with background), which pycocotools
+reads. Extra per-annotation fields: ``zebra_id``, ``bbox_full`` (amodal, clipped), ``visible_fraction``,
+``in_frame_fraction``, ``distance_m``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zebra_sim_ros.zebra.keypoints import KEYPOINT_EDGES, KEYPOINT_NAMES
+
+CATEGORY = {
+    "id": 1, "name": "zebra", "supercategory": "animal", "keypoints": list(KEYPOINT_NAMES),
+    "skeleton": [[a + 1, b + 1] for a, b in KEYPOINT_EDGES],
+}
+
+
+def rle_encode(binary: NDArray[np.bool_]) -> dict[str, Any]:
+    """Uncompressed COCO RLE of a binary mask (column-major, first run counts zeros)."""
+    flat = np.asarray(binary, dtype=np.uint8).ravel(order="F")
+    change = np.flatnonzero(np.diff(flat)) + 1
+    bounds = np.concatenate([[0], change, [flat.size]])
+    runs = np.diff(bounds).tolist()
+    if flat.size and flat[0] == 1:
+        runs = [0] + runs
+    return {"counts": runs, "size": [int(binary.shape[0]), int(binary.shape[1])]}
+
+
+def rle_encode_all(mask: NDArray[np.integer], ids: list[int]) -> dict[int, dict[str, Any]]:
+    """Uncompressed COCO RLEs of ``mask == id`` for every id, in one pass over the mask.
+
+    Equal to ``rle_encode(mask == id)`` for each id (a test checks it), without a full-image comparison per id.
+    """
+    h, w = mask.shape
+    flat = np.asarray(mask).ravel(order="F")
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(flat)) + 1])
+    ends = np.concatenate([starts[1:], [flat.size]])
+    values = flat[starts]
+    out = {}
+    for i in ids:
+        sel = np.flatnonzero(values == i)
+        s, e = starts[sel], ends[sel]
+        gaps = s - np.concatenate([[0], e[:-1]])
+        runs = np.empty(2 * len(sel) + 1, dtype=np.int64)
+        runs[0:-1:2] = gaps
+        runs[1::2] = e - s
+        runs[-1] = flat.size - (e[-1] if len(e) else 0)
+        counts = runs.tolist()
+        if counts and counts[-1] == 0:
+            counts.pop()
+        out[int(i)] = {"counts": counts, "size": [int(h), int(w)]}
+    return out
+
+
+def xyxy_to_xywh(box: list[float]) -> list[float]:
+    """[x0, y0, x1, y1] to COCO [x, y, w, h]."""
+    return [box[0], box[1], box[2] - box[0], box[3] - box[1]]
+
+
+def zebra_annotation(z: dict[str, Any], image_id: int, ann_id: int) -> dict[str, Any]:
+    """The COCO annotation of one kept, labelled zebra (its ``rle`` computed when the frame was written)."""
+    return {
+        "id": ann_id, "image_id": image_id, "category_id": 1, "iscrowd": 0,
+        "bbox": xyxy_to_xywh(z["box_visible"]), "area": int(z["visible_pixels"]), "segmentation": z["rle"],
+        "keypoints": [v for k in z["keypoints"] for v in (k[0], k[1], k[2])],
+        "num_keypoints": sum(1 for k in z["keypoints"] if k[2] > 0),
+        "zebra_id": z["id"], "bbox_full": xyxy_to_xywh(z["box_full"]),
+        "visible_fraction": z["visible_fraction"], "in_frame_fraction": z["in_frame_fraction"],
+        "distance_m": z["distance_m"],
+    }
+
+
+def yolo_lines(labels: dict[str, Any], box: str = "visible") -> list[str]:
+    """YOLO detection lines (``0 cx cy w h``, normalised) of the kept zebras; ``box`` visible or full."""
+    w, h = labels["width"], labels["height"]
+    lines = []
+    for z in labels["zebras"]:
+        if not z["kept"]:
+            continue
+        x0, y0, x1, y1 = z["box_visible"] if box == "visible" else z["box_full"]
+        lines.append(f"0 {(x0 + x1) / 2 / w:.6f} {(y0 + y1) / 2 / h:.6f} {(x1 - x0) / w:.6f} {(y1 - y0) / h:.6f}")
+    return lines

@@ -1,0 +1,359 @@
+"""``zebra-sim generate``: the whole pipeline in process (place, render, label, write), fast, resumable.
+
+Layout of the output folder::
+
+    images/{train,val}/<frame>.jpg|png   RGB
+    labels/{train,val}/<frame>.txt       YOLO: "0 cx cy w h" normalised, one line per kept zebra
+    masks/<frame>.png                    uint16 instance mask (zebra id + 1, 0 = not a zebra)
+    depth/<frame>.npz                    metres along the optical axis, key "depth" (inf = sky); float32 by
+                                         default (--depth float16 halves the size, --depth none skips it)
+    annotations/<frame>.json             everything about the frame: the labeller's labels, the scene's seed,
+                                         step, world, lighting, camera pose and intrinsics, split, COCO RLEs
+    coco/{train,val}.json                COCO (boxes, keypoints with skeleton, visibility, RLE masks)
+    dataset.yaml                         for YOLO trainers (path, train, val, names)
+    generate.json                        the settings and the last run's statistics
+
+A frame is ``<world>_<strategy>_<seed>_<step>_<camera>``. The split is by placement (a placement's steps
+and cameras never straddle train and val): about 20% of placements go to val, chosen by a hash of world, seed
+and placement. A frame is complete when its annotation file exists (written last, atomically); a rerun skips
+complete steps, so an interrupted run continues where it stopped and writes no frame twice. ``--shard i/n``
+takes the steps with ``step % n == i``, so machines can share a run without overlap. COCO and the YAML are
+rebuilt from the annotation files at the end of every run (``--finalize-only`` does just that).
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import multiprocessing as mp
+import os
+import sys
+import time
+import zlib
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from zebra_sim_ros.dataset.coco import CATEGORY, rle_encode_all, yolo_lines, zebra_annotation
+from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.labels.config import LabelFilters
+
+STRATEGIES = ("far", "closeby", "both")
+# The paper's two training sets by name.
+NAMED_SETS = {"SF": "both", "SC": "closeby"}
+
+
+@dataclass(frozen=True)
+class GenerateConfig:
+    """Settings of a run. ``frames`` counts camera images over all worlds (the paper: 36K)."""
+
+    out: str
+    frames: int
+    strategy: str = "both"
+    worlds: tuple[str, ...] = ("savanna",)
+    seed: int = 0
+    world_seed: int = 0
+    width: int = 1280
+    height: int = 720
+    hfov_deg: float = 80.0
+    image_format: str = "jpg"
+    jpeg_quality: int = 95
+    workers: int = 1
+    shard: tuple[int, int] = (0, 1)
+    yolo_box: str = "visible"
+    val_fraction: float = 0.2
+    depth: str = "float32"
+    placer: dict[str, Any] = field(default_factory=dict)
+    filters: LabelFilters = field(default_factory=LabelFilters)
+
+    def check(self) -> None:
+        """Raise :class:`ParameterError` naming the first bad setting."""
+        if self.frames < 1:
+            raise ParameterError("--frames", self.frames, ">= 1")
+        if self.strategy not in STRATEGIES:
+            raise ParameterError("--strategy", self.strategy, f"one of {STRATEGIES} (or the sets SF, SC)")
+        if not self.worlds:
+            raise ParameterError("--worlds", "", "at least one world")
+        if self.image_format not in ("jpg", "png"):
+            raise ParameterError("--format", self.image_format, "jpg or png")
+        if not 1 <= self.jpeg_quality <= 100:
+            raise ParameterError("--jpeg-quality", self.jpeg_quality, "1..100")
+        if not 1 <= self.workers <= 64:
+            raise ParameterError("--workers", self.workers, "1..64")
+        i, n = self.shard
+        if not (n >= 1 and 0 <= i < n):
+            raise ParameterError("--shard", f"{i}/{n}", "i/n with 0 <= i < n")
+        if self.yolo_box not in ("visible", "full"):
+            raise ParameterError("--yolo-box", self.yolo_box, "visible or full")
+        if self.depth not in ("float32", "float16", "none"):
+            raise ParameterError("--depth", self.depth, "float32, float16 or none")
+        if not 0.0 <= self.val_fraction < 1.0:
+            raise ParameterError("--val-fraction", self.val_fraction, "0 <= f < 1")
+
+
+@dataclass(frozen=True)
+class Job:
+    """One step of one world and strategy: renders every camera of that step."""
+
+    world: str
+    strategy: str
+    seed: int
+    step: int
+
+
+def frame_name(job: Job, camera: str) -> str:
+    """File stem of one camera image."""
+    return f"{job.world}_{job.strategy}_{job.seed}_{job.step:06d}_{camera}"
+
+
+def split_of(world: str, seed: int, placement: int, val_fraction: float) -> str:
+    """'train' or 'val' for a placement: a hash, so the same placement always lands in the same split."""
+    h = zlib.crc32(f"{world}:{seed}:{placement}".encode()) / 2**32
+    return "val" if h < val_fraction else "train"
+
+
+def plan(cfg: GenerateConfig, cameras: int) -> list[Job]:
+    """The steps needed for ``cfg.frames`` images: split evenly over worlds (and strategies for 'both')."""
+    strategies = ("far", "closeby") if cfg.strategy == "both" else (cfg.strategy,)
+    parts = len(cfg.worlds) * len(strategies)
+    per_part = -(-cfg.frames // parts)  # images
+    steps = -(-per_part // cameras)
+    jobs = []
+    for world in cfg.worlds:
+        for k, strategy in enumerate(strategies):
+            seed = cfg.seed + 1_000_003 * k  # closeby draws its own placements, as the paper's second set did
+            jobs += [Job(world, strategy, seed, s) for s in range(steps)]
+    i, n = cfg.shard
+    return [j for j in jobs if j.step % n == i]
+
+
+def _write_atomic(path: Path, data: bytes) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
+class _Pipeline:
+    """Per-process state: zebra library, a renderer and silhouette counter per world, placers."""
+
+    def __init__(self, cfg: GenerateConfig) -> None:
+        from zebra_sim_ros.zebra.asset import load_library
+
+        self.cfg = cfg
+        self.library = load_library()
+        self.world_name: str | None = None
+        self.renderer: Any = None
+        self.silhouettes: Any = None
+        self.placers: dict[tuple[str, int], Any] = {}
+        self.times = {"place": 0.0, "render": 0.0, "label": 0.0, "write": 0.0}
+        self.out = Path(cfg.out)
+
+    def _world(self, name: str) -> None:
+        if name == self.world_name:
+            return
+        from zebra_sim_ros.labels.silhouettes import SilhouetteCounter
+        from zebra_sim_ros.rendering.renderer import Renderer, RenderOptions
+        from zebra_sim_ros.world.world import load_world
+
+        if self.renderer is not None:
+            self.renderer.release()
+        c = self.cfg
+        self.world = load_world(name, "/World/Terrain", c.world_seed)
+        self.renderer = Renderer(self.world, self.library, RenderOptions(width=c.width, height=c.height,
+                                                                          hfov_deg=c.hfov_deg))
+        self.silhouettes = SilhouetteCounter(self.library, self.renderer.camera,
+                                             self.renderer.options.zebra_detail_distance_m, ctx=self.renderer.ctx)
+        self.placers = {}
+        self.world_name = name
+
+    def placer(self, job: Job) -> Any:
+        from zebra_sim_ros.placement.config import PlacerConfig
+        from zebra_sim_ros.placement.placer import Placer
+
+        self._world(job.world)
+        key = (job.strategy, job.seed)
+        if key not in self.placers:
+            c = self.cfg
+            params = {**c.placer, "seed": job.seed, "strategy": job.strategy, "world": job.world,
+                      "world_seed": c.world_seed, "camera_width": c.width, "camera_height": c.height,
+                      "camera_hfov_deg": c.hfov_deg}
+            self.placers[key] = Placer(PlacerConfig.from_params(params), self.world, self.library)
+        return self.placers[key]
+
+    def run(self, job: Job) -> list[str]:
+        """Place, render, label and write one step; returns the frame names written."""
+        import cv2
+
+        from zebra_sim_ros.labels.labeller import label_view
+        from zebra_sim_ros.rendering.views import lighting_from_scene, views_from_scene, zebras_from_scene
+
+        t0 = time.perf_counter()
+        placer = self.placer(job)
+        scene = placer.scene(job.step).to_dict()
+        t1 = time.perf_counter()
+        views = self.renderer.render(zebras_from_scene(scene, self.library), lighting_from_scene(scene),
+                                     views_from_scene(scene))
+        t2 = time.perf_counter()
+        labelled = [label_view(scene, v.name, v.instances, v.depth, self.renderer.camera, self.library,
+                               self.silhouettes, self.cfg.filters, self.renderer.options.zebra_detail_distance_m)
+                    for v in views]
+        t3 = time.perf_counter()
+        c = self.cfg
+        split = split_of(job.world, job.seed, scene["placement"], c.val_fraction)
+        names = []
+        for v, labels in zip(views, labelled, strict=True):
+            name = frame_name(job, v.name)
+            if c.image_format == "jpg":
+                ok, img = cv2.imencode(".jpg", v.rgb[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, c.jpeg_quality])
+            else:
+                ok, img = cv2.imencode(".png", v.rgb[..., ::-1])
+            ok_m, mask_png = cv2.imencode(".png", v.instances)
+            if not (ok and ok_m):
+                raise ParameterError("--format", c.image_format, "a format OpenCV can encode")
+            _write_atomic(self.out / "images" / split / f"{name}.{c.image_format}", img.tobytes())
+            _write_atomic(self.out / "masks" / f"{name}.png", mask_png.tobytes())
+            if c.depth != "none":
+                buf = io.BytesIO()
+                np.savez_compressed(buf, depth=v.depth.astype(c.depth))
+                _write_atomic(self.out / "depth" / f"{name}.npz", buf.getvalue())
+            _write_atomic(self.out / "labels" / split / f"{name}.txt",
+                          ("\n".join(yolo_lines(labels, c.yolo_box)) + "\n").encode() if labels["kept"] else b"")
+            cam = next(x for x in scene["cameras"] if x["name"] == v.name)
+            rles = rle_encode_all(v.instances, [z["instance"] for z in labels["zebras"] if z["kept"]])
+            for z in labels["zebras"]:
+                if z["kept"]:
+                    z["rle"] = rles[z["instance"]]
+            meta = {"frame": name, "split": split, "image": f"images/{split}/{name}.{c.image_format}",
+                    "mask": f"masks/{name}.png", "depth": f"depth/{name}.npz" if c.depth != "none" else None,
+                    "world": scene["world"], "seed": scene["seed"], "step": scene["step"],
+                    "placement": scene["placement"], "reroll": scene["reroll"], "strategy": job.strategy,
+                    "asset_digest": scene["asset_digest"], "lighting": scene["lighting"], "camera": cam,
+                    "regenerate": f"zebra-sim render --seed {job.seed} --step {job.step} --world {job.world} "
+                                  f"--strategy {job.strategy} --width {c.width} --height {c.height} "
+                                  f"--hfov {c.hfov_deg}",
+                    "labels": labels}
+            _write_atomic(self.out / "annotations" / f"{name}.json",
+                          json.dumps(meta, sort_keys=True, separators=(",", ":")).encode())
+            names.append(name)
+        t4 = time.perf_counter()
+        for k, dt in (("place", t1 - t0), ("render", t2 - t1), ("label", t3 - t2), ("write", t4 - t3)):
+            self.times[k] += dt
+        return names
+
+
+def _worker(cfg: GenerateConfig, jobs: list[Job], queue: Any) -> None:
+    pipe = _Pipeline(cfg)
+    for job in jobs:
+        queue.put(("frames", len(pipe.run(job))))
+    queue.put(("done", pipe.times))
+
+
+def _progress(done: int, total: int, t0: float, stream: Any) -> None:
+    rate = done / max(time.perf_counter() - t0, 1e-9)
+    eta = (total - done) / rate if rate > 0 else float("inf")
+    eta_s = f"{int(eta // 60)}m{int(eta % 60):02d}s" if np.isfinite(eta) else "?"
+    width = 30
+    bar = "#" * int(width * done / max(total, 1))
+    stream.write(f"\r[generate] [{bar:<{width}}] {done}/{total} frames, {rate:.2f} frames/s, ETA {eta_s}   ")
+    stream.flush()
+
+
+def generate(cfg: GenerateConfig, progress: Callable[[int, int, float], None] | None = None) -> dict[str, Any]:
+    """Run (or continue) a generation; returns statistics. Rebuilds COCO and the YAML at the end."""
+    from zebra_sim_ros.placement.config import PlacerConfig
+
+    cfg.check()
+    pc = PlacerConfig.from_params({**cfg.placer, "seed": cfg.seed})
+    out = Path(cfg.out)
+    for sub in ("images/train", "images/val", "labels/train", "labels/val", "masks", "depth", "annotations", "coco"):
+        (out / sub).mkdir(parents=True, exist_ok=True)
+    cameras = [f"drone_{i}" for i in range(pc.num_cameras)]
+    jobs = plan(cfg, len(cameras))
+    have = {p.stem for p in (out / "annotations").glob("*.json")}
+    todo = [j for j in jobs if not all(frame_name(j, c) in have for c in cameras)]
+    total = len(todo) * len(cameras)
+    t0 = time.perf_counter()
+    done = 0
+    times = {"place": 0.0, "render": 0.0, "label": 0.0, "write": 0.0}
+    show = progress or (lambda d, n, t: _progress(d, n, t, sys.stderr))
+    if todo:
+        if cfg.workers == 1:
+            pipe = _Pipeline(cfg)
+            for job in todo:
+                done += len(pipe.run(job))
+                show(done, total, t0)
+            times = pipe.times
+        else:
+            ctx = mp.get_context("spawn")  # fresh processes: GL contexts do not survive fork
+            queue = ctx.Queue()
+            chunks = [todo[k::cfg.workers] for k in range(cfg.workers)]
+            procs = [ctx.Process(target=_worker, args=(cfg, ch, queue), daemon=True) for ch in chunks if ch]
+            for p in procs:
+                p.start()
+            finished = 0
+            try:
+                while finished < len(procs):
+                    kind, val = queue.get(timeout=600)
+                    if kind == "frames":
+                        done += val
+                        show(done, total, t0)
+                    else:
+                        finished += 1
+                        for k in times:
+                            times[k] += val[k]
+            finally:
+                for p in procs:
+                    p.join(timeout=30)
+                    if p.is_alive():
+                        p.terminate()
+            bad = [p.exitcode for p in procs if p.exitcode]
+            if bad:
+                raise ParameterError("--workers", cfg.workers,
+                                     f"workers that finish (exit codes {bad}); rerun to resume")
+        if progress is None:
+            sys.stderr.write("\n")
+    seconds = time.perf_counter() - t0
+    counts = finalize(out, cfg)
+    stats = {"frames_written": done, "frames_skipped_complete": len(jobs) * len(cameras) - total,
+             "seconds": round(seconds, 2), "frames_per_s": round(done / seconds, 3) if done else None,
+             "time_split_s": {k: round(v, 2) for k, v in times.items()}, **counts}
+    (out / "generate.json").write_text(json.dumps({"config": _config_json(cfg), "stats": stats}, indent=1))
+    return stats
+
+
+def _config_json(cfg: GenerateConfig) -> dict[str, Any]:
+    d = asdict(cfg)
+    d["worlds"] = list(cfg.worlds)
+    d["shard"] = f"{cfg.shard[0]}/{cfg.shard[1]}"
+    return d
+
+
+def finalize(out: Path, cfg: GenerateConfig | None = None) -> dict[str, Any]:
+    """Rebuild coco/{train,val}.json, the split lists and dataset.yaml from the annotation files."""
+    images: dict[str, list[dict[str, Any]]] = {"train": [], "val": []}
+    anns: dict[str, list[dict[str, Any]]] = {"train": [], "val": []}
+    kept = 0
+    for path in sorted((out / "annotations").glob("*.json")):
+        meta = json.loads(path.read_text())
+        split = meta["split"]
+        image_id = len(images[split]) + 1
+        lab = meta["labels"]
+        images[split].append({"id": image_id, "file_name": meta["image"], "width": lab["width"],
+                              "height": lab["height"], "frame": meta["frame"], "world": meta["world"]["name"],
+                              "time_of_day_h": meta["lighting"]["time_of_day_h"]})
+        for z in lab["zebras"]:
+            if z["kept"]:
+                anns[split].append(zebra_annotation(z, image_id, len(anns[split]) + 1))
+                kept += 1
+    for split in ("train", "val"):
+        coco = {"info": {"description": "zebra_sim_ros synthetic zebras", "version": "1"}, "licenses": [],
+                "categories": [CATEGORY], "images": images[split], "annotations": anns[split]}
+        (out / "coco" / f"{split}.json").write_text(json.dumps(coco, separators=(",", ":")))
+        (out / f"{split}.txt").write_text("".join(f"./{im['file_name']}\n" for im in images[split]))
+    yaml_text = (f"# zebra_sim_ros synthetic dataset (YOLO format); COCO in coco/\n"
+                 f"path: {out.resolve()}\ntrain: images/train\nval: images/val\nnc: 1\nnames:\n  0: zebra\n")
+    (out / "dataset.yaml").write_text(yaml_text)
+    return {"images_train": len(images["train"]), "images_val": len(images["val"]), "zebras_labelled": kept}
