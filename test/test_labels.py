@@ -128,3 +128,15 @@ def test_rle_of_all_instances_equals_one_by_one() -> None:
     all_ = rle_encode_all(mask, [1, 2, 3, 4, 9])
     for i in (1, 2, 3, 4, 9):
         assert all_[i] == rle_encode(mask == i)
+
+
+def test_shipped_yaml_files_match_the_defaults() -> None:
+    from pathlib import Path
+
+    from zebra_sim_ros.labels.config import LabellerConfig
+    from zebra_sim_ros.params import load_params_file
+    from zebra_sim_ros.rendering.config import CameraConfig
+
+    config = Path(__file__).resolve().parents[1] / "config"
+    assert LabellerConfig.from_params(load_params_file(str(config / "labeller.yaml"), "labeller")) == LabellerConfig()
+    assert CameraConfig.from_params(load_params_file(str(config / "camera.yaml"), "camera")) == CameraConfig()
