@@ -26,7 +26,7 @@ def add_json_flag(p: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The full ``zebra-sim`` argument parser."""
-    from zebra_sim_ros.cli import asset, generate, place, render, world
+    from zebra_sim_ros.cli import asset, detect, generate, place, render, world
 
     parser = argparse.ArgumentParser(
         prog="zebra-sim",
@@ -39,6 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
     place.register(sub)
     render.register(sub)
     generate.register(sub)
+    detect.register(sub)
     return parser
 
 

@@ -29,21 +29,13 @@ from std_msgs.msg import Header, String
 
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.nodes.placer import ACK_TOPIC, SCENE_TOPIC
-from zebra_sim_ros.nodes.ros_adapter import declare_and_read, describe_qos, help_text, qos, run_node, stamp
+from zebra_sim_ros.nodes.ros_adapter import declare_and_read, describe_qos, help_text, image_msg, qos, run_node, stamp
 from zebra_sim_ros.placement.scene import parse_scene
 from zebra_sim_ros.rendering.config import CAMERA_PARAMS, CameraConfig
 from zebra_sim_ros.rendering.renderer import RenderedView, Renderer
 from zebra_sim_ros.rendering.views import lighting_from_scene, views_from_scene, world_source, zebras_from_scene
 from zebra_sim_ros.world.world import load_world
 from zebra_sim_ros.zebra.asset import load_library
-
-
-def image_msg(header: Header, array: np.ndarray, encoding: str) -> Image:
-    """A sensor_msgs/Image of a C-contiguous little-endian array (H, W[, C])."""
-    a = np.ascontiguousarray(array)
-    h, w = a.shape[:2]
-    return Image(header=header, height=h, width=w, encoding=encoding, is_bigendian=0, step=int(a.strides[0]),
-                 data=a.tobytes())
 
 
 def camera_info_msg(header: Header, K: np.ndarray, width: int, height: int) -> CameraInfo:  # noqa: N803

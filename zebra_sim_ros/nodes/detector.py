@@ -1,14 +1,164 @@
-"""The ``detector`` node: YOLO detection on incoming images."""
+"""The ``detector`` node: our YOLO on live images (``ros2 run zebra_sim_ros detector``).
 
-from zebra_sim_ros.nodes import stub_main
+Subscribes every topic in ``image_topics`` (sensor_msgs/Image; rgb8, bgr8, rgba8, bgra8 and mono8 are
+converted, other encodings are logged, counted and skipped), detects frames that arrive within
+``batch_window_s`` of each other as one batch, and publishes beside each input topic (``/drone_0/image_raw``
+-> ``/drone_0/detections...``), keeping the image's header:
 
-USAGE = """Runs the plain-torch YOLO detector on incoming images and publishes the boxes and
-an ImageMarker overlay. The subscription QoS is a parameter and is logged at start."""
+- ``detections`` (std_msgs/String): ``{"schema": "zebra_sim_ros/detections", "version": 1, "stamp", "frame_id",
+  "width", "height", "detections": [{"box_xyxy": [x0, y0, x1, y1] (pixels, pixel-edge coordinates), "score",
+  "class": 0, "class_name": "zebra"}]}``;
+- ``detections/image`` (sensor_msgs/Image rgb8): the image with the boxes drawn;
+- ``detections/markers`` (visualization_msgs/ImageMarker): one LINE_LIST with every box.
+
+With ``ack_name`` set it acknowledges a stamp on ``/zebra_sim/frame_done`` once every input topic of that stamp
+is detected, so the placer's lockstep can wait for detections too.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from typing import Any
+
+import numpy as np
+import torch
+from geometry_msgs.msg import Point
+from rclpy.node import Node
+from sensor_msgs.msg import Image
+from std_msgs.msg import ColorRGBA, Header, String
+from visualization_msgs.msg import ImageMarker
+
+from zebra_sim_ros.detection.checkpoint import load_model, select_device
+from zebra_sim_ros.detection.config import DETECTOR_PARAMS, DetectorConfig, output_base
+from zebra_sim_ros.detection.draw import draw_boxes
+from zebra_sim_ros.detection.predict import detect
+from zebra_sim_ros.nodes.placer import ACK_TOPIC
+from zebra_sim_ros.nodes.ros_adapter import (
+    declare_and_read,
+    describe_qos,
+    help_text,
+    image_msg,
+    qos,
+    run_node,
+    stamp_ns,
+)
+
+_CHANNELS = {"rgb8": (3, None), "bgr8": (3, [2, 1, 0]), "rgba8": (4, [0, 1, 2]), "bgra8": (4, [2, 1, 0]),
+             "mono8": (1, [0, 0, 0])}
+
+
+def to_rgb(msg: Image) -> np.ndarray:
+    """An image message as an RGB uint8 array; ValueError for an encoding we do not convert."""
+    spec = _CHANNELS.get(msg.encoding)
+    if spec is None:
+        raise ValueError(f"unsupported encoding {msg.encoding!r} (converted: {sorted(_CHANNELS)})")
+    ch, order = spec
+    buf = np.frombuffer(bytes(msg.data), dtype=np.uint8)
+    if msg.step < msg.width * ch or len(buf) < msg.step * msg.height:
+        raise ValueError(f"image data of {len(buf)} bytes does not fit {msg.width}x{msg.height} {msg.encoding}")
+    img = buf[: msg.step * msg.height].reshape(msg.height, msg.step)[:, : msg.width * ch].reshape(
+        msg.height, msg.width, ch)
+    return np.ascontiguousarray(img if order is None else img[..., order])
+
+
+class DetectorNode(Node):
+    """Thin adapter around :func:`zebra_sim_ros.detection.predict.detect`."""
+
+    def __init__(self) -> None:
+        super().__init__("detector")
+        self.cfg = DetectorConfig.from_params(declare_and_read(self, DETECTOR_PARAMS))
+        c = self.cfg
+        torch.set_num_threads(max(1, torch.get_num_threads()))
+        self.device = select_device(c.device)
+        self.model, ckpt = load_model(c.weights or None, self.device)
+        self.imgsz = c.imgsz or self.model.cfg.imgsz
+        q = qos(c.qos_reliability, c.qos_depth)
+        self.pending: dict[str, Image] = {}
+        self.done: dict[int, set[str]] = {}
+        self.pubs: dict[str, tuple[Any, Any, Any]] = {}
+        for topic in c.image_topics:
+            base = output_base(topic)
+            self.pubs[topic] = (self.create_publisher(String, base, q),
+                                self.create_publisher(Image, f"{base}/image", q),
+                                self.create_publisher(ImageMarker, f"{base}/markers", q))
+            self.create_subscription(Image, topic, self._handler(topic), q)
+        self.ack_pub = self.create_publisher(Header, ACK_TOPIC, qos("reliable", 100)) if c.ack_name else None
+        self.timer = self.create_timer(c.batch_window_s, self._flush)
+        self.stats = {"images": 0, "batches": 0, "skipped": 0}
+        self.seconds = 0.0
+        self.get_logger().info(
+            f"weights {c.weights or 'shipped'} ({self.model.cfg.size}, epoch {ckpt.get('epoch')}), device "
+            f"{self.device}, imgsz {self.imgsz}, conf {c.conf}, iou {c.iou}; topics {list(c.image_topics)}; "
+            f"QoS {describe_qos(q)}")
+
+    def _handler(self, topic: str) -> Any:
+        def on_image(msg: Image) -> None:
+            if topic in self.pending:  # a newer frame on the same topic before the batch ran: keep the newest
+                self.stats["skipped"] += 1
+            self.pending[topic] = msg
+        return on_image
+
+    def _flush(self) -> None:
+        if not self.pending:
+            return
+        batch, self.pending = self.pending, {}
+        topics, images, msgs = [], [], []
+        for topic, msg in batch.items():
+            try:
+                images.append(to_rgb(msg))
+            except ValueError as exc:
+                self.stats["skipped"] += 1
+                self.get_logger().error(f"{topic}: image skipped ({self.stats['skipped']} so far): {exc}")
+                continue
+            topics.append(topic)
+            msgs.append(msg)
+        if not images:
+            return
+        t0 = time.perf_counter()
+        dets = detect(self.model, images, self.imgsz, self.cfg.conf, self.cfg.iou, self.cfg.max_det)
+        self.seconds += time.perf_counter() - t0
+        self.stats["batches"] += 1
+        for topic, msg, img, d in zip(topics, msgs, images, dets, strict=True):
+            self._publish(topic, msg, img, d)
+        if self.stats["batches"] % 50 == 1:
+            self.get_logger().info(f"{self.stats}; {self.seconds / self.stats['batches']:.3f} s per batch")
+
+    def _publish(self, topic: str, msg: Image, img: np.ndarray, dets: np.ndarray) -> None:
+        header = msg.header
+        names = self.model.cfg.names
+        payload = {"schema": "zebra_sim_ros/detections", "version": 1,
+                   "stamp": {"sec": header.stamp.sec, "nanosec": header.stamp.nanosec}, "frame_id": header.frame_id,
+                   "width": int(msg.width), "height": int(msg.height),
+                   "detections": [{"box_xyxy": [round(float(v), 2) for v in d[:4]], "score": round(float(d[4]), 4),
+                                   "class": int(d[5]), "class_name": names[int(d[5])]} for d in dets]}
+        det_pub, img_pub, mark_pub = self.pubs[topic]
+        det_pub.publish(String(data=json.dumps(payload, separators=(",", ":"))))
+        if self.cfg.publish_image:
+            img_pub.publish(image_msg(header, draw_boxes(img, dets), "rgb8"))
+        pts, col = [], ColorRGBA(r=1.0, g=0.25, b=0.0, a=1.0)
+        for d in dets:
+            x0, y0, x1, y1 = (float(v) for v in d[:4])
+            c = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+            for a, b in zip(c, c[1:] + c[:1], strict=True):
+                pts += [Point(x=a[0], y=a[1]), Point(x=b[0], y=b[1])]
+        mark_pub.publish(ImageMarker(header=header, ns="zebra_detections", id=0, type=ImageMarker.LINE_LIST,
+                                     action=ImageMarker.ADD, scale=1.0, outline_color=col, points=pts,
+                                     outline_colors=[col] * len(pts)))
+        self.stats["images"] += 1
+        if self.ack_pub is not None:  # once every topic of this stamp is done
+            t = stamp_ns(header.stamp)
+            done = self.done.setdefault(t, set())
+            done.add(topic)
+            if done >= set(self.cfg.image_topics):
+                self.ack_pub.publish(Header(stamp=header.stamp, frame_id=self.cfg.ack_name))
+            for old in sorted(self.done)[:-50]:
+                del self.done[old]
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``ros2 run zebra_sim_ros detector``; returns the exit status."""
-    return stub_main("detector", "the YOLO detector", USAGE, argv)
+    return run_node("detector", DetectorNode, argv, help_text("detector", __doc__ or "", DETECTOR_PARAMS))
 
 
 if __name__ == "__main__":

@@ -9,12 +9,15 @@ import sys
 from collections.abc import Callable, Iterable
 from typing import Any
 
+import numpy as np
 import rclpy
 from builtin_interfaces.msg import Time
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Image
+from std_msgs.msg import Header
 
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.params import ParamSpec
@@ -48,6 +51,14 @@ def describe_qos(q: QoSProfile) -> str:
     """One line for the start-up log: QoS mismatches are the first thing users hit."""
     return (f"reliability={q.reliability.name.lower()} durability={q.durability.name.lower()} "
             f"history={q.history.name.lower()} depth={q.depth}")
+
+
+def image_msg(header: Header, array: np.ndarray, encoding: str) -> Image:
+    """A sensor_msgs/Image of a C-contiguous little-endian array (H, W[, C])."""
+    a = np.ascontiguousarray(array)
+    h, w = a.shape[:2]
+    return Image(header=header, height=h, width=w, encoding=encoding, is_bigendian=0, step=int(a.strides[0]),
+                 data=a.tobytes())
 
 
 def stamp(ns: int) -> Time:

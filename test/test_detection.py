@@ -1,0 +1,159 @@
+"""Our YOLO: box codec, NMS, metrics against pycocotools, checkpoints, ONNX."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from pycocotools.coco import COCO
+from pycocotools.cocoeval import COCOeval
+
+from zebra_sim_ros.detection.boxes import box_iou, decode_ltrb, encode_ltrb, nms, postprocess
+from zebra_sim_ros.detection.checkpoint import load_model, read_checkpoint, save_checkpoint
+from zebra_sim_ros.detection.metrics import evaluate_detections
+from zebra_sim_ros.detection.model import ModelConfig, build_model, count_parameters
+from zebra_sim_ros.errors import AssetError, ParameterError
+
+
+def test_box_codec_round_trip() -> None:
+    g = torch.Generator().manual_seed(0)
+    anchors = torch.rand(200, 2, generator=g) * 50 + 10
+    dist = torch.rand(200, 4, generator=g) * 9
+    boxes = decode_ltrb(anchors, dist)
+    torch.testing.assert_close(encode_ltrb(anchors, boxes, reg_max=16), dist)
+    assert (boxes[:, 2:] >= boxes[:, :2]).all()
+
+
+def _nms_reference(boxes: torch.Tensor, scores: torch.Tensor, thr: float) -> list[int]:
+    order = sorted(range(len(scores)), key=lambda i: -float(scores[i]))
+    keep: list[int] = []
+    for i in order:
+        if all(float(box_iou(boxes[i:i + 1], boxes[j:j + 1])) <= thr for j in keep):
+            keep.append(i)
+    return keep
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_nms_equals_brute_force(seed: int) -> None:
+    g = torch.Generator().manual_seed(seed)
+    xy = torch.rand(300, 2, generator=g) * 200
+    boxes = torch.cat([xy, xy + torch.rand(300, 2, generator=g) * 40 + 2], 1)
+    scores = torch.rand(300, generator=g)
+    for thr in (0.3, 0.5, 0.7):
+        assert nms(boxes, scores, thr).tolist() == _nms_reference(boxes, scores, thr)
+
+
+def test_postprocess_keeps_images_apart() -> None:
+    box = torch.tensor([10.0, 10, 50, 50])
+    pred = torch.zeros(2, 3, 5)
+    pred[:, :, :4] = box
+    pred[0, :, 4] = torch.tensor([0.9, 0.8, 0.1])
+    pred[1, :, 4] = torch.tensor([0.3, 0.95, 0.2])
+    out = postprocess(pred, conf=0.25, iou=0.5)
+    assert [len(o) for o in out] == [1, 1]
+    assert out[0][0, 4] == pytest.approx(0.9) and out[1][0, 4] == pytest.approx(0.95)
+
+
+def _random_eval_set(seed: int) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    rng = np.random.default_rng(seed)
+    gts, preds = [], []
+    for _ in range(40):
+        n = int(rng.integers(0, 15))
+        xy = rng.uniform(0, 600, (n, 2))
+        g = np.concatenate([xy, xy + rng.uniform(4, 90, (n, 2))], 1)
+        p = g + rng.normal(0, 3, g.shape)
+        p[:, 2:] = np.maximum(p[:, 2:], p[:, :2] + 1)
+        p = p[rng.uniform(size=n) < 0.8]
+        fxy = rng.uniform(0, 600, (int(rng.integers(0, 8)), 2))
+        p = np.concatenate([p, np.concatenate([fxy, fxy + rng.uniform(4, 60, fxy.shape)], 1)])
+        gts.append(g)
+        preds.append(np.concatenate([p, rng.uniform(0.01, 1, (len(p), 1))], 1))
+    return preds, gts
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_metrics_agree_with_pycocotools(seed: int) -> None:
+    preds, gts = _random_eval_set(seed)
+    images, anns, dets = [], [], []
+    for i, (p, g) in enumerate(zip(preds, gts, strict=True)):
+        images.append({"id": i + 1, "width": 700, "height": 700})
+        for b in g:
+            anns.append({"id": len(anns) + 1, "image_id": i + 1, "category_id": 1, "iscrowd": 0,
+                         "bbox": [b[0], b[1], b[2] - b[0], b[3] - b[1]], "area": float((b[2] - b[0]) * (b[3] - b[1]))})
+        for b in p:
+            dets.append({"image_id": i + 1, "category_id": 1, "bbox": [b[0], b[1], b[2] - b[0], b[3] - b[1]],
+                         "score": float(b[4])})
+    coco = COCO()
+    coco.dataset = {"images": images, "annotations": anns, "categories": [{"id": 1, "name": "zebra"}]}
+    with contextlib.redirect_stdout(io.StringIO()):
+        coco.createIndex()
+        ev = COCOeval(coco, coco.loadRes(dets), "bbox")
+        ev.evaluate()
+        ev.accumulate()
+        ev.summarize()
+    ours = evaluate_detections(preds, gts)
+    assert ours.map50_95 == pytest.approx(ev.stats[0], abs=0.005)
+    assert ours.map50 == pytest.approx(ev.stats[1], abs=0.005)
+    assert 0.1 < ours.map50 < 0.95  # a set where the comparison means something
+    assert 0 < ours.precision <= 1 and 0 < ours.recall <= 1
+
+
+def test_perfect_and_empty_predictions() -> None:
+    gts = [np.array([[0.0, 0, 10, 10], [20, 20, 40, 50]])]
+    perfect = [np.array([[0.0, 0, 10, 10, 0.9], [20, 20, 40, 50, 0.8]])]
+    m = evaluate_detections(perfect, gts)
+    assert m.map50 == pytest.approx(1.0) and m.map50_95 == pytest.approx(1.0)
+    assert evaluate_detections([np.zeros((0, 5))], gts).map50 == 0.0
+
+
+def test_model_sizes_and_shapes() -> None:
+    n, s = build_model(ModelConfig(size="n")), build_model(ModelConfig(size="s"))
+    assert 2.5e6 < count_parameters(n) < 3.5e6 and 10e6 < count_parameters(s) < 12.5e6
+    n.eval()
+    with torch.no_grad():
+        out = n(torch.rand(2, 3, 256, 320))
+    assert out.shape == (2, (32 * 40 + 16 * 20 + 8 * 10), 5)
+    assert (out[..., 4] >= 0).all() and (out[..., 4] <= 1).all()
+    with pytest.raises(ParameterError, match="model"):
+        ModelConfig(size="xl")
+
+
+def test_checkpoint_round_trip_and_bad_files(tmp_path: Path) -> None:
+    model = build_model(ModelConfig(size="n", imgsz=320)).eval()
+    save_checkpoint(tmp_path / "a.pt", model, epoch=3, metrics={"mAP50": 0.5})
+    loaded, ckpt = load_model(tmp_path / "a.pt")
+    assert ckpt["epoch"] == 3 and loaded.cfg == model.cfg
+    x = torch.rand(1, 3, 320, 320)
+    with torch.no_grad():
+        torch.testing.assert_close(loaded(x), model(x))
+    with pytest.raises(ParameterError, match="weights"):
+        read_checkpoint(tmp_path / "missing.pt")
+    (tmp_path / "bad.pt").write_bytes((tmp_path / "a.pt").read_bytes()[:5000])
+    with pytest.raises(AssetError, match="cannot be read"):
+        read_checkpoint(tmp_path / "bad.pt")
+    torch.save({"format": "something else"}, tmp_path / "other.pt")
+    with pytest.raises(AssetError, match="not a"):
+        read_checkpoint(tmp_path / "other.pt")
+
+
+def test_onnx_export_gives_the_same_boxes(tmp_path: Path) -> None:
+    ort = pytest.importorskip("onnxruntime")
+    from zebra_sim_ros.detection.export import export_onnx
+
+    torch.manual_seed(0)
+    model = build_model(ModelConfig(size="n", imgsz=256)).eval()
+    save_checkpoint(tmp_path / "m.pt", model)
+    path = export_onnx(tmp_path / "m.pt", tmp_path / "m.onnx")
+    sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    x = torch.rand(2, 3, 256, 256)
+    onnx_out = torch.from_numpy(sess.run(None, {"images": x.numpy()})[0])
+    with torch.no_grad():
+        torch_out = model(x)
+    torch.testing.assert_close(onnx_out, torch_out, atol=1e-4, rtol=1e-4)
+    for a, b in zip(postprocess(onnx_out, 0.01, 0.7), postprocess(torch_out, 0.01, 0.7), strict=True):
+        assert len(a) == len(b)
+        torch.testing.assert_close(a, b, atol=1e-3, rtol=1e-3)

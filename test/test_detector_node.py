@@ -1,0 +1,90 @@
+"""The detector node over real DDS: detections with the image's stamp, conversions, bad input skipped."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rclpy
+from builtin_interfaces.msg import Time
+from rclpy.executors import SingleThreadedExecutor
+from ros_helpers import fresh_domain_id, node_process, param_args, ros_env, spin_until
+from sensor_msgs.msg import Image
+from std_msgs.msg import Header, String
+
+from zebra_sim_ros.detection.checkpoint import SHIPPED, save_checkpoint
+from zebra_sim_ros.detection.model import ModelConfig, build_model
+
+pytestmark = pytest.mark.integration
+
+
+def _weights(tmp_path: Path) -> str:
+    if SHIPPED.exists():
+        return ""
+    path = tmp_path / "random.pt"
+    save_checkpoint(path, build_model(ModelConfig(size="n", imgsz=320)).eval())
+    return str(path)
+
+
+def _image(stamp: Time, rgb: np.ndarray, encoding: str) -> Image:
+    data = rgb[..., ::-1] if encoding == "bgr8" else rgb
+    h, w = rgb.shape[:2]
+    return Image(header=Header(stamp=stamp, frame_id="drone_0_camera_optical"), height=h, width=w,
+                 encoding=encoding, is_bigendian=0, step=w * 3, data=np.ascontiguousarray(data).tobytes())
+
+
+def test_detections_keep_the_image_stamp(tmp_path: Path) -> None:
+    domain = fresh_domain_id()
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=domain)
+    node = rclpy.create_node("test_detector", context=ctx)
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(node)
+    got: list[dict] = []
+    annotated: list[Image] = []
+    node.create_subscription(String, "/drone_0/detections", lambda m: got.append(json.loads(m.data)), 10)
+    node.create_subscription(Image, "/drone_0/detections/image", annotated.append, 10)
+    pub = node.create_publisher(Image, "/drone_0/image_raw", 10)
+    rgb = np.random.default_rng(0).integers(0, 255, (180, 320, 3), dtype=np.uint8)
+    try:
+        params = {"image_topics": ["/drone_0/image_raw"], "weights": _weights(tmp_path), "imgsz": 320}
+        with node_process("detector", params, domain, tmp_path / "detector.log") as proc:
+            assert spin_until(node, ex, lambda: node.count_subscribers("/drone_0/image_raw") > 0, 60), \
+                (tmp_path / "detector.log").read_text()
+            stamps = [Time(sec=10 + k, nanosec=500) for k in range(3)]
+            bad = Image(header=Header(stamp=Time(sec=99), frame_id="x"), height=2, width=2, encoding="16UC1",
+                        is_bigendian=0, step=4, data=bytes(8))
+            pub.publish(bad)
+            log_path = tmp_path / "detector.log"
+            assert spin_until(node, ex, lambda: "unsupported encoding" in log_path.read_text(), 30)
+            for k, s in enumerate(stamps):
+                pub.publish(_image(s, rgb, "bgr8" if k == 1 else "rgb8"))
+                spin_until(node, ex, lambda k=k: len(got) > k, 30)
+            assert spin_until(node, ex, lambda: len(got) >= 3 and len(annotated) >= 3, 30), \
+                (tmp_path / "detector.log").read_text()
+            assert proc.poll() is None  # the bad image did not stop it
+        assert [(d["stamp"]["sec"], d["stamp"]["nanosec"]) for d in got] == [(s.sec, s.nanosec) for s in stamps]
+        assert all(d["frame_id"] == "drone_0_camera_optical" and d["width"] == 320 for d in got)
+        assert got[0]["detections"] == got[1]["detections"]  # bgr8 was converted, not misread
+        assert annotated[0].encoding == "rgb8" and annotated[0].header.stamp.sec == 10
+        log = (tmp_path / "detector.log").read_text()
+        assert "unsupported encoding '16UC1'" in log
+    finally:
+        ex.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)
+
+
+@pytest.mark.parametrize("kind", ["missing", "corrupt"])
+def test_bad_weights_stop_the_node(tmp_path: Path, kind: str) -> None:
+    path = tmp_path / "w.pt"
+    if kind == "corrupt":
+        path.write_bytes(b"not a checkpoint at all")
+    proc = subprocess.run([sys.executable, "-m", "zebra_sim_ros.nodes.detector", *param_args({"weights": str(path)})],
+                          env=ros_env(fresh_domain_id()), capture_output=True, text=True, timeout=90)
+    assert proc.returncode == 2
+    assert "weights" in proc.stderr + proc.stdout and str(path) in proc.stderr + proc.stdout

@@ -1,0 +1,98 @@
+"""``zebra-sim train``, ``zebra-sim val`` and ``zebra-sim export``: our YOLO's command line."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from zebra_sim_ros.cli import Summary, add_json_flag
+from zebra_sim_ros.errors import ParameterError
+
+
+def register(sub: Any) -> None:
+    """Add ``train``, ``val`` and ``export``."""
+    t = sub.add_parser("train", help="train our YOLO from scratch on a YOLO-format dataset",
+                       description="Train from scratch. Under torchrun (torchrun --nproc_per_node N -m "
+                                   "zebra_sim_ros.cli train ...) it trains with DistributedDataParallel.")
+    t.add_argument("--data", required=True, help="dataset.yaml (train and val folders)")
+    t.add_argument("--model", default="n", help="n (nano, 3.0 M parameters) or s (small, 11.1 M)")
+    t.add_argument("--imgsz", type=int, default=640, help="training image size, px (multiple of 32)")
+    t.add_argument("--epochs", type=int, default=100)
+    t.add_argument("--batch", type=int, default=16, help="batch size (per process under torchrun)")
+    t.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    t.add_argument("--workers", type=int, default=2, help="data loading processes")
+    t.add_argument("--lr0", type=float, default=0.01, help="initial learning rate")
+    t.add_argument("--close-mosaic", type=int, default=10, help="last epochs without mosaic")
+    t.add_argument("--val-every", type=int, default=1, help="validate every N epochs (and after the last)")
+    t.add_argument("--max-train-images", type=int, default=0, help="use only the first N training images (0: all)")
+    t.add_argument("--seed", type=int, default=0)
+    t.add_argument("--out", type=Path, required=True, help="run folder: best.pt, last.pt, results.csv, results.png")
+    t.add_argument("--resume", action="store_true", help="continue the run in --out from last.pt")
+    add_json_flag(t)
+    t.set_defaults(func=cmd_train)
+
+    v = sub.add_parser("val", help="precision, recall, mAP50 and mAP50-95 (COCO definition) of a checkpoint")
+    v.add_argument("--weights", default=None, help="checkpoint (default: the shipped weights)")
+    v.add_argument("--data", required=True, help="dataset.yaml, or a folder of images with a sibling labels/ folder")
+    v.add_argument("--split", default="val", help="split of a dataset.yaml: val or train")
+    v.add_argument("--imgsz", type=int, default=None, help="image size (default: the checkpoint's)")
+    v.add_argument("--batch", type=int, default=8)
+    v.add_argument("--device", default="auto")
+    v.add_argument("--conf", type=float, default=0.001, help="confidence threshold for AP")
+    v.add_argument("--iou", type=float, default=0.7, help="NMS IoU threshold")
+    v.add_argument("--plot", type=Path, default=None, help="write the PR curve (IoU 0.5) to this PNG")
+    add_json_flag(v)
+    v.set_defaults(func=cmd_val)
+
+    e = sub.add_parser("export", help="export a checkpoint for deployment (ONNX)")
+    e.add_argument("--weights", default=None, help="checkpoint (default: the shipped weights)")
+    e.add_argument("--format", default="onnx", help="onnx")
+    e.add_argument("--imgsz", type=int, default=None, help="input size (default: the checkpoint's)")
+    e.add_argument("--out", type=Path, required=True, help="output file (.onnx)")
+    add_json_flag(e)
+    e.set_defaults(func=cmd_export)
+
+
+def cmd_train(args: argparse.Namespace) -> Summary:
+    """Train."""
+    from zebra_sim_ros.detection.train import TrainConfig, train
+
+    cfg = TrainConfig(data=args.data, out=str(args.out), model=args.model, imgsz=args.imgsz, epochs=args.epochs,
+                      batch=args.batch, device=args.device, workers=args.workers, lr0=args.lr0,
+                      close_mosaic=args.close_mosaic, seed=args.seed, val_every=args.val_every,
+                      max_train_images=args.max_train_images, resume=args.resume)
+    summary = train(cfg)
+    print(f"trained: {summary}")
+    return summary
+
+
+def cmd_val(args: argparse.Namespace) -> Summary:
+    """Validate."""
+    from zebra_sim_ros.detection.evaluate import evaluate
+    from zebra_sim_ros.detection.metrics import pr_curve_png
+
+    m, facts = evaluate(args.weights, args.data, args.split, args.imgsz, args.batch, args.device, args.conf, args.iou)
+    d = m.to_dict()
+    print(f"{'images':>8}{'instances':>11}{'P':>8}{'R':>8}{'mAP50':>8}{'mAP50-95':>10}")
+    print(f"{d['images']:>8}{d['instances']:>11}{d['precision']:>8.3f}{d['recall']:>8.3f}{d['mAP50']:>8.3f}"
+          f"{d['mAP50-95']:>10.3f}")
+    if args.plot:
+        pr_curve_png(m, str(args.plot))
+        print(f"PR curve: {args.plot}")
+    return {**d, **facts}
+
+
+def cmd_export(args: argparse.Namespace) -> Summary:
+    """Export."""
+    if args.format != "onnx":
+        raise ParameterError("--format", args.format, "onnx")
+    from zebra_sim_ros.detection.export import export_onnx
+
+    path = export_onnx(args.weights, args.out, args.imgsz)
+    print(f"exported {path}")
+    return {"out": str(path), "format": "onnx"}
+
+
+_ = json

@@ -1,0 +1,107 @@
+"""Boxes: conversions, IoU (plain and complete), the distance codec and batched non-maximum suppression.
+
+Formats: ``xyxy`` = (x_min, y_min, x_max, y_max) in pixels; ``cxcywh`` = centre and size; a box is encoded
+relative to an anchor point as distances (left, top, right, bottom) to its sides, in units of the stride.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from torch import Tensor
+
+
+def xyxy_to_cxcywh(b: Tensor) -> Tensor:
+    """(..., 4) xyxy to cxcywh."""
+    return torch.cat([(b[..., :2] + b[..., 2:]) / 2, b[..., 2:] - b[..., :2]], dim=-1)
+
+
+def cxcywh_to_xyxy(b: Tensor) -> Tensor:
+    """(..., 4) cxcywh to xyxy."""
+    return torch.cat([b[..., :2] - b[..., 2:] / 2, b[..., :2] + b[..., 2:] / 2], dim=-1)
+
+
+def encode_ltrb(anchors: Tensor, boxes: Tensor, reg_max: int) -> Tensor:
+    """Distances (..., 4) from anchor points (..., 2) to the sides of xyxy boxes, clamped to [0, reg_max - 0.01]."""
+    lt = anchors - boxes[..., :2]
+    rb = boxes[..., 2:] - anchors
+    return torch.cat([lt, rb], dim=-1).clamp(0, reg_max - 0.01)
+
+
+def decode_ltrb(anchors: Tensor, dist: Tensor) -> Tensor:
+    """xyxy boxes from anchor points (..., 2) and distances (..., 4) (inverse of :func:`encode_ltrb`)."""
+    return torch.cat([anchors - dist[..., :2], anchors + dist[..., 2:]], dim=-1)
+
+
+def box_iou(a: Tensor, b: Tensor) -> Tensor:
+    """Pairwise IoU (N, M) of xyxy boxes a (N, 4) and b (M, 4)."""
+    area_a = (a[:, 2] - a[:, 0]).clamp(min=0) * (a[:, 3] - a[:, 1]).clamp(min=0)
+    area_b = (b[:, 2] - b[:, 0]).clamp(min=0) * (b[:, 3] - b[:, 1]).clamp(min=0)
+    lt = torch.max(a[:, None, :2], b[None, :, :2])
+    rb = torch.min(a[:, None, 2:], b[None, :, 2:])
+    inter = (rb - lt).clamp(min=0).prod(dim=2)
+    return inter / (area_a[:, None] + area_b[None, :] - inter + 1e-9)
+
+
+def ciou(a: Tensor, b: Tensor, eps: float = 1e-7) -> Tensor:
+    """Complete IoU of matching xyxy boxes (..., 4): IoU minus centre-distance and aspect penalties."""
+    w1, h1 = a[..., 2] - a[..., 0], (a[..., 3] - a[..., 1]).clamp(min=eps)
+    w2, h2 = b[..., 2] - b[..., 0], (b[..., 3] - b[..., 1]).clamp(min=eps)
+    inter = ((torch.min(a[..., 2], b[..., 2]) - torch.max(a[..., 0], b[..., 0])).clamp(min=0)
+             * (torch.min(a[..., 3], b[..., 3]) - torch.max(a[..., 1], b[..., 1])).clamp(min=0))
+    union = w1 * h1 + w2 * h2 - inter + eps
+    iou = inter / union
+    cw = torch.max(a[..., 2], b[..., 2]) - torch.min(a[..., 0], b[..., 0])
+    ch = torch.max(a[..., 3], b[..., 3]) - torch.min(a[..., 1], b[..., 1])
+    c2 = cw**2 + ch**2 + eps
+    rho2 = ((b[..., 0] + b[..., 2] - a[..., 0] - a[..., 2]) ** 2
+            + (b[..., 1] + b[..., 3] - a[..., 1] - a[..., 3]) ** 2) / 4
+    v = (4 / math.pi**2) * (torch.atan(w2 / h2) - torch.atan(w1 / h1)) ** 2
+    with torch.no_grad():
+        alpha = v / (v - iou + (1 + eps))
+    return iou - (rho2 / c2 + v * alpha)
+
+
+def nms(boxes: Tensor, scores: Tensor, iou_threshold: float) -> Tensor:
+    """Indices of the boxes kept by greedy non-maximum suppression, highest score first."""
+    if boxes.numel() == 0:
+        return torch.zeros(0, dtype=torch.long, device=boxes.device)
+    order = scores.argsort(descending=True)
+    boxes = boxes[order]
+    iou = box_iou(boxes, boxes)
+    n = len(boxes)
+    keep = torch.ones(n, dtype=torch.bool, device=boxes.device)
+    # Greedy in score order; the IoU matrix is computed once, the loop only reads it.
+    iou_upper = (iou > iou_threshold).triu(diagonal=1)
+    for i in range(n):
+        if keep[i]:
+            keep &= ~iou_upper[i]
+    return order[keep]
+
+
+def batched_nms(boxes: Tensor, scores: Tensor, groups: Tensor, iou_threshold: float) -> Tensor:
+    """NMS within groups (images and/or classes) at once, by offsetting each group's boxes apart."""
+    if boxes.numel() == 0:
+        return torch.zeros(0, dtype=torch.long, device=boxes.device)
+    offset = groups.to(boxes.dtype)[:, None] * (boxes.max() + 1)
+    return nms(boxes + offset, scores, iou_threshold)
+
+
+def postprocess(pred: Tensor, conf: float = 0.25, iou: float = 0.7, max_det: int = 300) -> list[Tensor]:
+    """Per image (n, 6) [x0, y0, x1, y1, score, class] from decoded predictions (B, N, 4 + nc)."""
+    out = []
+    b = pred.shape[0]
+    scores, cls = pred[..., 4:].max(dim=-1)
+    mask = scores > conf
+    img_idx = torch.arange(b, device=pred.device)[:, None].expand_as(scores)[mask]
+    boxes, s, c = pred[..., :4][mask], scores[mask], cls[mask]
+    # Cap candidates per image before NMS so a flood of low scores cannot blow up the IoU matrix.
+    keep_all = batched_nms(boxes, s, img_idx * 1000 + c, iou) if len(s) <= 30000 else None
+    if keep_all is None:
+        top = s.topk(30000).indices
+        keep_all = top[batched_nms(boxes[top], s[top], (img_idx * 1000 + c)[top], iou)]
+    for i in range(b):
+        k = keep_all[img_idx[keep_all] == i][:max_det]
+        out.append(torch.cat([boxes[k], s[k, None], c[k, None].to(boxes.dtype)], dim=1))
+    return out

@@ -1,0 +1,71 @@
+"""Checkpoints: weights with the model config beside them, loaded safely (``weights_only=True``).
+
+A checkpoint is a dict of plain types and tensors: ``format`` ("zebra_sim_ros/detector"), ``version``,
+``config`` (:class:`~zebra_sim_ros.detection.model.ModelConfig` as a dict), ``model`` (state dict; EMA weights,
+fp16 in shipped files), ``epoch``, ``metrics``, ``train_args`` and, for resuming, ``optimizer`` and ``ema_updates``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from zebra_sim_ros.detection.model import Detector, build_model
+from zebra_sim_ros.errors import AssetError, ParameterError
+
+FORMAT = "zebra_sim_ros/detector"
+VERSION = 1
+SHIPPED = Path(__file__).resolve().parent / "weights" / "zebra_yolo_n.pt"
+
+
+def save_checkpoint(path: str | Path, model: Detector, **extra: Any) -> None:
+    """Write ``model`` (its state dict, as is) with its config and ``extra`` fields."""
+    ckpt = {"format": FORMAT, "version": VERSION, "config": model.cfg.to_dict(), "model": model.state_dict(), **extra}
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    tmp = p.with_name(p.name + ".tmp")
+    torch.save(ckpt, tmp)
+    tmp.replace(p)
+
+
+def read_checkpoint(path: str | Path) -> dict[str, Any]:
+    """The checkpoint dict; raises :class:`ParameterError` for a missing file, :class:`AssetError` for a bad one."""
+    p = Path(path)
+    if not p.is_file():
+        raise ParameterError("weights", str(p), "an existing checkpoint file")
+    try:
+        ckpt = torch.load(p, map_location="cpu", weights_only=True)
+    except Exception as exc:  # torch raises many types for truncated or foreign files
+        raise AssetError(f"weights {p} cannot be read as a checkpoint ({type(exc).__name__}: {exc})") from exc
+    if not isinstance(ckpt, dict) or ckpt.get("format") != FORMAT:
+        raise AssetError(f"weights {p} are not a {FORMAT} checkpoint")
+    if ckpt.get("version") != VERSION:
+        raise AssetError(f"weights {p} have checkpoint version {ckpt.get('version')}; this build reads {VERSION}")
+    return ckpt
+
+
+def load_model(path: str | Path | None = None, device: str | torch.device = "cpu",
+               fuse: bool = True) -> tuple[Detector, dict[str, Any]]:
+    """Rebuild the model of a checkpoint (default: the shipped weights) in eval mode, float32, on ``device``;
+    batch norms are folded into the convolutions unless ``fuse`` is False."""
+    ckpt = read_checkpoint(path or SHIPPED)
+    model = build_model(ckpt["config"])
+    try:
+        model.load_state_dict({k: v.float() for k, v in ckpt["model"].items()})
+    except RuntimeError as exc:
+        raise AssetError(f"weights {path or SHIPPED} do not fit their own config: {exc}") from exc
+    model = model.to(device).eval()
+    return (model.fuse() if fuse else model), ckpt
+
+
+def select_device(name: str = "auto") -> torch.device:
+    """``auto`` (CUDA when available), ``cpu``, ``cuda`` or ``cuda:N``."""
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name.startswith("cuda") and not torch.cuda.is_available():
+        raise ParameterError("device", name, "cpu or auto (no CUDA device is available)")
+    if name != "cpu" and not name.startswith("cuda"):
+        raise ParameterError("device", name, "auto, cpu, cuda or cuda:N")
+    return torch.device(name)

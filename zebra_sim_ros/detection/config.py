@@ -1,0 +1,63 @@
+"""The detector node's parameters."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from zebra_sim_ros.params import ParamSpec, in_range, one_of, validate
+
+DETECTOR_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec("image_topics", ["/drone_0/image_raw", "/drone_1/image_raw", "/drone_2/image_raw"],
+              "sensor_msgs/Image topics to detect on; outputs go beside each (…/detections)",
+              "a non-empty list of topic names", lambda v: len(v) > 0 and all(isinstance(x, str) and x for x in v)),
+    ParamSpec("weights", "", "checkpoint file (empty: the shipped weights)", "a path or empty",
+              lambda v: isinstance(v, str)),
+    ParamSpec("conf", 0.25, "confidence threshold", "0..1", in_range(0.0, 1.0)),
+    ParamSpec("iou", 0.7, "NMS IoU threshold", "0..1", in_range(0.0, 1.0)),
+    ParamSpec("imgsz", 0, "inference size, px (0: the checkpoint's)", "0 or a multiple of 32 in 64..4096",
+              lambda v: isinstance(v, int) and (v == 0 or (64 <= v <= 4096 and v % 32 == 0))),
+    ParamSpec("device", "auto", "auto, cpu, cuda or cuda:N", "auto, cpu, cuda, cuda:N",
+              lambda v: isinstance(v, str) and (v in ("auto", "cpu") or v.startswith("cuda"))),
+    ParamSpec("max_det", 300, "most detections per image", "1..10000", in_range(1, 10000)),
+    ParamSpec("batch_window_s", 0.05, "frames arriving within this of each other are detected as one batch, s",
+              "0.001..10", in_range(0.001, 10.0)),
+    ParamSpec("publish_image", True, "publish the annotated image on …/detections/image", "true or false",
+              lambda v: isinstance(v, bool)),
+    ParamSpec("ack_name", "", "if set, acknowledge each detected image on /zebra_sim/frame_done as "
+              "<ack_name> (for the placer's lockstep)", "a name or empty", lambda v: isinstance(v, str)),
+    ParamSpec("qos_reliability", "reliable", "QoS reliability of subscriptions and outputs", "reliable or best_effort",
+              one_of("reliable", "best_effort")),
+    ParamSpec("qos_depth", 5, "history depth", "1..1000", in_range(1, 1000)),
+)
+
+
+@dataclass(frozen=True)
+class DetectorConfig:
+    """Validated detector parameters."""
+
+    image_topics: tuple[str, ...] = ("/drone_0/image_raw", "/drone_1/image_raw", "/drone_2/image_raw")
+    weights: str = ""
+    conf: float = 0.25
+    iou: float = 0.7
+    imgsz: int = 0
+    device: str = "auto"
+    max_det: int = 300
+    batch_window_s: float = 0.05
+    publish_image: bool = True
+    ack_name: str = ""
+    qos_reliability: str = "reliable"
+    qos_depth: int = 5
+
+    @classmethod
+    def from_params(cls, values: dict[str, Any]) -> DetectorConfig:
+        """Validate raw parameter values."""
+        v = validate(DETECTOR_PARAMS, values)
+        v["image_topics"] = tuple(v["image_topics"])
+        return cls(**v)
+
+
+def output_base(image_topic: str) -> str:
+    """Where a topic's outputs go: ``/drone_0/image_raw`` -> ``/drone_0/detections``."""
+    parent = image_topic.rstrip("/").rsplit("/", 1)[0]
+    return f"{parent}/detections" if parent else "/detections"

@@ -1,0 +1,243 @@
+"""YOLO-format datasets and the augmentations of the paper's YOLOv5 defaults.
+
+A set is a folder of images with a sibling ``labels`` folder (``images/x/a.jpg`` -> ``labels/x/a.txt``, lines
+``class cx cy w h`` normalised), or a ``dataset.yaml`` naming ``train`` and ``val`` folders. Batches are
+``(images (B, 3, S, S) float in [0, 1], targets (T, 6) [image index, class, x0, y0, x1, y1] pixels)``.
+
+Training augmentation: mosaic of four images, random affine (scale, translation), horizontal flip and HSV
+jitter. Validation: letterbox only, with the scale and padding kept to map boxes back to the original image.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import torch
+import yaml
+from numpy.typing import NDArray
+from torch.utils.data import Dataset
+
+from zebra_sim_ros.errors import ParameterError
+
+IMAGE_EXTS = (".jpg", ".jpeg", ".png", ".bmp")
+
+
+@dataclass(frozen=True)
+class Augment:
+    """Augmentation strengths (YOLOv5/8 defaults)."""
+
+    mosaic: float = 1.0
+    scale: float = 0.5
+    translate: float = 0.1
+    fliplr: float = 0.5
+    hsv_h: float = 0.015
+    hsv_s: float = 0.7
+    hsv_v: float = 0.4
+
+
+def resolve_split(data: str | Path, split: str) -> Path:
+    """The image folder of ``split`` from a dataset.yaml, or ``data`` itself if it is a folder."""
+    p = Path(data)
+    if p.is_dir():
+        return p
+    if not p.is_file():
+        raise ParameterError("--data", str(p), "a dataset.yaml or an image folder that exists")
+    try:
+        y = yaml.safe_load(p.read_text())
+        root = Path(y.get("path") or p.parent)
+        if not root.is_absolute():
+            root = p.parent / root
+        folder = root / y[split]
+    except (yaml.YAMLError, KeyError, TypeError) as exc:
+        raise ParameterError("--data", str(p), f"a YOLO dataset.yaml with '{split}' ({exc})") from exc
+    if not folder.is_dir():
+        raise ParameterError("--data", str(p), f"a '{split}' folder that exists (not {folder})")
+    return folder
+
+
+def label_path(image: Path) -> Path:
+    """``.../images/<x>/a.jpg`` -> ``.../labels/<x>/a.txt`` (YOLO's convention)."""
+    parts = list(image.parts)
+    for i in range(len(parts) - 1, -1, -1):
+        if parts[i] == "images":
+            parts[i] = "labels"
+            break
+    return Path(*parts).with_suffix(".txt")
+
+
+def read_labels(path: Path, width: int, height: int) -> NDArray[np.float32]:
+    """(n, 5) [class, x0, y0, x1, y1] pixels from a YOLO label file (missing file: no objects)."""
+    if not path.exists():
+        return np.zeros((0, 5), np.float32)
+    rows = [r.split() for r in path.read_text().splitlines() if r.strip()]
+    if not rows:
+        return np.zeros((0, 5), np.float32)
+    a = np.array(rows, dtype=np.float32)[:, :5]
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 0]
+    out[:, 1] = (a[:, 1] - a[:, 3] / 2) * width
+    out[:, 2] = (a[:, 2] - a[:, 4] / 2) * height
+    out[:, 3] = (a[:, 1] + a[:, 3] / 2) * width
+    out[:, 4] = (a[:, 2] + a[:, 4] / 2) * height
+    return out
+
+
+def letterbox(img: NDArray[np.uint8], size: int) -> tuple[NDArray[np.uint8], float, tuple[int, int]]:
+    """Resize keeping the aspect ratio so the long side is ``size``, pad to size x size with grey.
+
+    Returns the image, the scale and the (left, top) padding: ``x_new = x * scale + left``.
+    """
+    h, w = img.shape[:2]
+    r = size / max(h, w)
+    nw, nh = round(w * r), round(h * r)
+    if (nw, nh) != (w, h):
+        img = np.asarray(cv2.resize(img, (nw, nh), interpolation=cv2.INTER_LINEAR if r > 1 else cv2.INTER_AREA),
+                         dtype=np.uint8)
+    left, top = (size - nw) // 2, (size - nh) // 2
+    out = np.full((size, size, 3), 114, np.uint8)
+    out[top:top + nh, left:left + nw] = img
+    return out, r, (left, top)
+
+
+class YoloDataset(Dataset[Any]):
+    """Images and YOLO labels; ``augment`` None for validation."""
+
+    def __init__(self, folder: str | Path, imgsz: int = 640, augment: Augment | None = None, seed: int = 0) -> None:
+        self.folder = Path(folder)
+        self.files = sorted(p for p in self.folder.rglob("*") if p.suffix.lower() in IMAGE_EXTS)
+        if not self.files:
+            raise ParameterError("--data", str(self.folder), "a folder with images (.jpg, .png)")
+        self.imgsz = imgsz
+        self.augment = augment
+        self.seed = seed
+        self.epoch = 0
+
+    def __len__(self) -> int:
+        return len(self.files)
+
+    def load(self, i: int) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+        """Image (RGB) and labels in its own pixels."""
+        img = cv2.imread(str(self.files[i]), cv2.IMREAD_COLOR)
+        if img is None:
+            raise ParameterError("image", str(self.files[i]), "a readable image file")
+        h, w = img.shape[:2]
+        return np.asarray(img[..., ::-1], dtype=np.uint8).copy(), read_labels(label_path(self.files[i]), w, h)
+
+    def _rng(self, i: int) -> np.random.Generator:
+        return np.random.default_rng([self.seed, self.epoch, i])
+
+    def __getitem__(self, i: int) -> tuple[torch.Tensor, torch.Tensor, dict[str, Any]]:
+        a = self.augment
+        if a is None:
+            img, lab = self.load(i)
+            h0, w0 = img.shape[:2]
+            img, r, (left, top) = letterbox(img, self.imgsz)
+            lab = lab.copy()
+            lab[:, [1, 3]] = lab[:, [1, 3]] * r + left
+            lab[:, [2, 4]] = lab[:, [2, 4]] * r + top
+            meta = {"file": str(self.files[i]), "shape": (h0, w0), "scale": r, "pad": (left, top)}
+        else:
+            rng = self._rng(i)
+            img, lab = self._mosaic(i, rng) if rng.uniform() < a.mosaic else self._single(i, rng)
+            if rng.uniform() < a.fliplr:
+                img = img[:, ::-1].copy()
+                lab[:, [1, 3]] = self.imgsz - lab[:, [3, 1]]
+            img = _hsv(img, rng, a)
+            meta = {"file": str(self.files[i])}
+        t = torch.from_numpy(np.ascontiguousarray(img.transpose(2, 0, 1))).float() / 255.0
+        return t, torch.from_numpy(lab), meta
+
+    def _single(self, i: int, rng: np.random.Generator) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+        img, lab = self.load(i)
+        img, r, (left, top) = letterbox(img, self.imgsz)
+        lab = lab.copy()
+        lab[:, [1, 3]] = lab[:, [1, 3]] * r + left
+        lab[:, [2, 4]] = lab[:, [2, 4]] * r + top
+        return _affine(img, lab, rng, self.augment or Augment(), self.imgsz, border=0)
+
+    def _mosaic(self, i: int, rng: np.random.Generator) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+        s = self.imgsz
+        cx, cy = (int(rng.uniform(s * 0.5, s * 1.5)) for _ in range(2))
+        canvas = np.full((2 * s, 2 * s, 3), 114, np.uint8)
+        labels = []
+        idx = [i] + list(rng.integers(0, len(self), 3))
+        for k, j in enumerate(idx):
+            img, lab = self.load(int(j))
+            h, w = img.shape[:2]
+            r = s / max(h, w)
+            img = np.asarray(cv2.resize(img, (round(w * r), round(h * r)), interpolation=cv2.INTER_AREA), np.uint8)
+            h, w = img.shape[:2]
+            if k == 0:
+                x0, y0, x1, y1 = max(cx - w, 0), max(cy - h, 0), cx, cy
+                sx0, sy0 = w - (x1 - x0), h - (y1 - y0)
+            elif k == 1:
+                x0, y0, x1, y1 = cx, max(cy - h, 0), min(cx + w, 2 * s), cy
+                sx0, sy0 = 0, h - (y1 - y0)
+            elif k == 2:
+                x0, y0, x1, y1 = max(cx - w, 0), cy, cx, min(2 * s, cy + h)
+                sx0, sy0 = w - (x1 - x0), 0
+            else:
+                x0, y0, x1, y1 = cx, cy, min(cx + w, 2 * s), min(2 * s, cy + h)
+                sx0, sy0 = 0, 0
+            canvas[y0:y1, x0:x1] = img[sy0:sy0 + (y1 - y0), sx0:sx0 + (x1 - x0)]
+            lab = lab.copy()
+            lab[:, [1, 3]] = lab[:, [1, 3]] * r + (x0 - sx0)
+            lab[:, [2, 4]] = lab[:, [2, 4]] * r + (y0 - sy0)
+            labels.append(lab)
+        lab = np.concatenate(labels) if labels else np.zeros((0, 5), np.float32)
+        lab[:, 1:] = np.clip(lab[:, 1:], 0, 2 * s)
+        return _affine(canvas, lab, rng, self.augment or Augment(), s, border=-s // 2)
+
+
+def _affine(img: NDArray[np.uint8], lab: NDArray[np.float32], rng: np.random.Generator, a: Augment, size: int,
+            border: int) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+    """Random scale and translation into a ``size`` square; boxes follow, tiny or mostly cut ones are dropped."""
+    h, w = img.shape[:2]
+    c = np.eye(3)
+    c[0, 2], c[1, 2] = -w / 2, -h / 2
+    s = rng.uniform(1 - a.scale, 1 + a.scale)
+    sc = np.diag([s, s, 1.0])
+    t = np.eye(3)
+    t[0, 2] = rng.uniform(0.5 - a.translate, 0.5 + a.translate) * size
+    t[1, 2] = rng.uniform(0.5 - a.translate, 0.5 + a.translate) * size
+    m = (t @ sc @ c)[:2]
+    out = cv2.warpAffine(img, m, (size, size), borderValue=(114, 114, 114))
+    if len(lab):
+        pts = np.ones((len(lab) * 4, 3), np.float64)
+        pts[:, :2] = lab[:, [1, 2, 3, 4, 1, 4, 3, 2]].reshape(-1, 2)
+        xy = (pts @ m.T).reshape(-1, 8)
+        new = np.stack([xy[:, [0, 2, 4, 6]].min(1), xy[:, [1, 3, 5, 7]].min(1), xy[:, [0, 2, 4, 6]].max(1),
+                        xy[:, [1, 3, 5, 7]].max(1)], 1).clip(0, size)
+        w0, h0 = (lab[:, 3] - lab[:, 1]) * s, (lab[:, 4] - lab[:, 2]) * s
+        w1, h1 = new[:, 2] - new[:, 0], new[:, 3] - new[:, 1]
+        keep = (w1 > 2) & (h1 > 2) & (w1 * h1 / (w0 * h0 + 1e-9) > 0.1)
+        lab = np.concatenate([lab[keep, :1], new[keep]], 1).astype(np.float32)
+    del border
+    return np.asarray(out, dtype=np.uint8), lab
+
+
+def _hsv(img: NDArray[np.uint8], rng: np.random.Generator, a: Augment) -> NDArray[np.uint8]:
+    r = rng.uniform(-1, 1, 3) * [a.hsv_h, a.hsv_s, a.hsv_v] + 1
+    hsv = cv2.cvtColor(img, cv2.COLOR_RGB2HSV)
+    x = np.arange(256, dtype=np.float32)
+    lut_h = ((x * r[0]) % 180).astype(np.uint8)
+    lut_s = np.clip(x * r[1], 0, 255).astype(np.uint8)
+    lut_v = np.clip(x * r[2], 0, 255).astype(np.uint8)
+    hsv = cv2.merge((cv2.LUT(hsv[..., 0], lut_h), cv2.LUT(hsv[..., 1], lut_s), cv2.LUT(hsv[..., 2], lut_v)))
+    return np.asarray(cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB), dtype=np.uint8)
+
+
+def collate(batch: list[tuple[torch.Tensor, torch.Tensor, dict[str, Any]]]) -> tuple[torch.Tensor, torch.Tensor,
+                                                                                        list[dict[str, Any]]]:
+    """Stack images; targets become (T, 6) [image index, class, x0, y0, x1, y1]."""
+    imgs = torch.stack([b[0] for b in batch])
+    targets = [torch.cat([torch.full((len(b[1]), 1), float(i)), b[1]], 1) for i, b in enumerate(batch)]
+    return imgs, torch.cat(targets) if targets else torch.zeros((0, 6)), [b[2] for b in batch]
+
+
+_ = math

@@ -1,0 +1,139 @@
+"""Detection metrics with COCO's definition: AP at IoU 0.50:0.05:0.95, 101-point interpolated.
+
+Matching follows pycocotools' COCOeval for boxes (area range "all", at most ``max_det`` detections per
+image by score): in score order, each detection takes the unmatched ground truth it overlaps most at or above
+the threshold. Precision is made monotone, sampled at 101 recall points and averaged. Precision and recall are
+also given at the confidence that maximises F1 at IoU 0.5, as YOLO tools print them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+IOU_THRESHOLDS = np.linspace(0.5, 0.95, 10)
+RECALL_POINTS = np.linspace(0.0, 1.0, 101)
+
+
+def iou_matrix(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """IoU (N, M) of xyxy boxes."""
+    if len(a) == 0 or len(b) == 0:
+        return np.zeros((len(a), len(b)))
+    lt = np.maximum(a[:, None, :2], b[None, :, :2])
+    rb = np.minimum(a[:, None, 2:], b[None, :, 2:])
+    inter = np.clip(rb - lt, 0, None).prod(2)
+    area_a = (a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1])
+    area_b = (b[:, 2] - b[:, 0]) * (b[:, 3] - b[:, 1])
+    return np.asarray(inter / (area_a[:, None] + area_b[None, :] - inter + 1e-12))
+
+
+@dataclass
+class DetectionMetrics:
+    """Results over a set: AP per IoU threshold and the summary numbers."""
+
+    ap: NDArray[np.float64]  # (10,) AP at IoU 0.50, 0.55, ..., 0.95
+    precision: float
+    recall: float
+    f1_confidence: float
+    images: int
+    instances: int
+    pr_curve: tuple[NDArray[np.float64], NDArray[np.float64]] = field(
+        default_factory=lambda: (np.zeros(0), np.zeros(0)))
+
+    @property
+    def map50(self) -> float:
+        """AP at IoU 0.5."""
+        return float(self.ap[0])
+
+    @property
+    def map50_95(self) -> float:
+        """Mean AP over IoU 0.50:0.05:0.95."""
+        return float(self.ap.mean())
+
+    def to_dict(self) -> dict[str, float | int]:
+        """Summary numbers."""
+        return {"precision": round(self.precision, 4), "recall": round(self.recall, 4),
+                "mAP50": round(self.map50, 4), "mAP50-95": round(self.map50_95, 4),
+                "images": self.images, "instances": self.instances}
+
+
+def evaluate_detections(preds: list[NDArray[np.float64]], gts: list[NDArray[np.float64]],
+                        max_det: int = 100) -> DetectionMetrics:
+    """Metrics of per-image predictions (n, 5) [x0, y0, x1, y1, score] against ground truths (m, 4) xyxy.
+
+    Single class (zebra); boxes in the same pixel coordinates. With no ground truth at all, AP is 0.
+    """
+    t = len(IOU_THRESHOLDS)
+    scores_all, tp_all = [], []
+    n_gt = 0
+    for pred, gt in zip(preds, gts, strict=True):
+        pred = np.asarray(pred, dtype=np.float64).reshape(-1, 5)
+        gt = np.asarray(gt, dtype=np.float64).reshape(-1, 4)
+        n_gt += len(gt)
+        order = np.argsort(-pred[:, 4], kind="mergesort")[:max_det]
+        pred = pred[order]
+        ious = iou_matrix(pred[:, :4], gt)
+        tp = np.zeros((t, len(pred)), dtype=bool)
+        for ti, thr in enumerate(IOU_THRESHOLDS):
+            taken = np.zeros(len(gt), dtype=bool)
+            limit = min(thr, 1 - 1e-10)
+            for d in range(len(pred)):
+                best, best_iou = -1, limit
+                for g in range(len(gt)):
+                    if taken[g] or ious[d, g] < best_iou:
+                        continue
+                    best, best_iou = g, ious[d, g]
+                if best >= 0:
+                    taken[best] = True
+                    tp[ti, d] = True
+        scores_all.append(pred[:, 4])
+        tp_all.append(tp)
+    scores = np.concatenate(scores_all) if scores_all else np.zeros(0)
+    tps = np.concatenate(tp_all, axis=1) if tp_all else np.zeros((t, 0), dtype=bool)
+    order = np.argsort(-scores, kind="mergesort")
+    scores, tps = scores[order], tps[:, order]
+    ap = np.zeros(t)
+    pr = (np.zeros(0), np.zeros(0))
+    best_p = best_r = best_conf = 0.0
+    if n_gt and len(scores):
+        for ti in range(t):
+            tp_c = np.cumsum(tps[ti]).astype(np.float64)
+            fp_c = np.cumsum(~tps[ti]).astype(np.float64)
+            rc = tp_c / n_gt
+            pc = tp_c / (tp_c + fp_c + np.spacing(1))
+            pm = np.maximum.accumulate(pc[::-1])[::-1]  # monotone: best precision at this recall or beyond
+            idx = np.searchsorted(rc, RECALL_POINTS, side="left")
+            q = np.where(idx < len(pm), pm[np.minimum(idx, len(pm) - 1)], 0.0)
+            ap[ti] = q.mean()
+            if ti == 0:
+                pr = (rc, pc)
+                f1 = 2 * pc * rc / (pc + rc + 1e-12)
+                k = int(np.argmax(f1))
+                best_p, best_r, best_conf = float(pc[k]), float(rc[k]), float(scores[k])
+    return DetectionMetrics(ap=ap, precision=best_p, recall=best_r, f1_confidence=best_conf, images=len(gts),
+                            instances=n_gt, pr_curve=pr)
+
+
+def pr_curve_png(metrics: DetectionMetrics, path: str, title: str = "precision-recall, IoU 0.5") -> None:
+    """Draw the precision-recall curve at IoU 0.5 into a PNG (OpenCV, no plotting library needed)."""
+    import cv2
+
+    w, h, m = 640, 480, 60
+    img = np.full((h, w, 3), 255, np.uint8)
+    cv2.rectangle(img, (m, 20), (w - 20, h - m), (0, 0, 0), 1)
+    for k in range(0, 11, 2):
+        x = int(m + (w - 20 - m) * k / 10)
+        y = int(h - m - (h - m - 20) * k / 10)
+        cv2.putText(img, f"{k / 10:.1f}", (x - 10, h - m + 20), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1)
+        cv2.putText(img, f"{k / 10:.1f}", (m - 35, y + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1)
+    rc, pc = metrics.pr_curve
+    if len(rc):
+        pts = np.stack([m + rc * (w - 20 - m), h - m - pc * (h - m - 20)], 1).astype(np.int32)
+        cv2.polylines(img, [pts], False, (200, 80, 0), 2, cv2.LINE_AA)
+    cv2.putText(img, "recall", (w // 2 - 20, h - 15), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1)
+    cv2.putText(img, "precision", (5, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1)
+    cv2.putText(img, f"{title}: AP50 {metrics.map50:.3f}, AP50-95 {metrics.map50_95:.3f}", (m + 10, 40),
+                cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+    cv2.imwrite(path, img)

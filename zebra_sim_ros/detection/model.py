@@ -1,0 +1,256 @@
+"""The detector: CSP backbone (C2f blocks), PAN neck and an anchor-free decoupled head, in plain torch.
+
+Shapes: input (B, 3, H, W), RGB in [0, 1], H and W multiples of 32. Training output: a list of three maps
+(B, 4 * reg_max + nc, H/s, W/s) for strides s = 8, 16, 32. Inference output: (B, N, 4 + nc) with xyxy boxes
+in input pixels and class probabilities, N = sum over strides of (H/s) * (W/s).
+
+The checkpoint holds :class:`ModelConfig` as a plain dict beside the weights, so a checkpoint alone rebuilds
+its model (:func:`build_model`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import torch
+from torch import Tensor, nn
+
+from zebra_sim_ros.detection.boxes import decode_ltrb
+from zebra_sim_ros.errors import ParameterError
+
+# (width multiple, depth multiple, maximum channels), as in the YOLO family.
+SIZES: dict[str, tuple[float, float, int]] = {"n": (0.25, 0.34, 1024), "s": (0.50, 0.34, 1024),
+                                              "m": (0.75, 0.67, 768)}
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Everything needed to rebuild a model."""
+
+    size: str = "n"
+    nc: int = 1
+    names: tuple[str, ...] = ("zebra",)
+    reg_max: int = 16
+    imgsz: int = 640
+
+    def __post_init__(self) -> None:
+        if self.size not in SIZES:
+            raise ParameterError("model", self.size, f"one of {sorted(SIZES)}")
+        if self.nc != len(self.names):
+            raise ParameterError("names", list(self.names), f"{self.nc} class names")
+        if self.imgsz % 32:
+            raise ParameterError("imgsz", self.imgsz, "a multiple of 32")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain types only (safe with ``torch.load(weights_only=True)``)."""
+        d = asdict(self)
+        d["names"] = list(self.names)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> ModelConfig:
+        """Inverse of :meth:`to_dict`."""
+        return cls(**{**d, "names": tuple(d["names"])})
+
+
+class Conv(nn.Module):
+    """Conv2d + BatchNorm + SiLU."""
+
+    def __init__(self, c1: int, c2: int, k: int = 1, s: int = 1) -> None:
+        super().__init__()
+        self.conv = nn.Conv2d(c1, c2, k, s, k // 2, bias=False)
+        self.bn = nn.BatchNorm2d(c2, eps=1e-3, momentum=0.03)
+        self.act = nn.SiLU(inplace=True)
+
+    def forward(self, x: Tensor) -> Tensor:
+        return self.act(self.bn(self.conv(x)))
+
+    @torch.no_grad()
+    def fuse(self) -> None:
+        """Fold the batch norm into the convolution (inference only: the running statistics become weights)."""
+        if isinstance(self.bn, nn.Identity):
+            return
+        bn = self.bn
+        assert isinstance(bn, nn.BatchNorm2d) and bn.running_var is not None and bn.running_mean is not None
+        std = (bn.running_var + bn.eps).sqrt()
+        c = self.conv
+        fused = nn.Conv2d(c.in_channels, c.out_channels, c.kernel_size[0], c.stride[0], c.padding[0],  # type: ignore[index]
+                          bias=True).to(c.weight.device)
+        fused.weight.copy_(c.weight * (bn.weight / std).view(-1, 1, 1, 1))
+        assert fused.bias is not None
+        fused.bias.copy_(bn.bias - bn.running_mean * bn.weight / std)
+        self.conv = fused
+        self.bn = nn.Identity()  # type: ignore[assignment]
+
+
+class Bottleneck(nn.Module):
+    """Two 3x3 convolutions with an optional residual."""
+
+    def __init__(self, c: int, shortcut: bool = True) -> None:
+        super().__init__()
+        self.cv1, self.cv2 = Conv(c, c, 3), Conv(c, c, 3)
+        self.add = shortcut
+
+    def forward(self, x: Tensor) -> Tensor:
+        y = self.cv2(self.cv1(x))
+        return x + y if self.add else y
+
+
+class C2f(nn.Module):
+    """Cross-stage partial block: split, n bottlenecks on one half, concatenate every stage, fuse."""
+
+    def __init__(self, c1: int, c2: int, n: int = 1, shortcut: bool = False) -> None:
+        super().__init__()
+        self.c = c2 // 2
+        self.cv1 = Conv(c1, 2 * self.c, 1)
+        self.cv2 = Conv((2 + n) * self.c, c2, 1)
+        self.m = nn.ModuleList(Bottleneck(self.c, shortcut) for _ in range(n))
+
+    def forward(self, x: Tensor) -> Tensor:
+        y = list(self.cv1(x).chunk(2, 1))
+        for m in self.m:
+            y.append(m(y[-1]))
+        return self.cv2(torch.cat(y, 1))
+
+
+class SPPF(nn.Module):
+    """Spatial pyramid pooling (fast): three chained 5x5 max-pools, concatenated."""
+
+    def __init__(self, c1: int, c2: int) -> None:
+        super().__init__()
+        c = c1 // 2
+        self.cv1, self.cv2 = Conv(c1, c, 1), Conv(c * 4, c2, 1)
+        self.m = nn.MaxPool2d(5, 1, 2)
+
+    def forward(self, x: Tensor) -> Tensor:
+        x = self.cv1(x)
+        y1 = self.m(x)
+        y2 = self.m(y1)
+        return self.cv2(torch.cat([x, y1, y2, self.m(y2)], 1))
+
+
+class DFL(nn.Module):
+    """Distribution focal loss integral: expected distance from reg_max bins."""
+
+    def __init__(self, reg_max: int) -> None:
+        super().__init__()
+        self.bins: Tensor
+        self.register_buffer("bins", torch.arange(reg_max, dtype=torch.float32), persistent=False)
+        self.reg_max = reg_max
+
+    def forward(self, x: Tensor) -> Tensor:
+        # x: (B, 4 * reg_max, N) -> (B, 4, N)
+        b, _, n = x.shape
+        p = x.view(b, 4, self.reg_max, n).softmax(2)
+        return (p * self.bins.view(1, 1, -1, 1)).sum(2)
+
+
+class Detector(nn.Module):
+    """The whole detector (see the module docstring for shapes)."""
+
+    strides = (8, 16, 32)
+
+    def __init__(self, cfg: ModelConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+        wm, dm, cmax = SIZES[cfg.size]
+
+        def ch(c: int) -> int:
+            return int(min(c, cmax) * wm)
+
+        def depth(n: int) -> int:
+            return max(round(n * dm), 1)
+
+        self.stem = nn.Sequential(Conv(3, ch(64), 3, 2), Conv(ch(64), ch(128), 3, 2),
+                                  C2f(ch(128), ch(128), depth(3), True))
+        self.p3 = nn.Sequential(Conv(ch(128), ch(256), 3, 2), C2f(ch(256), ch(256), depth(6), True))
+        self.p4 = nn.Sequential(Conv(ch(256), ch(512), 3, 2), C2f(ch(512), ch(512), depth(6), True))
+        self.p5 = nn.Sequential(Conv(ch(512), ch(1024), 3, 2), C2f(ch(1024), ch(1024), depth(3), True),
+                                SPPF(ch(1024), ch(1024)))
+        self.up = nn.Upsample(scale_factor=2, mode="nearest")
+        self.td4 = C2f(ch(1024) + ch(512), ch(512), depth(3))
+        self.td3 = C2f(ch(512) + ch(256), ch(256), depth(3))
+        self.down3 = Conv(ch(256), ch(256), 3, 2)
+        self.bu4 = C2f(ch(256) + ch(512), ch(512), depth(3))
+        self.down4 = Conv(ch(512), ch(512), 3, 2)
+        self.bu5 = C2f(ch(512) + ch(1024), ch(1024), depth(3))
+        chans = (ch(256), ch(512), ch(1024))
+        r = cfg.reg_max
+        c2 = max(16, chans[0] // 4, 4 * r)
+        c3 = max(chans[0], min(cfg.nc, 100))
+        self.box_head = nn.ModuleList(nn.Sequential(Conv(c, c2, 3), Conv(c2, c2, 3), nn.Conv2d(c2, 4 * r, 1))
+                                      for c in chans)
+        self.cls_head = nn.ModuleList(nn.Sequential(Conv(c, c3, 3), Conv(c3, c3, 3), nn.Conv2d(c3, cfg.nc, 1))
+                                      for c in chans)
+        self.dfl = DFL(r)
+        self._init_biases()
+
+    def _init_biases(self) -> None:
+        import math
+
+        for box, cls, s in zip(self.box_head, self.cls_head, self.strides, strict=True):
+            box_out, cls_out = box[-1], cls[-1]  # type: ignore[index]
+            assert isinstance(box_out, nn.Conv2d) and isinstance(cls_out, nn.Conv2d)
+            nn.init.constant_(box_out.bias, 1.0)  # type: ignore[arg-type]
+            # Prior: about 5 objects per 640 px image, spread over the cells of this stride.
+            nn.init.constant_(cls_out.bias, math.log(5 / self.cfg.nc / (640 / s) ** 2))  # type: ignore[arg-type]
+
+    def fuse(self) -> Detector:
+        """Fold every batch norm into its convolution for faster inference (the model must be in eval mode)."""
+        if self.training:
+            raise RuntimeError("fuse() is for inference: call .eval() first")
+        for m in self.modules():
+            if isinstance(m, Conv):
+                m.fuse()
+        return self
+
+    def features(self, x: Tensor) -> list[Tensor]:
+        """Raw head outputs per stride: (B, 4 * reg_max + nc, H/s, W/s)."""
+        x2 = self.stem(x)
+        p3 = self.p3(x2)
+        p4 = self.p4(p3)
+        p5 = self.p5(p4)
+        t4 = self.td4(torch.cat([self.up(p5), p4], 1))
+        n3 = self.td3(torch.cat([self.up(t4), p3], 1))
+        n4 = self.bu4(torch.cat([self.down3(n3), t4], 1))
+        n5 = self.bu5(torch.cat([self.down4(n4), p5], 1))
+        return [torch.cat([b(f), c(f)], 1) for f, b, c in zip((n3, n4, n5), self.box_head, self.cls_head,
+                                                               strict=True)]
+
+    def forward(self, x: Tensor) -> Tensor | list[Tensor]:
+        feats = self.features(x)
+        return feats if self.training else self.decode(feats)
+
+    def decode(self, feats: list[Tensor]) -> Tensor:
+        """(B, N, 4 + nc): xyxy boxes in input pixels and class probabilities."""
+        anchors, strides = make_anchors(feats, self.strides)
+        b = feats[0].shape[0]
+        x = torch.cat([f.view(b, f.shape[1], -1) for f in feats], 2)  # (B, 4r + nc, N)
+        r = self.cfg.reg_max
+        dist = self.dfl(x[:, : 4 * r])  # (B, 4, N) in stride units
+        boxes = decode_ltrb(anchors[None], dist.transpose(1, 2)) * strides[None]
+        return torch.cat([boxes, x[:, 4 * r:].sigmoid().transpose(1, 2)], 2)
+
+
+def make_anchors(feats: list[Tensor], strides: tuple[int, ...]) -> tuple[Tensor, Tensor]:
+    """Anchor points (N, 2) at cell centres in stride units, and the stride of each (N, 1)."""
+    points, out_strides = [], []
+    for f, s in zip(feats, strides, strict=True):
+        h, w = f.shape[2:]
+        ys = torch.arange(h, device=f.device, dtype=f.dtype) + 0.5
+        xs = torch.arange(w, device=f.device, dtype=f.dtype) + 0.5
+        gy, gx = torch.meshgrid(ys, xs, indexing="ij")
+        points.append(torch.stack([gx, gy], -1).view(-1, 2))
+        out_strides.append(torch.full((h * w, 1), float(s), device=f.device, dtype=f.dtype))
+    return torch.cat(points), torch.cat(out_strides)
+
+
+def build_model(cfg: ModelConfig | dict[str, Any]) -> Detector:
+    """A detector from a config (or its dict, as stored in checkpoints)."""
+    return Detector(cfg if isinstance(cfg, ModelConfig) else ModelConfig.from_dict(cfg))
+
+
+def count_parameters(model: nn.Module) -> int:
+    """Number of parameters."""
+    return sum(p.numel() for p in model.parameters())

@@ -1,0 +1,250 @@
+"""Training from scratch: SGD with warm-up and a cosine schedule, EMA weights, mixed precision on GPU,
+best and last checkpoints, resume, a results table and plot. Under ``torchrun`` it trains with
+DistributedDataParallel (one process per GPU); the same command runs alone on a CPU or one GPU.
+"""
+
+from __future__ import annotations
+
+import copy
+import csv
+import math
+import os
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+from torch.utils.data import DataLoader, DistributedSampler
+
+from zebra_sim_ros.detection.checkpoint import read_checkpoint, save_checkpoint, select_device
+from zebra_sim_ros.detection.data import Augment, YoloDataset, collate, resolve_split
+from zebra_sim_ros.detection.evaluate import make_loader, run
+from zebra_sim_ros.detection.loss import DetectionLoss
+from zebra_sim_ros.detection.model import Detector, ModelConfig, build_model, count_parameters
+from zebra_sim_ros.errors import ParameterError
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Settings of a run (all recorded in the checkpoints)."""
+
+    data: str
+    out: str
+    model: str = "n"
+    imgsz: int = 640
+    epochs: int = 100
+    batch: int = 16
+    device: str = "auto"
+    workers: int = 2
+    lr0: float = 0.01
+    lrf: float = 0.01
+    momentum: float = 0.937
+    weight_decay: float = 5e-4
+    warmup_epochs: float = 3.0
+    close_mosaic: int = 10
+    seed: int = 0
+    val_every: int = 1
+    max_train_images: int = 0  # 0 = all
+    augment: bool = True  # False: letterbox only (for overfitting tests and debugging)
+    resume: bool = False
+
+    def check(self) -> None:
+        """Raise :class:`ParameterError` naming the first bad setting."""
+        if self.epochs < 1:
+            raise ParameterError("--epochs", self.epochs, ">= 1")
+        if self.batch < 1:
+            raise ParameterError("--batch", self.batch, ">= 1")
+        if self.imgsz % 32 or not 64 <= self.imgsz <= 4096:
+            raise ParameterError("--imgsz", self.imgsz, "a multiple of 32 in 64..4096")
+
+
+class EMA:
+    """Exponential moving average of the weights, with a warm-up of the decay (as YOLO does)."""
+
+    def __init__(self, model: Detector, decay: float = 0.9999, tau: float = 2000.0, updates: int = 0) -> None:
+        self.ema: Detector = copy.deepcopy(model).eval()
+        for p in self.ema.parameters():
+            p.requires_grad_(False)
+        self.decay, self.tau, self.updates = decay, tau, updates
+
+    @torch.no_grad()
+    def update(self, model: nn.Module) -> None:
+        self.updates += 1
+        d = self.decay * (1 - math.exp(-self.updates / self.tau))
+        msd = model.state_dict()
+        for k, v in self.ema.state_dict().items():
+            if v.dtype.is_floating_point:
+                v.mul_(d).add_(msd[k].detach(), alpha=1 - d)
+
+
+def _is_main() -> bool:
+    return int(os.environ.get("RANK", "0")) == 0
+
+
+def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
+    """Train; returns a summary (best metrics, paths, speed)."""
+    cfg.check()
+    distributed = int(os.environ.get("WORLD_SIZE", "1")) > 1
+    if distributed:
+        torch.distributed.init_process_group("nccl" if torch.cuda.is_available() else "gloo")
+        local = int(os.environ.get("LOCAL_RANK", "0"))
+        device = torch.device(f"cuda:{local}") if torch.cuda.is_available() else torch.device("cpu")
+        if device.type == "cuda":
+            torch.cuda.set_device(device)
+    else:
+        device = select_device(cfg.device)
+    torch.manual_seed(cfg.seed)
+    out = Path(cfg.out)
+    out.mkdir(parents=True, exist_ok=True)
+    train_dir, val_dir = resolve_split(cfg.data, "train"), resolve_split(cfg.data, "val")
+    model = build_model(ModelConfig(size=cfg.model, imgsz=cfg.imgsz)).to(device)
+    start_epoch, best, updates = 0, -1.0, 0
+    opt_state = None
+    if cfg.resume:
+        ckpt = read_checkpoint(out / "last.pt")
+        model.load_state_dict(ckpt["model_raw"])
+        start_epoch, best, updates = ckpt["epoch"] + 1, ckpt.get("best_fitness", -1.0), ckpt.get("ema_updates", 0)
+        opt_state = ckpt.get("optimizer")
+    ema = EMA(model, updates=updates)
+    if cfg.resume:
+        ema.ema.load_state_dict(ckpt["model"])
+    decay: list[nn.Parameter] = []
+    no_decay: list[nn.Parameter] = []
+    for name, p in model.named_parameters():
+        (no_decay if p.ndim <= 1 or name.endswith(".bias") else decay).append(p)
+    groups = [{"params": decay, "weight_decay": cfg.weight_decay}, {"params": no_decay, "weight_decay": 0.0}]
+    opt = torch.optim.SGD(groups, lr=cfg.lr0, momentum=cfg.momentum, nesterov=True)
+    if opt_state is not None:
+        opt.load_state_dict(opt_state)
+    net: nn.Module = model
+    if distributed:
+        net = nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
+    no_aug = Augment(mosaic=0.0, scale=0.0, translate=0.0, fliplr=0.0, hsv_h=0.0, hsv_s=0.0, hsv_v=0.0)
+    ds = YoloDataset(train_dir, cfg.imgsz, Augment() if cfg.augment else no_aug, seed=cfg.seed)
+    if cfg.max_train_images:
+        ds.files = ds.files[: cfg.max_train_images]
+    sampler: DistributedSampler[Any] | None = DistributedSampler(ds, seed=cfg.seed) if distributed else None
+    loader = DataLoader(ds, batch_size=cfg.batch, shuffle=sampler is None, sampler=sampler, num_workers=cfg.workers,
+                        collate_fn=collate, drop_last=len(ds) >= 2 * cfg.batch,
+                        generator=torch.Generator().manual_seed(cfg.seed), persistent_workers=cfg.workers > 0)
+    val_loader = make_loader(val_dir, cfg.imgsz, cfg.batch, cfg.workers) if _is_main() else None
+    criterion = DetectionLoss(model)
+    scaler = torch.amp.GradScaler("cuda", enabled=device.type == "cuda")
+    nb = len(loader)
+    # Warm-up: the given epochs, at least 100 iterations on big sets, at most a tenth of a short run.
+    warmup = max(round(cfg.warmup_epochs * nb), min(100, cfg.epochs * nb // 10))
+    results_path = out / "results.csv"
+    if _is_main():
+        print(f"[train] {count_parameters(model) / 1e6:.2f} M parameters ({cfg.model}), {len(ds)} train images, "
+              f"device {device}, imgsz {cfg.imgsz}, batch {cfg.batch}, epochs {cfg.epochs}", file=log)
+    rows: list[dict[str, Any]] = []
+    if cfg.resume and results_path.exists():
+        with open(results_path) as f:
+            rows = list(csv.DictReader(f))
+    t_start = time.perf_counter()
+    images_seen = 0
+    for epoch in range(start_epoch, cfg.epochs):
+        ds.epoch = epoch
+        if sampler is not None:
+            sampler.set_epoch(epoch)
+        if cfg.augment and epoch >= cfg.epochs - cfg.close_mosaic:
+            ds.augment = Augment(mosaic=0.0)
+        net.train()
+        sums = torch.zeros(3)
+        t_epoch = time.perf_counter()
+        for i, (imgs, targets, _) in enumerate(loader):
+            it = i + nb * epoch
+            lr_cos = cfg.lr0 * (((1 - math.cos(epoch * math.pi / cfg.epochs)) / 2) * (cfg.lrf - 1) + 1)
+            if it < warmup:  # linear warm-up of the learning rate and the momentum
+                frac = it / warmup
+                for g in opt.param_groups:
+                    g["lr"] = lr_cos * frac
+                    g["momentum"] = 0.8 + (cfg.momentum - 0.8) * frac
+            else:
+                for g in opt.param_groups:
+                    g["lr"] = lr_cos
+            imgs, targets = imgs.to(device, non_blocking=True), targets.to(device)
+            with torch.autocast(device_type=device.type, enabled=device.type == "cuda"):
+                feats = net(imgs)
+            loss, parts = criterion([f.float() for f in feats], targets)
+            opt.zero_grad(set_to_none=True)
+            scaler.scale(loss).backward()
+            scaler.unscale_(opt)
+            nn.utils.clip_grad_norm_(model.parameters(), 10.0)
+            scaler.step(opt)
+            scaler.update()
+            ema.update(model)
+            sums += parts.cpu()
+            images_seen += len(imgs)
+            if _is_main() and (i % 10 == 0 or i == nb - 1):
+                el = time.perf_counter() - t_epoch
+                print(f"\r[train] epoch {epoch + 1}/{cfg.epochs} {i + 1}/{nb} loss box {sums[0] / (i + 1):.3f} "
+                      f"cls {sums[1] / (i + 1):.3f} dfl {sums[2] / (i + 1):.3f} "
+                      f"{(i + 1) * cfg.batch / max(el, 1e-9):.1f} img/s   ", end="", file=log, flush=True)
+        if not _is_main():
+            continue
+        print("", file=log)
+        metrics: dict[str, Any] = {}
+        if val_loader is not None and ((epoch + 1) % cfg.val_every == 0 or epoch == cfg.epochs - 1):
+            m = run(ema.ema, val_loader)
+            metrics = m.to_dict()
+            print(f"[train] epoch {epoch + 1}: val P {m.precision:.3f} R {m.recall:.3f} mAP50 {m.map50:.3f} "
+                  f"mAP50-95 {m.map50_95:.3f}", file=log)
+        fitness = 0.1 * metrics.get("mAP50", 0.0) + 0.9 * metrics.get("mAP50-95", 0.0) if metrics else best
+        row = {"epoch": epoch + 1, "box": float(sums[0] / nb), "cls": float(sums[1] / nb), "dfl": float(sums[2] / nb),
+               "lr": opt.param_groups[0]["lr"], **{k: metrics.get(k, "") for k in ("precision", "recall", "mAP50",
+                                                                                   "mAP50-95")}}
+        rows.append(row)
+        with open(results_path, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(row))
+            w.writeheader()
+            w.writerows(rows)
+        extra = {"epoch": epoch, "metrics": metrics, "train_args": asdict(cfg), "best_fitness": max(best, fitness)}
+        save_checkpoint(out / "last.pt", ema.ema, model_raw=model.state_dict(), optimizer=opt.state_dict(),
+                        ema_updates=ema.updates, **extra)
+        if metrics and fitness > best:
+            best = fitness
+            half = copy.deepcopy(ema.ema).half()
+            save_checkpoint(out / "best.pt", half, **extra)
+        results_png(rows, out / "results.png")
+    seconds = time.perf_counter() - t_start
+    if distributed:
+        torch.distributed.destroy_process_group()
+    last = rows[-1] if rows else {}
+    return {"out": str(out), "best": str(out / "best.pt"), "last": str(out / "last.pt"), "epochs": cfg.epochs,
+            "seconds": round(seconds, 1), "train_images_per_s": round(images_seen / max(seconds, 1e-9), 2),
+            "final": {k: last.get(k) for k in ("mAP50", "mAP50-95", "precision", "recall")},
+            "best_fitness": round(best, 4)}
+
+
+def results_png(rows: list[dict[str, Any]], path: Path) -> None:
+    """Loss components and mAP per epoch, drawn with OpenCV."""
+    import cv2
+
+    w, h, m = 900, 360, 50
+    img = np.full((h, w, 3), 255, np.uint8)
+    half = w // 2
+    panels = [("loss (box, cls, dfl)", ["box", "cls", "dfl"], (m, half - 20)),
+              ("val mAP50, mAP50-95", ["mAP50", "mAP50-95"], (half + m, w - 20))]
+    colours = [(200, 80, 0), (0, 140, 0), (0, 0, 200)]
+    for title, keys, (x0, x1) in panels:
+        cv2.rectangle(img, (x0, 30), (x1, h - m), (0, 0, 0), 1)
+        cv2.putText(img, title, (x0, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
+        series = [[float(r[k]) for r in rows if str(r.get(k, "")) not in ("", "None")] for k in keys]
+        top = max([max(s) for s in series if s] + [1e-9])
+        if keys[0].startswith("mAP"):
+            top = 1.0
+        for s, col, k in zip(series, colours, keys, strict=False):
+            if len(s) >= 1:
+                xs = np.linspace(x0, x1, max(len(s), 2))[: len(s)]
+                ys = h - m - np.array(s) / top * (h - m - 30)
+                pts = np.stack([xs, ys], 1).astype(np.int32)
+                cv2.polylines(img, [pts], False, col, 2, cv2.LINE_AA)
+                cv2.putText(img, f"{k} {s[-1]:.3f}", (x0 + 5, 45 + 15 * keys.index(k)), cv2.FONT_HERSHEY_SIMPLEX,
+                            0.4, col, 1, cv2.LINE_AA)
+        cv2.putText(img, f"epochs: {len(rows)}", (x0, h - m + 20), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1)
+    cv2.imwrite(str(path), img)
