@@ -232,26 +232,8 @@ def gallop(t: float) -> Pose:
     return _gait_pose(GALLOP, t)
 
 
-def _lying(a: FloatArray, amount: float) -> None:
-    """Fold the legs under the body (sternal recumbency), ``amount`` in [0, 1]."""
-    for side in ("l", "r"):
-        _set(a, f"shoulder_f{side}", pitch=-35 * amount)
-        _set(a, f"elbow_f{side}", pitch=-20 * amount)
-        _set(a, f"knee_f{side}", pitch=150 * amount)
-        _set(a, f"fetlock_f{side}", pitch=-20 * amount)
-        _set(a, f"hip_h{side}", pitch=-60 * amount, roll=(10 if side == "l" else -10) * amount)
-        _set(a, f"stifle_h{side}", pitch=-30 * amount)
-        _set(a, f"hock_h{side}", pitch=-125 * amount)
-        _set(a, f"fetlock_h{side}", pitch=-10 * amount)
-    _set(a, "neck_1", pitch=12 * amount)
-    _set(a, "tail_1", pitch=-20 * amount)
-
-
-def lie_down(t: float) -> Pose:
-    """From standing to lying: fore knees fold first, then the hind quarters (does not loop)."""
-    a = _new()
-    fore = _smooth(t / 0.6)
-    hind = _smooth((t - 0.3) / 0.6)
+def _fold_legs(a: FloatArray, fore: float, hind: float) -> None:
+    """Fold the fore and hind legs under the body (sternal recumbency), each amount in [0, 1]."""
     for side in ("l", "r"):
         _set(a, f"shoulder_f{side}", pitch=-35 * fore)
         _set(a, f"elbow_f{side}", pitch=-20 * fore)
@@ -261,15 +243,24 @@ def lie_down(t: float) -> Pose:
         _set(a, f"stifle_h{side}", pitch=-30 * hind)
         _set(a, f"hock_h{side}", pitch=-125 * hind)
         _set(a, f"fetlock_h{side}", pitch=-10 * hind)
-    _set(a, "neck_1", pitch=12 * _smooth(t) + 10 * np.sin(np.pi * t))
     _set(a, "tail_1", pitch=-20 * hind)
+
+
+def lie_down(t: float) -> Pose:
+    """From standing to lying: fore knees fold first, then the hind quarters (does not loop)."""
+    a = _new()
+    fore = _smooth(t / 0.6)
+    hind = _smooth((t - 0.3) / 0.6)
+    _fold_legs(a, fore, hind)
+    _set(a, "neck_1", pitch=12 * _smooth(t) + 10 * np.sin(np.pi * t))
     return Pose(a, root_pitch=8 * (fore - hind))
 
 
 def rest(t: float) -> Pose:
     """Lying on the chest, legs folded, breathing and dozing."""
     a = _new()
-    _lying(a, 1.0)
+    _fold_legs(a, 1.0, 1.0)
+    _set(a, "neck_1", pitch=12)
     _breathe(a, t, 4, 1.5)
     _set(a, "neck_1", pitch=6 * _wave(t, 1), yaw=10 * _wave(t, 1, 0.3))
     _set(a, "head", pitch=5 * _wave(t, 2))
