@@ -54,7 +54,8 @@ def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
                 "placer", {"mode": "lockstep", "max_steps": STEPS, "count_max": 60, "seed": 8,
                            "lockstep_ack_from": ["drone_0", "drone_1", "drone_2", "labeller"],
                            "camera_width": 256, "camera_height": 144}, domain, tmp_path / "placer.log"))
-            ok = spin_until(node, ex, lambda: all(len(labels[d]) >= STEPS for d in DRONES), 180)
+            ok = spin_until(node, ex, lambda: all(len(labels[d]) >= STEPS and set(labels[d]) <= image_stamps[d]
+                                                  for d in DRONES), 180)
             logs = "\n".join(p.read_text()[-1500:] for p in sorted(tmp_path.glob("*.log")))
             assert ok, logs
             assert placer.wait(timeout=60) == 0, logs

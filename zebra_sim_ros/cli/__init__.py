@@ -26,7 +26,7 @@ def add_json_flag(p: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The full ``zebra-sim`` argument parser."""
-    from zebra_sim_ros.cli import asset, detect, generate, place, render, world
+    from zebra_sim_ros.cli import asset, bag, detect, generate, place, render, world
 
     parser = argparse.ArgumentParser(
         prog="zebra-sim",
@@ -40,6 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
     render.register(sub)
     generate.register(sub)
     detect.register(sub)
+    bag.register(sub)
     return parser
 
 

@@ -1,0 +1,183 @@
+"""recorder and replay as real processes over DDS: round trip, timing, SIGKILL + recover, cut bags, full bags."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rclpy
+from mcap.reader import make_reader
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
+from ros_helpers import fresh_domain_id, node_process, spin_until
+from rosbags.highlevel import AnyReader
+from sensor_msgs.msg import Image
+from std_msgs.msg import Header, String
+
+from zebra_sim_ros.recording.qos import profile_dict
+from zebra_sim_ros.recording.writer import BagWriter
+
+pytestmark = pytest.mark.integration
+
+
+class Peer:
+    """The test's own node on a private domain."""
+
+    def __init__(self, domain: int) -> None:
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx, domain_id=domain)
+        self.node = rclpy.create_node("test_peer", context=self.ctx)
+        self.ex = SingleThreadedExecutor(context=self.ctx)
+        self.ex.add_node(self.node)
+
+    def spin(self, cond, timeout: float) -> bool:  # type: ignore[no-untyped-def]
+        return spin_until(self.node, self.ex, cond, timeout)
+
+    def close(self) -> None:
+        self.ex.shutdown()
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.ctx)
+
+
+@pytest.fixture
+def peer():  # type: ignore[no-untyped-def]
+    p = Peer(fresh_domain_id())
+    yield p
+    p.close()
+
+
+def _domain(peer: Peer) -> int:
+    return peer.ctx.get_domain_id()
+
+
+def _image(k: int) -> Image:
+    img = Image(header=Header(frame_id="drone_0_camera_optical"), height=48, width=64, encoding="rgb8", step=192,
+                data=bytes([k % 256]) * (48 * 192))
+    img.header.stamp.sec = 100 + k
+    return img
+
+
+def test_record_a_live_graph_and_read_it_back(peer: Peer, tmp_path: Path) -> None:
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    pub_s = peer.node.create_publisher(String, "/zebra_sim/scene", latched)
+    pub_i = peer.node.create_publisher(Image, "/drone_0/image_raw", 10)
+    bag = tmp_path / "live.mcap"
+    with node_process("recorder", {"output": str(bag), "discovery_period_s": 0.1}, _domain(peer),
+                      tmp_path / "rec.log") as rec:
+        subscribed = lambda: all(peer.node.count_subscribers(t) > 0  # noqa: E731
+                                 for t in ("/drone_0/image_raw", "/zebra_sim/scene"))
+        assert peer.spin(subscribed, 30), (tmp_path / "rec.log").read_text()
+        for k in range(20):
+            pub_i.publish(_image(k))
+            if k % 5 == 0:
+                pub_s.publish(String(data=f"scene {k}"))
+            peer.spin(lambda: False, 0.05)
+        peer.spin(lambda: False, 0.5)
+        rec.send_signal(signal.SIGINT)
+        assert rec.wait(timeout=30) == 0, (tmp_path / "rec.log").read_text()
+    log = (tmp_path / "rec.log").read_text()
+    assert "24 messages, 0 dropped" in log  # the statistics printed at exit
+    with open(bag, "rb") as f:
+        summary = make_reader(f, validate_crcs=True).get_summary()
+    assert summary is not None and summary.statistics.message_count == 24
+    meta = {c.topic: c.metadata["offered_qos_profiles"] for c in summary.channels.values()}
+    assert "transient_local" in meta["/zebra_sim/scene"] and "reliable" in meta["/drone_0/image_raw"]
+    with AnyReader([bag]) as r:
+        msgs = [(c.topic, r.deserialize(raw, c.msgtype)) for c, _, raw in r.messages()]
+    images = [m for t, m in msgs if t == "/drone_0/image_raw"]
+    assert [m.header.stamp.sec for m in images] == list(range(100, 120))
+    assert all(m.data[0] == k for k, m in enumerate(images))
+    assert [m.data for t, m in msgs if t == "/zebra_sim/scene"] == [f"scene {k}" for k in (0, 5, 10, 15)]
+
+
+def test_sigkill_then_recover(peer: Peer, tmp_path: Path) -> None:
+    pub = peer.node.create_publisher(Image, "/drone_0/image_raw", 100)
+    bag = tmp_path / "killed.mcap"
+    with node_process("recorder", {"output": str(bag), "discovery_period_s": 0.1, "chunk_size_mb": 0.05},
+                      _domain(peer), tmp_path / "rec.log") as rec:
+        assert peer.spin(lambda: peer.node.count_subscribers("/drone_0/image_raw") > 0, 30)
+        for k in range(150):
+            pub.publish(_image(k))
+            peer.spin(lambda: False, 0.01)
+        peer.spin(lambda: False, 1.0)
+        os.kill(rec.pid, signal.SIGKILL)
+        rec.wait(timeout=10)
+    with open(bag, "rb") as f:
+        with pytest.raises(Exception):  # noqa: B017 - no summary, no footer: the file is cut
+            make_reader(f).get_summary()
+    out = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "bag", "recover", str(bag),
+                          str(tmp_path / "ok.mcap"), "--json"], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    with open(tmp_path / "ok.mcap", "rb") as f:
+        survived = make_reader(f, validate_crcs=True).get_summary().statistics.message_count
+    assert 100 <= survived <= 150  # every complete chunk survives; at most the last chunk is lost
+
+
+def _timed_bag(path: Path, gaps: list[float]) -> list[int]:
+    w = BagWriter(path, chunk_size=4096)
+    w.add_channel("/tick", "std_msgs/msg/String", [profile_dict()])
+    t, times = 5_000_000_000, []
+    for k, g in enumerate(gaps):
+        t += int(g * 1e9)
+        w.write("/tick", serialize_message(String(data=f"tick {k}")), t)
+        times.append(t)
+    w.close()
+    return times
+
+
+@pytest.mark.parametrize("rate", [1.0, 2.0])
+def test_replay_keeps_order_and_spacing(peer: Peer, tmp_path: Path, rate: float) -> None:
+    gaps = [0.0] + [0.05, 0.15, 0.1, 0.02, 0.2] * 5
+    times = _timed_bag(tmp_path / "t.mcap", gaps)
+    got: list[tuple[str, float]] = []
+    peer.node.create_subscription(String, "/tick", lambda m: got.append((m.data, time.monotonic())), 100)
+    params = {"bags": [str(tmp_path / "t.mcap")], "rate": rate, "wait_for_subscribers_s": 20.0}
+    with node_process("replay", params, _domain(peer), tmp_path / "replay.log") as proc:
+        assert peer.spin(lambda: len(got) == len(times), 60), (tmp_path / "replay.log").read_text()
+        assert proc.wait(timeout=20) == 0
+    assert [d for d, _ in got] == [f"tick {k}" for k in range(len(times))]
+    recorded = np.diff(np.array(times) / 1e9) / rate
+    arrived = np.diff([t for _, t in got])
+    err = np.abs(arrived - recorded)
+    assert np.median(err) < 0.010 and np.percentile(err, 90) < 0.02, (recorded.round(3), arrived.round(3))
+
+
+def test_a_cut_bag_replays_its_first_half_and_says_so(peer: Peer, tmp_path: Path) -> None:
+    gaps = [0.0] + [0.002] * 400
+    _timed_bag(tmp_path / "full.mcap", gaps)
+    data = (tmp_path / "full.mcap").read_bytes()
+    (tmp_path / "cut.mcap").write_bytes(data[: len(data) // 2])
+    got: list[str] = []
+    peer.node.create_subscription(String, "/tick", lambda m: got.append(m.data), 1000)
+    params = {"bags": [str(tmp_path / "cut.mcap")], "wait_for_subscribers_s": 20.0}
+    with node_process("replay", params, _domain(peer), tmp_path / "replay.log") as proc:
+        assert proc.wait(timeout=60) == 0
+        peer.spin(lambda: False, 1.0)
+    log = (tmp_path / "replay.log").read_text()
+    assert "stopped at byte" in log and f"played {len(got)} messages" in log
+    assert 50 < len(got) < 401 and got == [f"tick {k}" for k in range(len(got))]
+
+
+def test_a_full_bag_ends_with_a_finalised_file_and_an_error(peer: Peer, tmp_path: Path) -> None:
+    pub = peer.node.create_publisher(Image, "/drone_0/image_raw", 100)
+    bag = tmp_path / "capped.mcap"
+    with node_process("recorder", {"output": str(bag), "discovery_period_s": 0.1, "max_size_mb": 0.3,
+                                   "chunk_size_mb": 0.02, "compression": "none"},
+                      _domain(peer), tmp_path / "rec.log") as rec:
+        assert peer.spin(lambda: peer.node.count_subscribers("/drone_0/image_raw") > 0, 30)
+        for k in range(200):
+            pub.publish(_image(k))
+            peer.spin(lambda: False, 0.01)
+        assert rec.wait(timeout=30) == 1
+    log = (tmp_path / "rec.log").read_text()
+    assert "recording ended" in log and "size cap" in log
+    with open(bag, "rb") as f:
+        n = make_reader(f, validate_crcs=True).get_summary().statistics.message_count
+    assert 5 < n < 200 and bag.stat().st_size <= 0.3 * (1 << 20)

@@ -1,0 +1,137 @@
+"""Writing MCAP bags the way rosbag2 does: profile ``ros2``, ``ros2msg`` schemas with every dependency,
+``cdr`` messages, ``offered_qos_profiles`` channel metadata, chunk compression, message indexes and summary.
+
+A bag may be split by size or duration into ``<stem>_<k>.mcap`` files (k from 0), each complete on its own,
+and may be capped in total size (``max_bytes``): the write that would pass the cap raises
+:class:`BagFullError` and the files written so far stay finalised.
+"""
+
+from __future__ import annotations
+
+import errno
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+from mcap.writer import CompressionType, Writer
+
+from zebra_sim_ros.errors import ParameterError, ZebraSimError
+from zebra_sim_ros.recording.qos import to_yaml
+from zebra_sim_ros.recording.schemas import schema_text
+
+COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+
+
+class BagFullError(ZebraSimError):
+    """The bag reached its size cap, or the disk is full."""
+
+
+@dataclass
+class _Channel:
+    topic: str
+    type_name: str
+    qos_yaml: str
+    ids: dict[int, int] = field(default_factory=dict)  # file index -> channel id in that file
+
+
+class BagWriter:
+    """An MCAP bag (possibly split); thread-compatible but not thread-safe: one writer thread."""
+
+    def __init__(self, path: str | Path, compression: str = "zstd", chunk_size: int = 4 << 20,
+                 split_bytes: int = 0, split_seconds: float = 0.0, max_bytes: int = 0) -> None:
+        if compression not in COMPRESSIONS:
+            raise ParameterError("compression", compression, f"one of {sorted(COMPRESSIONS)}")
+        if chunk_size < 1024:
+            raise ParameterError("chunk_size", chunk_size, ">= 1024 bytes")
+        self.path = Path(path)
+        if self.path.suffix != ".mcap":
+            self.path = self.path.with_suffix(".mcap")
+        self.compression, self.chunk_size = compression, chunk_size
+        self.split_bytes, self.split_ns, self.max_bytes = split_bytes, int(split_seconds * 1e9), max_bytes
+        self.files: list[Path] = []
+        self.channels: dict[str, _Channel] = {}
+        self._schemas: dict[str, int] = {}
+        self._stream: IO[bytes] | None = None
+        self._writer: Writer | None = None
+        self._file_start_ns: int | None = None
+        self._closed_bytes = 0
+        self.messages = 0
+
+    def _file_path(self, k: int) -> Path:
+        split = self.split_bytes > 0 or self.split_ns > 0
+        return self.path.with_name(f"{self.path.stem}_{k}.mcap") if split else self.path
+
+    def _open(self) -> None:
+        k = len(self.files)
+        p = self._file_path(k)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        self._stream = open(p, "wb")  # noqa: SIM115 - closed in _close_file
+        self._writer = Writer(self._stream, chunk_size=self.chunk_size, compression=COMPRESSIONS[self.compression])
+        self._writer.start(profile="ros2", library="zebra_sim_ros")
+        self._schemas = {}
+        self.files.append(p)
+        self._file_start_ns = None
+
+    def _close_file(self) -> None:
+        if self._writer is not None and self._stream is not None:
+            try:
+                self._writer.finish()
+            finally:
+                self._closed_bytes += self._stream.tell()
+                self._stream.close()
+        self._writer, self._stream = None, None
+
+    def add_channel(self, topic: str, type_name: str, qos_profiles: list[dict[str, Any]]) -> None:
+        """Declare a topic (``type_name`` like ``sensor_msgs/msg/Image``); its schema text is looked up now."""
+        schema_text(type_name)  # fail early for an unknown type
+        self.channels[topic] = _Channel(topic, type_name, to_yaml(qos_profiles))
+
+    def _channel_id(self, ch: _Channel) -> int:
+        k = len(self.files) - 1
+        if k not in ch.ids:
+            assert self._writer is not None
+            sid = self._schemas.get(ch.type_name)
+            if sid is None:
+                sid = self._writer.register_schema(name=ch.type_name, encoding="ros2msg",
+                                                   data=schema_text(ch.type_name).encode())
+                self._schemas[ch.type_name] = sid
+            ch.ids[k] = self._writer.register_channel(topic=ch.topic, message_encoding="cdr", schema_id=sid,
+                                                      metadata={"offered_qos_profiles": ch.qos_yaml})
+        return ch.ids[k]
+
+    @property
+    def bytes_written(self) -> int:
+        """Bytes on disk so far (closed files plus the open one, up to its last completed chunk)."""
+        return self._closed_bytes + (self._stream.tell() if self._stream is not None else 0)
+
+    def write(self, topic: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None) -> None:
+        """Append one serialized (CDR) message of a declared topic."""
+        ch = self.channels[topic]
+        # Room kept for the open chunk, the summary and the indexes, so the finished bag stays under the cap.
+        margin = 2 * self.chunk_size + 16384 + self.bytes_written // 25
+        if self.max_bytes and self.bytes_written + len(data) + margin > self.max_bytes:
+            raise BagFullError(f"bag reached its size cap of {self.max_bytes} bytes ({self.bytes_written} written)")
+        if self._writer is None:
+            self._open()
+        elif self._file_start_ns is not None and (
+                (self.split_bytes and self._stream is not None and self._stream.tell() >= self.split_bytes)
+                or (self.split_ns and log_time_ns - self._file_start_ns >= self.split_ns)):
+            self._close_file()
+            self._open()
+        if self._file_start_ns is None:
+            self._file_start_ns = log_time_ns
+        assert self._writer is not None
+        try:
+            self._writer.add_message(channel_id=self._channel_id(ch), log_time=log_time_ns, data=data,
+                                     publish_time=publish_time_ns if publish_time_ns is not None else log_time_ns,
+                                     sequence=self.messages)
+        except OSError as exc:
+            if exc.errno == errno.ENOSPC:
+                raise BagFullError(f"disk full while writing {self.files[-1]}: {exc}") from exc
+            raise
+        self.messages += 1
+
+    def close(self) -> list[Path]:
+        """Finish the open file (summary, indexes, footer); returns every file of the bag."""
+        self._close_file()
+        return list(self.files)
