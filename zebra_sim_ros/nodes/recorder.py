@@ -125,7 +125,7 @@ class RecorderNode(Node):
         files = self.core.close()
         t = self.core.totals()
         msg = (f"bag {files}: {t['messages']} messages, {t['dropped']} dropped; per topic {t['topics']}; "
-               f"finalised in {time.perf_counter() - t0:.2f} s")
+               f"writer {t['write_mb_per_s']} MB/s while writing; finalised in {time.perf_counter() - t0:.2f} s")
         print(f"[recorder] {msg}" + (f"; error: {self.core.error}" if self.core.error else ""), flush=True)
 
 

@@ -38,6 +38,7 @@ class RecorderCore:
     queue_size: int = 2000
     stats: dict[str, TopicStats] = field(default_factory=lambda: defaultdict(TopicStats))
     error: str | None = None
+    write_seconds: float = 0.0  # time the writer thread spent inside BagWriter.write
 
     def __post_init__(self) -> None:
         self._q: queue.Queue[Any] = queue.Queue(maxsize=self.queue_size)
@@ -69,8 +70,10 @@ class RecorderCore:
             topic, data, t = item
             if self.error is not None:
                 continue
+            t0 = time.perf_counter()
             try:
                 self.writer.write(topic, data, t)
+                self.write_seconds += time.perf_counter() - t0
             except (BagFullError, OSError) as exc:
                 self.error = str(exc)
                 with self._lock:
@@ -100,4 +103,5 @@ class RecorderCore:
         written = sum(s["bytes"] for s in per.values())
         return {"topics": per, "messages": sum(s["written"] for s in per.values()),
                 "dropped": sum(s["dropped"] for s in per.values()), "mb_per_s": round(written / elapsed / 1e6, 2),
-                "queue": self._q.qsize(), "error": self.error}
+                "queue": self._q.qsize(), "error": self.error,
+                "write_mb_per_s": round(written / max(self.write_seconds, 1e-9) / 1e6, 1)}

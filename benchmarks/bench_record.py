@@ -1,0 +1,121 @@
+"""Benchmark: record three drones at 1280x720 (rgb8 + 32FC1 depth + mono16 mask) at 10 Hz over DDS.
+
+Starts three publisher processes (one per drone, each publishing its three image topics at 10 Hz with
+stamps and sequence numbers) and the recorder node as separate processes on a private ROS domain, for
+``--seconds``; then counts messages published against messages in the bag (drops), the MB/s written, and the
+recorder's write speed (bytes over the time its writer thread spent writing) as a ratio of a plain mcap writer
+writing the same messages in the same run.
+
+    python benchmarks/bench_record.py [--seconds 60] [--compression none] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+PUBLISHER = r'''
+import sys, time, numpy as np, rclpy
+from sensor_msgs.msg import Image
+from std_msgs.msg import Header
+drone, seconds = sys.argv[1], float(sys.argv[2])
+rclpy.init()
+node = rclpy.create_node(f"bench_pub_{drone}")
+pubs = {k: node.create_publisher(Image, f"/{drone}/{k}", 10) for k in ("image_raw", "depth", "instances")}
+rng = np.random.default_rng(0)
+arrays = {"image_raw": (rng.integers(0, 255, (720, 1280, 3), dtype=np.uint8), "rgb8", 3),
+          "depth": (rng.uniform(1, 100, (720, 1280)).astype("<f4"), "32FC1", 4),
+          "instances": (rng.integers(0, 300, (720, 1280)).astype("<u2"), "mono16", 2)}
+msgs = {k: Image(height=720, width=1280, encoding=e, is_bigendian=0, step=1280 * b, data=a.tobytes())
+        for k, (a, e, b) in arrays.items()}
+while node.count_subscribers(f"/{drone}/depth") == 0:
+    time.sleep(0.05)
+time.sleep(1.0)
+start, n = time.monotonic(), 0
+while time.monotonic() - start < seconds:
+    now = node.get_clock().now().to_msg()
+    for k, m in msgs.items():
+        m.header = Header(stamp=now, frame_id=f"{drone}_camera_optical")
+        pubs[k].publish(m)
+    n += 1
+    time.sleep(max(0.0, start + n / 10.0 - time.monotonic()))
+print(f"PUBLISHED {drone} {n * 3}", flush=True)
+time.sleep(2.0)
+node.destroy_node(); rclpy.shutdown()
+'''
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=60.0)
+    ap.add_argument("--compression", default="none")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    from mcap.writer import Writer
+
+    from zebra_sim_ros.recording.reader import BagReader, summarize
+    from zebra_sim_ros.recording.writer import COMPRESSIONS
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench_record_"))
+    env = dict(os.environ, ROS_DOMAIN_ID=str(150 + os.getpid() % 50), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+               PYTHONUNBUFFERED="1")
+    bag = tmp / "bench.mcap"
+    rec = subprocess.Popen([sys.executable, "-m", "zebra_sim_ros.nodes.recorder", "--ros-args", "-p",
+                            f"output:={bag}", "-p", f"compression:={args.compression}", "-p", "topic_regex:=^/drone_",
+                            "-p", "discovery_period_s:=0.2", "-p", "stats_period_s:=0.0"], env=env,
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    (tmp / "pub.py").write_text(PUBLISHER)
+    pubs = [subprocess.Popen([sys.executable, str(tmp / "pub.py"), f"drone_{i}", str(args.seconds)], env=env,
+                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True) for i in range(3)]
+    published = 0
+    for p in pubs:
+        out, _ = p.communicate(timeout=args.seconds + 120)
+        m = re.search(r"PUBLISHED \S+ (\d+)", out)
+        published += int(m.group(1)) if m else 0
+    time.sleep(2.0)
+    os.killpg(rec.pid, signal.SIGINT)
+    rec_out, _ = rec.communicate(timeout=120)
+    s = summarize(bag)
+    recorded = s["messages"]
+    wm = re.search(r"writer ([\d.]+) MB/s", rec_out)
+    rec_write = float(wm.group(1)) if wm else 0.0
+    # The plain mcap writer on the same messages, in the same run.
+    msgs = list(BagReader.open(bag).messages())
+    t0 = time.perf_counter()
+    with open(tmp / "plain.mcap", "wb") as f:
+        w = Writer(f, chunk_size=4 << 20, compression=COMPRESSIONS[args.compression])
+        w.start(profile="ros2", library="bench")
+        sid = w.register_schema("sensor_msgs/msg/Image", "ros2msg", b"")
+        chans = {t: w.register_channel(t, "cdr", sid) for t in {m.topic for m in msgs}}
+        for m in msgs:
+            w.add_message(chans[m.topic], m.log_time, m.data, m.publish_time)
+        w.finish()
+    plain_s = time.perf_counter() - t0
+    total_bytes = sum(len(m.data) for m in msgs)
+    plain = total_bytes / plain_s / 1e6
+    result = {"benchmark": "record_3_drones", "seconds": args.seconds, "compression": args.compression,
+              "published": published, "recorded": recorded, "dropped": published - recorded,
+              "mb_per_s_written": round(total_bytes / 1e6 / max(s["duration_s"], 1e-9), 1),
+              "recorder_write_mb_per_s": rec_write, "plain_writer_mb_per_s": round(plain, 1),
+              "ratio_recorder_over_plain": round(rec_write / plain, 2) if plain else None,
+              "machine": f"{platform.machine()} cpus={os.cpu_count()}"}
+    print(rec_out.strip().splitlines()[-1][:400])
+    print(f"published {published}, recorded {recorded}, {result['mb_per_s_written']} MB/s; recorder writes at "
+          f"{rec_write} MB/s, plain mcap writer {plain:.1f} MB/s (ratio {result['ratio_recorder_over_plain']})")
+    if args.json:
+        print(json.dumps(result))
+    for p in (bag, tmp / "plain.mcap"):
+        p.unlink(missing_ok=True)
+
+
+if __name__ == "__main__":
+    main()
