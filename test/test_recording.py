@@ -133,3 +133,26 @@ def test_eval_from_recorded_labels_and_detections(tmp_path: Path) -> None:
     assert s["drone_1"]["mAP50"] == 0.0  # shifted by 30 px: IoU 0.14
     assert s["all"]["mAP50"] == pytest.approx(0.5, abs=0.01)
     assert cdr_string(serialize_message(String(data="héllo"))) == "héllo"
+
+
+def test_eval_by_running_a_detector_over_recorded_images(tmp_path: Path) -> None:
+    from zebra_sim_ros.detection.checkpoint import save_checkpoint
+    from zebra_sim_ros.detection.model import ModelConfig, build_model
+    from zebra_sim_ros.recording.evaluate import detect_images
+
+    save_checkpoint(tmp_path / "w.pt", build_model(ModelConfig(size="n", imgsz=128)).eval())
+    w = BagWriter(tmp_path / "i.mcap")
+    w.add_channel("/drone_0/image_raw", "sensor_msgs/msg/Image", [profile_dict()])
+    w.add_channel("/drone_0/labels", "std_msgs/msg/String", [profile_dict()])
+    for k in range(3):
+        img = Image(header=Header(frame_id="c"), height=72, width=128, encoding="bgr8", step=384,
+                    data=bytes(72 * 384))
+        img.header.stamp.sec = k
+        w.write("/drone_0/image_raw", serialize_message(img), k)
+        lab = {"stamp": {"sec": k, "nanosec": 0}, "zebras": [{"box_visible": [10.0, 10, 30, 20], "kept": True}]}
+        w.write("/drone_0/labels", serialize_message(String(data=json.dumps(lab))), k)
+    w.close()
+    collected = detect_images(tmp_path / "i.mcap", collect(tmp_path / "i.mcap"), tmp_path / "w.pt", device="cpu")
+    assert sorted(collected["drones"]["drone_0"]["detections"]) == [0, 10**9, 2 * 10**9]
+    s = score(collected)
+    assert s["drone_0"]["frames"] == 3 and 0.0 <= s["drone_0"]["mAP50"] <= 1.0

@@ -26,6 +26,9 @@ def register(sub: Any) -> None:
     e.add_argument("bag", nargs="+", type=Path)
     e.add_argument("--detections", default="detections",
                    help="name of the detections topic under each drone (default: detections)")
+    e.add_argument("--weights", default=None,
+                   help="run this detector over the recorded /<drone>/image_raw instead of using recorded detections")
+    e.add_argument("--device", default="auto", help="auto, cpu or cuda (with --weights)")
     add_json_flag(e)
     e.set_defaults(func=cmd_eval)
 
@@ -58,9 +61,12 @@ def cmd_recover(args: argparse.Namespace) -> Summary:
 
 def cmd_eval(args: argparse.Namespace) -> Summary:
     """Score recorded detections against recorded labels."""
-    from zebra_sim_ros.recording.evaluate import collect, score
+    from zebra_sim_ros.recording.evaluate import collect, detect_images, score
 
-    s = score(collect(args.bag, args.detections))
+    collected = collect(args.bag, args.detections)
+    if args.weights:
+        collected = detect_images(args.bag, collected, args.weights, args.device)
+    s = score(collected)
     for drone, m in s.items():
         if drone not in ("all", "damaged") and m:
             print(f"{drone}: {m['frames']} frames, P {m['precision']:.3f} R {m['recall']:.3f} mAP50 {m['mAP50']:.3f} "

@@ -51,6 +51,51 @@ def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "dete
     return {"drones": dict(out), "damaged": reader.stopped}
 
 
+def detect_images(paths: list[str | Path] | str | Path, collected: dict[str, Any], weights: str | Path | None,
+                  device: str = "auto", batch: int = 8, conf: float = 0.001) -> dict[str, Any]:
+    """Replace recorded detections by running a detector over the bag's ``/<drone>/image_raw`` (rgb8 or bgr8).
+
+    ``decode`` needs rclpy's serialization, imported here so the rest of this module stays ROS-free.
+    """
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import Image
+
+    from zebra_sim_ros.detection.checkpoint import load_model, select_device
+    from zebra_sim_ros.detection.predict import detect
+
+    model, _ = load_model(weights, select_device(device))
+    pat = re.compile(r"^/(?P<drone>[^/]+)/image_raw$")
+    for d in collected["drones"].values():
+        d["detections"] = {}
+    pending: list[tuple[str, int, np.ndarray]] = []
+
+    def flush() -> None:
+        dets = detect(model, [p[2] for p in pending], conf=conf, max_det=100)
+        for (drone, t, _), det in zip(pending, dets, strict=True):
+            collected["drones"].setdefault(drone, {"labels": {}, "detections": {}})["detections"][t] = \
+                det[:, :5].astype(np.float64)
+        pending.clear()
+
+    reader = BagReader.open(paths)
+    for m in reader.messages():
+        match = pat.match(m.topic)
+        if not match:
+            continue
+        img = deserialize_message(m.data, Image)
+        if img.encoding not in ("rgb8", "bgr8"):
+            continue
+        a = np.frombuffer(bytes(img.data), np.uint8).reshape(img.height, img.step)[:, : img.width * 3]
+        a = a.reshape(img.height, img.width, 3)
+        a = np.ascontiguousarray(a[..., ::-1] if img.encoding == "bgr8" else a)
+        pending.append((match.group("drone"), img.header.stamp.sec * 1_000_000_000 + img.header.stamp.nanosec, a))
+        if len(pending) >= batch:
+            flush()
+    if pending:
+        flush()
+    collected["damaged"] = collected["damaged"] + reader.stopped
+    return collected
+
+
 def score(collected: dict[str, Any]) -> dict[str, Any]:
     """mAP50 and mAP50-95 per drone and over all drones, on the frames that have both labels and detections."""
     result: dict[str, Any] = {}
