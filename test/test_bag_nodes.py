@@ -97,6 +97,23 @@ def test_record_a_live_graph_and_read_it_back(peer: Peer, tmp_path: Path) -> Non
     assert [m.data for t, m in msgs if t == "/zebra_sim/scene"] == [f"scene {k}" for k in (0, 5, 10, 15)]
 
 
+def test_sigterm_finalises_the_bag(peer: Peer, tmp_path: Path) -> None:
+    pub = peer.node.create_publisher(String, "/chatter", 10)
+    bag = tmp_path / "term.mcap"
+    with node_process("recorder", {"output": str(bag), "discovery_period_s": 0.1}, _domain(peer),
+                      tmp_path / "rec.log") as rec:
+        assert peer.spin(lambda: peer.node.count_subscribers("/chatter") > 0, 30)
+        assert bag.exists()  # created at start: an empty recording is an empty, valid bag
+        for k in range(10):
+            pub.publish(String(data=str(k)))
+            peer.spin(lambda: False, 0.02)
+        peer.spin(lambda: False, 0.5)
+        rec.send_signal(signal.SIGTERM)
+        assert rec.wait(timeout=30) == 0
+    with open(bag, "rb") as f:
+        assert make_reader(f, validate_crcs=True).get_summary().statistics.message_count == 10
+
+
 def test_sigkill_then_recover(peer: Peer, tmp_path: Path) -> None:
     pub = peer.node.create_publisher(Image, "/drone_0/image_raw", 100)
     bag = tmp_path / "killed.mcap"

@@ -56,6 +56,7 @@ class BagWriter:
         self._file_start_ns: int | None = None
         self._closed_bytes = 0
         self.messages = 0
+        self._open()  # the file exists from the start, as with rosbag2: an empty recording is an empty, valid bag
 
     def _file_path(self, k: int) -> Path:
         split = self.split_bytes > 0 or self.split_ns > 0
