@@ -198,3 +198,21 @@ def test_a_full_bag_ends_with_a_finalised_file_and_an_error(peer: Peer, tmp_path
     with open(bag, "rb") as f:
         n = make_reader(f, validate_crcs=True).get_summary().statistics.message_count
     assert 5 < n < 200 and bag.stat().st_size <= 0.3 * (1 << 20)
+
+
+def test_replay_remap_offset_loop_and_clock(peer: Peer, tmp_path: Path) -> None:
+    from rosgraph_msgs.msg import Clock
+
+    times = _timed_bag(tmp_path / "t.mcap", [0.0] + [0.05] * 19)  # 20 ticks over 0.95 s
+    got: list[str] = []
+    clock: list[int] = []
+    peer.node.create_subscription(String, "/replayed/tick", lambda m: got.append(m.data), 100)
+    peer.node.create_subscription(Clock, "/clock", lambda m: clock.append(m.clock.sec * 10**9 + m.clock.nanosec), 100)
+    params = {"bags": [str(tmp_path / "t.mcap")], "remap_prefix": "/replayed", "start_offset_s": 0.5,
+              "loop": True, "clock": True, "wait_for_subscribers_s": 20.0}
+    with node_process("replay", params, _domain(peer), tmp_path / "replay.log"):
+        assert peer.spin(lambda: len(got) >= 25, 30), (tmp_path / "replay.log").read_text()
+    # The offset skips ticks 0..9 (before 0.5 s); looping plays 10..19 again and again.
+    assert got[:10] == [f"tick {k}" for k in range(10, 20)] and got[10:20] == got[:10]
+    assert clock and min(clock) >= times[0] and max(clock) <= times[-1]
+    assert all(b >= a for a, b in zip(clock[:5], clock[1:6], strict=True))
