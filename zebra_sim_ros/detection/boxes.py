@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import torch
 from torch import Tensor
 
@@ -69,15 +70,14 @@ def nms(boxes: Tensor, scores: Tensor, iou_threshold: float) -> Tensor:
         return torch.zeros(0, dtype=torch.long, device=boxes.device)
     order = scores.argsort(descending=True)
     boxes = boxes[order]
-    iou = box_iou(boxes, boxes)
-    n = len(boxes)
-    keep = torch.ones(n, dtype=torch.bool, device=boxes.device)
-    # Greedy in score order; the IoU matrix is computed once, the loop only reads it.
-    iou_upper = (iou > iou_threshold).triu(diagonal=1)
-    for i in range(n):
+    # Greedy in score order; the IoU matrix is computed once, the loop only reads it (in numpy: a torch
+    # operation per box costs ~50 us of overhead, numpy's ~2 us).
+    suppress = (box_iou(boxes, boxes) > iou_threshold).triu(diagonal=1).cpu().numpy()
+    keep = np.ones(len(boxes), dtype=bool)
+    for i in range(len(boxes)):
         if keep[i]:
-            keep &= ~iou_upper[i]
-    return order[keep]
+            keep &= ~suppress[i]
+    return order[torch.from_numpy(keep).to(order.device)]
 
 
 def batched_nms(boxes: Tensor, scores: Tensor, groups: Tensor, iou_threshold: float) -> Tensor:
@@ -88,20 +88,21 @@ def batched_nms(boxes: Tensor, scores: Tensor, groups: Tensor, iou_threshold: fl
     return nms(boxes + offset, scores, iou_threshold)
 
 
-def postprocess(pred: Tensor, conf: float = 0.25, iou: float = 0.7, max_det: int = 300) -> list[Tensor]:
-    """Per image (n, 6) [x0, y0, x1, y1, score, class] from decoded predictions (B, N, 4 + nc)."""
+def postprocess(pred: Tensor, conf: float = 0.25, iou: float = 0.7, max_det: int = 300,
+                max_nms: int = 1000) -> list[Tensor]:
+    """Per image (n, 6) [x0, y0, x1, y1, score, class] from decoded predictions (B, N, 4 + nc).
+
+    Image by image: candidates above ``conf``, at most ``max_nms`` of them by score (so a barely trained model's
+    flood of low scores cannot make the IoU matrix huge), NMS per class, at most ``max_det`` kept.
+    """
     out = []
-    b = pred.shape[0]
-    scores, cls = pred[..., 4:].max(dim=-1)
-    mask = scores > conf
-    img_idx = torch.arange(b, device=pred.device)[:, None].expand_as(scores)[mask]
-    boxes, s, c = pred[..., :4][mask], scores[mask], cls[mask]
-    # Cap candidates per image before NMS so a flood of low scores cannot blow up the IoU matrix.
-    keep_all = batched_nms(boxes, s, img_idx * 1000 + c, iou) if len(s) <= 30000 else None
-    if keep_all is None:
-        top = s.topk(30000).indices
-        keep_all = top[batched_nms(boxes[top], s[top], (img_idx * 1000 + c)[top], iou)]
-    for i in range(b):
-        k = keep_all[img_idx[keep_all] == i][:max_det]
+    for p in pred:
+        scores, cls = p[:, 4:].max(dim=-1)
+        keep = scores > conf
+        boxes, s, c = p[keep, :4], scores[keep], cls[keep]
+        if len(s) > max_nms:
+            top = s.topk(max_nms).indices
+            boxes, s, c = boxes[top], s[top], c[top]
+        k = batched_nms(boxes, s, c, iou)[:max_det]
         out.append(torch.cat([boxes[k], s[k, None], c[k, None].to(boxes.dtype)], dim=1))
     return out
