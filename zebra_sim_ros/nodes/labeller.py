@@ -12,6 +12,7 @@ newer stamps are dropped and counted) and publishes per drone, with the image's 
 
 from __future__ import annotations
 
+import json
 import time
 from typing import Any
 
@@ -162,8 +163,6 @@ class LabellerNode(Node):
             self.stats["bad_messages"] += 1
             self.get_logger().error(f"{drone} stamp {t}: frame skipped ({exc})")
             return
-        import json
-
         header = got["instances"].header
         labels_pub, markers_pub, boxes_pub = self.pubs[drone]
         labels_pub.publish(String(data=json.dumps(labels, separators=(",", ":"))))
