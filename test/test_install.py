@@ -147,3 +147,13 @@ def test_installed_script_runs_help(installed: Installed, lookup: dict[str, str]
     )
     assert proc.returncode == 0, f"{script} --help exited {proc.returncode}:\n{proc.stdout}\n{proc.stderr}"
     assert proc.stdout.strip(), f"{script} --help printed nothing"
+
+
+def test_the_core_never_imports_rclpy() -> None:
+    """Only the node adapters may import rclpy or message packages: the rest must run without ROS."""
+    import re
+
+    pattern = re.compile(r"^\s*(from|import)\s+(rclpy|\w+_msgs|builtin_interfaces|rcl_interfaces)\b", re.M)
+    offenders = [str(p.relative_to(REPO)) for p in (REPO / PACKAGE).rglob("*.py")
+                 if "nodes" not in p.relative_to(REPO / PACKAGE).parts and pattern.search(p.read_text())]
+    assert not offenders, offenders

@@ -27,6 +27,54 @@ def cdr_string(data: bytes) -> str:
     return data[8:8 + n - 1].decode("utf-8")  # the length counts the terminating NUL
 
 
+class _Cdr:
+    """A minimal little/big-endian CDR reader (offsets aligned from the start of the payload)."""
+
+    def __init__(self, data: bytes) -> None:
+        self.data, self.pos = data, 4
+        self.end = "<" if data[1] == 1 else ">"
+
+    def _align(self, n: int) -> None:
+        self.pos += (-(self.pos - 4)) % n
+
+    def u32(self) -> int:
+        self._align(4)
+        (v,) = struct.unpack_from(self.end + "I", self.data, self.pos)
+        self.pos += 4
+        return int(v)
+
+    def u8(self) -> int:
+        v = self.data[self.pos]
+        self.pos += 1
+        return v
+
+    def string(self) -> str:
+        n = self.u32()
+        v = self.data[self.pos:self.pos + n - 1].decode("utf-8")
+        self.pos += n
+        return v
+
+    def blob(self) -> bytes:
+        n = self.u32()
+        v = self.data[self.pos:self.pos + n]
+        self.pos += n
+        return v
+
+
+def cdr_image(data: bytes) -> tuple[int, int, int, str, int, bytes]:
+    """(stamp ns, height, width, encoding, step, pixel bytes) of a CDR-serialized sensor_msgs/Image."""
+    r = _Cdr(data)
+    sec, nanosec = r.u32(), r.u32()
+    if sec >= 2**31:
+        sec -= 2**32
+    r.string()  # frame_id
+    height, width = r.u32(), r.u32()
+    encoding = r.string()
+    r.u8()  # is_bigendian
+    step = r.u32()
+    return sec * 1_000_000_000 + nanosec, height, width, encoding, step, r.blob()
+
+
 def _stamp(d: dict[str, Any]) -> int:
     return int(d["stamp"]["sec"]) * 1_000_000_000 + int(d["stamp"]["nanosec"])
 
@@ -53,13 +101,7 @@ def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "dete
 
 def detect_images(paths: list[str | Path] | str | Path, collected: dict[str, Any], weights: str | Path | None,
                   device: str = "auto", batch: int = 8, conf: float = 0.001) -> dict[str, Any]:
-    """Replace recorded detections by running a detector over the bag's ``/<drone>/image_raw`` (rgb8 or bgr8).
-
-    ``decode`` needs rclpy's serialization, imported here so the rest of this module stays ROS-free.
-    """
-    from rclpy.serialization import deserialize_message
-    from sensor_msgs.msg import Image
-
+    """Replace recorded detections by running a detector over the bag's ``/<drone>/image_raw`` (rgb8 or bgr8)."""
     from zebra_sim_ros.detection.checkpoint import load_model, select_device
     from zebra_sim_ros.detection.predict import detect
 
@@ -81,13 +123,12 @@ def detect_images(paths: list[str | Path] | str | Path, collected: dict[str, Any
         match = pat.match(m.topic)
         if not match:
             continue
-        img = deserialize_message(m.data, Image)
-        if img.encoding not in ("rgb8", "bgr8"):
+        t, height, width, encoding, step, pixels = cdr_image(m.data)
+        if encoding not in ("rgb8", "bgr8"):
             continue
-        a = np.frombuffer(bytes(img.data), np.uint8).reshape(img.height, img.step)[:, : img.width * 3]
-        a = a.reshape(img.height, img.width, 3)
-        a = np.ascontiguousarray(a[..., ::-1] if img.encoding == "bgr8" else a)
-        pending.append((match.group("drone"), img.header.stamp.sec * 1_000_000_000 + img.header.stamp.nanosec, a))
+        a = np.frombuffer(pixels, np.uint8).reshape(height, step)[:, : width * 3].reshape(height, width, 3)
+        a = np.ascontiguousarray(a[..., ::-1] if encoding == "bgr8" else a)
+        pending.append((match.group("drone"), t, a))
         if len(pending) >= batch:
             flush()
     if pending:
