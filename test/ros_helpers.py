@@ -74,3 +74,28 @@ def spin_until(node: Any, executor: Any, cond: Callable[[], bool], timeout: floa
     while time.monotonic() < end and not cond():
         executor.spin_once(timeout_sec=0.05)
     return cond()
+
+
+class Peer:
+    """The test's own node on a private domain, with its own context and executor; ``close()`` always."""
+
+    def __init__(self, domain: int, name: str = "test_peer") -> None:
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx, domain_id=domain)
+        self.node = rclpy.create_node(name, context=self.ctx)
+        self.ex = SingleThreadedExecutor(context=self.ctx)
+        self.ex.add_node(self.node)
+
+    def spin(self, cond: Callable[[], bool], timeout: float) -> bool:
+        """Spin until ``cond()`` or ``timeout`` seconds."""
+        return spin_until(self.node, self.ex, cond, timeout)
+
+    def close(self) -> None:
+        import rclpy
+
+        self.ex.shutdown()
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.ctx)

@@ -11,12 +11,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import rclpy
 from mcap.reader import make_reader
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
-from ros_helpers import fresh_domain_id, node_process, spin_until
+from ros_helpers import Peer, fresh_domain_id, node_process
 from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header, String
@@ -25,25 +23,6 @@ from zebra_sim_ros.recording.qos import profile_dict
 from zebra_sim_ros.recording.writer import BagWriter
 
 pytestmark = pytest.mark.integration
-
-
-class Peer:
-    """The test's own node on a private domain."""
-
-    def __init__(self, domain: int) -> None:
-        self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx, domain_id=domain)
-        self.node = rclpy.create_node("test_peer", context=self.ctx)
-        self.ex = SingleThreadedExecutor(context=self.ctx)
-        self.ex.add_node(self.node)
-
-    def spin(self, cond, timeout: float) -> bool:  # type: ignore[no-untyped-def]
-        return spin_until(self.node, self.ex, cond, timeout)
-
-    def close(self) -> None:
-        self.ex.shutdown()
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.ctx)
 
 
 @pytest.fixture

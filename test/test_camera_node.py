@@ -10,10 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from ros_helpers import fresh_domain_id, node_process, param_args, ros_env, spin_until
+from ros_helpers import Peer, fresh_domain_id, node_process, param_args, ros_env, spin_until
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import String
 
@@ -23,11 +21,8 @@ STEPS = 3
 
 def test_placer_and_three_cameras_in_lockstep(tmp_path: Path) -> None:
     domain = fresh_domain_id()
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=domain)
-    node = rclpy.create_node("test_cameras", context=ctx)
-    ex = SingleThreadedExecutor(context=ctx)
-    ex.add_node(node)
+    peer = Peer(domain, "test_cameras")
+    node, ex = peer.node, peer.ex
     got: dict[tuple[str, str], dict[int, object]] = {}
     scenes: dict[int, dict] = {}
 
@@ -85,9 +80,7 @@ def test_placer_and_three_cameras_in_lockstep(tmp_path: Path) -> None:
                 assert set(np.unique(mask)) - {0} <= scene_ids
                 assert info.k[0] == pytest.approx(128 / np.tan(np.radians(40)))  # fx of 80 deg over 256 px
     finally:
-        ex.shutdown()
-        node.destroy_node()
-        rclpy.shutdown(context=ctx)
+        peer.close()
 
 
 def test_bad_camera_parameter_stops_the_node() -> None:

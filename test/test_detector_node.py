@@ -9,10 +9,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import rclpy
 from builtin_interfaces.msg import Time
-from rclpy.executors import SingleThreadedExecutor
-from ros_helpers import fresh_domain_id, node_process, param_args, ros_env, spin_until
+from ros_helpers import Peer, fresh_domain_id, node_process, param_args, ros_env, spin_until
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header, String
 
@@ -39,11 +37,8 @@ def _image(stamp: Time, rgb: np.ndarray, encoding: str) -> Image:
 
 def test_detections_keep_the_image_stamp(tmp_path: Path) -> None:
     domain = fresh_domain_id()
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=domain)
-    node = rclpy.create_node("test_detector", context=ctx)
-    ex = SingleThreadedExecutor(context=ctx)
-    ex.add_node(node)
+    peer = Peer(domain, "test_detector")
+    node, ex = peer.node, peer.ex
     got: list[dict] = []
     annotated: list[Image] = []
     node.create_subscription(String, "/drone_0/detections", lambda m: got.append(json.loads(m.data)), 10)
@@ -74,9 +69,7 @@ def test_detections_keep_the_image_stamp(tmp_path: Path) -> None:
         log = (tmp_path / "detector.log").read_text()
         assert "unsupported encoding '16UC1'" in log
     finally:
-        ex.shutdown()
-        node.destroy_node()
-        rclpy.shutdown(context=ctx)
+        peer.close()
 
 
 @pytest.mark.parametrize("kind", ["missing", "corrupt"])

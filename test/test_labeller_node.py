@@ -9,9 +9,7 @@ from contextlib import ExitStack
 from pathlib import Path
 
 import pytest
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
-from ros_helpers import fresh_domain_id, node_process, param_args, ros_env, spin_until
+from ros_helpers import Peer, fresh_domain_id, node_process, param_args, ros_env, spin_until
 from sensor_msgs.msg import Image
 from std_msgs.msg import String
 from visualization_msgs.msg import ImageMarker, MarkerArray
@@ -23,11 +21,8 @@ DRONES = ("drone_0", "drone_1", "drone_2")
 
 def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
     domain = fresh_domain_id()
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=domain)
-    node = rclpy.create_node("test_labels", context=ctx)
-    ex = SingleThreadedExecutor(context=ctx)
-    ex.add_node(node)
+    peer = Peer(domain, "test_labels")
+    node, ex = peer.node, peer.ex
     labels: dict[str, dict[int, dict]] = {d: {} for d in DRONES}
     image_stamps: dict[str, set[int]] = {d: set() for d in DRONES}
     markers: dict[str, list[ImageMarker]] = {d: [] for d in DRONES}
@@ -72,9 +67,7 @@ def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
             assert len(markers[d][-1].points) % 2 == 0
             assert boxes[d]
     finally:
-        ex.shutdown()
-        node.destroy_node()
-        rclpy.shutdown(context=ctx)
+        peer.close()
 
 
 def test_bad_labeller_parameter_stops_the_node() -> None:
