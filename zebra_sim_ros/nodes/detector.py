@@ -75,7 +75,7 @@ class DetectorNode(Node):
         self.imgsz = c.imgsz or self.model.cfg.imgsz
         q = qos(c.qos_reliability, c.qos_depth)
         self.pending: dict[str, Image] = {}
-        self.done: dict[int, set[str]] = {}
+        self.detected: dict[int, set[str]] = {}  # stamp -> topics detected (for the ack)
         self.pubs: dict[str, tuple[Any, Any, Any]] = {}
         for topic in c.image_topics:
             base = output_base(topic)
@@ -148,12 +148,12 @@ class DetectorNode(Node):
         self.stats["images"] += 1
         if self.ack_pub is not None:  # once every topic of this stamp is done
             t = stamp_ns(header.stamp)
-            done = self.done.setdefault(t, set())
+            done = self.detected.setdefault(t, set())
             done.add(topic)
             if done >= set(self.cfg.image_topics):
                 self.ack_pub.publish(Header(stamp=header.stamp, frame_id=self.cfg.ack_name))
-            for old in sorted(self.done)[:-50]:
-                del self.done[old]
+            for old in sorted(self.detected)[:-50]:
+                del self.detected[old]
 
 
 def main(argv: list[str] | None = None) -> int:

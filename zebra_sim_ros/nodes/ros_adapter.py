@@ -100,7 +100,7 @@ def run_node(name: str, factory: Callable[[], Any], argv: list[str] | None = Non
         except ZebraSimError as exc:
             rclpy.logging.get_logger(name).fatal(f"cannot start: {exc}")
             return 2
-        while rclpy.ok() and not getattr(node, "done", False):
+        while rclpy.ok() and getattr(node, "done", False) is not True:
             rclpy.spin_once(node, timeout_sec=0.1)
         return int(getattr(node, "exit_code", 0))
     except (KeyboardInterrupt, ExternalShutdownException):
