@@ -30,6 +30,8 @@ def register(sub: Any) -> None:
     t.add_argument("--seed", type=int, default=0)
     t.add_argument("--out", type=Path, required=True, help="run folder: best.pt, last.pt, results.csv, results.png")
     t.add_argument("--resume", action="store_true", help="continue the run in --out from last.pt")
+    t.add_argument("--init", default="", help="start from this checkpoint's weights (fresh schedule), e.g. to "
+                   "train in stages; default: random initialisation")
     add_json_flag(t)
     t.set_defaults(func=cmd_train)
 
@@ -62,7 +64,8 @@ def cmd_train(args: argparse.Namespace) -> Summary:
     cfg = TrainConfig(data=args.data, out=str(args.out), model=args.model, imgsz=args.imgsz, epochs=args.epochs,
                       batch=args.batch, device=args.device, workers=args.workers, lr0=args.lr0,
                       close_mosaic=args.close_mosaic, seed=args.seed, val_every=args.val_every,
-                      max_train_images=args.max_train_images, resume=args.resume)
+                      max_train_images=args.max_train_images, resume=args.resume,
+                      init=args.init)
     summary = train(cfg)
     print(f"trained: {summary}")
     return summary

@@ -51,6 +51,7 @@ class TrainConfig:
     max_train_images: int = 0  # 0 = all
     augment: bool = True  # False: letterbox only (for overfitting tests and debugging)
     resume: bool = False
+    init: str = ""  # start from this checkpoint's (EMA) weights with a fresh schedule; "" = random init
 
     def check(self) -> None:
         """Raise :class:`ParameterError` naming the first bad setting."""
@@ -60,6 +61,8 @@ class TrainConfig:
             raise ParameterError("--batch", self.batch, ">= 1")
         if self.imgsz % 32 or not 64 <= self.imgsz <= 4096:
             raise ParameterError("--imgsz", self.imgsz, "a multiple of 32 in 64..4096")
+        if self.init and self.resume:
+            raise ParameterError("--init", self.init, "empty when --resume is given (resume continues its own run)")
 
 
 class EMA:
@@ -104,6 +107,12 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
     model = build_model(ModelConfig(size=cfg.model, imgsz=cfg.imgsz)).to(device)
     start_epoch, best, updates = 0, -1.0, 0
     opt_state = None
+    if cfg.init:
+        init = read_checkpoint(cfg.init)
+        if init["config"].get("size") != cfg.model:
+            raise ParameterError("--init", cfg.init, f"a checkpoint of model size {cfg.model!r} "
+                                 f"(it holds {init['config'].get('size')!r})")
+        model.load_state_dict({k: v.float() for k, v in init["model"].items()})
     if cfg.resume:
         ckpt = read_checkpoint(out / "last.pt")
         model.load_state_dict(ckpt["model_raw"])
