@@ -61,6 +61,8 @@ class PlacerNode(Node):
         self.pending: Scene | None = None
         self.acked: set[str] = set()
         self.sent_at = 0.0
+        self.started = c.wait_for_subscribers == 0
+        self.waiting_since = time.monotonic()
         if c.mode == "rate":
             self.timer = self.create_timer(1.0 / c.rate_hz, self._publish_next)
         else:
@@ -73,7 +75,22 @@ class PlacerNode(Node):
     def _finished(self) -> bool:
         return self.cfg.max_steps > 0 and self.published >= self.cfg.max_steps
 
+    def _subscribed(self) -> bool:
+        """True once every output topic has ``wait_for_subscribers`` subscribers (logs what it waits for)."""
+        if not self.started:
+            pubs = [self.scene_pub, self.marker_pub, *self.pose_pubs]
+            short = [p.topic_name for p in pubs if p.get_subscription_count() < self.cfg.wait_for_subscribers]
+            if not short:
+                self.started = True
+                self.get_logger().info(f"every output has {self.cfg.wait_for_subscribers}+ subscribers: starting")
+            elif time.monotonic() - self.waiting_since > 5.0:
+                self.waiting_since = time.monotonic()
+                self.get_logger().info(f"waiting for {self.cfg.wait_for_subscribers} subscribers on {short}")
+        return self.started
+
     def _publish_next(self) -> None:
+        if not self._subscribed():
+            return
         if self._finished():
             self.get_logger().info(f"published {self.published} steps; stopping")
             self.done = True
@@ -119,7 +136,7 @@ class PlacerNode(Node):
                 self.done = True
                 return
             # Start once an acknowledger is on the graph; later ones still get the step (transient local).
-            if self.published == 0 and self.count_publishers(ACK_TOPIC) == 0:
+            if self.published == 0 and (self.count_publishers(ACK_TOPIC) == 0 or not self._subscribed()):
                 return
             self.pending = self.placer.scene(self.step)
             self.acked = set()

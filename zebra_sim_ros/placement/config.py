@@ -82,6 +82,9 @@ PLACER_PARAMS: tuple[ParamSpec, ...] = (
               lambda v: len(v) > 0 and all(isinstance(x, str) and x for x in v)),
     ParamSpec("lockstep_timeout_s", 30.0, "warn and re-publish when a step is not acknowledged within this, s",
               "0.1..3600 s", in_range(0.1, 3600.0)),
+    ParamSpec("wait_for_subscribers", 0, "publish the first step only when each output topic (scene, markers, "
+              "camera poses) has at least this many subscribers, e.g. 1 so a recorder misses nothing (0: start at "
+              "once)", "0..1000", in_range(0, 1000)),
     ParamSpec("max_steps", 0, "stop after this many steps (0: never)", "0..2^31", in_range(0, 2**31)),
     ParamSpec("start_step", 0, "first step index (to resume or reproduce a step alone)", "0..2^31",
               in_range(0, 2**31)),
@@ -134,6 +137,7 @@ class PlacerConfig:
     rate_hz: float = 1.0
     lockstep_ack_from: tuple[str, ...] = ("drone_0", "drone_1", "drone_2")
     lockstep_timeout_s: float = 30.0
+    wait_for_subscribers: int = 0
     max_steps: int = 0
     start_step: int = 0
     qos_depth: int = 10
