@@ -47,11 +47,17 @@ class ReplayNode(Node):
         self.done = False
         self.exit_code = 0
         self.published = 0
+        for topic, type_name, metadata in self.reader.channel_list():  # publishers up front: subscribers match
+            if self._wanted(topic) and type_name:                          # before the first message is played
+                self._publisher(topic, type_name, metadata)
         self.get_logger().info(f"playing {[str(p) for p in self.reader.paths]} at rate {v['rate']}, "
                                f"offset {v['start_offset_s']} s, duration {v['duration_s'] or 'all'}, "
                                f"loop {v['loop']}, clock {v['clock']}, remap prefix '{v['remap_prefix']}'")
         self.thread = threading.Thread(target=self._play_all, name="replay", daemon=True)
         self.thread.start()
+
+    def _wanted(self, topic: str) -> bool:
+        return (not self.topics or topic in self.topics) and bool(self.regex.search(topic))
 
     def _publisher(self, topic: str, type_name: str, metadata: dict[str, str]) -> Any:
         pub = self.pubs.get(topic)
@@ -97,11 +103,12 @@ class ReplayNode(Node):
                 continue
             if v["duration_s"] and rel > v["start_offset_s"] + v["duration_s"]:
                 break
-            if (self.topics and m.topic not in self.topics) or not self.regex.search(m.topic):
+            if not self._wanted(m.topic):
                 continue
             pub = self._publisher(m.topic, m.type_name, m.metadata)
-            if n == 0:
-                while time.monotonic() < wait_until and pub.get_subscription_count() == 0:
+            if n == 0:  # every publisher known so far should have a subscriber (up to wait_for_subscribers_s)
+                while time.monotonic() < wait_until and any(p.get_subscription_count() == 0
+                                                            for p in self.pubs.values()):
                     time.sleep(0.01)
                 start_wall = time.monotonic()
                 offset_bag = rel

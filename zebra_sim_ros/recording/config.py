@@ -51,6 +51,7 @@ REPLAY_PARAMS: tuple[ParamSpec, ...] = (
               "true or false", lambda v: isinstance(v, bool)),
     ParamSpec("clock_rate_hz", 100.0, "how often /clock is published between messages", "1..10000",
               in_range(1.0, 10000.0)),
-    ParamSpec("wait_for_subscribers_s", 0.0, "wait up to this long for a subscriber before playing, s", "0..3600",
+    ParamSpec("wait_for_subscribers_s", 0.0,
+              "wait up to this long, before playing, for every played topic to have a subscriber, s", "0..3600",
               in_range(0.0, 3600.0)),
 )

@@ -57,6 +57,25 @@ class BagReader:
             raise ParameterError("bag", [str(i) for i in items], "at least one .mcap file")
         return cls(files)
 
+    def channel_list(self) -> list[tuple[str, str, dict[str, str]]]:
+        """(topic, ``pkg/msg/Type``, channel metadata) of every channel in the files' summaries, without reading
+        the messages; files without a readable summary (cut, still being written) contribute nothing."""
+        from mcap.reader import make_reader
+
+        out: dict[str, tuple[str, str, dict[str, str]]] = {}
+        for path in self.paths:
+            try:
+                with open(path, "rb") as f:
+                    summary = make_reader(f).get_summary()
+            except Exception:  # noqa: BLE001 - a damaged file simply has no usable summary
+                continue
+            if summary is None:
+                continue
+            for ch in summary.channels.values():
+                sc = summary.schemas.get(ch.schema_id)
+                out.setdefault(ch.topic, (ch.topic, sc.name if sc else "", dict(ch.metadata)))
+        return list(out.values())
+
     def messages(self, topics: set[str] | None = None) -> Iterator[BagMessage]:
         """Every readable message; damage ends a file's stream and is noted in :attr:`stopped`."""
         for k, path in enumerate(self.paths):
