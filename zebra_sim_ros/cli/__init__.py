@@ -1,7 +1,8 @@
 """``zebra-sim``: the batch and tooling side of zebra_sim_ros, one subcommand per job.
 
 Every subcommand has ``--help``; those that compute something accept ``--json`` and then print one
-machine-readable summary line last on stdout. Errors print one line naming the bad value and exit 2.
+machine-readable summary line last on stdout. Errors print one line naming the bad value and exit 2;
+a summary may carry its own ``exit_code`` (``up``: 1 when a node died, 130 when interrupted).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ def add_json_flag(p: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The full ``zebra-sim`` argument parser."""
-    from zebra_sim_ros.cli import asset, bag, detect, generate, place, render, world
+    from zebra_sim_ros.cli import asset, bag, detect, generate, place, render, up, world
 
     parser = argparse.ArgumentParser(
         prog="zebra-sim",
@@ -41,6 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
     generate.register(sub)
     detect.register(sub)
     bag.register(sub)
+    up.register(sub)
     return parser
 
 
@@ -59,7 +61,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     if getattr(args, "json", False):
         print(json.dumps(summary, sort_keys=True))
-    return 0
+    return int(summary.get("exit_code", 0))
 
 
 if __name__ == "__main__":

@@ -183,7 +183,7 @@ class LabellerNode(Node):
         """Release GL resources."""
         for c in self.counters.values():
             c.release()
-        self.get_logger().info(f"labeller stopping: {self.stats}")
+        print(f"[labeller] stopping: {self.stats}", flush=True)  # plain: the ROS context may be shut down already
 
 
 def main(argv: list[str] | None = None) -> int:

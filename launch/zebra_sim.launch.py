@@ -1,0 +1,69 @@
+"""The whole zebra_sim_ros graph for ROS 2 installations:
+
+    ros2 launch zebra_sim_ros zebra_sim.launch.py frames:=10 world:=savanna seed:=0
+
+The same processes as ``zebra-sim up`` (three cameras, labeller, detector, recorder, placer), with the same
+names, namespaces, parameter files (share/zebra_sim_ros/config) and overrides; a test compares the two.
+``zebra-sim up`` adds what launch does not: it waits until every node is ready before the placer's first step,
+stops the graph after the last step and scores the run. Here the placer waits for the recorder through
+``wait_for_subscribers`` and exits after ``frames`` steps; stop the rest with Ctrl-C.
+"""
+
+import os
+
+from ament_index_python.packages import get_package_share_directory
+from launch.actions import DeclareLaunchArgument
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+from launch_ros.parameter_descriptions import ParameterValue
+
+from launch import LaunchDescription
+
+PACKAGE = "zebra_sim_ros"
+
+
+def generate_launch_description():
+    config = os.path.join(get_package_share_directory(PACKAGE), "config")
+    args = [
+        DeclareLaunchArgument("frames", default_value="10", description="steps to run"),
+        DeclareLaunchArgument("world", default_value="savanna", description="world preset or USD terrain"),
+        DeclareLaunchArgument("seed", default_value="0", description="placer seed"),
+        DeclareLaunchArgument("strategy", default_value="far", description="far, closeby or mixed"),
+        DeclareLaunchArgument("width", default_value="1280", description="image width, px"),
+        DeclareLaunchArgument("height", default_value="720", description="image height, px"),
+        DeclareLaunchArgument("weights", default_value="", description="detector checkpoint ('' = shipped)"),
+        DeclareLaunchArgument("device", default_value="auto", description="detector device"),
+        DeclareLaunchArgument("bag", default_value="out/up/zebra_sim.mcap", description="bag to record"),
+    ]
+
+    def arg(name, value_type=str):
+        return ParameterValue(LaunchConfiguration(name), value_type=value_type)
+
+    def file(name):
+        return os.path.join(config, name)
+
+    nodes = [
+        Node(package=PACKAGE, executable="camera", name="camera", namespace="drone_0", output="screen",
+             parameters=[file("camera.yaml"), {"drone_index": 0, "width": arg("width", int),
+                                               "height": arg("height", int), "ack": False}]),
+        Node(package=PACKAGE, executable="camera", name="camera", namespace="drone_1", output="screen",
+             parameters=[file("camera.yaml"), {"drone_index": 1, "width": arg("width", int),
+                                               "height": arg("height", int), "ack": False}]),
+        Node(package=PACKAGE, executable="camera", name="camera", namespace="drone_2", output="screen",
+             parameters=[file("camera.yaml"), {"drone_index": 2, "width": arg("width", int),
+                                               "height": arg("height", int), "ack": False}]),
+        Node(package=PACKAGE, executable="labeller", name="labeller", namespace="", output="screen",
+             parameters=[file("labeller.yaml"), {"ack_name": "labeller"}]),
+        Node(package=PACKAGE, executable="detector", name="detector", namespace="", output="screen",
+             parameters=[file("detector.yaml"), {"ack_name": "detector", "weights": arg("weights"),
+                                                 "device": arg("device")}]),
+        Node(package=PACKAGE, executable="recorder", name="recorder", namespace="", output="screen",
+             parameters=[file("recorder.yaml"), {"output": arg("bag")}]),
+        Node(package=PACKAGE, executable="placer", name="placer", namespace="", output="screen",
+             parameters=[file("placer.yaml"), {
+                 "world": arg("world"), "seed": arg("seed", int), "strategy": arg("strategy"), "mode": "lockstep",
+                 "max_steps": arg("frames", int), "lockstep_ack_from": ["labeller", "detector"],
+                 "lockstep_timeout_s": 120.0, "camera_width": arg("width", int),
+                 "camera_height": arg("height", int), "wait_for_subscribers": 1}]),
+    ]
+    return LaunchDescription(args + nodes)

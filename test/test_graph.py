@@ -1,0 +1,208 @@
+"""The whole-graph description, the launch file that mirrors it, and the process supervisor (no DDS here)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+import types
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from zebra_sim_ros.detection.config import DETECTOR_PARAMS
+from zebra_sim_ros.graph.spec import NodeSpec, UpConfig, command, config_dir, graph_spec, ros_value
+from zebra_sim_ros.graph.supervisor import NodeDied, Supervisor
+from zebra_sim_ros.labels.config import LABELLER_PARAMS
+from zebra_sim_ros.params import ParamSpec, load_params_file, validate
+from zebra_sim_ros.placement.config import PLACER_PARAMS
+from zebra_sim_ros.recording.config import RECORDER_PARAMS, REPLAY_PARAMS
+from zebra_sim_ros.rendering.config import CAMERA_PARAMS
+
+REPO = Path(__file__).resolve().parents[1]
+SPECS: dict[str, tuple[ParamSpec, ...]] = {"placer": PLACER_PARAMS, "camera": CAMERA_PARAMS,
+                                           "labeller": LABELLER_PARAMS, "detector": DETECTOR_PARAMS,
+                                           "recorder": RECORDER_PARAMS, "replay": REPLAY_PARAMS}
+
+
+@pytest.mark.parametrize("executable", sorted(SPECS))
+def test_config_file_holds_every_parameter_at_its_default(executable: str) -> None:
+    values = load_params_file(str(REPO / "config" / f"{executable}.yaml"), executable)
+    assert values == {s.name: s.default for s in SPECS[executable]}
+
+
+def test_graph_overrides_are_declared_parameters_with_allowed_values(tmp_path: Path) -> None:
+    specs = graph_spec(UpConfig(out=str(tmp_path), weights=str(tmp_path / "w.pt")))
+    assert [s.executable for s in specs] == ["camera"] * 3 + ["labeller", "detector", "recorder", "placer"]
+    for s in specs:
+        known = {p.name for p in SPECS[s.executable]}
+        assert set(s.overrides) <= known, (s.label, set(s.overrides) - known)
+        validate(SPECS[s.executable], s.overrides)  # raises naming a bad value
+        assert (config_dir() / s.params_file).is_file()
+    assert len({s.fqn for s in specs}) == len(specs)
+    placer = specs[-1].overrides
+    assert placer["mode"] == "lockstep" and placer["wait_for_subscribers"] == 1
+    assert set(placer["lockstep_ack_from"]) == {specs[3].overrides["ack_name"], specs[4].overrides["ack_name"]}
+    assert not any(s.executable == "recorder" for s in graph_spec(UpConfig(record=False)))
+
+
+def test_command_line_passes_names_files_and_overrides() -> None:
+    spec = NodeSpec("camera", "camera", "/drone_1", "camera.yaml", {"drone_index": 1, "ack": False, "name": "a b"})
+    args = command(spec, Path("/cfg"), python="py")
+    assert args[:3] == ["py", "-m", "zebra_sim_ros.nodes.camera"]
+    assert args[3:] == ["--ros-args", "-r", "__node:=camera", "-r", "__ns:=/drone_1", "--params-file",
+                        "/cfg/camera.yaml", "-p", "drone_index:=1", "-p", "ack:=false", "-p", "name:='a b'"]
+    assert ros_value(["labeller", "detector"]) == "[labeller, detector]"
+    assert ros_value("") == "''" and ros_value("0abc") == "'0abc'" and ros_value(2.5) == "2.5"
+
+
+def test_config_dir_errors_name_the_folder(tmp_path: Path) -> None:
+    from zebra_sim_ros.errors import ParameterError
+
+    with pytest.raises(ParameterError, match=str(tmp_path)):
+        config_dir(str(tmp_path))
+    assert config_dir(str(REPO / "config")) == REPO / "config"
+
+
+# -- the launch file is a mirror of `up` ---------------------------------------------------------------
+class _Recorder:
+    """Stand-ins for the launch API that record what the launch file builds (launch is not installable here)."""
+
+    def __init__(self) -> None:
+        self.nodes: list[dict[str, Any]] = []
+        self.args: dict[str, str] = {}
+
+    def modules(self, share: Path) -> dict[str, types.ModuleType]:
+        rec = self
+
+        class Node:
+            def __init__(self, **kw: Any) -> None:
+                rec.nodes.append(kw)
+
+        class DeclareLaunchArgument:
+            def __init__(self, name: str, default_value: str = "", description: str = "") -> None:
+                rec.args[name] = default_value
+
+        class LaunchConfiguration:
+            def __init__(self, name: str) -> None:
+                self.name = name
+
+        class ParameterValue:
+            def __init__(self, value: Any, value_type: type = str) -> None:
+                self.value, self.value_type = value, value_type
+
+        mods = {}
+        for name, attrs in {
+            "launch": {"LaunchDescription": lambda items: items},
+            "launch.actions": {"DeclareLaunchArgument": DeclareLaunchArgument},
+            "launch.substitutions": {"LaunchConfiguration": LaunchConfiguration},
+            "launch_ros": {}, "launch_ros.actions": {"Node": Node},
+            "launch_ros.parameter_descriptions": {"ParameterValue": ParameterValue},
+            "ament_index_python": {},
+            "ament_index_python.packages": {"get_package_share_directory": lambda p: str(share)},
+        }.items():
+            m = types.ModuleType(name)
+            m.__dict__.update(attrs)
+            mods[name] = m
+        return mods
+
+
+def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    rec = _Recorder()
+    for name, mod in rec.modules(tmp_path / "share").items():
+        monkeypatch.setitem(sys.modules, name, mod)
+    ns: dict[str, Any] = {}
+    exec(compile((REPO / "launch" / "zebra_sim.launch.py").read_text(), "zebra_sim.launch.py", "exec"), ns)
+    ns["generate_launch_description"]()
+    up = graph_spec(UpConfig())
+    launched = [(n["executable"], n["name"], "/" + n["namespace"] if n["namespace"] else "",
+                 Path(n["parameters"][0]).name, Path(n["parameters"][0]).parent, set(n["parameters"][1]))
+                for n in rec.nodes]
+    assert [n["package"] for n in rec.nodes] == ["zebra_sim_ros"] * len(up)
+    assert [x[:4] for x in launched] == [(s.executable, s.name, s.namespace, s.params_file) for s in up]
+    assert {x[4] for x in launched} == {tmp_path / "share" / "config"}
+    assert [x[5] for x in launched] == [set(s.overrides) for s in up]
+    # Constant overrides are equal; those from launch arguments default to up's defaults.
+    for n, s in zip(rec.nodes, up, strict=True):
+        for k, v in n["parameters"][1].items():
+            if hasattr(v, "value"):
+                default = v.value_type(rec.args[v.value.name]) if rec.args[v.value.name] else ""
+                if k not in ("weights", "output"):
+                    assert default == s.overrides[k], (s.label, k)
+            else:
+                assert v == s.overrides[k], (s.label, k)
+    assert int(rec.args["frames"]) == UpConfig().frames and rec.args["world"] == UpConfig().world
+
+
+# -- the supervisor --------------------------------------------------------------------------------------
+def _spec(label: str) -> NodeSpec:
+    return NodeSpec("x", label, "", "x.yaml")
+
+
+def _py(code: str) -> list[str]:
+    return [sys.executable, "-c", textwrap.dedent(code)]
+
+
+def test_supervisor_names_the_node_that_died_and_stops_the_rest(tmp_path: Path) -> None:
+    with Supervisor(tmp_path, dict(os.environ)) as sup:
+        alive = sup.start(_spec("alive"), _py("import time; time.sleep(60)"))
+        sup.start(_spec("dies"), _py("import sys; print('weights are broken', flush=True); sys.exit(3)"))
+        end = time.monotonic() + 20
+        with pytest.raises(NodeDied) as err:
+            while time.monotonic() < end:
+                sup.check()
+                time.sleep(0.05)
+        assert err.value.child.label == "dies" and err.value.code == 3
+        assert "exit status 3" in str(err.value) and "weights are broken" in str(err.value)
+        codes = sup.stop()
+    assert codes["dies"] == 3 and codes["alive"] == -signal.SIGINT  # python's default SIGINT: KeyboardInterrupt
+    assert alive.proc.poll() is not None
+
+
+def test_supervisor_escalates_to_sigterm_and_sigkill(tmp_path: Path) -> None:
+    with Supervisor(tmp_path, dict(os.environ)) as sup:
+        stubborn = sup.start(_spec("stubborn"), _py("""
+            import signal, time
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+            print('ready', flush=True)
+            time.sleep(60)"""))
+        end = time.monotonic() + 20
+        while "ready" not in stubborn.log_tail() and time.monotonic() < end:
+            time.sleep(0.05)
+        t0 = time.monotonic()
+        codes = sup.stop(grace_s=0.5)
+    assert codes["stubborn"] == -signal.SIGKILL
+    assert time.monotonic() - t0 < 15
+
+
+def test_nodes_die_with_a_supervisor_killed_outright(tmp_path: Path) -> None:
+    script = f"""
+        import os, sys, time
+        from pathlib import Path
+        from zebra_sim_ros.graph.spec import NodeSpec
+        from zebra_sim_ros.graph.supervisor import Supervisor
+        sup = Supervisor(Path({str(tmp_path)!r}), dict(os.environ))
+        c = sup.start(NodeSpec("x", "child", "", "x.yaml"), [sys.executable, "-c", "import time; time.sleep(120)"])
+        print(c.proc.pid, flush=True)
+        time.sleep(120)
+    """
+    parent = subprocess.Popen(_py(script), stdout=subprocess.PIPE, text=True)
+    try:
+        assert parent.stdout is not None
+        pid = int(parent.stdout.readline())
+        os.kill(parent.pid, signal.SIGKILL)
+        parent.wait(timeout=10)
+        end = time.monotonic() + 10
+        while time.monotonic() < end and Path(f"/proc/{pid}").exists() and \
+                Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z":
+            time.sleep(0.05)
+        gone = not Path(f"/proc/{pid}").exists() or Path(f"/proc/{pid}/stat").read_text().split()[2] == "Z"
+        assert gone, "the node outlived its supervisor"
+    finally:
+        if parent.poll() is None:
+            parent.kill()

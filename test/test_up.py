@@ -1,0 +1,146 @@
+"""End to end: ``zebra-sim up`` runs the whole graph over real DDS (seven processes), records it and scores the
+shipped detector; the bag replayed into a fresh detector scores the same. Also: a node that dies, and Ctrl-C."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import cv2
+from ros_helpers import Peer, fresh_domain_id, node_process, ros_env
+
+DRONES = ("drone_0", "drone_1", "drone_2")
+
+
+def _up(out: Path, domain: int, *extra: str, timeout: float = 420) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "up", "--frames", "3", "--size", "320x180",
+                           "--out", str(out), "--domain-id", str(domain), "--json", *extra],
+                          env=ros_env(domain), capture_output=True, text=True, timeout=timeout)
+
+
+def _processes_in(domain: int) -> list[str]:
+    """Command lines of live processes (other than this one) running on ``domain``."""
+    found = []
+    for p in Path("/proc").iterdir():
+        if not p.name.isdigit() or int(p.name) == os.getpid():
+            continue
+        try:
+            env = (p / "environ").read_bytes().split(b"\0")
+            if f"ROS_DOMAIN_ID={domain}".encode() in env and (p / "stat").read_text().split()[2] != "Z":
+                found.append((p / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace"))
+        except OSError:
+            continue
+    return found
+
+
+def _last_json(stdout: str) -> dict[str, Any]:
+    return dict(json.loads(stdout.strip().splitlines()[-1]))
+
+
+def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tmp_path: Path) -> None:
+    domain = fresh_domain_id()
+    run = _up(tmp_path / "up", domain)
+    assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-2000:]
+    live = _last_json(run.stdout)
+    assert live["steps"] == 3
+    assert live["frames"] == {d: {"image_raw": 3, "labels": 3, "detections": 3} for d in DRONES}
+    assert all(code == 0 for code in live["exit_status"].values()), live["exit_status"]
+    assert _processes_in(domain) == []
+    assert live["damaged"] == []
+    a = live["scores"]["all"]
+    assert a["images"] == 9 and a["instances"] > 0
+    assert 0.0 <= a["mAP50-95"] <= a["mAP50"] <= 1.0
+    assert live["median_ms"]["end_to_end"] > live["median_ms"]["render"] > 0
+    preview = cv2.imread(live["preview"])
+    assert preview is not None and preview.shape == (180, 960, 3)
+    assert "mAP50" in run.stdout and live["bag"] in run.stdout
+
+    # Replay the recorded images (and labels) into a fresh detector; record its detections with the labels.
+    bag2 = tmp_path / "replayed.mcap"
+    images = [f"/{d}/image_raw" for d in DRONES]
+    labels = [f"/{d}/labels" for d in DRONES]
+    peer = Peer(domain)
+    got: dict[str, int] = {d: 0 for d in DRONES}
+    from std_msgs.msg import String
+
+    def counter(drone: str) -> Any:
+        def on_detections(msg: String) -> None:  # one parameter: rclpy passes message info to two
+            got[drone] += 1
+        return on_detections
+
+    for d in DRONES:
+        peer.node.create_subscription(String, f"/{d}/detections", counter(d), 10)
+    try:
+        with node_process("recorder", {"output": str(bag2), "topic_regex": r"^/drone_\d+/(labels|detections)$",
+                                       "discovery_period_s": 0.1}, domain, tmp_path / "recorder.log"), \
+             node_process("detector", {}, domain, tmp_path / "detector.log"):
+            outputs = [f"/{d}/detections" for d in DRONES]  # matched with this test and with the recorder first
+
+            def matched() -> bool:
+                return all(peer.node.count_publishers(t) and any(
+                    i.node_name == "recorder" for i in peer.node.get_subscriptions_info_by_topic(t)) for t in outputs)
+            assert peer.spin(matched, 120), "the detector and the recorder did not come up"
+            peer.spin(lambda: False, 0.5)
+            with node_process("replay", {"bags": [live["bag"]], "topics": images + labels,
+                                         "wait_for_subscribers_s": 60.0}, domain, tmp_path / "replay.log") as rp:
+                assert peer.spin(lambda: rp.poll() is not None, 120), "replay did not finish"
+                assert rp.returncode == 0
+            assert peer.spin(lambda: sum(got.values()) >= 9, 60), got
+            peer.spin(lambda: False, 1.0)  # the recorder receives the last detections too
+    finally:
+        peer.close()
+    ev = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "bag", "eval", str(bag2), "--json"],
+                        capture_output=True, text=True, timeout=120)
+    assert ev.returncode == 0, ev.stderr
+    replayed = _last_json(ev.stdout)
+    assert [replayed[d]["frames"] for d in DRONES] == [3, 3, 3]
+    assert abs(replayed["all"]["mAP50"] - a["mAP50"]) <= 0.01, (replayed["all"], a)
+    assert abs(replayed["all"]["mAP50-95"] - a["mAP50-95"]) <= 0.01, (replayed["all"], a)
+
+
+def test_up_stops_everything_and_names_the_node_that_died(tmp_path: Path) -> None:
+    domain = fresh_domain_id()
+    bad = tmp_path / "broken.pt"
+    bad.write_bytes(b"not a checkpoint" * 100)
+    run = _up(tmp_path / "up", domain, "--weights", str(bad), timeout=240)
+    assert run.returncode == 1, run.stdout[-3000:]
+    summary = _last_json(run.stdout)
+    assert summary["died"] == "detector" and summary["died_status"] == 2
+    assert "node detector died (exit status 2)" in run.stdout and "broken.pt" in run.stdout
+    assert all(code is not None for code in summary["exit_status"].values())
+    assert _processes_in(domain) == []
+
+
+def test_ctrl_c_stops_the_graph_with_a_complete_bag(tmp_path: Path) -> None:
+    domain = fresh_domain_id()
+    out = tmp_path / "up"
+    proc = subprocess.Popen([sys.executable, "-m", "zebra_sim_ros.cli", "up", "--frames", "500", "--size", "160x96",
+                             "--out", str(out), "--domain-id", str(domain), "--json"], env=ros_env(domain),
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        assert proc.stdout is not None
+        lines = []
+        end = time.monotonic() + 240
+        while time.monotonic() < end:
+            line = proc.stdout.readline()
+            lines.append(line)
+            if line.startswith("[up] step 1/") or not line:
+                break
+        assert lines[-1].startswith("[up] step 1/"), "".join(lines)
+        proc.send_signal(signal.SIGINT)
+        rest, _ = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, rest[-3000:]
+    summary = _last_json(rest)
+    assert "interrupted" in rest
+    assert summary["damaged"] == [] and 1 <= summary["steps"] < 500
+    assert all(code is not None for code in summary["exit_status"].values())
+    assert _processes_in(domain) == []

@@ -1,0 +1,175 @@
+"""``zebra-sim up``: the whole graph in one command (placer, three cameras, labeller, detector, recorder).
+
+Starts every node as its own process with the parameter files of the config folder, waits until each one is
+ready (its topics published and recorded), then starts the placer in lockstep: a step ends when the labeller
+and the detector have both acknowledged it, so no frame is skipped. After the last step it stops the graph
+(recorder last), reads the bag back and prints frames per drone, detection scores against the live ground
+truth, throughput and stage times; it writes ``summary.json`` and ``preview.jpg`` beside the bag. If a node
+dies, the rest are stopped and the command says which died and why; Ctrl-C stops everything cleanly too.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from zebra_sim_ros.cli import Summary, add_json_flag
+from zebra_sim_ros.errors import ParameterError
+
+
+def register(sub: Any) -> None:
+    """Add the ``up`` subcommand."""
+    p = sub.add_parser("up", help="run the whole graph for N steps in lockstep, record it and score the detector",
+                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--frames", type=int, default=10, help="steps to run (each gives one frame per drone)")
+    p.add_argument("--world", default="savanna", help="world preset or USD terrain file")
+    p.add_argument("--seed", type=int, default=0, help="seed of the placer (recorded in every scene)")
+    p.add_argument("--strategy", default="far", help="camera strategy: far, closeby or mixed")
+    p.add_argument("--size", default="1280x720", help="image size of the cameras, WxH px")
+    p.add_argument("--weights", default="", help="detector checkpoint (default: the shipped weights)")
+    p.add_argument("--device", default="auto", help="detector device: auto, cpu or cuda")
+    p.add_argument("--out", default="out/up", help="folder for the bag, logs, summary.json and preview.jpg")
+    p.add_argument("--config", default="", help="folder of the parameter files (default: the installed config/)")
+    p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID for the graph (default: inherited)")
+    p.add_argument("--ready-timeout", type=float, default=180.0, help="longest wait for the nodes to be ready, s")
+    p.add_argument("--step-timeout", type=float, default=120.0, help="longest wait for one step, s")
+    p.add_argument("--no-record", action="store_true", help="run without the recorder (no bag, no scores)")
+    add_json_flag(p)
+    p.set_defaults(func=cmd_up)
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise ParameterError("--size", text, "WxH in pixels, e.g. 1280x720") from None
+    return w, h
+
+
+class _Stop(Exception):
+    """SIGTERM to the supervisor: stop like Ctrl-C."""
+
+
+def cmd_up(args: argparse.Namespace) -> Summary:
+    """Run the graph; returns the summary (``exit_code`` 0, 1 when a node died, 130 when interrupted)."""
+    from zebra_sim_ros.graph.spec import DRONES, UpConfig, command, config_dir, graph_spec
+    from zebra_sim_ros.graph.supervisor import NodeDied, Supervisor
+
+    w, h = _size(args.size)
+    cfg = UpConfig(frames=args.frames, world=args.world, seed=args.seed, out=args.out, width=w, height=h,
+                   weights=args.weights, device=args.device, strategy=args.strategy, config_dir=args.config,
+                   ready_timeout_s=args.ready_timeout, step_timeout_s=args.step_timeout, record=not args.no_record)
+    cfg.check()
+    if args.weights and not Path(args.weights).is_file():
+        raise ParameterError("--weights", args.weights, "an existing checkpoint file")
+    conf = config_dir(cfg.config_dir)
+    out = Path(cfg.out)
+    out.mkdir(parents=True, exist_ok=True)
+    for old in (cfg.bag_path, out / "summary.json", out / "preview.jpg"):
+        old.unlink(missing_ok=True)
+    env = dict(os.environ, PYTHONUNBUFFERED="1", RCUTILS_COLORIZED_OUTPUT="0")
+    if args.domain_id is not None:
+        env["ROS_DOMAIN_ID"] = str(args.domain_id)
+    specs = graph_spec(cfg)
+    placer, others = specs[-1], specs[:-1]
+    ackers = placer.overrides["lockstep_ack_from"]
+
+    def on_term(signum: int, frame: Any) -> None:
+        raise _Stop()
+
+    old_term = signal.signal(signal.SIGTERM, on_term)
+    from zebra_sim_ros.nodes.graph_watch import GraphWatch
+
+    result: dict[str, Any] = {"out": str(out), "config": str(conf), "frames_asked": cfg.frames, "exit_code": 0}
+    t_start = time.monotonic()
+    sup = Supervisor(out / "logs", env)
+    try:
+        domain = int(env["ROS_DOMAIN_ID"]) if env.get("ROS_DOMAIN_ID") else None
+        with GraphWatch(ackers, domain) as watch:
+            try:
+                for s in others:
+                    sup.start(s, command(s, conf))
+                print(f"[up] started {', '.join(s.label for s in others)}; logs in {out / 'logs'}", flush=True)
+                topics = [t for s in others for t in s.publishes]
+                while missing := watch.missing(topics, "recorder" if cfg.record else None):
+                    sup.check()
+                    if time.monotonic() - t_start > cfg.ready_timeout_s:
+                        raise TimeoutError(f"the graph was not ready after {cfg.ready_timeout_s:.0f} s: missing "
+                                           f"{missing[:6]}{' ...' if len(missing) > 6 else ''}")
+                    watch.spin(0.25)
+                result["ready_s"] = round(time.monotonic() - t_start, 2)
+                print(f"[up] {len(others)} nodes ready in {result['ready_s']:.1f} s; placer starts "
+                      f"{cfg.frames} steps of '{cfg.world}' (seed {cfg.seed}) in lockstep", flush=True)
+                pl = sup.start(placer, command(placer, conf), expected_exit=True)
+                last, done, t_steps = time.monotonic(), 0, time.monotonic()
+                cr, end = ("\r", "") if sys.stdout.isatty() else ("", "\n")
+                while pl.proc.poll() is None:
+                    sup.check()
+                    watch.spin(0.2)
+                    if watch.steps_done() != done:
+                        done, last = watch.steps_done(), time.monotonic()
+                        rate = done / (last - t_steps)
+                        print(f"{cr}[up] step {done}/{cfg.frames} ({rate:.2f} steps/s)", end=end, flush=True)
+                    elif time.monotonic() - last > cfg.step_timeout_s + 10.0:
+                        raise TimeoutError(f"no step finished for {cfg.step_timeout_s + 10:.0f} s (at step {done}); "
+                                           f"see the logs in {out / 'logs'}")
+                sup.check()  # the placer ended: with status 0 only after its last step
+                if cr:
+                    print("", flush=True)
+                watch.spin(1.0)  # the recorder receives the last detections
+            except NodeDied as exc:
+                print(f"\n[up] {exc}\n[up] stopping the other nodes", flush=True)
+                result.update(exit_code=1, died=exc.child.label, died_status=exc.code)
+            except TimeoutError as exc:
+                print(f"\n[up] {exc}; stopping the graph", flush=True)
+                result.update(exit_code=1, error=str(exc))
+            except (KeyboardInterrupt, _Stop):
+                print("\n[up] interrupted: stopping the graph", flush=True)
+                result["exit_code"] = 130
+            finally:
+                order = [c for c in sup.children if c.spec.executable != "recorder"]
+                codes = sup.stop(order + [c for c in sup.children if c not in order])
+                result["exit_status"] = codes
+                bad = {k: v for k, v in codes.items() if v not in (0, None) and k != result.get("died")}
+                if bad:
+                    print(f"[up] nodes that did not stop cleanly (exit status): {bad}", flush=True)
+    finally:
+        signal.signal(signal.SIGTERM, old_term)
+    result["wall_s"] = round(time.monotonic() - t_start, 2)
+    if cfg.record and cfg.bag_path.is_file():
+        from zebra_sim_ros.graph.summary import summarize_run
+
+        result.update(summarize_run(cfg.bag_path, out / "preview.jpg"))
+        _print_summary(result, DRONES)
+    with open(out / "summary.json", "w") as f:
+        json.dump(result, f, indent=1, sort_keys=True)
+    print(f"[up] summary: {out / 'summary.json'}", flush=True)
+    return result
+
+
+def _print_summary(r: dict[str, Any], drones: tuple[str, ...]) -> None:
+    for d in drones:
+        f = r["frames"].get(d, {})
+        print(f"[up] {d}: {f.get('image_raw', 0)} images, {f.get('labels', 0)} labelled, "
+              f"{f.get('detections', 0)} detected", flush=True)
+    a = r["scores"].get("all")
+    if a:
+        print(f"[up] detector against the live ground truth (all drones, {a['images']} images, {a['instances']} "
+              f"zebras): P {a['precision']:.3f} R {a['recall']:.3f} mAP50 {a['mAP50']:.3f} "
+              f"mAP50-95 {a['mAP50-95']:.3f}", flush=True)
+    ms = r["median_ms"]
+    if r.get("steps_per_s"):
+        print(f"[up] throughput: {r['steps']} steps in {r['seconds']:.1f} s = {r['steps_per_s']:.2f} steps/s, "
+              f"{r['frames_per_s']:.2f} frames/s; median per step: render {ms['render']} ms, label {ms['label']} ms,"
+              f" detect {ms['detect']} ms, scene to detections {ms['end_to_end']} ms", flush=True)
+    print(f"[up] bag: {r['bag']}", flush=True)
+    if "preview" in r:
+        print(f"[up] preview (green: ground truth, red: detected): {r['preview']}", flush=True)
+    for note in r["damaged"]:
+        print(f"[up] bag damage: {note}", flush=True)

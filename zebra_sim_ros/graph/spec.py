@@ -1,0 +1,140 @@
+"""What the whole graph is: which executables run, under which names and namespaces, with which parameter files
+and overrides, and which topics each one publishes. ``zebra-sim up`` starts exactly this list, and
+``launch/zebra_sim.launch.py`` mirrors it for ``ros2 launch`` (a test compares the two).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from zebra_sim_ros.errors import ParameterError
+
+PACKAGE = "zebra_sim_ros"
+DRONES = ("drone_0", "drone_1", "drone_2")
+CAMERA_TOPICS = ("image_raw", "depth", "instances", "camera_info")
+LABELLER_TOPICS = ("labels", "labels/markers", "labels/boxes3d")
+DETECTOR_TOPICS = ("detections", "detections/image", "detections/markers")
+PLACER_TOPICS = ("/zebra_sim/scene", "/zebra_sim/zebras/markers", *(f"/{d}/camera/pose" for d in DRONES))
+BAG_NAME = "zebra_sim.mcap"
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One process of the graph."""
+
+    executable: str  # console script and module zebra_sim_ros.nodes.<executable>
+    name: str  # node name
+    namespace: str  # "" or "/drone_i"
+    params_file: str  # file name in the config folder
+    overrides: dict[str, Any] = field(default_factory=dict)  # -p name:=value after the file
+    publishes: tuple[str, ...] = ()  # absolute topic names this node publishes (readiness and docs)
+
+    @property
+    def fqn(self) -> str:
+        """Fully qualified node name, e.g. ``/drone_0/camera``."""
+        return f"{self.namespace}/{self.name}"
+
+    @property
+    def label(self) -> str:
+        """Short unique label for logs and messages: ``placer``, ``drone_0/camera``."""
+        return self.fqn.lstrip("/")
+
+
+@dataclass(frozen=True)
+class UpConfig:
+    """Settings of one ``zebra-sim up`` run."""
+
+    frames: int = 10
+    world: str = "savanna"
+    seed: int = 0
+    out: str = "out/up"
+    width: int = 1280
+    height: int = 720
+    weights: str = ""  # "" = the shipped weights
+    device: str = "auto"
+    strategy: str = "far"
+    config_dir: str = ""  # "" = the installed config folder (see config_dir())
+    ready_timeout_s: float = 180.0
+    step_timeout_s: float = 120.0
+    record: bool = True
+
+    def check(self) -> None:
+        """Raise :class:`ParameterError` naming the first bad setting."""
+        if self.frames < 1:
+            raise ParameterError("--frames", self.frames, ">= 1")
+        if not (16 <= self.width <= 8192 and 16 <= self.height <= 8192):
+            raise ParameterError("--size", f"{self.width}x{self.height}", "WxH with 16..8192 each")
+        if self.strategy not in ("far", "closeby", "mixed"):
+            raise ParameterError("--strategy", self.strategy, "far, closeby or mixed")
+        if self.ready_timeout_s <= 0 or self.step_timeout_s <= 0:
+            raise ParameterError("--timeout", min(self.ready_timeout_s, self.step_timeout_s), "> 0 s")
+
+    @property
+    def bag_path(self) -> Path:
+        return Path(self.out) / BAG_NAME
+
+
+def config_dir(explicit: str = "") -> Path:
+    """The folder with placer.yaml, camera.yaml, ...: ``explicit`` if given, else the installed share folder
+    (``<prefix>/share/zebra_sim_ros/config``, as colcon and pip install it), else the source tree's config/."""
+    candidates = [Path(explicit)] if explicit else []
+    if not explicit:
+        prefixes = [Path(p) for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+        candidates += [p / "share" / PACKAGE / "config" for p in (*prefixes, Path(sys.prefix))]
+        candidates.append(Path(__file__).resolve().parents[2] / "config")
+    for c in candidates:
+        if (c / "placer.yaml").is_file():
+            return c
+    raise ParameterError("--config", explicit or "(installed)", f"a folder with placer.yaml; looked in "
+                         f"{[str(c) for c in candidates]}")
+
+
+def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
+    """The processes of the whole graph, in start order (the placer last: it starts the steps)."""
+    nodes: list[NodeSpec] = []
+    for i, d in enumerate(DRONES):
+        nodes.append(NodeSpec("camera", "camera", f"/{d}", "camera.yaml",
+                              {"drone_index": i, "width": cfg.width, "height": cfg.height, "ack": False},
+                              tuple(f"/{d}/{t}" for t in CAMERA_TOPICS)))
+    nodes.append(NodeSpec("labeller", "labeller", "", "labeller.yaml", {"ack_name": "labeller"},
+                          tuple(f"/{d}/{t}" for d in DRONES for t in LABELLER_TOPICS)))
+    det = {"ack_name": "detector", "weights": str(Path(cfg.weights).resolve()) if cfg.weights else "",
+           "device": cfg.device}
+    nodes.append(NodeSpec("detector", "detector", "", "detector.yaml", det,
+                          tuple(f"/{d}/{t}" for d in DRONES for t in DETECTOR_TOPICS)))
+    if cfg.record:
+        nodes.append(NodeSpec("recorder", "recorder", "", "recorder.yaml",
+                              {"output": str(cfg.bag_path.resolve())}))
+    nodes.append(NodeSpec("placer", "placer", "", "placer.yaml", {
+        "world": cfg.world, "seed": cfg.seed, "strategy": cfg.strategy, "mode": "lockstep", "max_steps": cfg.frames,
+        "lockstep_ack_from": ["labeller", "detector"], "lockstep_timeout_s": cfg.step_timeout_s,
+        "camera_width": cfg.width, "camera_height": cfg.height, "wait_for_subscribers": 1 if cfg.record else 0},
+        PLACER_TOPICS))
+    return nodes
+
+
+def ros_value(value: Any) -> str:
+    """A parameter value as ``-p name:=value`` wants it (YAML)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(ros_value(v) for v in value) + "]"
+    if isinstance(value, str):
+        return value if value and all(c.isalnum() or c in "_-./" for c in value) and not value[0].isdigit() \
+            else "'" + value.replace("'", "''") + "'"
+    return repr(value)
+
+
+def command(spec: NodeSpec, config: Path, python: str = sys.executable) -> list[str]:
+    """The command line that starts ``spec`` (``python -m zebra_sim_ros.nodes.<executable> --ros-args ...``)."""
+    args = [python, "-m", f"{PACKAGE}.nodes.{spec.executable}", "--ros-args", "-r", f"__node:={spec.name}"]
+    if spec.namespace:
+        args += ["-r", f"__ns:={spec.namespace}"]
+    args += ["--params-file", str(config / spec.params_file)]
+    for k, v in spec.overrides.items():
+        args += ["-p", f"{k}:={ros_value(v)}"]
+    return args

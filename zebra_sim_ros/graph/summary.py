@@ -1,0 +1,115 @@
+"""What a run of the whole graph did, read back from its bag: frames per drone, detection scores against the live
+ground truth, throughput, time per stage and end-to-end latency, and a preview image.
+
+Times are the recorder's receive times (``log_time``) of the messages of one step, matched by the scene's
+stamp: render = scene -> last ``image_raw`` of the step, label = ``image_raw`` -> ``labels``, detect =
+``image_raw`` -> ``detections`` (per drone), end to end = scene -> last ``detections`` of the step.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from zebra_sim_ros.recording.evaluate import cdr_image, cdr_string, collect, score
+from zebra_sim_ros.recording.reader import BagReader
+
+_DRONE_TOPIC = re.compile(r"^/(?P<drone>drone_\d+)/(?P<kind>image_raw|labels|detections)$")
+
+
+def _stamp(d: dict[str, Any]) -> int:
+    return int(d["stamp"]["sec"]) * 1_000_000_000 + int(d["stamp"]["nanosec"])
+
+
+def _median_ms(values: list[float]) -> float | None:
+    return round(float(np.median(values)) * 1e3, 1) if values else None
+
+
+def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[str, Any]:
+    """Summary of the run recorded in ``bag``; writes ``preview`` (one tile per drone) when given."""
+    scenes: dict[int, int] = {}  # stamp -> log time
+    times: dict[str, dict[str, dict[int, int]]] = defaultdict(lambda: defaultdict(dict))  # drone -> kind -> stamp
+    last_image: dict[str, tuple[int, np.ndarray]] = {}
+    reader = BagReader.open(bag)
+    for m in reader.messages():
+        if m.topic == "/zebra_sim/scene":
+            scenes[_stamp(json.loads(cdr_string(m.data)))] = m.log_time
+            continue
+        match = _DRONE_TOPIC.match(m.topic)
+        if not match:
+            continue
+        drone, kind = match.group("drone"), match.group("kind")
+        if kind == "image_raw":
+            t, h, w, enc, step, pixels = cdr_image(m.data)
+            if enc in ("rgb8", "bgr8") and t >= last_image.get(drone, (-1, None))[0]:
+                a = np.frombuffer(pixels, np.uint8).reshape(h, step)[:, : w * 3].reshape(h, w, 3)
+                last_image[drone] = (t, a[..., ::-1] if enc == "bgr8" else a)
+        else:
+            t = _stamp(json.loads(cdr_string(m.data)))
+        times[drone][kind].setdefault(t, m.log_time)
+    drones = sorted(times)
+    frames = {d: {k: len(times[d][k]) for k in ("image_raw", "labels", "detections")} for d in drones}
+    render, label, detect, e2e = [], [], [], []
+    for s, t0 in scenes.items():
+        imgs = [times[d]["image_raw"][s] for d in drones if s in times[d]["image_raw"]]
+        if imgs:
+            render.append((max(imgs) - t0) / 1e9)
+        for d in drones:
+            ti = times[d]["image_raw"].get(s)
+            if ti is not None and s in times[d]["labels"]:
+                label.append((times[d]["labels"][s] - ti) / 1e9)
+            if ti is not None and s in times[d]["detections"]:
+                detect.append((times[d]["detections"][s] - ti) / 1e9)
+        dets = [times[d]["detections"][s] for d in drones if s in times[d]["detections"]]
+        if len(dets) == len(drones) and dets:
+            e2e.append((max(dets) - t0) / 1e9)
+    ends = [t for d in drones for t in times[d]["detections"].values()]
+    span = (max(ends) - min(scenes.values())) / 1e9 if ends and scenes else 0.0
+    images = sum(f["detections"] for f in frames.values())
+    collected = collect(bag)
+    scores = score(collected)
+    out: dict[str, Any] = {
+        "bag": str(bag), "steps": len(scenes), "frames": frames,
+        "scores": {k: v for k, v in scores.items() if k != "damaged"}, "damaged": scores["damaged"] + reader.stopped,
+        "seconds": round(span, 3), "frames_per_s": round(images / span, 3) if span > 0 else None,
+        "steps_per_s": round(len(scenes) / span, 3) if span > 0 else None,
+        "median_ms": {"render": _median_ms(render), "label": _median_ms(label), "detect": _median_ms(detect),
+                      "end_to_end": _median_ms(e2e)},
+    }
+    if preview is not None and last_image:
+        out["preview"] = str(write_preview(preview, collected["drones"], last_image))
+    return out
+
+
+def write_preview(path: str | Path, c: dict[str, Any], images: dict[str, tuple[int, np.ndarray]]) -> Path:
+    """One tile per drone: its last RGB frame with ground-truth boxes (green) and detections (red, with score);
+    ``c`` is :func:`~zebra_sim_ros.recording.evaluate.collect`'s ``drones``."""
+    tiles = []
+    for drone in sorted(images):
+        t, rgb = images[drone]
+        bgr = np.ascontiguousarray(rgb[..., ::-1])
+        font = max(0.3, bgr.shape[1] / 1280 * 0.5)
+        scores = bgr.shape[1] >= 640  # scores would bury the boxes in small images
+        for x0, y0, x1, y1 in c.get(drone, {}).get("labels", {}).get(t, np.zeros((0, 4))):
+            cv2.rectangle(bgr, (round(x0), round(y0)), (round(x1), round(y1)), (60, 220, 60), 1)
+        for x0, y0, x1, y1, s in c.get(drone, {}).get("detections", {}).get(t, np.zeros((0, 5))):
+            cv2.rectangle(bgr, (round(x0) - 1, round(y0) - 1), (round(x1) + 1, round(y1) + 1), (40, 40, 230), 1)
+            if scores:
+                cv2.putText(bgr, f"{s:.2f}", (round(x0), max(round(y0) - 3, 8)), cv2.FONT_HERSHEY_SIMPLEX,
+                            0.7 * font, (40, 40, 230), 1, cv2.LINE_AA)
+        legend = f"{drone}  green: ground truth  red: detected" if scores else drone
+        cv2.putText(bgr, legend, (6, round(40 * font)), cv2.FONT_HERSHEY_SIMPLEX, font, (255, 255, 255), 1, cv2.LINE_AA)
+        tiles.append(bgr)
+    h = min(t.shape[0] for t in tiles)
+    sheet = np.concatenate([cv2.resize(t, (round(t.shape[1] * h / t.shape[0]), h)) for t in tiles], axis=1)
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    if not cv2.imwrite(str(p), sheet):
+        raise OSError(f"cannot write the preview {p}")
+    return p

@@ -1,0 +1,126 @@
+"""Start, watch and stop the graph's processes (no rclpy here: plain processes and signals).
+
+Each node runs in its own session (a Ctrl-C in the terminal reaches only the supervisor, which then stops the
+nodes in order) with ``PR_SET_PDEATHSIG`` so that no node outlives a supervisor that is killed outright. Output
+goes to ``<logs>/<label>.log``. Stopping sends SIGINT (nodes finalise, the recorder writes its summary), then
+SIGTERM, then SIGKILL, each after a grace period.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import subprocess
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO
+
+from zebra_sim_ros.graph.spec import NodeSpec
+
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent() -> None:  # runs in the child between fork and exec
+    try:
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+    except OSError:
+        pass
+
+
+@dataclass
+class Child:
+    """One running node process."""
+
+    spec: NodeSpec
+    proc: subprocess.Popen[bytes]
+    log_path: Path
+    log_file: IO[bytes]
+    started: float
+    expected_exit: bool = False  # the placer ends by itself after its last step
+
+    @property
+    def label(self) -> str:
+        return self.spec.label
+
+    def log_tail(self, lines: int = 8) -> str:
+        """The last lines of the node's output (to say why it died)."""
+        try:
+            text = self.log_path.read_text(errors="replace")
+        except OSError:
+            return ""
+        return "\n".join(text.rstrip().splitlines()[-lines:])
+
+
+class NodeDied(RuntimeError):
+    """A node exited while the graph was running."""
+
+    def __init__(self, child: Child, code: int) -> None:
+        self.child, self.code = child, code
+        how = f"signal {signal.Signals(-code).name}" if code < 0 else f"exit status {code}"
+        super().__init__(f"node {child.label} died ({how}); last output:\n{child.log_tail()}")
+
+
+class Supervisor:
+    """The graph's processes; use as a context manager so they are always stopped."""
+
+    def __init__(self, logs: Path, env: dict[str, str]) -> None:
+        self.logs = logs
+        self.env = env
+        self.children: list[Child] = []
+        logs.mkdir(parents=True, exist_ok=True)
+
+    def start(self, spec: NodeSpec, args: Sequence[str], expected_exit: bool = False) -> Child:
+        """Start one node process."""
+        path = self.logs / (spec.label.replace("/", "_") + ".log")
+        log = open(path, "wb")  # noqa: SIM115 (closed in stop())
+        proc = subprocess.Popen(list(args), env=self.env, stdout=log, stderr=subprocess.STDOUT,
+                                stdin=subprocess.DEVNULL, start_new_session=True, preexec_fn=_die_with_parent)
+        child = Child(spec, proc, path, log, time.monotonic(), expected_exit)
+        self.children.append(child)
+        return child
+
+    def check(self) -> None:
+        """Raise :class:`NodeDied` for the first node that exited unexpectedly (or with an error)."""
+        for c in self.children:
+            code = c.proc.poll()
+            if code is not None and (not c.expected_exit or code != 0):
+                raise NodeDied(c, code)
+
+    def stop(self, order: Sequence[Child] | None = None, grace_s: float = 10.0) -> dict[str, int | None]:
+        """Stop every process still running, in ``order`` (default: reverse start order), and return each one's
+        exit status. SIGINT first; SIGTERM and then SIGKILL for those that do not exit within ``grace_s``."""
+        todo = list(order) if order is not None else list(reversed(self.children))
+        todo += [c for c in self.children if c not in todo]
+        for c in todo:
+            if c.proc.poll() is None:
+                self._signal(c, signal.SIGINT)
+                self._wait(c, grace_s, signal.SIGTERM) or self._wait(c, 5.0, signal.SIGKILL)
+                self._wait(c, 5.0, None)
+        for c in self.children:
+            c.log_file.close()
+        return {c.label: c.proc.poll() for c in self.children}
+
+    @staticmethod
+    def _signal(c: Child, sig: signal.Signals) -> None:
+        try:
+            os.killpg(c.proc.pid, sig)
+        except ProcessLookupError:
+            pass
+
+    def _wait(self, c: Child, timeout: float, then: signal.Signals | None) -> bool:
+        try:
+            c.proc.wait(timeout=timeout)
+            return True
+        except subprocess.TimeoutExpired:
+            if then is not None:
+                self._signal(c, then)
+            return False
+
+    def __enter__(self) -> Supervisor:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()

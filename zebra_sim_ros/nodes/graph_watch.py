@@ -1,0 +1,76 @@
+"""A small rclpy observer for ``zebra-sim up``: is every node of the graph ready, and how far are the steps?
+
+Not an executable: the supervisor (``zebra_sim_ros.graph``) stays free of rclpy and asks this observer.
+Ready means: every expected topic has a publisher (nodes create their publishers last, after loading
+worlds, assets and weights), and, when recording, the recorder subscribes to each of them.
+Progress is read from the acknowledgements on ``/zebra_sim/frame_done``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import Header
+
+from zebra_sim_ros.nodes.ros_adapter import qos, stamp_ns
+
+ACK_TOPIC = "/zebra_sim/frame_done"
+
+
+class GraphWatch:
+    """Own context, node and executor; call :meth:`close` (or use as a context manager)."""
+
+    def __init__(self, ackers: Iterable[str] = (), domain_id: int | None = None) -> None:
+        self.context = Context()
+        rclpy.init(context=self.context, args=[], domain_id=domain_id,  # Ctrl-C stays the supervisor's
+                   signal_handler_options=SignalHandlerOptions.NO)
+        self.node = Node("zebra_sim_up", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.ackers = set(ackers)
+        self.acks: dict[int, dict[str, float]] = {}  # scene stamp -> acker -> monotonic time
+        self.node.create_subscription(Header, ACK_TOPIC, self._on_ack, qos("reliable", 100))
+
+    def _on_ack(self, msg: Header) -> None:
+        self.acks.setdefault(stamp_ns(msg.stamp), {}).setdefault(msg.frame_id, time.monotonic())
+
+    def steps_done(self) -> int:
+        """Steps that every acker has acknowledged."""
+        return sum(1 for a in self.acks.values() if self.ackers <= set(a))
+
+    def last_progress(self) -> float:
+        """Monotonic time of the latest acknowledgement (0 when none yet)."""
+        return max((t for a in self.acks.values() for t in a.values()), default=0.0)
+
+    def spin(self, seconds: float) -> None:
+        """Process callbacks for about ``seconds``."""
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=min(0.05, max(end - time.monotonic(), 0.0)))
+
+    def missing(self, topics: Iterable[str], recorder: str | None) -> list[str]:
+        """Topics not yet published (or, with ``recorder``, not yet subscribed by it), as readable notes."""
+        out: list[str] = []
+        for t in topics:
+            if not self.node.get_publishers_info_by_topic(t):
+                out.append(f"{t} (no publisher)")
+            elif recorder and not any(i.node_name == recorder for i in self.node.get_subscriptions_info_by_topic(t)):
+                out.append(f"{t} (not recorded yet)")
+        return out
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+    def __enter__(self) -> GraphWatch:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
