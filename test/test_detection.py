@@ -157,3 +157,27 @@ def test_onnx_export_gives_the_same_boxes(tmp_path: Path) -> None:
     for a, b in zip(postprocess(onnx_out, 0.01, 0.7), postprocess(torch_out, 0.01, 0.7), strict=True):
         assert len(a) == len(b)
         torch.testing.assert_close(a, b, atol=1e-3, rtol=1e-3)
+
+
+@pytest.mark.parametrize("rect", [True, False])
+def test_letterbox_geometry_round_trips_boxes(rect: bool) -> None:
+    from zebra_sim_ros.detection.predict import preprocess, unletterbox
+
+    wide = np.zeros((360, 640, 3), np.uint8)
+    wide[100:140, 200:260] = 255  # a white block at x 200..260, y 100..140
+    tall = np.zeros((300, 200, 3), np.uint8)
+    assert preprocess([wide, tall], 320, rect=rect)[0].shape == (2, 3, 320, 320)  # one shape fits the batch
+    x, meta = preprocess([wide], 320, rect=rect)
+    assert x.shape == ((1, 3, 192, 320) if rect else (1, 3, 320, 320))  # 180 -> next multiple of 32
+    r, left, top = meta[0]
+    ys, xs = np.nonzero(x[0, 0].numpy() > 0.9)
+    found = torch.tensor([[xs.min(), ys.min(), xs.max() + 1, ys.max() + 1]], dtype=torch.float32)
+    back = unletterbox(found, r, left, top, 640, 360)[0].tolist()
+    assert back == pytest.approx([200, 100, 260, 140], abs=2.5)
+    model = build_model(ModelConfig(size="n", imgsz=320)).eval()
+    with torch.no_grad():
+        feats = model.features(x)  # rectangular input through the whole network
+        out = model(x)
+    h, w = x.shape[2:]
+    assert [tuple(f.shape[2:]) for f in feats] == [(h // s, w // s) for s in (8, 16, 32)]
+    assert out.shape == (1, sum((h // s) * (w // s) for s in (8, 16, 32)), 5)

@@ -87,8 +87,10 @@ def read_labels(path: Path, width: int, height: int) -> NDArray[np.float32]:
     return out
 
 
-def letterbox(img: NDArray[np.uint8], size: int) -> tuple[NDArray[np.uint8], float, tuple[int, int]]:
-    """Resize keeping the aspect ratio so the long side is ``size``, pad to size x size with grey.
+def letterbox(img: NDArray[np.uint8], size: int,
+              shape: tuple[int, int] | None = None) -> tuple[NDArray[np.uint8], float, tuple[int, int]]:
+    """Resize keeping the aspect ratio so the long side is ``size``, pad with grey to size x size or to
+    ``shape`` (height, width; at least the resized image).
 
     Returns the image, the scale and the (left, top) padding: ``x_new = x * scale + left``.
     """
@@ -98,8 +100,9 @@ def letterbox(img: NDArray[np.uint8], size: int) -> tuple[NDArray[np.uint8], flo
     if (nw, nh) != (w, h):
         img = np.asarray(cv2.resize(img, (nw, nh), interpolation=cv2.INTER_LINEAR if r > 1 else cv2.INTER_AREA),
                          dtype=np.uint8)
-    left, top = (size - nw) // 2, (size - nh) // 2
-    out = np.full((size, size, 3), 114, np.uint8)
+    out_h, out_w = shape or (size, size)
+    left, top = (out_w - nw) // 2, (out_h - nh) // 2
+    out = np.full((out_h, out_w, 3), 114, np.uint8)
     out[top:top + nh, left:left + nw] = img
     return out, r, (left, top)
 
