@@ -105,3 +105,20 @@ def load_params_file(path: str, node_name: str) -> dict[str, Any]:
             params = section.get("ros__parameters", {}) if isinstance(section, dict) else {}
             out.update(params or {})
     return out
+
+
+def markdown_table(specs: Iterable[ParamSpec]) -> str:
+    """The README's parameter table of a node (a test keeps the README equal to the specs)."""
+    def default(v: ParamValue) -> str:
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if v == "":
+            return "''"
+        return str(v).replace("|", "\\|")
+
+    rows = ["| parameter | default | meaning (unit) | allowed |", "| --- | --- | --- | --- |"]
+    for s in specs:
+        cells = [f"`{s.name}`", f"`{default(s.default)}`", s.description.replace("|", "\\|"),
+                 s.allowed.replace("|", "\\|")]
+        rows.append("| " + " | ".join(cells) + " |")
+    return "\n".join(rows)

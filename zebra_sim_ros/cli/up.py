@@ -76,6 +76,9 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     env = dict(os.environ, PYTHONUNBUFFERED="1", RCUTILS_COLORIZED_OUTPUT="0")
     if args.domain_id is not None:
         env["ROS_DOMAIN_ID"] = str(args.domain_id)
+    from zebra_sim_ros.zebra.asset import load_library
+
+    load_library()  # build the zebra cache once here, not in five nodes at the same time
     specs = graph_spec(cfg)
     placer, others = specs[-1], specs[:-1]
     ackers = placer.overrides["lockstep_ack_from"]

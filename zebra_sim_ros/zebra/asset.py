@@ -235,11 +235,17 @@ def build_library(cache_root: Path | None = None, force: bool = False) -> ZebraL
         "build_seconds": round(time.perf_counter() - t0, 3),
     }
     (tmp / "manifest.json").write_text(json.dumps(manifest, indent=1))
-    if root.exists():  # a concurrent or forced build: replace it whole
-        import shutil
+    import shutil
 
+    if root.exists() and not force:  # another process finished the same build first: keep theirs
+        shutil.rmtree(tmp)
+        return load_library(cache_root)
+    if root.exists():  # a forced build replaces the cache whole
         shutil.rmtree(root)
-    tmp.rename(root)
+    try:
+        tmp.rename(root)
+    except OSError:  # a concurrent build renamed its copy in between: theirs is as good
+        shutil.rmtree(tmp, ignore_errors=True)
     return load_library(cache_root)
 
 
