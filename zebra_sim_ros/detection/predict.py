@@ -51,7 +51,7 @@ def detect(model: Detector, images: Sequence[NDArray[np.uint8]], imgsz: int | No
     size = imgsz or model.cfg.imgsz
     dev = next(model.parameters()).device
     x, meta = preprocess(images, size, rect)
-    pred = model(x.to(dev))
+    pred = model(x.to(dev).contiguous(memory_format=torch.channels_last))
     out = []
     for det, img, (r, left, top) in zip(postprocess(pred, conf, iou, max_det), images, meta, strict=True):
         out.append(unletterbox(det, r, left, top, img.shape[1], img.shape[0]).cpu().numpy().astype(np.float32))
