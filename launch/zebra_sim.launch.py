@@ -12,7 +12,7 @@ stops the graph after the last step and scores the run. Here the placer waits fo
 import os
 
 from ament_index_python.packages import get_package_share_directory
-from launch.actions import DeclareLaunchArgument
+from launch.actions import DeclareLaunchArgument, SetEnvironmentVariable
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
@@ -67,4 +67,9 @@ def generate_launch_description():
                  "lockstep_timeout_s": 120.0, "camera_width": arg("width", int),
                  "camera_height": arg("height", int), "wait_for_subscribers": 1}]),
     ]
-    return LaunchDescription(args + nodes)
+    # Our Fast DDS profile (100 ms heartbeat: large images that lost a fragment arrive in 0.1 s, not 3 s),
+    # as zebra-sim up sets it, unless a profile file is already chosen.
+    env = []
+    if not (os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE") or os.environ.get("FASTDDS_DEFAULT_PROFILES_FILE")):
+        env.append(SetEnvironmentVariable("FASTRTPS_DEFAULT_PROFILES_FILE", file("fastdds.xml")))
+    return LaunchDescription(args + env + nodes)

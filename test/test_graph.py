@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -15,7 +16,16 @@ from typing import Any
 import pytest
 
 from zebra_sim_ros.detection.config import DETECTOR_PARAMS
-from zebra_sim_ros.graph.spec import NodeSpec, UpConfig, command, config_dir, graph_spec, ros_value
+from zebra_sim_ros.graph.spec import (
+    DDS_PROFILE,
+    NodeSpec,
+    UpConfig,
+    command,
+    config_dir,
+    dds_environment,
+    graph_spec,
+    ros_value,
+)
 from zebra_sim_ros.graph.supervisor import NodeDied, Supervisor
 from zebra_sim_ros.labels.config import LABELLER_PARAMS
 from zebra_sim_ros.params import ParamSpec, load_params_file, validate
@@ -75,6 +85,7 @@ class _Recorder:
     def __init__(self) -> None:
         self.nodes: list[dict[str, Any]] = []
         self.args: dict[str, str] = {}
+        self.env: dict[str, str] = {}
 
     def modules(self, share: Path) -> dict[str, types.ModuleType]:
         rec = self
@@ -87,6 +98,10 @@ class _Recorder:
             def __init__(self, name: str, default_value: str = "", description: str = "") -> None:
                 rec.args[name] = default_value
 
+        class SetEnvironmentVariable:
+            def __init__(self, name: str, value: str) -> None:
+                rec.env[name] = value
+
         class LaunchConfiguration:
             def __init__(self, name: str) -> None:
                 self.name = name
@@ -98,7 +113,8 @@ class _Recorder:
         mods = {}
         for name, attrs in {
             "launch": {"LaunchDescription": lambda items: items},
-            "launch.actions": {"DeclareLaunchArgument": DeclareLaunchArgument},
+            "launch.actions": {"DeclareLaunchArgument": DeclareLaunchArgument,
+                               "SetEnvironmentVariable": SetEnvironmentVariable},
             "launch.substitutions": {"LaunchConfiguration": LaunchConfiguration},
             "launch_ros": {}, "launch_ros.actions": {"Node": Node},
             "launch_ros.parameter_descriptions": {"ParameterValue": ParameterValue},
@@ -112,6 +128,8 @@ class _Recorder:
 
 
 def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    for var in ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE"):
+        monkeypatch.delenv(var, raising=False)
     rec = _Recorder()
     for name, mod in rec.modules(tmp_path / "share").items():
         monkeypatch.setitem(sys.modules, name, mod)
@@ -136,6 +154,13 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
             else:
                 assert v == s.overrides[k], (s.label, k)
     assert int(rec.args["frames"]) == UpConfig().frames and rec.args["world"] == UpConfig().world
+    share = tmp_path / "share" / "config"
+    assert rec.env == {"FASTRTPS_DEFAULT_PROFILES_FILE": str(share / "fastdds.xml")}
+    assert dds_environment(share, {}) == {}  # no such file there: up leaves the environment alone
+    ours = str(REPO / "config" / DDS_PROFILE)
+    assert dds_environment(REPO / "config", {}) == {"FASTRTPS_DEFAULT_PROFILES_FILE": ours}
+    assert dds_environment(REPO / "config", {"FASTDDS_DEFAULT_PROFILES_FILE": "mine.xml"}) == \
+        {"FASTDDS_DEFAULT_PROFILES_FILE": "mine.xml"}  # the user's own profile wins
 
 
 # -- the supervisor --------------------------------------------------------------------------------------
@@ -206,3 +231,39 @@ def test_nodes_die_with_a_supervisor_killed_outright(tmp_path: Path) -> None:
     finally:
         if parent.poll() is None:
             parent.kill()
+
+
+# -- the README documents what the code does -------------------------------------------------------------
+def test_readme_parameter_tables_equal_the_specs() -> None:
+    from zebra_sim_ros.params import markdown_table
+
+    readme = (REPO / "README.md").read_text()
+    for executable, specs in SPECS.items():
+        assert markdown_table(specs) + "\n" in readme, f"README's {executable} table differs from its ParamSpecs"
+
+
+def test_readme_starts_with_the_two_commands_and_lists_every_topic_of_the_graph() -> None:
+    readme = (REPO / "README.md").read_text()
+    first_block = readme.split("```bash\n", 1)[1].split("```", 1)[0].splitlines()
+    assert [line.split("#")[0].strip() for line in first_block] == ["bash scripts/main.sh", "bash scripts/test.sh"]
+    assert "scripts/test.sh" in (REPO / ".ci" / "run").read_text()
+    topics = {re.sub(r"drone_\d+", "drone_{i}", t) for s in graph_spec(UpConfig()) for t in s.publishes}
+    for t in sorted(topics | {"/zebra_sim/frame_done", "/clock"}):
+        assert f"| `{t}` |" in readme, t
+
+
+def test_fast_dds_accepts_our_profile(tmp_path: Path) -> None:
+    """Fast DDS ignores a profile it cannot parse (with an XMLPARSER error on stderr) and runs with defaults."""
+    code = ("import rclpy; from std_msgs.msg import String; rclpy.init(); n = rclpy.create_node('profile_check'); "
+            "n.create_publisher(String, '/profile_check', 10); print('created', flush=True)")
+    broken = tmp_path / "broken.xml"
+    broken.write_text("<profiles><data_writer")
+    outputs = {}
+    for name, path in (("ours", REPO / "config" / DDS_PROFILE), ("broken", broken)):
+        env = dict(os.environ, FASTRTPS_DEFAULT_PROFILES_FILE=str(path), ROS_DOMAIN_ID="231",
+                   ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+        env.pop("FASTDDS_DEFAULT_PROFILES_FILE", None)
+        run = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60)
+        outputs[name] = run.stdout + run.stderr
+    assert "created" in outputs["ours"] and "XMLPARSER" not in outputs["ours"], outputs["ours"]
+    assert "XMLPARSER" in outputs["broken"]

@@ -58,7 +58,7 @@ class _Stop(Exception):
 
 def cmd_up(args: argparse.Namespace) -> Summary:
     """Run the graph; returns the summary (``exit_code`` 0, 1 when a node died, 130 when interrupted)."""
-    from zebra_sim_ros.graph.spec import DRONES, UpConfig, command, config_dir, graph_spec
+    from zebra_sim_ros.graph.spec import DRONES, UpConfig, command, config_dir, dds_environment, graph_spec
     from zebra_sim_ros.graph.supervisor import NodeDied, Supervisor
 
     w, h = _size(args.size)
@@ -73,7 +73,9 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     out.mkdir(parents=True, exist_ok=True)
     for old in (cfg.bag_path, out / "summary.json", out / "preview.jpg"):
         old.unlink(missing_ok=True)
-    env = dict(os.environ, PYTHONUNBUFFERED="1", RCUTILS_COLORIZED_OUTPUT="0")
+    env = dds_environment(conf, dict(os.environ, PYTHONUNBUFFERED="1", RCUTILS_COLORIZED_OUTPUT="0"))
+    if env.get("FASTRTPS_DEFAULT_PROFILES_FILE"):  # the watcher's participant reads it from this process's env
+        os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = env["FASTRTPS_DEFAULT_PROFILES_FILE"]
     if args.domain_id is not None:
         env["ROS_DOMAIN_ID"] = str(args.domain_id)
     from zebra_sim_ros.zebra.asset import load_library
