@@ -37,7 +37,7 @@ def run(model: Detector, loader: DataLoader[Any], conf: float = 0.001, iou: floa
     dev = next(model.parameters()).device
     preds, gts = [], []
     for imgs, _, metas in loader:
-        out = model(imgs.to(dev))
+        out = model(imgs.to(dev).contiguous(memory_format=torch.channels_last))  # the serving layout
         for det, meta in zip(postprocess(out, conf, iou, max_det), metas, strict=True):
             h, w = meta["shape"]
             left, top = meta["pad"]
