@@ -15,6 +15,8 @@ from typing import Any
 import cv2
 from ros_helpers import Peer, fresh_domain_id, node_process, ros_env
 
+from zebra_sim_ros.graph.spec import UpConfig, graph_spec
+
 DRONES = ("drone_0", "drone_1", "drone_2")
 
 
@@ -61,7 +63,11 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     assert preview is not None and preview.shape == (180, 960, 3)
     assert "mAP50" in run.stdout and live["bag"] in run.stdout
 
-    # Replay the recorded images (and labels) into a fresh detector; record its detections with the labels.
+    # Replay the recorded images (and labels) into a fresh detector with the live one's settings (up runs it at
+    # the images' long side); record its detections with the labels.
+    live_detector = next(n for n in graph_spec(UpConfig(width=320, height=180)) if n.executable == "detector")
+    detector_params = {k: v for k, v in live_detector.overrides.items() if k != "ack_name"}
+    assert detector_params["imgsz"] == 320
     bag2 = tmp_path / "replayed.mcap"
     images = [f"/{d}/image_raw" for d in DRONES]
     labels = [f"/{d}/labels" for d in DRONES]
@@ -79,7 +85,7 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     try:
         with node_process("recorder", {"output": str(bag2), "topic_regex": r"^/drone_\d+/(labels|detections)$",
                                        "discovery_period_s": 0.1}, domain, tmp_path / "recorder.log"), \
-             node_process("detector", {}, domain, tmp_path / "detector.log"):
+             node_process("detector", detector_params, domain, tmp_path / "detector.log"):
             outputs = [f"/{d}/detections" for d in DRONES]  # matched with this test and with the recorder first
 
             def matched() -> bool:
