@@ -128,8 +128,9 @@ def test_ctrl_c_stops_the_graph_with_a_complete_bag(tmp_path: Path) -> None:
     out = tmp_path / "up"
     proc = subprocess.Popen([sys.executable, "-m", "zebra_sim_ros.cli", "up", "--frames", "500", "--size", "160x96",
                              "--out", str(out), "--domain-id", str(domain), "--json"], env=ros_env(domain),
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    try:
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # as a terminal's
+    try:                                                       # foreground job, even if pytest runs in background
         assert proc.stdout is not None
         lines = []
         end = time.monotonic() + 240

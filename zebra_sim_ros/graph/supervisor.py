@@ -23,7 +23,11 @@ from zebra_sim_ros.graph.spec import NodeSpec
 _PR_SET_PDEATHSIG = 1
 
 
-def _die_with_parent() -> None:  # runs in the child between fork and exec
+def _child_setup() -> None:  # runs in the child between fork and exec
+    # SIGINT is how the supervisor asks a node to finish; a supervisor started as a background job of a
+    # non-interactive shell inherits SIGINT ignored, and an ignored disposition would survive exec.
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     try:
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
     except OSError:
@@ -77,7 +81,7 @@ class Supervisor:
         path = self.logs / (spec.label.replace("/", "_") + ".log")
         log = open(path, "wb")  # noqa: SIM115 (closed in stop())
         proc = subprocess.Popen(list(args), env=self.env, stdout=log, stderr=subprocess.STDOUT,
-                                stdin=subprocess.DEVNULL, start_new_session=True, preexec_fn=_die_with_parent)
+                                stdin=subprocess.DEVNULL, start_new_session=True, preexec_fn=_child_setup)
         child = Child(spec, proc, path, log, time.monotonic(), expected_exit)
         self.children.append(child)
         return child
