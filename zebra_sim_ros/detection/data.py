@@ -150,7 +150,8 @@ class YoloDataset(Dataset[Any]):
             if rng.uniform() < a.fliplr:
                 img = img[:, ::-1].copy()
                 lab[:, [1, 3]] = self.imgsz - lab[:, [3, 1]]
-            img = _hsv(img, rng, a)
+            if a.hsv_h or a.hsv_s or a.hsv_v:  # the uint8 HSV round trip is lossy: never apply it for nothing
+                img = _hsv(img, rng, a)
             meta = {"file": str(self.files[i])}
         t = torch.from_numpy(np.ascontiguousarray(img.transpose(2, 0, 1))).float() / 255.0
         return t, torch.from_numpy(lab), meta
