@@ -15,9 +15,9 @@ from typing import Any
 
 import pytest
 
-from zebra_sim_ros.detection.config import DETECTOR_PARAMS
 from zebra_sim_ros.graph.spec import (
     DDS_PROFILE,
+    NODE_PARAMS,
     NodeSpec,
     UpConfig,
     command,
@@ -27,16 +27,10 @@ from zebra_sim_ros.graph.spec import (
     ros_value,
 )
 from zebra_sim_ros.graph.supervisor import NodeDied, Supervisor
-from zebra_sim_ros.labels.config import LABELLER_PARAMS
-from zebra_sim_ros.params import ParamSpec, load_params_file, validate
-from zebra_sim_ros.placement.config import PLACER_PARAMS
-from zebra_sim_ros.recording.config import RECORDER_PARAMS, REPLAY_PARAMS
-from zebra_sim_ros.rendering.config import CAMERA_PARAMS
+from zebra_sim_ros.params import load_params_file, validate
 
 REPO = Path(__file__).resolve().parents[1]
-SPECS: dict[str, tuple[ParamSpec, ...]] = {"placer": PLACER_PARAMS, "camera": CAMERA_PARAMS,
-                                           "labeller": LABELLER_PARAMS, "detector": DETECTOR_PARAMS,
-                                           "recorder": RECORDER_PARAMS, "replay": REPLAY_PARAMS}
+SPECS = NODE_PARAMS
 
 
 @pytest.mark.parametrize("executable", sorted(SPECS))
@@ -267,3 +261,13 @@ def test_fast_dds_accepts_our_profile(tmp_path: Path) -> None:
         outputs[name] = run.stdout + run.stderr
     assert "created" in outputs["ours"] and "XMLPARSER" not in outputs["ours"], outputs["ours"]
     assert "XMLPARSER" in outputs["broken"]
+
+
+@pytest.mark.parametrize(("setting", "named"), [({"world": "moon"}, "'world'"), ({"device": "tpu"}, "'device'"),
+                                                ({"frames": 0}, "'--frames'"), ({"strategy": "up"}, "'--strategy'"),
+                                                ({"width": 20}, "'imgsz'")])
+def test_up_rejects_a_bad_setting_before_starting_any_node(setting: dict[str, Any], named: str) -> None:
+    from zebra_sim_ros.errors import ParameterError
+
+    with pytest.raises(ParameterError, match=named):
+        UpConfig(**setting).check()

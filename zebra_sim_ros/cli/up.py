@@ -66,6 +66,8 @@ def cmd_up(args: argparse.Namespace) -> Summary:
                    weights=args.weights, device=args.device, strategy=args.strategy, config_dir=args.config,
                    ready_timeout_s=args.ready_timeout, step_timeout_s=args.step_timeout, record=not args.no_record)
     cfg.check()
+    if args.domain_id is not None and not 0 <= args.domain_id <= 232:
+        raise ParameterError("--domain-id", args.domain_id, "0..232 (ROS_DOMAIN_ID)")
     if args.weights and not Path(args.weights).is_file():
         raise ParameterError("--weights", args.weights, "an existing checkpoint file")
     conf = config_dir(cfg.config_dir)

@@ -11,7 +11,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from zebra_sim_ros.detection.config import DETECTOR_PARAMS
 from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.labels.config import LABELLER_PARAMS
+from zebra_sim_ros.params import ParamSpec, validate
+from zebra_sim_ros.placement.config import PLACER_PARAMS
+from zebra_sim_ros.recording.config import RECORDER_PARAMS, REPLAY_PARAMS
+from zebra_sim_ros.rendering.config import CAMERA_PARAMS
 
 PACKAGE = "zebra_sim_ros"
 DRONES = ("drone_0", "drone_1", "drone_2")
@@ -20,6 +26,9 @@ LABELLER_TOPICS = ("labels", "labels/markers", "labels/boxes3d")
 DETECTOR_TOPICS = ("detections", "detections/image", "detections/markers")
 PLACER_TOPICS = ("/zebra_sim/scene", "/zebra_sim/zebras/markers", *(f"/{d}/camera/pose" for d in DRONES))
 BAG_NAME = "zebra_sim.mcap"
+NODE_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
+    "placer": PLACER_PARAMS, "camera": CAMERA_PARAMS, "labeller": LABELLER_PARAMS, "detector": DETECTOR_PARAMS,
+    "recorder": RECORDER_PARAMS, "replay": REPLAY_PARAMS}
 
 
 @dataclass(frozen=True)
@@ -72,6 +81,11 @@ class UpConfig:
             raise ParameterError("--strategy", self.strategy, "far, closeby or mixed")
         if self.ready_timeout_s <= 0 or self.step_timeout_s <= 0:
             raise ParameterError("--timeout", min(self.ready_timeout_s, self.step_timeout_s), "> 0 s")
+        from zebra_sim_ros.world.world import check_world_source
+
+        check_world_source(self.world)
+        for node in graph_spec(self):  # each node's own rules, before any process starts
+            validate(NODE_PARAMS[node.executable], node.overrides)
 
     @property
     def bag_path(self) -> Path:

@@ -305,15 +305,24 @@ def load_world(source: str | Path, terrain_prim: str = "/World/Terrain", seed: i
     :class:`ParameterError` naming 'world' for an unknown preset name.
     """
     s = str(source)
+    check_world_source(s)
     name = s.removeprefix("preset:")
     if name in PRESETS:
         return generate_world(name, seed)
+    from zebra_sim_ros.world.usd_io import read_world_usd
+
+    return read_world_usd(Path(s), terrain_prim)
+
+
+def check_world_source(source: str | Path) -> None:
+    """Raise as :func:`load_world` would for a source that is neither a preset nor an existing USD file (cheap:
+    nothing is loaded)."""
+    s = str(source)
+    if s.removeprefix("preset:") in PRESETS:
+        return
     path = Path(s)
     looks_like_path = path.suffix.lower() in USD_SUFFIXES or "/" in s or "\\" in s or path.exists()
     if s.startswith("preset:") or not looks_like_path:
         raise ParameterError("world", s, f"a preset among {sorted(PRESETS)} or a USD file path")
     if not path.is_file():
         raise WorldError(f"USD world file not found: {path}")
-    from zebra_sim_ros.world.usd_io import read_world_usd
-
-    return read_world_usd(path, terrain_prim)
