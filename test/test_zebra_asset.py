@@ -10,7 +10,7 @@ import pytest
 
 from zebra_sim_ros.errors import AssetError, ParameterError
 from zebra_sim_ros.geometry.rotations import rot_z
-from zebra_sim_ros.zebra.asset import ZebraLibrary, build_library, load_library
+from zebra_sim_ros.zebra.asset import ZebraLibrary, asset_digest, build_library, load_library
 
 
 def test_manifest_and_frame_table(library: ZebraLibrary) -> None:
@@ -37,7 +37,10 @@ def test_load_reuses_the_cache_and_rejects_a_broken_one(library: ZebraLibrary, z
 
 
 def test_rebuild_is_bit_identical(library: ZebraLibrary, tmp_path: Path) -> None:
-    other = build_library(tmp_path)
+    leftover = tmp_path / f"zebra-{asset_digest()}"  # an interrupted build: files but no manifest
+    leftover.mkdir()
+    (leftover / "joints.npy").write_bytes(b"junk")
+    other = build_library(tmp_path)  # replaces it (it used to loop, rebuilding forever)
     for name in ("vertices_lod0", "vertices_lod1", "joints", "keypoints", "boxes"):
         assert np.array_equal(np.asarray(other._a[name]), np.asarray(library._a[name])), name
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -235,12 +236,10 @@ def build_library(cache_root: Path | None = None, force: bool = False) -> ZebraL
         "build_seconds": round(time.perf_counter() - t0, 3),
     }
     (tmp / "manifest.json").write_text(json.dumps(manifest, indent=1))
-    import shutil
-
-    if root.exists() and not force:  # another process finished the same build first: keep theirs
+    if not force and (root / "manifest.json").exists():  # another process finished the same build first
         shutil.rmtree(tmp)
         return load_library(cache_root)
-    if root.exists():  # a forced build replaces the cache whole
+    if root.exists():  # a forced build, or a broken cache without its manifest: replace it whole
         shutil.rmtree(root)
     try:
         tmp.rename(root)
