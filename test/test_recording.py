@@ -88,6 +88,10 @@ def test_size_cap_ends_with_a_finalised_bag(tmp_path: Path) -> None:
     assert path.stat().st_size <= 60_000
     with open(path, "rb") as f:
         assert make_reader(f).get_summary().statistics.message_count == written
+    finished = path.read_bytes()
+    with pytest.raises(RuntimeError, match="after close"):  # a late write must not reopen (and truncate) the bag
+        w.write("/text", serialize_message(String(data="late")), 2 * 10**9)
+    assert path.read_bytes() == finished
 
 
 def test_cut_bag_reads_what_is_intact_and_recovers(tmp_path: Path) -> None:

@@ -68,7 +68,9 @@ class RecorderCore:
             if item is _STOP:
                 return
             topic, data, t = item
-            if self.error is not None:
+            if self.error is not None:  # the recording has ended: what is still queued is dropped, and counted
+                with self._lock:
+                    self.stats[topic].dropped += 1
                 continue
             t0 = time.perf_counter()
             try:
@@ -88,6 +90,9 @@ class RecorderCore:
         """Drain the queue, stop the thread, finalise the bag; returns its files."""
         self._q.put(_STOP)
         self._thread.join(timeout)
+        if self._thread.is_alive():  # still draining: drop the rest rather than write while the file is finished
+            self.error = self.error or f"the writer did not drain its queue in {timeout:.0f} s; the rest was dropped"
+            self._thread.join()
         try:
             files = self.writer.close()
         except OSError as exc:  # the disk is full even for the summary: the chunks on disk stay recoverable

@@ -108,13 +108,15 @@ class BagWriter:
     def write(self, topic: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None) -> None:
         """Append one serialized (CDR) message of a declared topic."""
         ch = self.channels[topic]
-        # Room kept for the open chunk, the summary and the indexes, so the finished bag stays under the cap.
-        margin = 2 * self.chunk_size + 16384 + self.bytes_written // 25
-        if self.max_bytes and self.bytes_written + len(data) + margin > self.max_bytes:
-            raise BagFullError(f"bag reached its size cap of {self.max_bytes} bytes ({self.bytes_written} written)")
-        if self._writer is None:
-            self._open()
-        elif self._file_start_ns is not None and (
+        if self._writer is None:  # closed: reopening would truncate the finished file
+            raise RuntimeError(f"write to {self.path} after close()")
+        if self.max_bytes:
+            # Room kept for the open chunk, the summary and the indexes, so the finished bag stays under the cap.
+            written = self.bytes_written
+            margin = 2 * self.chunk_size + 16384 + written // 25
+            if written + len(data) + margin > self.max_bytes:
+                raise BagFullError(f"bag reached its size cap of {self.max_bytes} bytes ({written} written)")
+        if self._file_start_ns is not None and (
                 (self.split_bytes and self._stream is not None and self._stream.tell() >= self.split_bytes)
                 or (self.split_ns and log_time_ns - self._file_start_ns >= self.split_ns)):
             self._close_file()
