@@ -195,3 +195,18 @@ def test_replay_remap_offset_loop_and_clock(peer: Peer, tmp_path: Path) -> None:
     assert got[:10] == [f"tick {k}" for k in range(10, 20)] and got[10:20] == got[:10]
     assert clock and min(clock) >= times[0] and max(clock) <= times[-1]
     assert all(b >= a for a, b in zip(clock[:5], clock[1:6], strict=True))
+
+
+@pytest.mark.parametrize(("node", "params", "named"), [
+    ("recorder", {"max_size_mb": 5.0}, "'max_size_mb'"),  # below two 4 MB chunks: it would end at once
+    ("recorder", {"exclude_regex": "(unclosed"}, "'exclude_regex'"),
+    ("replay", {"bags": ["/no/such.mcap"]}, "'bags'"),
+    ("replay", {"bags": ["x.mcap"], "remap_prefix": "/replay/"}, "'remap_prefix'"),
+])
+def test_a_bad_parameter_stops_the_node_naming_it(tmp_path: Path, node: str, params: dict[str, object],
+                                                   named: str) -> None:
+    params = {"output": str(tmp_path / "bag.mcap"), **params} if node == "recorder" else params
+    with node_process(node, params, fresh_domain_id(), tmp_path / "log") as proc:
+        assert proc.wait(timeout=60) == 2
+    assert named in (tmp_path / "log").read_text()
+    assert not (tmp_path / "bag.mcap").exists()  # stopped before creating anything

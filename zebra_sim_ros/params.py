@@ -7,6 +7,7 @@ values once, and hands the dict to :func:`validate`, which checks types and rang
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -30,6 +31,17 @@ class ParamSpec:
 def in_range(lo: float, hi: float) -> Callable[[Any], bool]:
     """Check: a number in [lo, hi]."""
     return lambda v: isinstance(v, int | float) and not isinstance(v, bool) and lo <= v <= hi
+
+
+def is_regex(v: Any) -> bool:
+    """Check: a string Python's ``re`` compiles."""
+    if not isinstance(v, str):
+        return False
+    try:
+        re.compile(v)
+    except re.error:
+        return False
+    return True
 
 
 def one_of(*choices: str) -> Callable[[Any], bool]:

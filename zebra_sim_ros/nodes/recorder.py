@@ -21,7 +21,7 @@ from typing import Any
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.errors import ParameterError, ZebraSimError
 from zebra_sim_ros.nodes.ros_adapter import declare_and_read, help_text, run_node
 from zebra_sim_ros.params import validate
 from zebra_sim_ros.recording.config import RECORDER_PARAMS
@@ -50,11 +50,12 @@ class RecorderNode(Node):
         super().__init__("recorder")
         v = validate(RECORDER_PARAMS, declare_and_read(self, RECORDER_PARAMS))
         self.topics = [t for t in v["topics"] if t]
-        try:
-            self.include, self.exclude = re.compile(v["topic_regex"]), re.compile(v["exclude_regex"])
-        except re.error as exc:
-            raise ZebraSimError(f"parameter 'topic_regex'/'exclude_regex' is not a regular expression: {exc}") from exc
+        self.include, self.exclude = re.compile(v["topic_regex"]), re.compile(v["exclude_regex"])  # checked
         mb = 1 << 20
+        least = 2 * v["chunk_size_mb"] + 0.016  # the writer keeps two chunks and the summary in reserve
+        if 0 < v["max_size_mb"] < least:
+            raise ParameterError("max_size_mb", v["max_size_mb"], f"0 or more than {least:.3f} (2 x chunk_size_mb "
+                                 "+ 16 KiB for the summary)")
         self.writer = BagWriter(v["output"], v["compression"], int(v["chunk_size_mb"] * mb),
                                 int(v["split_size_mb"] * mb), v["split_duration_s"], int(v["max_size_mb"] * mb))
         self.core = RecorderCore(self.writer, v["queue_size"])

@@ -19,7 +19,6 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
-from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.nodes.recorder import message_class
 from zebra_sim_ros.nodes.ros_adapter import declare_and_read, help_text, run_node, stamp
 from zebra_sim_ros.params import validate
@@ -36,11 +35,8 @@ class ReplayNode(Node):
         v = validate(REPLAY_PARAMS, declare_and_read(self, REPLAY_PARAMS))
         self.v = v
         self.bags = [b for b in v["bags"] if b]
-        self.reader = BagReader.open(self.bags)  # missing files stop the node here, naming them
-        try:
-            self.regex = re.compile(v["topic_regex"])
-        except re.error as exc:
-            raise ZebraSimError(f"parameter 'topic_regex' = {v['topic_regex']!r} is invalid: {exc}") from exc
+        self.reader = BagReader.open(self.bags, name="bags")  # missing files stop the node here, naming them
+        self.regex = re.compile(v["topic_regex"])  # checked by its ParamSpec
         self.topics = {t for t in v["topics"] if t}
         self.pubs: dict[str, Any] = {}
         self.clock_pub = self.create_publisher(Clock, "/clock", 10) if v["clock"] else None

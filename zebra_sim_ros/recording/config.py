@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from zebra_sim_ros.params import ParamSpec, in_range, one_of
+from zebra_sim_ros.params import ParamSpec, in_range, is_regex, one_of
 
 
 def _str_list(v: object) -> bool:
@@ -15,9 +15,9 @@ RECORDER_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("topics", [""], "topics to record; [''] (empty) records every topic that matches topic_regex",
               "a list of topic names", _str_list),
     ParamSpec("topic_regex", ".*", "record topics matching this regular expression (with topics empty)",
-              "a regular expression", lambda v: isinstance(v, str)),
+              "a regular expression", is_regex),
     ParamSpec("exclude_regex", "^/(rosout|parameter_events)$", "never record topics matching this",
-              "a regular expression", lambda v: isinstance(v, str)),
+              "a regular expression", is_regex),
     ParamSpec("compression", "zstd", "chunk compression", "zstd, lz4 or none", one_of("zstd", "lz4", "none")),
     ParamSpec("chunk_size_mb", 4.0, "chunk size, MB", "0.01..1024", in_range(0.01, 1024.0)),
     ParamSpec("split_size_mb", 0.0, "start a new file after this many MB (0: never)", "0..1e6", in_range(0.0, 1e6)),
@@ -44,9 +44,10 @@ REPLAY_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("topics", [""], "play only these topics ([''] = all matching topic_regex)", "a list of topic names",
               _str_list),
     ParamSpec("topic_regex", ".*", "play topics matching this regular expression", "a regular expression",
-              lambda v: isinstance(v, str)),
-    ParamSpec("remap_prefix", "", "prefix added to every topic name (e.g. /replay)", "empty or starting with /",
-              lambda v: isinstance(v, str) and (v == "" or v.startswith("/"))),
+              is_regex),
+    ParamSpec("remap_prefix", "", "prefix added to every topic name (e.g. /replay)",
+              "empty, or starting and not ending with /",
+              lambda v: isinstance(v, str) and (v == "" or (v.startswith("/") and not v.endswith("/")))),
     ParamSpec("clock", False, "publish /clock (rosgraph_msgs/Clock) with the bag's time, for use_sim_time",
               "true or false", lambda v: isinstance(v, bool)),
     ParamSpec("clock_rate_hz", 100.0, "how often /clock is published between messages", "1..10000",

@@ -41,8 +41,8 @@ class BagReader:
     channels: dict[tuple[int, int], Channel] = field(default_factory=dict)
 
     @classmethod
-    def open(cls, paths: list[str | Path] | str | Path) -> BagReader:
-        """Check the files exist (a folder means every .mcap in it, sorted)."""
+    def open(cls, paths: list[str | Path] | str | Path, name: str = "bag") -> BagReader:
+        """Check the files exist (a folder means every .mcap in it, sorted); errors name the parameter ``name``."""
         items = [paths] if isinstance(paths, str | Path) else list(paths)
         files: list[Path] = []
         for item in items:
@@ -52,9 +52,9 @@ class BagReader:
             elif p.is_file():
                 files.append(p)
             else:
-                raise ParameterError("bag", str(p), "an existing .mcap file or a folder of them")
+                raise ParameterError(name, str(p), "an existing .mcap file or a folder of them")
         if not files:
-            raise ParameterError("bag", [str(i) for i in items], "at least one .mcap file")
+            raise ParameterError(name, [str(i) for i in items], "at least one .mcap file")
         return cls(files)
 
     def channel_list(self) -> list[tuple[str, str, dict[str, str]]]:
