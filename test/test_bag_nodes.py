@@ -210,3 +210,27 @@ def test_a_bad_parameter_stops_the_node_naming_it(tmp_path: Path, node: str, par
         assert proc.wait(timeout=60) == 2
     assert named in (tmp_path / "log").read_text()
     assert not (tmp_path / "bag.mcap").exists()  # stopped before creating anything
+
+
+def test_replay_skips_a_topic_it_cannot_play_and_plays_the_rest(peer: Peer, tmp_path: Path) -> None:
+    from mcap.writer import Writer
+
+    bag = tmp_path / "mixed.mcap"
+    with open(bag, "wb") as f:
+        w = Writer(f)
+        w.start(profile="ros2", library="test")
+        ok = w.register_channel("/tick", "cdr", w.register_schema("std_msgs/msg/String", "ros2msg", b"string data"))
+        odd = w.register_channel("/odd", "cdr", w.register_schema("nope_msgs/msg/Thing", "ros2msg", b"int32 x"))
+        for k in range(20):
+            t = 10**9 + k * 10**7
+            w.add_message(odd, t, b"\x00\x01\x00\x00\x07\x00\x00\x00", t)
+            w.add_message(ok, t, serialize_message(String(data=f"tick {k}")), t)
+        w.finish()
+    got: list[str] = []
+    peer.node.create_subscription(String, "/tick", lambda m: got.append(m.data), 100)
+    with node_process("replay", {"bags": [str(bag)], "wait_for_subscribers_s": 20.0}, _domain(peer),
+                      tmp_path / "replay.log") as proc:
+        assert proc.wait(timeout=60) == 0
+        peer.spin(lambda: len(got) == 20, 10)
+    assert got == [f"tick {k}" for k in range(20)]
+    assert "cannot play /odd (nope_msgs/msg/Thing)" in (tmp_path / "replay.log").read_text()

@@ -13,27 +13,20 @@ error. SIGINT, SIGTERM and node shutdown finalise the bag (summary and indexes);
 
 from __future__ import annotations
 
-import importlib
 import re
 import time
 from typing import Any
 
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 
 from zebra_sim_ros.errors import ParameterError, ZebraSimError
-from zebra_sim_ros.nodes.ros_adapter import declare_and_read, help_text, run_node
+from zebra_sim_ros.nodes.ros_adapter import declare_and_read, describe_qos, help_text, message_class, qos, run_node
 from zebra_sim_ros.params import validate
 from zebra_sim_ros.recording.config import RECORDER_PARAMS
-from zebra_sim_ros.recording.qos import profile_dict
+from zebra_sim_ros.recording.qos import profile_dict, replay_profile
 from zebra_sim_ros.recording.recorder import RecorderCore
 from zebra_sim_ros.recording.writer import BagWriter
-
-
-def message_class(type_name: str) -> Any:
-    """The Python class of ``pkg/msg/Type``."""
-    pkg, kind, name = type_name.split("/")
-    return getattr(importlib.import_module(f"{pkg}.{kind}"), name)
 
 
 def _profile_of(info: Any) -> dict[str, Any]:
@@ -94,14 +87,10 @@ class RecorderNode(Node):
                 self.get_logger().error(f"cannot record {topic} ({type_name}): {exc}")
                 self.subs[topic] = None
                 continue
-            reliable = all(p["reliability"] == "reliable" for p in profiles)
-            latched = all(p["durability"] == "transient_local" for p in profiles)
-            q = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=self.depth,
-                           reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-                           durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+            p = replay_profile(profiles)  # reliable and transient local only if every publisher is
+            q = qos(p["reliability"], self.depth, p["durability"] == "transient_local")
             self.subs[topic] = self.create_subscription(cls, topic, self._callback(topic), q, raw=True)
-            self.get_logger().info(f"recording {topic} ({type_name}), QoS {'reliable' if reliable else 'best_effort'}"
-                                   f"/{'transient_local' if latched else 'volatile'} depth {self.depth}")
+            self.get_logger().info(f"recording {topic} ({type_name}), QoS {describe_qos(q)}")
 
     def _callback(self, topic: str) -> Any:
         offer, clock = self.core.offer, self.get_clock()

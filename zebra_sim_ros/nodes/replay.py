@@ -15,12 +15,11 @@ import threading
 import time
 from typing import Any
 
+import yaml
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
-from zebra_sim_ros.nodes.recorder import message_class
-from zebra_sim_ros.nodes.ros_adapter import declare_and_read, help_text, run_node, stamp
+from zebra_sim_ros.nodes.ros_adapter import declare_and_read, help_text, message_class, qos, run_node, stamp
 from zebra_sim_ros.params import validate
 from zebra_sim_ros.recording.config import REPLAY_PARAMS
 from zebra_sim_ros.recording.qos import from_yaml, replay_profile
@@ -44,8 +43,7 @@ class ReplayNode(Node):
         self.exit_code = 0
         self.published = 0
         for topic, type_name, metadata in self.reader.channel_list():  # publishers up front: subscribers match
-            if self._wanted(topic) and type_name:                          # before the first message is played
-                self._publisher(topic, type_name, metadata)
+            self._publisher(topic, type_name, metadata)                    # before the first message is played
         self.get_logger().info(f"playing {[str(p) for p in self.reader.paths]} at rate {v['rate']}, "
                                f"offset {v['start_offset_s']} s, duration {v['duration_s'] or 'all'}, "
                                f"loop {v['loop']}, clock {v['clock']}, remap prefix '{v['remap_prefix']}'")
@@ -56,16 +54,19 @@ class ReplayNode(Node):
         return (not self.topics or topic in self.topics) and bool(self.regex.search(topic))
 
     def _publisher(self, topic: str, type_name: str, metadata: dict[str, str]) -> Any:
-        pub = self.pubs.get(topic)
-        if pub is None:
-            p = replay_profile(from_yaml(metadata.get("offered_qos_profiles", "")))
-            q = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=int(p["depth"]),
-                           reliability=ReliabilityPolicy.RELIABLE if p["reliability"] == "reliable"
-                           else ReliabilityPolicy.BEST_EFFORT,
-                           durability=DurabilityPolicy.TRANSIENT_LOCAL if p["durability"] == "transient_local"
-                           else DurabilityPolicy.VOLATILE)
-            pub = self.create_publisher(message_class(type_name), self.v["remap_prefix"] + topic, q)
-            self.pubs[topic] = pub
+        """The topic's publisher with its recorded QoS, made once; None for a topic not played or not playable
+        (type not installed, no schema, unreadable QoS metadata: logged once, and the rest of the bag plays)."""
+        if topic in self.pubs:
+            return self.pubs[topic]
+        pub = None
+        if self._wanted(topic):
+            try:
+                p = replay_profile(from_yaml(metadata.get("offered_qos_profiles", "")))
+                q = qos(p["reliability"], int(p["depth"]), p["durability"] == "transient_local")
+                pub = self.create_publisher(message_class(type_name), self.v["remap_prefix"] + topic, q)
+            except (ImportError, AttributeError, ValueError, yaml.YAMLError) as exc:
+                self.get_logger().error(f"cannot play {topic} ({type_name or 'no schema'}): {exc}; skipping it")
+        self.pubs[topic] = pub
         return pub
 
     def _play_all(self) -> None:
@@ -99,11 +100,11 @@ class ReplayNode(Node):
                 continue
             if v["duration_s"] and rel > v["start_offset_s"] + v["duration_s"]:
                 break
-            if not self._wanted(m.topic):
-                continue
             pub = self._publisher(m.topic, m.type_name, m.metadata)
+            if pub is None:
+                continue
             if n == 0:  # every publisher known so far should have a subscriber (up to wait_for_subscribers_s)
-                while time.monotonic() < wait_until and any(p.get_subscription_count() == 0
+                while time.monotonic() < wait_until and any(p is not None and p.get_subscription_count() == 0
                                                             for p in self.pubs.values()):
                     time.sleep(0.01)
                 start_wall = time.monotonic()

@@ -5,6 +5,7 @@ Only modules under ``zebra_sim_ros.nodes`` import rclpy.
 
 from __future__ import annotations
 
+import importlib
 import sys
 from collections.abc import Callable, Iterable
 from typing import Any
@@ -35,6 +36,12 @@ def declare_and_read(node: Node, specs: Iterable[ParamSpec]) -> dict[str, Any]:
         node.declare_parameter(s.name, s.default, desc)
         values[s.name] = node.get_parameter(s.name).value
     return values
+
+
+def message_class(type_name: str) -> Any:
+    """The Python class of ``pkg/msg/Type``."""
+    pkg, kind, name = type_name.split("/")
+    return getattr(importlib.import_module(f"{pkg}.{kind}"), name)
 
 
 def qos(reliability: str = "reliable", depth: int = 10, transient_local: bool = False) -> QoSProfile:
