@@ -169,3 +169,22 @@ def test_cdr_image_reader_matches_rclpy() -> None:
                 data=bytes(range(45)))
     img.header.stamp.sec, img.header.stamp.nanosec = 1234, 5678
     assert cdr_image(serialize_message(img)) == (1234 * 10**9 + 5678, 3, 5, "bgr8", 15, bytes(range(45)))
+
+
+def test_a_damaged_chunk_in_the_middle_loses_only_that_chunk(tmp_path: Path) -> None:
+    [path] = _write(tmp_path / "full.mcap", n=300)
+    with open(path, "rb") as f:
+        chunks = sorted(make_reader(f).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset)
+    assert len(chunks) > 6
+    bad = chunks[len(chunks) // 3]
+    data = bytearray(path.read_bytes())
+    data[bad.chunk_start_offset + bad.chunk_length // 2] ^= 0xFF  # one flipped byte inside its payload
+    hurt = tmp_path / "hurt.mcap"
+    hurt.write_bytes(bytes(data))
+    reader = BagReader.open(hurt)
+    got = list(reader.messages())
+    times = {m.log_time for m in got}
+    assert len(reader.stopped) == 1 and "skipped a damaged chunk" in reader.stopped[0]
+    assert bad.message_start_time not in times and max(times) == 1_000_000_000 + 299 * 100_000_000  # goes on
+    assert 600 * 0.8 < len(got) < 600
+    assert recover(hurt, tmp_path / "rec.mcap")["messages"] == len(got)

@@ -125,7 +125,7 @@ class ReplayNode(Node):
             n += 1
             self.published += 1
         for note in self.reader.stopped:
-            self.get_logger().warning(f"bag damaged, played everything before it: {note}")
+            self.get_logger().warning(f"bag damaged, played everything intact: {note}")
         self.get_logger().info(f"played {n} messages")
 
 

@@ -10,10 +10,10 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
-from mcap.records import Channel, Message, Schema
-from mcap.stream_reader import StreamReader
+from mcap.records import Channel, Chunk, McapRecord, Message, Schema
+from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 
 from zebra_sim_ros.errors import ParameterError
@@ -77,13 +77,15 @@ class BagReader:
         return list(out.values())
 
     def messages(self, topics: set[str] | None = None) -> Iterator[BagMessage]:
-        """Every readable message; damage ends a file's stream and is noted in :attr:`stopped`."""
+        """Every readable message. A chunk that fails its CRC or does not decompress is skipped and noted in
+        :attr:`stopped`, and reading goes on with the next one; damage that breaks the record stream itself
+        (a cut file, a bad record length) ends that file's stream, also noted."""
         for k, path in enumerate(self.paths):
             schemas: dict[int, Schema] = {}
             with open(path, "rb") as f:
-                reader = StreamReader(f, validate_crcs=True)
+                reader = StreamReader(f, emit_chunks=True, validate_crcs=True)
                 try:
-                    for rec in reader.records:
+                    for rec in self._unchunked(reader.records, path, f):
                         if isinstance(rec, Schema):
                             schemas[rec.id] = rec
                         elif isinstance(rec, Channel):
@@ -99,6 +101,21 @@ class BagReader:
                     self.stopped.append(f"{path}: stopped at byte {f.tell()} of {path.stat().st_size} "
                                         f"({type(exc).__name__}: {exc})")
             self.schemas.update({(k << 16) + i: s for i, s in schemas.items()})
+
+    def _unchunked(self, records: Iterator[McapRecord], path: Path, f: IO[bytes]) -> Iterator[McapRecord]:
+        """The records with every chunk opened in place; a damaged chunk is skipped with a note."""
+        for rec in records:
+            if not isinstance(rec, Chunk):
+                yield rec
+                continue
+            try:
+                inner = breakup_chunk(rec, validate_crc=True)
+            except Exception as exc:  # noqa: BLE001 - CRC mismatch or a broken compressed payload
+                self.stopped.append(f"{path}: skipped a damaged chunk ending at byte {f.tell()} "
+                                    f"({rec.message_start_time}..{rec.message_end_time} ns; {type(exc).__name__}: "
+                                    f"{exc})")
+                continue
+            yield from inner
 
 
 def summarize(paths: list[str | Path] | str | Path) -> dict[str, Any]:
