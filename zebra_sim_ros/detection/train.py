@@ -140,7 +140,8 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
     sampler: DistributedSampler[Any] | None = DistributedSampler(ds, seed=cfg.seed) if distributed else None
     loader = DataLoader(ds, batch_size=cfg.batch, shuffle=sampler is None, sampler=sampler, num_workers=cfg.workers,
                         collate_fn=collate, drop_last=len(ds) >= 2 * cfg.batch,
-                        generator=torch.Generator().manual_seed(cfg.seed), persistent_workers=cfg.workers > 0)
+                        generator=torch.Generator().manual_seed(cfg.seed))  # workers restart each epoch: they must see
+    # the dataset's new epoch (augmentation seeds) and, for the last epochs, mosaic switched off
     val_loader = make_loader(val_dir, cfg.imgsz, cfg.batch, cfg.workers) if _is_main() else None
     criterion = DetectionLoss(model)
     scaler = torch.amp.GradScaler("cuda", enabled=device.type == "cuda")
