@@ -167,6 +167,8 @@ def test_letterbox_geometry_round_trips_boxes(rect: bool) -> None:
     wide[100:140, 200:260] = 255  # a white block at x 200..260, y 100..140
     tall = np.zeros((300, 200, 3), np.uint8)
     assert preprocess([wide, tall], 320, rect=rect)[0].shape == (2, 3, 320, 320)  # one shape fits the batch
+    odd = np.zeros((175, 320, 3), np.uint8)  # 175 * 352 / 320 = 192.5: both roundings must agree
+    assert preprocess([odd], 352, rect=rect)[0].shape == ((1, 3, 224, 352) if rect else (1, 3, 352, 352))
     x, meta = preprocess([wide], 320, rect=rect)
     assert x.shape == ((1, 3, 192, 320) if rect else (1, 3, 320, 320))  # 180 -> next multiple of 32
     r, left, top = meta[0]

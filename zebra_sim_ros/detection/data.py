@@ -87,6 +87,12 @@ def read_labels(path: Path, width: int, height: int) -> NDArray[np.float32]:
     return out
 
 
+def letterbox_size(h: int, w: int, size: int) -> tuple[int, int]:
+    """(height, width) of an h x w image resized so its long side is ``size`` (what :func:`letterbox` does)."""
+    r = size / max(h, w)
+    return round(h * r), round(w * r)
+
+
 def letterbox(img: NDArray[np.uint8], size: int,
               shape: tuple[int, int] | None = None) -> tuple[NDArray[np.uint8], float, tuple[int, int]]:
     """Resize keeping the aspect ratio so the long side is ``size``, pad with grey to size x size or to
@@ -96,7 +102,7 @@ def letterbox(img: NDArray[np.uint8], size: int,
     """
     h, w = img.shape[:2]
     r = size / max(h, w)
-    nw, nh = round(w * r), round(h * r)
+    nh, nw = letterbox_size(h, w, size)
     if (nw, nh) != (w, h):
         img = np.asarray(cv2.resize(img, (nw, nh), interpolation=cv2.INTER_LINEAR if r > 1 else cv2.INTER_AREA),
                          dtype=np.uint8)

@@ -9,7 +9,7 @@ import torch
 from numpy.typing import NDArray
 
 from zebra_sim_ros.detection.boxes import postprocess
-from zebra_sim_ros.detection.data import letterbox
+from zebra_sim_ros.detection.data import letterbox, letterbox_size
 from zebra_sim_ros.detection.model import Detector
 
 STRIDE = 32  # the largest stride of the model: input sides must be multiples of it
@@ -22,8 +22,7 @@ def preprocess(images: Sequence[NDArray[np.uint8]], imgsz: int,
     0.56 of a square one; otherwise the batch is (B, 3, imgsz, imgsz)."""
     shape = None
     if rect:
-        sizes = [(round(i.shape[0] * imgsz / max(i.shape[:2])), round(i.shape[1] * imgsz / max(i.shape[:2])))
-                 for i in images]
+        sizes = [letterbox_size(i.shape[0], i.shape[1], imgsz) for i in images]
         shape = (-(-max(h for h, _ in sizes) // STRIDE) * STRIDE, -(-max(w for _, w in sizes) // STRIDE) * STRIDE)
     batch, meta = [], []
     for img in images:
