@@ -183,3 +183,14 @@ def test_letterbox_geometry_round_trips_boxes(rect: bool) -> None:
     h, w = x.shape[2:]
     assert [tuple(f.shape[2:]) for f in feats] == [(h // s, w // s) for s in (8, 16, 32)]
     assert out.shape == (1, sum((h // s) * (w // s) for s in (8, 16, 32)), 5)
+
+
+@pytest.mark.parametrize(("setting", "named"), [({"imgsz": 100}, "'--imgsz'"), ({"val_every": 0}, "'--val-every'"),
+                                                ({"workers": -1}, "'--workers'"), ({"lr0": 0.0}, "'--lr0'"),
+                                                ({"max_train_images": -1}, "'--max-train-images'"),
+                                                ({"close_mosaic": -2}, "'--close-mosaic'")])
+def test_train_settings_are_checked_before_training(setting: dict[str, object], named: str) -> None:
+    from zebra_sim_ros.detection.train import TrainConfig
+
+    with pytest.raises(ParameterError, match=named):
+        TrainConfig(data="d.yaml", out="o", **setting).check()  # type: ignore[arg-type]

@@ -73,8 +73,16 @@ def cmd_train(args: argparse.Namespace) -> Summary:
 
 def cmd_val(args: argparse.Namespace) -> Summary:
     """Validate."""
+    from zebra_sim_ros.detection.checkpoint import check_imgsz
     from zebra_sim_ros.detection.evaluate import evaluate
     from zebra_sim_ros.detection.metrics import pr_curve_png
+
+    check_imgsz("--imgsz", args.imgsz)
+    if args.batch < 1:
+        raise ParameterError("--batch", args.batch, ">= 1")
+    for name, value in (("--conf", args.conf), ("--iou", args.iou)):
+        if not 0.0 <= value <= 1.0:
+            raise ParameterError(name, value, "0..1")
 
     m, facts = evaluate(args.weights, args.data, args.split, args.imgsz, args.batch, args.device, args.conf, args.iou)
     d = m.to_dict()
@@ -91,7 +99,10 @@ def cmd_export(args: argparse.Namespace) -> Summary:
     """Export."""
     if args.format != "onnx":
         raise ParameterError("--format", args.format, "onnx")
+    from zebra_sim_ros.detection.checkpoint import check_imgsz
     from zebra_sim_ros.detection.export import export_onnx
+
+    check_imgsz("--imgsz", args.imgsz)
 
     path = export_onnx(args.weights, args.out, args.imgsz)
     print(f"exported {path}")

@@ -30,11 +30,12 @@ def save_checkpoint(path: str | Path, model: Detector, **extra: Any) -> None:
     tmp.replace(p)
 
 
-def read_checkpoint(path: str | Path) -> dict[str, Any]:
-    """The checkpoint dict; raises :class:`ParameterError` for a missing file, :class:`AssetError` for a bad one."""
+def read_checkpoint(path: str | Path, name: str = "weights") -> dict[str, Any]:
+    """The checkpoint dict; raises :class:`ParameterError` (naming the parameter ``name``) for a missing file,
+    :class:`AssetError` for a bad one."""
     p = Path(path)
     if not p.is_file():
-        raise ParameterError("weights", str(p), "an existing checkpoint file")
+        raise ParameterError(name, str(p), "an existing checkpoint file")
     try:
         ckpt = torch.load(p, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises many types for truncated or foreign files
@@ -67,6 +68,12 @@ def serving_layout(model: Detector) -> Detector:
     2.2x faster than NCHW for the nano model on our 2-core CPU. :func:`~zebra_sim_ros.detection.predict.detect`
     feeds it channels-last input to match."""
     return model.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
+
+
+def check_imgsz(name: str, value: int | None) -> None:
+    """Raise :class:`ParameterError` unless ``value`` is None (the checkpoint's) or a multiple of 32 in 64..4096."""
+    if value is not None and (value % 32 or not 64 <= value <= 4096):
+        raise ParameterError(name, value, "a multiple of 32 in 64..4096")
 
 
 def select_device(name: str = "auto") -> torch.device:

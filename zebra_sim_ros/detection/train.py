@@ -20,7 +20,13 @@ import torch
 from torch import nn
 from torch.utils.data import DataLoader, DistributedSampler
 
-from zebra_sim_ros.detection.checkpoint import read_checkpoint, save_checkpoint, select_device, serving_layout
+from zebra_sim_ros.detection.checkpoint import (
+    check_imgsz,
+    read_checkpoint,
+    save_checkpoint,
+    select_device,
+    serving_layout,
+)
 from zebra_sim_ros.detection.data import Augment, YoloDataset, collate, resolve_split
 from zebra_sim_ros.detection.evaluate import make_loader, run
 from zebra_sim_ros.detection.loss import DetectionLoss
@@ -59,8 +65,15 @@ class TrainConfig:
             raise ParameterError("--epochs", self.epochs, ">= 1")
         if self.batch < 1:
             raise ParameterError("--batch", self.batch, ">= 1")
-        if self.imgsz % 32 or not 64 <= self.imgsz <= 4096:
-            raise ParameterError("--imgsz", self.imgsz, "a multiple of 32 in 64..4096")
+        check_imgsz("--imgsz", self.imgsz)
+        for name, value, ok, allowed in (("--workers", self.workers, self.workers >= 0, ">= 0"),
+                                         ("--val-every", self.val_every, self.val_every >= 1, ">= 1"),
+                                         ("--close-mosaic", self.close_mosaic, self.close_mosaic >= 0, ">= 0"),
+                                         ("--max-train-images", self.max_train_images, self.max_train_images >= 0,
+                                          ">= 0 (0: all)"),
+                                         ("--lr0", self.lr0, 0 < self.lr0 <= 1, "0 < lr0 <= 1")):
+            if not ok:
+                raise ParameterError(name, value, allowed)
         if self.init and self.resume:
             raise ParameterError("--init", self.init, "empty when --resume is given (resume continues its own run)")
 
@@ -109,13 +122,13 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
     start_epoch, best, updates = 0, -1.0, 0
     opt_state = None
     if cfg.init:
-        init = read_checkpoint(cfg.init)
+        init = read_checkpoint(cfg.init, "--init")
         if init["config"].get("size") != cfg.model:
             raise ParameterError("--init", cfg.init, f"a checkpoint of model size {cfg.model!r} "
                                  f"(it holds {init['config'].get('size')!r})")
         model.load_state_dict({k: v.float() for k, v in init["model"].items()})
     if cfg.resume:
-        ckpt = read_checkpoint(out / "last.pt")
+        ckpt = read_checkpoint(out / "last.pt", "--resume")
         model.load_state_dict(ckpt["model_raw"])
         start_epoch, best, updates = ckpt["epoch"] + 1, ckpt.get("best_fitness", -1.0), ckpt.get("ema_updates", 0)
         opt_state = ckpt.get("optimizer")
