@@ -188,3 +188,13 @@ def test_a_damaged_chunk_in_the_middle_loses_only_that_chunk(tmp_path: Path) -> 
     assert bad.message_start_time not in times and max(times) == 1_000_000_000 + 299 * 100_000_000  # goes on
     assert 600 * 0.8 < len(got) < 600
     assert recover(hurt, tmp_path / "rec.mcap")["messages"] == len(got)
+
+
+def test_run_summary_reads_a_cut_bag_once_and_notes_the_cut_once(tmp_path: Path) -> None:
+    from zebra_sim_ros.graph.summary import summarize_run
+
+    [path] = _write(tmp_path / "full.mcap", n=300)
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    s = summarize_run(cut)
+    assert len(s["damaged"]) == 1 and "stopped at byte" in s["damaged"][0]

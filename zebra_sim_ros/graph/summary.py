@@ -17,14 +17,10 @@ from typing import Any
 import cv2
 import numpy as np
 
-from zebra_sim_ros.recording.evaluate import cdr_image, cdr_string, collect, score
-from zebra_sim_ros.recording.reader import BagReader
+from zebra_sim_ros.recording.evaluate import cdr_string, collect, header_stamp_ns, json_stamp_ns, rgb_image, score
+from zebra_sim_ros.recording.reader import BagMessage
 
 _DRONE_TOPIC = re.compile(r"^/(?P<drone>drone_\d+)/(?P<kind>image_raw|labels|detections)$")
-
-
-def _stamp(d: dict[str, Any]) -> int:
-    return int(d["stamp"]["sec"]) * 1_000_000_000 + int(d["stamp"]["nanosec"])
 
 
 def _median_ms(values: list[float]) -> float | None:
@@ -35,24 +31,25 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[st
     """Summary of the run recorded in ``bag``; writes ``preview`` (one tile per drone) when given."""
     scenes: dict[int, int] = {}  # stamp -> log time
     times: dict[str, dict[str, dict[int, int]]] = defaultdict(lambda: defaultdict(dict))  # drone -> kind -> stamp
-    last_image: dict[str, tuple[int, np.ndarray]] = {}
-    reader = BagReader.open(bag)
-    for m in reader.messages():
+    latest: dict[str, tuple[int, bytes]] = {}  # drone -> (stamp, serialized image): decoded once, at the end
+
+    def visit(m: BagMessage) -> None:
         if m.topic == "/zebra_sim/scene":
-            scenes[_stamp(json.loads(cdr_string(m.data)))] = m.log_time
-            continue
+            scenes[json_stamp_ns(json.loads(cdr_string(m.data)))] = m.log_time
+            return
         match = _DRONE_TOPIC.match(m.topic)
         if not match:
-            continue
+            return
         drone, kind = match.group("drone"), match.group("kind")
         if kind == "image_raw":
-            t, h, w, enc, step, pixels = cdr_image(m.data)
-            if enc in ("rgb8", "bgr8") and t >= last_image.get(drone, (-1, None))[0]:
-                a = np.frombuffer(pixels, np.uint8).reshape(h, step)[:, : w * 3].reshape(h, w, 3)
-                last_image[drone] = (t, a[..., ::-1] if enc == "bgr8" else a)
+            t = header_stamp_ns(m.data)
+            if t >= latest.get(drone, (-1, b""))[0]:
+                latest[drone] = (t, m.data)
         else:
-            t = _stamp(json.loads(cdr_string(m.data)))
+            t = json_stamp_ns(json.loads(cdr_string(m.data)))
         times[drone][kind].setdefault(t, m.log_time)
+
+    collected = collect(bag, each=visit)  # one pass over the bag for the scores and the timings
     drones = sorted(times)
     frames = {d: {k: len(times[d][k]) for k in ("image_raw", "labels", "detections")} for d in drones}
     render, label, detect, e2e = [], [], [], []
@@ -72,18 +69,18 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[st
     ends = [t for d in drones for t in times[d]["detections"].values()]
     span = (max(ends) - min(scenes.values())) / 1e9 if ends and scenes else 0.0
     images = sum(f["detections"] for f in frames.values())
-    collected = collect(bag)
     scores = score(collected)
     out: dict[str, Any] = {
         "bag": str(bag), "steps": len(scenes), "frames": frames,
-        "scores": {k: v for k, v in scores.items() if k != "damaged"}, "damaged": scores["damaged"] + reader.stopped,
+        "scores": {k: v for k, v in scores.items() if k != "damaged"}, "damaged": scores["damaged"],
         "seconds": round(span, 3), "frames_per_s": round(images / span, 3) if span > 0 else None,
         "steps_per_s": round(len(scenes) / span, 3) if span > 0 else None,
         "median_ms": {"render": _median_ms(render), "label": _median_ms(label), "detect": _median_ms(detect),
                       "end_to_end": _median_ms(e2e)},
     }
-    if preview is not None and last_image:
-        out["preview"] = str(write_preview(preview, collected["drones"], last_image))
+    images_rgb = {d: rgb for d, (_, data) in latest.items() if (rgb := rgb_image(data)) is not None}
+    if preview is not None and images_rgb:
+        out["preview"] = str(write_preview(preview, collected["drones"], images_rgb))
     return out
 
 

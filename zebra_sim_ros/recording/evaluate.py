@@ -11,13 +11,14 @@ import json
 import re
 import struct
 from collections import defaultdict
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from zebra_sim_ros.detection.metrics import evaluate_detections
-from zebra_sim_ros.recording.reader import BagReader
+from zebra_sim_ros.recording.reader import BagMessage, BagReader
 
 
 def cdr_string(data: bytes) -> str:
@@ -61,30 +62,56 @@ class _Cdr:
         return v
 
 
-def cdr_image(data: bytes) -> tuple[int, int, int, str, int, bytes]:
-    """(stamp ns, height, width, encoding, step, pixel bytes) of a CDR-serialized sensor_msgs/Image."""
-    r = _Cdr(data)
+def _stamp_of(r: _Cdr) -> int:
     sec, nanosec = r.u32(), r.u32()
     if sec >= 2**31:
         sec -= 2**32
+    return sec * 1_000_000_000 + nanosec
+
+
+def header_stamp_ns(data: bytes) -> int:
+    """The stamp of a CDR-serialized message that starts with a std_msgs/Header (Image, CameraInfo, ...), in ns,
+    without touching the rest of it."""
+    return _stamp_of(_Cdr(data))
+
+
+def cdr_image(data: bytes) -> tuple[int, int, int, str, int, bytes]:
+    """(stamp ns, height, width, encoding, step, pixel bytes) of a CDR-serialized sensor_msgs/Image."""
+    r = _Cdr(data)
+    t = _stamp_of(r)
     r.string()  # frame_id
     height, width = r.u32(), r.u32()
     encoding = r.string()
     r.u8()  # is_bigendian
     step = r.u32()
-    return sec * 1_000_000_000 + nanosec, height, width, encoding, step, r.blob()
+    return t, height, width, encoding, step, r.blob()
 
 
-def _stamp(d: dict[str, Any]) -> int:
+def rgb_image(data: bytes) -> tuple[int, np.ndarray] | None:
+    """(stamp ns, H x W x 3 RGB array) of a CDR-serialized rgb8 or bgr8 sensor_msgs/Image; None for other
+    encodings."""
+    t, height, width, encoding, step, pixels = cdr_image(data)
+    if encoding not in ("rgb8", "bgr8"):
+        return None
+    a = np.frombuffer(pixels, np.uint8).reshape(height, step)[:, : width * 3].reshape(height, width, 3)
+    return t, np.ascontiguousarray(a[..., ::-1] if encoding == "bgr8" else a)
+
+
+def json_stamp_ns(d: dict[str, Any]) -> int:
+    """The ``{"stamp": {"sec", "nanosec"}}`` of a scene, labels or detections JSON, in ns."""
     return int(d["stamp"]["sec"]) * 1_000_000_000 + int(d["stamp"]["nanosec"])
 
 
-def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "detections") -> dict[str, Any]:
-    """Per drone: ``{"labels": {stamp: gt boxes (n, 4)}, "detections": {stamp: (m, 5)}}`` from a bag."""
+def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "detections",
+            each: Callable[[BagMessage], None] | None = None) -> dict[str, Any]:
+    """Per drone: ``{"labels": {stamp: gt boxes (n, 4)}, "detections": {stamp: (m, 5)}}`` from a bag; ``each``
+    sees every message of the same pass (so callers needing more from the bag do not read it twice)."""
     reader = BagReader.open(paths)
     out: dict[str, dict[str, dict[int, np.ndarray]]] = defaultdict(lambda: {"labels": {}, "detections": {}})
     pat = re.compile(rf"^/(?P<drone>[^/]+)/(?P<kind>labels|{re.escape(detections_suffix)})$")
     for m in reader.messages():
+        if each is not None:
+            each(m)
         match = pat.match(m.topic)
         if not match or m.type_name != "std_msgs/msg/String":
             continue
@@ -92,10 +119,10 @@ def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "dete
         drone = match.group("drone")
         if match.group("kind") == "labels":
             boxes = [z["box_visible"] for z in d["zebras"] if z["kept"]]
-            out[drone]["labels"][_stamp(d)] = np.array(boxes, dtype=np.float64).reshape(-1, 4)
+            out[drone]["labels"][json_stamp_ns(d)] = np.array(boxes, dtype=np.float64).reshape(-1, 4)
         else:
             dets = [[*x["box_xyxy"], x["score"]] for x in d["detections"]]
-            out[drone]["detections"][_stamp(d)] = np.array(dets, dtype=np.float64).reshape(-1, 5)
+            out[drone]["detections"][json_stamp_ns(d)] = np.array(dets, dtype=np.float64).reshape(-1, 5)
     return {"drones": dict(out), "damaged": reader.stopped}
 
 
@@ -123,12 +150,10 @@ def detect_images(paths: list[str | Path] | str | Path, collected: dict[str, Any
         match = pat.match(m.topic)
         if not match:
             continue
-        t, height, width, encoding, step, pixels = cdr_image(m.data)
-        if encoding not in ("rgb8", "bgr8"):
+        image = rgb_image(m.data)
+        if image is None:
             continue
-        a = np.frombuffer(pixels, np.uint8).reshape(height, step)[:, : width * 3].reshape(height, width, 3)
-        a = np.ascontiguousarray(a[..., ::-1] if encoding == "bgr8" else a)
-        pending.append((match.group("drone"), t, a))
+        pending.append((match.group("drone"), *image))
         if len(pending) >= batch:
             flush()
     if pending:
