@@ -20,7 +20,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
 import torch
 
 from zebra_sim_ros.detection.checkpoint import save_checkpoint, serving_layout
@@ -77,7 +76,6 @@ def main() -> None:
         print(json.dumps({"benchmark": "detector_latency", "imgsz": args.imgsz, "threads": args.threads,
                           "torch": torch.__version__, "onnxruntime": ort.__version__,
                           "machine": f"{platform.machine()} cpus={os.cpu_count()}", "results": results}))
-    _ = np
 
 
 if __name__ == "__main__":

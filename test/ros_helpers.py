@@ -37,14 +37,11 @@ def ros_env(domain: int) -> dict[str, str]:
 
 def param_args(params: dict[str, Any]) -> list[str]:
     """``--ros-args -p name:=value ...`` with YAML-formatted values."""
-    import yaml
+    from zebra_sim_ros.graph.spec import ros_value
 
     out = ["--ros-args"]
     for k, v in params.items():
-        text = yaml.safe_dump(v, default_flow_style=True).strip()
-        if text.endswith("..."):
-            text = text[:-3].strip()
-        out += ["-p", f"{k}:={text}"]
+        out += ["-p", f"{k}:={ros_value(v)}"]
     return out
 
 

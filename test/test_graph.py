@@ -60,8 +60,9 @@ def test_command_line_passes_names_files_and_overrides() -> None:
     assert args[:3] == ["py", "-m", "zebra_sim_ros.nodes.camera"]
     assert args[3:] == ["--ros-args", "-r", "__node:=camera", "-r", "__ns:=/drone_1", "--params-file",
                         "/cfg/camera.yaml", "-p", "drone_index:=1", "-p", "ack:=false", "-p", "name:='a b'"]
-    assert ros_value(["labeller", "detector"]) == "[labeller, detector]"
-    assert ros_value("") == "''" and ros_value("0abc") == "'0abc'" and ros_value(2.5) == "2.5"
+    assert ros_value(["labeller", "detector"]) == "['labeller', 'detector']"
+    assert ros_value("") == "''" and ros_value("yes") == "'yes'" and ros_value("-1") == "'-1'"
+    assert ros_value("it's") == "'it''s'" and ros_value(2.5) == "2.5" and ros_value(True) == "true"
 
 
 def test_config_dir_errors_name_the_folder(tmp_path: Path) -> None:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 from typing import Any
 
@@ -109,4 +108,3 @@ def cmd_export(args: argparse.Namespace) -> Summary:
     return {"out": str(path), "format": "onnx"}
 
 
-_ = json

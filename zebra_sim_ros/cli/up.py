@@ -97,8 +97,7 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     t_start = time.monotonic()
     sup = Supervisor(out / "logs", env)
     try:
-        domain = int(env["ROS_DOMAIN_ID"]) if env.get("ROS_DOMAIN_ID") else None
-        with GraphWatch(ackers, domain) as watch:
+        with GraphWatch(ackers, args.domain_id) as watch:  # None: rclpy reads ROS_DOMAIN_ID as the nodes do
             try:
                 for s in others:
                     sup.start(s, command(s, conf))
@@ -119,8 +118,8 @@ def cmd_up(args: argparse.Namespace) -> Summary:
                 while pl.proc.poll() is None:
                     sup.check()
                     watch.spin(0.2)
-                    if watch.steps_done() != done:
-                        done, last = watch.steps_done(), time.monotonic()
+                    if (now_done := watch.steps_done()) != done:
+                        done, last = now_done, time.monotonic()
                         rate = done / (last - t_steps)
                         print(f"{cr}[up] step {done}/{cfg.frames} ({rate:.2f} steps/s)", end=end, flush=True)
                     elif time.monotonic() - last > cfg.step_timeout_s + 10.0:
@@ -140,8 +139,7 @@ def cmd_up(args: argparse.Namespace) -> Summary:
                 print("\n[up] interrupted: stopping the graph", flush=True)
                 result["exit_code"] = 130
             finally:
-                order = [c for c in sup.children if c.spec.executable != "recorder"]
-                codes = sup.stop(order + [c for c in sup.children if c not in order])
+                codes = sup.stop([c for c in sup.children if c.spec.executable != "recorder"])  # recorder last
                 result["exit_status"] = codes
                 bad = {k: v for k, v in codes.items() if v not in (0, None) and k != result.get("died")}
                 if bad:

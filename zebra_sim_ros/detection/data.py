@@ -10,7 +10,6 @@ jitter. Validation: letterbox only, with the scale and padding kept to map boxes
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -168,7 +167,7 @@ class YoloDataset(Dataset[Any]):
         lab = lab.copy()
         lab[:, [1, 3]] = lab[:, [1, 3]] * r + left
         lab[:, [2, 4]] = lab[:, [2, 4]] * r + top
-        return _affine(img, lab, rng, self.augment or Augment(), self.imgsz, border=0)
+        return _affine(img, lab, rng, self.augment or Augment(), self.imgsz)
 
     def _mosaic(self, i: int, rng: np.random.Generator) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
         s = self.imgsz
@@ -201,11 +200,11 @@ class YoloDataset(Dataset[Any]):
             labels.append(lab)
         lab = np.concatenate(labels) if labels else np.zeros((0, 5), np.float32)
         lab[:, 1:] = np.clip(lab[:, 1:], 0, 2 * s)
-        return _affine(canvas, lab, rng, self.augment or Augment(), s, border=-s // 2)
+        return _affine(canvas, lab, rng, self.augment or Augment(), s)
 
 
-def _affine(img: NDArray[np.uint8], lab: NDArray[np.float32], rng: np.random.Generator, a: Augment, size: int,
-            border: int) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+def _affine(img: NDArray[np.uint8], lab: NDArray[np.float32], rng: np.random.Generator, a: Augment,
+            size: int) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
     """Random scale and translation into a ``size`` square; boxes follow, tiny or mostly cut ones are dropped."""
     h, w = img.shape[:2]
     c = np.eye(3)
@@ -227,7 +226,6 @@ def _affine(img: NDArray[np.uint8], lab: NDArray[np.float32], rng: np.random.Gen
         w1, h1 = new[:, 2] - new[:, 0], new[:, 3] - new[:, 1]
         keep = (w1 > 2) & (h1 > 2) & (w1 * h1 / (w0 * h0 + 1e-9) > 0.1)
         lab = np.concatenate([lab[keep, :1], new[keep]], 1).astype(np.float32)
-    del border
     return np.asarray(out, dtype=np.uint8), lab
 
 
@@ -250,4 +248,3 @@ def collate(batch: list[tuple[torch.Tensor, torch.Tensor, dict[str, Any]]]) -> t
     return imgs, torch.cat(targets) if targets else torch.zeros((0, 6)), [b[2] for b in batch]
 
 
-_ = math

@@ -151,9 +151,8 @@ def ros_value(value: Any) -> str:
         return "true" if value else "false"
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(ros_value(v) for v in value) + "]"
-    if isinstance(value, str):
-        return value if value and all(c.isalnum() or c in "_-./" for c in value) and not value[0].isdigit() \
-            else "'" + value.replace("'", "''") + "'"
+    if isinstance(value, str):  # always quoted: unquoted, YAML reads 'yes', 'on' or '-1' as bool or int
+        return "'" + value.replace("'", "''") + "'"
     return repr(value)
 
 

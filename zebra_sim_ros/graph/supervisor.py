@@ -12,7 +12,6 @@ import ctypes
 import os
 import signal
 import subprocess
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,7 +41,6 @@ class Child:
     proc: subprocess.Popen[bytes]
     log_path: Path
     log_file: IO[bytes]
-    started: float
     expected_exit: bool = False  # the placer ends by itself after its last step
 
     @property
@@ -82,7 +80,7 @@ class Supervisor:
         log = open(path, "wb")  # noqa: SIM115 (closed in stop())
         proc = subprocess.Popen(list(args), env=self.env, stdout=log, stderr=subprocess.STDOUT,
                                 stdin=subprocess.DEVNULL, start_new_session=True, preexec_fn=_child_setup)
-        child = Child(spec, proc, path, log, time.monotonic(), expected_exit)
+        child = Child(spec, proc, path, log, expected_exit)
         self.children.append(child)
         return child
 

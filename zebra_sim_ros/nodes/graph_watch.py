@@ -34,19 +34,15 @@ class GraphWatch:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.ackers = set(ackers)
-        self.acks: dict[int, dict[str, float]] = {}  # scene stamp -> acker -> monotonic time
+        self.acks: dict[int, set[str]] = {}  # scene stamp -> ackers
         self.node.create_subscription(Header, ACK_TOPIC, self._on_ack, qos("reliable", 100))
 
     def _on_ack(self, msg: Header) -> None:
-        self.acks.setdefault(stamp_ns(msg.stamp), {}).setdefault(msg.frame_id, time.monotonic())
+        self.acks.setdefault(stamp_ns(msg.stamp), set()).add(msg.frame_id)
 
     def steps_done(self) -> int:
         """Steps that every acker has acknowledged."""
-        return sum(1 for a in self.acks.values() if self.ackers <= set(a))
-
-    def last_progress(self) -> float:
-        """Monotonic time of the latest acknowledgement (0 when none yet)."""
-        return max((t for a in self.acks.values() for t in a.values()), default=0.0)
+        return sum(1 for a in self.acks.values() if self.ackers <= a)
 
     def spin(self, seconds: float) -> None:
         """Process callbacks for about ``seconds``."""
