@@ -14,7 +14,7 @@ from std_msgs.msg import Header, String
 
 from zebra_sim_ros.recording.evaluate import cdr_string, collect, score
 from zebra_sim_ros.recording.qos import from_yaml, profile_dict, replay_profile, to_yaml
-from zebra_sim_ros.recording.reader import BagReader, recover, summarize
+from zebra_sim_ros.recording.reader import BagMessage, BagReader, recover, summarize
 from zebra_sim_ros.recording.schemas import schema_text
 from zebra_sim_ros.recording.writer import BagFullError, BagWriter
 
@@ -139,10 +139,29 @@ def test_eval_from_recorded_labels_and_detections(tmp_path: Path) -> None:
     assert cdr_string(serialize_message(String(data="héllo"))) == "héllo"
 
 
+def test_eval_skips_and_notes_malformed_labels_and_detections(tmp_path: Path) -> None:
+    w = BagWriter(tmp_path / "bad.mcap")
+    w.add_channel("/drone_0/labels", "std_msgs/msg/String", [profile_dict()])
+    w.add_channel("/drone_0/detections", "std_msgs/msg/String", [profile_dict()])
+    good = {"stamp": {"sec": 1, "nanosec": 0}, "zebras": [{"box_visible": [10.0, 10, 50, 40], "kept": True}]}
+    w.write("/drone_0/labels", serialize_message(String(data=json.dumps(good))), 1)
+    w.write("/drone_0/detections", serialize_message(String(data=json.dumps(
+        {"stamp": {"sec": 1, "nanosec": 0}, "detections": [{"box_xyxy": [10.0, 10, 50, 40], "score": 0.8}]}))), 2)
+    w.write("/drone_0/labels", serialize_message(String(data="{not json")), 3)
+    w.write("/drone_0/detections", serialize_message(String(data=json.dumps({"stamp": {"sec": 2}}))), 4)
+    w.write("/drone_0/labels", b"\x00\x01", 5)  # not even CDR
+    w.close()
+    s = score(collect(tmp_path / "bad.mcap"))
+    assert s["drone_0"]["frames"] == 1 and s["drone_0"]["mAP50"] == pytest.approx(1.0)
+    assert len(s["skipped"]) == 3
+    assert [n.split(" at log time ")[1].split(" ns")[0] for n in s["skipped"]] == ["3", "4", "5"]
+    assert "JSONDecodeError" in s["skipped"][0] and "KeyError" in s["skipped"][1]
+
+
 def test_eval_by_running_a_detector_over_recorded_images(tmp_path: Path) -> None:
     from zebra_sim_ros.detection.checkpoint import save_checkpoint
     from zebra_sim_ros.detection.model import ModelConfig, build_model
-    from zebra_sim_ros.recording.evaluate import detect_images
+    from zebra_sim_ros.recording.evaluate import ImageDetector
 
     save_checkpoint(tmp_path / "w.pt", build_model(ModelConfig(size="n", imgsz=128)).eval())
     w = BagWriter(tmp_path / "i.mcap")
@@ -155,9 +174,22 @@ def test_eval_by_running_a_detector_over_recorded_images(tmp_path: Path) -> None
         w.write("/drone_0/image_raw", serialize_message(img), k)
         lab = {"stamp": {"sec": k, "nanosec": 0}, "zebras": [{"box_visible": [10.0, 10, 30, 20], "kept": True}]}
         w.write("/drone_0/labels", serialize_message(String(data=json.dumps(lab))), k)
+    mono = Image(header=Header(frame_id="c"), height=2, width=2, encoding="mono8", step=2, data=bytes(4))
+    w.write("/drone_0/image_raw", serialize_message(mono), 3)
+    w.write("/drone_0/image_raw", serialize_message(img)[:60], 4)  # cut short: pixels missing
     w.close()
-    collected = detect_images(tmp_path / "i.mcap", collect(tmp_path / "i.mcap"), tmp_path / "w.pt", device="cpu")
+    detector = ImageDetector(tmp_path / "w.pt", device="cpu", batch=2)
+    seen: list[str] = []
+
+    def both(m: BagMessage) -> None:  # the detector rides the same pass as the labels
+        seen.append(m.topic)
+        detector(m)
+
+    collected = detector.apply(collect(tmp_path / "i.mcap", each=both))
+    assert len(seen) == 8, "the bag is read once"
     assert sorted(collected["drones"]["drone_0"]["detections"]) == [0, 10**9, 2 * 10**9]
+    assert len(collected["skipped"]) == 2
+    assert "not rgb8 or bgr8" in collected["skipped"][0] and "log time 4 ns" in collected["skipped"][1]
     s = score(collected)
     assert s["drone_0"]["frames"] == 3 and 0.0 <= s["drone_0"]["mAP50"] <= 1.0
 

@@ -61,16 +61,21 @@ def cmd_recover(args: argparse.Namespace) -> Summary:
 
 def cmd_eval(args: argparse.Namespace) -> Summary:
     """Score recorded detections against recorded labels."""
-    from zebra_sim_ros.recording.evaluate import collect, detect_images, score
+    from zebra_sim_ros.recording.evaluate import ImageDetector, collect, score
 
-    collected = collect(args.bag, args.detections)
-    if args.weights:
-        collected = detect_images(args.bag, collected, args.weights, args.device)
+    detector = ImageDetector(args.weights, args.device) if args.weights else None
+    collected = collect(args.bag, args.detections, each=detector)  # one pass, with or without a detector
+    if detector is not None:
+        collected = detector.apply(collected)
     s = score(collected)
     for drone, m in s.items():
-        if drone not in ("all", "damaged") and m:
+        if drone not in ("all", "damaged", "skipped") and m:
             print(f"{drone}: {m['frames']} frames, P {m['precision']:.3f} R {m['recall']:.3f} mAP50 {m['mAP50']:.3f} "
                   f"mAP50-95 {m['mAP50-95']:.3f}")
     if s["all"]:
         print(f"all: mAP50 {s['all']['mAP50']:.3f} mAP50-95 {s['all']['mAP50-95']:.3f}")
+    if s["skipped"]:
+        print(f"skipped {len(s['skipped'])} unusable message(s), first: {s['skipped'][0]}")
+    for note in s["damaged"]:
+        print(f"damaged: {note}")
     return s

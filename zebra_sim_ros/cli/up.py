@@ -178,3 +178,6 @@ def _print_summary(r: dict[str, Any], drones: tuple[str, ...]) -> None:
         print(f"[up] preview (green: ground truth, red: detected): {r['preview']}", flush=True)
     for note in r["damaged"]:
         print(f"[up] bag damage: {note}", flush=True)
+    if r["skipped"]:
+        print(f"[up] skipped {len(r['skipped'])} unusable message(s) in the bag, first: {r['skipped'][0]}",
+              flush=True)

@@ -17,7 +17,16 @@ from typing import Any
 import cv2
 import numpy as np
 
-from zebra_sim_ros.recording.evaluate import cdr_string, collect, header_stamp_ns, json_stamp_ns, rgb_image, score
+from zebra_sim_ros.recording.evaluate import (
+    MALFORMED,
+    cdr_string,
+    collect,
+    header_stamp_ns,
+    json_stamp_ns,
+    rgb_image,
+    score,
+    skip_note,
+)
 from zebra_sim_ros.recording.reader import BagMessage
 
 _DRONE_TOPIC = re.compile(r"^/(?P<drone>drone_\d+)/(?P<kind>image_raw|labels|detections)$")
@@ -33,7 +42,16 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[st
     times: dict[str, dict[str, dict[int, int]]] = defaultdict(lambda: defaultdict(dict))  # drone -> kind -> stamp
     latest: dict[str, tuple[int, bytes]] = {}  # drone -> (stamp, serialized image): decoded once, at the end
 
+    unusable: list[str] = []  # scenes and images that do not parse (collect notes bad labels and detections)
+
     def visit(m: BagMessage) -> None:
+        try:
+            _visit(m)
+        except MALFORMED as exc:
+            if m.topic == "/zebra_sim/scene" or m.topic.endswith("/image_raw"):
+                unusable.append(skip_note(m, exc))
+
+    def _visit(m: BagMessage) -> None:
         if m.topic == "/zebra_sim/scene":
             scenes[json_stamp_ns(json.loads(cdr_string(m.data)))] = m.log_time
             return
@@ -72,13 +90,20 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[st
     scores = score(collected)
     out: dict[str, Any] = {
         "bag": str(bag), "steps": len(scenes), "frames": frames,
-        "scores": {k: v for k, v in scores.items() if k != "damaged"}, "damaged": scores["damaged"],
+        "scores": {k: v for k, v in scores.items() if k not in ("damaged", "skipped")}, "damaged": scores["damaged"],
+        "skipped": unusable + scores["skipped"],
         "seconds": round(span, 3), "frames_per_s": round(images / span, 3) if span > 0 else None,
         "steps_per_s": round(len(scenes) / span, 3) if span > 0 else None,
         "median_ms": {"render": _median_ms(render), "label": _median_ms(label), "detect": _median_ms(detect),
                       "end_to_end": _median_ms(e2e)},
     }
-    images_rgb = {d: rgb for d, (_, data) in latest.items() if (rgb := rgb_image(data)) is not None}
+    images_rgb = {}
+    for d, (_, data) in latest.items():
+        try:
+            if (rgb := rgb_image(data)) is not None:
+                images_rgb[d] = rgb
+        except MALFORMED:
+            pass  # its pixels are cut short: no tile for this drone
     if preview is not None and images_rgb:
         out["preview"] = str(write_preview(preview, collected["drones"], images_rgb))
     return out

@@ -102,12 +102,27 @@ def json_stamp_ns(d: dict[str, Any]) -> int:
     return int(d["stamp"]["sec"]) * 1_000_000_000 + int(d["stamp"]["nanosec"])
 
 
+# What reading a malformed message raises: broken CDR (struct.error, IndexError), bad UTF-8 or JSON (ValueError),
+# missing or mistyped fields (KeyError, TypeError). Such a message is noted and skipped; the rest still counts.
+MALFORMED = (ValueError, KeyError, TypeError, IndexError, struct.error)
+
+
+def skip_note(m: BagMessage, why: str | BaseException) -> str:
+    """One line naming a message that was skipped, and why."""
+    reason = f"{type(why).__name__}: {why}" if isinstance(why, BaseException) else why
+    return f"{m.topic} at log time {m.log_time} ns: {reason}"
+
+
 def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "detections",
             each: Callable[[BagMessage], None] | None = None) -> dict[str, Any]:
     """Per drone: ``{"labels": {stamp: gt boxes (n, 4)}, "detections": {stamp: (m, 5)}}`` from a bag; ``each``
-    sees every message of the same pass (so callers needing more from the bag do not read it twice)."""
+    sees every message of the same pass (so callers needing more from the bag do not read it twice).
+
+    A labels or detections message that does not parse is skipped and noted in ``"skipped"``; damage to the
+    file itself is in ``"damaged"``."""
     reader = BagReader.open(paths)
     out: dict[str, dict[str, dict[int, np.ndarray]]] = defaultdict(lambda: {"labels": {}, "detections": {}})
+    skipped: list[str] = []
     pat = re.compile(rf"^/(?P<drone>[^/]+)/(?P<kind>labels|{re.escape(detections_suffix)})$")
     for m in reader.messages():
         if each is not None:
@@ -115,51 +130,71 @@ def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "dete
         match = pat.match(m.topic)
         if not match or m.type_name != "std_msgs/msg/String":
             continue
-        d = json.loads(cdr_string(m.data))
         drone = match.group("drone")
-        if match.group("kind") == "labels":
-            boxes = [z["box_visible"] for z in d["zebras"] if z["kept"]]
-            out[drone]["labels"][json_stamp_ns(d)] = np.array(boxes, dtype=np.float64).reshape(-1, 4)
-        else:
-            dets = [[*x["box_xyxy"], x["score"]] for x in d["detections"]]
-            out[drone]["detections"][json_stamp_ns(d)] = np.array(dets, dtype=np.float64).reshape(-1, 5)
-    return {"drones": dict(out), "damaged": reader.stopped}
+        try:
+            d = json.loads(cdr_string(m.data))
+            if match.group("kind") == "labels":
+                boxes = [z["box_visible"] for z in d["zebras"] if z["kept"]]
+                out[drone]["labels"][json_stamp_ns(d)] = np.array(boxes, dtype=np.float64).reshape(-1, 4)
+            else:
+                dets = [[*x["box_xyxy"], x["score"]] for x in d["detections"]]
+                out[drone]["detections"][json_stamp_ns(d)] = np.array(dets, dtype=np.float64).reshape(-1, 5)
+        except MALFORMED as exc:
+            skipped.append(skip_note(m, exc))
+    return {"drones": dict(out), "damaged": reader.stopped, "skipped": skipped}
 
 
-def detect_images(paths: list[str | Path] | str | Path, collected: dict[str, Any], weights: str | Path | None,
-                  device: str = "auto", batch: int = 8, conf: float = 0.001) -> dict[str, Any]:
-    """Replace recorded detections by running a detector over the bag's ``/<drone>/image_raw`` (rgb8 or bgr8)."""
-    from zebra_sim_ros.detection.checkpoint import load_model, select_device
-    from zebra_sim_ros.detection.predict import detect
+class ImageDetector:
+    """A :func:`collect` visitor that runs a detector over every ``/<drone>/image_raw`` (rgb8 or bgr8) in batches
+    during the same pass; :meth:`apply` then puts its detections in place of the recorded ones."""
 
-    model, _ = load_model(weights, select_device(device))
-    pat = re.compile(r"^/(?P<drone>[^/]+)/image_raw$")
-    for d in collected["drones"].values():
-        d["detections"] = {}
-    pending: list[tuple[str, int, np.ndarray]] = []
+    TOPIC = re.compile(r"^/(?P<drone>[^/]+)/image_raw$")
 
-    def flush() -> None:
-        dets = detect(model, [p[2] for p in pending], conf=conf, max_det=100)
-        for (drone, t, _), det in zip(pending, dets, strict=True):
-            collected["drones"].setdefault(drone, {"labels": {}, "detections": {}})["detections"][t] = \
-                det[:, :5].astype(np.float64)
-        pending.clear()
+    def __init__(self, weights: str | Path | None, device: str = "auto", batch: int = 8, conf: float = 0.001) -> None:
+        from zebra_sim_ros.detection.checkpoint import load_model, select_device
 
-    reader = BagReader.open(paths)
-    for m in reader.messages():
-        match = pat.match(m.topic)
+        self.model, _ = load_model(weights, select_device(device))
+        self.batch, self.conf = batch, conf
+        self.detections: dict[str, dict[int, np.ndarray]] = defaultdict(dict)
+        self.skipped: list[str] = []
+        self._pending: list[tuple[str, int, np.ndarray]] = []
+
+    def __call__(self, m: BagMessage) -> None:
+        match = self.TOPIC.match(m.topic)
         if not match:
-            continue
-        image = rgb_image(m.data)
+            return
+        try:
+            image = rgb_image(m.data)
+        except MALFORMED as exc:
+            self.skipped.append(skip_note(m, exc))
+            return
         if image is None:
-            continue
-        pending.append((match.group("drone"), *image))
-        if len(pending) >= batch:
-            flush()
-    if pending:
-        flush()
-    collected["damaged"] = collected["damaged"] + reader.stopped
-    return collected
+            self.skipped.append(skip_note(m, "not rgb8 or bgr8"))
+            return
+        self._pending.append((match.group("drone"), *image))
+        if len(self._pending) >= self.batch:
+            self._flush()
+
+    def _flush(self) -> None:
+        from zebra_sim_ros.detection.predict import detect
+
+        if not self._pending:
+            return
+        dets = detect(self.model, [p[2] for p in self._pending], conf=self.conf, max_det=100)
+        for (drone, t, _), det in zip(self._pending, dets, strict=True):
+            self.detections[drone][t] = det[:, :5].astype(np.float64)
+        self._pending.clear()
+
+    def apply(self, collected: dict[str, Any]) -> dict[str, Any]:
+        """``collected`` with its detections replaced by this detector's (drones with images but no labels
+        included) and the images it could not use added to ``"skipped"``."""
+        self._flush()
+        for d in collected["drones"].values():
+            d["detections"] = {}
+        for drone, dets in self.detections.items():
+            collected["drones"].setdefault(drone, {"labels": {}, "detections": {}})["detections"] = dict(dets)
+        collected["skipped"] = collected.get("skipped", []) + self.skipped
+        return collected
 
 
 def score(collected: dict[str, Any]) -> dict[str, Any]:
@@ -177,4 +212,5 @@ def score(collected: dict[str, Any]) -> dict[str, Any]:
                          "unmatched_detections": len(set(d["detections"]) - set(stamps)), **m.to_dict()}
     result["all"] = evaluate_detections(all_p, all_g).to_dict() if all_g else None
     result["damaged"] = collected["damaged"]
+    result["skipped"] = collected.get("skipped", [])
     return result
