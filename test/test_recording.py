@@ -69,9 +69,18 @@ def test_split_by_size_and_duration(tmp_path: Path) -> None:
     assert len(files) > 2 and all(p.name.startswith("s_") for p in files)
     s = summarize(tmp_path)  # a folder of split files reads as one bag
     assert s["messages"] == 400 and s["topics"]["/text"]["count"] == 200 and not s["damaged"]
+    assert s["read"] == [] and s["topics"]["/text"]["bytes"] is None  # from the summaries: nothing decompressed
+    full = summarize(tmp_path, full=True)  # every message read: the same figures, plus bytes
+    assert full["read"] == s["files"] and full["topics"]["/image"]["bytes"] > 0
+    assert {k: full[k] for k in ("messages", "start_ns", "end_ns", "duration_s")} == \
+        {k: s[k] for k in ("messages", "start_ns", "end_ns", "duration_s")}
+    assert {t: v["count"] for t, v in full["topics"].items()} == {t: v["count"] for t, v in s["topics"].items()}
     for p in files:
         with open(p, "rb") as f:
             assert make_reader(f).get_summary() is not None  # every piece is complete on its own
+    files[-1].write_bytes(files[-1].read_bytes()[: files[-1].stat().st_size // 2])  # the last piece cut short
+    cut = summarize(tmp_path)
+    assert cut["read"] == [str(files[-1])] and len(cut["damaged"]) == 1 and 300 < cut["messages"] < 400
     files = _write(tmp_path / "d" / "d.mcap", n=60, split_seconds=2.0)
     assert len(files) == 3
 

@@ -15,6 +15,9 @@ def register(sub: Any) -> None:
     bsub = p.add_subparsers(dest="bag_command", required=True, metavar="ACTION")
     i = bsub.add_parser("info", help="duration, message counts and types per topic (like ros2 bag info)")
     i.add_argument("bag", nargs="+", type=Path, help="bag files, or folders of split files")
+    i.add_argument("--full", action="store_true",
+                   help="read every message (checks every chunk's CRC, counts bytes per topic) instead of the "
+                        "files' summaries; files without a summary (cut short) are always read")
     add_json_flag(i)
     i.set_defaults(func=cmd_info)
     r = bsub.add_parser("recover", help="rewrite every intact message of a damaged bag (after SIGKILL, power loss)")
@@ -37,14 +40,17 @@ def cmd_info(args: argparse.Namespace) -> Summary:
     """Print a bag summary."""
     from zebra_sim_ros.recording.reader import summarize
 
-    s = summarize(args.bag)
+    s = summarize(args.bag, full=args.full)
     print(f"files:     {', '.join(s['files'])}")
     print(f"size:      {s['size_bytes'] / 1e6:.1f} MB")
     print(f"duration:  {s['duration_s']:.3f} s")
     print(f"messages:  {s['messages']}")
     print("topics:")
     for topic, t in s["topics"].items():
-        print(f"  {topic:<40} {t['type']:<36} {t['count']:>8} msgs")
+        size = f" {t['bytes'] / 1e6:>10.1f} MB" if t["bytes"] is not None else ""
+        print(f"  {topic:<40} {t['type']:<36} {t['count']:>8} msgs{size}")
+    if s["read"] and not args.full:
+        print(f"read:      {len(s['read'])} file(s) without a readable summary, message by message")
     for note in s["damaged"]:
         print(f"damaged:   {note}")
     return s

@@ -118,22 +118,54 @@ class BagReader:
             yield from inner
 
 
-def summarize(paths: list[str | Path] | str | Path) -> dict[str, Any]:
-    """``ros2 bag info``: files, size, duration, start and end, message count and type per topic."""
+def summarize(paths: list[str | Path] | str | Path, full: bool = False) -> dict[str, Any]:
+    """``ros2 bag info``: files, size, duration, start and end, message count and type per topic.
+
+    Like ``ros2 bag info`` it reads each file's summary section (its statistics), without decompressing a
+    single chunk. A file without a readable summary (cut short, still being written) is read message by message
+    instead, and so is every file with ``full``: that also checks every chunk's CRC (damage goes to ``damaged``)
+    and adds the bytes per topic (``bytes`` is None otherwise). ``read`` lists the files that were read."""
+    from mcap.reader import make_reader
+
     reader = BagReader.open(paths)
     topics: dict[str, dict[str, Any]] = {}
-    start, end, n = None, None, 0
-    for m in reader.messages():
-        t = topics.setdefault(m.topic, {"type": m.type_name, "count": 0, "bytes": 0})
+    times: list[int] = []
+    n = 0
+    scan: list[Path] = []
+    for path in reader.paths:
+        summary = None
+        if not full:
+            try:
+                with open(path, "rb") as f:
+                    summary = make_reader(f).get_summary()
+            except Exception:  # noqa: BLE001 - a damaged file has no usable summary: read it instead
+                summary = None
+        if summary is None or summary.statistics is None:
+            scan.append(path)
+            continue
+        st = summary.statistics
+        for channel_id, count in sorted(st.channel_message_counts.items()):
+            ch = summary.channels.get(channel_id)
+            if ch is None or count == 0:
+                continue
+            sc = summary.schemas.get(ch.schema_id)
+            topics.setdefault(ch.topic, {"type": sc.name if sc else "", "count": 0, "bytes": None})["count"] += count
+        if st.message_count:
+            times += [st.message_start_time, st.message_end_time]
+        n += st.message_count
+    stream = BagReader(scan)
+    for m in stream.messages():
+        t = topics.setdefault(m.topic, {"type": m.type_name, "count": 0, "bytes": 0 if full else None})
         t["count"] += 1
-        t["bytes"] += len(m.data)
-        start = m.log_time if start is None else min(start, m.log_time)
-        end = m.log_time if end is None else max(end, m.log_time)
+        if full:
+            t["bytes"] += len(m.data)
+        times.append(m.log_time)
         n += 1
+    start, end = (min(times), max(times)) if times else (None, None)
     return {"files": [str(p) for p in reader.paths], "size_bytes": sum(p.stat().st_size for p in reader.paths),
             "messages": n, "start_ns": start, "end_ns": end,
             "duration_s": round((end - start) / 1e9, 3) if start is not None and end is not None else 0.0,
-            "topics": dict(sorted(topics.items())), "damaged": reader.stopped}
+            "topics": dict(sorted(topics.items())), "damaged": stream.stopped, "read": [str(p) for p in scan]}
 
 
 def recover(src: str | Path, dst: str | Path, compression: str = "zstd") -> dict[str, Any]:
