@@ -185,6 +185,20 @@ def test_letterbox_geometry_round_trips_boxes(rect: bool) -> None:
     assert out.shape == (1, sum((h // s) * (w // s) for s in (8, 16, 32)), 5)
 
 
+def test_native_size_detects_each_batch_at_its_own_resolution() -> None:
+    from zebra_sim_ros.detection.predict import NATIVE, detect, native_size
+
+    assert native_size([np.zeros((720, 1280, 3), np.uint8)]) == 1280
+    assert native_size([np.zeros((1000, 90, 3), np.uint8), np.zeros((10, 10, 3), np.uint8)]) == 1024  # portrait
+    assert native_size([np.zeros((8, 8, 3), np.uint8)]) == 64
+    assert native_size([np.zeros((9000, 9, 3), np.uint8)]) == 4096
+    model = build_model(ModelConfig(size="n", imgsz=128)).eval()
+    frame = np.random.default_rng(0).integers(0, 256, (180, 300, 3), np.uint8)
+    native = detect(model, [frame], NATIVE, conf=0.0, max_det=50)[0]
+    assert np.array_equal(native, detect(model, [frame], 320, conf=0.0, max_det=50)[0])
+    assert not np.array_equal(native, detect(model, [frame], conf=0.0, max_det=50)[0])  # the checkpoint's 128
+
+
 @pytest.mark.parametrize(("setting", "named"), [({"imgsz": 100}, "'--imgsz'"), ({"val_every": 0}, "'--val-every'"),
                                                 ({"workers": -1}, "'--workers'"), ({"lr0": 0.0}, "'--lr0'"),
                                                 ({"max_train_images": -1}, "'--max-train-images'"),

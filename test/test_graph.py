@@ -266,7 +266,7 @@ def test_fast_dds_accepts_our_profile(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("setting", "named"), [({"world": "moon"}, "'world'"), ({"device": "tpu"}, "'device'"),
                                                 ({"frames": 0}, "'--frames'"), ({"strategy": "up"}, "'--strategy'"),
-                                                ({"width": 20, "height": 20}, "'imgsz'")])
+                                                ({"width": 8, "height": 20}, "'--size'")])
 def test_up_rejects_a_bad_setting_before_starting_any_node(setting: dict[str, Any], named: str) -> None:
     from zebra_sim_ros.errors import ParameterError
 

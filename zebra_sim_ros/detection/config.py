@@ -15,8 +15,9 @@ DETECTOR_PARAMS: tuple[ParamSpec, ...] = (
               lambda v: isinstance(v, str)),
     ParamSpec("conf", 0.25, "confidence threshold", "0..1", in_range(0.0, 1.0)),
     ParamSpec("iou", 0.7, "NMS IoU threshold", "0..1", in_range(0.0, 1.0)),
-    ParamSpec("imgsz", 0, "inference size, px (0: the checkpoint's)", "0 or a multiple of 32 in 64..4096",
-              lambda v: isinstance(v, int) and (v == 0 or (64 <= v <= 4096 and v % 32 == 0))),
+    ParamSpec("imgsz", 0, "inference size, px (0: the checkpoint's; -1: each frame's long side, rounded up to a "
+              "multiple of 32)", "-1, 0 or a multiple of 32 in 64..4096",
+              lambda v: isinstance(v, int) and (v in (-1, 0) or (64 <= v <= 4096 and v % 32 == 0))),
     ParamSpec("device", "auto", "auto, cpu, cuda or cuda:N", "auto, cpu, cuda, cuda:N",
               lambda v: isinstance(v, str) and (v in ("auto", "cpu") or v.startswith("cuda"))),
     ParamSpec("max_det", 300, "most detections per image", "1..10000", in_range(1, 10000)),

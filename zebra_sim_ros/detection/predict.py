@@ -13,6 +13,14 @@ from zebra_sim_ros.detection.data import letterbox, letterbox_size
 from zebra_sim_ros.detection.model import Detector
 
 STRIDE = 32  # the largest stride of the model: input sides must be multiples of it
+NATIVE = -1  # as imgsz: each batch at its own resolution (see native_size)
+
+
+def native_size(images: Sequence[NDArray[np.uint8]]) -> int:
+    """The images' longest side rounded up to a multiple of 32, within 64..4096: far zebras are a few pixels
+    tall, so detecting at the frames' own resolution keeps them (a 1280x720 frame at 416 px loses most)."""
+    long = max(max(i.shape[:2]) for i in images)
+    return min(max(-(-long // STRIDE) * STRIDE, 64), 4096)
 
 
 def preprocess(images: Sequence[NDArray[np.uint8]], imgsz: int,
@@ -44,10 +52,11 @@ def unletterbox(det: torch.Tensor, scale: float, left: int, top: int, width: int
 def detect(model: Detector, images: Sequence[NDArray[np.uint8]], imgsz: int | None = None, conf: float = 0.25,
            iou: float = 0.7, max_det: int = 300, rect: bool = True) -> list[NDArray[np.float32]]:
     """Per image (n, 6) [x0, y0, x1, y1, score, class] in its own pixels (pixel-edge coordinates); the long side
-    is resized to ``imgsz`` (default: the checkpoint's), padded as :func:`preprocess` says."""
+    is resized to ``imgsz`` (default: the checkpoint's; :data:`NATIVE`: :func:`native_size`), padded as
+    :func:`preprocess` says."""
     if not images:
         return []
-    size = imgsz or model.cfg.imgsz
+    size = native_size(images) if imgsz == NATIVE else (imgsz or model.cfg.imgsz)
     dev = next(model.parameters()).device
     x, meta = preprocess(images, size, rect)
     pred = model(x.to(dev).contiguous(memory_format=torch.channels_last))

@@ -129,9 +129,10 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
                               tuple(f"/{d}/{t}" for t in CAMERA_TOPICS)))
     nodes.append(NodeSpec("labeller", "labeller", "", "labeller.yaml", {"ack_name": "labeller"},
                           tuple(f"/{d}/{t}" for d in DRONES for t in LABELLER_TOPICS)))
-    # The detector sees the cameras' full resolution (far zebras are a few pixels tall): imgsz = the long side.
+    # The detector sees the cameras' full resolution (far zebras are a few pixels tall): imgsz -1, each frame's
+    # long side.
     det = {"ack_name": "detector", "weights": str(Path(cfg.weights).resolve()) if cfg.weights else "",
-           "device": cfg.device, "imgsz": -(-max(cfg.width, cfg.height) // 32) * 32}
+           "device": cfg.device, "imgsz": -1}
     nodes.append(NodeSpec("detector", "detector", "", "detector.yaml", det,
                           tuple(f"/{d}/{t}" for d in DRONES for t in DETECTOR_TOPICS)))
     if cfg.record:

@@ -32,7 +32,7 @@ from visualization_msgs.msg import ImageMarker
 from zebra_sim_ros.detection.checkpoint import load_model, select_device
 from zebra_sim_ros.detection.config import DETECTOR_PARAMS, DetectorConfig, output_base
 from zebra_sim_ros.detection.draw import draw_boxes
-from zebra_sim_ros.detection.predict import detect
+from zebra_sim_ros.detection.predict import NATIVE, detect
 from zebra_sim_ros.nodes.placer import ACK_TOPIC
 from zebra_sim_ros.nodes.ros_adapter import (
     declare_and_read,
@@ -72,7 +72,7 @@ class DetectorNode(Node):
         torch.set_num_threads(max(1, torch.get_num_threads()))
         self.device = select_device(c.device)
         self.model, ckpt = load_model(c.weights or None, self.device)
-        self.imgsz = c.imgsz or self.model.cfg.imgsz
+        self.imgsz = c.imgsz or self.model.cfg.imgsz  # NATIVE (-1) stays: detect() sizes each batch
         q = qos(c.qos_reliability, c.qos_depth)
         self.pending: dict[str, Image] = {}
         self.detected: dict[int, set[str]] = {}  # stamp -> topics detected (for the ack)
@@ -87,9 +87,10 @@ class DetectorNode(Node):
         self.timer = self.create_timer(c.batch_window_s, self._flush)
         self.stats = {"images": 0, "batches": 0, "skipped": 0}
         self.seconds = 0.0
+        size = "native (each frame's long side)" if self.imgsz == NATIVE else self.imgsz
         self.get_logger().info(
             f"weights {c.weights or 'shipped'} ({self.model.cfg.size}, epoch {ckpt.get('epoch')}), device "
-            f"{self.device}, imgsz {self.imgsz}, conf {c.conf}, iou {c.iou}; topics {list(c.image_topics)}; "
+            f"{self.device}, imgsz {size}, conf {c.conf}, iou {c.iou}; topics {list(c.image_topics)}; "
             f"QoS {describe_qos(q)}")
 
     def _handler(self, topic: str) -> Any:
