@@ -30,7 +30,6 @@ setup(
         "trimesh",
         "opencv-python-headless",
         "mcap",
-        "mcap-ros2-support",
         "moderngl",
         "glcontext",
         "PyYAML",
