@@ -76,3 +76,40 @@ def test_bad_labeller_parameter_stops_the_node() -> None:
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
     assert "min_visible_fraction" in proc.stderr + proc.stdout
+
+
+def test_box_markers_and_step_acknowledgements() -> None:
+    from std_msgs.msg import ColorRGBA, Header
+
+    from zebra_sim_ros.nodes.ros_adapter import ACK_TOPIC, StepAcks, box_marker, stamp
+
+    red, green = ColorRGBA(r=1.0, a=1.0), ColorRGBA(g=1.0, a=1.0)
+    m = box_marker(Header(frame_id="cam"), "boxes", [((0, 0, 10, 5), red), ((1, 1, 2, 2), green)])
+    assert m.type == ImageMarker.LINE_LIST and m.ns == "boxes" and m.header.frame_id == "cam"
+    assert [(p.x, p.y) for p in m.points[:8]] == [(0, 0), (10, 0), (10, 0), (10, 5), (10, 5), (0, 5), (0, 5), (0, 0)]
+    assert len(m.points) == 16 and list(m.outline_colors) == [red] * 8 + [green] * 8 and m.outline_color == red
+
+    sent: list[tuple[str, Header]] = []
+
+    class Publisher:
+        def __init__(self, topic: str) -> None:
+            self.topic = topic
+
+        def publish(self, msg: Header) -> None:
+            sent.append((self.topic, msg))
+
+    class FakeNode:
+        def create_publisher(self, _type: object, topic: str, _qos: object) -> Publisher:
+            return Publisher(topic)
+
+    acks = StepAcks(FakeNode(), "detector", ["a", "b"], window=2)  # type: ignore[arg-type]
+    assert acks.part_done(stamp(1), "a") is False and not sent
+    assert acks.part_done(stamp(1), "a") is False  # the same part twice is still one part
+    assert acks.part_done(stamp(1), "b") is True
+    assert [(t, h.frame_id, h.stamp.sec) for t, h in sent] == [(ACK_TOPIC, "detector", 0)]
+    assert sent[0][1].stamp.nanosec == 1
+    for t in (2, 3, 4):
+        acks.part_done(stamp(t), "a")
+    assert sorted(acks.done) == [3, 4]  # only the last `window` stamps are remembered
+    silent = StepAcks(FakeNode(), "", ["a"], window=5)  # type: ignore[arg-type]
+    assert silent.pub is None and silent.part_done(stamp(1), "a") is True

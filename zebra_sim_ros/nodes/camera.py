@@ -28,8 +28,17 @@ from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Header, String
 
 from zebra_sim_ros.errors import ZebraSimError
-from zebra_sim_ros.nodes.placer import ACK_TOPIC, SCENE_TOPIC
-from zebra_sim_ros.nodes.ros_adapter import declare_and_read, describe_qos, help_text, image_msg, qos, run_node, stamp
+from zebra_sim_ros.nodes.placer import SCENE_TOPIC
+from zebra_sim_ros.nodes.ros_adapter import (
+    ACK_TOPIC,
+    declare_and_read,
+    describe_qos,
+    help_text,
+    image_msg,
+    qos,
+    run_node,
+    stamp,
+)
 from zebra_sim_ros.placement.scene import parse_scene
 from zebra_sim_ros.rendering.config import CAMERA_PARAMS, CameraConfig
 from zebra_sim_ros.rendering.renderer import RenderedView, Renderer

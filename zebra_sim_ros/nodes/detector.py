@@ -23,25 +23,24 @@ from typing import Any
 
 import numpy as np
 import torch
-from geometry_msgs.msg import Point
 from rclpy.node import Node
 from sensor_msgs.msg import Image
-from std_msgs.msg import ColorRGBA, Header, String
+from std_msgs.msg import ColorRGBA, String
 from visualization_msgs.msg import ImageMarker
 
 from zebra_sim_ros.detection.checkpoint import load_model, select_device
 from zebra_sim_ros.detection.config import DETECTOR_PARAMS, DetectorConfig, output_base
 from zebra_sim_ros.detection.draw import draw_boxes
 from zebra_sim_ros.detection.predict import NATIVE, detect
-from zebra_sim_ros.nodes.placer import ACK_TOPIC
 from zebra_sim_ros.nodes.ros_adapter import (
+    StepAcks,
+    box_marker,
     declare_and_read,
     describe_qos,
     help_text,
     image_msg,
     qos,
     run_node,
-    stamp_ns,
 )
 
 _CHANNELS = {"rgb8": (3, None), "bgr8": (3, [2, 1, 0]), "rgba8": (4, [0, 1, 2]), "bgra8": (4, [2, 1, 0]),
@@ -75,7 +74,6 @@ class DetectorNode(Node):
         self.imgsz = c.imgsz or self.model.cfg.imgsz  # NATIVE (-1) stays: detect() sizes each batch
         q = qos(c.qos_reliability, c.qos_depth)
         self.pending: dict[str, Image] = {}
-        self.detected: dict[int, set[str]] = {}  # stamp -> topics detected (for the ack)
         self.pubs: dict[str, tuple[Any, Any, Any]] = {}
         for topic in c.image_topics:
             base = output_base(topic)
@@ -83,7 +81,7 @@ class DetectorNode(Node):
                                 self.create_publisher(Image, f"{base}/image", q),
                                 self.create_publisher(ImageMarker, f"{base}/markers", q))
             self.create_subscription(Image, topic, self._handler(topic), q)
-        self.ack_pub = self.create_publisher(Header, ACK_TOPIC, qos("reliable", 100)) if c.ack_name else None
+        self.acks = StepAcks(self, c.ack_name, c.image_topics, window=50)
         self.timer = self.create_timer(c.batch_window_s, self._flush)
         self.stats = {"images": 0, "batches": 0, "skipped": 0}
         self.seconds = 0.0
@@ -137,24 +135,10 @@ class DetectorNode(Node):
         det_pub.publish(String(data=json.dumps(payload, separators=(",", ":"))))
         if self.cfg.publish_image:
             img_pub.publish(image_msg(header, draw_boxes(img, dets), "rgb8"))
-        pts, col = [], ColorRGBA(r=1.0, g=0.25, b=0.0, a=1.0)
-        for d in dets:
-            x0, y0, x1, y1 = (float(v) for v in d[:4])
-            c = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
-            for a, b in zip(c, c[1:] + c[:1], strict=True):
-                pts += [Point(x=a[0], y=a[1]), Point(x=b[0], y=b[1])]
-        mark_pub.publish(ImageMarker(header=header, ns="zebra_detections", id=0, type=ImageMarker.LINE_LIST,
-                                     action=ImageMarker.ADD, scale=1.0, outline_color=col, points=pts,
-                                     outline_colors=[col] * len(pts)))
+        col = ColorRGBA(r=1.0, g=0.25, b=0.0, a=1.0)
+        mark_pub.publish(box_marker(header, "zebra_detections", ((d, col) for d in dets)))
         self.stats["images"] += 1
-        if self.ack_pub is not None:  # once every topic of this stamp is done
-            t = stamp_ns(header.stamp)
-            done = self.detected.setdefault(t, set())
-            done.add(topic)
-            if done >= set(self.cfg.image_topics):
-                self.ack_pub.publish(Header(stamp=header.stamp, frame_id=self.cfg.ack_name))
-            for old in sorted(self.detected)[:-50]:
-                del self.detected[old]
+        self.acks.part_done(header.stamp, topic)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -18,9 +18,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Header
 
-from zebra_sim_ros.nodes.ros_adapter import qos, stamp_ns
-
-ACK_TOPIC = "/zebra_sim/frame_done"
+from zebra_sim_ros.nodes.ros_adapter import ACK_TOPIC, qos, stamp_ns
 
 
 class GraphWatch:

@@ -28,8 +28,17 @@ from zebra_sim_ros.geometry.camera import PinholeCamera
 from zebra_sim_ros.labels.config import LABELLER_PARAMS, LabellerConfig
 from zebra_sim_ros.labels.labeller import label_view
 from zebra_sim_ros.labels.silhouettes import SilhouetteCounter
-from zebra_sim_ros.nodes.placer import ACK_TOPIC, SCENE_TOPIC
-from zebra_sim_ros.nodes.ros_adapter import declare_and_read, describe_qos, help_text, qos, run_node, stamp_ns
+from zebra_sim_ros.nodes.placer import SCENE_TOPIC
+from zebra_sim_ros.nodes.ros_adapter import (
+    StepAcks,
+    box_marker,
+    declare_and_read,
+    describe_qos,
+    help_text,
+    qos,
+    run_node,
+    stamp_ns,
+)
 from zebra_sim_ros.placement.scene import parse_scene
 from zebra_sim_ros.zebra.asset import load_library
 
@@ -48,18 +57,10 @@ def image_array(msg: Image) -> np.ndarray:
 
 
 def box_markers(header: Header, labels: dict[str, Any]) -> ImageMarker:
-    """One LINE_LIST ImageMarker with every zebra's visible (green) and full (orange) box."""
-    points, colors = [], []
+    """One LINE_LIST ImageMarker with every zebra's full (orange) and visible (green) box."""
     green, orange = ColorRGBA(r=0.1, g=1.0, b=0.2, a=1.0), ColorRGBA(r=1.0, g=0.6, b=0.0, a=1.0)
-    for z in labels["zebras"]:
-        for box, col in ((z["box_full"], orange), (z["box_visible"], green)):
-            x0, y0, x1, y1 = box
-            corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
-            for a, b in zip(corners, corners[1:] + corners[:1], strict=True):
-                points += [Point(x=float(a[0]), y=float(a[1])), Point(x=float(b[0]), y=float(b[1]))]
-                colors += [col, col]
-    return ImageMarker(header=header, ns="zebra_boxes", id=0, type=ImageMarker.LINE_LIST, action=ImageMarker.ADD,
-                       scale=1.0, outline_color=green, points=points, outline_colors=colors)
+    boxes = ((box, col) for z in labels["zebras"] for box, col in ((z["box_full"], orange), (z["box_visible"], green)))
+    return box_marker(header, "zebra_boxes", boxes)
 
 
 def boxes3d(header: Header, labels: dict[str, Any]) -> MarkerArray:
@@ -91,7 +92,6 @@ class LabellerNode(Node):
         scene_qos = qos("reliable", 1, transient_local=True)
         self.scenes: dict[int, dict[str, Any]] = {}
         self.pending: dict[tuple[str, int], dict[str, Any]] = {}
-        self.done_drones: dict[int, set[str]] = {}
         self.stats = {"labelled": 0, "unmatched": 0, "bad_messages": 0}
         self.create_subscription(String, SCENE_TOPIC, self._on_scene, scene_qos)
         self.pubs: dict[str, tuple[Any, Any, Any]] = {}
@@ -102,7 +102,7 @@ class LabellerNode(Node):
             self.pubs[d] = (self.create_publisher(String, f"/{d}/labels", q),
                             self.create_publisher(ImageMarker, f"/{d}/labels/markers", q),
                             self.create_publisher(MarkerArray, f"/{d}/labels/boxes3d", q))
-        self.ack_pub = self.create_publisher(Header, ACK_TOPIC, qos("reliable", 100)) if c.ack_name else None
+        self.acks = StepAcks(self, c.ack_name, c.drones, window=c.sync_window)
         self.get_logger().info(f"labelling {list(c.drones)}; QoS inputs and outputs: {describe_qos(q)}; "
                                f"scene: {describe_qos(scene_qos)}; filters {self.filters.to_dict()}")
         self.seconds = 0.0
@@ -170,12 +170,7 @@ class LabellerNode(Node):
         boxes_pub.publish(boxes3d(header, labels))
         self.stats["labelled"] += 1
         self.seconds += time.perf_counter() - t0
-        done = self.done_drones.setdefault(t, set())
-        done.add(drone)
-        if self.ack_pub is not None and done >= set(self.cfg.drones):
-            self.ack_pub.publish(Header(stamp=header.stamp, frame_id=self.cfg.ack_name))
-        for old in sorted(self.done_drones)[:-self.cfg.sync_window]:
-            del self.done_drones[old]
+        self.acks.part_done(header.stamp, drone)
         if self.stats["labelled"] % 30 == 1:
             self.get_logger().info(f"{self.stats}; {self.seconds / self.stats['labelled']:.3f} s per frame")
 

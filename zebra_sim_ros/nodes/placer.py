@@ -21,7 +21,16 @@ from rclpy.node import Node
 from std_msgs.msg import ColorRGBA, Header, String
 from visualization_msgs.msg import Marker, MarkerArray
 
-from zebra_sim_ros.nodes.ros_adapter import declare_and_read, describe_qos, help_text, qos, run_node, stamp, stamp_ns
+from zebra_sim_ros.nodes.ros_adapter import (
+    ACK_TOPIC,
+    declare_and_read,
+    describe_qos,
+    help_text,
+    qos,
+    run_node,
+    stamp,
+    stamp_ns,
+)
 from zebra_sim_ros.placement.config import PLACER_PARAMS, PlacerConfig
 from zebra_sim_ros.placement.placer import Placer
 from zebra_sim_ros.placement.scene import Scene
@@ -29,7 +38,6 @@ from zebra_sim_ros.world.world import load_world
 from zebra_sim_ros.zebra.asset import load_library
 
 SCENE_TOPIC = "/zebra_sim/scene"
-ACK_TOPIC = "/zebra_sim/frame_done"
 MARKER_TOPIC = "/zebra_sim/zebras/markers"
 _MORPH_RGBA = {"plains": (0.95, 0.85, 0.2, 0.5), "grevy": (0.3, 0.7, 1.0, 0.5), "foal": (1.0, 0.4, 0.6, 0.5)}
 

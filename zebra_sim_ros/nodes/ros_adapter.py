@@ -7,18 +7,20 @@ from __future__ import annotations
 
 import importlib
 import sys
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 import numpy as np
 import rclpy
 from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Point
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image
-from std_msgs.msg import Header
+from std_msgs.msg import ColorRGBA, Header
+from visualization_msgs.msg import ImageMarker
 
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.params import ParamSpec
@@ -66,6 +68,46 @@ def image_msg(header: Header, array: np.ndarray, encoding: str) -> Image:
     h, w = a.shape[:2]
     return Image(header=header, height=h, width=w, encoding=encoding, is_bigendian=0, step=int(a.strides[0]),
                  data=a.tobytes())
+
+
+ACK_TOPIC = "/zebra_sim/frame_done"  # std_msgs/Header: stamp = the step's, frame_id = who is done with it
+
+
+def box_marker(header: Header, ns: str, boxes: Iterable[tuple[Sequence[float], ColorRGBA]]) -> ImageMarker:
+    """One LINE_LIST ImageMarker with the four edges of every ``(x0, y0, x1, y1)`` box, each in its colour."""
+    points, colors = [], []
+    first: ColorRGBA | None = None
+    for box, col in boxes:
+        x0, y0, x1, y1 = (float(v) for v in box[:4])
+        corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+        for a, b in zip(corners, corners[1:] + corners[:1], strict=True):
+            points += [Point(x=a[0], y=a[1]), Point(x=b[0], y=b[1])]
+            colors += [col, col]
+        first = first or col
+    return ImageMarker(header=header, ns=ns, id=0, type=ImageMarker.LINE_LIST, action=ImageMarker.ADD, scale=1.0,
+                       outline_color=first or ColorRGBA(), points=points, outline_colors=colors)
+
+
+class StepAcks:
+    """Acknowledges a stamp on :data:`ACK_TOPIC` as ``name`` once each of ``parts`` (drones, image topics) is
+    done with it, for the placer's lockstep; remembers the last ``window`` stamps. No name: no acknowledgements."""
+
+    def __init__(self, node: Node, name: str, parts: Iterable[str], window: int) -> None:
+        self.name, self.parts, self.window = name, frozenset(parts), window
+        self.pub = node.create_publisher(Header, ACK_TOPIC, qos("reliable", 100)) if name else None
+        self.done: dict[int, set[str]] = {}
+
+    def part_done(self, stamp_msg: Time, part: str) -> bool:
+        """Note ``part`` done with this stamp; True (and acknowledged, with a name) when it was the last one."""
+        t = stamp_ns(stamp_msg)
+        done = self.done.setdefault(t, set())
+        done.add(part)
+        for old in sorted(self.done)[:-self.window]:
+            del self.done[old]
+        complete = done >= self.parts
+        if complete and self.pub is not None:
+            self.pub.publish(Header(stamp=stamp_msg, frame_id=self.name))
+        return complete
 
 
 def stamp(ns: int) -> Time:
