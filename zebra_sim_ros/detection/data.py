@@ -142,13 +142,14 @@ class YoloDataset(Dataset[Any]):
     def __getitem__(self, i: int) -> tuple[torch.Tensor, torch.Tensor, dict[str, Any]]:
         a = self.augment
         if a is None:
-            img, lab = self.load(i)
+            img, lab0 = self.load(i)
             h0, w0 = img.shape[:2]
             img, r, (left, top) = letterbox(img, self.imgsz)
-            lab = lab.copy()
+            lab = lab0.copy()
             lab[:, [1, 3]] = lab[:, [1, 3]] * r + left
             lab[:, [2, 4]] = lab[:, [2, 4]] * r + top
-            meta = {"file": str(self.files[i]), "shape": (h0, w0), "scale": r, "pad": (left, top)}
+            meta = {"file": str(self.files[i]), "shape": (h0, w0), "scale": r, "pad": (left, top),
+                    "labels": lab0}
         else:
             rng = self._rng(i)
             img, lab = self._mosaic(i, rng) if rng.uniform() < a.mosaic else self._single(i, rng)
@@ -215,7 +216,10 @@ def _affine(img: NDArray[np.uint8], lab: NDArray[np.float32], rng: np.random.Gen
     t[0, 2] = rng.uniform(0.5 - a.translate, 0.5 + a.translate) * size
     t[1, 2] = rng.uniform(0.5 - a.translate, 0.5 + a.translate) * size
     m = (t @ sc @ c)[:2]
-    out = cv2.warpAffine(img, m, (size, size), borderValue=(114, 114, 114))
+    if (h, w) == (size, size) and np.allclose(m, np.eye(3)[:2]):
+        out: NDArray[np.uint8] = img  # letterbox only (no scale or translation): nothing to warp
+    else:
+        out = np.asarray(cv2.warpAffine(img, m, (size, size), borderValue=(114, 114, 114)), dtype=np.uint8)
     if len(lab):
         pts = np.ones((len(lab) * 4, 3), np.float64)
         pts[:, :2] = lab[:, [1, 2, 3, 4, 1, 4, 3, 2]].reshape(-1, 2)

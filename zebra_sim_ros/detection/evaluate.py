@@ -16,7 +16,7 @@ from torch.utils.data import DataLoader
 
 from zebra_sim_ros.detection.boxes import postprocess
 from zebra_sim_ros.detection.checkpoint import load_model, select_device
-from zebra_sim_ros.detection.data import YoloDataset, collate, label_path, read_labels, resolve_split
+from zebra_sim_ros.detection.data import YoloDataset, collate, resolve_split
 from zebra_sim_ros.detection.metrics import DetectionMetrics, evaluate_detections
 from zebra_sim_ros.detection.model import Detector
 from zebra_sim_ros.detection.predict import unletterbox
@@ -43,7 +43,7 @@ def run(model: Detector, loader: DataLoader[Any], conf: float = 0.001, iou: floa
             left, top = meta["pad"]
             d = unletterbox(det, meta["scale"], left, top, w, h).cpu().numpy()
             preds.append(d[:, :5].astype(np.float64))
-            gts.append(read_labels(label_path(Path(meta["file"])), w, h)[:, 1:].astype(np.float64))
+            gts.append(meta["labels"][:, 1:].astype(np.float64))  # in the image's own pixels, read once
     if was_training:
         model.train()
     return evaluate_detections(preds, gts, max_det)

@@ -86,15 +86,17 @@ class EMA:
         for p in self.ema.parameters():
             p.requires_grad_(False)
         self.decay, self.tau, self.updates = decay, tau, updates
+        self._pairs: list[tuple[torch.Tensor, torch.Tensor]] | None = None
 
     @torch.no_grad()
     def update(self, model: nn.Module) -> None:
         self.updates += 1
         d = self.decay * (1 - math.exp(-self.updates / self.tau))
-        msd = model.state_dict()
-        for k, v in self.ema.state_dict().items():
-            if v.dtype.is_floating_point:
-                v.mul_(d).add_(msd[k].detach(), alpha=1 - d)
+        if self._pairs is None:  # the tensors stay the same objects (loading a state dict copies into them)
+            msd = model.state_dict()
+            self._pairs = [(v, msd[k]) for k, v in self.ema.state_dict().items() if v.dtype.is_floating_point]
+        for e, m in self._pairs:
+            e.mul_(d).add_(m.detach(), alpha=1 - d)
 
 
 def _is_main() -> bool:
