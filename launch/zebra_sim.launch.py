@@ -42,16 +42,13 @@ def generate_launch_description():
     def file(name):
         return os.path.join(config, name)
 
-    nodes = [
-        Node(package=PACKAGE, executable="camera", name="camera", namespace="drone_0", output="screen",
-             parameters=[file("camera.yaml"), {"drone_index": 0, "width": arg("width", int),
-                                               "height": arg("height", int), "ack": False}]),
-        Node(package=PACKAGE, executable="camera", name="camera", namespace="drone_1", output="screen",
-             parameters=[file("camera.yaml"), {"drone_index": 1, "width": arg("width", int),
-                                               "height": arg("height", int), "ack": False}]),
-        Node(package=PACKAGE, executable="camera", name="camera", namespace="drone_2", output="screen",
-             parameters=[file("camera.yaml"), {"drone_index": 2, "width": arg("width", int),
-                                               "height": arg("height", int), "ack": False}]),
+    cameras = [
+        Node(package=PACKAGE, executable="camera", name="camera", namespace=f"drone_{i}", output="screen",
+             parameters=[file("camera.yaml"), {"drone_index": i, "width": arg("width", int),
+                                               "height": arg("height", int), "ack": False}])
+        for i in range(3)
+    ]
+    nodes = cameras + [
         Node(package=PACKAGE, executable="labeller", name="labeller", namespace="", output="screen",
              parameters=[file("labeller.yaml"), {"ack_name": "labeller"}]),
         Node(package=PACKAGE, executable="detector", name="detector", namespace="", output="screen",
