@@ -32,6 +32,8 @@ def register(sub: Any) -> None:
     e.add_argument("--weights", default=None,
                    help="run this detector over the recorded /<drone>/image_raw instead of using recorded detections")
     e.add_argument("--device", default="auto", help="auto, cpu or cuda (with --weights)")
+    e.add_argument("--imgsz", type=int, default=None,
+                   help="with --weights: inference size, px (default: the checkpoint's; -1: each frame's long side)")
     add_json_flag(e)
     e.set_defaults(func=cmd_eval)
 
@@ -69,7 +71,11 @@ def cmd_eval(args: argparse.Namespace) -> Summary:
     """Score recorded detections against recorded labels."""
     from zebra_sim_ros.recording.evaluate import ImageDetector, collect, score
 
-    detector = ImageDetector(args.weights, args.device) if args.weights else None
+    if args.imgsz is not None and args.imgsz != -1:
+        from zebra_sim_ros.detection.checkpoint import check_imgsz
+
+        check_imgsz("--imgsz", args.imgsz)
+    detector = ImageDetector(args.weights, args.device, imgsz=args.imgsz) if args.weights else None
     collected = collect(args.bag, args.detections, each=detector)  # one pass, with or without a detector
     if detector is not None:
         collected = detector.apply(collected)

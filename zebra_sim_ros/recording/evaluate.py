@@ -150,11 +150,12 @@ class ImageDetector:
 
     TOPIC = re.compile(r"^/(?P<drone>[^/]+)/image_raw$")
 
-    def __init__(self, weights: str | Path | None, device: str = "auto", batch: int = 8, conf: float = 0.001) -> None:
+    def __init__(self, weights: str | Path | None, device: str = "auto", batch: int = 8, conf: float = 0.001,
+                 imgsz: int | None = None) -> None:
         from zebra_sim_ros.detection.checkpoint import load_model, select_device
 
         self.model, _ = load_model(weights, select_device(device))
-        self.batch, self.conf = batch, conf
+        self.batch, self.conf, self.imgsz = batch, conf, imgsz  # imgsz: None = the checkpoint's, -1 = native
         self.detections: dict[str, dict[int, np.ndarray]] = defaultdict(dict)
         self.skipped: list[str] = []
         self._pending: list[tuple[str, int, np.ndarray]] = []
@@ -180,7 +181,7 @@ class ImageDetector:
 
         if not self._pending:
             return
-        dets = detect(self.model, [p[2] for p in self._pending], conf=self.conf, max_det=100)
+        dets = detect(self.model, [p[2] for p in self._pending], self.imgsz, conf=self.conf, max_det=100)
         for (drone, t, _), det in zip(self._pending, dets, strict=True):
             self.detections[drone][t] = det[:, :5].astype(np.float64)
         self._pending.clear()
