@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 from mcap.reader import make_reader
 from rclpy.serialization import serialize_message
@@ -201,6 +202,12 @@ def test_eval_by_running_a_detector_over_recorded_images(tmp_path: Path) -> None
     assert "not rgb8 or bgr8" in collected["skipped"][0] and "log time 4 ns" in collected["skipped"][1]
     s = score(collected)
     assert s["drone_0"]["frames"] == 3 and 0.0 <= s["drone_0"]["mAP50"] <= 1.0
+    # --imgsz: the 128x72 frames at their own size (-1) are the checkpoint's 128 too; 256 differs.
+    at = {size: ImageDetector(tmp_path / "w.pt", device="cpu", imgsz=size) for size in (-1, 256)}
+    got = {size: d.apply(collect(tmp_path / "i.mcap", each=d))["drones"]["drone_0"]["detections"][0]
+           for size, d in at.items()}
+    assert np.array_equal(got[-1], collected["drones"]["drone_0"]["detections"][0])
+    assert not np.array_equal(got[256], got[-1])
 
 
 def test_cdr_image_reader_matches_rclpy() -> None:
