@@ -29,7 +29,7 @@ from zebra_sim_ros.recording.evaluate import (
 )
 from zebra_sim_ros.recording.reader import BagMessage
 
-_DRONE_TOPIC = re.compile(r"^/(?P<drone>drone_\d+)/(?P<kind>image_raw|labels|detections)$")
+_IMAGE_TOPIC = re.compile(r"^/(?P<drone>drone_\d+)/image_raw$")
 
 
 def _median_ms(values: list[float]) -> float | None:
@@ -44,30 +44,22 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[st
 
     unusable: list[str] = []  # scenes and images that do not parse (collect notes bad labels and detections)
 
-    def visit(m: BagMessage) -> None:
+    def visit(m: BagMessage) -> None:  # scenes and images; collect itself parses labels and detections
+        match = _IMAGE_TOPIC.match(m.topic)
         try:
-            _visit(m)
+            if m.topic == "/zebra_sim/scene":
+                scenes[json_stamp_ns(json.loads(cdr_string(m.data)))] = m.log_time
+            elif match:
+                drone, t = match.group("drone"), header_stamp_ns(m.data)
+                if t >= latest.get(drone, (-1, b""))[0]:
+                    latest[drone] = (t, m.data)
+                times[drone]["image_raw"].setdefault(t, m.log_time)
         except MALFORMED as exc:
-            if m.topic == "/zebra_sim/scene" or m.topic.endswith("/image_raw"):
-                unusable.append(skip_note(m, exc))
-
-    def _visit(m: BagMessage) -> None:
-        if m.topic == "/zebra_sim/scene":
-            scenes[json_stamp_ns(json.loads(cdr_string(m.data)))] = m.log_time
-            return
-        match = _DRONE_TOPIC.match(m.topic)
-        if not match:
-            return
-        drone, kind = match.group("drone"), match.group("kind")
-        if kind == "image_raw":
-            t = header_stamp_ns(m.data)
-            if t >= latest.get(drone, (-1, b""))[0]:
-                latest[drone] = (t, m.data)
-        else:
-            t = json_stamp_ns(json.loads(cdr_string(m.data)))
-        times[drone][kind].setdefault(t, m.log_time)
+            unusable.append(skip_note(m, exc))
 
     collected = collect(bag, each=visit)  # one pass over the bag for the scores and the timings
+    for drone, d in collected["drones"].items():
+        times[drone].update(d["log_times"])
     drones = sorted(times)
     frames = {d: {k: len(times[d][k]) for k in ("image_raw", "labels", "detections")} for d in drones}
     render, label, detect, e2e = [], [], [], []

@@ -115,13 +115,15 @@ def skip_note(m: BagMessage, why: str | BaseException) -> str:
 
 def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "detections",
             each: Callable[[BagMessage], None] | None = None) -> dict[str, Any]:
-    """Per drone: ``{"labels": {stamp: gt boxes (n, 4)}, "detections": {stamp: (m, 5)}}`` from a bag; ``each``
-    sees every message of the same pass (so callers needing more from the bag do not read it twice).
+    """Per drone: ``{"labels": {stamp: gt boxes (n, 4)}, "detections": {stamp: (m, 5)}, "log_times": {"labels":
+    {stamp: first log time}, "detections": {...}}}`` from a bag; ``each`` sees every message of the same pass (so
+    callers needing more from the bag do not read it twice).
 
     A labels or detections message that does not parse is skipped and noted in ``"skipped"``; damage to the
     file itself is in ``"damaged"``."""
     reader = BagReader.open(paths)
-    out: dict[str, dict[str, dict[int, np.ndarray]]] = defaultdict(lambda: {"labels": {}, "detections": {}})
+    out: dict[str, dict[str, Any]] = defaultdict(
+        lambda: {"labels": {}, "detections": {}, "log_times": {"labels": {}, "detections": {}}})
     skipped: list[str] = []
     pat = re.compile(rf"^/(?P<drone>[^/]+)/(?P<kind>labels|{re.escape(detections_suffix)})$")
     for m in reader.messages():
@@ -133,12 +135,15 @@ def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "dete
         drone = match.group("drone")
         try:
             d = json.loads(cdr_string(m.data))
+            t = json_stamp_ns(d)
             if match.group("kind") == "labels":
-                boxes = [z["box_visible"] for z in d["zebras"] if z["kept"]]
-                out[drone]["labels"][json_stamp_ns(d)] = np.array(boxes, dtype=np.float64).reshape(-1, 4)
+                kind, rows = "labels", np.array([z["box_visible"] for z in d["zebras"] if z["kept"]], np.float64)
+                out[drone][kind][t] = rows.reshape(-1, 4)
             else:
-                dets = [[*x["box_xyxy"], x["score"]] for x in d["detections"]]
-                out[drone]["detections"][json_stamp_ns(d)] = np.array(dets, dtype=np.float64).reshape(-1, 5)
+                kind, rows = "detections", np.array([[*x["box_xyxy"], x["score"]] for x in d["detections"]],
+                                                    np.float64)
+                out[drone][kind][t] = rows.reshape(-1, 5)
+            out[drone]["log_times"][kind].setdefault(t, m.log_time)
         except MALFORMED as exc:
             skipped.append(skip_note(m, exc))
     return {"drones": dict(out), "damaged": reader.stopped, "skipped": skipped}
@@ -193,7 +198,8 @@ class ImageDetector:
         for d in collected["drones"].values():
             d["detections"] = {}
         for drone, dets in self.detections.items():
-            collected["drones"].setdefault(drone, {"labels": {}, "detections": {}})["detections"] = dict(dets)
+            collected["drones"].setdefault(drone, {"labels": {}, "detections": {}, "log_times": {
+                "labels": {}, "detections": {}}})["detections"] = dict(dets)
         collected["skipped"] = collected.get("skipped", []) + self.skipped
         return collected
 
