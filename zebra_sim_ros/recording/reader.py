@@ -14,6 +14,7 @@ from typing import IO, Any
 
 from mcap.records import Channel, Chunk, McapRecord, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.summary import Summary
 from mcap.writer import CompressionType, Writer
 
 from zebra_sim_ros.errors import ParameterError
@@ -60,15 +61,9 @@ class BagReader:
     def channel_list(self) -> list[tuple[str, str, dict[str, str]]]:
         """(topic, ``pkg/msg/Type``, channel metadata) of every channel in the files' summaries, without reading
         the messages; files without a readable summary (cut, still being written) contribute nothing."""
-        from mcap.reader import make_reader
-
         out: dict[str, tuple[str, str, dict[str, str]]] = {}
         for path in self.paths:
-            try:
-                with open(path, "rb") as f:
-                    summary = make_reader(f).get_summary()
-            except Exception:  # noqa: BLE001 - a damaged file simply has no usable summary
-                continue
+            summary = file_summary(path)
             if summary is None:
                 continue
             for ch in summary.channels.values():
@@ -118,6 +113,17 @@ class BagReader:
             yield from inner
 
 
+def file_summary(path: Path) -> Summary | None:
+    """The summary section of one MCAP file, or None when it has none that reads (cut short, being written)."""
+    from mcap.reader import make_reader
+
+    try:
+        with open(path, "rb") as f:
+            return make_reader(f).get_summary()
+    except Exception:  # noqa: BLE001 - a damaged file simply has no usable summary
+        return None
+
+
 def summarize(paths: list[str | Path] | str | Path, full: bool = False) -> dict[str, Any]:
     """``ros2 bag info``: files, size, duration, start and end, message count and type per topic.
 
@@ -125,21 +131,13 @@ def summarize(paths: list[str | Path] | str | Path, full: bool = False) -> dict[
     single chunk. A file without a readable summary (cut short, still being written) is read message by message
     instead, and so is every file with ``full``: that also checks every chunk's CRC (damage goes to ``damaged``)
     and adds the bytes per topic (``bytes`` is None otherwise). ``read`` lists the files that were read."""
-    from mcap.reader import make_reader
-
     reader = BagReader.open(paths)
     topics: dict[str, dict[str, Any]] = {}
     times: list[int] = []
     n = 0
     scan: list[Path] = []
     for path in reader.paths:
-        summary = None
-        if not full:
-            try:
-                with open(path, "rb") as f:
-                    summary = make_reader(f).get_summary()
-            except Exception:  # noqa: BLE001 - a damaged file has no usable summary: read it instead
-                summary = None
+        summary = None if full else file_summary(path)
         if summary is None or summary.statistics is None:
             scan.append(path)
             continue
