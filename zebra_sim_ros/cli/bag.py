@@ -71,10 +71,10 @@ def cmd_eval(args: argparse.Namespace) -> Summary:
     """Score recorded detections against recorded labels."""
     from zebra_sim_ros.recording.evaluate import ImageDetector, collect, score
 
-    if args.imgsz is not None and args.imgsz != -1:
+    if args.weights:
         from zebra_sim_ros.detection.checkpoint import check_imgsz
 
-        check_imgsz("--imgsz", args.imgsz)
+        check_imgsz("--imgsz", args.imgsz, native=True)
     detector = ImageDetector(args.weights, args.device, imgsz=args.imgsz) if args.weights else None
     collected = collect(args.bag, args.detections, each=detector)  # one pass, with or without a detector
     if detector is not None:

@@ -12,6 +12,7 @@ from typing import Any
 
 import torch
 
+from zebra_sim_ros.detection.config import imgsz_ok
 from zebra_sim_ros.detection.model import Detector, build_model
 from zebra_sim_ros.errors import AssetError, ParameterError
 
@@ -70,10 +71,11 @@ def serving_layout(model: Detector) -> Detector:
     return model.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
 
 
-def check_imgsz(name: str, value: int | None) -> None:
-    """Raise :class:`ParameterError` unless ``value`` is None (the checkpoint's) or a multiple of 32 in 64..4096."""
-    if value is not None and (value % 32 or not 64 <= value <= 4096):
-        raise ParameterError(name, value, "a multiple of 32 in 64..4096")
+def check_imgsz(name: str, value: int | None, native: bool = False) -> None:
+    """Raise :class:`ParameterError` unless ``value`` is None (the checkpoint's), a multiple of 32 in 64..4096,
+    or, with ``native``, -1 (each frame's own size)."""
+    if value is not None and not imgsz_ok(value, native):
+        raise ParameterError(name, value, ("-1 or " if native else "") + "a multiple of 32 in 64..4096")
 
 
 def select_device(name: str = "auto") -> torch.device:

@@ -7,6 +7,16 @@ from typing import Any
 
 from zebra_sim_ros.params import ParamSpec, in_range, one_of, validate
 
+NATIVE = -1  # as imgsz: each batch at its frames' own resolution (predict.native_size)
+
+
+def imgsz_ok(value: object, native: bool = False) -> bool:
+    """An inference or training size: a multiple of 32 (the largest stride) in 64..4096, or, where ``native``
+    is allowed, :data:`NATIVE`."""
+    return isinstance(value, int) and not isinstance(value, bool) and (
+        (native and value == NATIVE) or (64 <= value <= 4096 and value % 32 == 0))
+
+
 DETECTOR_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("image_topics", ["/drone_0/image_raw", "/drone_1/image_raw", "/drone_2/image_raw"],
               "sensor_msgs/Image topics to detect on; outputs go beside each (…/detections)",
@@ -17,7 +27,7 @@ DETECTOR_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("iou", 0.7, "NMS IoU threshold", "0..1", in_range(0.0, 1.0)),
     ParamSpec("imgsz", 0, "inference size, px (0: the checkpoint's; -1: each frame's long side, rounded up to a "
               "multiple of 32)", "-1, 0 or a multiple of 32 in 64..4096",
-              lambda v: isinstance(v, int) and (v in (-1, 0) or (64 <= v <= 4096 and v % 32 == 0))),
+              lambda v: v == 0 or imgsz_ok(v, native=True)),
     ParamSpec("device", "auto", "auto, cpu, cuda or cuda:N", "auto, cpu, cuda, cuda:N",
               lambda v: isinstance(v, str) and (v in ("auto", "cpu") or v.startswith("cuda"))),
     ParamSpec("max_det", 300, "most detections per image", "1..10000", in_range(1, 10000)),

@@ -9,11 +9,11 @@ import torch
 from numpy.typing import NDArray
 
 from zebra_sim_ros.detection.boxes import postprocess
+from zebra_sim_ros.detection.config import NATIVE
 from zebra_sim_ros.detection.data import letterbox, letterbox_size
 from zebra_sim_ros.detection.model import Detector
 
 STRIDE = 32  # the largest stride of the model: input sides must be multiples of it
-NATIVE = -1  # as imgsz: each batch at its own resolution (see native_size)
 
 
 def native_size(images: Sequence[NDArray[np.uint8]]) -> int:

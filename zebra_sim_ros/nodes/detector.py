@@ -29,9 +29,9 @@ from std_msgs.msg import ColorRGBA, String
 from visualization_msgs.msg import ImageMarker
 
 from zebra_sim_ros.detection.checkpoint import load_model, select_device
-from zebra_sim_ros.detection.config import DETECTOR_PARAMS, DetectorConfig, output_base
+from zebra_sim_ros.detection.config import DETECTOR_PARAMS, NATIVE, DetectorConfig, output_base
 from zebra_sim_ros.detection.draw import draw_boxes
-from zebra_sim_ros.detection.predict import NATIVE, detect
+from zebra_sim_ros.detection.predict import detect
 from zebra_sim_ros.nodes.ros_adapter import (
     StepAcks,
     box_marker,

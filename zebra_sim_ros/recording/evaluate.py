@@ -113,6 +113,11 @@ def skip_note(m: BagMessage, why: str | BaseException) -> str:
     return f"{m.topic} at log time {m.log_time} ns: {reason}"
 
 
+def _no_frames() -> dict[str, Any]:
+    """One drone's entry in :func:`collect`'s ``drones`` before any of its messages."""
+    return {"labels": {}, "detections": {}, "log_times": {"labels": {}, "detections": {}}}
+
+
 def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "detections",
             each: Callable[[BagMessage], None] | None = None) -> dict[str, Any]:
     """Per drone: ``{"labels": {stamp: gt boxes (n, 4)}, "detections": {stamp: (m, 5)}, "log_times": {"labels":
@@ -122,8 +127,7 @@ def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "dete
     A labels or detections message that does not parse is skipped and noted in ``"skipped"``; damage to the
     file itself is in ``"damaged"``."""
     reader = BagReader.open(paths)
-    out: dict[str, dict[str, Any]] = defaultdict(
-        lambda: {"labels": {}, "detections": {}, "log_times": {"labels": {}, "detections": {}}})
+    out: dict[str, dict[str, Any]] = defaultdict(_no_frames)
     skipped: list[str] = []
     pat = re.compile(rf"^/(?P<drone>[^/]+)/(?P<kind>labels|{re.escape(detections_suffix)})$")
     for m in reader.messages():
@@ -198,8 +202,7 @@ class ImageDetector:
         for d in collected["drones"].values():
             d["detections"] = {}
         for drone, dets in self.detections.items():
-            collected["drones"].setdefault(drone, {"labels": {}, "detections": {}, "log_times": {
-                "labels": {}, "detections": {}}})["detections"] = dict(dets)
+            collected["drones"].setdefault(drone, _no_frames())["detections"] = dict(dets)
         collected["skipped"] = collected.get("skipped", []) + self.skipped
         return collected
 
