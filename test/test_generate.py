@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import argparse
 import json
+import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -117,3 +119,26 @@ def test_cli_summary_and_bad_arguments(tmp_path: Path) -> None:
                                                                             "--shard")):
         bad = subprocess.run(base + args + ["--out", str(tmp_path / "d")], capture_output=True, text=True, timeout=60)
         assert bad.returncode == 2 and needle in bad.stderr, (args, bad.stderr)
+
+
+def test_regenerate_command_reproduces_the_frames_scene(dataset: Path) -> None:
+    # The fixture overrides a placer parameter (count_max): the command must carry it, or the herd and with it the
+    # cameras differ.
+    from zebra_sim_ros.cli import build_parser
+    from zebra_sim_ros.cli.place import placer_values
+    from zebra_sim_ros.placement.config import PlacerConfig
+    from zebra_sim_ros.placement.placer import Placer
+    from zebra_sim_ros.world.world import load_world
+    from zebra_sim_ros.zebra.asset import load_library
+
+    for path in sorted((dataset / "annotations").glob("*_drone_1.json"))[:2]:
+        meta = json.loads(path.read_text())
+        assert "--set count_max=60" in meta["regenerate"]
+        args = build_parser().parse_args(shlex.split(meta["regenerate"])[1:] + ["--out", "unused"])
+        values = {**placer_values(argparse.Namespace(**{**vars(args), "start_step": None})),
+                  "camera_width": args.width, "camera_height": args.height, "camera_hfov_deg": args.hfov}
+        cfg = PlacerConfig.from_params(values)
+        scene = Placer(cfg, load_world(cfg.world), load_library()).scene(args.step).to_dict()
+        assert scene["lighting"] == meta["lighting"]
+        cam = next(c for c in scene["cameras"] if c["name"] == "drone_1")
+        assert cam["position"] == pytest.approx(meta["camera"]["position"])

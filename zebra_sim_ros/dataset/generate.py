@@ -27,6 +27,7 @@ import io
 import json
 import multiprocessing as mp
 import os
+import shlex
 import sys
 import time
 import zlib
@@ -169,6 +170,14 @@ class _Pipeline:
         self.placers = {}
         self.world_name = name
 
+    @property
+    def set_args(self) -> str:
+        """The placer overrides (and a non-default world seed) as ``render`` options, so a frame's
+        ``regenerate`` command reproduces it alone."""
+        over = {**self.cfg.placer, **({"world_seed": self.cfg.world_seed} if self.cfg.world_seed else {})}
+        return "".join(f" --set {shlex.quote(f'{k}={v if isinstance(v, str) else json.dumps(v)}')}"
+                       for k, v in sorted(over.items()))
+
     def placer(self, job: Job) -> Any:
         from zebra_sim_ros.placement.config import PlacerConfig
         from zebra_sim_ros.placement.placer import Placer
@@ -233,7 +242,7 @@ class _Pipeline:
                     "asset_digest": scene["asset_digest"], "lighting": scene["lighting"], "camera": cam,
                     "regenerate": f"zebra-sim render --seed {job.seed} --step {job.step} --world {job.world} "
                                   f"--strategy {job.strategy} --width {c.width} --height {c.height} "
-                                  f"--hfov {c.hfov_deg}",
+                                  f"--hfov {c.hfov_deg}{self.set_args}",
                     "labels": labels}
             _write_atomic(self.out / "annotations" / f"{name}.json",
                           json.dumps(meta, sort_keys=True, separators=(",", ":")).encode())
