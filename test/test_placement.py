@@ -13,7 +13,7 @@ from zebra_sim_ros.placement.config import PlacerConfig
 from zebra_sim_ros.placement.herd import HerdPlacer, make_pool
 from zebra_sim_ros.placement.placer import Placer
 from zebra_sim_ros.placement.scene import parse_scene
-from zebra_sim_ros.placement.sun import lighting_for, sample_time_of_day
+from zebra_sim_ros.placement.sun import daylight_h, lighting_for, sample_time_and_day
 from zebra_sim_ros.world.world import World, generate_world
 from zebra_sim_ros.zebra.animation import STANDING_CLIPS
 from zebra_sim_ros.zebra.asset import ZebraLibrary
@@ -78,12 +78,38 @@ def test_pool_mixes_morphs_by_weight() -> None:
 
 def test_time_of_day_split_90_10() -> None:
     rng = np.random.default_rng(5)
-    h = np.array([sample_time_of_day(rng) for _ in range(20000)])
+    h = np.array([sample_time_and_day(rng, 0.1, "clock")[0] for _ in range(20000)])
     day = (h >= 5) & (h < 20)
     assert abs(day.mean() - 0.9) < 0.01
     _uniform_ok(h[day], 5, 20)
     night = np.where(h[~day] < 5, h[~day] + 24, h[~day])
     _uniform_ok(night, 20, 29)
+
+
+def test_sun_day_window_puts_the_papers_ninety_percent_in_daylight() -> None:
+    # The paper's 5..20 h gave "good lighting" in its simulator; with a real sun at -2.3 degrees the clock window
+    # leaves 5-6 h and 18-20 h dark. The sun window keeps the 90/10 split of daylight and dusk-to-night frames.
+    def draws(window: str, lat: float = -2.3) -> list[tuple[float, int]]:
+        rng = np.random.default_rng(11)
+        return [sample_time_and_day(rng, 0.1, window, latitude_deg=lat) for _ in range(20000)]
+
+    def dark(d: list[tuple[float, int]], lat: float = -2.3) -> float:
+        return float(np.mean([lighting_for(t, doy, lat).is_night for t, doy in d]))
+
+    sun, clock = draws("sun"), draws("clock")
+    assert abs(dark(sun) - 0.1) < 0.01
+    assert dark(clock) > 0.2  # what the literal clock window gives at the equator (about 28%)
+    assert [doy for _, doy in sun] == [doy for _, doy in clock]  # same draws, only the hour differs
+    north = draws("sun", 60.0)  # long summer days, long winter nights: still 90% daylight
+    assert abs(dark(north, 60.0) - 0.1) < 0.01
+    rise, set_ = daylight_h(172, 60.0)
+    assert set_ - rise > 18 and lighting_for(rise + 0.05, 172, 60.0).sun_elevation_deg > 0 > \
+        lighting_for(rise - 0.05, 172, 60.0).sun_elevation_deg
+    assert daylight_h(172, 80.0) == (0.0, 24.0) and daylight_h(355, 80.0) == (12.0, 12.0)  # midnight sun, polar night
+    rng = np.random.default_rng(0)
+    assert all(0 <= sample_time_and_day(rng, 0.1, "sun", latitude_deg=80.0)[0] < 24 for _ in range(300))
+    with pytest.raises(ParameterError, match="day_window"):
+        sample_time_and_day(rng, 0.1, "noon")
 
 
 def test_lighting_follows_the_sun() -> None:

@@ -14,6 +14,7 @@ from typing import Any
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.params import ParamSpec, in_range, one_of, validate
+from zebra_sim_ros.placement.sun import DAY_WINDOWS
 
 _MORPHS = ("plains", "grevy", "foal")
 
@@ -70,8 +71,12 @@ PLACER_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("camera_height", 720, "image height, px", "16..16384", in_range(16, 16384)),
     ParamSpec("camera_hfov_deg", 80.0, "horizontal field of view, deg", "20..150", in_range(20.0, 150.0)),
     ParamSpec("night_fraction", 0.1, "share of frames outside the day window", "0..1", in_range(0.0, 1.0)),
-    ParamSpec("day_start_h", 5.0, "start of the day window, h", "0..24", in_range(0.0, 24.0)),
-    ParamSpec("day_end_h", 20.0, "end of the day window, h", "day_start_h..24", in_range(0.0, 24.0)),
+    ParamSpec("day_window", "sun", "the day window: sun = each frame's sunrise..sunset at latitude_deg (the "
+              "paper's 90% of frames in good light); clock = day_start_h..day_end_h literally", "sun or clock",
+              one_of(*DAY_WINDOWS)),
+    ParamSpec("day_start_h", 5.0, "start of the day window with day_window clock, h", "0..24", in_range(0.0, 24.0)),
+    ParamSpec("day_end_h", 20.0, "end of the day window with day_window clock, h", "day_start_h..24",
+              in_range(0.0, 24.0)),
     ParamSpec("latitude_deg", -2.3, "latitude for the sun's path (Serengeti: -2.3)", "-90..90", in_range(-90.0, 90.0)),
     ParamSpec("mode", "rate", "rate: publish at rate_hz; lockstep: next step when every acker acknowledged",
               "rate or lockstep", one_of("rate", "lockstep")),
@@ -130,6 +135,7 @@ class PlacerConfig:
     camera_height: int = 720
     camera_hfov_deg: float = 80.0
     night_fraction: float = 0.1
+    day_window: str = "sun"
     day_start_h: float = 5.0
     day_end_h: float = 20.0
     latitude_deg: float = -2.3

@@ -15,7 +15,7 @@ from zebra_sim_ros.placement.cameras import CameraRanges, sample_cameras
 from zebra_sim_ros.placement.config import PlacerConfig
 from zebra_sim_ros.placement.herd import Herd, HerdPlacer, PlacementError, make_pool
 from zebra_sim_ros.placement.scene import Scene
-from zebra_sim_ros.placement.sun import lighting_for, sample_time_of_day
+from zebra_sim_ros.placement.sun import lighting_for, sample_time_and_day
 from zebra_sim_ros.world.world import World
 from zebra_sim_ros.zebra.asset import ZebraLibrary
 
@@ -77,8 +77,8 @@ class Placer:
         placement, reroll = divmod(step, c.camera_rerolls)
         herd = self.herd_for(placement)
         rng = np.random.default_rng([c.seed, placement, reroll + 1])
-        tod = sample_time_of_day(rng, c.night_fraction, c.day_start_h, c.day_end_h)
-        doy = int(rng.integers(1, 366))
+        tod, doy = sample_time_and_day(rng, c.night_fraction, c.day_window, c.day_start_h, c.day_end_h,
+                                       c.latitude_deg)
         strategy = c.strategy if c.strategy != "mixed" else ("far" if rng.uniform() < 0.5 else "closeby")
         cams = sample_cameras(rng, herd.position, strategy, self.camera_names, self.ranges, self.world.terrain,
                               self.camera)
