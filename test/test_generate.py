@@ -15,7 +15,7 @@ import pytest
 import yaml
 from pycocotools.coco import COCO
 
-from zebra_sim_ros.dataset.generate import GenerateConfig, Job, frame_name, generate, plan
+from zebra_sim_ros.dataset.generate import GenerateConfig, Job, frame_name, generate, plan, stream_seed
 
 SMALL = {"frames": 12, "strategy": "both", "worlds": ("savanna",), "seed": 5, "width": 320, "height": 180,
          "placer": {"count_max": 60}}
@@ -103,6 +103,25 @@ def test_shards_partition_the_steps() -> None:
              for i in range(3)]
     assert set().union(*parts) == full and sum(len(p) for p in parts) == len(full)
     assert frame_name(Job("savanna", "far", 0, 7), "drone_2") == "savanna_far_0_000007_drone_2"
+
+
+def test_every_world_and_strategy_draws_its_own_stream() -> None:
+    # With one seed for every world, step k of each world had the same time of day, herd size and camera jitter:
+    # seven worlds held a seventh of the lighting they seemed to.
+    from zebra_sim_ros.placement.config import PlacerConfig
+    from zebra_sim_ros.placement.sun import sample_time_and_day
+
+    worlds = ("savanna", "grassland", "meadow", "woodland", "moorland", "snowy_highland", "scrubland", "farmland")
+    jobs = plan(GenerateConfig(out="x", frames=8 * 2 * 3 * 2, worlds=worlds), 3)
+    seeds = {(j.world, j.strategy): j.seed for j in jobs}
+    assert len(seeds) == 16 and len(set(seeds.values())) == 16
+    assert all(seeds[(w, "closeby")] == stream_seed(0, w, 1) for w in worlds)
+    alone = plan(GenerateConfig(out="x", frames=2 * 3 * 2, worlds=("meadow",)), 3)
+    assert {j.seed for j in alone} == {seeds[("meadow", "far")], seeds[("meadow", "closeby")]}  # others don't matter
+    c = PlacerConfig()
+    hours = {round(sample_time_and_day(np.random.default_rng([s, 0, 1]), c.night_fraction)[0], 6)
+             for s in seeds.values()}
+    assert len(hours) == 16  # the placer's first draw of step 0 (its time of day) differs in every stream
 
 
 def test_cli_summary_and_bad_arguments(tmp_path: Path) -> None:

@@ -22,7 +22,8 @@ def register(sub: Any) -> None:
     p.add_argument("--strategy", default="both",
                    help="far, closeby, both (half each), or the paper's sets SF (= both) and SC (= closeby)")
     p.add_argument("--worlds", default="savanna", help="comma-separated world presets or USD paths, or 'all'")
-    p.add_argument("--seed", type=int, default=0, help="seed of the placements (closeby uses seed + 1000003)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the run; each world and strategy draws its own stream from it (in the frame names)")
     p.add_argument("--world-seed", type=int, default=0, help="seed of the procedural worlds")
     p.add_argument("--out", type=Path, required=True, help="output folder (reruns continue in it)")
     p.add_argument("--workers", type=int, default=1, help="worker processes (each renders on its own)")
