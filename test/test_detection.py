@@ -202,9 +202,24 @@ def test_native_size_detects_each_batch_at_its_own_resolution() -> None:
 @pytest.mark.parametrize(("setting", "named"), [({"imgsz": 100}, "'--imgsz'"), ({"val_every": 0}, "'--val-every'"),
                                                 ({"workers": -1}, "'--workers'"), ({"lr0": 0.0}, "'--lr0'"),
                                                 ({"max_train_images": -1}, "'--max-train-images'"),
-                                                ({"close_mosaic": -2}, "'--close-mosaic'")])
+                                                ({"close_mosaic": -2}, "'--close-mosaic'"),
+                                                ({"amp": "fp8"}, "'--amp'")])
 def test_train_settings_are_checked_before_training(setting: dict[str, object], named: str) -> None:
     from zebra_sim_ros.detection.train import TrainConfig
 
     with pytest.raises(ParameterError, match=named):
         TrainConfig(data="d.yaml", out="o", **setting).check()  # type: ignore[arg-type]
+
+
+def test_autocast_dtype_follows_the_device(monkeypatch: pytest.MonkeyPatch) -> None:
+    from zebra_sim_ros.detection.train import amp_dtype
+
+    cpu, cuda = torch.device("cpu"), torch.device("cuda")
+    assert amp_dtype("auto", cuda) == torch.float16 and amp_dtype("off", cuda) is None
+    assert amp_dtype("bf16", cpu) == torch.bfloat16 and amp_dtype("off", cpu) is None
+    with pytest.raises(ParameterError, match="'--amp'"):
+        amp_dtype("fp16", cpu)
+    for bf16, amx, want in ((True, False, torch.bfloat16), (False, True, torch.bfloat16), (False, False, None)):
+        monkeypatch.setattr(torch.cpu, "_is_avx512_bf16_supported", lambda v=bf16: v)
+        monkeypatch.setattr(torch.cpu, "_is_amx_tile_supported", lambda v=amx: v)
+        assert amp_dtype("auto", cpu) == want  # emulated bfloat16 is slower than float32: not chosen

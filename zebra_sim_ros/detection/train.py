@@ -33,6 +33,27 @@ from zebra_sim_ros.detection.loss import DetectionLoss
 from zebra_sim_ros.detection.model import Detector, ModelConfig, build_model, count_parameters
 from zebra_sim_ros.errors import ParameterError
 
+AMP_MODES = ("auto", "fp16", "bf16", "off")
+
+
+def amp_dtype(mode: str, device: torch.device) -> torch.dtype | None:
+    """The autocast dtype of the forward pass, or None for float32.
+
+    auto: float16 on CUDA (with a gradient scaler); on a CPU with bfloat16 instructions (AVX512-BF16 or AMX),
+    bfloat16, which trains 2x faster than float32 on our 2-core EPYC; elsewhere float32 (emulated bfloat16 is
+    slower). The loss is always computed in float32.
+    """
+    if mode == "off":
+        return None
+    if mode == "auto":
+        if device.type == "cuda":
+            return torch.float16
+        fast_bf16 = torch.cpu._is_avx512_bf16_supported() or torch.cpu._is_amx_tile_supported()
+        return torch.bfloat16 if device.type == "cpu" and fast_bf16 else None
+    if mode == "fp16" and device.type != "cuda":
+        raise ParameterError("--amp", mode, "bf16 or off on a CPU (float16 autocast wants CUDA)")
+    return torch.float16 if mode == "fp16" else torch.bfloat16
+
 
 @dataclass(frozen=True)
 class TrainConfig:
@@ -58,6 +79,7 @@ class TrainConfig:
     augment: bool = True  # False: letterbox only (for overfitting tests and debugging)
     resume: bool = False
     init: str = ""  # start from this checkpoint's (EMA) weights with a fresh schedule; "" = random init
+    amp: str = "auto"  # mixed precision of the forward pass: auto, fp16 (CUDA), bf16, off (see amp_dtype)
 
     def check(self) -> None:
         """Raise :class:`ParameterError` naming the first bad setting."""
@@ -74,6 +96,8 @@ class TrainConfig:
                                          ("--lr0", self.lr0, 0 < self.lr0 <= 1, "0 < lr0 <= 1")):
             if not ok:
                 raise ParameterError(name, value, allowed)
+        if self.amp not in AMP_MODES:
+            raise ParameterError("--amp", self.amp, " or ".join(AMP_MODES))
         if self.init and self.resume:
             raise ParameterError("--init", self.init, "empty when --resume is given (resume continues its own run)")
 
@@ -159,14 +183,16 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
     # the dataset's new epoch (augmentation seeds) and, for the last epochs, mosaic switched off
     val_loader = make_loader(val_dir, cfg.imgsz, cfg.batch, cfg.workers) if _is_main() else None
     criterion = DetectionLoss(model)
-    scaler = torch.amp.GradScaler("cuda", enabled=device.type == "cuda")
+    autocast = amp_dtype(cfg.amp, device)
+    scaler = torch.amp.GradScaler("cuda", enabled=autocast == torch.float16)
     nb = len(loader)
     # Warm-up: the given epochs, at least 100 iterations on big sets, at most a tenth of a short run.
     warmup = max(round(cfg.warmup_epochs * nb), min(100, cfg.epochs * nb // 10))
     results_path = out / "results.csv"
     if _is_main():
         print(f"[train] {count_parameters(model) / 1e6:.2f} M parameters ({cfg.model}), {len(ds)} train images, "
-              f"device {device}, imgsz {cfg.imgsz}, batch {cfg.batch}, epochs {cfg.epochs}", file=log)
+              f"device {device}, imgsz {cfg.imgsz}, batch {cfg.batch}, epochs {cfg.epochs}, "
+              f"autocast {str(autocast).replace('torch.', '') if autocast else 'off'}", file=log)
     rows: list[dict[str, Any]] = []
     if cfg.resume and results_path.exists():
         with open(results_path) as f:
@@ -195,7 +221,7 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
                     g["lr"] = lr_cos
             imgs = imgs.to(device, non_blocking=True).contiguous(memory_format=torch.channels_last)
             targets = targets.to(device)
-            with torch.autocast(device_type=device.type, enabled=device.type == "cuda"):
+            with torch.autocast(device_type=device.type, dtype=autocast, enabled=autocast is not None):
                 feats = net(imgs)
             loss, parts = criterion([f.float() for f in feats], targets)
             opt.zero_grad(set_to_none=True)
