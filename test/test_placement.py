@@ -252,6 +252,33 @@ def test_same_seed_same_scenes_any_step_alone(savanna: World, library: ZebraLibr
     assert s3["zebras"] == s4["zebras"] and s3["cameras"] != s4["cameras"]
 
 
+def test_ground_recolor_randomises_the_terrain_look_and_nothing_else(savanna: World, library: ZebraLibrary) -> None:
+    from zebra_sim_ros.placement.ground import BRIGHTNESS, GroundLook, sample_ground_look
+    from zebra_sim_ros.rendering.views import ground_from_scene
+
+    def scenes(recolor: float) -> list[dict]:
+        p = Placer(PlacerConfig.from_params({"seed": 7, "count_max": 30, "ground_recolor": recolor}), savanna, library)
+        return [p.scene(k).to_dict() for k in range(12)]
+
+    plain, half, every = scenes(0.0), scenes(0.5), scenes(1.0)
+    assert all("ground" not in s for s in plain)  # as authored: the scene says nothing
+    assert all(ground_from_scene(s) == GroundLook() for s in plain)
+    for a, b in zip(plain, every, strict=True):  # the look is drawn last: zebras, cameras and light stay
+        assert {k: v for k, v in b.items() if k != "ground"} == a
+    looks = [ground_from_scene(s) for s in every]
+    assert len({g.tint for g in looks}) == 12 and all(0 <= g.desaturation <= 1 for g in looks)
+    assert 0 < sum("ground" in s for s in half) < 12
+    rng = np.random.default_rng(3)
+    draws = [sample_ground_look(rng, 1.0) for _ in range(4000)]
+    brightness = np.exp(np.log([g.tint for g in draws]).mean(axis=1))  # the channel factors average out
+    assert brightness.min() < BRIGHTNESS[0] * 1.2 and brightness.max() > BRIGHTNESS[1] * 0.8
+    assert abs(np.mean([g.is_identity for g in (sample_ground_look(rng, 0.3) for _ in range(4000))]) - 0.7) < 0.03
+    with pytest.raises(ParameterError, match="'ground_recolor'"):
+        PlacerConfig.from_params({"ground_recolor": 1.5})
+    with pytest.raises(ParameterError, match="'ground'"):
+        GroundLook.from_dict({"tint": [1, 2], "desaturation": 0.0})
+
+
 def test_bad_parameters_name_themselves() -> None:
     for bad, name in (({"strategy": "near"}, "strategy"), ({"count_max": 300}, "count_max"),
                       ({"rect_min": 200.0}, "rect_min"), ({"mode": "fast"}, "mode"), ({"seed": "x"}, "seed")):

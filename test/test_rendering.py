@@ -161,3 +161,28 @@ def test_missing_egl_names_the_debian_packages(monkeypatch: pytest.MonkeyPatch) 
     monkeypatch.setattr(ctypes.util, "find_library", lambda name: None)
     with pytest.raises(DependencyError, match="libegl1"):
         gl.create_context()
+
+
+def test_a_recoloured_ground_changes_the_terrain_only(library: ZebraLibrary, options: RenderOptions) -> None:
+    from zebra_sim_ros.placement.ground import GroundLook
+
+    world = flat_world()
+    r = Renderer(world, library, options)
+    try:
+        view = _view((0.0, -12.0, 6.0), 90.0, -25.0)
+        zebras = _zebras(library, [(0.0, 0.0)], yaw=0.4)
+        authored = r.render(zebras, NOON, [view])[0]
+        snowy = r.render(zebras, NOON, [view], GroundLook((4.0, 4.0, 4.0), 1.0))[0]
+        again = r.render(zebras, NOON, [view], GroundLook())[0]
+    finally:
+        r.release()
+    assert np.array_equal(authored.instances, snowy.instances) and np.array_equal(authored.depth, snowy.depth)
+    assert np.array_equal(authored.rgb, again.rgb)  # the identity look is the world as authored
+    zebra = cv2.erode((authored.instances == 11).astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    ground = (authored.instances == 0) & np.isfinite(authored.depth)
+    ground &= cv2.dilate((authored.instances > 0).astype(np.uint8), np.ones((9, 9), np.uint8)) == 0
+    assert zebra.sum() > 100 and ground.sum() > 10000
+    assert np.array_equal(authored.rgb[zebra], snowy.rgb[zebra])  # the zebra keeps its coat and light
+    a, s = authored.rgb[ground].astype(np.float64), snowy.rgb[ground].astype(np.float64)
+    assert s.mean() > a.mean() + 40  # brighter ground
+    assert np.abs(s - s.mean(axis=1, keepdims=True)).mean() < 0.3 * np.abs(a - a.mean(axis=1, keepdims=True)).mean()

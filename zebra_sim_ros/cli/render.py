@@ -47,7 +47,12 @@ def cmd_render(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.placement.placer import Placer
     from zebra_sim_ros.placement.sun import lighting_for
     from zebra_sim_ros.rendering.renderer import Renderer, RenderOptions
-    from zebra_sim_ros.rendering.views import lighting_from_scene, views_from_scene, zebras_from_scene
+    from zebra_sim_ros.rendering.views import (
+        ground_from_scene,
+        lighting_from_scene,
+        views_from_scene,
+        zebras_from_scene,
+    )
     from zebra_sim_ros.world.world import load_world
     from zebra_sim_ros.zebra.asset import load_library
 
@@ -70,7 +75,7 @@ def cmd_render(args: argparse.Namespace) -> Summary:
     renderer = Renderer(world, lib, RenderOptions(width=args.width, height=args.height, hfov_deg=cfg.camera_hfov_deg,
                                                   shadows=not args.no_shadows))
     t1 = time.perf_counter()
-    views = renderer.render(zebras_from_scene(scene, lib), lighting, views_from_scene(scene))
+    views = renderer.render(zebras_from_scene(scene, lib), lighting, views_from_scene(scene), ground_from_scene(scene))
     t_render = time.perf_counter() - t1
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)

@@ -208,14 +208,19 @@ class _Pipeline:
         import cv2
 
         from zebra_sim_ros.labels.labeller import label_view
-        from zebra_sim_ros.rendering.views import lighting_from_scene, views_from_scene, zebras_from_scene
+        from zebra_sim_ros.rendering.views import (
+            ground_from_scene,
+            lighting_from_scene,
+            views_from_scene,
+            zebras_from_scene,
+        )
 
         t0 = time.perf_counter()
         placer = self.placer(job)
         scene = placer.scene(job.step).to_dict()
         t1 = time.perf_counter()
         views = self.renderer.render(zebras_from_scene(scene, self.library), lighting_from_scene(scene),
-                                     views_from_scene(scene))
+                                     views_from_scene(scene), ground_from_scene(scene))
         t2 = time.perf_counter()
         labelled = [label_view(scene, v.name, v.instances, v.depth, self.renderer.camera, self.library,
                                self.silhouettes, self.cfg.filters, self.renderer.options.zebra_detail_distance_m)

@@ -42,7 +42,13 @@ from zebra_sim_ros.nodes.ros_adapter import (
 from zebra_sim_ros.placement.scene import parse_scene
 from zebra_sim_ros.rendering.config import CAMERA_PARAMS, CameraConfig
 from zebra_sim_ros.rendering.renderer import RenderedView, Renderer
-from zebra_sim_ros.rendering.views import lighting_from_scene, views_from_scene, world_source, zebras_from_scene
+from zebra_sim_ros.rendering.views import (
+    ground_from_scene,
+    lighting_from_scene,
+    views_from_scene,
+    world_source,
+    zebras_from_scene,
+)
 from zebra_sim_ros.world.world import load_world
 from zebra_sim_ros.zebra.asset import load_library
 
@@ -110,7 +116,8 @@ class CameraNode(Node):
                 raise ZebraSimError(f"scene {scene['step']} has no camera named {self.cfg.name}")
             renderer = self._ensure_renderer(scene)
             t0 = time.perf_counter()
-            view = renderer.render(zebras_from_scene(scene, self.library), lighting_from_scene(scene), views)[0]
+            view = renderer.render(zebras_from_scene(scene, self.library), lighting_from_scene(scene), views,
+                                   ground_from_scene(scene))[0]
             if self.effects.active:
                 rng = np.random.default_rng([int(scene["seed"]), int(scene["step"]), self.cfg.drone_index])
                 view.rgb = self.effects.apply(view.rgb, rng)

@@ -77,6 +77,9 @@ PLACER_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("day_start_h", 5.0, "start of the day window with day_window clock, h", "0..24", in_range(0.0, 24.0)),
     ParamSpec("day_end_h", 20.0, "end of the day window with day_window clock, h", "day_start_h..24",
               in_range(0.0, 24.0)),
+    ParamSpec("ground_recolor", 0.0, "share of steps whose terrain colour is randomised (brightness x0.5..x4, "
+              "desaturation, tint; domain randomisation for training sets; 0 = every world as authored)", "0..1",
+              in_range(0.0, 1.0)),
     ParamSpec("latitude_deg", -2.3, "latitude for the sun's path (Serengeti: -2.3)", "-90..90", in_range(-90.0, 90.0)),
     ParamSpec("mode", "rate", "rate: publish at rate_hz; lockstep: next step when every acker acknowledged",
               "rate or lockstep", one_of("rate", "lockstep")),
@@ -138,6 +141,7 @@ class PlacerConfig:
     day_window: str = "sun"
     day_start_h: float = 5.0
     day_end_h: float = 20.0
+    ground_recolor: float = 0.0
     latitude_deg: float = -2.3
     mode: str = "rate"
     rate_hz: float = 1.0

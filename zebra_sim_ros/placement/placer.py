@@ -13,6 +13,7 @@ from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import PinholeCamera
 from zebra_sim_ros.placement.cameras import CameraRanges, sample_cameras
 from zebra_sim_ros.placement.config import PlacerConfig
+from zebra_sim_ros.placement.ground import sample_ground_look
 from zebra_sim_ros.placement.herd import Herd, HerdPlacer, PlacementError, make_pool
 from zebra_sim_ros.placement.scene import Scene
 from zebra_sim_ros.placement.sun import lighting_for, sample_time_and_day
@@ -82,6 +83,7 @@ class Placer:
         strategy = c.strategy if c.strategy != "mixed" else ("far" if rng.uniform() < 0.5 else "closeby")
         cams = sample_cameras(rng, herd.position, strategy, self.camera_names, self.ranges, self.world.terrain,
                               self.camera)
+        ground = sample_ground_look(rng, c.ground_recolor)  # drawn last: the draws above do not depend on it
         lib = self.library
         boxes = np.asarray(lib.boxes()[herd.morph, herd.global_frame], dtype=np.float64)  # (N, 2, 3)
         centre_local = boxes.mean(axis=1) * herd.scale[:, None]
@@ -92,5 +94,5 @@ class Placer:
             step=step, placement=placement, reroll=reroll, seed=c.seed, stamp_ns=stamp_ns, world=self._world_info,
             asset_digest=str(lib.manifest["digest"]), morph_names=lib.morphs, clip_names=lib.clip_names,
             coat_seeds=self.pool.coat_seed[herd.ids], herd=herd, box_center=box_center, box_size=box_size,
-            lighting=lighting_for(tod, doy, c.latitude_deg), cameras=tuple(cams),
+            lighting=lighting_for(tod, doy, c.latitude_deg), cameras=tuple(cams), ground=ground,
         )

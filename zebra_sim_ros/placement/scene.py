@@ -21,7 +21,9 @@ Schema ``zebra_sim_ros/scene`` version 1 (all lengths metres, angles degrees, fr
                   "box": {"center": [3], "size": [3] (length, width, height), "orientation_xyzw": [4]}}],
       "cameras": [{"name": "drone_0", "strategy": "far" | "closeby", "frame_id": "drone_0_camera_optical",
                    "position": [3], "orientation_xyzw": [4] (optical frame: z forward, x right, y down),
-                   "yaw_deg", "pitch_deg" (optical-axis elevation, negative looks down), "roll_deg"}]
+                   "yaw_deg", "pitch_deg" (optical-axis elevation, negative looks down), "roll_deg"}],
+      "ground": {"tint": [3], "desaturation": float}   # optional, absent = the terrain as authored: linear
+                                                    # albedo' = min(mix(albedo, luma, desaturation) * tint, 0.95)
     }
 """
 
@@ -36,6 +38,7 @@ import numpy as np
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.rotations import matrix_to_quat
 from zebra_sim_ros.placement.cameras import CameraPose
+from zebra_sim_ros.placement.ground import GroundLook
 from zebra_sim_ros.placement.herd import Herd
 from zebra_sim_ros.placement.sun import Lighting
 
@@ -66,6 +69,7 @@ class Scene:
     box_size: np.ndarray  # (N, 3)
     lighting: Lighting
     cameras: tuple[CameraPose, ...]
+    ground: GroundLook = GroundLook()  # the terrain's colour as authored, or this step's randomised look
 
     def to_dict(self) -> dict[str, Any]:
         """The scene as the versioned JSON structure of the module docstring."""
@@ -90,6 +94,7 @@ class Scene:
             "rectangle": {"center": list(h.rect_center), "size": list(h.rect_size)},
             "requested": h.requested, "placed": h.count, "zebras": zebras,
             "cameras": [c.to_dict() for c in self.cameras],
+            **({} if self.ground.is_identity else {"ground": self.ground.to_dict()}),
         }
 
     def to_json(self) -> str:

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import PinholeCamera
+from zebra_sim_ros.placement.ground import GroundLook
 from zebra_sim_ros.placement.sun import Lighting
 from zebra_sim_ros.rendering import shaders
 from zebra_sim_ros.rendering.gl import create_context
@@ -330,8 +331,12 @@ class Renderer:
         return layer
 
     # -- per frame -------------------------------------------------------------------------------
-    def render(self, zebras: ZebraSet, lighting: Lighting, views: list[CameraView]) -> list[RenderedView]:
-        """Render every view of one frame."""
+    def render(self, zebras: ZebraSet, lighting: Lighting, views: list[CameraView],
+               ground: GroundLook | None = None) -> list[RenderedView]:
+        """Render every view of one frame (``ground``: the terrain's look; None = as authored)."""
+        g = ground or GroundLook()
+        self.p_terrain["u_ground_tint"].value = g.tint
+        self.p_terrain["u_ground_desat"].value = g.desaturation
         self._coats_dirty = False
         layers = np.array([self._layer(int(m), int(s)) for m, s in zip(zebras.morph, zebras.coat_seed, strict=True)],
                           dtype=np.float32)

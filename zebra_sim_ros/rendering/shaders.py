@@ -80,6 +80,8 @@ in vec3 v_normal;
 uniform sampler2D u_ground;      // ground colour (linear) over the terrain grid
 uniform vec4 u_ground_xform;     // origin x, origin y, 1/size x, 1/size y
 uniform vec3 u_ground_mean;      // beyond the terrain (the apron): the mean ground colour
+uniform vec3 u_ground_tint;      // the step's ground look (placement/ground.py): 1 = as authored
+uniform float u_ground_desat;
 float hash(vec2 p) { return fract(sin(dot(p, vec2(127.1, 311.7))) * 43758.5453); }
 float vnoise(vec2 p) {
     vec2 i = floor(p); vec2 f = fract(p); vec2 u = f * f * (3.0 - 2.0 * f);
@@ -91,6 +93,8 @@ void main() {
     vec3 albedo = inside ? texture(u_ground, uv).rgb : u_ground_mean;
     float d = vnoise(v_wpos.xy * 4.0) * 0.5 + vnoise(v_wpos.xy * 0.7) * 0.5;  // grass/soil detail
     albedo *= 0.82 + 0.36 * d;
+    albedo = min(mix(albedo, vec3(dot(albedo, vec3(0.2126, 0.7152, 0.0722))), u_ground_desat) * u_ground_tint,
+                 vec3(0.95));
     vec3 n = normalize(v_normal);
     f_color = encode(haze(shade(albedo, n, v_wpos), v_wpos));
     f_depth = dot(v_wpos - u_cam_pos, u_cam_fwd);

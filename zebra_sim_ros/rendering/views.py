@@ -13,6 +13,7 @@ import numpy as np
 
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.rotations import quat_to_matrix
+from zebra_sim_ros.placement.ground import GroundLook
 from zebra_sim_ros.placement.sun import Lighting
 from zebra_sim_ros.rendering.renderer import CameraView, ZebraSet
 from zebra_sim_ros.zebra.asset import ZebraLibrary
@@ -40,6 +41,11 @@ def zebras_from_scene(scene: dict[str, Any], library: ZebraLibrary) -> ZebraSet:
         position=np.array([z["position"] for z in zs], dtype=np.float64).reshape(-1, 3),
         coat_seed=np.array([int(z["coat_seed"]) for z in zs], dtype=np.int64),
     )
+
+
+def ground_from_scene(scene: dict[str, Any]) -> GroundLook:
+    """The scene's ground look (the terrain as authored when the scene has none)."""
+    return GroundLook.from_dict(scene.get("ground"))
 
 
 def lighting_from_scene(scene: dict[str, Any]) -> Lighting:
