@@ -16,6 +16,7 @@ import time
 from typing import Any
 
 import yaml
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
@@ -126,6 +127,10 @@ class ReplayNode(Node):
             self.published += 1
         for note in self.reader.stopped:
             self.get_logger().warning(f"bag damaged, played everything intact: {note}")
+        # Reliable writers still owe their last messages to slow readers: exiting now would drop them.
+        unacked = [t for t, p in self.pubs.items() if p is not None and not p.wait_for_all_acked(Duration(seconds=5))]
+        if unacked:
+            self.get_logger().warning(f"not acknowledged by every subscriber within 5 s: {unacked}")
         self.get_logger().info(f"played {n} messages")
 
 
