@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from numpy.typing import NDArray
 from torch.utils.data import DataLoader
 
 from zebra_sim_ros.detection.boxes import postprocess
@@ -29,24 +30,32 @@ def make_loader(folder: str | Path, imgsz: int, batch: int = 8, workers: int = 0
 
 
 @torch.no_grad()
-def run(model: Detector, loader: DataLoader[Any], conf: float = 0.001, iou: float = 0.7,
-        max_det: int = 100) -> DetectionMetrics:
-    """Metrics of ``model`` on ``loader`` (boxes compared in each image's original pixels)."""
+def predictions(model: Detector, loader: DataLoader[Any], conf: float = 0.001, iou: float = 0.7,
+                max_det: int = 100) -> list[tuple[str, NDArray[np.float64], NDArray[np.float64]]]:
+    """Per image of ``loader``: (file, detections (n, 5) [x0, y0, x1, y1, score], ground truth (m, 4)), both in
+    the image's own pixels."""
     was_training = model.training
     model.eval()
     dev = next(model.parameters()).device
-    preds, gts = [], []
+    out: list[tuple[str, NDArray[np.float64], NDArray[np.float64]]] = []
     for imgs, _, metas in loader:
-        out = model(imgs.to(dev).contiguous(memory_format=torch.channels_last))  # the serving layout
-        for det, meta in zip(postprocess(out, conf, iou, max_det), metas, strict=True):
+        raw = model(imgs.to(dev).contiguous(memory_format=torch.channels_last))  # the serving layout
+        for det, meta in zip(postprocess(raw, conf, iou, max_det), metas, strict=True):
             h, w = meta["shape"]
             left, top = meta["pad"]
             d = unletterbox(det, meta["scale"], left, top, w, h).cpu().numpy()
-            preds.append(d[:, :5].astype(np.float64))
-            gts.append(meta["labels"][:, 1:].astype(np.float64))  # in the image's own pixels, read once
+            out.append((meta["file"], d[:, :5].astype(np.float64),
+                        meta["labels"][:, 1:].astype(np.float64)))  # labels in the image's own pixels, read once
     if was_training:
         model.train()
-    return evaluate_detections(preds, gts, max_det)
+    return out
+
+
+def run(model: Detector, loader: DataLoader[Any], conf: float = 0.001, iou: float = 0.7,
+        max_det: int = 100) -> DetectionMetrics:
+    """Metrics of ``model`` on ``loader`` (boxes compared in each image's original pixels)."""
+    per_image = predictions(model, loader, conf, iou, max_det)
+    return evaluate_detections([p for _, p, _ in per_image], [g for _, _, g in per_image], max_det)
 
 
 def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", imgsz: int | None = None,

@@ -1,0 +1,97 @@
+"""Benchmark: detector quality on freshly generated held-out sets, with a breakdown by world and light.
+
+Generates (once, cached under --cache) a YOLO set of ``--frames`` 640x360 frames over ``--worlds`` with a seed
+never used for training data (``--seed``, default 777), then scores every ``--weights`` on it with our COCO
+metrics (mAP50, mAP50-95 at ``--imgsz``, conf 0.001), overall, per world and by light (day: sun above 15
+degrees; low sun: 0..15; night: below the horizon). Several weights are scored on the same frames in the same
+run, so they can be compared directly. The issue's goal on a larger held-out set: mAP50 0.95, mAP50-95 0.7.
+
+    python benchmarks/bench_heldout.py --worlds snowy_highland --frames 120 --weights shipped runs/x/best.pt
+    python benchmarks/bench_heldout.py --worlds training --frames 210 --json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from zebra_sim_ros.dataset.generate import GenerateConfig, generate
+from zebra_sim_ros.detection.checkpoint import load_model
+from zebra_sim_ros.detection.data import resolve_split
+from zebra_sim_ros.detection.evaluate import make_loader, predictions
+from zebra_sim_ros.detection.metrics import evaluate_detections
+from zebra_sim_ros.labels.config import LabelFilters
+
+TRAINING_WORLDS = ("savanna", "grassland", "meadow", "woodland", "moorland", "scrubland", "farmland")
+
+
+def held_out_set(root: Path, worlds: tuple[str, ...], frames: int, seed: int) -> Path:
+    """Generate (or reuse) the set; returns its dataset.yaml. The same settings as the CI tests' sets."""
+    if not (root / "dataset.yaml").exists():
+        generate(GenerateConfig(out=str(root), frames=frames, strategy="both", worlds=worlds, seed=seed, width=640,
+                                height=360, val_fraction=0.0, depth="none", filters=LabelFilters(min_visible_pixels=25),
+                                workers=2), progress=lambda *a: None)
+    return root / "dataset.yaml"
+
+
+def light_of(sun_elevation_deg: float) -> str:
+    return "day" if sun_elevation_deg > 15 else ("low sun" if sun_elevation_deg > 0 else "night")
+
+
+def score(weights: str, data: Path, imgsz: int) -> dict[str, Any]:
+    model, _ = load_model(None if weights == "shipped" else weights, torch.device("cpu"))
+    t0 = time.perf_counter()
+    per_image = predictions(model, make_loader(resolve_split(data, "train"), imgsz))
+    groups: dict[str, list[int]] = defaultdict(list)
+    for i, (file, _, _) in enumerate(per_image):
+        meta = json.loads((data.parent / "annotations" / f"{Path(file).stem}.json").read_text())
+        groups["all"].append(i)
+        groups[f"world {meta['world']['name']}"].append(i)
+        groups[f"light {light_of(meta['lighting']['sun_elevation_deg'])}"].append(i)
+    out: dict[str, Any] = {"weights": weights, "seconds": round(time.perf_counter() - t0, 1)}
+    for name, idx in sorted(groups.items(), key=lambda kv: (kv[0] != "all", kv[0])):
+        m = evaluate_detections([per_image[i][1] for i in idx], [per_image[i][2] for i in idx], 100)
+        out[name] = {"images": len(idx), "instances": int(sum(len(per_image[i][2]) for i in idx)),
+                     "mAP50": round(m.map50, 3), "mAP50-95": round(m.map50_95, 3), "P": round(m.precision, 3),
+                     "R": round(m.recall, 3)}
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--worlds", default="snowy_highland", help="comma-separated presets, or 'training' (the seven "
+                    "worlds the shipped weights were trained on)")
+    ap.add_argument("--frames", type=int, default=120)
+    ap.add_argument("--seed", type=int, default=777)
+    ap.add_argument("--weights", nargs="+", default=["shipped"], help="checkpoints ('shipped': the package's own)")
+    ap.add_argument("--imgsz", type=int, default=640)
+    ap.add_argument("--cache", type=Path, default=Path("out/heldout"))
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    worlds = TRAINING_WORLDS if args.worlds == "training" else tuple(args.worlds.split(","))
+    root = args.cache / f"{args.worlds.replace(',', '+')}_{args.frames}_{args.seed}"
+    data = held_out_set(root, worlds, args.frames, args.seed)
+    results = {"machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
+               "set": {"worlds": list(worlds), "frames": args.frames, "seed": args.seed, "imgsz": args.imgsz},
+               "scores": [score(w, data, args.imgsz) for w in args.weights]}
+    if args.json:
+        print(json.dumps(results, indent=1))
+        return
+    for r in results["scores"]:
+        print(f"{r['weights']} ({r['seconds']} s)")
+        for k, v in r.items():
+            if isinstance(v, dict):
+                print(f"  {k:24s} {v['images']:4d} images {v['instances']:5d} zebras  mAP50 {v['mAP50']:.3f}  "
+                      f"mAP50-95 {v['mAP50-95']:.3f}  P {v['P']:.3f}  R {v['R']:.3f}")
+
+
+if __name__ == "__main__":
+    main()
