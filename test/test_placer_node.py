@@ -64,7 +64,9 @@ def domain() -> int:
 def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path) -> None:
     listener = Listener(domain)
     try:
-        params = dict(SMALL, mode="rate", rate_hz=4.0, max_steps=5, seed=9)
+        # Poses and markers are volatile: the placer waits until this listener is matched, else the first
+        # steps may go out before discovery (CI: 5 steps published, fewer received).
+        params = dict(SMALL, mode="rate", rate_hz=4.0, max_steps=5, seed=9, wait_for_subscribers=1)
         with node_process("placer", params, domain, tmp_path / "placer.log") as proc:
             assert listener.spin_until(lambda: len(listener.scenes) >= 5 and
                                        all(len(p) >= 5 for p in listener.poses.values()), 60), \

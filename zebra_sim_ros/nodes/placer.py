@@ -17,6 +17,7 @@ from __future__ import annotations
 import time
 
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3
+from rclpy.duration import Duration
 from rclpy.node import Node
 from std_msgs.msg import ColorRGBA, Header, String
 from visualization_msgs.msg import Marker, MarkerArray
@@ -100,6 +101,7 @@ class PlacerNode(Node):
         if not self._subscribed():
             return
         if self._finished():
+            self._flush()
             self.get_logger().info(f"published {self.published} steps; stopping")
             self.done = True
             return
@@ -107,6 +109,13 @@ class PlacerNode(Node):
         self._publish(scene)
         self.step += 1
         self.published += 1
+
+    def _flush(self) -> None:
+        """Wait (up to 5 s) until reliable subscribers acknowledge the last step: exiting at once can drop it."""
+        pubs = [self.scene_pub, self.marker_pub, *self.pose_pubs]
+        unacked = [p.topic_name for p in pubs if not p.wait_for_all_acked(Duration(seconds=5))]
+        if unacked:
+            self.get_logger().warning(f"not acknowledged by every subscriber within 5 s: {unacked}")
 
     def _publish(self, scene: Scene) -> None:
         header = Header(stamp=stamp(scene.stamp_ns), frame_id="map")
@@ -140,6 +149,7 @@ class PlacerNode(Node):
         c = self.cfg
         if self.pending is None:
             if self._finished():
+                self._flush()
                 self.get_logger().info(f"all {self.published} steps acknowledged; stopping")
                 self.done = True
                 return
