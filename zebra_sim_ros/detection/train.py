@@ -40,8 +40,8 @@ def amp_dtype(mode: str, device: torch.device) -> torch.dtype | None:
     """The autocast dtype of the forward pass, or None for float32.
 
     auto: float16 on CUDA (with a gradient scaler); on a CPU with bfloat16 instructions (AVX512-BF16 or AMX),
-    bfloat16, which trains 2x faster than float32 on our 2-core EPYC; elsewhere float32 (emulated bfloat16 is
-    slower). The loss is always computed in float32.
+    bfloat16, which trained 2x faster than float32 on a 2-core EPYC with AVX512-BF16; elsewhere float32 (emulated
+    bfloat16 measured 8.5x slower: BENCHMARKS.md). The loss is always computed in float32.
     """
     if mode == "off":
         return None
