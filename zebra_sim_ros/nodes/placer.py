@@ -17,7 +17,6 @@ from __future__ import annotations
 import time
 
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3
-from rclpy.duration import Duration
 from rclpy.node import Node
 from std_msgs.msg import ColorRGBA, Header, String
 from visualization_msgs.msg import Marker, MarkerArray
@@ -26,6 +25,7 @@ from zebra_sim_ros.nodes.ros_adapter import (
     ACK_TOPIC,
     declare_and_read,
     describe_qos,
+    flush,
     help_text,
     qos,
     run_node,
@@ -63,6 +63,7 @@ class PlacerNode(Node):
         self.marker_pub = self.create_publisher(MarkerArray, MARKER_TOPIC, stream)
         self.pose_pubs = [self.create_publisher(PoseStamped, f"/{n}/camera/pose", stream)
                           for n in self.placer.camera_names]
+        self.outputs = [self.scene_pub, self.marker_pub, *self.pose_pubs]
         self.step = c.start_step
         self.published = 0
         self.done = False
@@ -87,8 +88,7 @@ class PlacerNode(Node):
     def _subscribed(self) -> bool:
         """True once every output topic has ``wait_for_subscribers`` subscribers (logs what it waits for)."""
         if not self.started:
-            pubs = [self.scene_pub, self.marker_pub, *self.pose_pubs]
-            short = [p.topic_name for p in pubs if p.get_subscription_count() < self.cfg.wait_for_subscribers]
+            short = [p.topic_name for p in self.outputs if p.get_subscription_count() < self.cfg.wait_for_subscribers]
             if not short:
                 self.started = True
                 self.get_logger().info(f"every output has {self.cfg.wait_for_subscribers}+ subscribers: starting")
@@ -101,7 +101,7 @@ class PlacerNode(Node):
         if not self._subscribed():
             return
         if self._finished():
-            self._flush()
+            flush(self, self.outputs)
             self.get_logger().info(f"published {self.published} steps; stopping")
             self.done = True
             return
@@ -109,13 +109,6 @@ class PlacerNode(Node):
         self._publish(scene)
         self.step += 1
         self.published += 1
-
-    def _flush(self) -> None:
-        """Wait (up to 5 s) until reliable subscribers acknowledge the last step: exiting at once can drop it."""
-        pubs = [self.scene_pub, self.marker_pub, *self.pose_pubs]
-        unacked = [p.topic_name for p in pubs if not p.wait_for_all_acked(Duration(seconds=5))]
-        if unacked:
-            self.get_logger().warning(f"not acknowledged by every subscriber within 5 s: {unacked}")
 
     def _publish(self, scene: Scene) -> None:
         header = Header(stamp=stamp(scene.stamp_ns), frame_id="map")
@@ -149,7 +142,7 @@ class PlacerNode(Node):
         c = self.cfg
         if self.pending is None:
             if self._finished():
-                self._flush()
+                flush(self, self.outputs)
                 self.get_logger().info(f"all {self.published} steps acknowledged; stopping")
                 self.done = True
                 return

@@ -16,11 +16,18 @@ import time
 from typing import Any
 
 import yaml
-from rclpy.duration import Duration
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
-from zebra_sim_ros.nodes.ros_adapter import declare_and_read, help_text, message_class, qos, run_node, stamp
+from zebra_sim_ros.nodes.ros_adapter import (
+    declare_and_read,
+    flush,
+    help_text,
+    message_class,
+    qos,
+    run_node,
+    stamp,
+)
 from zebra_sim_ros.params import validate
 from zebra_sim_ros.recording.config import REPLAY_PARAMS
 from zebra_sim_ros.recording.qos import from_yaml, replay_profile
@@ -127,10 +134,7 @@ class ReplayNode(Node):
             self.published += 1
         for note in self.reader.stopped:
             self.get_logger().warning(f"bag damaged, played everything intact: {note}")
-        # Reliable writers still owe their last messages to slow readers: exiting now would drop them.
-        unacked = [t for t, p in self.pubs.items() if p is not None and not p.wait_for_all_acked(Duration(seconds=5))]
-        if unacked:
-            self.get_logger().warning(f"not acknowledged by every subscriber within 5 s: {unacked}")
+        flush(self, [p for p in self.pubs.values() if p is not None])
         self.get_logger().info(f"played {n} messages")
 
 

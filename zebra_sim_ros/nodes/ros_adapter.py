@@ -15,6 +15,7 @@ import rclpy
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -108,6 +109,17 @@ class StepAcks:
         if complete and self.pub is not None:
             self.pub.publish(Header(stamp=stamp_msg, frame_id=self.name))
         return complete
+
+
+def flush(node: Node, publishers: Iterable[Any], timeout_s: float = 5.0) -> None:
+    """Wait (up to ``timeout_s`` each) until reliable subscribers acknowledge what was published; warn if not.
+
+    A node about to exit calls this: reliable writers may still owe their last messages to slow readers, and
+    exiting at once would drop them (best-effort publishers return at once).
+    """
+    unacked = [p.topic_name for p in publishers if not p.wait_for_all_acked(Duration(seconds=timeout_s))]
+    if unacked:
+        node.get_logger().warning(f"not acknowledged by every subscriber within {timeout_s:g} s: {unacked}")
 
 
 def stamp(ns: int) -> Time:
