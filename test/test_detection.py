@@ -199,6 +199,30 @@ def test_native_size_detects_each_batch_at_its_own_resolution() -> None:
     assert not np.array_equal(native, detect(model, [frame], conf=0.0, max_det=50)[0])  # the checkpoint's 128
 
 
+@pytest.mark.parametrize("imgsz", [96, 48])  # enlarging and shrinking the 60x40 frame
+def test_mosaic_tiles_are_resized_as_inference_resizes(tmp_path: Path, imgsz: int) -> None:
+    """Training at an imgsz above the frames' size must upsample them as letterbox does when served."""
+    import cv2
+
+    from zebra_sim_ros.detection.data import Augment, YoloDataset, letterbox
+
+    frame = np.random.default_rng(1).integers(0, 256, (40, 60, 3), np.uint8)
+    (tmp_path / "images").mkdir()
+    cv2.imwrite(str(tmp_path / "images" / "a.png"), frame[..., ::-1])
+    still = Augment(mosaic=1.0, scale=0.0, translate=0.0, fliplr=0.0, hsv_h=0.0, hsv_s=0.0, hsv_v=0.0)
+    served, r, (left, top) = letterbox(frame, imgsz)
+    tile = served[top:top + round(40 * r), left:left + round(60 * r)]  # the frame as inference sees it
+    th, tw = tile.shape[:2]
+    k = 6
+    corners = [tile[:k, :k], tile[:k, tw - k:], tile[th - k:, :k], tile[th - k:, tw - k:]]
+    for epoch in range(3):  # three random mosaic centres
+        ds = YoloDataset(tmp_path / "images", imgsz, still, seed=epoch)
+        sample = (ds[0][0].numpy().transpose(1, 2, 0) * 255).round().astype(np.uint8)
+        # every tile is this frame; the mosaic centre shows a corner of each of the four, one at least whole
+        best = min(float(cv2.matchTemplate(sample, c, cv2.TM_SQDIFF).min()) for c in corners)
+        assert best == 0.0, (epoch, best)
+
+
 @pytest.mark.parametrize(("setting", "named"), [({"imgsz": 100}, "'--imgsz'"), ({"val_every": 0}, "'--val-every'"),
                                                 ({"workers": -1}, "'--workers'"), ({"lr0": 0.0}, "'--lr0'"),
                                                 ({"max_train_images": -1}, "'--max-train-images'"),

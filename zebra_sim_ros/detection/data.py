@@ -92,6 +92,22 @@ def letterbox_size(h: int, w: int, size: int) -> tuple[int, int]:
     return round(h * r), round(w * r)
 
 
+def resize_long_side(img: NDArray[np.uint8], size: int) -> tuple[NDArray[np.uint8], float]:
+    """Resize keeping the aspect ratio so the long side is ``size``; returns the image and the scale.
+
+    Bilinear when enlarging, area averaging when shrinking. Training (mosaic tiles) and inference (letterbox)
+    both resize through here: a model trained at an imgsz above its frames' size must see the same upsampling
+    it will meet when served (area "upsampling" is a different, blockier kernel: 9/255 mean difference).
+    """
+    h, w = img.shape[:2]
+    r = size / max(h, w)
+    nh, nw = letterbox_size(h, w, size)
+    if (nw, nh) == (w, h):
+        return img, r
+    return np.asarray(cv2.resize(img, (nw, nh), interpolation=cv2.INTER_LINEAR if r > 1 else cv2.INTER_AREA),
+                      dtype=np.uint8), r
+
+
 def letterbox(img: NDArray[np.uint8], size: int,
               shape: tuple[int, int] | None = None) -> tuple[NDArray[np.uint8], float, tuple[int, int]]:
     """Resize keeping the aspect ratio so the long side is ``size``, pad with grey to size x size or to
@@ -99,12 +115,8 @@ def letterbox(img: NDArray[np.uint8], size: int,
 
     Returns the image, the scale and the (left, top) padding: ``x_new = x * scale + left``.
     """
-    h, w = img.shape[:2]
-    r = size / max(h, w)
-    nh, nw = letterbox_size(h, w, size)
-    if (nw, nh) != (w, h):
-        img = np.asarray(cv2.resize(img, (nw, nh), interpolation=cv2.INTER_LINEAR if r > 1 else cv2.INTER_AREA),
-                         dtype=np.uint8)
+    img, r = resize_long_side(img, size)
+    nh, nw = img.shape[:2]
     out_h, out_w = shape or (size, size)
     left, top = (out_w - nw) // 2, (out_h - nh) // 2
     out = np.full((out_h, out_w, 3), 114, np.uint8)
@@ -178,9 +190,7 @@ class YoloDataset(Dataset[Any]):
         idx = [i] + list(rng.integers(0, len(self), 3))
         for k, j in enumerate(idx):
             img, lab = self.load(int(j))
-            h, w = img.shape[:2]
-            r = s / max(h, w)
-            img = np.asarray(cv2.resize(img, (round(w * r), round(h * r)), interpolation=cv2.INTER_AREA), np.uint8)
+            img, r = resize_long_side(img, s)
             h, w = img.shape[:2]
             if k == 0:
                 x0, y0, x1, y1 = max(cx - w, 0), max(cy - h, 0), cx, cy
