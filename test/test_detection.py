@@ -227,6 +227,7 @@ def test_mosaic_tiles_are_resized_as_inference_resizes(tmp_path: Path, imgsz: in
                                                 ({"workers": -1}, "'--workers'"), ({"lr0": 0.0}, "'--lr0'"),
                                                 ({"max_train_images": -1}, "'--max-train-images'"),
                                                 ({"close_mosaic": -2}, "'--close-mosaic'"),
+                                                ({"warmup_epochs": -1.0}, "'--warmup-epochs'"),
                                                 ({"amp": "fp8"}, "'--amp'")])
 def test_train_settings_are_checked_before_training(setting: dict[str, object], named: str) -> None:
     from zebra_sim_ros.detection.train import TrainConfig

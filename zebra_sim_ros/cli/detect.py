@@ -23,6 +23,8 @@ def register(sub: Any) -> None:
     t.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
     t.add_argument("--workers", type=int, default=2, help="data loading processes")
     t.add_argument("--lr0", type=float, default=0.01, help="initial learning rate")
+    t.add_argument("--warmup-epochs", type=float, default=3.0, help="epochs of linear learning-rate and "
+                   "momentum warm-up (at least 100 steps, or a tenth of a run shorter than 1,000 steps)")
     t.add_argument("--close-mosaic", type=int, default=10, help="last epochs without mosaic")
     t.add_argument("--val-every", type=int, default=1, help="validate every N epochs (and after the last)")
     t.add_argument("--max-train-images", type=int, default=0, help="use only the first N training images (0: all)")
@@ -64,8 +66,8 @@ def cmd_train(args: argparse.Namespace) -> Summary:
 
     cfg = TrainConfig(data=args.data, out=str(args.out), model=args.model, imgsz=args.imgsz, epochs=args.epochs,
                       batch=args.batch, device=args.device, workers=args.workers, lr0=args.lr0,
-                      close_mosaic=args.close_mosaic, seed=args.seed, val_every=args.val_every,
-                      max_train_images=args.max_train_images, resume=args.resume,
+                      warmup_epochs=args.warmup_epochs, close_mosaic=args.close_mosaic, seed=args.seed,
+                      val_every=args.val_every, max_train_images=args.max_train_images, resume=args.resume,
                       init=args.init, amp=args.amp)
     summary = train(cfg)
     print(f"trained: {summary}")

@@ -91,6 +91,8 @@ class TrainConfig:
         for name, value, ok, allowed in (("--workers", self.workers, self.workers >= 0, ">= 0"),
                                          ("--val-every", self.val_every, self.val_every >= 1, ">= 1"),
                                          ("--close-mosaic", self.close_mosaic, self.close_mosaic >= 0, ">= 0"),
+                                         ("--warmup-epochs", self.warmup_epochs, 0 <= self.warmup_epochs <= 1000,
+                                          "0..1000"),
                                          ("--max-train-images", self.max_train_images, self.max_train_images >= 0,
                                           ">= 0 (0: all)"),
                                          ("--lr0", self.lr0, 0 < self.lr0 <= 1, "0 < lr0 <= 1")):
