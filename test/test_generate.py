@@ -42,6 +42,15 @@ def test_layout_and_yaml(dataset: Path) -> None:
         assert cv2.imread(str(img)).shape == (180, 320, 3)
 
 
+def test_a_generated_folder_is_read_through_its_yaml(dataset: Path) -> None:
+    from zebra_sim_ros.detection.data import YoloDataset, resolve_split
+
+    for split in ("train", "val"):
+        assert resolve_split(dataset, split) == dataset / "images" / split  # not the root, masks and all
+    files = YoloDataset(resolve_split(dataset, "train")).files
+    assert files and files == sorted((dataset / "images" / "train").glob("*.jpg"))
+
+
 def test_coco_loads_and_equals_yolo(dataset: Path) -> None:
     checked = 0
     for split in ("train", "val"):

@@ -40,8 +40,14 @@ class Augment:
 
 
 def resolve_split(data: str | Path, split: str) -> Path:
-    """The image folder of ``split`` from a dataset.yaml, or ``data`` itself if it is a folder."""
+    """The image folder of ``split`` from a dataset.yaml, or ``data`` itself if it is a folder.
+
+    A folder holding a ``dataset.yaml`` (what ``zebra-sim generate`` writes) is read as that file: taken as a
+    plain folder, its instance masks (``masks/*.png``) would count as unlabelled images.
+    """
     p = Path(data)
+    if p.is_dir() and (p / "dataset.yaml").is_file():
+        p = p / "dataset.yaml"
     if p.is_dir():
         return p
     if not p.is_file():
