@@ -39,6 +39,18 @@ def test_config_file_holds_every_parameter_at_its_default(executable: str) -> No
     assert values == {s.name: s.default for s in SPECS[executable]}
 
 
+def test_config_classes_default_as_their_parameter_specs() -> None:
+    """Each node's defaults are written twice (ParamSpec for ROS, the dataclass for the core): they must agree."""
+    from zebra_sim_ros.detection.config import DetectorConfig
+    from zebra_sim_ros.labels.config import LabelFilters, LabellerConfig
+    from zebra_sim_ros.placement.config import PlacerConfig
+    from zebra_sim_ros.rendering.config import CameraConfig
+
+    for cls in (CameraConfig, DetectorConfig, LabellerConfig, PlacerConfig):
+        assert cls.from_params({}) == cls(), cls.__name__
+    assert LabellerConfig().filters() == LabelFilters()
+
+
 def test_graph_overrides_are_declared_parameters_with_allowed_values(tmp_path: Path) -> None:
     specs = graph_spec(UpConfig(out=str(tmp_path), weights=str(tmp_path / "w.pt")))
     assert [s.executable for s in specs] == ["camera"] * 3 + ["labeller", "detector", "recorder", "placer"]
