@@ -75,15 +75,17 @@ def _random_eval_set(seed: int) -> tuple[list[np.ndarray], list[np.ndarray]]:
     return preds, gts
 
 
-@pytest.mark.parametrize("seed", [3, 4])
-def test_metrics_agree_with_pycocotools(seed: int) -> None:
-    preds, gts = _random_eval_set(seed)
+def _pycocotools_map(preds: list[np.ndarray], gts: list[np.ndarray],
+                     crowds: list[np.ndarray]) -> tuple[float, float]:
+    """(mAP50-95, mAP50) by pycocotools, ``crowds`` as iscrowd=1 annotations."""
     images, anns, dets = [], [], []
-    for i, (p, g) in enumerate(zip(preds, gts, strict=True)):
+    for i, (p, g, c) in enumerate(zip(preds, gts, crowds, strict=True)):
         images.append({"id": i + 1, "width": 700, "height": 700})
-        for b in g:
-            anns.append({"id": len(anns) + 1, "image_id": i + 1, "category_id": 1, "iscrowd": 0,
-                         "bbox": [b[0], b[1], b[2] - b[0], b[3] - b[1]], "area": float((b[2] - b[0]) * (b[3] - b[1]))})
+        for boxes, crowd in ((g, 0), (c, 1)):
+            for b in boxes:
+                anns.append({"id": len(anns) + 1, "image_id": i + 1, "category_id": 1, "iscrowd": crowd,
+                             "bbox": [b[0], b[1], b[2] - b[0], b[3] - b[1]],
+                             "area": float((b[2] - b[0]) * (b[3] - b[1]))})
         for b in p:
             dets.append({"image_id": i + 1, "category_id": 1, "bbox": [b[0], b[1], b[2] - b[0], b[3] - b[1]],
                          "score": float(b[4])})
@@ -95,11 +97,41 @@ def test_metrics_agree_with_pycocotools(seed: int) -> None:
         ev.evaluate()
         ev.accumulate()
         ev.summarize()
+    return float(ev.stats[0]), float(ev.stats[1])
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_metrics_agree_with_pycocotools(seed: int) -> None:
+    preds, gts = _random_eval_set(seed)
+    coco_50_95, coco_50 = _pycocotools_map(preds, gts, [np.zeros((0, 4))] * len(gts))
     ours = evaluate_detections(preds, gts)
-    assert ours.map50_95 == pytest.approx(ev.stats[0], abs=0.005)
-    assert ours.map50 == pytest.approx(ev.stats[1], abs=0.005)
+    assert ours.map50_95 == pytest.approx(coco_50_95, abs=0.005)
+    assert ours.map50 == pytest.approx(coco_50, abs=0.005)
     assert 0.1 < ours.map50 < 0.95  # a set where the comparison means something
     assert 0 < ours.precision <= 1 and 0 < ours.recall <= 1
+
+
+@pytest.mark.parametrize("seed", [5, 6])
+def test_ignore_regions_agree_with_pycocotools_crowds(seed: int) -> None:
+    """Don't-care boxes score as COCO's crowd annotations: detections on them are neither right nor wrong."""
+    preds, gts = _random_eval_set(seed)
+    rng = np.random.default_rng(seed)
+    kept, ignores, with_inner = [], [], []
+    for p, g in zip(preds, gts, strict=True):
+        drop = rng.uniform(size=len(g)) < 0.3
+        kept.append(g[~drop])
+        ignores.append(g[drop])
+        # detections well inside a don't-care box (high coverage, low IoU) and two on the same box
+        c = (g[drop, :2] + g[drop, 2:]) / 2
+        inner = np.concatenate([c - 1.5, c + 1.5, rng.uniform(0.3, 1, (len(c), 1))], 1)
+        with_inner.append(np.concatenate([p, inner, inner + [0.5, 0, 0.5, 0, -0.01]]))
+    coco_50_95, coco_50 = _pycocotools_map(with_inner, kept, ignores)
+    ours = evaluate_detections(with_inner, kept, ignores=ignores)
+    assert ours.map50_95 == pytest.approx(coco_50_95, abs=0.005)
+    assert ours.map50 == pytest.approx(coco_50, abs=0.005)
+    assert ours.instances == sum(len(g) for g in kept)  # don't-care boxes are not instances
+    plain = evaluate_detections(with_inner, kept)  # the same detections, scored as false positives
+    assert plain.map50 < ours.map50 - 0.05
 
 
 def test_perfect_and_empty_predictions() -> None:

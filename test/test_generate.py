@@ -52,28 +52,53 @@ def test_a_generated_folder_is_read_through_its_yaml(dataset: Path) -> None:
 
 
 def test_coco_loads_and_equals_yolo(dataset: Path) -> None:
-    checked = 0
+    """Kept zebras: COCO annotations = labels/; zebras seen but dropped by the filters: COCO crowds = ignore/."""
+    checked = {0: 0, 1: 0}
     for split in ("train", "val"):
         coco = COCO(str(dataset / "coco" / f"{split}.json"))
         cat = coco.loadCats(1)[0]
         assert cat["name"] == "zebra" and len(cat["keypoints"]) == 26 and cat["skeleton"]
         for img in coco.loadImgs(coco.getImgIds()):
             stem = Path(img["file_name"]).stem
-            anns = coco.loadAnns(coco.getAnnIds(imgIds=img["id"]))
-            lines = (dataset / "labels" / split / f"{stem}.txt").read_text().split()
-            yolo = np.array(lines, dtype=float).reshape(-1, 5) if lines else np.zeros((0, 5))
-            assert len(yolo) == len(anns)
             mask = cv2.imread(str(dataset / "masks" / f"{stem}.png"), cv2.IMREAD_UNCHANGED)
-            for a, row in zip(anns, yolo, strict=True):
-                x, y, w, h = a["bbox"]
-                np.testing.assert_allclose(row[1:], [(x + w / 2) / 320, (y + h / 2) / 180, w / 320, h / 180],
-                                           atol=1e-6)
-                m = coco.annToMask(a)
-                assert np.array_equal(m.astype(bool), mask == a["zebra_id"] + 1)
-                assert m.sum() == a["area"]
-                assert len(a["keypoints"]) == 78
-                checked += 1
-    assert checked > 20
+            for crowd, folder in ((0, "labels"), (1, "ignore")):
+                anns = coco.loadAnns(coco.getAnnIds(imgIds=img["id"], iscrowd=None))
+                anns = [a for a in anns if a["iscrowd"] == crowd]
+                path = dataset / folder / split / f"{stem}.txt"
+                lines = path.read_text().split() if path.exists() else []
+                yolo = np.array(lines, dtype=float).reshape(-1, 5) if lines else np.zeros((0, 5))
+                assert len(yolo) == len(anns)
+                for a, row in zip(anns, yolo, strict=True):
+                    x, y, w, h = a["bbox"]
+                    np.testing.assert_allclose(row[1:], [(x + w / 2) / 320, (y + h / 2) / 180, w / 320, h / 180],
+                                               atol=1e-6)
+                    m = coco.annToMask(a)
+                    assert np.array_equal(m.astype(bool), mask == a["zebra_id"] + 1)
+                    assert m.sum() == a["area"]
+                    if crowd:
+                        assert a["area"] > 0 and a["drop_reason"] in (
+                            "min_visible_pixels", "min_visible_fraction", "min_box_px", "max_aspect_ratio")
+                    else:
+                        assert len(a["keypoints"]) == 78
+                    checked[crowd] += 1
+    assert checked[0] > 20 and checked[1] > 0
+
+
+def test_validation_reads_the_dont_care_boxes(dataset: Path) -> None:
+    from zebra_sim_ros.detection.data import YoloDataset, resolve_split
+
+    seen = 0
+    for split in ("train", "val"):
+        if not any((dataset / "images" / split).iterdir()):
+            continue
+        ds = YoloDataset(resolve_split(dataset, split), 320)
+        for i, f in enumerate(ds.files):
+            meta = json.loads((dataset / "annotations" / f"{f.stem}.json").read_text())
+            want = [z["box_visible"] for z in meta["labels"]["zebras"] if not z["kept"] and z["visible_pixels"] > 0]
+            got = ds[i][2]["ignore"][:, 1:]  # image pixels
+            np.testing.assert_allclose(got, np.array(want).reshape(-1, 4), atol=0.01)
+            seen += len(want)
+    assert seen > 0
 
 
 def test_split_is_by_placement(dataset: Path) -> None:

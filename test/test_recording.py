@@ -136,16 +136,25 @@ def test_eval_from_recorded_labels_and_detections(tmp_path: Path) -> None:
     for k in range(4):
         stamp = {"sec": k, "nanosec": 0}
         for d, shift in (("drone_0", 0.0), ("drone_1", 30.0)):
-            z = [{"box_visible": [10.0, 10, 50, 40], "kept": True}, {"box_visible": [0.0, 0, 2, 2], "kept": False}]
-            dets = [{"box_xyxy": [10.0 + shift, 10, 50 + shift, 40], "score": 0.9}]
+            # kept; seen but dropped by the filters (don't-care); out of sight (no visible pixels)
+            z = [{"box_visible": [10.0, 10, 50, 40], "kept": True, "visible_pixels": 1100},
+                 {"box_visible": [100.0, 100, 104, 103], "kept": False, "visible_pixels": 8},
+                 {"box_visible": [0.0, 0, 2, 2], "kept": False, "visible_pixels": 0}]
+            dets = [{"box_xyxy": [10.0 + shift, 10, 50 + shift, 40], "score": 0.9},
+                    {"box_xyxy": [100.0, 100, 104, 103], "score": 0.95}]  # on the don't-care zebra: not held against
+            if k == 3:
+                dets.append({"box_xyxy": [1.0, 1, 2, 2], "score": 0.99})  # on the unseen one: a false positive
             w.write(f"/{d}/labels", serialize_message(String(data=json.dumps({"stamp": stamp, "zebras": z}))), k)
             w.write(f"/{d}/detections", serialize_message(String(data=json.dumps({"stamp": stamp,
                                                                                    "detections": dets}))), k)
     w.close()
     s = score(collect(tmp_path / "e.mcap"))
-    assert s["drone_0"]["frames"] == 4 and s["drone_0"]["mAP50"] == pytest.approx(1.0)
+    # one false positive ranked above all 4 true positives: precision 4/5 at every recall
+    assert s["drone_0"]["frames"] == 4 and s["drone_0"]["mAP50"] == pytest.approx(0.8, abs=0.01)
+    assert s["drone_0"]["instances"] == 4  # don't-care zebras are no instances
     assert s["drone_1"]["mAP50"] == 0.0  # shifted by 30 px: IoU 0.14
-    assert s["all"]["mAP50"] == pytest.approx(0.5, abs=0.01)
+    # both drones' step-3 false positives rank first, then drone_0's 4 true positives: 4/6 up to recall 4/8
+    assert s["all"]["mAP50"] == pytest.approx(51 / 101 * 4 / 6, abs=0.01)
     assert cdr_string(serialize_message(String(data="héllo"))) == "héllo"
 
 

@@ -76,12 +76,27 @@ def zebra_annotation(z: dict[str, Any], image_id: int, ann_id: int) -> dict[str,
     }
 
 
-def yolo_lines(labels: dict[str, Any], box: str = "visible") -> list[str]:
-    """YOLO detection lines (``0 cx cy w h``, normalised) of the kept zebras; ``box`` visible or full."""
+def is_dont_care(z: dict[str, Any]) -> bool:
+    """A zebra that is seen (visible pixels) but not labelled (the filters dropped it): a don't-care region for
+    evaluation, as COCO's crowd boxes are."""
+    return not z["kept"] and int(z["visible_pixels"]) > 0
+
+
+def crowd_annotation(z: dict[str, Any], image_id: int, ann_id: int) -> dict[str, Any]:
+    """The COCO annotation of a zebra seen but not labelled (:func:`is_dont_care`): ``iscrowd`` 1, so COCO's
+    evaluation ignores detections on it and trainers that honour ``iscrowd`` do not learn it as background."""
+    return {"id": ann_id, "image_id": image_id, "category_id": 1, "iscrowd": 1,
+            "bbox": xyxy_to_xywh(z["box_visible"]), "area": int(z["visible_pixels"]), "segmentation": z["rle"],
+            "zebra_id": z["id"], "drop_reason": z["drop_reason"]}
+
+
+def yolo_lines(labels: dict[str, Any], box: str = "visible", dont_care: bool = False) -> list[str]:
+    """YOLO detection lines (``0 cx cy w h``, normalised) of the kept zebras, or with ``dont_care`` of the
+    zebras seen but not kept (:func:`is_dont_care`); ``box`` visible or full."""
     w, h = labels["width"], labels["height"]
     lines = []
     for z in labels["zebras"]:
-        if not z["kept"]:
+        if not (is_dont_care(z) if dont_care else z["kept"]):
             continue
         x0, y0, x1, y1 = z["box_visible"] if box == "visible" else z["box_full"]
         lines.append(f"0 {(x0 + x1) / 2 / w:.6f} {(y0 + y1) / 2 / h:.6f} {(x1 - x0) / w:.6f} {(y1 - y0) / h:.6f}")

@@ -4,6 +4,9 @@ Layout of the output folder::
 
     images/{train,val}/<frame>.jpg|png   RGB
     labels/{train,val}/<frame>.txt       YOLO: "0 cx cy w h" normalised, one line per kept zebra
+    ignore/{train,val}/<frame>.txt       the same for zebras seen but dropped by the label filters (only where
+                                         there are some): don't-care regions, which evaluation neither counts
+                                         as missed nor holds against a detection (COCO's iscrowd; coco/ has them)
     masks/<frame>.png                    uint16 instance mask (zebra id + 1, 0 = not a zebra)
     depth/<frame>.npz                    metres along the optical axis, key "depth" (inf = sky); float32 by
                                          default (--depth float16 halves the size, --depth none skips it)
@@ -38,7 +41,14 @@ from typing import Any
 
 import numpy as np
 
-from zebra_sim_ros.dataset.coco import CATEGORY, rle_encode_all, yolo_lines, zebra_annotation
+from zebra_sim_ros.dataset.coco import (
+    CATEGORY,
+    crowd_annotation,
+    is_dont_care,
+    rle_encode_all,
+    yolo_lines,
+    zebra_annotation,
+)
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LabelFilters
 
@@ -246,11 +256,14 @@ class _Pipeline:
                 _write_atomic(self.out / "depth" / f"{name}.npz", buf.getvalue())
             _write_atomic(self.out / "labels" / split / f"{name}.txt",
                           ("\n".join(yolo_lines(labels, c.yolo_box)) + "\n").encode() if labels["kept"] else b"")
+            dont_care = yolo_lines(labels, c.yolo_box, dont_care=True)
+            if dont_care:
+                _write_atomic(self.out / "ignore" / split / f"{name}.txt", ("\n".join(dont_care) + "\n").encode())
             cam = next(x for x in scene["cameras"] if x["name"] == v.name)
-            rles = rle_encode_all(v.instances, [z["instance"] for z in labels["zebras"] if z["kept"]])
-            for z in labels["zebras"]:
-                if z["kept"]:
-                    z["rle"] = rles[z["instance"]]
+            outlined = [z for z in labels["zebras"] if z["kept"] or is_dont_care(z)]
+            rles = rle_encode_all(v.instances, [z["instance"] for z in outlined])
+            for z in outlined:
+                z["rle"] = rles[z["instance"]]
             meta = {"frame": name, "split": split, "image": f"images/{split}/{name}.{c.image_format}",
                     "mask": f"masks/{name}.png", "depth": f"depth/{name}.npz" if c.depth != "none" else None,
                     "world": scene["world"], "seed": scene["seed"], "step": scene["step"],
@@ -293,7 +306,8 @@ def generate(cfg: GenerateConfig, progress: Callable[[int, int, float], None] | 
     cfg.check()
     pc = PlacerConfig.from_params({**cfg.placer, "seed": cfg.seed})
     out = Path(cfg.out)
-    for sub in ("images/train", "images/val", "labels/train", "labels/val", "masks", "depth", "annotations", "coco"):
+    for sub in ("images/train", "images/val", "labels/train", "labels/val", "ignore/train", "ignore/val", "masks",
+                "depth", "annotations", "coco"):
         (out / sub).mkdir(parents=True, exist_ok=True)
     cameras = [f"drone_{i}" for i in range(pc.num_cameras)]
     jobs = plan(cfg, len(cameras))
@@ -373,6 +387,8 @@ def finalize(out: Path, cfg: GenerateConfig | None = None) -> dict[str, Any]:
             if z["kept"]:
                 anns[split].append(zebra_annotation(z, image_id, len(anns[split]) + 1))
                 kept += 1
+            elif is_dont_care(z) and "rle" in z:  # sets written before don't-care regions have no outline
+                anns[split].append(crowd_annotation(z, image_id, len(anns[split]) + 1))
     for split in ("train", "val"):
         coco = {"info": {"description": "zebra_sim_ros synthetic zebras", "version": "1"}, "licenses": [],
                 "categories": [CATEGORY], "images": images[split], "annotations": anns[split]}

@@ -1,7 +1,9 @@
 """YOLO-format datasets and the augmentations of the paper's YOLOv5 defaults.
 
 A set is a folder of images with a sibling ``labels`` folder (``images/x/a.jpg`` -> ``labels/x/a.txt``, lines
-``class cx cy w h`` normalised), or a ``dataset.yaml`` naming ``train`` and ``val`` folders. Batches are
+``class cx cy w h`` normalised), or a ``dataset.yaml`` naming ``train`` and ``val`` folders. An optional sibling
+``ignore`` folder in the same format holds don't-care boxes (objects present but not labelled), which validation
+scores as COCO scores crowd regions; training does not read it. Batches are
 ``(images (B, 3, S, S) float in [0, 1], targets (T, 6) [image index, class, x0, y0, x1, y1] pixels)``.
 
 Training augmentation: mosaic of four images, random affine (scale, translation), horizontal flip and HSV
@@ -65,12 +67,13 @@ def resolve_split(data: str | Path, split: str) -> Path:
     return folder
 
 
-def label_path(image: Path) -> Path:
-    """``.../images/<x>/a.jpg`` -> ``.../labels/<x>/a.txt`` (YOLO's convention)."""
+def label_path(image: Path, folder: str = "labels") -> Path:
+    """``.../images/<x>/a.jpg`` -> ``.../labels/<x>/a.txt`` (YOLO's convention); ``folder`` "ignore" gives the
+    image's don't-care boxes (same format; a missing file means none)."""
     parts = list(image.parts)
     for i in range(len(parts) - 1, -1, -1):
         if parts[i] == "images":
-            parts[i] = "labels"
+            parts[i] = folder
             break
     return Path(*parts).with_suffix(".txt")
 
@@ -167,7 +170,7 @@ class YoloDataset(Dataset[Any]):
             lab[:, [1, 3]] = lab[:, [1, 3]] * r + left
             lab[:, [2, 4]] = lab[:, [2, 4]] * r + top
             meta = {"file": str(self.files[i]), "shape": (h0, w0), "scale": r, "pad": (left, top),
-                    "labels": lab0}
+                    "labels": lab0, "ignore": read_labels(label_path(self.files[i], "ignore"), w0, h0)}
         else:
             rng = self._rng(i)
             img, lab = self._mosaic(i, rng) if rng.uniform() < a.mosaic else self._single(i, rng)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
@@ -29,23 +29,32 @@ def make_loader(folder: str | Path, imgsz: int, batch: int = 8, workers: int = 0
                       collate_fn=collate)
 
 
+class ImagePredictions(NamedTuple):
+    """One image's detections and ground truth, all in the image's own pixels."""
+
+    file: str
+    detections: NDArray[np.float64]  # (n, 5) [x0, y0, x1, y1, score]
+    labels: NDArray[np.float64]  # (m, 4) xyxy
+    ignore: NDArray[np.float64]  # (k, 4) xyxy don't-care boxes
+
+
 @torch.no_grad()
 def predictions(model: Detector, loader: DataLoader[Any], conf: float = 0.001, iou: float = 0.7,
-                max_det: int = 100) -> list[tuple[str, NDArray[np.float64], NDArray[np.float64]]]:
-    """Per image of ``loader``: (file, detections (n, 5) [x0, y0, x1, y1, score], ground truth (m, 4)), both in
-    the image's own pixels."""
+                max_det: int = 100) -> list[ImagePredictions]:
+    """Per image of ``loader``: its detections, labels and don't-care boxes."""
     was_training = model.training
     model.eval()
     dev = next(model.parameters()).device
-    out: list[tuple[str, NDArray[np.float64], NDArray[np.float64]]] = []
+    out: list[ImagePredictions] = []
     for imgs, _, metas in loader:
         raw = model(imgs.to(dev).contiguous(memory_format=torch.channels_last))  # the serving layout
         for det, meta in zip(postprocess(raw, conf, iou, max_det), metas, strict=True):
             h, w = meta["shape"]
             left, top = meta["pad"]
             d = unletterbox(det, meta["scale"], left, top, w, h).cpu().numpy()
-            out.append((meta["file"], d[:, :5].astype(np.float64),
-                        meta["labels"][:, 1:].astype(np.float64)))  # labels in the image's own pixels, read once
+            out.append(ImagePredictions(meta["file"], d[:, :5].astype(np.float64),  # labels read once, by the loader
+                                        meta["labels"][:, 1:].astype(np.float64),
+                                        meta["ignore"][:, 1:].astype(np.float64)))
     if was_training:
         model.train()
     return out
@@ -54,8 +63,13 @@ def predictions(model: Detector, loader: DataLoader[Any], conf: float = 0.001, i
 def run(model: Detector, loader: DataLoader[Any], conf: float = 0.001, iou: float = 0.7,
         max_det: int = 100) -> DetectionMetrics:
     """Metrics of ``model`` on ``loader`` (boxes compared in each image's original pixels)."""
-    per_image = predictions(model, loader, conf, iou, max_det)
-    return evaluate_detections([p for _, p, _ in per_image], [g for _, _, g in per_image], max_det)
+    return score(predictions(model, loader, conf, iou, max_det), max_det)
+
+
+def score(per_image: list[ImagePredictions], max_det: int = 100) -> DetectionMetrics:
+    """COCO metrics of :func:`predictions` (or a subset of them), don't-care boxes honoured."""
+    return evaluate_detections([p.detections for p in per_image], [p.labels for p in per_image], max_det,
+                               [p.ignore for p in per_image])
 
 
 def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", imgsz: int | None = None,

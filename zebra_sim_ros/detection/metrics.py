@@ -4,6 +4,11 @@ Matching follows pycocotools' COCOeval for boxes (area range "all", at most ``ma
 image by score): in score order, each detection takes the unmatched ground truth it overlaps most at or above
 the threshold. Precision is made monotone, sampled at 101 recall points and averaged. Precision and recall are
 also given at the confidence that maximises F1 at IoU 0.5, as YOLO tools print them.
+
+Don't-care regions (``ignores``) are COCO's crowd annotations: objects that are there but not labelled (here,
+zebras below the labeller's visibility filters). A detection that matches no labelled box but covers an ignore
+box (intersection over the detection's own area at or above the threshold) counts neither as a true nor as a
+false positive; ignore boxes are never missed and may take any number of detections.
 """
 
 from __future__ import annotations
@@ -59,23 +64,42 @@ class DetectionMetrics:
                 "images": self.images, "instances": self.instances}
 
 
+def coverage_matrix(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(N, M): the share of each xyxy box of ``a`` that lies inside each box of ``b`` (COCO's IoU with a crowd
+    box: intersection over the detection's area)."""
+    if len(a) == 0 or len(b) == 0:
+        return np.zeros((len(a), len(b)))
+    lt = np.maximum(a[:, None, :2], b[None, :, :2])
+    rb = np.minimum(a[:, None, 2:], b[None, :, 2:])
+    inter = np.clip(rb - lt, 0, None).prod(2)
+    area_a = (a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1])
+    return np.asarray(inter / (area_a[:, None] + 1e-12))
+
+
 def evaluate_detections(preds: list[NDArray[np.float64]], gts: list[NDArray[np.float64]],
-                        max_det: int = 100) -> DetectionMetrics:
+                        max_det: int = 100,
+                        ignores: list[NDArray[np.float64]] | None = None) -> DetectionMetrics:
     """Metrics of per-image predictions (n, 5) [x0, y0, x1, y1, score] against ground truths (m, 4) xyxy.
 
-    Single class (zebra); boxes in the same pixel coordinates. With no ground truth at all, AP is 0.
+    Single class (zebra); boxes in the same pixel coordinates. ``ignores``: per image, don't-care boxes (k, 4)
+    xyxy (pycocotools' ``iscrowd=1``: see the module's docstring); None for none. With no ground truth at all,
+    AP is 0.
     """
     t = len(IOU_THRESHOLDS)
-    scores_all, tp_all = [], []
+    scores_all, tp_all, ig_all = [], [], []
     n_gt = 0
-    for pred, gt in zip(preds, gts, strict=True):
+    per_image_ignores = ignores if ignores is not None else [np.zeros((0, 4))] * len(gts)
+    for pred, gt, ign in zip(preds, gts, per_image_ignores, strict=True):
         pred = np.asarray(pred, dtype=np.float64).reshape(-1, 5)
         gt = np.asarray(gt, dtype=np.float64).reshape(-1, 4)
         n_gt += len(gt)
         order = np.argsort(-pred[:, 4], kind="mergesort")[:max_det]
         pred = pred[order]
         ious = iou_matrix(pred[:, :4], gt)
+        cover = coverage_matrix(pred[:, :4], np.asarray(ign, dtype=np.float64).reshape(-1, 4))
+        max_cover = cover.max(1) if cover.shape[1] else np.zeros(len(pred))
         tp = np.zeros((t, len(pred)), dtype=bool)
+        ig = np.zeros((t, len(pred)), dtype=bool)
         for ti, thr in enumerate(IOU_THRESHOLDS):
             taken = np.zeros(len(gt), dtype=bool)
             limit = min(thr, 1 - 1e-10)
@@ -88,19 +112,24 @@ def evaluate_detections(preds: list[NDArray[np.float64]], gts: list[NDArray[np.f
                 if best >= 0:
                     taken[best] = True
                     tp[ti, d] = True
+                elif max_cover[d] >= limit:  # on a don't-care zebra: neither right nor wrong
+                    ig[ti, d] = True
         scores_all.append(pred[:, 4])
         tp_all.append(tp)
+        ig_all.append(ig)
     scores = np.concatenate(scores_all) if scores_all else np.zeros(0)
     tps = np.concatenate(tp_all, axis=1) if tp_all else np.zeros((t, 0), dtype=bool)
+    igs = np.concatenate(ig_all, axis=1) if ig_all else np.zeros((t, 0), dtype=bool)
     order = np.argsort(-scores, kind="mergesort")
-    scores, tps = scores[order], tps[:, order]
+    scores, tps, igs = scores[order], tps[:, order], igs[:, order]
     ap = np.zeros(t)
     pr = (np.zeros(0), np.zeros(0))
     best_p = best_r = best_conf = 0.0
     if n_gt and len(scores):
         for ti in range(t):
+            # an ignored detection adds to neither count (its entry repeats the previous point, as in pycocotools)
             tp_c = np.cumsum(tps[ti]).astype(np.float64)
-            fp_c = np.cumsum(~tps[ti]).astype(np.float64)
+            fp_c = np.cumsum(~tps[ti] & ~igs[ti]).astype(np.float64)
             rc = tp_c / n_gt
             pc = tp_c / (tp_c + fp_c + np.spacing(1))
             pm = np.maximum.accumulate(pc[::-1])[::-1]  # monotone: best precision at this recall or beyond

@@ -2,7 +2,8 @@
 
 Labels (``/<drone>/labels``) and detections (``/<drone>/detections``) are std_msgs/String JSON; they are
 matched by the stamp inside each message (the image's), so a replayed run's detections are scored against
-the labels of the same frames. Only kept labels count as ground truth, as in the datasets.
+the labels of the same frames. Only kept labels count as ground truth, as in the datasets; zebras the labeller
+saw but dropped are don't-care regions (a detection on one is neither right nor wrong), as in ``zebra-sim val``.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from zebra_sim_ros.dataset.coco import is_dont_care
 from zebra_sim_ros.detection.metrics import evaluate_detections
 from zebra_sim_ros.recording.reader import BagMessage, BagReader
 
@@ -115,13 +117,14 @@ def skip_note(m: BagMessage, why: str | BaseException) -> str:
 
 def _no_frames() -> dict[str, Any]:
     """One drone's entry in :func:`collect`'s ``drones`` before any of its messages."""
-    return {"labels": {}, "detections": {}, "log_times": {"labels": {}, "detections": {}}}
+    return {"labels": {}, "ignore": {}, "detections": {}, "log_times": {"labels": {}, "detections": {}}}
 
 
 def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "detections",
             each: Callable[[BagMessage], None] | None = None) -> dict[str, Any]:
-    """Per drone: ``{"labels": {stamp: gt boxes (n, 4)}, "detections": {stamp: (m, 5)}, "log_times": {"labels":
-    {stamp: first log time}, "detections": {...}}}`` from a bag; ``each`` sees every message of the same pass (so
+    """Per drone: ``{"labels": {stamp: gt boxes (n, 4)}, "ignore": {stamp: don't-care boxes (k, 4)},
+    "detections": {stamp: (m, 5)}, "log_times": {"labels": {stamp: first log time}, "detections": {...}}}`` from a
+    bag; ``each`` sees every message of the same pass (so
     callers needing more from the bag do not read it twice).
 
     A labels or detections message that does not parse is skipped and noted in ``"skipped"``; damage to the
@@ -142,7 +145,9 @@ def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "dete
             t = json_stamp_ns(d)
             if match.group("kind") == "labels":
                 kind, rows = "labels", np.array([z["box_visible"] for z in d["zebras"] if z["kept"]], np.float64)
+                ignore = np.array([z["box_visible"] for z in d["zebras"] if is_dont_care(z)], np.float64)
                 out[drone][kind][t] = rows.reshape(-1, 4)
+                out[drone]["ignore"][t] = ignore.reshape(-1, 4)
             else:
                 kind, rows = "detections", np.array([[*x["box_xyxy"], x["score"]] for x in d["detections"]],
                                                     np.float64)
@@ -210,17 +215,19 @@ class ImageDetector:
 def score(collected: dict[str, Any]) -> dict[str, Any]:
     """mAP50 and mAP50-95 per drone and over all drones, on the frames that have both labels and detections."""
     result: dict[str, Any] = {}
-    all_p, all_g = [], []
+    all_p, all_g, all_i = [], [], []
     for drone, d in sorted(collected["drones"].items()):
         stamps = sorted(set(d["labels"]) & set(d["detections"]))
         preds = [d["detections"][s] for s in stamps]
         gts = [d["labels"][s] for s in stamps]
+        ignores = [d.get("ignore", {}).get(s, np.zeros((0, 4))) for s in stamps]
         all_p += preds
         all_g += gts
-        m = evaluate_detections(preds, gts)
+        all_i += ignores
+        m = evaluate_detections(preds, gts, ignores=ignores)
         result[drone] = {"frames": len(stamps), "unmatched_labels": len(set(d["labels"]) - set(stamps)),
                          "unmatched_detections": len(set(d["detections"]) - set(stamps)), **m.to_dict()}
-    result["all"] = evaluate_detections(all_p, all_g).to_dict() if all_g else None
+    result["all"] = evaluate_detections(all_p, all_g, ignores=all_i).to_dict() if all_g else None
     result["damaged"] = collected["damaged"]
     result["skipped"] = collected.get("skipped", [])
     return result
