@@ -191,6 +191,31 @@ def test_onnx_export_gives_the_same_boxes(tmp_path: Path) -> None:
         torch.testing.assert_close(a, b, atol=1e-3, rtol=1e-3)
 
 
+def test_serving_checkpoint_keeps_the_weights_and_sets_the_default_size(tmp_path: Path) -> None:
+    from zebra_sim_ros.cli import main
+    from zebra_sim_ros.detection.predict import detect
+
+    torch.manual_seed(0)
+    model = build_model(ModelConfig(size="n", imgsz=256)).eval()
+    save_checkpoint(tmp_path / "m.pt", model, epoch=3, train_args={"imgsz": 256, "model": "n"})
+    assert main(["export", "--weights", str(tmp_path / "m.pt"), "--format", "pt", "--imgsz", "320",
+                 "--out", str(tmp_path / "s.pt")]) == 0
+    ckpt = read_checkpoint(tmp_path / "s.pt")
+    assert ckpt["config"]["imgsz"] == 320 and ckpt["train_args"]["imgsz"] == 256 and ckpt["epoch"] == 3
+    assert ckpt["exported"] == {"from_config_imgsz": 256, "imgsz": 320}
+    assert "optimizer" not in ckpt and all(v.dtype == torch.float16 for v in ckpt["model"].values()
+                                           if v.dtype.is_floating_point)
+    src, _ = load_model(tmp_path / "m.pt")
+    served, _ = load_model(tmp_path / "s.pt")
+    img = np.random.default_rng(0).integers(0, 255, (180, 320, 3), dtype=np.uint8)
+    a = detect(src, [img], imgsz=320, conf=0.0)[0]
+    b = detect(served, [img], conf=0.0)[0]  # the default size is now 320
+    assert len(a) > 0 and len(a) == len(b)
+    torch.testing.assert_close(torch.as_tensor(b)[:, :4], torch.as_tensor(a)[:, :4], atol=0.5, rtol=0.01)  # fp16
+    assert main(["export", "--format", "tflite", "--out", str(tmp_path / "x")]) == 2  # named on stderr
+    assert not (tmp_path / "x").exists()
+
+
 @pytest.mark.parametrize("rect", [True, False])
 def test_letterbox_geometry_round_trips_boxes(rect: bool) -> None:
     from zebra_sim_ros.detection.predict import preprocess, unletterbox

@@ -51,11 +51,12 @@ def register(sub: Any) -> None:
     add_json_flag(v)
     v.set_defaults(func=cmd_val)
 
-    e = sub.add_parser("export", help="export a checkpoint for deployment (ONNX)")
+    e = sub.add_parser("export", help="export a checkpoint for deployment (ONNX, or a serving checkpoint)")
     e.add_argument("--weights", default=None, help="checkpoint (default: the shipped weights)")
-    e.add_argument("--format", default="onnx", help="onnx")
+    e.add_argument("--format", default="onnx", help="onnx, or pt: a serving checkpoint (fp16 EMA weights) whose "
+                   "default inference size is --imgsz")
     e.add_argument("--imgsz", type=int, default=None, help="input size (default: the checkpoint's)")
-    e.add_argument("--out", type=Path, required=True, help="output file (.onnx)")
+    e.add_argument("--out", type=Path, required=True, help="output file (.onnx or .pt)")
     add_json_flag(e)
     e.set_defaults(func=cmd_export)
 
@@ -100,15 +101,15 @@ def cmd_val(args: argparse.Namespace) -> Summary:
 
 def cmd_export(args: argparse.Namespace) -> Summary:
     """Export."""
-    if args.format != "onnx":
-        raise ParameterError("--format", args.format, "onnx")
+    if args.format not in ("onnx", "pt"):
+        raise ParameterError("--format", args.format, "onnx or pt")
     from zebra_sim_ros.detection.checkpoint import check_imgsz
-    from zebra_sim_ros.detection.export import export_onnx
+    from zebra_sim_ros.detection.export import export_checkpoint, export_onnx
 
     check_imgsz("--imgsz", args.imgsz)
 
-    path = export_onnx(args.weights, args.out, args.imgsz)
+    path = (export_onnx if args.format == "onnx" else export_checkpoint)(args.weights, args.out, args.imgsz)
     print(f"exported {path}")
-    return {"out": str(path), "format": "onnx"}
+    return {"out": str(path), "format": args.format}
 
 

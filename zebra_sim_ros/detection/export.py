@@ -1,8 +1,13 @@
-"""ONNX export (optional dependency: ``pip install onnx onnxruntime``).
+"""Deployment exports: ONNX (optional dependency: ``pip install onnx onnxruntime``) and serving checkpoints.
 
 The exported graph is the whole model up to decoded boxes and class probabilities: input ``images``
 (B, 3, S, S) float RGB in [0, 1], output ``predictions`` (B, N, 4 + nc) xyxy pixels of the letterboxed input.
 NMS stays outside the graph (:func:`zebra_sim_ros.detection.boxes.postprocess`, or any runtime's own).
+
+A serving checkpoint (``--format pt``) is what the package ships: the EMA weights in float16, no optimizer state,
+and ``config.imgsz`` set to the inference size every loader defaults to (``zebra-sim val``, the detector node,
+``bag eval``); the training arguments, epoch and metrics of the source are kept, so ``train_args.imgsz`` still
+says the size it was trained at.
 """
 
 from __future__ import annotations
@@ -11,7 +16,8 @@ from pathlib import Path
 
 import torch
 
-from zebra_sim_ros.detection.checkpoint import load_model
+from zebra_sim_ros.detection.checkpoint import SHIPPED, load_model, read_checkpoint, save_checkpoint
+from zebra_sim_ros.detection.model import build_model
 from zebra_sim_ros.errors import DependencyError
 
 
@@ -30,3 +36,18 @@ def export_onnx(weights: str | Path | None, out: str | Path, imgsz: int | None =
                       dynamic_axes={"images": {0: "batch"}, "predictions": {0: "batch"}}, opset_version=opset,
                       dynamo=False)
     return path
+
+
+def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | None = None) -> Path:
+    """Write a serving checkpoint of ``weights`` (default: the shipped ones) whose default inference size is
+    ``imgsz`` (default: unchanged); returns the path."""
+    src = read_checkpoint(weights or SHIPPED)
+    cfg = dict(src["config"])
+    if imgsz:
+        cfg["imgsz"] = imgsz
+    model = build_model(cfg)
+    model.load_state_dict({k: v.float() for k, v in src["model"].items()})
+    extra = {k: src[k] for k in ("epoch", "metrics", "train_args", "best_fitness") if k in src}
+    save_checkpoint(out, model.half(), **extra, exported={"from_config_imgsz": int(src["config"]["imgsz"]),
+                                                          "imgsz": int(cfg["imgsz"])})
+    return Path(out)
