@@ -305,3 +305,16 @@ def test_autocast_dtype_follows_the_device(monkeypatch: pytest.MonkeyPatch) -> N
         monkeypatch.setattr(torch.cpu, "_is_avx512_bf16_supported", lambda v=bf16: v)
         monkeypatch.setattr(torch.cpu, "_is_amx_tile_supported", lambda v=amx: v)
         assert amp_dtype("auto", cpu) == want  # emulated bfloat16 is slower than float32: not chosen
+
+
+def test_a_malformed_label_file_is_named_with_its_line(tmp_path: Path) -> None:
+    from zebra_sim_ros.detection.data import read_labels
+
+    good = tmp_path / "good.txt"
+    good.write_text("0 0.5 0.5 0.2 0.1\n\n")
+    np.testing.assert_allclose(read_labels(good, 100, 50), [[0, 40, 22.5, 60, 27.5]])
+    for text, line in (("0 0.5 0.5 0.2 0.1\n0 0.5 oops 0.1 0.1\n", 2), ("0 0.5 0.5\n", 1)):
+        bad = tmp_path / "bad.txt"
+        bad.write_text(text)
+        with pytest.raises(AssetError, match=rf"bad\.txt line {line} "):
+            read_labels(bad, 100, 50)

@@ -23,7 +23,7 @@ import yaml
 from numpy.typing import NDArray
 from torch.utils.data import Dataset
 
-from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.errors import AssetError, ParameterError
 
 IMAGE_EXTS = (".jpg", ".jpeg", ".png", ".bmp")
 
@@ -79,13 +79,24 @@ def label_path(image: Path, folder: str = "labels") -> Path:
 
 
 def read_labels(path: Path, width: int, height: int) -> NDArray[np.float32]:
-    """(n, 5) [class, x0, y0, x1, y1] pixels from a YOLO label file (missing file: no objects)."""
+    """(n, 5) [class, x0, y0, x1, y1] pixels from a YOLO label file (missing file: no objects).
+
+    A line that is not at least five numbers raises :class:`AssetError` naming the file and the line."""
     if not path.exists():
         return np.zeros((0, 5), np.float32)
-    rows = [r.split() for r in path.read_text().splitlines() if r.strip()]
+    rows = []
+    for k, line in enumerate(path.read_text().splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            rows.append([float(v) for v in line.split()[:5]])
+        except ValueError:
+            rows.append([])
+        if len(rows[-1]) < 5:
+            raise AssetError(f"label file {path} line {k} is {line!r}; want 'class cx cy w h' (numbers)")
     if not rows:
         return np.zeros((0, 5), np.float32)
-    a = np.array(rows, dtype=np.float32)[:, :5]
+    a = np.array(rows, dtype=np.float32)
     out = np.empty_like(a)
     out[:, 0] = a[:, 0]
     out[:, 1] = (a[:, 1] - a[:, 3] / 2) * width

@@ -220,7 +220,7 @@ def score(collected: dict[str, Any]) -> dict[str, Any]:
         stamps = sorted(set(d["labels"]) & set(d["detections"]))
         preds = [d["detections"][s] for s in stamps]
         gts = [d["labels"][s] for s in stamps]
-        ignores = [d.get("ignore", {}).get(s, np.zeros((0, 4))) for s in stamps]
+        ignores = [d["ignore"][s] for s in stamps]  # collect writes a stamp's labels and don't-care boxes together
         all_p += preds
         all_g += gts
         all_i += ignores
