@@ -35,7 +35,10 @@ def main() -> None:
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
     if args.image:
-        img = np.ascontiguousarray(cv2.imread(args.image, cv2.IMREAD_COLOR)[..., ::-1])
+        bgr = cv2.imread(args.image, cv2.IMREAD_COLOR)
+        if bgr is None:
+            raise SystemExit(f"--image {args.image!r} is not a readable image")
+        img = np.ascontiguousarray(bgr[..., ::-1])
     else:
         w, h = (int(v) for v in args.frame.split("x"))
         img = np.random.default_rng(0).integers(0, 256, (h, w, 3), dtype=np.uint8)
