@@ -19,6 +19,7 @@ import time
 import cv2
 import numpy as np
 import torch
+from numpy.typing import NDArray
 
 from zebra_sim_ros.detection.checkpoint import load_model
 from zebra_sim_ros.detection.predict import detect
@@ -34,11 +35,12 @@ def main() -> None:
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
+    img: NDArray[np.uint8]
     if args.image:
         bgr = cv2.imread(args.image, cv2.IMREAD_COLOR)
         if bgr is None:
             raise SystemExit(f"--image {args.image!r} is not a readable image")
-        img = np.ascontiguousarray(bgr[..., ::-1])
+        img = np.ascontiguousarray(bgr[..., ::-1], dtype=np.uint8)
     else:
         w, h = (int(v) for v in args.frame.split("x"))
         img = np.random.default_rng(0).integers(0, 256, (h, w, 3), dtype=np.uint8)
