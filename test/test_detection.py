@@ -318,3 +318,62 @@ def test_a_malformed_label_file_is_named_with_its_line(tmp_path: Path) -> None:
         bad.write_text(text)
         with pytest.raises(AssetError, match=rf"bad\.txt line {line} "):
             read_labels(bad, 100, 50)
+
+
+def test_dont_care_boxes_are_left_out_of_the_classification_loss() -> None:
+    """A zebra under the label filters is neither zebra nor background: raising the scores where it lies changes
+    nothing, while as plain background the same raise costs loss; the labelled zebra's points still count."""
+    from zebra_sim_ros.detection.loss import DetectionLoss, candidates
+    from zebra_sim_ros.detection.model import make_anchors
+
+    torch.manual_seed(0)
+    model = build_model(ModelConfig(size="n", imgsz=128)).train()
+    with torch.no_grad():
+        feats = model(torch.rand(1, 3, 128, 128))
+    zebra, dont_care = [0.0, 0.0, 20.0, 20.0, 44.0, 36.0], [0.0, -1.0, 80.0, 80.0, 86.0, 86.0]
+    anchors, strides = make_anchors(feats, model.strides)
+    sizes = [f.shape[2] * f.shape[3] for f in feats]
+
+    def raised(box: list[float]) -> list[torch.Tensor]:
+        """The class logits raised by 5 at the points the box has as candidates."""
+        near = candidates(anchors * strides, strides[:, 0], torch.tensor([box[2:]])).any(0)
+        out = []
+        for f, m in zip(feats, near.split(sizes), strict=True):
+            g = f.clone()
+            g[0, -1].view(-1)[m] += 5.0
+            out.append(g)
+        return out
+
+    loss = DetectionLoss(model)
+    both, background = torch.tensor([zebra, dont_care]), torch.tensor([zebra])
+    cls = {name: loss(feats, t)[1][1] for name, t in (("both", both), ("background", background))}
+    assert torch.equal(loss(raised(dont_care), both)[1][1], cls["both"])
+    assert loss(raised(dont_care), background)[1][1] > cls["background"] + 0.1
+    assert not torch.equal(loss(raised(zebra), both)[1][1], cls["both"])
+    assert cls["both"] < cls["background"]  # fewer background points: the untrained model's scores cost less
+
+
+def test_training_targets_carry_the_dont_care_boxes(tmp_path: Path) -> None:
+    """With dont_care the ignore/ boxes join the training targets as class -1, placed as the labels are; without
+    it (or in validation, which keeps them in meta) they are not targets."""
+    import cv2
+
+    from zebra_sim_ros.cli import build_parser
+    from zebra_sim_ros.detection.data import DONT_CARE, Augment, YoloDataset
+
+    for sub in ("images", "labels", "ignore"):
+        (tmp_path / sub).mkdir()
+    cv2.imwrite(str(tmp_path / "images" / "a.png"), np.zeros((50, 100, 3), np.uint8))
+    (tmp_path / "labels" / "a.txt").write_text("0 0.5 0.5 0.2 0.2\n")
+    (tmp_path / "ignore" / "a.txt").write_text("0 0.1 0.1 0.04 0.04\n0 0.9 0.9 0.06 0.04\n")
+    still = Augment(mosaic=0.0, scale=0.0, translate=0.0, fliplr=0.0, hsv_h=0.0, hsv_s=0.0, hsv_v=0.0)
+    # letterbox to 128: scale 1.28, 32 px of padding above
+    targets = YoloDataset(tmp_path / "images", 128, still, dont_care=True)[0][1].numpy()
+    np.testing.assert_allclose(targets, [[0, 51.2, 57.6, 76.8, 70.4], [DONT_CARE, 10.24, 37.12, 15.36, 39.68],
+                                         [DONT_CARE, 111.36, 88.32, 119.04, 90.88]], atol=1e-4)
+    assert len(YoloDataset(tmp_path / "images", 128, still)[0][1]) == 1
+    _, labels, meta = YoloDataset(tmp_path / "images", 128, dont_care=True)[0]
+    assert len(labels) == 1 and len(meta["ignore"]) == 2
+    base = ["train", "--data", "d.yaml", "--out", "o"]
+    assert build_parser().parse_args(base).dont_care
+    assert not build_parser().parse_args([*base, "--no-dont-care"]).dont_care

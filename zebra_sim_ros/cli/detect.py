@@ -31,6 +31,9 @@ def register(sub: Any) -> None:
     t.add_argument("--seed", type=int, default=0)
     t.add_argument("--amp", default="auto", help="mixed precision: auto (fp16 on CUDA, bf16 on CPUs with bf16 "
                    "instructions, else off), fp16, bf16 or off")
+    t.add_argument("--dont-care", action=argparse.BooleanOptionalAction, default=True,
+                   help="the sets' ignore/ boxes (zebras dropped by the label filters) are neither zebra nor "
+                   "background in the loss; --no-dont-care trains them as background")
     t.add_argument("--out", type=Path, required=True, help="run folder: best.pt, last.pt, results.csv, results.png")
     t.add_argument("--resume", action="store_true", help="continue the run in --out from last.pt")
     t.add_argument("--init", default="", help="start from this checkpoint's weights (fresh schedule), e.g. to "
@@ -69,7 +72,7 @@ def cmd_train(args: argparse.Namespace) -> Summary:
                       batch=args.batch, device=args.device, workers=args.workers, lr0=args.lr0,
                       warmup_epochs=args.warmup_epochs, close_mosaic=args.close_mosaic, seed=args.seed,
                       val_every=args.val_every, max_train_images=args.max_train_images, resume=args.resume,
-                      init=args.init, amp=args.amp)
+                      init=args.init, amp=args.amp, dont_care=args.dont_care)
     summary = train(cfg)
     print(f"trained: {summary}")
     return summary

@@ -3,8 +3,9 @@
 A set is a folder of images with a sibling ``labels`` folder (``images/x/a.jpg`` -> ``labels/x/a.txt``, lines
 ``class cx cy w h`` normalised), or a ``dataset.yaml`` naming ``train`` and ``val`` folders. An optional sibling
 ``ignore`` folder in the same format holds don't-care boxes (objects present but not labelled), which validation
-scores as COCO scores crowd regions; training does not read it. Batches are
-``(images (B, 3, S, S) float in [0, 1], targets (T, 6) [image index, class, x0, y0, x1, y1] pixels)``.
+scores as COCO scores crowd regions. Training with ``dont_care`` adds them to the targets with class
+:data:`DONT_CARE` (-1), augmented as the labels are, so the loss neither rewards nor punishes detecting them.
+Batches are ``(images (B, 3, S, S) float in [0, 1], targets (T, 6) [image index, class, x0, y0, x1, y1] pixels)``.
 
 Training augmentation: mosaic of four images, random affine (scale, translation), horizontal flip and HSV
 jitter. Validation: letterbox only, with the scale and padding kept to map boxes back to the original image.
@@ -26,6 +27,7 @@ from torch.utils.data import Dataset
 from zebra_sim_ros.errors import AssetError, ParameterError
 
 IMAGE_EXTS = (".jpg", ".jpeg", ".png", ".bmp")
+DONT_CARE = -1  # the class of a don't-care box among training targets
 
 
 @dataclass(frozen=True)
@@ -145,9 +147,12 @@ def letterbox(img: NDArray[np.uint8], size: int,
 
 
 class YoloDataset(Dataset[Any]):
-    """Images and YOLO labels; ``augment`` None for validation."""
+    """Images and YOLO labels; ``augment`` None for validation. ``dont_care``: with ``augment``, the don't-care
+    boxes of ``ignore/`` join each image's targets as class :data:`DONT_CARE` (validation keeps them apart, in
+    ``meta["ignore"]``)."""
 
-    def __init__(self, folder: str | Path, imgsz: int = 640, augment: Augment | None = None, seed: int = 0) -> None:
+    def __init__(self, folder: str | Path, imgsz: int = 640, augment: Augment | None = None, seed: int = 0,
+                 dont_care: bool = False) -> None:
         self.folder = Path(folder)
         self.files = sorted(p for p in self.folder.rglob("*") if p.suffix.lower() in IMAGE_EXTS)
         if not self.files:
@@ -155,18 +160,24 @@ class YoloDataset(Dataset[Any]):
         self.imgsz = imgsz
         self.augment = augment
         self.seed = seed
+        self.dont_care = dont_care
         self.epoch = 0
 
     def __len__(self) -> int:
         return len(self.files)
 
-    def load(self, i: int) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
-        """Image (RGB) and labels in its own pixels."""
+    def load(self, i: int, dont_care: bool = False) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+        """Image (RGB) and labels in its own pixels; ``dont_care``: the don't-care boxes too, as class -1."""
         img = cv2.imread(str(self.files[i]), cv2.IMREAD_COLOR)
         if img is None:
             raise ParameterError("image", str(self.files[i]), "a readable image file")
         h, w = img.shape[:2]
-        return np.asarray(img[..., ::-1], dtype=np.uint8).copy(), read_labels(label_path(self.files[i]), w, h)
+        lab = read_labels(label_path(self.files[i]), w, h)
+        if dont_care:
+            ign = read_labels(label_path(self.files[i], "ignore"), w, h)
+            ign[:, 0] = DONT_CARE
+            lab = np.concatenate([lab, ign])
+        return np.asarray(img[..., ::-1], dtype=np.uint8).copy(), lab
 
     def _rng(self, i: int) -> np.random.Generator:
         return np.random.default_rng([self.seed, self.epoch, i])
@@ -195,7 +206,7 @@ class YoloDataset(Dataset[Any]):
         return t, torch.from_numpy(lab), meta
 
     def _single(self, i: int, rng: np.random.Generator) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
-        img, lab = self.load(i)
+        img, lab = self.load(i, self.dont_care)
         img, r, (left, top) = letterbox(img, self.imgsz)
         lab = lab.copy()
         lab[:, [1, 3]] = lab[:, [1, 3]] * r + left
@@ -209,7 +220,7 @@ class YoloDataset(Dataset[Any]):
         labels = []
         idx = [i] + list(rng.integers(0, len(self), 3))
         for k, j in enumerate(idx):
-            img, lab = self.load(int(j))
+            img, lab = self.load(int(j), self.dont_care)
             img, r = resize_long_side(img, s)
             h, w = img.shape[:2]
             if k == 0:

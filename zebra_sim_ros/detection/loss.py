@@ -5,6 +5,10 @@ The assigner (TOOD, Feng et al. 2021) scores every candidate anchor point of a g
 boxes by IoU, and uses the normalised alignment as the soft classification target. Candidates are the
 points inside the box and, so that zebras smaller than a grid cell still get points, those within one stride
 of the box centre (as YOLOX's centre sampling); most zebras seen from far away are under 8 px wide.
+
+Don't-care boxes (targets of class -1: zebras seen but dropped by the label filters) are never assigned; the
+points they would have as candidates, unless assigned to a real box, are left out of the classification loss,
+so a model is not taught that a zebra of 24 visible pixels is background while one of 25 is a zebra.
 """
 
 from __future__ import annotations
@@ -15,6 +19,15 @@ from torch import Tensor
 
 from zebra_sim_ros.detection.boxes import box_iou, ciou, decode_ltrb, encode_ltrb
 from zebra_sim_ros.detection.model import Detector, make_anchors
+
+
+def candidates(anchors: Tensor, strides: Tensor, boxes: Tensor) -> Tensor:
+    """(M, N): anchor points (N, 2) px inside each xyxy box (M, 4), or within one of their strides (N,) of its
+    centre in both axes."""
+    inside = ((anchors[None, :, 0] > boxes[:, None, 0]) & (anchors[None, :, 0] < boxes[:, None, 2])
+              & (anchors[None, :, 1] > boxes[:, None, 1]) & (anchors[None, :, 1] < boxes[:, None, 3]))
+    centre = (boxes[:, None, :2] + boxes[:, None, 2:]) / 2
+    return inside | ((anchors[None] - centre).abs() <= strides[None, :, None]).all(-1)
 
 
 class TaskAlignedAssigner:
@@ -34,11 +47,7 @@ class TaskAlignedAssigner:
         if m == 0:
             return torch.zeros_like(boxes), torch.zeros_like(scores), torch.zeros(n, dtype=torch.bool,
                                                                                   device=boxes.device)
-        inside = ((anchors[None, :, 0] > gt_boxes[:, None, 0]) & (anchors[None, :, 0] < gt_boxes[:, None, 2])
-                  & (anchors[None, :, 1] > gt_boxes[:, None, 1]) & (anchors[None, :, 1] < gt_boxes[:, None, 3]))
-        centre = (gt_boxes[:, None, :2] + gt_boxes[:, None, 2:]) / 2
-        near = ((anchors[None] - centre).abs() <= strides[None, :, None]).all(-1)
-        inside = inside | near
+        inside = candidates(anchors, strides, gt_boxes)
         iou = box_iou(gt_boxes, boxes).clamp(min=0) * inside  # (M, N)
         s = scores[:, gt_cls].T  # (M, N)
         align = s.pow(self.alpha) * iou.pow(self.beta) * inside
@@ -79,7 +88,7 @@ class DetectionLoss:
         self.nc = model.cfg.nc
 
     def __call__(self, feats: list[Tensor], targets: Tensor) -> tuple[Tensor, Tensor]:
-        """``targets``: (T, 6) rows [image index, class, x0, y0, x1, y1] in input pixels."""
+        """``targets``: (T, 6) rows [image index, class, x0, y0, x1, y1] in input pixels; class -1: don't care."""
         r = self.reg_max
         b = feats[0].shape[0]
         x = torch.cat([f.view(b, f.shape[1], -1) for f in feats], 2).transpose(1, 2)  # (B, N, 4r + nc)
@@ -92,13 +101,18 @@ class DetectionLoss:
         tb = torch.zeros_like(pred_boxes)
         ts = torch.zeros_like(pred_cls)
         fg = torch.zeros(pred_boxes.shape[:2], dtype=torch.bool, device=x.device)
+        care = torch.ones_like(fg)  # points whose classification counts
         for i in range(b):
             t = targets[targets[:, 0] == i]
+            real = t[:, 1] >= 0
             boxes_i, scores_i, fg_i = self.assigner(scores[i], (pred_boxes[i].detach() * strides), anchors_px,
-                                                    strides[:, 0], t[:, 1].long(), t[:, 2:6])
+                                                    strides[:, 0], t[real, 1].long(), t[real, 2:6])
             tb[i], ts[i], fg[i] = boxes_i / strides, scores_i, fg_i
+            if not real.all():
+                care[i] = fg_i | ~candidates(anchors_px, strides[:, 0], t[~real, 2:6]).any(0)
         ts_sum = ts.sum().clamp(min=1.0)
-        loss_cls = F.binary_cross_entropy_with_logits(pred_cls, ts, reduction="sum") / ts_sum
+        bce = F.binary_cross_entropy_with_logits(pred_cls, ts, reduction="none")
+        loss_cls = (bce * care[..., None]).sum() / ts_sum
         if fg.any():
             w = ts.sum(-1)[fg]
             loss_box = ((1.0 - ciou(pred_boxes[fg], tb[fg])) * w).sum() / ts_sum

@@ -80,6 +80,7 @@ class TrainConfig:
     resume: bool = False
     init: str = ""  # start from this checkpoint's (EMA) weights with a fresh schedule; "" = random init
     amp: str = "auto"  # mixed precision of the forward pass: auto, fp16 (CUDA), bf16, off (see amp_dtype)
+    dont_care: bool = True  # the sets' ignore/ boxes are neither zebra nor background in the loss (see loss.py)
 
     def check(self) -> None:
         """Raise :class:`ParameterError` naming the first bad setting."""
@@ -175,7 +176,8 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
     if distributed:
         net = nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
     no_aug = Augment(mosaic=0.0, scale=0.0, translate=0.0, fliplr=0.0, hsv_h=0.0, hsv_s=0.0, hsv_v=0.0)
-    ds = YoloDataset(train_dir, cfg.imgsz, Augment() if cfg.augment else no_aug, seed=cfg.seed)
+    ds = YoloDataset(train_dir, cfg.imgsz, Augment() if cfg.augment else no_aug, seed=cfg.seed,
+                     dont_care=cfg.dont_care)
     if cfg.max_train_images:
         ds.files = ds.files[: cfg.max_train_images]
     sampler: DistributedSampler[Any] | None = DistributedSampler(ds, seed=cfg.seed) if distributed else None
