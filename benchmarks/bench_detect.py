@@ -18,6 +18,8 @@ import platform
 import statistics
 import tempfile
 import time
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 
 import torch
@@ -25,6 +27,11 @@ import torch
 from zebra_sim_ros.detection.checkpoint import save_checkpoint, serving_layout
 from zebra_sim_ros.detection.export import export_onnx
 from zebra_sim_ros.detection.model import ModelConfig, build_model, count_parameters
+
+
+def served(model: torch.nn.Module, x: torch.Tensor) -> object:
+    """A forward pass as ``detect`` runs one: the batch turned channels-last first."""
+    return model(x.contiguous(memory_format=torch.channels_last))
 
 
 def main() -> None:
@@ -51,14 +58,17 @@ def main() -> None:
             so.intra_op_num_threads = args.threads
             sess = ort.InferenceSession(str(onnx_path), so, providers=["CPUExecutionProvider"])
             xn = x.numpy()
-            times_t, times_n, times_o = [], [], []
+            times_t: list[float] = []
+            times_n: list[float] = []
+            times_o: list[float] = []
             with torch.inference_mode():
                 for _ in range(3):
                     model(x.contiguous(memory_format=torch.channels_last))
                     nchw(x)
                     sess.run(None, {"images": xn})
-                runs = [(times_t, lambda m=model: m(x.contiguous(memory_format=torch.channels_last))),  # layout timed
-                        (times_n, lambda m=nchw: m(x)), (times_o, lambda s=sess, a=xn: s.run(None, {"images": a}))]
+                runs: list[tuple[list[float], Callable[[], object]]] = [
+                    (times_t, partial(served, model, x)),  # the layout change is timed
+                    (times_n, partial(nchw, x)), (times_o, partial(sess.run, None, {"images": xn}))]
                 for i in range(args.repeats):  # interleaved in a rotating order, with a pause before each run:
                     for times, run in runs[i % 3:] + runs[:i % 3]:  # onnxruntime's threads spin after a run and
                         time.sleep(0.1)                              # would slow (2x) whatever runs right after

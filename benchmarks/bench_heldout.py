@@ -85,7 +85,7 @@ def main() -> None:
     worlds = TRAINING_WORLDS if args.worlds == "training" else tuple(args.worlds.split(","))
     root = args.cache / f"{args.worlds.replace(',', '+')}_{args.frames}_{args.seed}"
     data = held_out_set(root, worlds, args.frames, args.seed)
-    results = {"machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
+    results: dict[str, Any] = {"machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
                "set": {"worlds": list(worlds), "frames": args.frames, "seed": args.seed, "imgsz": args.imgsz},
                "scores": [score(w, data, args.imgsz) for w in args.weights]}
     if args.json:

@@ -105,7 +105,7 @@ def main() -> None:
     rec_write = float(wm.group(1)) if wm else 0.0
     msgs = list(BagReader.open(bag).messages())
     per_topic = {t: v["count"] for t, v in s["topics"].items()}
-    total_bytes = sum(len(m.data) for m in msgs)
+    total_bytes = sum(len(msg.data) for msg in msgs)
     plain_times, core_times = [], []
     for _ in range(3):  # interleaved: the same page cache and disk state for both
         t0 = time.perf_counter()
@@ -113,19 +113,19 @@ def main() -> None:
             w = Writer(f, chunk_size=4 << 20, compression=COMPRESSIONS[args.compression])
             w.start(profile="ros2", library="bench")
             sid = w.register_schema("sensor_msgs/msg/Image", "ros2msg", b"")
-            chans = {t: w.register_channel(t, "cdr", sid) for t in {m.topic for m in msgs}}
-            for m in msgs:
-                w.add_message(chans[m.topic], m.log_time, m.data, m.publish_time)
+            chans = {t: w.register_channel(t, "cdr", sid) for t in {msg.topic for msg in msgs}}
+            for msg in msgs:
+                w.add_message(chans[msg.topic], msg.log_time, msg.data, msg.publish_time)
             w.finish()
         plain_times.append(time.perf_counter() - t0)
         (tmp / "plain.mcap").unlink()
         t0 = time.perf_counter()
         writer = BagWriter(tmp / "core.mcap", args.compression, 4 << 20)
-        for t in sorted({m.topic for m in msgs}):
+        for t in sorted({msg.topic for msg in msgs}):
             writer.add_channel(t, "sensor_msgs/msg/Image", [profile_dict("keep_last", 10, "reliable", "volatile")])
         core = RecorderCore(writer, 2000)
-        for m in msgs:
-            while not core.offer(m.topic, m.data, m.log_time):  # a live recorder would count a drop; here: wait
+        for msg in msgs:
+            while not core.offer(msg.topic, msg.data, msg.log_time):  # a live recorder would count a drop; here: wait
                 time.sleep(0.001)
         core.close()
         core_times.append(time.perf_counter() - t0)

@@ -17,6 +17,7 @@ import os
 import platform
 import statistics
 import time
+from typing import Any
 
 import numpy as np
 
@@ -43,12 +44,13 @@ def main() -> None:
     placer = Placer(PlacerConfig.from_params({"count_min": 250, "count_max": 250, "strategy": args.strategy,
                                               "night_fraction": 0.0}), world, lib)
     scenes = [placer.scene(k * 3) for k in range(args.steps)]
-    results = {}
+    results: dict[str, dict[str, Any]] = {}
     info: dict[str, str] = {}
     for w, h in SIZES:
         r = Renderer(world, lib, RenderOptions(width=w, height=h, shadows=not args.no_shadows))
         info = r.info
-        per_frame, parts = [], {"prepare": [], "shadow": [], "draw": [], "read": []}
+        per_frame: list[float] = []
+        parts: dict[str, list[float]] = {"prepare": [], "shadow": [], "draw": [], "read": []}
         zebras_drawn = []
         for i, sc in enumerate(scenes):
             d = sc.to_dict()
