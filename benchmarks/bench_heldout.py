@@ -78,7 +78,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=120)
     ap.add_argument("--seed", type=int, default=777)
     ap.add_argument("--weights", nargs="+", default=["shipped"], help="checkpoints ('shipped': the package's own)")
-    ap.add_argument("--imgsz", type=int, default=0, help="inference size (0: each checkpoint's training size)")
+    ap.add_argument("--imgsz", type=int, default=0, help="inference size (0: each checkpoint's config.imgsz)")
     ap.add_argument("--cache", type=Path, default=Path("out/heldout"))
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
