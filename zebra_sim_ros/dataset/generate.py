@@ -7,6 +7,7 @@ Layout of the output folder::
     ignore/{train,val}/<frame>.txt       the same for zebras seen but dropped by the label filters (only where
                                          there are some): don't-care regions, which evaluation neither counts
                                          as missed nor holds against a detection (COCO's iscrowd; coco/ has them)
+                                         and training leaves out of the classification loss
     masks/<frame>.png                    uint16 instance mask (zebra id + 1, 0 = not a zebra)
     depth/<frame>.npz                    metres along the optical axis, key "depth" (inf = sky); float32 by
                                          default (--depth float16 halves the size, --depth none skips it)
