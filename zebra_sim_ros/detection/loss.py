@@ -18,6 +18,7 @@ import torch.nn.functional as F  # noqa: N812
 from torch import Tensor
 
 from zebra_sim_ros.detection.boxes import box_iou, ciou, decode_ltrb, encode_ltrb
+from zebra_sim_ros.detection.data import DONT_CARE
 from zebra_sim_ros.detection.model import Detector, make_anchors
 
 
@@ -88,7 +89,8 @@ class DetectionLoss:
         self.nc = model.cfg.nc
 
     def __call__(self, feats: list[Tensor], targets: Tensor) -> tuple[Tensor, Tensor]:
-        """``targets``: (T, 6) rows [image index, class, x0, y0, x1, y1] in input pixels; class -1: don't care."""
+        """``targets``: (T, 6) rows [image index, class, x0, y0, x1, y1] in input pixels; class
+        :data:`~zebra_sim_ros.detection.data.DONT_CARE` marks a don't-care box."""
         r = self.reg_max
         b = feats[0].shape[0]
         x = torch.cat([f.view(b, f.shape[1], -1) for f in feats], 2).transpose(1, 2)  # (B, N, 4r + nc)
@@ -104,7 +106,7 @@ class DetectionLoss:
         care = torch.ones_like(fg)  # points whose classification counts
         for i in range(b):
             t = targets[targets[:, 0] == i]
-            real = t[:, 1] >= 0
+            real = t[:, 1] != DONT_CARE
             boxes_i, scores_i, fg_i = self.assigner(scores[i], (pred_boxes[i].detach() * strides), anchors_px,
                                                     strides[:, 0], t[real, 1].long(), t[real, 2:6])
             tb[i], ts[i], fg[i] = boxes_i / strides, scores_i, fg_i
