@@ -5,7 +5,7 @@ Runs ``zebra-sim up --frames N`` (seven processes over DDS on a private domain, 
 the same run, the in-process pipeline (``zebra-sim generate``: place, render three views, label, write, no DDS,
 no detector) on the same world, so the graph's cost can be read as a ratio of the plain pipeline's.
 
-    python benchmarks/bench_graph.py [--frames 20] [--size 1280x720] [--json]
+    python benchmarks/bench_graph.py [--frames 20] [--size 1280x720] [--detect-scale 1.3] [--json]
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=20, help="steps of the graph (three images each)")
     ap.add_argument("--size", default="1280x720")
     ap.add_argument("--world", default="savanna")
+    ap.add_argument("--detect-scale", default="1.3", help="up's --detect-scale (detector size over the cameras')")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     root = Path(tempfile.mkdtemp(prefix="bench_graph_"))
@@ -36,7 +37,8 @@ def main() -> None:
         domain = str(150 + os.getpid() % 50)
         run = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "up", "--frames", str(args.frames),
                               "--size", args.size, "--world", args.world, "--out", str(root / "up"),
-                              "--domain-id", domain, "--json"], env=env, capture_output=True, text=True, timeout=3600)
+                              "--domain-id", domain, "--detect-scale", args.detect_scale,
+                              "--json"], env=env, capture_output=True, text=True, timeout=3600)
         if run.returncode != 0:
             raise SystemExit(f"zebra-sim up failed ({run.returncode}):\n{run.stdout[-3000:]}\n{run.stderr[-2000:]}")
         up = json.loads(run.stdout.strip().splitlines()[-1])
@@ -46,7 +48,7 @@ def main() -> None:
                        progress=lambda *a: None)
         result = {
             "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, {platform.platform()}",
-            "size": args.size, "steps": up["steps"], "frames": up["frames"],
+            "size": args.size, "detect_imgsz": up["detect_imgsz"], "steps": up["steps"], "frames": up["frames"],
             "graph": {"seconds": up["seconds"], "steps_per_s": up["steps_per_s"], "frames_per_s": up["frames_per_s"],
                       "ready_s": up["ready_s"], "median_ms": up["median_ms"],
                       "scores": up["scores"]["all"]},
@@ -60,7 +62,8 @@ def main() -> None:
         return
     g = result["graph"]
     print(f"machine: {result['machine']}")
-    print(f"graph at {args.size}: {result['steps']} steps in {g['seconds']} s: {g['steps_per_s']} steps/s, "
+    print(f"graph at {args.size}, detector at {result['detect_imgsz']}: {result['steps']} steps in {g['seconds']} s: "
+          f"{g['steps_per_s']} steps/s, "
           f"{g['frames_per_s']} frames/s (ready after {g['ready_s']} s)")
     print(f"median per step (ms): {g['median_ms']}")
     print(f"in-process pipeline (no DDS, no detector): {result['pipeline_in_process']['frames_per_s']} frames/s; "

@@ -1,8 +1,9 @@
 """Benchmark: detector quality on freshly generated held-out sets, with a breakdown by world and light.
 
-Generates (once, cached under --cache) a YOLO set of ``--frames`` 640x360 frames over ``--worlds`` with a seed
-never used for training data (``--seed``, default 777), then scores every ``--weights`` on it with our COCO
-metrics (mAP50, mAP50-95 at ``--imgsz``, by default each checkpoint's own; conf 0.001), overall, per world and by
+Generates (once, cached under --cache) a YOLO set of ``--frames`` frames (``--size``, default 640x360, the size
+of the training sets; the cameras' own default is 1280x720) over ``--worlds`` with a seed never used for
+training data (``--seed``, default 777), then scores every ``--weights`` on it with our COCO
+metrics (mAP50, mAP50-95 at each ``--imgsz``, by default each checkpoint's own; conf 0.001), overall, per world and by
 light (day: sun above 15 degrees; low sun: 0..15; night: below the horizon). Zebras seen but below the label
 filters are don't-care regions; the score with them counted as false positives is given too. Several weights are
 scored on the same frames in the same run, so they can be compared directly. The issue's goal on a larger
@@ -36,12 +37,13 @@ from zebra_sim_ros.labels.config import LabelFilters
 TRAINING_WORLDS = ("savanna", "grassland", "meadow", "woodland", "moorland", "scrubland", "farmland")
 
 
-def held_out_set(root: Path, worlds: tuple[str, ...], frames: int, seed: int) -> Path:
-    """Generate (or reuse) the set; returns its dataset.yaml. The same settings as the CI tests' sets."""
+def held_out_set(root: Path, worlds: tuple[str, ...], frames: int, seed: int, size: tuple[int, int] = (640, 360)
+                 ) -> Path:
+    """Generate (or reuse) the set; returns its dataset.yaml. At 640x360, the same settings as the CI tests' sets."""
     if not (root / "dataset.yaml").exists():
-        generate(GenerateConfig(out=str(root), frames=frames, strategy="both", worlds=worlds, seed=seed, width=640,
-                                height=360, val_fraction=0.0, depth="none", filters=LabelFilters(min_visible_pixels=25),
-                                workers=2), progress=lambda *a: None)
+        generate(GenerateConfig(out=str(root), frames=frames, strategy="both", worlds=worlds, seed=seed,
+                                width=size[0], height=size[1], val_fraction=0.0, depth="none",
+                                filters=LabelFilters(min_visible_pixels=25), workers=2), progress=lambda *a: None)
     return root / "dataset.yaml"
 
 
@@ -78,16 +80,26 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=120)
     ap.add_argument("--seed", type=int, default=777)
     ap.add_argument("--weights", nargs="+", default=["shipped"], help="checkpoints ('shipped': the package's own)")
-    ap.add_argument("--imgsz", type=int, default=0, help="inference size (0: each checkpoint's config.imgsz)")
+    ap.add_argument("--size", default="640x360", help="frame size WxH of the generated set, px")
+    ap.add_argument("--imgsz", type=int, nargs="+", default=[0], help="inference sizes, each weights scored at each "
+                    "(0: the checkpoint's config.imgsz)")
     ap.add_argument("--cache", type=Path, default=Path("out/heldout"))
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     worlds = TRAINING_WORLDS if args.worlds == "training" else tuple(args.worlds.split(","))
-    root = args.cache / f"{args.worlds.replace(',', '+')}_{args.frames}_{args.seed}"
-    data = held_out_set(root, worlds, args.frames, args.seed)
+    try:
+        size = tuple(int(v) for v in args.size.lower().split("x"))
+    except ValueError:
+        size = ()
+    if len(size) != 2 or min(size) < 16:
+        ap.error(f"--size {args.size!r}: expected WxH in pixels, e.g. 1280x720")
+    root = args.cache / (f"{args.worlds.replace(',', '+')}_{args.frames}_{args.seed}"
+                         + ("" if size == (640, 360) else f"_{size[0]}x{size[1]}"))
+    data = held_out_set(root, worlds, args.frames, args.seed, (size[0], size[1]))
     results: dict[str, Any] = {"machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
-               "set": {"worlds": list(worlds), "frames": args.frames, "seed": args.seed, "imgsz": args.imgsz},
-               "scores": [score(w, data, args.imgsz) for w in args.weights]}
+               "set": {"worlds": list(worlds), "frames": args.frames, "seed": args.seed, "size": list(size),
+                       "imgsz": args.imgsz},
+               "scores": [score(w, data, n) for w in args.weights for n in args.imgsz]}
     if args.json:
         print(json.dumps(results, indent=1))
         return

@@ -278,9 +278,22 @@ def test_fast_dds_accepts_our_profile(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("setting", "named"), [({"world": "moon"}, "'world'"), ({"device": "tpu"}, "'device'"),
                                                 ({"frames": 0}, "'--frames'"), ({"strategy": "up"}, "'--strategy'"),
-                                                ({"width": 8, "height": 20}, "'--size'")])
+                                                ({"width": 8, "height": 20}, "'--size'"),
+                                                ({"detect_scale": 0.1}, "'--detect-scale'")])
 def test_up_rejects_a_bad_setting_before_starting_any_node(setting: dict[str, Any], named: str) -> None:
     from zebra_sim_ros.errors import ParameterError
 
     with pytest.raises(ParameterError, match=named):
         UpConfig(**setting).check()
+
+
+def test_up_detector_size_follows_the_cameras() -> None:
+    def detector_imgsz(cfg: UpConfig) -> Any:
+        return next(s for s in graph_spec(cfg) if s.executable == "detector").overrides["imgsz"]
+
+    assert detector_imgsz(UpConfig()) == 1664  # 1.3 x 1280
+    assert detector_imgsz(UpConfig(detect_scale=1.0)) == 1280  # native
+    assert detector_imgsz(UpConfig(width=360, height=640, detect_scale=1.0)) == 640  # the long side, portrait too
+    assert detector_imgsz(UpConfig(width=1000, height=500, detect_scale=1.0)) == 1024  # up to a multiple of 32
+    assert detector_imgsz(UpConfig(width=4000, height=3000, detect_scale=2.0)) == 4096  # within the model's range
+    assert detector_imgsz(UpConfig(width=32, height=16, detect_scale=0.25)) == 64

@@ -34,6 +34,8 @@ def register(sub: Any) -> None:
     p.add_argument("--size", default="1280x720", help="image size of the cameras, WxH px")
     p.add_argument("--weights", default="", help="detector checkpoint (default: the shipped weights)")
     p.add_argument("--device", default="auto", help="detector device: auto, cpu or cuda")
+    p.add_argument("--detect-scale", type=float, default=1.3, help="detector input long side as a multiple of the "
+                   "cameras' (1.3: the scale the shipped weights were trained at; 1.0: native resolution)")
     p.add_argument("--out", default="out/up", help="folder for the bag, logs, summary.json and preview.jpg")
     p.add_argument("--config", default="", help="folder of the parameter files (default: the installed config/)")
     p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID for the graph (default: inherited)")
@@ -63,8 +65,9 @@ def cmd_up(args: argparse.Namespace) -> Summary:
 
     w, h = _size(args.size)
     cfg = UpConfig(frames=args.frames, world=args.world, seed=args.seed, out=args.out, width=w, height=h,
-                   weights=args.weights, device=args.device, strategy=args.strategy, config_dir=args.config,
-                   ready_timeout_s=args.ready_timeout, step_timeout_s=args.step_timeout, record=not args.no_record)
+                   weights=args.weights, device=args.device, detect_scale=args.detect_scale, strategy=args.strategy,
+                   config_dir=args.config, ready_timeout_s=args.ready_timeout, step_timeout_s=args.step_timeout,
+                   record=not args.no_record)
     cfg.check()
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         raise ParameterError("--domain-id", args.domain_id, "0..232 (ROS_DOMAIN_ID)")
@@ -93,7 +96,8 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     old_term = signal.signal(signal.SIGTERM, on_term)
     from zebra_sim_ros.nodes.graph_watch import GraphWatch
 
-    result: dict[str, Any] = {"out": str(out), "config": str(conf), "frames_asked": cfg.frames, "exit_code": 0}
+    result: dict[str, Any] = {"out": str(out), "config": str(conf), "frames_asked": cfg.frames, "exit_code": 0,
+                              "detect_imgsz": cfg.detect_imgsz}
     t_start = time.monotonic()
     sup = Supervisor(out / "logs", env)
     try:
@@ -165,9 +169,9 @@ def _print_summary(r: dict[str, Any], drones: tuple[str, ...]) -> None:
               f"{f.get('detections', 0)} detected", flush=True)
     a = r["scores"].get("all")
     if a:
-        print(f"[up] detector against the live ground truth (all drones, {a['images']} images, {a['instances']} "
-              f"zebras): P {a['precision']:.3f} R {a['recall']:.3f} mAP50 {a['mAP50']:.3f} "
-              f"mAP50-95 {a['mAP50-95']:.3f}", flush=True)
+        print(f"[up] detector at imgsz {r['detect_imgsz']} against the live ground truth (all drones, "
+              f"{a['images']} images, {a['instances']} zebras): P {a['precision']:.3f} R {a['recall']:.3f} "
+              f"mAP50 {a['mAP50']:.3f} mAP50-95 {a['mAP50-95']:.3f}", flush=True)
     ms = r["median_ms"]
     if r.get("steps_per_s"):
         print(f"[up] throughput: {r['steps']} steps in {r['seconds']:.1f} s = {r['steps_per_s']:.2f} steps/s, "
