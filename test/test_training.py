@@ -13,6 +13,7 @@ import pytest
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
 from zebra_sim_ros.detection.evaluate import evaluate
 from zebra_sim_ros.detection.train import TrainConfig, train
+from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LabelFilters
 
 
@@ -39,6 +40,14 @@ def test_resume_continues_from_last(tiny: Path, tmp_path: Path) -> None:
     train(TrainConfig(epochs=3, resume=True, **base), log=io.StringIO())
     rows = list(csv.DictReader(open(tmp_path / "run" / "results.csv")))
     assert [r["epoch"] for r in rows] == ["1", "2", "3"] and rows[:2] == rows_before
+    # Resuming with a setting that shapes the run changed is refused, naming it; so is a run already done.
+    for changed, named in (({"imgsz": 160}, "'--imgsz' = 160.*128"), ({"lr0": 0.02}, "'--lr0' = 0.02"),
+                           ({"dont_care": False}, "'--dont-care'"), ({"data": str(tiny / "dataset.yaml")}, "'--data'")):
+        with pytest.raises(ParameterError, match=named):
+            train(TrainConfig(epochs=4, resume=True, **{**base, **changed}), log=io.StringIO())
+    with pytest.raises(ParameterError, match="'--epochs' = 3.*3 epochs"):
+        train(TrainConfig(epochs=3, resume=True, **base), log=io.StringIO())
+    assert list(csv.DictReader(open(tmp_path / "run" / "results.csv"))) == rows  # nothing written by the refusals
 
 
 @pytest.fixture(scope="module")

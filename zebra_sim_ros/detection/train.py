@@ -126,6 +126,26 @@ class EMA:
             e.mul_(d).add_(m.detach(), alpha=1 - d)
 
 
+# What a resumed run may change: its length and the machine it runs on. Everything else shapes the run (the
+# schedule, the augmentation, the data) and must be what it was.
+RESUME_MAY_CHANGE = frozenset({"epochs", "device", "workers", "amp", "resume", "init", "out"})
+
+
+def check_resume(cfg: TrainConfig, recorded: dict[str, Any], last: Path) -> None:
+    """Raise :class:`ParameterError` naming the first setting of ``cfg`` that differs from the run's recorded
+    ``train_args`` (other than :data:`RESUME_MAY_CHANGE`); the data are compared as resolved paths."""
+    for name, value in asdict(cfg).items():
+        if name in RESUME_MAY_CHANGE or name not in recorded:
+            continue
+        was = recorded[name]
+        same = (Path(value).resolve() == Path(was).resolve()) if name == "data" else value == was
+        if not same:
+            raise ParameterError(f"--{name.replace('_', '-')}", value,
+                                 f"{was!r}, as the run in {last.parent} was started with (--resume continues "
+                                 f"that run; only {', '.join(sorted(RESUME_MAY_CHANGE - {'resume', 'init', 'out'}))} "
+                                 f"may change)")
+
+
 def _is_main() -> bool:
     return int(os.environ.get("RANK", "0")) == 0
 
@@ -158,8 +178,12 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
         model.load_state_dict({k: v.float() for k, v in init["model"].items()})
     if cfg.resume:
         ckpt = read_checkpoint(out / "last.pt", "--resume")
+        check_resume(cfg, ckpt.get("train_args", {}), out / "last.pt")
         model.load_state_dict(ckpt["model_raw"])
         start_epoch, best, updates = ckpt["epoch"] + 1, ckpt.get("best_fitness", -1.0), ckpt.get("ema_updates", 0)
+        if start_epoch >= cfg.epochs:
+            raise ParameterError("--epochs", cfg.epochs,
+                                 f"more than the {start_epoch} epochs the run in {out} has done")
         opt_state = ckpt.get("optimizer")
     ema = EMA(model, updates=updates)
     if cfg.resume:
