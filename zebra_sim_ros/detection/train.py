@@ -128,7 +128,7 @@ class EMA:
 
 # What a resumed run may change: its length and the machine it runs on. Everything else shapes the run (the
 # schedule, the augmentation, the data) and must be what it was.
-RESUME_MAY_CHANGE = frozenset({"epochs", "device", "workers", "amp", "resume", "init", "out"})
+RESUME_MAY_CHANGE = frozenset({"epochs", "device", "workers", "amp", "val_every", "resume", "init", "out"})
 
 
 def check_resume(cfg: TrainConfig, recorded: dict[str, Any], last: Path) -> None:
