@@ -20,35 +20,37 @@ import sys
 import tempfile
 from pathlib import Path
 
+from zebra_sim_ros.cli import size_arg
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=20, help="steps of the graph (three images each)")
-    ap.add_argument("--size", default="1280x720")
+    ap.add_argument("--size", default="1280x720", type=size_arg, help="camera size WxH, px")
     ap.add_argument("--world", default="savanna")
     ap.add_argument("--detect-scale", default="1.3", help="up's --detect-scale (detector size over the cameras')")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
+    w, h = args.size
+    size = f"{w}x{h}"
     root = Path(tempfile.mkdtemp(prefix="bench_graph_"))
     try:
         env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
         domain = str(150 + os.getpid() % 50)
         run = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "up", "--frames", str(args.frames),
-                              "--size", args.size, "--world", args.world, "--out", str(root / "up"),
+                              "--size", size, "--world", args.world, "--out", str(root / "up"),
                               "--domain-id", domain, "--detect-scale", args.detect_scale,
                               "--json"], env=env, capture_output=True, text=True, timeout=3600)
         if run.returncode != 0:
             raise SystemExit(f"zebra-sim up failed ({run.returncode}):\n{run.stdout[-3000:]}\n{run.stderr[-2000:]}")
         up = json.loads(run.stdout.strip().splitlines()[-1])
-        w, h = (int(v) for v in args.size.split("x"))
         gen = generate(GenerateConfig(out=str(root / "gen"), frames=3 * args.frames, strategy="far",
                                       worlds=(args.world,), width=w, height=h, workers=1, depth="none"),
                        progress=lambda *a: None)
         result = {
             "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, {platform.platform()}",
-            "size": args.size, "detect_imgsz": up["detect_imgsz"], "steps": up["steps"], "frames": up["frames"],
+            "size": size, "detect_imgsz": up["detect_imgsz"], "steps": up["steps"], "frames": up["frames"],
             "graph": {"seconds": up["seconds"], "steps_per_s": up["steps_per_s"], "frames_per_s": up["frames_per_s"],
                       "ready_s": up["ready_s"], "median_ms": up["median_ms"],
                       "scores": up["scores"]["all"]},
@@ -62,7 +64,7 @@ def main() -> None:
         return
     g = result["graph"]
     print(f"machine: {result['machine']}")
-    print(f"graph at {args.size}, detector at {result['detect_imgsz']}: {result['steps']} steps in {g['seconds']} s: "
+    print(f"graph at {size}, detector at {result['detect_imgsz']}: {result['steps']} steps in {g['seconds']} s: "
           f"{g['steps_per_s']} steps/s, "
           f"{g['frames_per_s']} frames/s (ready after {g['ready_s']} s)")
     print(f"median per step (ms): {g['median_ms']}")

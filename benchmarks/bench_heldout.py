@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from zebra_sim_ros.cli import size_arg
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
 from zebra_sim_ros.detection.checkpoint import load_model
 from zebra_sim_ros.detection.data import resolve_split
@@ -80,22 +81,17 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=120)
     ap.add_argument("--seed", type=int, default=777)
     ap.add_argument("--weights", nargs="+", default=["shipped"], help="checkpoints ('shipped': the package's own)")
-    ap.add_argument("--size", default="640x360", help="frame size WxH of the generated set, px")
+    ap.add_argument("--size", default="640x360", type=size_arg, help="frame size WxH of the generated set, px")
     ap.add_argument("--imgsz", type=int, nargs="+", default=[0], help="inference sizes, each weights scored at each "
                     "(0: the checkpoint's config.imgsz)")
     ap.add_argument("--cache", type=Path, default=Path("out/heldout"))
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     worlds = TRAINING_WORLDS if args.worlds == "training" else tuple(args.worlds.split(","))
-    try:
-        size = tuple(int(v) for v in args.size.lower().split("x"))
-    except ValueError:
-        size = ()
-    if len(size) != 2 or min(size) < 16:
-        ap.error(f"--size {args.size!r}: expected WxH in pixels, e.g. 1280x720")
+    size: tuple[int, int] = args.size
     root = args.cache / (f"{args.worlds.replace(',', '+')}_{args.frames}_{args.seed}"
                          + ("" if size == (640, 360) else f"_{size[0]}x{size[1]}"))
-    data = held_out_set(root, worlds, args.frames, args.seed, (size[0], size[1]))
+    data = held_out_set(root, worlds, args.frames, args.seed, size)
     results: dict[str, Any] = {"machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
                "set": {"worlds": list(worlds), "frames": args.frames, "seed": args.seed, "size": list(size),
                        "imgsz": args.imgsz},

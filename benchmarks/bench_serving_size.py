@@ -21,6 +21,7 @@ import numpy as np
 import torch
 from numpy.typing import NDArray
 
+from zebra_sim_ros.cli import size_arg
 from zebra_sim_ros.detection.checkpoint import load_model
 from zebra_sim_ros.detection.predict import detect
 
@@ -28,7 +29,7 @@ from zebra_sim_ros.detection.predict import detect
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--image", default="", help="an RGB frame to detect on (default: noise of --frame)")
-    ap.add_argument("--frame", default="640x360", help="WxH of the noise frame")
+    ap.add_argument("--frame", default="640x360", type=size_arg, help="WxH of the noise frame")
     ap.add_argument("--sizes", type=int, nargs="+", default=[640, 960])
     ap.add_argument("--repeats", type=int, default=30)
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
@@ -42,7 +43,7 @@ def main() -> None:
             raise SystemExit(f"--image {args.image!r} is not a readable image")
         img = np.ascontiguousarray(bgr[..., ::-1], dtype=np.uint8)
     else:
-        w, h = (int(v) for v in args.frame.split("x"))
+        w, h = args.frame
         img = np.random.default_rng(0).integers(0, 256, (h, w, 3), dtype=np.uint8)
     model, _ = load_model(None, "cpu")
     times: dict[int, list[float]] = {s: [] for s in args.sizes}

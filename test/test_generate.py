@@ -174,6 +174,26 @@ def test_cli_summary_and_bad_arguments(tmp_path: Path) -> None:
         assert bad.returncode == 2 and needle in bad.stderr, (args, bad.stderr)
 
 
+def test_image_sizes_parse_or_name_the_bad_value() -> None:
+    import argparse
+
+    from zebra_sim_ros.cli import parse_size, size_arg
+    from zebra_sim_ros.cli.generate import parse_imgsz
+    from zebra_sim_ros.errors import ParameterError
+
+    assert parse_size("1280x720") == (1280, 720) and parse_size("16X8192") == (16, 8192)
+    assert parse_imgsz("1920") == (1920, 1080) and parse_imgsz("640x360") == (640, 360)
+    for text, named, allowed in (("1280", "--size", "WxH"), ("1280x720x3", "--size", "WxH"), ("axb", "--size", "WxH"),
+                                 ("15x720", "--size", "16..8192"), ("1280x8193", "--size", "16..8192")):
+        with pytest.raises(ParameterError, match=f"'{named}' = '{text}'.*{allowed}"):
+            parse_size(text)
+    for text in ("10", "big", "10x10"):
+        with pytest.raises(ParameterError, match=f"'--imgsz' = '{text}'"):
+            parse_imgsz(text)
+    with pytest.raises(argparse.ArgumentTypeError, match="'64'"):
+        size_arg("64")
+
+
 def test_regenerate_command_reproduces_the_frames_scene(dataset: Path) -> None:
     # The fixture overrides a placer parameter (count_max): the command must carry it, or the herd and with it the
     # cameras differ.

@@ -8,7 +8,7 @@ from typing import Any
 
 import yaml
 
-from zebra_sim_ros.cli import Summary, add_json_flag
+from zebra_sim_ros.cli import Summary, add_json_flag, parse_size
 from zebra_sim_ros.errors import ParameterError
 
 
@@ -48,17 +48,16 @@ def register(sub: Any) -> None:
 
 def parse_imgsz(text: str) -> tuple[int, int]:
     """'1280x720' or '1920' (16:9) to (width, height)."""
+    if "x" in text.lower():
+        return parse_size(text, "--imgsz")
     try:
-        if "x" in text:
-            w, h = (int(v) for v in text.lower().split("x"))
-        else:
-            w = int(text)
-            h = int(round(w * 9 / 16))
+        w = int(text)
     except ValueError:
         raise ParameterError("--imgsz", text, "WxH or W, integers") from None
-    if not (16 <= w <= 8192 and 16 <= h <= 8192):
-        raise ParameterError("--imgsz", text, "16..8192 pixels per side")
-    return w, h
+    try:
+        return parse_size(f"{w}x{int(round(w * 9 / 16))}", "--imgsz")
+    except ParameterError:
+        raise ParameterError("--imgsz", text, "16..8192 pixels per side (W alone: W x 9/16)") from None
 
 
 def cmd_generate(args: argparse.Namespace) -> Summary:

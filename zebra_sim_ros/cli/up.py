@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from zebra_sim_ros.cli import Summary, add_json_flag
+from zebra_sim_ros.cli import Summary, add_json_flag, parse_size
 from zebra_sim_ros.errors import ParameterError
 
 
@@ -46,14 +46,6 @@ def register(sub: Any) -> None:
     p.set_defaults(func=cmd_up)
 
 
-def _size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise ParameterError("--size", text, "WxH in pixels, e.g. 1280x720") from None
-    return w, h
-
-
 class _Stop(Exception):
     """SIGTERM to the supervisor: stop like Ctrl-C."""
 
@@ -63,7 +55,7 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.graph.spec import DRONES, UpConfig, command, config_dir, dds_environment, graph_spec
     from zebra_sim_ros.graph.supervisor import NodeDied, Supervisor
 
-    w, h = _size(args.size)
+    w, h = parse_size(args.size)
     cfg = UpConfig(frames=args.frames, world=args.world, seed=args.seed, out=args.out, width=w, height=h,
                    weights=args.weights, device=args.device, detect_scale=args.detect_scale, strategy=args.strategy,
                    config_dir=args.config, ready_timeout_s=args.ready_timeout, step_timeout_s=args.step_timeout,
