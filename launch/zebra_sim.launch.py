@@ -33,8 +33,8 @@ def generate_launch_description():
         DeclareLaunchArgument("height", default_value="720", description="image height, px"),
         DeclareLaunchArgument("weights", default_value="", description="detector checkpoint ('' = shipped)"),
         DeclareLaunchArgument("device", default_value="auto", description="detector device"),
-        DeclareLaunchArgument("imgsz", default_value="1664", description="detector inference size, px (as "
-                              "zebra-sim up: 1.3 times the cameras' long side, rounded up to a multiple of 32)"),
+        DeclareLaunchArgument("detect_scale", default_value="1.3", description="detector inference size over "
+                              "the cameras' long side (as zebra-sim up --detect-scale)"),
         DeclareLaunchArgument("bag", default_value="out/up/zebra_sim.mcap", description="bag to record"),
     ]
 
@@ -55,7 +55,7 @@ def generate_launch_description():
              parameters=[file("labeller.yaml"), {"ack_name": "labeller"}]),
         Node(package=PACKAGE, executable="detector", name="detector", namespace="", output="screen",
              parameters=[file("detector.yaml"), {"ack_name": "detector", "weights": arg("weights"),
-                                                 "device": arg("device"), "imgsz": arg("imgsz", int)}]),
+                                                 "device": arg("device"), "scale": arg("detect_scale", float)}]),
         Node(package=PACKAGE, executable="recorder", name="recorder", namespace="", output="screen",
              parameters=[file("recorder.yaml"), {"output": arg("bag")}]),
         Node(package=PACKAGE, executable="placer", name="placer", namespace="", output="screen",

@@ -254,6 +254,10 @@ def test_native_size_detects_each_batch_at_its_own_resolution() -> None:
     native = detect(model, [frame], NATIVE, conf=0.0, max_det=50)[0]
     assert np.array_equal(native, detect(model, [frame], 320, conf=0.0, max_det=50)[0])
     assert not np.array_equal(native, detect(model, [frame], conf=0.0, max_det=50)[0])  # the checkpoint's 128
+    assert native_size([np.zeros((720, 1280, 3), np.uint8)], 1.3) == 1664
+    scaled = detect(model, [frame], 128, conf=0.0, max_det=50, scale=1.3)[0]  # scale wins over imgsz: 390 -> 416
+    assert np.array_equal(scaled, detect(model, [frame], 416, conf=0.0, max_det=50)[0])
+    assert not np.array_equal(scaled, native)
 
 
 @pytest.mark.parametrize("imgsz", [96, 48])  # enlarging and shrinking the 60x40 frame

@@ -288,12 +288,11 @@ def test_up_rejects_a_bad_setting_before_starting_any_node(setting: dict[str, An
 
 
 def test_up_detector_size_follows_the_cameras() -> None:
-    def detector_imgsz(cfg: UpConfig) -> Any:
-        return next(s for s in graph_spec(cfg) if s.executable == "detector").overrides["imgsz"]
-
-    assert detector_imgsz(UpConfig()) == 1664  # 1.3 x 1280
-    assert detector_imgsz(UpConfig(detect_scale=1.0)) == 1280  # native
-    assert detector_imgsz(UpConfig(width=360, height=640, detect_scale=1.0)) == 640  # the long side, portrait too
-    assert detector_imgsz(UpConfig(width=1000, height=500, detect_scale=1.0)) == 1024  # up to a multiple of 32
-    assert detector_imgsz(UpConfig(width=4000, height=3000, detect_scale=2.0)) == 4096  # within the model's range
-    assert detector_imgsz(UpConfig(width=32, height=16, detect_scale=0.25)) == 64
+    detector = next(s for s in graph_spec(UpConfig(detect_scale=1.5)) if s.executable == "detector")
+    assert detector.overrides["scale"] == 1.5 and "imgsz" not in detector.overrides
+    assert UpConfig().detect_imgsz == 1664  # 1.3 x 1280
+    assert UpConfig(detect_scale=1.0).detect_imgsz == 1280  # native
+    assert UpConfig(width=360, height=640, detect_scale=1.0).detect_imgsz == 640  # the long side, portrait too
+    assert UpConfig(width=1000, height=500, detect_scale=1.0).detect_imgsz == 1024  # up to a multiple of 32
+    assert UpConfig(width=4000, height=3000, detect_scale=2.0).detect_imgsz == 4096  # within the model's range
+    assert UpConfig(width=32, height=16, detect_scale=0.25).detect_imgsz == 64

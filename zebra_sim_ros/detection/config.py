@@ -2,12 +2,19 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
 from zebra_sim_ros.params import ParamSpec, in_range, one_of, validate
 
 NATIVE = -1  # as imgsz: each batch at its frames' own resolution (predict.native_size)
+
+
+def scaled_size(long_side: int, scale: float = 1.0) -> int:
+    """The inference size for frames whose longest side is ``long_side``: times ``scale``, rounded up to a
+    multiple of 32 (the largest stride), within 64..4096."""
+    return min(max(math.ceil(long_side * scale / 32) * 32, 64), 4096)
 
 
 def imgsz_ok(value: object, native: bool = False) -> bool:
@@ -28,6 +35,9 @@ DETECTOR_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("imgsz", 0, "inference size, px (0: the checkpoint's; -1: each frame's long side, rounded up to a "
               "multiple of 32)", "-1, 0 or a multiple of 32 in 64..4096",
               lambda v: v == 0 or imgsz_ok(v, native=True)),
+    ParamSpec("scale", 0.0, "if set, inference size as a multiple of each batch's long side (rounded up to a multiple "
+              "of 32; overrides imgsz). 1.3 is the shipped weights' training scale: for 1280x720 cameras, as zebra-sim "
+              "up runs it", "0 (off) or 0.25..4", lambda v: in_range(0.0, 0.0)(v) or in_range(0.25, 4.0)(v)),
     ParamSpec("device", "auto", "auto, cpu, cuda or cuda:N", "auto, cpu, cuda, cuda:N",
               lambda v: isinstance(v, str) and (v in ("auto", "cpu") or v.startswith("cuda"))),
     ParamSpec("max_det", 300, "most detections per image", "1..10000", in_range(1, 10000)),
@@ -52,6 +62,7 @@ class DetectorConfig:
     conf: float = 0.25
     iou: float = 0.7
     imgsz: int = 0
+    scale: float = 0.0
     device: str = "auto"
     max_det: int = 300
     batch_window_s: float = 0.05

@@ -9,18 +9,18 @@ import torch
 from numpy.typing import NDArray
 
 from zebra_sim_ros.detection.boxes import postprocess
-from zebra_sim_ros.detection.config import NATIVE
+from zebra_sim_ros.detection.config import NATIVE, scaled_size
 from zebra_sim_ros.detection.data import letterbox, letterbox_size
 from zebra_sim_ros.detection.model import Detector
 
 STRIDE = 32  # the largest stride of the model: input sides must be multiples of it
 
 
-def native_size(images: Sequence[NDArray[np.uint8]]) -> int:
-    """The images' longest side rounded up to a multiple of 32, within 64..4096: far zebras are a few pixels
-    tall, so detecting at the frames' own resolution keeps them (a 1280x720 frame at 416 px loses most)."""
-    long = max(max(i.shape[:2]) for i in images)
-    return min(max(-(-long // STRIDE) * STRIDE, 64), 4096)
+def native_size(images: Sequence[NDArray[np.uint8]], scale: float = 1.0) -> int:
+    """The images' longest side times ``scale``, rounded up to a multiple of 32, within 64..4096: far zebras are
+    a few pixels tall, so detecting at (or above) the frames' own resolution keeps them (a 1280x720 frame at
+    416 px loses most)."""
+    return scaled_size(max(max(i.shape[:2]) for i in images), scale)
 
 
 def preprocess(images: Sequence[NDArray[np.uint8]], imgsz: int,
@@ -50,13 +50,16 @@ def unletterbox(det: torch.Tensor, scale: float, left: int, top: int, width: int
 
 @torch.no_grad()
 def detect(model: Detector, images: Sequence[NDArray[np.uint8]], imgsz: int | None = None, conf: float = 0.25,
-           iou: float = 0.7, max_det: int = 300, rect: bool = True) -> list[NDArray[np.float32]]:
+           iou: float = 0.7, max_det: int = 300, rect: bool = True, scale: float = 0.0) -> list[NDArray[np.float32]]:
     """Per image (n, 6) [x0, y0, x1, y1, score, class] in its own pixels (pixel-edge coordinates); the long side
-    is resized to ``imgsz`` (default: the checkpoint's; :data:`NATIVE`: :func:`native_size`), padded as
-    :func:`preprocess` says."""
+    is resized to ``imgsz`` (default: the checkpoint's; :data:`NATIVE`: :func:`native_size`) or, if ``scale`` is
+    set, to :func:`native_size` with that scale, padded as :func:`preprocess` says."""
     if not images:
         return []
-    size = native_size(images) if imgsz == NATIVE else (imgsz or model.cfg.imgsz)
+    if scale:
+        size = native_size(images, scale)
+    else:
+        size = native_size(images) if imgsz == NATIVE else (imgsz or model.cfg.imgsz)
     dev = next(model.parameters()).device
     x, meta = preprocess(images, size, rect)
     pred = model(x.to(dev).contiguous(memory_format=torch.channels_last))

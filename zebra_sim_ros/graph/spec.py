@@ -5,14 +5,13 @@ and overrides, and which topics each one publishes. ``zebra-sim up`` starts exac
 
 from __future__ import annotations
 
-import math
 import os
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from zebra_sim_ros.detection.config import DETECTOR_PARAMS
+from zebra_sim_ros.detection.config import DETECTOR_PARAMS, scaled_size
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LABELLER_PARAMS
 from zebra_sim_ros.params import ParamSpec, validate
@@ -100,9 +99,8 @@ class UpConfig:
 
     @property
     def detect_imgsz(self) -> int:
-        """The detector's inference size: the cameras' long side times ``detect_scale``, rounded up to a
-        multiple of 32 (the largest stride), within 64..4096."""
-        return min(max(math.ceil(max(self.width, self.height) * self.detect_scale / 32) * 32, 64), 4096)
+        """The detector's inference size on the cameras' frames (its ``scale`` parameter is ``detect_scale``)."""
+        return scaled_size(max(self.width, self.height), self.detect_scale)
 
 
 def config_dir(explicit: str = "") -> Path:
@@ -144,7 +142,7 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
                           tuple(f"/{d}/{t}" for d in DRONES for t in LABELLER_TOPICS)))
     # The detector sees at least the cameras' full resolution (far zebras are a few pixels tall).
     det = {"ack_name": "detector", "weights": str(Path(cfg.weights).resolve()) if cfg.weights else "",
-           "device": cfg.device, "imgsz": cfg.detect_imgsz}
+           "device": cfg.device, "scale": cfg.detect_scale}
     nodes.append(NodeSpec("detector", "detector", "", "detector.yaml", det,
                           tuple(f"/{d}/{t}" for d in DRONES for t in DETECTOR_TOPICS)))
     if cfg.record:

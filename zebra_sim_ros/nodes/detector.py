@@ -85,7 +85,8 @@ class DetectorNode(Node):
         self.timer = self.create_timer(c.batch_window_s, self._flush)
         self.stats = {"images": 0, "batches": 0, "skipped": 0}
         self.seconds = 0.0
-        size = "native (each frame's long side)" if self.imgsz == NATIVE else self.imgsz
+        size = (f"{c.scale} x each batch's long side" if c.scale else
+                "native (each frame's long side)" if self.imgsz == NATIVE else self.imgsz)
         self.get_logger().info(
             f"weights {c.weights or 'shipped'} ({self.model.cfg.size}, epoch {ckpt.get('epoch')}), device "
             f"{self.device}, imgsz {size}, conf {c.conf}, iou {c.iou}; topics {list(c.image_topics)}; "
@@ -115,7 +116,8 @@ class DetectorNode(Node):
         if not images:
             return
         t0 = time.perf_counter()
-        dets = detect(self.model, images, self.imgsz, self.cfg.conf, self.cfg.iou, self.cfg.max_det)
+        dets = detect(self.model, images, self.imgsz, self.cfg.conf, self.cfg.iou, self.cfg.max_det,
+                      scale=self.cfg.scale)
         self.seconds += time.perf_counter() - t0
         self.stats["batches"] += 1
         for topic, msg, img, d in zip(topics, msgs, images, dets, strict=True):
