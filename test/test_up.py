@@ -64,10 +64,11 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     assert "mAP50" in run.stdout and live["bag"] in run.stdout
 
     # Replay the recorded images (and labels) into a fresh detector with the live one's settings (up runs it at
-    # the images' long side); record its detections with the labels.
+    # 1.3 times the images' long side); record its detections with the labels.
     live_detector = next(n for n in graph_spec(UpConfig(width=320, height=180)) if n.executable == "detector")
     detector_params = {k: v for k, v in live_detector.overrides.items() if k != "ack_name"}
-    assert detector_params["imgsz"] == -1  # each frame's long side: 320
+    assert detector_params["scale"] == 1.3 and "imgsz" not in detector_params
+    assert live["detect_imgsz"] == 416  # 1.3 x 320, rounded up to a multiple of 32
     bag2 = tmp_path / "replayed.mcap"
     images = [f"/{d}/image_raw" for d in DRONES]
     labels = [f"/{d}/labels" for d in DRONES]
