@@ -5,12 +5,17 @@ from __future__ import annotations
 
 import csv
 import io
+import json
+import os
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
+from zebra_sim_ros.detection.checkpoint import load_model
 from zebra_sim_ros.detection.evaluate import evaluate
 from zebra_sim_ros.detection.train import TrainConfig, train
 from zebra_sim_ros.errors import ParameterError
@@ -48,6 +53,27 @@ def test_resume_continues_from_last(tiny: Path, tmp_path: Path) -> None:
     with pytest.raises(ParameterError, match="'--epochs' = 3.*3 epochs"):
         train(TrainConfig(epochs=3, resume=True, **base), log=io.StringIO())
     assert list(csv.DictReader(open(tmp_path / "run" / "results.csv"))) == rows  # nothing written by the refusals
+
+
+def test_torchrun_trains_one_run_over_two_processes(tiny: Path, tmp_path: Path) -> None:
+    """The same command under torchrun (DistributedDataParallel, gloo on CPU): the processes split the images,
+    the first one validates, writes the run and alone prints the summary."""
+    torchrun = Path(sys.executable).with_name("torchrun")
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    run = subprocess.run([str(torchrun), "--standalone", "--nproc_per_node", "2", "-m", "zebra_sim_ros.cli", "train",
+                          "--data", str(tiny / "overfit.yaml"), "--model", "n", "--imgsz", "128", "--epochs", "2",
+                          "--batch", "3", "--device", "cpu", "--workers", "0", "--out", str(tmp_path / "ddp"),
+                          "--json"], env=env, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-3000:]
+    summaries = [json.loads(line) for line in run.stdout.splitlines() if line.startswith("{")]
+    assert len(summaries) == 1, run.stdout
+    # 6 images, 3 per process and step: one step per process and epoch. Unsplit, each would take two.
+    assert summaries[0]["processes"] == 2 and summaries[0]["images_seen"] == 2 * 2 * 3
+    rows = list(csv.DictReader(open(tmp_path / "ddp" / "results.csv")))
+    assert [r["epoch"] for r in rows] == ["1", "2"] and rows[-1]["mAP50"] != ""
+    _, ckpt = load_model(tmp_path / "ddp" / "last.pt")  # the checkpoint rebuilds its model
+    assert ckpt["epoch"] == 1 and ckpt["train_args"]["batch"] == 3
+    assert not any(k.startswith("module.") for k in ckpt["model"])  # the model's own names, not DDP's wrapper's
 
 
 @pytest.fixture(scope="module")

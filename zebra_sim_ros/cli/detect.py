@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 from typing import Any
 
@@ -74,6 +75,9 @@ def cmd_train(args: argparse.Namespace) -> Summary:
                       val_every=args.val_every, max_train_images=args.max_train_images, resume=args.resume,
                       init=args.init, amp=args.amp, dont_care=args.dont_care)
     summary = train(cfg)
+    if int(os.environ.get("RANK", "0")) != 0:  # under torchrun: only the first process reports
+        args.json = False
+        return summary
     print(f"trained: {summary}")
     return summary
 

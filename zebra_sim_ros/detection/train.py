@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import copy
 import csv
+import datetime
 import math
 import os
 import sys
@@ -155,7 +156,9 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
     cfg.check()
     distributed = int(os.environ.get("WORLD_SIZE", "1")) > 1
     if distributed:
-        torch.distributed.init_process_group("nccl" if torch.cuda.is_available() else "gloo")
+        # Rank 0 validates while the others wait at the next step's all-reduce: allow a long validation.
+        torch.distributed.init_process_group("nccl" if torch.cuda.is_available() else "gloo",
+                                             timeout=datetime.timedelta(hours=2))
         local = int(os.environ.get("LOCAL_RANK", "0"))
         device = torch.device(f"cuda:{local}") if torch.cuda.is_available() else torch.device("cpu")
         if device.type == "cuda":
@@ -206,7 +209,7 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
         ds.files = ds.files[: cfg.max_train_images]
     sampler: DistributedSampler[Any] | None = DistributedSampler(ds, seed=cfg.seed) if distributed else None
     loader = DataLoader(ds, batch_size=cfg.batch, shuffle=sampler is None, sampler=sampler, num_workers=cfg.workers,
-                        collate_fn=collate, drop_last=len(ds) >= 2 * cfg.batch,
+                        collate_fn=collate, drop_last=(len(sampler) if sampler else len(ds)) >= 2 * cfg.batch,
                         generator=torch.Generator().manual_seed(cfg.seed))  # workers restart each epoch: they must see
     # the dataset's new epoch (augmentation seeds) and, for the last epochs, mosaic switched off
     val_loader = make_loader(val_dir, cfg.imgsz, cfg.batch, cfg.workers) if _is_main() else None
@@ -293,11 +296,17 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
             save_checkpoint(out / "best.pt", half, **extra)
         results_png(rows, out / "results.png")
     seconds = time.perf_counter() - t_start
+    world = 1
     if distributed:
+        world = torch.distributed.get_world_size()
+        seen = torch.tensor([images_seen], dtype=torch.int64, device=device)
+        torch.distributed.all_reduce(seen)  # the images of every process
+        images_seen = int(seen.item())
         torch.distributed.destroy_process_group()
     last = rows[-1] if rows else {}
     return {"out": str(out), "best": str(out / "best.pt"), "last": str(out / "last.pt"), "epochs": cfg.epochs,
-            "seconds": round(seconds, 1), "train_images_per_s": round(images_seen / max(seconds, 1e-9), 2),
+            "seconds": round(seconds, 1), "processes": world, "images_seen": images_seen,
+            "train_images_per_s": round(images_seen / max(seconds, 1e-9), 2),
             "final": {k: last.get(k) for k in ("mAP50", "mAP50-95", "precision", "recall")},
             "best_fitness": round(best, 4)}
 
