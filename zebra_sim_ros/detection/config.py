@@ -9,19 +9,22 @@ from typing import Any
 from zebra_sim_ros.params import ParamSpec, in_range, one_of, validate
 
 NATIVE = -1  # as imgsz: each batch at its frames' own resolution (predict.native_size)
+STRIDE = 32  # the largest stride of the model: input sides must be multiples of it
+MIN_IMGSZ, MAX_IMGSZ = 64, 4096
+SCALE_RANGE = (0.25, 4.0)  # of the detector's ``scale`` (and up's --detect-scale)
 
 
 def scaled_size(long_side: int, scale: float = 1.0) -> int:
     """The inference size for frames whose longest side is ``long_side``: times ``scale``, rounded up to a
-    multiple of 32 (the largest stride), within 64..4096."""
-    return min(max(math.ceil(long_side * scale / 32) * 32, 64), 4096)
+    multiple of :data:`STRIDE`, within 64..4096."""
+    return min(max(math.ceil(long_side * scale / STRIDE) * STRIDE, MIN_IMGSZ), MAX_IMGSZ)
 
 
 def imgsz_ok(value: object, native: bool = False) -> bool:
     """An inference or training size: a multiple of 32 (the largest stride) in 64..4096, or, where ``native``
     is allowed, :data:`NATIVE`."""
     return isinstance(value, int) and not isinstance(value, bool) and (
-        (native and value == NATIVE) or (64 <= value <= 4096 and value % 32 == 0))
+        (native and value == NATIVE) or (MIN_IMGSZ <= value <= MAX_IMGSZ and value % STRIDE == 0))
 
 
 DETECTOR_PARAMS: tuple[ParamSpec, ...] = (
@@ -37,7 +40,7 @@ DETECTOR_PARAMS: tuple[ParamSpec, ...] = (
               lambda v: v == 0 or imgsz_ok(v, native=True)),
     ParamSpec("scale", 0.0, "if set, inference size as a multiple of each batch's long side (rounded up to a multiple "
               "of 32; overrides imgsz). 1.3 is the shipped weights' training scale: for 1280x720 cameras, as zebra-sim "
-              "up runs it", "0 (off) or 0.25..4", lambda v: in_range(0.0, 0.0)(v) or in_range(0.25, 4.0)(v)),
+              "up runs it", "0 (off) or 0.25..4", lambda v: in_range(0.0, 0.0)(v) or in_range(*SCALE_RANGE)(v)),
     ParamSpec("device", "auto", "auto, cpu, cuda or cuda:N", "auto, cpu, cuda, cuda:N",
               lambda v: isinstance(v, str) and (v in ("auto", "cpu") or v.startswith("cuda"))),
     ParamSpec("max_det", 300, "most detections per image", "1..10000", in_range(1, 10000)),

@@ -9,11 +9,9 @@ import torch
 from numpy.typing import NDArray
 
 from zebra_sim_ros.detection.boxes import postprocess
-from zebra_sim_ros.detection.config import NATIVE, scaled_size
+from zebra_sim_ros.detection.config import NATIVE, STRIDE, scaled_size
 from zebra_sim_ros.detection.data import letterbox, letterbox_size
 from zebra_sim_ros.detection.model import Detector
-
-STRIDE = 32  # the largest stride of the model: input sides must be multiples of it
 
 
 def native_size(images: Sequence[NDArray[np.uint8]], scale: float = 1.0) -> int:
@@ -56,10 +54,8 @@ def detect(model: Detector, images: Sequence[NDArray[np.uint8]], imgsz: int | No
     set, to :func:`native_size` with that scale, padded as :func:`preprocess` says."""
     if not images:
         return []
-    if scale:
-        size = native_size(images, scale)
-    else:
-        size = native_size(images) if imgsz == NATIVE else (imgsz or model.cfg.imgsz)
+    scale = scale or (1.0 if imgsz == NATIVE else 0.0)  # NATIVE is scale 1
+    size = native_size(images, scale) if scale else (imgsz or model.cfg.imgsz)
     dev = next(model.parameters()).device
     x, meta = preprocess(images, size, rect)
     pred = model(x.to(dev).contiguous(memory_format=torch.channels_last))

@@ -127,24 +127,23 @@ class EMA:
             e.mul_(d).add_(m.detach(), alpha=1 - d)
 
 
-# What a resumed run may change: its length and the machine it runs on. Everything else shapes the run (the
-# schedule, the augmentation, the data) and must be what it was.
-RESUME_MAY_CHANGE = frozenset({"epochs", "device", "workers", "amp", "val_every", "resume", "init", "out"})
+# What a resumed run may change: its length, how often it validates and the machine it runs on. Every other
+# setting shapes the run (the schedule, the augmentation, the data) and must be what it was.
+RESUME_MAY_CHANGE = ("epochs", "device", "workers", "amp", "val_every")
 
 
 def check_resume(cfg: TrainConfig, recorded: dict[str, Any], last: Path) -> None:
     """Raise :class:`ParameterError` naming the first setting of ``cfg`` that differs from the run's recorded
     ``train_args`` (other than :data:`RESUME_MAY_CHANGE`); the data are compared as resolved paths."""
     for name, value in asdict(cfg).items():
-        if name in RESUME_MAY_CHANGE or name not in recorded:
+        if name in (*RESUME_MAY_CHANGE, "resume", "init", "out") or name not in recorded:
             continue
         was = recorded[name]
         same = (Path(value).resolve() == Path(was).resolve()) if name == "data" else value == was
         if not same:
             raise ParameterError(f"--{name.replace('_', '-')}", value,
                                  f"{was!r}, as the run in {last.parent} was started with (--resume continues "
-                                 f"that run; only {', '.join(sorted(RESUME_MAY_CHANGE - {'resume', 'init', 'out'}))} "
-                                 f"may change)")
+                                 f"that run; only {', '.join(RESUME_MAY_CHANGE)} may change)")
 
 
 def _is_main() -> bool:

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from zebra_sim_ros.detection.config import DETECTOR_PARAMS, scaled_size
+from zebra_sim_ros.detection.config import DETECTOR_PARAMS, SCALE_RANGE, scaled_size
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LABELLER_PARAMS
 from zebra_sim_ros.params import ParamSpec, validate
@@ -83,8 +83,9 @@ class UpConfig:
             raise ParameterError("--size", f"{self.width}x{self.height}", "WxH with 16..8192 each")
         if self.strategy not in ("far", "closeby", "mixed"):
             raise ParameterError("--strategy", self.strategy, "far, closeby or mixed")
-        if not 0.25 <= self.detect_scale <= 4.0:
-            raise ParameterError("--detect-scale", self.detect_scale, "0.25..4 (times the cameras' long side)")
+        lo, hi = SCALE_RANGE
+        if not lo <= self.detect_scale <= hi:
+            raise ParameterError("--detect-scale", self.detect_scale, f"{lo:g}..{hi:g} (times the cameras' long side)")
         if self.ready_timeout_s <= 0 or self.step_timeout_s <= 0:
             raise ParameterError("--timeout", min(self.ready_timeout_s, self.step_timeout_s), "> 0 s")
         from zebra_sim_ros.world.world import check_world_source
