@@ -5,7 +5,7 @@ Runs ``zebra-sim up --frames N`` (seven processes over DDS on a private domain, 
 the same run, the in-process pipeline (``zebra-sim generate``: place, render three views, label, write, no DDS,
 no detector) on the same world, so the graph's cost can be read as a ratio of the plain pipeline's.
 
-    python benchmarks/bench_graph.py [--frames 20] [--size 1280x720] [--detect-scale 1.3] [--json]
+    python benchmarks/bench_graph.py [--frames 20] [--size 1280x720] [--detect-scale 0] [--json]
 """
 
 from __future__ import annotations
@@ -29,7 +29,8 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=20, help="steps of the graph (three images each)")
     ap.add_argument("--size", default="1280x720", type=size_arg, help="camera size WxH, px")
     ap.add_argument("--world", default="savanna")
-    ap.add_argument("--detect-scale", default="1.3", help="up's --detect-scale (detector size over the cameras')")
+    ap.add_argument("--detect-scale", default="0",
+                    help="up's --detect-scale (detector size over the cameras'; 0: the checkpoint's rule)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     w, h = args.size

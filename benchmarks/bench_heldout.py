@@ -33,6 +33,7 @@ from zebra_sim_ros.detection.checkpoint import load_model
 from zebra_sim_ros.detection.data import resolve_split
 from zebra_sim_ros.detection.evaluate import make_loader, predictions
 from zebra_sim_ros.detection.evaluate import score as score_images
+from zebra_sim_ros.detection.predict import inference_size
 from zebra_sim_ros.labels.config import LabelFilters
 
 TRAINING_WORLDS = ("savanna", "grassland", "meadow", "woodland", "moorland", "scrubland", "farmland")
@@ -54,9 +55,10 @@ def light_of(sun_elevation_deg: float) -> str:
 
 def score(weights: str, data: Path, imgsz: int) -> dict[str, Any]:
     model, _ = load_model(None if weights == "shipped" else weights, torch.device("cpu"))
-    size = imgsz or model.cfg.imgsz
     t0 = time.perf_counter()
-    per_image = predictions(model, make_loader(resolve_split(data, "train"), size))
+    per_image = predictions(model, make_loader(resolve_split(data, "train"),
+                                               lambda long_side: inference_size(model.cfg, long_side, imgsz or None)))
+    size = sorted({p.imgsz for p in per_image})
     groups: dict[str, list[int]] = defaultdict(list)
     for i, p in enumerate(per_image):
         meta = json.loads((data.parent / "annotations" / f"{Path(p.file).stem}.json").read_text())
@@ -83,7 +85,7 @@ def main() -> None:
     ap.add_argument("--weights", nargs="+", default=["shipped"], help="checkpoints ('shipped': the package's own)")
     ap.add_argument("--size", default="640x360", type=size_arg, help="frame size WxH of the generated set, px")
     ap.add_argument("--imgsz", type=int, nargs="+", default=[0], help="inference sizes, each weights scored at each "
-                    "(0: the checkpoint's config.imgsz)")
+                    "(0: the checkpoint's rule, as zebra-sim val)")
     ap.add_argument("--cache", type=Path, default=Path("out/heldout"))
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()

@@ -33,8 +33,8 @@ def generate_launch_description():
         DeclareLaunchArgument("height", default_value="720", description="image height, px"),
         DeclareLaunchArgument("weights", default_value="", description="detector checkpoint ('' = shipped)"),
         DeclareLaunchArgument("device", default_value="auto", description="detector device"),
-        DeclareLaunchArgument("detect_scale", default_value="1.3", description="detector inference size over "
-                              "the cameras' long side (as zebra-sim up --detect-scale)"),
+        DeclareLaunchArgument("detect_scale", default_value="0.0", description="detector inference size over "
+                              "the cameras' long side (0: the checkpoint's rule; as zebra-sim up --detect-scale)"),
         DeclareLaunchArgument("bag", default_value="out/up/zebra_sim.mcap", description="bag to record"),
     ]
 

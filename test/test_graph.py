@@ -279,7 +279,8 @@ def test_fast_dds_accepts_our_profile(tmp_path: Path) -> None:
 @pytest.mark.parametrize(("setting", "named"), [({"world": "moon"}, "'world'"), ({"device": "tpu"}, "'device'"),
                                                 ({"frames": 0}, "'--frames'"), ({"strategy": "up"}, "'--strategy'"),
                                                 ({"width": 8, "height": 20}, "'--size'"),
-                                                ({"detect_scale": 0.1}, "'--detect-scale'")])
+                                                ({"detect_scale": 0.1}, "'--detect-scale'"),
+                                                ({"detect_scale": -1.3}, "'--detect-scale'")])
 def test_up_rejects_a_bad_setting_before_starting_any_node(setting: dict[str, Any], named: str) -> None:
     from zebra_sim_ros.errors import ParameterError
 
@@ -290,7 +291,11 @@ def test_up_rejects_a_bad_setting_before_starting_any_node(setting: dict[str, An
 def test_up_detector_size_follows_the_cameras() -> None:
     detector = next(s for s in graph_spec(UpConfig(detect_scale=1.5)) if s.executable == "detector")
     assert detector.overrides["scale"] == 1.5 and "imgsz" not in detector.overrides
-    assert UpConfig().detect_imgsz == 1664  # 1.3 x 1280
+    default = next(s for s in graph_spec(UpConfig()) if s.executable == "detector")
+    assert default.overrides["scale"] == 0  # by default the node applies the checkpoint's rule, as val does
+    assert UpConfig().detect_imgsz == 2176  # the shipped weights serve 640 px frames at 1088: 1.7 x 1280
+    assert UpConfig(width=640, height=360).detect_imgsz == 1088
+    assert UpConfig(detect_scale=1.3).detect_imgsz == 1664
     assert UpConfig(detect_scale=1.0).detect_imgsz == 1280  # native
     assert UpConfig(width=360, height=640, detect_scale=1.0).detect_imgsz == 640  # the long side, portrait too
     assert UpConfig(width=1000, height=500, detect_scale=1.0).detect_imgsz == 1024  # up to a multiple of 32

@@ -46,7 +46,9 @@ def test_shipped_weights_are_ours_and_say_how_they_were_trained() -> None:
     assert SHIPPED.stat().st_size < 20 << 20
     args = ckpt["train_args"]
     assert args["model"] == "n" and args["imgsz"] == 832  # last trained at 832, served at 1088 (zebra-sim export)
-    assert ckpt["config"]["imgsz"] == 1088 and ckpt["exported"] == {"from_config_imgsz": 832, "imgsz": 1088}
+    # served at 1088 on its 640x360 training frames, and at the same scale (1.7) on frames of any other size
+    assert ckpt["config"]["imgsz"] == 1088 and ckpt["config"]["frame"] == 640
+    assert ckpt["exported"]["previous"] == {"from_config_imgsz": 832, "imgsz": 1088}
     floats = [v for v in ckpt["model"].values() if v.dtype.is_floating_point]
     assert floats and all(v.dtype == torch.float16 for v in floats)  # fp16 on disk
 

@@ -41,6 +41,9 @@ def test_resume_continues_from_last(tiny: Path, tmp_path: Path) -> None:
     assert summary["train_images_per_s"] > 0
     for name in ("best.pt", "last.pt", "results.csv", "results.png"):
         assert (tmp_path / "run" / name).exists(), name
+    model, _ = load_model(tmp_path / "run" / "best.pt")
+    # It records the frames it was trained on beside imgsz: served, a 512 px frame gets 256 (the same scale).
+    assert (model.cfg.imgsz, model.cfg.frame, model.cfg.serve_size(512)) == (128, 256, 256)
     rows_before = list(csv.DictReader(open(tmp_path / "run" / "results.csv")))
     train(TrainConfig(epochs=3, resume=True, **base), log=io.StringIO())
     rows = list(csv.DictReader(open(tmp_path / "run" / "results.csv")))

@@ -63,12 +63,12 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     assert preview is not None and preview.shape == (180, 960, 3)
     assert "mAP50" in run.stdout and live["bag"] in run.stdout
 
-    # Replay the recorded images (and labels) into a fresh detector with the live one's settings (up runs it at
-    # 1.3 times the images' long side); record its detections with the labels.
+    # Replay the recorded images (and labels) into a fresh detector with the live one's settings (the checkpoint's
+    # rule: the shipped weights serve 640 px frames at 1088, so 320 px frames at 544); record its detections.
     live_detector = next(n for n in graph_spec(UpConfig(width=320, height=180)) if n.executable == "detector")
     detector_params = {k: v for k, v in live_detector.overrides.items() if k != "ack_name"}
-    assert detector_params["scale"] == 1.3 and "imgsz" not in detector_params
-    assert live["detect_imgsz"] == 416  # 1.3 x 320, rounded up to a multiple of 32
+    assert detector_params["scale"] == 0 and "imgsz" not in detector_params
+    assert live["detect_imgsz"] == 544  # 1.7 x 320, a multiple of 32
     bag2 = tmp_path / "replayed.mcap"
     images = [f"/{d}/image_raw" for d in DRONES]
     labels = [f"/{d}/labels" for d in DRONES]
@@ -112,9 +112,24 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
 
 
 def test_up_stops_everything_and_names_the_node_that_died(tmp_path: Path) -> None:
+    import torch
+
+    from zebra_sim_ros.detection.checkpoint import save_checkpoint
+    from zebra_sim_ros.detection.model import ModelConfig, build_model
+
     domain = fresh_domain_id()
+    unreadable = tmp_path / "unreadable.pt"
+    unreadable.write_bytes(b"not a checkpoint" * 100)
+    run = _up(tmp_path / "up0", domain, "--weights", str(unreadable), timeout=240)
+    # up reads the checkpoint's serving rule before it starts anything: a file that is no checkpoint stops it there
+    assert run.returncode == 2 and "unreadable.pt" in run.stderr, run.stderr[-3000:]
+    assert not (tmp_path / "up0" / "logs").exists() and _processes_in(domain) == []
+    # A checkpoint whose weights do not fit its own config reads as one, so only the detector node finds out.
     bad = tmp_path / "broken.pt"
-    bad.write_bytes(b"not a checkpoint" * 100)
+    save_checkpoint(bad, build_model(ModelConfig(size="n")))
+    broken = torch.load(bad, weights_only=True)
+    broken["config"]["size"] = "s"
+    torch.save(broken, bad)
     run = _up(tmp_path / "up", domain, "--weights", str(bad), timeout=240)
     assert run.returncode == 1, run.stdout[-3000:]
     summary = _last_json(run.stdout)

@@ -33,7 +33,10 @@ def register(sub: Any) -> None:
                    help="run this detector over the recorded /<drone>/image_raw instead of using recorded detections")
     e.add_argument("--device", default="auto", help="auto, cpu or cuda (with --weights)")
     e.add_argument("--imgsz", type=int, default=None,
-                   help="with --weights: inference size, px (default: the checkpoint's; -1: each frame's long side)")
+                   help="with --weights: inference size, px, for every frame (default: the checkpoint's rule, each "
+                   "frame at the scale the checkpoint serves at; -1: each frame's long side)")
+    e.add_argument("--scale", type=float, default=0.0, help="with --weights: inference size as a multiple of each "
+                   "frame's long side, rounded up to a multiple of 32 (overrides --imgsz; 0: off)")
     add_json_flag(e)
     e.set_defaults(func=cmd_eval)
 
@@ -72,10 +75,11 @@ def cmd_eval(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.recording.evaluate import ImageDetector, collect, score
 
     if args.weights:
-        from zebra_sim_ros.detection.checkpoint import check_imgsz
+        from zebra_sim_ros.detection.checkpoint import check_imgsz, check_scale
 
         check_imgsz("--imgsz", args.imgsz, native=True)
-    detector = ImageDetector(args.weights, args.device, imgsz=args.imgsz) if args.weights else None
+        check_scale("--scale", args.scale)
+    detector = ImageDetector(args.weights, args.device, imgsz=args.imgsz, scale=args.scale) if args.weights else None
     collected = collect(args.bag, args.detections, each=detector)  # one pass, with or without a detector
     if detector is not None:
         collected = detector.apply(collected)

@@ -46,7 +46,11 @@ def register(sub: Any) -> None:
     v.add_argument("--weights", default=None, help="checkpoint (default: the shipped weights)")
     v.add_argument("--data", required=True, help="dataset.yaml, or a folder of images with a sibling labels/ folder")
     v.add_argument("--split", default="val", help="split of a dataset.yaml: val or train")
-    v.add_argument("--imgsz", type=int, default=None, help="image size (default: the checkpoint's)")
+    v.add_argument("--imgsz", type=int, default=None, help="inference size, px, for every image (default: the "
+                   "checkpoint's rule: each image at the scale the checkpoint serves at, config.imgsz over the long "
+                   "side of its training frames)")
+    v.add_argument("--scale", type=float, default=0.0, help="inference size as a multiple of each image's long "
+                   "side, rounded up to a multiple of 32 (overrides --imgsz; 0: off)")
     v.add_argument("--batch", type=int, default=8)
     v.add_argument("--device", default="auto")
     v.add_argument("--conf", type=float, default=0.001, help="confidence threshold for AP")
@@ -57,9 +61,12 @@ def register(sub: Any) -> None:
 
     e = sub.add_parser("export", help="export a checkpoint for deployment (ONNX, or a serving checkpoint)")
     e.add_argument("--weights", default=None, help="checkpoint (default: the shipped weights)")
-    e.add_argument("--format", default="onnx", help="onnx, or pt: a serving checkpoint (fp16 EMA weights) whose "
-                   "default inference size is --imgsz")
+    e.add_argument("--format", default="onnx", help="onnx, or pt: a serving checkpoint (fp16 EMA weights) that "
+                   "serves frames of --frame px at --imgsz (and others at the same scale)")
     e.add_argument("--imgsz", type=int, default=None, help="input size (default: the checkpoint's)")
+    e.add_argument("--frame", type=int, default=None, help="pt: the long side, px, of the frames the source was "
+                   "trained on (default: as the checkpoint records it; checkpoints trained before it was recorded "
+                   "serve every frame at --imgsz until it is given)")
     e.add_argument("--out", type=Path, required=True, help="output file (.onnx or .pt)")
     add_json_flag(e)
     e.set_defaults(func=cmd_export)
@@ -84,18 +91,21 @@ def cmd_train(args: argparse.Namespace) -> Summary:
 
 def cmd_val(args: argparse.Namespace) -> Summary:
     """Validate."""
-    from zebra_sim_ros.detection.checkpoint import check_imgsz
+    from zebra_sim_ros.detection.checkpoint import check_imgsz, check_scale
     from zebra_sim_ros.detection.evaluate import evaluate
     from zebra_sim_ros.detection.metrics import pr_curve_png
 
     check_imgsz("--imgsz", args.imgsz)
+    check_scale("--scale", args.scale)
     if args.batch < 1:
         raise ParameterError("--batch", args.batch, ">= 1")
     for name, value in (("--conf", args.conf), ("--iou", args.iou)):
         if not 0.0 <= value <= 1.0:
             raise ParameterError(name, value, "0..1")
 
-    m, facts = evaluate(args.weights, args.data, args.split, args.imgsz, args.batch, args.device, args.conf, args.iou)
+    m, facts = evaluate(args.weights, args.data, args.split, args.imgsz, args.batch, args.device, args.conf, args.iou,
+                        scale=args.scale)
+    print(f"inference size: {facts['imgsz']} ({facts['imgsz_rule']})")
     d = m.to_dict()
     print(f"{'images':>8}{'instances':>11}{'P':>8}{'R':>8}{'mAP50':>8}{'mAP50-95':>10}")
     print(f"{d['images']:>8}{d['instances']:>11}{d['precision']:>8.3f}{d['recall']:>8.3f}{d['mAP50']:>8.3f}"
@@ -114,8 +124,12 @@ def cmd_export(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.detection.export import export_checkpoint, export_onnx
 
     check_imgsz("--imgsz", args.imgsz)
-
-    path = (export_onnx if args.format == "onnx" else export_checkpoint)(args.weights, args.out, args.imgsz)
+    if args.frame is not None and (args.format != "pt" or not 16 <= args.frame <= 8192):
+        raise ParameterError("--frame", args.frame, "16..8192 px, with --format pt")
+    if args.format == "onnx":
+        path = export_onnx(args.weights, args.out, args.imgsz)
+    else:
+        path = export_checkpoint(args.weights, args.out, args.imgsz, args.frame)
     print(f"exported {path}")
     return {"out": str(path), "format": args.format}
 

@@ -34,8 +34,9 @@ def register(sub: Any) -> None:
     p.add_argument("--size", default="1280x720", help="image size of the cameras, WxH px")
     p.add_argument("--weights", default="", help="detector checkpoint (default: the shipped weights)")
     p.add_argument("--device", default="auto", help="detector device: auto, cpu or cuda")
-    p.add_argument("--detect-scale", type=float, default=1.3, help="detector input long side as a multiple of the "
-                   "cameras' (1.3: the scale the shipped weights were trained at; 1.0: native resolution)")
+    p.add_argument("--detect-scale", type=float, default=0.0, help="detector input long side as a multiple of the "
+                   "cameras' (0: the checkpoint's rule, the scale it serves its training frames at: 1.7 for the "
+                   "shipped weights; 1.0: native resolution)")
     p.add_argument("--out", default="out/up", help="folder for the bag, logs, summary.json and preview.jpg")
     p.add_argument("--config", default="", help="folder of the parameter files (default: the installed config/)")
     p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID for the graph (default: inherited)")
@@ -65,6 +66,7 @@ def cmd_up(args: argparse.Namespace) -> Summary:
         raise ParameterError("--domain-id", args.domain_id, "0..232 (ROS_DOMAIN_ID)")
     if args.weights and not Path(args.weights).is_file():
         raise ParameterError("--weights", args.weights, "an existing checkpoint file")
+    detect_imgsz = cfg.detect_imgsz  # reads the checkpoint's serving rule: an unreadable file stops here
     conf = config_dir(cfg.config_dir)
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -89,7 +91,7 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.nodes.graph_watch import GraphWatch
 
     result: dict[str, Any] = {"out": str(out), "config": str(conf), "frames_asked": cfg.frames, "exit_code": 0,
-                              "detect_imgsz": cfg.detect_imgsz}
+                              "detect_imgsz": detect_imgsz}
     t_start = time.monotonic()
     sup = Supervisor(out / "logs", env)
     try:

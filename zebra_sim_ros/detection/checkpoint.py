@@ -12,8 +12,8 @@ from typing import Any
 
 import torch
 
-from zebra_sim_ros.detection.config import imgsz_ok
-from zebra_sim_ros.detection.model import Detector, build_model
+from zebra_sim_ros.detection.config import SCALE_RANGE, imgsz_ok
+from zebra_sim_ros.detection.model import Detector, ModelConfig, build_model
 from zebra_sim_ros.errors import AssetError, ParameterError
 
 FORMAT = "zebra_sim_ros/detector"
@@ -56,8 +56,11 @@ def load_model(path: str | Path | None = None, device: str | torch.device = "cpu
     model = build_model(ckpt["config"])
     try:
         model.load_state_dict({k: v.float() for k, v in ckpt["model"].items()})
-    except RuntimeError as exc:
-        raise AssetError(f"weights {path or SHIPPED} do not fit their own config: {exc}") from exc
+    except RuntimeError as exc:  # torch lists every mismatched tensor: name the first and count them
+        lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip().startswith(("size mismatch", "Missing",
+                                                                                      "Unexpected"))]
+        raise AssetError(f"weights {path or SHIPPED} do not fit their own config {ckpt['config']}: {len(lines)} "
+                         f"problem(s), first: {lines[0] if lines else exc}") from exc
     model = model.to(device).eval()
     if fuse:
         model = model.fuse()
@@ -76,6 +79,19 @@ def check_imgsz(name: str, value: int | None, native: bool = False) -> None:
     or, with ``native``, -1 (each frame's own size)."""
     if value is not None and not imgsz_ok(value, native):
         raise ParameterError(name, value, ("-1 or " if native else "") + "a multiple of 32 in 64..4096")
+
+
+def check_scale(name: str, value: float) -> None:
+    """Raise :class:`ParameterError` unless ``value`` is 0 (off: the checkpoint's rule) or in 0.25..4."""
+    lo, hi = SCALE_RANGE
+    if not (value == 0 or lo <= value <= hi):  # 0 is the exact 'off' a user types, not a computed float
+        raise ParameterError(name, value, f"0 (off: the checkpoint's rule) or {lo:g}..{hi:g} (times the frame's "
+                             "long side)")
+
+
+def checkpoint_config(path: str | Path | None = None) -> ModelConfig:
+    """The model config of a checkpoint (default: the shipped weights), without building the model."""
+    return ModelConfig.from_dict(read_checkpoint(path or SHIPPED)["config"])
 
 
 def select_device(name: str = "auto") -> torch.device:

@@ -14,10 +14,16 @@ MIN_IMGSZ, MAX_IMGSZ = 64, 4096
 SCALE_RANGE = (0.25, 4.0)  # of the detector's ``scale`` (and up's --detect-scale)
 
 
+def clamp_size(size: int) -> int:
+    """``size`` within the model's 64..4096."""
+    return min(max(size, MIN_IMGSZ), MAX_IMGSZ)
+
+
 def scaled_size(long_side: int, scale: float = 1.0) -> int:
     """The inference size for frames whose longest side is ``long_side``: times ``scale``, rounded up to a
-    multiple of :data:`STRIDE`, within 64..4096."""
-    return min(max(math.ceil(long_side * scale / STRIDE) * STRIDE, MIN_IMGSZ), MAX_IMGSZ)
+    multiple of :data:`STRIDE`, within 64..4096. The product is rounded to 1e-6 strides first, so that a scale
+    such as 1.7 (not exact in binary) gives 1088 for 640, not 1120."""
+    return clamp_size(math.ceil(round(long_side * scale / STRIDE, 6)) * STRIDE)
 
 
 def imgsz_ok(value: object, native: bool = False) -> bool:
@@ -35,12 +41,13 @@ DETECTOR_PARAMS: tuple[ParamSpec, ...] = (
               lambda v: isinstance(v, str)),
     ParamSpec("conf", 0.25, "confidence threshold", "0..1", in_range(0.0, 1.0)),
     ParamSpec("iou", 0.7, "NMS IoU threshold", "0..1", in_range(0.0, 1.0)),
-    ParamSpec("imgsz", 0, "inference size, px (0: the checkpoint's; -1: each frame's long side, rounded up to a "
-              "multiple of 32)", "-1, 0 or a multiple of 32 in 64..4096",
+    ParamSpec("imgsz", 0, "inference size, px, for every frame (0: the checkpoint's rule, each frame at the scale "
+              "the checkpoint serves at, config.imgsz over its training frames' long side; -1: each frame's long "
+              "side, rounded up to a multiple of 32)", "-1, 0 or a multiple of 32 in 64..4096",
               lambda v: v == 0 or imgsz_ok(v, native=True)),
     ParamSpec("scale", 0.0, "if set, inference size as a multiple of each batch's long side (rounded up to a multiple "
-              "of 32; overrides imgsz). 1.3 is the shipped weights' training scale: for 1280x720 cameras, as zebra-sim "
-              "up runs it", "0 (off) or 0.25..4", lambda v: in_range(0.0, 0.0)(v) or in_range(*SCALE_RANGE)(v)),
+              "of 32; overrides imgsz; 0: off, the checkpoint's rule)", "0 (off) or 0.25..4",
+              lambda v: in_range(0.0, 0.0)(v) or in_range(*SCALE_RANGE)(v)),
     ParamSpec("device", "auto", "auto, cpu, cuda or cuda:N", "auto, cpu, cuda, cuda:N",
               lambda v: isinstance(v, str) and (v in ("auto", "cpu") or v.startswith("cuda"))),
     ParamSpec("max_det", 300, "most detections per image", "1..10000", in_range(1, 10000)),

@@ -5,14 +5,17 @@ A set is a folder of images with a sibling ``labels`` folder (``images/x/a.jpg``
 ``ignore`` folder in the same format holds don't-care boxes (objects present but not labelled), which validation
 scores as COCO scores crowd regions. Training with ``dont_care`` adds them to the targets with class
 :data:`DONT_CARE` (-1), augmented as the labels are, so the loss neither rewards nor punishes detecting them.
-Batches are ``(images (B, 3, S, S) float in [0, 1], targets (T, 6) [image index, class, x0, y0, x1, y1] pixels)``.
+Batches are ``(images (B, 3, H, W) float in [0, 1], targets (T, 6) [image index, class, x0, y0, x1, y1] pixels)``;
+training batches are square (H = W = imgsz).
 
 Training augmentation: mosaic of four images, random affine (scale, translation), horizontal flip and HSV
-jitter. Validation: letterbox only, with the scale and padding kept to map boxes back to the original image.
+jitter. Validation: letterbox only, as inference letterboxes (long side to the inference size, each side padded
+to a multiple of 32), with the scale and padding kept to map boxes back to the original image.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -24,6 +27,7 @@ import yaml
 from numpy.typing import NDArray
 from torch.utils.data import Dataset
 
+from zebra_sim_ros.detection.config import STRIDE
 from zebra_sim_ros.errors import AssetError, ParameterError
 
 IMAGE_EXTS = (".jpg", ".jpeg", ".png", ".bmp")
@@ -114,6 +118,13 @@ def letterbox_size(h: int, w: int, size: int) -> tuple[int, int]:
     return round(h * r), round(w * r)
 
 
+def rect_shape(h: int, w: int, size: int) -> tuple[int, int]:
+    """(height, width) of the smallest input that holds an h x w image letterboxed to long side ``size``: each
+    side rounded up to a multiple of the largest stride (32). A 16:9 frame costs about 0.56 of a square one."""
+    nh, nw = letterbox_size(h, w, size)
+    return -(-nh // STRIDE) * STRIDE, -(-nw // STRIDE) * STRIDE
+
+
 def resize_long_side(img: NDArray[np.uint8], size: int) -> tuple[NDArray[np.uint8], float]:
     """Resize keeping the aspect ratio so the long side is ``size``; returns the image and the scale.
 
@@ -149,15 +160,17 @@ def letterbox(img: NDArray[np.uint8], size: int,
 class YoloDataset(Dataset[Any]):
     """Images and YOLO labels; ``augment`` None for validation. ``dont_care``: with ``augment``, the don't-care
     boxes of ``ignore/`` join each image's targets as class :data:`DONT_CARE` (validation keeps them apart, in
-    ``meta["ignore"]``)."""
+    ``meta["ignore"]``). ``size_for``: in validation, each image's inference size from its long side (the
+    detector's rule, :func:`~zebra_sim_ros.detection.predict.inference_size`) instead of ``imgsz``."""
 
     def __init__(self, folder: str | Path, imgsz: int = 640, augment: Augment | None = None, seed: int = 0,
-                 dont_care: bool = False) -> None:
+                 dont_care: bool = False, size_for: Callable[[int], int] | None = None) -> None:
         self.folder = Path(folder)
         self.files = sorted(p for p in self.folder.rglob("*") if p.suffix.lower() in IMAGE_EXTS)
         if not self.files:
             raise ParameterError("--data", str(self.folder), "a folder with images (.jpg, .png)")
         self.imgsz = imgsz
+        self.size_for = size_for
         self.augment = augment
         self.seed = seed
         self.dont_care = dont_care
@@ -179,6 +192,18 @@ class YoloDataset(Dataset[Any]):
             lab = np.concatenate([lab, ign])
         return np.asarray(img[..., ::-1], dtype=np.uint8).copy(), lab
 
+    def frame_size(self, samples: int = 32) -> int:
+        """The median long side, px, of up to ``samples`` images spread over the set: the training frame size a
+        checkpoint records (:attr:`~zebra_sim_ros.detection.model.ModelConfig.frame`)."""
+        picks = np.unique(np.linspace(0, len(self.files) - 1, min(samples, len(self.files))).round().astype(int))
+        sides = []
+        for i in picks:
+            img = cv2.imread(str(self.files[i]), cv2.IMREAD_UNCHANGED)
+            if img is None:
+                raise ParameterError("image", str(self.files[i]), "a readable image file")
+            sides.append(max(img.shape[:2]))
+        return int(np.median(sides))
+
     def _rng(self, i: int) -> np.random.Generator:
         return np.random.default_rng([self.seed, self.epoch, i])
 
@@ -187,11 +212,13 @@ class YoloDataset(Dataset[Any]):
         if a is None:
             img, lab0 = self.load(i)
             h0, w0 = img.shape[:2]
-            img, r, (left, top) = letterbox(img, self.imgsz)
+            size = self.size_for(max(h0, w0)) if self.size_for else self.imgsz
+            img, r, (left, top) = letterbox(img, size, rect_shape(h0, w0, size))
             lab = lab0.copy()
             lab[:, [1, 3]] = lab[:, [1, 3]] * r + left
             lab[:, [2, 4]] = lab[:, [2, 4]] * r + top
-            meta = {"file": str(self.files[i]), "shape": (h0, w0), "scale": r, "pad": (left, top),
+            meta = {"file": str(self.files[i]), "shape": (h0, w0), "scale": r, "pad": (left, top), "imgsz": size,
+                    "input": img.shape[:2],
                     "labels": lab0, "ignore": read_labels(label_path(self.files[i], "ignore"), w0, h0)}
         else:
             rng = self._rng(i)
@@ -287,8 +314,17 @@ def _hsv(img: NDArray[np.uint8], rng: np.random.Generator, a: Augment) -> NDArra
 
 def collate(batch: list[tuple[torch.Tensor, torch.Tensor, dict[str, Any]]]) -> tuple[torch.Tensor, torch.Tensor,
                                                                                         list[dict[str, Any]]]:
-    """Stack images; targets become (T, 6) [image index, class, x0, y0, x1, y1]."""
-    imgs = torch.stack([b[0] for b in batch])
+    """Stack images, padding smaller ones at the bottom and right (validation of frames of several sizes; each
+    image's letterbox padding in its meta is unchanged); targets become (T, 6) [image index, class, x0, y0, x1,
+    y1]."""
+    h = max(b[0].shape[1] for b in batch)
+    w = max(b[0].shape[2] for b in batch)
+    if all(b[0].shape[1:] == (h, w) for b in batch):
+        imgs = torch.stack([b[0] for b in batch])
+    else:
+        imgs = torch.full((len(batch), 3, h, w), 114 / 255.0)
+        for k, b in enumerate(batch):
+            imgs[k, :, : b[0].shape[1], : b[0].shape[2]] = b[0]
     targets = [torch.cat([torch.full((len(b[1]), 1), float(i)), b[1]], 1) for i, b in enumerate(batch)]
     return imgs, torch.cat(targets) if targets else torch.zeros((0, 6)), [b[2] for b in batch]
 

@@ -7,6 +7,8 @@ dataset for ``zebra-sim val``. Works on any YOLO-format labelled set, real image
 from __future__ import annotations
 
 import time
+from collections import defaultdict
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -20,13 +22,14 @@ from zebra_sim_ros.detection.checkpoint import load_model, select_device
 from zebra_sim_ros.detection.data import YoloDataset, collate, resolve_split
 from zebra_sim_ros.detection.metrics import DetectionMetrics, evaluate_detections
 from zebra_sim_ros.detection.model import Detector
-from zebra_sim_ros.detection.predict import unletterbox
+from zebra_sim_ros.detection.predict import describe_size, inference_size, unletterbox
 
 
-def make_loader(folder: str | Path, imgsz: int, batch: int = 8, workers: int = 0) -> DataLoader[Any]:
-    """A validation loader (letterbox only, in file order)."""
-    return DataLoader(YoloDataset(folder, imgsz), batch_size=batch, shuffle=False, num_workers=workers,
-                      collate_fn=collate)
+def make_loader(folder: str | Path, imgsz: int | Callable[[int], int], batch: int = 8,
+                workers: int = 0) -> DataLoader[Any]:
+    """A validation loader (letterbox only, in file order) at ``imgsz``, or at ``imgsz(long side)`` per image."""
+    ds = (YoloDataset(folder, imgsz) if isinstance(imgsz, int) else YoloDataset(folder, size_for=imgsz))
+    return DataLoader(ds, batch_size=batch, shuffle=False, num_workers=workers, collate_fn=collate)
 
 
 class ImagePredictions(NamedTuple):
@@ -36,6 +39,7 @@ class ImagePredictions(NamedTuple):
     detections: NDArray[np.float64]  # (n, 5) [x0, y0, x1, y1, score]
     labels: NDArray[np.float64]  # (m, 4) xyxy
     ignore: NDArray[np.float64]  # (k, 4) xyxy don't-care boxes
+    imgsz: int  # the inference size it was letterboxed to (long side), px
 
 
 @torch.no_grad()
@@ -44,19 +48,35 @@ def predictions(model: Detector, loader: DataLoader[Any], conf: float = 0.001, i
     """Per image of ``loader``: its detections, labels and don't-care boxes."""
     was_training = model.training
     model.eval()
-    dev = next(model.parameters()).device
     out: list[ImagePredictions] = []
     for imgs, _, metas in loader:
-        raw = model(imgs.to(dev).contiguous(memory_format=torch.channels_last))  # the serving layout
-        for det, meta in zip(postprocess(raw, conf, iou, max_det), metas, strict=True):
+        for det, meta in zip(_forward(model, imgs, metas, conf, iou, max_det), metas, strict=True):
             h, w = meta["shape"]
             left, top = meta["pad"]
             d = unletterbox(det, meta["scale"], left, top, w, h).cpu().numpy()
             out.append(ImagePredictions(meta["file"], d[:, :5].astype(np.float64),  # labels read once, by the loader
                                         meta["labels"][:, 1:].astype(np.float64),
-                                        meta["ignore"][:, 1:].astype(np.float64)))
+                                        meta["ignore"][:, 1:].astype(np.float64), meta["imgsz"]))
     if was_training:
         model.train()
+    return out
+
+
+def _forward(model: Detector, imgs: torch.Tensor, metas: list[dict[str, Any]], conf: float, iou: float,
+             max_det: int) -> list[torch.Tensor]:
+    """Detections of a validation batch. Images of another input size than the batch's largest were padded at
+    the bottom and right by :func:`~zebra_sim_ros.detection.data.collate`: each size runs on its own, cropped
+    back, so every image sees exactly the input inference would give it."""
+    dev = next(model.parameters()).device
+    groups: dict[tuple[int, int], list[int]] = defaultdict(list)
+    for k, meta in enumerate(metas):
+        groups[meta["input"]].append(k)
+    out: list[torch.Tensor] = [torch.zeros(0)] * len(metas)
+    for (h, w), idx in groups.items():
+        x = imgs[idx, :, :h, :w] if len(groups) > 1 else imgs
+        raw = model(x.to(dev).contiguous(memory_format=torch.channels_last))  # the serving layout
+        for k, det in zip(idx, postprocess(raw, conf, iou, max_det), strict=True):
+            out[k] = det
     return out
 
 
@@ -74,14 +94,18 @@ def score(per_image: list[ImagePredictions], max_det: int = 100) -> DetectionMet
 
 def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", imgsz: int | None = None,
              batch: int = 8, device: str = "auto", conf: float = 0.001, iou: float = 0.7,
-             workers: int = 0) -> tuple[DetectionMetrics, dict[str, Any]]:
-    """Open the checkpoint and the set, validate; returns the metrics and facts about the run."""
+             workers: int = 0, scale: float = 0.0) -> tuple[DetectionMetrics, dict[str, Any]]:
+    """Open the checkpoint and the set, validate; returns the metrics and facts about the run. Each image is
+    served at :func:`~zebra_sim_ros.detection.predict.inference_size` under ``imgsz`` and ``scale`` (default:
+    the checkpoint's rule), as the detector node and ``bag eval`` serve it."""
     dev = select_device(device)
     model, ckpt = load_model(weights, dev)
-    size = imgsz or model.cfg.imgsz
     folder = resolve_split(data, split)
-    loader = make_loader(folder, size, batch, workers)
+    loader = make_loader(folder, lambda long_side: inference_size(model.cfg, long_side, imgsz, scale), batch, workers)
     t0 = time.perf_counter()
-    m = run(model, loader, conf, iou)
-    return m, {"weights": str(weights or "shipped"), "data": str(folder), "imgsz": size, "device": str(dev),
-               "seconds": round(time.perf_counter() - t0, 2), "epoch": ckpt.get("epoch")}
+    per_image = predictions(model, loader, conf, iou)
+    m = score(per_image)
+    sizes = sorted({p.imgsz for p in per_image})
+    return m, {"weights": str(weights or "shipped"), "data": str(folder),
+               "imgsz": sizes[0] if len(sizes) == 1 else sizes, "imgsz_rule": describe_size(model.cfg, imgsz, scale),
+               "device": str(dev), "seconds": round(time.perf_counter() - t0, 2), "epoch": ckpt.get("epoch")}

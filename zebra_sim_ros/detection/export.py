@@ -5,9 +5,10 @@ The exported graph is the whole model up to decoded boxes and class probabilitie
 NMS stays outside the graph (:func:`zebra_sim_ros.detection.boxes.postprocess`, or any runtime's own).
 
 A serving checkpoint (``--format pt``) is what the package ships: the EMA weights in float16, no optimizer state,
-and ``config.imgsz`` set to the inference size every loader defaults to (``zebra-sim val``, the detector node,
-``bag eval``); the training arguments, epoch and metrics of the source are kept, so ``train_args.imgsz`` still
-says the size it was trained at.
+``config.imgsz`` set to the inference size for frames of its training size (``config.frame``, their long side),
+which every loader scales to the frames it is given (``zebra-sim val``, the detector node, ``bag eval``, ``up``:
+:meth:`~zebra_sim_ros.detection.model.ModelConfig.serve_size`); the training arguments, epoch and metrics of the
+source are kept, so ``train_args.imgsz`` still says the size it was trained at.
 """
 
 from __future__ import annotations
@@ -38,16 +39,22 @@ def export_onnx(weights: str | Path | None, out: str | Path, imgsz: int | None =
     return path
 
 
-def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | None = None) -> Path:
-    """Write a serving checkpoint of ``weights`` (default: the shipped ones) whose default inference size is
-    ``imgsz`` (default: unchanged); returns the path."""
+def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | None = None,
+                      frame: int | None = None) -> Path:
+    """Write a serving checkpoint of ``weights`` (default: the shipped ones) that serves frames whose long side
+    is ``frame`` px (default: the training frames' size it records) at ``imgsz`` (default: unchanged), and
+    other frames at the same scale; returns the path."""
     src = read_checkpoint(weights or SHIPPED)
     cfg = dict(src["config"])
     if imgsz:
         cfg["imgsz"] = imgsz
+    if frame:
+        cfg["frame"] = frame
     model = build_model(cfg)
     model.load_state_dict({k: v.float() for k, v in src["model"].items()})
     extra = {k: src[k] for k in ("epoch", "metrics", "train_args", "best_fitness") if k in src}
     save_checkpoint(out, model.half(), **extra, exported={"from_config_imgsz": int(src["config"]["imgsz"]),
-                                                          "imgsz": int(cfg["imgsz"])})
+                                                          "imgsz": int(cfg["imgsz"]),
+                                                          "frame": int(cfg.get("frame", 0)),
+                                                          "previous": src.get("exported")})
     return Path(out)

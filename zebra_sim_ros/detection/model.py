@@ -17,6 +17,7 @@ import torch
 from torch import Tensor, nn
 
 from zebra_sim_ros.detection.boxes import decode_ltrb
+from zebra_sim_ros.detection.config import STRIDE, clamp_size
 from zebra_sim_ros.errors import ParameterError
 
 # (width multiple, depth multiple, maximum channels), as in the YOLO family.
@@ -32,7 +33,8 @@ class ModelConfig:
     nc: int = 1
     names: tuple[str, ...] = ("zebra",)
     reg_max: int = 16
-    imgsz: int = 640
+    imgsz: int = 640  # inference size, px, for frames whose long side is ``frame``
+    frame: int = 0  # long side of the frames it was trained on, px (0: unknown, serve every frame at ``imgsz``)
 
     def __post_init__(self) -> None:
         if self.size not in SIZES:
@@ -41,6 +43,17 @@ class ModelConfig:
             raise ParameterError("names", list(self.names), f"{self.nc} class names")
         if self.imgsz % 32:
             raise ParameterError("imgsz", self.imgsz, "a multiple of 32")
+        if not isinstance(self.frame, int) or self.frame < 0:
+            raise ParameterError("frame", self.frame, "0 (unknown) or the training frames' long side in px")
+
+    def serve_size(self, long_side: int) -> int:
+        """The inference size for a frame whose long side is ``long_side`` px: the scale the checkpoint serves
+        at (``imgsz / frame``) times that side, rounded up to a multiple of 32 within 64..4096 (exactly
+        ``imgsz`` for frames of the training size), so a frame of any size sees its zebras at the pixel size
+        the model learnt them at. ``imgsz`` for every frame where the training frame size is unknown."""
+        if not self.frame:
+            return self.imgsz
+        return clamp_size(-(-long_side * self.imgsz // (self.frame * STRIDE)) * STRIDE)  # integer: no rounding
 
     def to_dict(self) -> dict[str, Any]:
         """Plain types only (safe with ``torch.load(weights_only=True)``)."""

@@ -9,16 +9,38 @@ import torch
 from numpy.typing import NDArray
 
 from zebra_sim_ros.detection.boxes import postprocess
-from zebra_sim_ros.detection.config import NATIVE, STRIDE, scaled_size
-from zebra_sim_ros.detection.data import letterbox, letterbox_size
-from zebra_sim_ros.detection.model import Detector
+from zebra_sim_ros.detection.config import NATIVE, scaled_size
+from zebra_sim_ros.detection.data import letterbox, rect_shape
+from zebra_sim_ros.detection.model import Detector, ModelConfig
 
 
-def native_size(images: Sequence[NDArray[np.uint8]], scale: float = 1.0) -> int:
-    """The images' longest side times ``scale``, rounded up to a multiple of 32, within 64..4096: far zebras are
-    a few pixels tall, so detecting at (or above) the frames' own resolution keeps them (a 1280x720 frame at
-    416 px loses most)."""
-    return scaled_size(max(max(i.shape[:2]) for i in images), scale)
+def inference_size(cfg: ModelConfig, long_side: int, imgsz: int | None = None, scale: float = 0.0) -> int:
+    """The one rule for the inference size of a frame (or a batch) whose long side is ``long_side`` px, shared
+    by ``val``, ``bag eval``, the detector node and ``up``:
+
+    - ``scale`` > 0: ``long_side * scale``, rounded up to a multiple of 32 (within 64..4096);
+    - else ``imgsz`` > 0: that size, whatever the frame; :data:`NATIVE` (-1) is scale 1;
+    - else (the default) the checkpoint's own rule, :meth:`ModelConfig.serve_size`: the scale it serves at
+      (``config.imgsz / config.frame``, its serving size over its training frames' long side) times the frame's
+      side. Far zebras are a few pixels tall, so a frame twice the training size wants twice the input size.
+    """
+    if scale:
+        return scaled_size(long_side, scale)
+    if imgsz == NATIVE:
+        return scaled_size(long_side, 1.0)
+    return imgsz or cfg.serve_size(long_side)
+
+
+def describe_size(cfg: ModelConfig, imgsz: int | None = None, scale: float = 0.0) -> str:
+    """How :func:`inference_size` sizes frames under these settings, for logs and summaries."""
+    if scale or imgsz == NATIVE:
+        return f"{scale or 1.0:g} x each frame's long side (rounded up to a multiple of 32)"
+    if imgsz:
+        return f"{imgsz} px for every frame"
+    if not cfg.frame:
+        return f"{cfg.imgsz} px for every frame (the checkpoint's; its training frame size is not recorded)"
+    return (f"the checkpoint's scale, {cfg.imgsz / cfg.frame:.3g} x each frame's long side ({cfg.imgsz} px for "
+            f"its {cfg.frame} px training frames)")
 
 
 def preprocess(images: Sequence[NDArray[np.uint8]], imgsz: int,
@@ -28,8 +50,8 @@ def preprocess(images: Sequence[NDArray[np.uint8]], imgsz: int,
     0.56 of a square one; otherwise the batch is (B, 3, imgsz, imgsz)."""
     shape = None
     if rect:
-        sizes = [letterbox_size(i.shape[0], i.shape[1], imgsz) for i in images]
-        shape = (-(-max(h for h, _ in sizes) // STRIDE) * STRIDE, -(-max(w for _, w in sizes) // STRIDE) * STRIDE)
+        sizes = [rect_shape(i.shape[0], i.shape[1], imgsz) for i in images]
+        shape = (max(h for h, _ in sizes), max(w for _, w in sizes))
     batch, meta = [], []
     for img in images:
         lb, r, (left, top) = letterbox(img, imgsz, shape)
@@ -49,13 +71,12 @@ def unletterbox(det: torch.Tensor, scale: float, left: int, top: int, width: int
 @torch.no_grad()
 def detect(model: Detector, images: Sequence[NDArray[np.uint8]], imgsz: int | None = None, conf: float = 0.25,
            iou: float = 0.7, max_det: int = 300, rect: bool = True, scale: float = 0.0) -> list[NDArray[np.float32]]:
-    """Per image (n, 6) [x0, y0, x1, y1, score, class] in its own pixels (pixel-edge coordinates); the long side
-    is resized to ``imgsz`` (default: the checkpoint's; :data:`NATIVE`: :func:`native_size`) or, if ``scale`` is
-    set, to :func:`native_size` with that scale, padded as :func:`preprocess` says."""
+    """Per image (n, 6) [x0, y0, x1, y1, score, class] in its own pixels (pixel-edge coordinates). The batch's
+    long side is resized to :func:`inference_size` of the batch's longest side under ``imgsz`` and ``scale``
+    (default: the checkpoint's rule) and padded as :func:`preprocess` says."""
     if not images:
         return []
-    scale = scale or (1.0 if imgsz == NATIVE else 0.0)  # NATIVE is scale 1
-    size = native_size(images, scale) if scale else (imgsz or model.cfg.imgsz)
+    size = inference_size(model.cfg, max(max(i.shape[:2]) for i in images), imgsz, scale)
     dev = next(model.parameters()).device
     x, meta = preprocess(images, size, rect)
     pred = model(x.to(dev).contiguous(memory_format=torch.channels_last))

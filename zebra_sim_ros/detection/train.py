@@ -168,8 +168,16 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
     train_dir, val_dir = resolve_split(cfg.data, "train"), resolve_split(cfg.data, "val")
+    no_aug = Augment(mosaic=0.0, scale=0.0, translate=0.0, fliplr=0.0, hsv_h=0.0, hsv_s=0.0, hsv_v=0.0)
+    ds = YoloDataset(train_dir, cfg.imgsz, Augment() if cfg.augment else no_aug, seed=cfg.seed,
+                     dont_care=cfg.dont_care)
+    if cfg.max_train_images:
+        ds.files = ds.files[: cfg.max_train_images]
+    # The checkpoint records its training frames' size beside imgsz: served, a frame of another size is scaled
+    # as these were (ModelConfig.serve_size).
+    model_cfg = ModelConfig(size=cfg.model, imgsz=cfg.imgsz, frame=ds.frame_size())
     # Channels-last (NHWC), as served: 1.24x faster training steps on our 2-core CPU; tensor cores want it too.
-    model = serving_layout(build_model(ModelConfig(size=cfg.model, imgsz=cfg.imgsz)).to(device))
+    model = serving_layout(build_model(model_cfg).to(device))
     start_epoch, best, updates = 0, -1.0, 0
     opt_state = None
     if cfg.init:
@@ -201,11 +209,6 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
     net: nn.Module = model
     if distributed:
         net = nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
-    no_aug = Augment(mosaic=0.0, scale=0.0, translate=0.0, fliplr=0.0, hsv_h=0.0, hsv_s=0.0, hsv_v=0.0)
-    ds = YoloDataset(train_dir, cfg.imgsz, Augment() if cfg.augment else no_aug, seed=cfg.seed,
-                     dont_care=cfg.dont_care)
-    if cfg.max_train_images:
-        ds.files = ds.files[: cfg.max_train_images]
     sampler: DistributedSampler[Any] | None = DistributedSampler(ds, seed=cfg.seed) if distributed else None
     loader = DataLoader(ds, batch_size=cfg.batch, shuffle=sampler is None, sampler=sampler, num_workers=cfg.workers,
                         collate_fn=collate, drop_last=(len(sampler) if sampler else len(ds)) >= 2 * cfg.batch,

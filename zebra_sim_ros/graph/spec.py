@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from zebra_sim_ros.detection.config import DETECTOR_PARAMS, SCALE_RANGE, scaled_size
+from zebra_sim_ros.detection.config import DETECTOR_PARAMS
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LABELLER_PARAMS
 from zebra_sim_ros.params import ParamSpec, validate
@@ -70,10 +70,11 @@ class UpConfig:
     ready_timeout_s: float = 180.0
     step_timeout_s: float = 120.0
     record: bool = True
-    # The detector's input long side as a multiple of the cameras' (1.3: the shipped weights were trained on
-    # 640x360 frames at 832). On 84 frames at 1280x720 of the training worlds (seed 777): 1.0 (1280) mAP50
-    # 0.797 / mAP50-95 0.533, 1.3 (1664) 0.833 / 0.578, 1.7 (2176) 0.843 / 0.581 at twice 1.3's cost.
-    detect_scale: float = 1.3
+    # The detector's input long side as a multiple of the cameras' (0: the checkpoint's rule, the scale its
+    # serving size has to its training frames: 1.7 for the shipped weights, 2176 on 1280x720 frames). On 84
+    # frames at 1280x720 of the training worlds (seed 777): 1.0 (1280) mAP50 0.797 / mAP50-95 0.533, 1.3 (1664)
+    # 0.833 / 0.578, 1.7 (2176) 0.843 / 0.581 at twice 1.3's cost.
+    detect_scale: float = 0.0
 
     def check(self) -> None:
         """Raise :class:`ParameterError` naming the first bad setting."""
@@ -83,9 +84,9 @@ class UpConfig:
             raise ParameterError("--size", f"{self.width}x{self.height}", "WxH with 16..8192 each")
         if self.strategy not in ("far", "closeby", "mixed"):
             raise ParameterError("--strategy", self.strategy, "far, closeby or mixed")
-        lo, hi = SCALE_RANGE
-        if not lo <= self.detect_scale <= hi:
-            raise ParameterError("--detect-scale", self.detect_scale, f"{lo:g}..{hi:g} (times the cameras' long side)")
+        from zebra_sim_ros.detection.checkpoint import check_scale
+
+        check_scale("--detect-scale", self.detect_scale)
         if self.ready_timeout_s <= 0 or self.step_timeout_s <= 0:
             raise ParameterError("--timeout", min(self.ready_timeout_s, self.step_timeout_s), "> 0 s")
         from zebra_sim_ros.world.world import check_world_source
@@ -100,8 +101,13 @@ class UpConfig:
 
     @property
     def detect_imgsz(self) -> int:
-        """The detector's inference size on the cameras' frames (its ``scale`` parameter is ``detect_scale``)."""
-        return scaled_size(max(self.width, self.height), self.detect_scale)
+        """The detector's inference size on the cameras' frames: ``detect_scale`` times their long side, or the
+        checkpoint's rule (its ``scale`` parameter is ``detect_scale``, 0 by default)."""
+        from zebra_sim_ros.detection.checkpoint import checkpoint_config
+        from zebra_sim_ros.detection.predict import inference_size
+
+        return inference_size(checkpoint_config(self.weights or None), max(self.width, self.height),
+                              scale=self.detect_scale)
 
 
 def config_dir(explicit: str = "") -> Path:
@@ -141,7 +147,7 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
                               tuple(f"/{d}/{t}" for t in CAMERA_TOPICS)))
     nodes.append(NodeSpec("labeller", "labeller", "", "labeller.yaml", {"ack_name": "labeller"},
                           tuple(f"/{d}/{t}" for d in DRONES for t in LABELLER_TOPICS)))
-    # The detector sees at least the cameras' full resolution (far zebras are a few pixels tall).
+    # scale 0: the detector sizes the cameras' frames by the checkpoint's rule (far zebras are a few pixels tall).
     det = {"ack_name": "detector", "weights": str(Path(cfg.weights).resolve()) if cfg.weights else "",
            "device": cfg.device, "scale": cfg.detect_scale}
     nodes.append(NodeSpec("detector", "detector", "", "detector.yaml", det,

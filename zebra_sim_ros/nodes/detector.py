@@ -29,9 +29,9 @@ from std_msgs.msg import ColorRGBA, String
 from visualization_msgs.msg import ImageMarker
 
 from zebra_sim_ros.detection.checkpoint import load_model, select_device
-from zebra_sim_ros.detection.config import DETECTOR_PARAMS, NATIVE, DetectorConfig, output_base
+from zebra_sim_ros.detection.config import DETECTOR_PARAMS, DetectorConfig, output_base
 from zebra_sim_ros.detection.draw import draw_boxes
-from zebra_sim_ros.detection.predict import detect
+from zebra_sim_ros.detection.predict import describe_size, detect
 from zebra_sim_ros.nodes.ros_adapter import (
     StepAcks,
     box_marker,
@@ -71,7 +71,6 @@ class DetectorNode(Node):
         torch.set_num_threads(max(1, torch.get_num_threads()))
         self.device = select_device(c.device)
         self.model, ckpt = load_model(c.weights or None, self.device)
-        self.imgsz = c.imgsz or self.model.cfg.imgsz  # NATIVE (-1) stays: detect() sizes each batch
         q = qos(c.qos_reliability, c.qos_depth)
         self.pending: dict[str, Image] = {}
         self.pubs: dict[str, tuple[Any, Any, Any]] = {}
@@ -85,11 +84,10 @@ class DetectorNode(Node):
         self.timer = self.create_timer(c.batch_window_s, self._flush)
         self.stats = {"images": 0, "batches": 0, "skipped": 0}
         self.seconds = 0.0
-        size = (f"{c.scale} x each batch's long side" if c.scale else
-                "native (each frame's long side)" if self.imgsz == NATIVE else self.imgsz)
         self.get_logger().info(
             f"weights {c.weights or 'shipped'} ({self.model.cfg.size}, epoch {ckpt.get('epoch')}), device "
-            f"{self.device}, imgsz {size}, conf {c.conf}, iou {c.iou}; topics {list(c.image_topics)}; "
+            f"{self.device}, inference size {describe_size(self.model.cfg, c.imgsz, c.scale)}, conf {c.conf}, "
+            f"iou {c.iou}; topics {list(c.image_topics)}; "
             f"QoS {describe_qos(q)}")
 
     def _handler(self, topic: str) -> Any:
@@ -116,7 +114,7 @@ class DetectorNode(Node):
         if not images:
             return
         t0 = time.perf_counter()
-        dets = detect(self.model, images, self.imgsz, self.cfg.conf, self.cfg.iou, self.cfg.max_det,
+        dets = detect(self.model, images, self.cfg.imgsz, self.cfg.conf, self.cfg.iou, self.cfg.max_det,
                       scale=self.cfg.scale)
         self.seconds += time.perf_counter() - t0
         self.stats["batches"] += 1

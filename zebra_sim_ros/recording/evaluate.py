@@ -165,11 +165,12 @@ class ImageDetector:
     TOPIC = re.compile(r"^/(?P<drone>[^/]+)/image_raw$")
 
     def __init__(self, weights: str | Path | None, device: str = "auto", batch: int = 8, conf: float = 0.001,
-                 imgsz: int | None = None) -> None:
+                 imgsz: int | None = None, scale: float = 0.0) -> None:
         from zebra_sim_ros.detection.checkpoint import load_model, select_device
 
         self.model, _ = load_model(weights, select_device(device))
-        self.batch, self.conf, self.imgsz = batch, conf, imgsz  # imgsz: None = the checkpoint's, -1 = native
+        # as detect() takes them: imgsz None and scale 0 = the checkpoint's rule, imgsz -1 = native
+        self.batch, self.conf, self.imgsz, self.scale = batch, conf, imgsz, scale
         self.detections: dict[str, dict[int, np.ndarray]] = defaultdict(dict)
         self.skipped: list[str] = []
         self._pending: list[tuple[str, int, np.ndarray]] = []
@@ -195,7 +196,8 @@ class ImageDetector:
 
         if not self._pending:
             return
-        dets = detect(self.model, [p[2] for p in self._pending], self.imgsz, conf=self.conf, max_det=100)
+        dets = detect(self.model, [p[2] for p in self._pending], self.imgsz, conf=self.conf, max_det=100,
+                      scale=self.scale)
         for (drone, t, _), det in zip(self._pending, dets, strict=True):
             self.detections[drone][t] = det[:, :5].astype(np.float64)
         self._pending.clear()
