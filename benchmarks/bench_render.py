@@ -24,7 +24,7 @@ import numpy as np
 from zebra_sim_ros.placement.config import PlacerConfig
 from zebra_sim_ros.placement.placer import Placer
 from zebra_sim_ros.rendering.renderer import Renderer, RenderOptions
-from zebra_sim_ros.rendering.views import lighting_from_scene, views_from_scene, zebras_from_scene
+from zebra_sim_ros.rendering.views import views_from_scene, zebras_from_scene
 from zebra_sim_ros.world.world import generate_world
 from zebra_sim_ros.zebra.asset import load_library
 
@@ -53,8 +53,7 @@ def main() -> None:
         parts: dict[str, list[float]] = {"prepare": [], "shadow": [], "draw": [], "read": []}
         zebras_drawn = []
         for i, sc in enumerate(scenes):
-            d = sc.to_dict()
-            zs, light, views = zebras_from_scene(d, lib), lighting_from_scene(d), views_from_scene(d)
+            zs, light, views = zebras_from_scene(sc, lib), sc.lighting, views_from_scene(sc)
             r.render(zs, light, views[:1])  # warm: bakes this step's coats, uploads buffers
             t0 = time.perf_counter()
             outs = r.render(zs, light, views)

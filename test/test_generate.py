@@ -211,7 +211,6 @@ def test_regenerate_command_reproduces_the_frames_scene(dataset: Path) -> None:
         values = {**placer_values(argparse.Namespace(**{**vars(args), "start_step": None})),
                   "camera_width": args.width, "camera_height": args.height, "camera_hfov_deg": args.hfov}
         cfg = PlacerConfig.from_params(values)
-        scene = Placer(cfg, load_world(cfg.world), load_library()).scene(args.step).to_dict()
-        assert scene["lighting"] == meta["lighting"]
-        cam = next(c for c in scene["cameras"] if c["name"] == "drone_1")
-        assert cam["position"] == pytest.approx(meta["camera"]["position"])
+        scene = Placer(cfg, load_world(cfg.world), load_library()).scene(args.step)
+        assert scene.lighting.to_dict() == meta["lighting"]
+        assert scene.camera("drone_1").position == pytest.approx(meta["camera"]["position"])

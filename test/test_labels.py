@@ -11,6 +11,7 @@ from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical, optical
 from zebra_sim_ros.geometry.rotations import matrix_to_quat
 from zebra_sim_ros.labels.labeller import full_boxes, label_view, tight_boxes
 from zebra_sim_ros.labels.silhouettes import SilhouetteCounter
+from zebra_sim_ros.messages import Labels, OrientedBox, Scene, SceneCamera, SceneZebra, Stamp, WorldRef
 from zebra_sim_ros.placement.sun import lighting_for
 from zebra_sim_ros.rendering.renderer import Renderer, RenderOptions
 from zebra_sim_ros.rendering.views import zebras_from_scene
@@ -46,28 +47,23 @@ def test_tight_and_full_boxes_of_a_cube() -> None:
     assert np.isnan(boxes[2]).all() and counts.tolist() == [150, 1, 0]
 
 
-def _scene(library: ZebraLibrary, cam_pos: np.ndarray, r_opt: np.ndarray, yaw: float = 0.0) -> dict:
+def _scene(library: ZebraLibrary, cam_pos: np.ndarray, r_opt: np.ndarray, yaw: float = 0.0) -> Scene:
     c, s = np.cos(yaw), np.sin(yaw)
     rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
     q = matrix_to_quat(rot)
     qc = matrix_to_quat(r_opt)
     box = library.boxes()[0, library.frame_index("idle", 0)].astype(float)
     centre = rot @ box.mean(axis=0)
-    return {
-        "schema": "zebra_sim_ros/scene", "version": 1, "stamp": {"sec": 1, "nanosec": 0}, "step": 0, "placement": 0,
-        "reroll": 0, "seed": 0, "asset_digest": library.manifest["digest"], "world": {"name": "flat", "source": "test"},
-        "lighting": NOON.to_dict(),
-        "zebras": [{"id": 4, "morph": "plains", "coat_seed": 1, "clip": "idle", "frame": 0, "scale": 1.0,
-                    "yaw_deg": float(np.degrees(yaw)), "position": [0.0, 0.0, 0.0],
-                    "orientation_xyzw": [q[1], q[2], q[3], q[0]],
-                    "box": {"center": centre.tolist(), "size": (box[1] - box[0]).tolist(),
-                            "orientation_xyzw": [q[1], q[2], q[3], q[0]]}}],
-        "cameras": [{"name": "drone_0", "position": cam_pos.tolist(),
-                     "orientation_xyzw": [qc[1], qc[2], qc[3], qc[0]]}],
-    }
+    xyzw = (float(q[1]), float(q[2]), float(q[3]), float(q[0]))
+    zebra = SceneZebra(4, "plains", 1, "idle", 0, 1.0, float(np.degrees(yaw)), (0.0, 0.0, 0.0), xyzw,
+                       OrientedBox(tuple(centre.tolist()), tuple((box[1] - box[0]).tolist()), xyzw))
+    qc_xyzw = (float(qc[1]), float(qc[2]), float(qc[3]), float(qc[0]))
+    camera = SceneCamera("drone_0", "far", tuple(cam_pos.tolist()), qc_xyzw, 0.0, 0.0, 0.0, "drone_0_camera_optical")
+    return Scene(Stamp(1, 0), 0, 0, 0, 0, library.manifest["digest"], WorldRef("flat", "test", None), NOON,
+                 (0.0, 0.0), (10.0, 10.0), 1, (zebra,), (camera,))
 
 
-def _label(library: ZebraLibrary, things: dict | None, cam_pos: np.ndarray, r_opt: np.ndarray) -> dict:
+def _label(library: ZebraLibrary, things: dict | None, cam_pos: np.ndarray, r_opt: np.ndarray) -> Labels:
     r = Renderer(flat_world(things), library, RenderOptions(width=W, height=H, hfov_deg=HFOV, coat_size=64,
                                                             max_coats=4))
     try:
@@ -84,41 +80,41 @@ def _label(library: ZebraLibrary, things: dict | None, cam_pos: np.ndarray, r_op
 def test_a_half_hidden_zebra(library: ZebraLibrary) -> None:
     cam_pos = np.array([0.0, -14.0, 1.2])
     r_opt = optical_rotation(np.pi / 2, 0.0, 0.0)
-    open_ = _label(library, None, cam_pos, r_opt)["zebras"][0]
+    open_ = _label(library, None, cam_pos, r_opt).zebras[0]
     # A wall 4 m in front of the camera hiding the zebra's rear half (x < 0 side, seen from the south).
     wall = {"wall": (cube_mesh(0.8, height=3.0), [(-0.33, -10.0, 1.0)])}  # right edge: x = +0.25 m at the zebra
-    half = _label(library, wall, cam_pos, r_opt)["zebras"][0]
-    assert open_["visible_fraction"] > 0.97 and open_["in_frame_fraction"] == 1.0
-    assert 0.3 < half["visible_fraction"] < 0.7, half["visible_fraction"]
-    assert half["silhouette_pixels"] == pytest.approx(open_["silhouette_pixels"], rel=0.01)
-    tb, fb = half["box_visible"], half["box_full"]
+    half = _label(library, wall, cam_pos, r_opt).zebras[0]
+    assert open_.visible_fraction > 0.97 and open_.in_frame_fraction == 1.0
+    assert 0.3 < half.visible_fraction < 0.7, half.visible_fraction
+    assert half.silhouette_pixels == pytest.approx(open_.silhouette_pixels, rel=0.01)
+    tb, fb = half.box_visible, half.box_full
     assert (fb[2] - fb[0]) > 1.4 * (tb[2] - tb[0])  # the amodal box is the whole animal
     assert fb[0] <= tb[0] + 0.5 and fb[2] >= tb[2] - 0.5 and fb[1] <= tb[1] + 0.5 and fb[3] >= tb[3] - 0.5
-    np.testing.assert_allclose(half["box_full"], open_["box_full"], atol=1e-6)  # the amodal box ignores the wall
-    assert half["kept"] and half["drop_reason"] is None
+    np.testing.assert_allclose(half.box_full, open_.box_full, atol=1e-6)  # the amodal box ignores the wall
+    assert half.kept and half.drop_reason is None
 
 
 def test_a_keypoint_behind_a_tree_is_occluded(library: ZebraLibrary) -> None:
     cam_pos = np.array([0.0, -14.0, 1.2])
     r_opt = optical_rotation(np.pi / 2, 0.0, 0.0)
-    open_ = _label(library, None, cam_pos, r_opt)["zebras"][0]
+    open_ = _label(library, None, cam_pos, r_opt).zebras[0]
     nose = KEYPOINT_NAMES.index("nose")
     tail = KEYPOINT_NAMES.index("tail_base")
-    assert open_["keypoints"][nose][2] == 2 and open_["keypoints"][tail][2] == 2
+    assert open_.keypoints[nose][2] == 2 and open_.keypoints[tail][2] == 2
     # A trunk between the camera and the head (the zebra faces east: the head is at x ~ +1.3 m).
     head_x = 1.3
     trunk = {"trunk": (cube_mesh(0.45, height=4.0), [(head_x * 6 / 14 + 0.05, -8.0, 1.0)])}
-    hidden = _label(library, trunk, cam_pos, r_opt)["zebras"][0]
-    assert hidden["keypoints"][nose][2] == 1  # labelled, in the image, but occluded
-    assert hidden["keypoints"][tail][2] == 2
+    hidden = _label(library, trunk, cam_pos, r_opt).zebras[0]
+    assert hidden.keypoints[nose][2] == 1  # labelled, in the image, but occluded
+    assert hidden.keypoints[tail][2] == 2
     # Out of the image: flagged 0.
     # Seen from the right side, the left legs are hidden by the body itself: also flagged 1.
-    assert open_["keypoints"][KEYPOINT_NAMES.index("left_hock")][2] == 1
-    assert open_["keypoints"][KEYPOINT_NAMES.index("right_hock")][2] == 2
+    assert open_.keypoints[KEYPOINT_NAMES.index("left_hock")][2] == 1
+    assert open_.keypoints[KEYPOINT_NAMES.index("right_hock")][2] == 2
     # Turned so the zebra straddles the image border: keypoints outside are 0, the in-frame fraction drops.
-    away = _label(library, None, cam_pos, optical_rotation(np.pi / 2 + np.radians(30), 0.0, 0.0))["zebras"][0]
-    assert any(k[2] == 0 for k in away["keypoints"]) and any(k[2] == 2 for k in away["keypoints"])
-    assert 0.1 < away["in_frame_fraction"] < 0.9
+    away = _label(library, None, cam_pos, optical_rotation(np.pi / 2 + np.radians(30), 0.0, 0.0)).zebras[0]
+    assert any(k[2] == 0 for k in away.keypoints) and any(k[2] == 2 for k in away.keypoints)
+    assert 0.1 < away.in_frame_fraction < 0.9
 
 
 def test_rle_of_all_instances_equals_one_by_one() -> None:

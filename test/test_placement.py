@@ -8,11 +8,11 @@ import pytest
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.boxes import box_axes, obb_corners, obb_overlap
 from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical, optical_rotation
+from zebra_sim_ros.messages import MessageFormatError, Scene
 from zebra_sim_ros.placement.cameras import CameraRanges, sample_cameras
 from zebra_sim_ros.placement.config import PlacerConfig
 from zebra_sim_ros.placement.herd import HerdPlacer, make_pool
 from zebra_sim_ros.placement.placer import Placer
-from zebra_sim_ros.placement.scene import parse_scene
 from zebra_sim_ros.placement.sun import daylight_h, lighting_for, sample_time_and_day
 from zebra_sim_ros.world.world import World, generate_world
 from zebra_sim_ros.zebra.animation import STANDING_CLIPS
@@ -246,17 +246,17 @@ def test_same_seed_same_scenes_any_step_alone(savanna: World, library: ZebraLibr
     assert [b.scene(k).to_json() for k in range(5)] == seq
     other = Placer(PlacerConfig.from_params({"seed": 43, "count_max": 60}), savanna, library)
     assert other.scene(0).to_json() != seq[0]
-    d = parse_scene(seq[4])
-    assert d["step"] == 4 and d["placement"] == 1 and d["reroll"] == 1 and d["seed"] == 42
-    assert len(d["cameras"]) == 3 and d["placed"] == len(d["zebras"]) <= d["requested"]
+    d = Scene.from_json(seq[4])
+    assert d == b.scene(4) and d.to_json() == seq[4]  # the typed message round-trips through its JSON
+    assert d.step == 4 and d.placement == 1 and d.reroll == 1 and d.seed == 42
+    assert len(d.cameras) == 3 and d.placed == len(d.zebras) <= d.requested
     # Three re-rolls of one placement share the zebras and differ in cameras and time of day.
-    s3, s4 = parse_scene(seq[3]), parse_scene(seq[4])
-    assert s3["zebras"] == s4["zebras"] and s3["cameras"] != s4["cameras"]
+    s3, s4 = Scene.from_json(seq[3]), Scene.from_json(seq[4])
+    assert s3.zebras == s4.zebras and s3.cameras != s4.cameras
 
 
 def test_ground_recolor_randomises_the_terrain_look_and_nothing_else(savanna: World, library: ZebraLibrary) -> None:
     from zebra_sim_ros.placement.ground import BRIGHTNESS, GroundLook, sample_ground_look
-    from zebra_sim_ros.rendering.views import ground_from_scene
 
     def scenes(recolor: float) -> list[dict]:
         p = Placer(PlacerConfig.from_params({"seed": 7, "count_max": 30, "ground_recolor": recolor}), savanna, library)
@@ -264,10 +264,10 @@ def test_ground_recolor_randomises_the_terrain_look_and_nothing_else(savanna: Wo
 
     plain, half, every = scenes(0.0), scenes(0.5), scenes(1.0)
     assert all("ground" not in s for s in plain)  # as authored: the scene says nothing
-    assert all(ground_from_scene(s) == GroundLook() for s in plain)
+    assert all(Scene.from_dict(s).ground == GroundLook() for s in plain)
     for a, b in zip(plain, every, strict=True):  # the look is drawn last: zebras, cameras and light stay
         assert {k: v for k, v in b.items() if k != "ground"} == a
-    looks = [ground_from_scene(s) for s in every]
+    looks = [Scene.from_dict(s).ground for s in every]
     assert len({g.tint for g in looks}) == 12 and all(0 <= g.desaturation <= 1 for g in looks)
     assert 0 < sum("ground" in s for s in half) < 12
     rng = np.random.default_rng(3)
@@ -277,7 +277,7 @@ def test_ground_recolor_randomises_the_terrain_look_and_nothing_else(savanna: Wo
     assert abs(np.mean([g.is_identity for g in (sample_ground_look(rng, 0.3) for _ in range(4000))]) - 0.7) < 0.03
     with pytest.raises(ParameterError, match="'ground_recolor'"):
         PlacerConfig.from_params({"ground_recolor": 1.5})
-    with pytest.raises(ParameterError, match="'ground'"):
+    with pytest.raises(MessageFormatError, match="ground"):
         GroundLook.from_dict({"tint": [1, 2], "desaturation": 0.0})
 
 

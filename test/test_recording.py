@@ -13,7 +13,8 @@ from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header, String
 
-from zebra_sim_ros.recording.evaluate import cdr_string, collect, score
+from zebra_sim_ros.recording.cdr import cdr_string
+from zebra_sim_ros.recording.evaluate import collect, score
 from zebra_sim_ros.recording.qos import from_yaml, profile_dict, replay_profile, to_yaml
 from zebra_sim_ros.recording.reader import BagMessage, BagReader, recover, summarize
 from zebra_sim_ros.recording.schemas import schema_text
@@ -128,6 +129,16 @@ def test_qos_yaml_and_replay_profile() -> None:
         "transient_local"
 
 
+def _labels(stamp: dict, zebras: list[dict]) -> dict:
+    """A labels message with only what scoring reads and the zebras' ids (the typed reader fills in the rest)."""
+    return {"schema": "zebra_sim_ros/labels", "version": 1, "stamp": stamp,
+            "zebras": [{"id": i, **z} for i, z in enumerate(zebras)]}
+
+
+def _detections(stamp: dict, dets: list[dict]) -> dict:
+    return {"schema": "zebra_sim_ros/detections", "version": 1, "stamp": stamp, "detections": dets}
+
+
 def test_eval_from_recorded_labels_and_detections(tmp_path: Path) -> None:
     w = BagWriter(tmp_path / "e.mcap")
     for d in ("drone_0", "drone_1"):
@@ -144,9 +155,8 @@ def test_eval_from_recorded_labels_and_detections(tmp_path: Path) -> None:
                     {"box_xyxy": [100.0, 100, 104, 103], "score": 0.95}]  # on the don't-care zebra: not held against
             if k == 3:
                 dets.append({"box_xyxy": [1.0, 1, 2, 2], "score": 0.99})  # on the unseen one: a false positive
-            w.write(f"/{d}/labels", serialize_message(String(data=json.dumps({"stamp": stamp, "zebras": z}))), k)
-            w.write(f"/{d}/detections", serialize_message(String(data=json.dumps({"stamp": stamp,
-                                                                                   "detections": dets}))), k)
+            w.write(f"/{d}/labels", serialize_message(String(data=json.dumps(_labels(stamp, z)))), k)
+            w.write(f"/{d}/detections", serialize_message(String(data=json.dumps(_detections(stamp, dets)))), k)
     w.close()
     s = score(collect(tmp_path / "e.mcap"))
     # one false positive ranked above all 4 true positives: precision 4/5 at every recall
@@ -162,19 +172,20 @@ def test_eval_skips_and_notes_malformed_labels_and_detections(tmp_path: Path) ->
     w = BagWriter(tmp_path / "bad.mcap")
     w.add_channel("/drone_0/labels", "std_msgs/msg/String", [profile_dict()])
     w.add_channel("/drone_0/detections", "std_msgs/msg/String", [profile_dict()])
-    good = {"stamp": {"sec": 1, "nanosec": 0}, "zebras": [{"box_visible": [10.0, 10, 50, 40], "kept": True}]}
+    good = _labels({"sec": 1, "nanosec": 0}, [{"box_visible": [10.0, 10, 50, 40], "kept": True}])
     w.write("/drone_0/labels", serialize_message(String(data=json.dumps(good))), 1)
     w.write("/drone_0/detections", serialize_message(String(data=json.dumps(
-        {"stamp": {"sec": 1, "nanosec": 0}, "detections": [{"box_xyxy": [10.0, 10, 50, 40], "score": 0.8}]}))), 2)
+        _detections({"sec": 1, "nanosec": 0}, [{"box_xyxy": [10.0, 10, 50, 40], "score": 0.8}])))), 2)
     w.write("/drone_0/labels", serialize_message(String(data="{not json")), 3)
-    w.write("/drone_0/detections", serialize_message(String(data=json.dumps({"stamp": {"sec": 2}}))), 4)
+    w.write("/drone_0/detections", serialize_message(String(data=json.dumps(
+        {"schema": "zebra_sim_ros/detections", "version": 1, "stamp": {"sec": 2}}))), 4)
     w.write("/drone_0/labels", b"\x00\x01", 5)  # not even CDR
     w.close()
     s = score(collect(tmp_path / "bad.mcap"))
     assert s["drone_0"]["frames"] == 1 and s["drone_0"]["mAP50"] == pytest.approx(1.0)
     assert len(s["skipped"]) == 3
     assert [n.split(" at log time ")[1].split(" ns")[0] for n in s["skipped"]] == ["3", "4", "5"]
-    assert "JSONDecodeError" in s["skipped"][0] and "KeyError" in s["skipped"][1]
+    assert "labels is not JSON" in s["skipped"][0] and "detections lacks 'detections'" in s["skipped"][1]
 
 
 def test_eval_by_running_a_detector_over_recorded_images(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -191,7 +202,7 @@ def test_eval_by_running_a_detector_over_recorded_images(tmp_path: Path, capsys:
                     data=bytes(72 * 384))
         img.header.stamp.sec = k
         w.write("/drone_0/image_raw", serialize_message(img), k)
-        lab = {"stamp": {"sec": k, "nanosec": 0}, "zebras": [{"box_visible": [10.0, 10, 30, 20], "kept": True}]}
+        lab = _labels({"sec": k, "nanosec": 0}, [{"box_visible": [10.0, 10, 30, 20], "kept": True}])
         w.write("/drone_0/labels", serialize_message(String(data=json.dumps(lab))), k)
     mono = Image(header=Header(frame_id="c"), height=2, width=2, encoding="mono8", step=2, data=bytes(4))
     w.write("/drone_0/image_raw", serialize_message(mono), 3)
@@ -206,23 +217,23 @@ def test_eval_by_running_a_detector_over_recorded_images(tmp_path: Path, capsys:
 
     collected = detector.apply(collect(tmp_path / "i.mcap", each=both))
     assert len(seen) == 8, "the bag is read once"
-    assert sorted(collected["drones"]["drone_0"]["detections"]) == [0, 10**9, 2 * 10**9]
-    assert len(collected["skipped"]) == 2
-    assert "not rgb8 or bgr8" in collected["skipped"][0] and "log time 4 ns" in collected["skipped"][1]
+    assert sorted(collected.drones["drone_0"].detections) == [0, 10**9, 2 * 10**9]
+    assert len(collected.skipped) == 2
+    assert "not rgb8 or bgr8" in collected.skipped[0] and "log time 4 ns" in collected.skipped[1]
     s = score(collected)
     assert s["drone_0"]["frames"] == 3 and 0.0 <= s["drone_0"]["mAP50"] <= 1.0
     # --imgsz: the 128x72 frames at their own size (-1) are the checkpoint's 128 too; 256 differs.
     at = {size: ImageDetector(tmp_path / "w.pt", device="cpu", imgsz=size) for size in (-1, 256)}
-    got = {size: d.apply(collect(tmp_path / "i.mcap", each=d))["drones"]["drone_0"]["detections"][0]
+    got = {size: d.apply(collect(tmp_path / "i.mcap", each=d)).drones["drone_0"].detections[0]
            for size, d in at.items()}
     # the same model and pixels in batches of 8 here, of 2 above: equal to float noise, not necessarily to the bit
-    batched = collected["drones"]["drone_0"]["detections"][0]
+    batched = collected.drones["drone_0"].detections[0]
     assert got[-1].shape == batched.shape
     np.testing.assert_allclose(got[-1], batched, atol=1e-3)
     assert got[256].shape != got[-1].shape or not np.allclose(got[256], got[-1], atol=1e-3)
     # --scale: 2 x the frames' 128 px is 256 again; a scale out of range is refused, naming it.
     twice = ImageDetector(tmp_path / "w.pt", device="cpu", scale=2.0)
-    at_twice = twice.apply(collect(tmp_path / "i.mcap", each=twice))["drones"]["drone_0"]["detections"][0]
+    at_twice = twice.apply(collect(tmp_path / "i.mcap", each=twice)).drones["drone_0"].detections[0]
     assert at_twice.shape == got[256].shape
     np.testing.assert_allclose(at_twice, got[256], atol=1e-3)
     from zebra_sim_ros.cli import main
@@ -233,7 +244,7 @@ def test_eval_by_running_a_detector_over_recorded_images(tmp_path: Path, capsys:
 
 
 def test_cdr_image_reader_matches_rclpy() -> None:
-    from zebra_sim_ros.recording.evaluate import cdr_image
+    from zebra_sim_ros.recording.cdr import cdr_image
 
     img = Image(header=Header(frame_id="drone_1_camera_optical"), height=3, width=5, encoding="bgr8", step=15,
                 data=bytes(range(45)))

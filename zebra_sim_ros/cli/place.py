@@ -69,8 +69,8 @@ def cmd_place(args: argparse.Namespace) -> Summary:
     try:
         for step in range(cfg.start_step, cfg.start_step + args.steps):
             scene = placer.scene(step)
-            placed.append(scene.herd.count)
-            requested.append(scene.herd.requested)
+            placed.append(scene.placed)
+            requested.append(scene.requested)
             out.write(scene.to_json() + "\n")
     finally:
         if args.out:

@@ -46,13 +46,8 @@ def cmd_render(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.placement.config import PlacerConfig
     from zebra_sim_ros.placement.placer import Placer
     from zebra_sim_ros.placement.sun import lighting_for
-    from zebra_sim_ros.rendering.renderer import Renderer, RenderOptions
-    from zebra_sim_ros.rendering.views import (
-        ground_from_scene,
-        lighting_from_scene,
-        views_from_scene,
-        zebras_from_scene,
-    )
+    from zebra_sim_ros.rendering.renderer import RenderOptions
+    from zebra_sim_ros.simulation import Simulator
     from zebra_sim_ros.world.world import load_world
     from zebra_sim_ros.zebra.asset import load_library
 
@@ -67,19 +62,19 @@ def cmd_render(args: argparse.Namespace) -> Summary:
     t0 = time.perf_counter()
     world = load_world(cfg.world, cfg.terrain_prim, cfg.world_seed)
     lib = load_library()
-    scene = Placer(cfg, world, lib).scene(args.step).to_dict()
-    lighting = lighting_from_scene(scene)
+    scene = Placer(cfg, world, lib).scene(args.step)
     if args.time_of_day is not None:
-        lighting = lighting_for(args.time_of_day % 24.0, lighting.day_of_year, lighting.latitude_deg)
-        scene["lighting"] = lighting.to_dict()
-    renderer = Renderer(world, lib, RenderOptions(width=args.width, height=args.height, hfov_deg=cfg.camera_hfov_deg,
-                                                  shadows=not args.no_shadows))
+        light = scene.lighting
+        scene = scene.with_lighting(lighting_for(args.time_of_day % 24.0, light.day_of_year, light.latitude_deg))
+    sim = Simulator(world, lib, RenderOptions(width=args.width, height=args.height, hfov_deg=cfg.camera_hfov_deg,
+                                              shadows=not args.no_shadows))
+    renderer = sim.renderer
     t1 = time.perf_counter()
-    views = renderer.render(zebras_from_scene(scene, lib), lighting, views_from_scene(scene), ground_from_scene(scene))
+    views = sim.render(scene)
     t_render = time.perf_counter() - t1
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
-    (out / "scene.json").write_text(json.dumps(scene, indent=1))
+    (out / "scene.json").write_text(json.dumps(scene.to_dict(), indent=1))
     info = {}
     tiles = []
     for v in views:
@@ -93,11 +88,12 @@ def cmd_render(args: argparse.Namespace) -> Summary:
         tiles.append(preview_row(v.rgb, v.depth, v.instances))
     (out / "camera_info.json").write_text(json.dumps(info, indent=1))
     cv2.imwrite(str(out / "preview.png"), np.concatenate(tiles, axis=0)[..., ::-1])
-    renderer.release()
+    sim.release()
     n_px = {v.name: int((v.instances > 0).sum()) for v in views}
-    print(f"rendered step {args.step} ({scene['placed']} zebras, {lighting.time_of_day_h:.1f} h) in {t_render:.2f} s "
+    print(f"rendered step {args.step} ({scene.placed} zebras, {scene.lighting.time_of_day_h:.1f} h) in "
+          f"{t_render:.2f} s "
           f"on {renderer.info['GL_RENDERER']}; wrote {out}")
-    return {"out": str(out), "step": args.step, "zebras": scene["placed"], "render_seconds": round(t_render, 3),
+    return {"out": str(out), "step": args.step, "zebras": scene.placed, "render_seconds": round(t_render, 3),
             "setup_seconds": round(t1 - t0, 3), "device": renderer.info["device"], "zebra_pixels": n_px}
 
 

@@ -8,11 +8,13 @@ reads. Extra per-annotation fields: ``zebra_id``, ``bbox_full`` (amodal, clipped
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from zebra_sim_ros.messages import LabelledZebra, Labels
 from zebra_sim_ros.zebra.keypoints import KEYPOINT_EDGES, KEYPOINT_NAMES
 
 CATEGORY = {
@@ -58,46 +60,45 @@ def rle_encode_all(mask: NDArray[np.integer], ids: list[int]) -> dict[int, dict[
     return out
 
 
-def xyxy_to_xywh(box: list[float]) -> list[float]:
+def xyxy_to_xywh(box: Sequence[float]) -> list[float]:
     """[x0, y0, x1, y1] to COCO [x, y, w, h]."""
     return [box[0], box[1], box[2] - box[0], box[3] - box[1]]
 
 
-def zebra_annotation(z: dict[str, Any], image_id: int, ann_id: int) -> dict[str, Any]:
+def _rle(z: LabelledZebra) -> dict[str, Any]:
+    if z.rle is None:
+        raise ValueError(f"zebra {z.id} has no outline (rle): the dataset writer outlines kept and don't-care zebras")
+    return z.rle.to_dict()
+
+
+def zebra_annotation(z: LabelledZebra, image_id: int, ann_id: int) -> dict[str, Any]:
     """The COCO annotation of one kept, labelled zebra (its ``rle`` computed when the frame was written)."""
     return {
         "id": ann_id, "image_id": image_id, "category_id": 1, "iscrowd": 0,
-        "bbox": xyxy_to_xywh(z["box_visible"]), "area": int(z["visible_pixels"]), "segmentation": z["rle"],
-        "keypoints": [v for k in z["keypoints"] for v in (k[0], k[1], k[2])],
-        "num_keypoints": sum(1 for k in z["keypoints"] if k[2] > 0),
-        "zebra_id": z["id"], "bbox_full": xyxy_to_xywh(z["box_full"]),
-        "visible_fraction": z["visible_fraction"], "in_frame_fraction": z["in_frame_fraction"],
-        "distance_m": z["distance_m"],
+        "bbox": xyxy_to_xywh(z.box_visible), "area": z.visible_pixels, "segmentation": _rle(z),
+        "keypoints": [v for k in z.keypoints for v in (k[0], k[1], k[2])],
+        "num_keypoints": sum(1 for k in z.keypoints if k[2] > 0),
+        "zebra_id": z.id, "bbox_full": xyxy_to_xywh(z.box_full),
+        "visible_fraction": z.visible_fraction, "in_frame_fraction": z.in_frame_fraction,
+        "distance_m": z.distance_m,
     }
 
 
-def is_dont_care(z: dict[str, Any]) -> bool:
-    """A zebra that is seen (visible pixels) but not labelled (the filters dropped it): a don't-care region for
-    evaluation, as COCO's crowd boxes are."""
-    return not z["kept"] and int(z["visible_pixels"]) > 0
-
-
-def crowd_annotation(z: dict[str, Any], image_id: int, ann_id: int) -> dict[str, Any]:
-    """The COCO annotation of a zebra seen but not labelled (:func:`is_dont_care`): ``iscrowd`` 1, so COCO's
-    evaluation ignores detections on it and trainers that honour ``iscrowd`` do not learn it as background."""
+def crowd_annotation(z: LabelledZebra, image_id: int, ann_id: int) -> dict[str, Any]:
+    """The COCO annotation of a zebra seen but not labelled (:attr:`LabelledZebra.dont_care`): ``iscrowd`` 1, so
+    COCO's evaluation ignores detections on it and trainers that honour ``iscrowd`` do not learn it as
+    background."""
     return {"id": ann_id, "image_id": image_id, "category_id": 1, "iscrowd": 1,
-            "bbox": xyxy_to_xywh(z["box_visible"]), "area": int(z["visible_pixels"]), "segmentation": z["rle"],
-            "zebra_id": z["id"], "drop_reason": z["drop_reason"]}
+            "bbox": xyxy_to_xywh(z.box_visible), "area": z.visible_pixels, "segmentation": _rle(z),
+            "zebra_id": z.id, "drop_reason": z.drop_reason}
 
 
-def yolo_lines(labels: dict[str, Any], box: str = "visible", dont_care: bool = False) -> list[str]:
+def yolo_lines(labels: Labels, box: str = "visible", dont_care: bool = False) -> list[str]:
     """YOLO detection lines (``0 cx cy w h``, normalised) of the kept zebras, or with ``dont_care`` of the
-    zebras seen but not kept (:func:`is_dont_care`); ``box`` visible or full."""
-    w, h = labels["width"], labels["height"]
+    zebras seen but not kept; ``box`` visible or full."""
+    w, h = labels.width, labels.height
     lines = []
-    for z in labels["zebras"]:
-        if not (is_dont_care(z) if dont_care else z["kept"]):
-            continue
-        x0, y0, x1, y1 = z["box_visible"] if box == "visible" else z["box_full"]
+    for z in labels.dont_care if dont_care else labels.kept:
+        x0, y0, x1, y1 = z.box_visible if box == "visible" else z.box_full
         lines.append(f"0 {(x0 + x1) / 2 / w:.6f} {(y0 + y1) / 2 / h:.6f} {(x1 - x0) / w:.6f} {(y1 - y0) / h:.6f}")
     return lines

@@ -36,22 +36,19 @@ import sys
 import time
 import zlib
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from zebra_sim_ros.dataset.coco import (
-    CATEGORY,
-    crowd_annotation,
-    is_dont_care,
-    rle_encode_all,
-    yolo_lines,
-    zebra_annotation,
-)
+from zebra_sim_ros.dataset.coco import CATEGORY, crowd_annotation, rle_encode_all, yolo_lines, zebra_annotation
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LabelFilters
+from zebra_sim_ros.messages import FrameAnnotation, Labels, Rle, Scene
+
+if TYPE_CHECKING:
+    from zebra_sim_ros.rendering.renderer import RenderedView
 
 STRATEGIES = ("far", "closeby", "both")
 # The paper's two training sets by name.
@@ -160,7 +157,7 @@ def _write_atomic(path: Path, data: bytes) -> None:
 
 
 class _Pipeline:
-    """Per-process state: zebra library, a renderer and silhouette counter per world, placers."""
+    """Per-process state: zebra library, a simulator per world, placers."""
 
     def __init__(self, cfg: GenerateConfig) -> None:
         from zebra_sim_ros.zebra.asset import load_library
@@ -168,8 +165,7 @@ class _Pipeline:
         self.cfg = cfg
         self.library = load_library()
         self.world_name: str | None = None
-        self.renderer: Any = None
-        self.silhouettes: Any = None
+        self.sim: Any = None
         self.placers: dict[tuple[str, int], Any] = {}
         self.times = {"place": 0.0, "render": 0.0, "label": 0.0, "write": 0.0}
         self.out = Path(cfg.out)
@@ -177,18 +173,16 @@ class _Pipeline:
     def _world(self, name: str) -> None:
         if name == self.world_name:
             return
-        from zebra_sim_ros.labels.silhouettes import SilhouetteCounter
-        from zebra_sim_ros.rendering.renderer import Renderer, RenderOptions
+        from zebra_sim_ros.rendering.renderer import RenderOptions
+        from zebra_sim_ros.simulation import Simulator
         from zebra_sim_ros.world.world import load_world
 
-        if self.renderer is not None:
-            self.renderer.release()
+        if self.sim is not None:
+            self.sim.release()
         c = self.cfg
         self.world = load_world(name, "/World/Terrain", c.world_seed)
-        self.renderer = Renderer(self.world, self.library, RenderOptions(width=c.width, height=c.height,
-                                                                          hfov_deg=c.hfov_deg))
-        self.silhouettes = SilhouetteCounter(self.library, self.renderer.camera,
-                                             self.renderer.options.zebra_detail_distance_m, ctx=self.renderer.ctx)
+        self.sim = Simulator(self.world, self.library, RenderOptions(width=c.width, height=c.height,
+                                                                      hfov_deg=c.hfov_deg), c.filters)
         self.placers = {}
         self.world_name = name
 
@@ -216,71 +210,56 @@ class _Pipeline:
 
     def run(self, job: Job) -> list[str]:
         """Place, render, label and write one step; returns the frame names written."""
-        import cv2
-
-        from zebra_sim_ros.labels.labeller import label_view
-        from zebra_sim_ros.rendering.views import (
-            ground_from_scene,
-            lighting_from_scene,
-            views_from_scene,
-            zebras_from_scene,
-        )
-
         t0 = time.perf_counter()
-        placer = self.placer(job)
-        scene = placer.scene(job.step).to_dict()
+        scene = self.placer(job).scene(job.step)
         t1 = time.perf_counter()
-        views = self.renderer.render(zebras_from_scene(scene, self.library), lighting_from_scene(scene),
-                                     views_from_scene(scene), ground_from_scene(scene))
+        views = self.sim.render(scene)
         t2 = time.perf_counter()
-        labelled = [label_view(scene, v.name, v.instances, v.depth, self.renderer.camera, self.library,
-                               self.silhouettes, self.cfg.filters, self.renderer.options.zebra_detail_distance_m)
-                    for v in views]
+        labelled = [self.sim.labeller.label(scene, v.name, v.instances, v.depth) for v in views]
         t3 = time.perf_counter()
-        c = self.cfg
-        split = split_of(job.world, job.seed, scene["placement"], c.val_fraction)
-        names = []
-        for v, labels in zip(views, labelled, strict=True):
-            name = frame_name(job, v.name)
-            if c.image_format == "jpg":
-                ok, img = cv2.imencode(".jpg", v.rgb[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, c.jpeg_quality])
-            else:
-                ok, img = cv2.imencode(".png", v.rgb[..., ::-1])
-            ok_m, mask_png = cv2.imencode(".png", v.instances)
-            if not (ok and ok_m):
-                raise ParameterError("--format", c.image_format, "a format OpenCV can encode")
-            _write_atomic(self.out / "images" / split / f"{name}.{c.image_format}", img.tobytes())
-            _write_atomic(self.out / "masks" / f"{name}.png", mask_png.tobytes())
-            if c.depth != "none":
-                buf = io.BytesIO()
-                np.savez_compressed(buf, depth=v.depth.astype(c.depth))
-                _write_atomic(self.out / "depth" / f"{name}.npz", buf.getvalue())
-            _write_atomic(self.out / "labels" / split / f"{name}.txt",
-                          ("\n".join(yolo_lines(labels, c.yolo_box)) + "\n").encode() if labels["kept"] else b"")
-            dont_care = yolo_lines(labels, c.yolo_box, dont_care=True)
-            if dont_care:
-                _write_atomic(self.out / "ignore" / split / f"{name}.txt", ("\n".join(dont_care) + "\n").encode())
-            cam = next(x for x in scene["cameras"] if x["name"] == v.name)
-            outlined = [z for z in labels["zebras"] if z["kept"] or is_dont_care(z)]
-            rles = rle_encode_all(v.instances, [z["instance"] for z in outlined])
-            for z in outlined:
-                z["rle"] = rles[z["instance"]]
-            meta = {"frame": name, "split": split, "image": f"images/{split}/{name}.{c.image_format}",
-                    "mask": f"masks/{name}.png", "depth": f"depth/{name}.npz" if c.depth != "none" else None,
-                    "world": scene["world"], "seed": scene["seed"], "step": scene["step"],
-                    "placement": scene["placement"], "reroll": scene["reroll"], "strategy": job.strategy,
-                    "asset_digest": scene["asset_digest"], "lighting": scene["lighting"], "camera": cam,
-                    "regenerate": f"zebra-sim render --seed {job.seed} --step {job.step} --world {job.world} "
-                                  f"--strategy {job.strategy} --width {c.width} --height {c.height} "
-                                  f"--hfov {c.hfov_deg}{self.set_args}",
-                    "labels": labels}
-            _write_atomic(self.out / "annotations" / f"{name}.json",
-                          json.dumps(meta, sort_keys=True, separators=(",", ":")).encode())
-            names.append(name)
+        split = split_of(job.world, job.seed, scene.placement, self.cfg.val_fraction)
+        names = [self._write(job, scene, split, v, labels) for v, labels in zip(views, labelled, strict=True)]
         t4 = time.perf_counter()
         for k, dt in (("place", t1 - t0), ("render", t2 - t1), ("label", t3 - t2), ("write", t4 - t3)):
             self.times[k] += dt
         return names
+
+    def _write(self, job: Job, scene: Scene, split: str, v: RenderedView, labels: Labels) -> str:
+        """Write one frame's image, mask, depth, YOLO labels, don't-care boxes and annotation; returns its name."""
+        import cv2
+
+        c = self.cfg
+        name = frame_name(job, v.name)
+        if c.image_format == "jpg":
+            ok, img = cv2.imencode(".jpg", v.rgb[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, c.jpeg_quality])
+        else:
+            ok, img = cv2.imencode(".png", v.rgb[..., ::-1])
+        ok_m, mask_png = cv2.imencode(".png", v.instances)
+        if not (ok and ok_m):
+            raise ParameterError("--format", c.image_format, "a format OpenCV can encode")
+        _write_atomic(self.out / "images" / split / f"{name}.{c.image_format}", img.tobytes())
+        _write_atomic(self.out / "masks" / f"{name}.png", mask_png.tobytes())
+        if c.depth != "none":
+            buf = io.BytesIO()
+            np.savez_compressed(buf, depth=v.depth.astype(c.depth))
+            _write_atomic(self.out / "depth" / f"{name}.npz", buf.getvalue())
+        _write_atomic(self.out / "labels" / split / f"{name}.txt",
+                      ("\n".join(yolo_lines(labels, c.yolo_box)) + "\n").encode() if labels.kept else b"")
+        dont_care = yolo_lines(labels, c.yolo_box, dont_care=True)
+        if dont_care:
+            _write_atomic(self.out / "ignore" / split / f"{name}.txt", ("\n".join(dont_care) + "\n").encode())
+        outlined = [z.instance for z in labels.zebras if z.kept or z.dont_care]
+        rles = rle_encode_all(v.instances, outlined)
+        labels = labels.with_zebras([replace(z, rle=Rle.from_dict(rles[z.instance])) if z.instance in rles else z
+                                     for z in labels.zebras])
+        meta = FrameAnnotation(
+            name, split, f"images/{split}/{name}.{c.image_format}", f"masks/{name}.png",
+            f"depth/{name}.npz" if c.depth != "none" else None, scene.world, scene.seed, scene.step, scene.placement,
+            scene.reroll, job.strategy, scene.asset_digest, scene.lighting, scene.camera(v.name),
+            f"zebra-sim render --seed {job.seed} --step {job.step} --world {job.world} --strategy {job.strategy} "
+            f"--width {c.width} --height {c.height} --hfov {c.hfov_deg}{self.set_args}", labels)
+        _write_atomic(self.out / "annotations" / f"{name}.json", meta.to_json().encode())
+        return name
 
 
 def _worker(cfg: GenerateConfig, jobs: list[Job], queue: Any) -> None:
@@ -377,19 +356,19 @@ def finalize(out: Path, cfg: GenerateConfig | None = None) -> dict[str, Any]:
     anns: dict[str, list[dict[str, Any]]] = {"train": [], "val": []}
     kept = 0
     for path in sorted((out / "annotations").glob("*.json")):
-        meta = json.loads(path.read_text())
-        split = meta["split"]
-        image_id = len(images[split]) + 1
-        lab = meta["labels"]
-        images[split].append({"id": image_id, "file_name": meta["image"], "width": lab["width"],
-                              "height": lab["height"], "frame": meta["frame"], "world": meta["world"]["name"],
-                              "time_of_day_h": meta["lighting"]["time_of_day_h"]})
-        for z in lab["zebras"]:
-            if z["kept"]:
-                anns[split].append(zebra_annotation(z, image_id, len(anns[split]) + 1))
+        meta = FrameAnnotation.from_json(path.read_text())
+        image_id = len(images[meta.split]) + 1
+        lab = meta.labels
+        images[meta.split].append({"id": image_id, "file_name": meta.image, "width": lab.width, "height": lab.height,
+                                   "frame": meta.frame, "world": meta.world.name,
+                                   "time_of_day_h": meta.lighting.time_of_day_h})
+        split_anns = anns[meta.split]
+        for z in lab.zebras:
+            if z.kept:
+                split_anns.append(zebra_annotation(z, image_id, len(split_anns) + 1))
                 kept += 1
-            elif is_dont_care(z) and "rle" in z:  # sets written before don't-care regions have no outline
-                anns[split].append(crowd_annotation(z, image_id, len(anns[split]) + 1))
+            elif z.dont_care and z.rle is not None:  # sets written before don't-care regions have no outline
+                split_anns.append(crowd_annotation(z, image_id, len(split_anns) + 1))
     for split in ("train", "val"):
         coco = {"info": {"description": "zebra_sim_ros synthetic zebras", "version": "1"}, "licenses": [],
                 "categories": [CATEGORY], "images": images[split], "annotations": anns[split]}

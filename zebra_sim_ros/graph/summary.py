@@ -8,7 +8,6 @@ stamp: render = scene -> last ``image_raw`` of the step, label = ``image_raw`` -
 
 from __future__ import annotations
 
-import json
 import re
 from collections import defaultdict
 from pathlib import Path
@@ -17,16 +16,11 @@ from typing import Any
 import cv2
 import numpy as np
 
-from zebra_sim_ros.recording.evaluate import (
-    MALFORMED,
-    cdr_string,
-    collect,
-    header_stamp_ns,
-    json_stamp_ns,
-    rgb_image,
-    score,
-    skip_note,
-)
+from zebra_sim_ros.detection.scoring import DroneFrames
+from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.messages import Scene
+from zebra_sim_ros.recording.cdr import MALFORMED, cdr_string, header_stamp_ns, rgb_image
+from zebra_sim_ros.recording.evaluate import collect, score, skip_note
 from zebra_sim_ros.recording.reader import BagMessage
 
 _IMAGE_TOPIC = re.compile(r"^/(?P<drone>drone_\d+)/image_raw$")
@@ -48,18 +42,18 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[st
         match = _IMAGE_TOPIC.match(m.topic)
         try:
             if m.topic == "/zebra_sim/scene":
-                scenes[json_stamp_ns(json.loads(cdr_string(m.data)))] = m.log_time
+                scenes[Scene.from_json(cdr_string(m.data)).stamp.ns] = m.log_time
             elif match:
                 drone, t = match.group("drone"), header_stamp_ns(m.data)
                 if t >= latest.get(drone, (-1, b""))[0]:
                     latest[drone] = (t, m.data)
                 times[drone]["image_raw"].setdefault(t, m.log_time)
-        except MALFORMED as exc:
+        except (*MALFORMED, ZebraSimError) as exc:
             unusable.append(skip_note(m, exc))
 
     collected = collect(bag, each=visit)  # one pass over the bag for the scores and the timings
-    for drone, d in collected["drones"].items():
-        times[drone].update(d["log_times"])
+    for drone, log_times in collected.log_times.items():
+        times[drone].update(log_times)
     drones = sorted(times)
     frames = {d: {k: len(times[d][k]) for k in ("image_raw", "labels", "detections")} for d in drones}
     render, label, detect, e2e = [], [], [], []
@@ -97,22 +91,23 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[st
         except MALFORMED:
             pass  # its pixels are cut short: no tile for this drone
     if preview is not None and images_rgb:
-        out["preview"] = str(write_preview(preview, collected["drones"], images_rgb))
+        out["preview"] = str(write_preview(preview, collected.drones, images_rgb))
     return out
 
 
-def write_preview(path: str | Path, c: dict[str, Any], images: dict[str, tuple[int, np.ndarray]]) -> Path:
+def write_preview(path: str | Path, c: dict[str, DroneFrames], images: dict[str, tuple[int, np.ndarray]]) -> Path:
     """One tile per drone: its last RGB frame with ground-truth boxes (green) and detections (red, with score);
-    ``c`` is :func:`~zebra_sim_ros.recording.evaluate.collect`'s ``drones``."""
+    ``c``: the frames per drone (:func:`~zebra_sim_ros.recording.evaluate.collect`)."""
     tiles = []
     for drone in sorted(images):
         t, rgb = images[drone]
         bgr = np.ascontiguousarray(rgb[..., ::-1])
         font = max(0.3, bgr.shape[1] / 1280 * 0.5)
         scores = bgr.shape[1] >= 640  # scores would bury the boxes in small images
-        for x0, y0, x1, y1 in c.get(drone, {}).get("labels", {}).get(t, np.zeros((0, 4))):
+        frames = c.get(drone, DroneFrames())
+        for x0, y0, x1, y1 in frames.truth(t)[0]:
             cv2.rectangle(bgr, (round(x0), round(y0)), (round(x1), round(y1)), (60, 220, 60), 1)
-        for x0, y0, x1, y1, s in c.get(drone, {}).get("detections", {}).get(t, np.zeros((0, 5))):
+        for x0, y0, x1, y1, s in frames.detections.get(t, np.zeros((0, 5))):
             cv2.rectangle(bgr, (round(x0) - 1, round(y0) - 1), (round(x1) + 1, round(y1) + 1), (40, 40, 230), 1)
             if scores:
                 cv2.putText(bgr, f"{s:.2f}", (round(x0), max(round(y0) - 3, 8)), cv2.FONT_HERSHEY_SIMPLEX,

@@ -21,6 +21,7 @@ coordinates are the same edge coordinates. Instance ids in the mask are scene id
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -30,12 +31,12 @@ from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical
 from zebra_sim_ros.geometry.rotations import matrix_to_quat, quat_to_matrix
 from zebra_sim_ros.labels.config import LabelFilters
 from zebra_sim_ros.labels.silhouettes import SilhouetteCounter
+from zebra_sim_ros.messages import LabelledZebra, Labels, OrientedBox, Scene
+from zebra_sim_ros.rendering.renderer import ZebraSet
 from zebra_sim_ros.rendering.views import views_from_scene, zebras_from_scene
 from zebra_sim_ros.zebra.asset import ZebraLibrary
 from zebra_sim_ros.zebra.keypoints import KEYPOINT_NAMES
-
-SCHEMA = "zebra_sim_ros/labels"
-VERSION = 1
+from zebra_sim_ros.zebra.lod import DETAIL_DISTANCE_M, lod_of
 
 
 def tight_boxes(mask: NDArray[np.integer], ids: NDArray[np.int64]) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -90,89 +91,142 @@ def full_boxes(points_optical: NDArray[np.float64], camera: PinholeCamera) -> tu
     return clipped, raw
 
 
-def label_view(scene: dict[str, Any], camera_name: str, mask: NDArray[np.integer], depth: NDArray[np.float32],
-               camera: PinholeCamera, library: ZebraLibrary, silhouettes: SilhouetteCounter,
-               filters: LabelFilters | None = None, detail_distance_m: float = 35.0) -> dict[str, Any]:
-    """The labels of one camera frame as the versioned JSON-ready dictionary (module docstring)."""
-    filters = filters or LabelFilters()
+@dataclass(frozen=True)
+class _Present:
+    """The scene zebras a frame shows: their indices into the scene, the arrays, the camera pose."""
+
+    sel: NDArray[np.int64]
+    zebras: ZebraSet
+    pos: NDArray[np.float64]
+    r_opt: NDArray[np.float64]
+
+
+def amodal_boxes(present: _Present, camera: PinholeCamera, library: ZebraLibrary,
+                 detail_distance_m: float) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Per present zebra: the full box clipped and unclipped (of the level of detail the camera drew: full detail
+    nearer than ``detail_distance_m``) and its distance from the camera, m."""
+    z, sel = present.zebras, present.sel
+    dist_cam = np.linalg.norm(z.position[sel] - present.pos, axis=1)
+    lod = lod_of(dist_cam, detail_distance_m)
+    full_c = np.zeros((len(sel), 4))
+    full_u = np.zeros((len(sel), 4))
+    for level in (0, 1):
+        pick = np.flatnonzero(lod == level)
+        if len(pick):
+            s = sel[pick]
+            posed = library.pose(z.morph[s], z.global_frame[s], z.scale[s], z.rotation[s], z.position[s], lod=level)
+            p_opt = map_to_optical(posed.vertices.astype(np.float64), present.pos, present.r_opt)
+            full_c[pick], full_u[pick] = full_boxes(p_opt, camera)
+    return full_c, full_u, dist_cam
+
+
+def keypoint_visibility(present: _Present, camera: PinholeCamera, library: ZebraLibrary,
+                        depth: NDArray[np.float32], tolerance_m: float) -> tuple[NDArray[np.float64],
+                                                                                NDArray[np.int64]]:
+    """Keypoints (N, K, 2) in pixel edges and their COCO visibility (N, K): 2 in the image and not occluded (the
+    depth image is not nearer than the keypoint by more than ``tolerance_m`` times the zebra's scale), 1 in the
+    image but occluded, 0 outside."""
+    z, sel = present.zebras, present.sel
+    posed0 = library.pose(z.morph[sel], z.global_frame[sel], z.scale[sel], z.rotation[sel], z.position[sel], lod=0)
+    kp_opt = map_to_optical(posed0.keypoints, present.pos, present.r_opt)  # (N, K, 3)
+    kp_uv, kp_front = project_edges(kp_opt, camera)
+    h, w = depth.shape
+    inside = kp_front & (kp_uv[..., 0] >= 0) & (kp_uv[..., 0] < w) & (kp_uv[..., 1] >= 0) & (kp_uv[..., 1] < h)
+    col = np.clip(np.floor(kp_uv[..., 0]).astype(np.int64), 0, w - 1)
+    row = np.clip(np.floor(kp_uv[..., 1]).astype(np.int64), 0, h - 1)
+    seen_depth = depth[row, col].astype(np.float64)
+    unoccluded = seen_depth >= kp_opt[..., 2] - tolerance_m * z.scale[sel][:, None]
+    return kp_uv, np.where(inside, np.where(unoccluded, 2, 1), 0)
+
+
+def drop_reason(visible_px: int, silhouette_px: int, box: NDArray[np.float64], filters: LabelFilters) -> str | None:
+    """Which label filter drops a zebra (None: kept)."""
+    bw, bh = box[2] - box[0], box[3] - box[1]
+    if visible_px < filters.min_visible_pixels:
+        return "min_visible_pixels"
+    if silhouette_px and visible_px / silhouette_px < filters.min_visible_fraction:
+        return "min_visible_fraction"
+    if min(bw, bh) < filters.min_box_px:
+        return "min_box_px"
+    if max(bw, bh) / max(min(bw, bh), 1e-9) > filters.max_aspect_ratio:
+        return "max_aspect_ratio"
+    return None
+
+
+def camera_box(box: OrientedBox, pos: NDArray[np.float64], r_opt: NDArray[np.float64]) -> OrientedBox:
+    """A box in ``map`` expressed in a camera's optical frame (centre rounded to 0.1 mm)."""
+    q = box.orientation_xyzw
+    r_box = quat_to_matrix(np.array([q[3], q[0], q[1], q[2]]))
+    c = (np.array(box.center) - pos) @ r_opt
+    q_cam = matrix_to_quat(r_opt.T @ r_box)
+    return OrientedBox((round(float(c[0]), 4), round(float(c[1]), 4), round(float(c[2]), 4)), box.size,
+                       (float(q_cam[1]), float(q_cam[2]), float(q_cam[3]), float(q_cam[0])))
+
+
+def _present(scene: Scene, camera_name: str, mask: NDArray[np.integer],
+             library: ZebraLibrary) -> tuple[_Present, list[int]]:
     view = views_from_scene(scene, [camera_name])
     if not view:
-        raise KeyError(f"scene {scene.get('step')} has no camera {camera_name}")
-    pos, r_opt = view[0].position, view[0].r_optical
+        raise KeyError(f"scene {scene.step} has no camera {camera_name}")
     zebras = zebras_from_scene(scene, library)
     present = np.unique(mask)
     present = present[present > 0]
     index_of = {int(z) + 1: i for i, z in enumerate(zebras.ids)}
     sel = np.array([index_of[int(p)] for p in present if int(p) in index_of], dtype=np.int64)
     unknown = [int(p) for p in present if int(p) not in index_of]
-    labels: list[dict[str, Any]] = []
-    if len(sel):
-        tight, counts = tight_boxes(mask, zebras.ids[sel] + 1)
-        cover = silhouettes.count(zebras, pos, r_opt, sel)
-        dist_cam = np.linalg.norm(zebras.position[sel] - pos, axis=1)
-        lod = np.where(dist_cam < detail_distance_m, 0, 1)
-        scene_z = [scene["zebras"][int(i)] for i in sel]
-        full_c = np.zeros((len(sel), 4))
-        full_u = np.zeros((len(sel), 4))
-        for level in (0, 1):
-            pick = np.flatnonzero(lod == level)
-            if len(pick):
-                s = sel[pick]
-                posed = library.pose(zebras.morph[s], zebras.global_frame[s], zebras.scale[s], zebras.rotation[s],
-                                     zebras.position[s], lod=level)
-                p_opt = map_to_optical(posed.vertices.astype(np.float64), pos, r_opt)
-                full_c[pick], full_u[pick] = full_boxes(p_opt, camera)
-        posed0 = library.pose(zebras.morph[sel], zebras.global_frame[sel], zebras.scale[sel], zebras.rotation[sel],
-                              zebras.position[sel], lod=0)
-        kp_opt = map_to_optical(posed0.keypoints, pos, r_opt)  # (N, K, 3)
-        kp_uv, kp_front = project_edges(kp_opt, camera)
-        h, w = mask.shape
-        inside = kp_front & (kp_uv[..., 0] >= 0) & (kp_uv[..., 0] < w) & (kp_uv[..., 1] >= 0) & (kp_uv[..., 1] < h)
-        col = np.clip(np.floor(kp_uv[..., 0]).astype(np.int64), 0, w - 1)
-        row = np.clip(np.floor(kp_uv[..., 1]).astype(np.int64), 0, h - 1)
-        seen_depth = depth[row, col].astype(np.float64)
-        tol = filters.keypoint_depth_tolerance_m * zebras.scale[sel][:, None]
-        unoccluded = seen_depth >= kp_opt[..., 2] - tol
-        vis = np.where(inside, np.where(unoccluded, 2, 1), 0)
-        for k, i in enumerate(sel):
-            z = scene_z[k]
-            b = z["box"]
-            r_box = quat_to_matrix(np.array([b["orientation_xyzw"][3], *b["orientation_xyzw"][:3]]))
-            c_cam = (np.array(b["center"]) - pos) @ r_opt
-            q_cam = matrix_to_quat(r_opt.T @ r_box)
-            vis_px, sil = int(counts[k]), int(cover.in_image[k])
-            tb = tight[k]
-            bw, bh = tb[2] - tb[0], tb[3] - tb[1]
-            reason = None
-            if vis_px < filters.min_visible_pixels:
-                reason = "min_visible_pixels"
-            elif sil and vis_px / sil < filters.min_visible_fraction:
-                reason = "min_visible_fraction"
-            elif min(bw, bh) < filters.min_box_px:
-                reason = "min_box_px"
-            elif max(bw, bh) / max(min(bw, bh), 1e-9) > filters.max_aspect_ratio:
-                reason = "max_aspect_ratio"
-            kps = [[round(float(kp_uv[k, j, 0]), 2), round(float(kp_uv[k, j, 1]), 2), int(vis[k, j])]
-                   for j in range(len(KEYPOINT_NAMES))]
-            labels.append({
-                "id": int(zebras.ids[i]), "instance": int(zebras.ids[i]) + 1, "morph": z["morph"], "clip": z["clip"],
-                "frame": int(z["frame"]), "scale": float(z["scale"]), "distance_m": round(float(dist_cam[k]), 3),
-                "box_visible": [float(v) for v in tb], "box_full": [round(float(v), 2) for v in full_c[k]],
-                "box_full_unclipped": [round(float(v), 2) for v in full_u[k]],
-                "visible_pixels": vis_px, "silhouette_pixels": sil,
-                "visible_fraction": round(min(1.0, vis_px / sil), 4) if sil else 0.0,
-                "in_frame_fraction": round(sil / int(cover.total[k]), 4) if cover.total[k] else 0.0,
-                "box3d_map": b,
-                "box3d_camera": {"center": [round(float(v), 4) for v in c_cam], "size": b["size"],
-                                 "orientation_xyzw": [float(q_cam[1]), float(q_cam[2]), float(q_cam[3]),
-                                                      float(q_cam[0])]},
-                "keypoints": kps, "kept": reason is None, "drop_reason": reason,
-            })
-    return {
-        "schema": SCHEMA, "version": VERSION, "stamp": scene["stamp"], "step": scene["step"], "seed": scene["seed"],
-        "camera": camera_name, "frame_id": f"{camera_name}_camera_optical", "width": int(camera.width),
-        "height": int(camera.height), "K": [float(v) for v in camera.K.ravel()],
-        "keypoint_names": list(KEYPOINT_NAMES), "filters": filters.to_dict(),
-        "zebras": labels, "in_view": len(labels), "kept": sum(1 for x in labels if x["kept"]),
-        "unknown_instances": unknown,
-    }
+    return _Present(sel, zebras, view[0].position, view[0].r_optical), unknown
+
+
+def label_view(scene: Scene, camera_name: str, mask: NDArray[np.integer], depth: NDArray[np.float32],
+               camera: PinholeCamera, library: ZebraLibrary, silhouettes: SilhouetteCounter,
+               filters: LabelFilters | None = None, detail_distance_m: float = DETAIL_DISTANCE_M) -> Labels:
+    """The labels of one camera frame (module docstring): every zebra with a pixel in ``mask``."""
+    filters = filters or LabelFilters()
+    p, unknown = _present(scene, camera_name, mask, library)
+    labels: list[LabelledZebra] = []
+    if len(p.sel):
+        tight, counts = tight_boxes(mask, p.zebras.ids[p.sel] + 1)
+        cover = silhouettes.count(p.zebras, p.pos, p.r_opt, p.sel)
+        full_c, full_u, dist_cam = amodal_boxes(p, camera, library, detail_distance_m)
+        kp_uv, vis = keypoint_visibility(p, camera, library, depth, filters.keypoint_depth_tolerance_m)
+        for k, i in enumerate(p.sel):
+            z = scene.zebras[int(i)]
+            vis_px, sil, total = int(counts[k]), int(cover.in_image[k]), int(cover.total[k])
+            reason = drop_reason(vis_px, sil, tight[k], filters)
+            labels.append(LabelledZebra(
+                z.id, z.id + 1, z.morph, z.clip, z.frame, z.scale, round(float(dist_cam[k]), 3),
+                _box(tight[k]), _box(full_c[k], 2), _box(full_u[k], 2), vis_px, sil,
+                round(min(1.0, vis_px / sil), 4) if sil else 0.0, round(sil / total, 4) if total else 0.0,
+                z.box, camera_box(z.box, p.pos, p.r_opt),
+                tuple((round(float(kp_uv[k, j, 0]), 2), round(float(kp_uv[k, j, 1]), 2), int(vis[k, j]))
+                      for j in range(len(KEYPOINT_NAMES))), reason is None, reason))
+    return Labels(scene.stamp, scene.step, scene.seed, camera_name, f"{camera_name}_camera_optical",
+                  int(camera.width), int(camera.height), tuple(float(v) for v in camera.K.ravel()),
+                  tuple(KEYPOINT_NAMES), filters.to_dict(), tuple(labels), tuple(unknown))
+
+
+def _box(b: NDArray[np.float64], digits: int | None = None) -> tuple[float, float, float, float]:
+    v = [float(x) if digits is None else round(float(x), digits) for x in b]
+    return v[0], v[1], v[2], v[3]
+
+
+class Labeller:
+    """Labels frames of one camera model: the silhouette counter (a GL context) and the label filters, kept
+    between frames. What the labeller node runs per camera size, and :class:`~zebra_sim_ros.simulation.Simulator`
+    after each render."""
+
+    def __init__(self, library: ZebraLibrary, camera: PinholeCamera, filters: LabelFilters | None = None,
+                 detail_distance_m: float = DETAIL_DISTANCE_M, ctx: Any = None) -> None:
+        self.library, self.camera = library, camera
+        self.filters = filters or LabelFilters()
+        self.detail_distance_m = detail_distance_m
+        self.silhouettes = SilhouetteCounter(library, camera, detail_distance_m, ctx=ctx)
+
+    def label(self, scene: Scene, camera_name: str, mask: NDArray[np.integer], depth: NDArray[np.float32]) -> Labels:
+        """:func:`label_view` of one frame."""
+        return label_view(scene, camera_name, mask, depth, self.camera, self.library, self.silhouettes, self.filters,
+                          self.detail_distance_m)
+
+    def release(self) -> None:
+        """Release the GL resources."""
+        self.silhouettes.release()

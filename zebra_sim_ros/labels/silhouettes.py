@@ -19,6 +19,7 @@ from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical
 from zebra_sim_ros.rendering.gl import create_context
 from zebra_sim_ros.rendering.renderer import ZebraSet, _unweld, perspective, view_matrix
 from zebra_sim_ros.zebra.asset import ZebraLibrary
+from zebra_sim_ros.zebra.lod import DETAIL_DISTANCE_M, lod_of
 
 _VS = """
 #version 430
@@ -55,7 +56,7 @@ class Coverage:
 class SilhouetteCounter:
     """Counts unoccluded silhouette pixels of zebras for one camera model."""
 
-    def __init__(self, library: ZebraLibrary, camera: PinholeCamera, detail_distance_m: float = 35.0,
+    def __init__(self, library: ZebraLibrary, camera: PinholeCamera, detail_distance_m: float = DETAIL_DISTANCE_M,
                  near_m: float = 0.1, far_m: float = 4000.0, atlas: int = 4096, ctx: Any = None) -> None:
         self.library, self.camera = library, camera
         self.detail_distance_m, self.near_m, self.far_m = detail_distance_m, near_m, far_m
@@ -88,8 +89,9 @@ class SilhouetteCounter:
         self.prog["u_view_proj"].write(np.asarray(vp, dtype=np.float32).T.tobytes())
         self.prog["u_image"].value = (float(cam.width), float(cam.height))
         self.prog["u_atlas"].value = (float(self.atlas), float(self.atlas))
+        levels = lod_of(dist, self.detail_distance_m)
         for lod in (0, 1):
-            pick = np.flatnonzero((dist < self.detail_distance_m) if lod == 0 else (dist >= self.detail_distance_m))
+            pick = np.flatnonzero(levels == lod)
             if len(pick):
                 self._count_lod(zebras, sel_all[pick], lod, position, r_optical, in_image, total, pick)
         return Coverage(in_image, total)

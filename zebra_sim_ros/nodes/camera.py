@@ -20,7 +20,6 @@ and skipped; a repeated scene (same stamp) is published again but rendered once.
 from __future__ import annotations
 
 import time
-from typing import Any
 
 import numpy as np
 from rclpy.node import Node
@@ -28,6 +27,7 @@ from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Header, String
 
 from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.nodes.placer import SCENE_TOPIC
 from zebra_sim_ros.nodes.ros_adapter import (
     ACK_TOPIC,
@@ -39,16 +39,9 @@ from zebra_sim_ros.nodes.ros_adapter import (
     run_node,
     stamp,
 )
-from zebra_sim_ros.placement.scene import parse_scene
 from zebra_sim_ros.rendering.config import CAMERA_PARAMS, CameraConfig
-from zebra_sim_ros.rendering.renderer import RenderedView, Renderer
-from zebra_sim_ros.rendering.views import (
-    ground_from_scene,
-    lighting_from_scene,
-    views_from_scene,
-    world_source,
-    zebras_from_scene,
-)
+from zebra_sim_ros.rendering.renderer import RenderedView
+from zebra_sim_ros.simulation import Simulator
 from zebra_sim_ros.world.world import load_world
 from zebra_sim_ros.zebra.asset import load_library
 
@@ -70,7 +63,7 @@ class CameraNode(Node):
         self.cfg = CameraConfig.from_params(declare_and_read(self, CAMERA_PARAMS))
         c = self.cfg
         self.library = load_library()
-        self.renderer: Renderer | None = None
+        self.sim: Simulator | None = None  # the renderer of the scene's world (its labels are the labeller's)
         self.world_key: tuple[str, str, int] | None = None
         self.effects = c.effects()
         self.frame_id = f"{c.name}_camera_optical"
@@ -91,46 +84,44 @@ class CameraNode(Node):
         self.skipped = 0
         self.render_seconds = 0.0
 
-    def _ensure_renderer(self, scene: dict[str, Any]) -> Renderer:
-        key = world_source(scene)
-        if self.renderer is None or key != self.world_key:
+    def _ensure_simulator(self, scene: Scene) -> Simulator:
+        key = scene.world.load_args()
+        if self.sim is None or key != self.world_key:
             t0 = time.perf_counter()
             world = load_world(*key)
-            if self.renderer is not None:
-                self.renderer.release()
-            self.renderer = Renderer(world, self.library, self.cfg.render_options())
+            if self.sim is not None:
+                self.sim.release()
+            self.sim = Simulator(world, self.library, self.cfg.render_options())
             self.world_key = key
-            self.get_logger().info(f"world '{world.name}' loaded; OpenGL {self.renderer.info['GL_RENDERER']} "
-                                   f"({self.renderer.info['device']}) in {time.perf_counter() - t0:.1f} s")
-        return self.renderer
+            info = self.sim.renderer.info
+            self.get_logger().info(f"world '{world.name}' loaded; OpenGL {info['GL_RENDERER']} ({info['device']}) "
+                                   f"in {time.perf_counter() - t0:.1f} s")
+        return self.sim
 
     def _on_scene(self, msg: String) -> None:
         try:
-            scene = parse_scene(msg.data)
-            stamp_ns = int(scene["stamp"]["sec"]) * 1_000_000_000 + int(scene["stamp"]["nanosec"])
-            if self.last is not None and self.last[0] == stamp_ns:
+            scene = Scene.from_json(msg.data)
+            t = scene.stamp.ns
+            if self.last is not None and self.last[0] == t:
                 self._publish(self.last[1], self.last[2], scene)  # a re-sent step: same images again
                 return
-            views = views_from_scene(scene, [self.cfg.name])
-            if not views:
-                raise ZebraSimError(f"scene {scene['step']} has no camera named {self.cfg.name}")
-            renderer = self._ensure_renderer(scene)
+            scene.camera(self.cfg.name)  # refuses a scene without this drone before any rendering
+            sim = self._ensure_simulator(scene)
             t0 = time.perf_counter()
-            view = renderer.render(zebras_from_scene(scene, self.library), lighting_from_scene(scene), views,
-                                   ground_from_scene(scene))[0]
+            view = sim.render(scene, [self.cfg.name])[0]
             if self.effects.active:
-                rng = np.random.default_rng([int(scene["seed"]), int(scene["step"]), self.cfg.drone_index])
+                rng = np.random.default_rng([scene.seed, scene.step, self.cfg.drone_index])
                 view.rgb = self.effects.apply(view.rgb, rng)
             self.render_seconds += time.perf_counter() - t0
         except (ZebraSimError, KeyError, TypeError, ValueError) as exc:
             self.skipped += 1
             self.get_logger().error(f"scene skipped ({self.skipped} so far): {exc}")
             return
-        header = Header(stamp=stamp(stamp_ns), frame_id=self.frame_id)
-        self.last = (stamp_ns, header, view)
+        header = Header(stamp=stamp(t), frame_id=self.frame_id)
+        self.last = (t, header, view)
         self._publish(header, view, scene)
 
-    def _publish(self, header: Header, view: RenderedView, scene: dict[str, Any]) -> None:
+    def _publish(self, header: Header, view: RenderedView, scene: Scene) -> None:
         c = self.cfg
         self.pub_rgb.publish(image_msg(header, view.rgb, "rgb8"))
         self.pub_depth.publish(image_msg(header, view.depth.astype("<f4"), "32FC1"))
@@ -140,15 +131,15 @@ class CameraNode(Node):
         if c.ack:
             self.pub_ack.publish(Header(stamp=header.stamp, frame_id=c.name))
         if self.frames % 20 == 1:
-            self.get_logger().info(f"step {scene['step']}: frame {self.frames}, "
+            self.get_logger().info(f"step {scene.step}: frame {self.frames}, "
                                    f"{self.render_seconds / max(self.frames, 1):.2f} s/frame render, "
                                    f"{self.skipped} scenes skipped")
 
     def close(self) -> None:
         """Release the GL context."""
-        if self.renderer is not None:
-            self.renderer.release()
-            self.renderer = None
+        if self.sim is not None:
+            self.sim.release()
+            self.sim = None
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -12,7 +12,6 @@ newer stamps are dropped and counted) and publishes per drone, with the image's 
 
 from __future__ import annotations
 
-import json
 import time
 from typing import Any
 
@@ -26,8 +25,8 @@ from visualization_msgs.msg import ImageMarker, Marker, MarkerArray
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.camera import PinholeCamera
 from zebra_sim_ros.labels.config import LABELLER_PARAMS, LabellerConfig
-from zebra_sim_ros.labels.labeller import label_view
-from zebra_sim_ros.labels.silhouettes import SilhouetteCounter
+from zebra_sim_ros.labels.labeller import Labeller
+from zebra_sim_ros.messages import Labels, Scene
 from zebra_sim_ros.nodes.placer import SCENE_TOPIC
 from zebra_sim_ros.nodes.ros_adapter import (
     StepAcks,
@@ -39,7 +38,6 @@ from zebra_sim_ros.nodes.ros_adapter import (
     run_node,
     stamp_ns,
 )
-from zebra_sim_ros.placement.scene import parse_scene
 from zebra_sim_ros.zebra.asset import load_library
 
 _ENCODING = {"mono16": "<u2", "16UC1": "<u2", "32SC1": "<i4", "32FC1": "<f4"}
@@ -56,25 +54,24 @@ def image_array(msg: Image) -> np.ndarray:
     return np.ascontiguousarray(buf).view(dt).reshape(msg.height, msg.width).astype(dt.newbyteorder("="))
 
 
-def box_markers(header: Header, labels: dict[str, Any]) -> ImageMarker:
+def box_markers(header: Header, labels: Labels) -> ImageMarker:
     """One LINE_LIST ImageMarker with every zebra's full (orange) and visible (green) box."""
     green, orange = ColorRGBA(r=0.1, g=1.0, b=0.2, a=1.0), ColorRGBA(r=1.0, g=0.6, b=0.0, a=1.0)
-    boxes = ((box, col) for z in labels["zebras"] for box, col in ((z["box_full"], orange), (z["box_visible"], green)))
+    boxes = ((box, col) for z in labels.zebras for box, col in ((z.box_full, orange), (z.box_visible, green)))
     return box_marker(header, "zebra_boxes", boxes)
 
 
-def boxes3d(header: Header, labels: dict[str, Any]) -> MarkerArray:
+def boxes3d(header: Header, labels: Labels) -> MarkerArray:
     """The labelled zebras' 3D boxes in ``map`` as CUBE markers (after a DELETEALL)."""
     h = Header(stamp=header.stamp, frame_id="map")
     out = [Marker(header=h, ns="zebra_boxes3d", action=Marker.DELETEALL)]
-    for z in labels["zebras"]:
-        b = z["box3d_map"]
-        q = b["orientation_xyzw"]
-        out.append(Marker(header=h, ns="zebra_boxes3d", id=int(z["id"]), type=Marker.CUBE, action=Marker.ADD,
-                          pose=Pose(position=Point(x=b["center"][0], y=b["center"][1], z=b["center"][2]),
-                                    orientation=Quaternion(x=q[0], y=q[1], z=q[2], w=q[3])),
-                          scale=Vector3(x=b["size"][0], y=b["size"][1], z=b["size"][2]),
-                          color=ColorRGBA(r=0.1, g=1.0, b=0.2, a=0.35 if z["kept"] else 0.1)))
+    for z in labels.zebras:
+        b = z.box3d_map
+        (cx, cy, cz), (sx, sy, sz), (qx, qy, qz, qw) = b.center, b.size, b.orientation_xyzw
+        out.append(Marker(header=h, ns="zebra_boxes3d", id=z.id, type=Marker.CUBE, action=Marker.ADD,
+                          pose=Pose(position=Point(x=cx, y=cy, z=cz), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw)),
+                          scale=Vector3(x=sx, y=sy, z=sz),
+                          color=ColorRGBA(r=0.1, g=1.0, b=0.2, a=0.35 if z.kept else 0.1)))
     return MarkerArray(markers=out)
 
 
@@ -87,10 +84,10 @@ class LabellerNode(Node):
         c = self.cfg
         self.library = load_library()
         self.filters = c.filters()
-        self.counters: dict[tuple[int, int, float], SilhouetteCounter] = {}
+        self.labellers: dict[tuple[int, int, float], Labeller] = {}  # per camera model
         q = qos(c.qos_reliability, c.qos_depth)
         scene_qos = qos("reliable", 1, transient_local=True)
-        self.scenes: dict[int, dict[str, Any]] = {}
+        self.scenes: dict[int, Scene] = {}
         self.pending: dict[tuple[str, int], dict[str, Any]] = {}
         self.stats = {"labelled": 0, "unmatched": 0, "bad_messages": 0}
         self.create_subscription(String, SCENE_TOPIC, self._on_scene, scene_qos)
@@ -114,12 +111,12 @@ class LabellerNode(Node):
 
     def _on_scene(self, msg: String) -> None:
         try:
-            scene = parse_scene(msg.data)
+            scene = Scene.from_json(msg.data)
         except ZebraSimError as exc:
             self.stats["bad_messages"] += 1
             self.get_logger().error(f"bad scene skipped ({self.stats['bad_messages']} bad so far): {exc}")
             return
-        t = int(scene["stamp"]["sec"]) * 1_000_000_000 + int(scene["stamp"]["nanosec"])
+        t = scene.stamp.ns
         self.scenes[t] = scene
         for old in sorted(self.scenes)[:-self.cfg.sync_window]:
             del self.scenes[old]
@@ -140,13 +137,13 @@ class LabellerNode(Node):
                 self.get_logger().warning(f"{key[0]}: inputs of stamp {key[1]} never all arrived; dropped "
                                           f"({self.stats['unmatched']} so far)")
 
-    def _counter(self, width: int, height: int, fx: float) -> SilhouetteCounter:
+    def _labeller(self, width: int, height: int, fx: float) -> Labeller:
         hfov = float(np.degrees(2 * np.arctan(width / 2 / fx)))
         key = (width, height, round(hfov, 6))
-        if key not in self.counters:
-            self.counters[key] = SilhouetteCounter(self.library, PinholeCamera(width, height, hfov),
-                                                   self.cfg.zebra_detail_distance_m)
-        return self.counters[key]
+        if key not in self.labellers:
+            self.labellers[key] = Labeller(self.library, PinholeCamera(width, height, hfov), self.filters,
+                                           self.cfg.zebra_detail_distance_m)
+        return self.labellers[key]
 
     def _try(self, drone: str, t: int) -> None:
         got = self.pending.get((drone, t))
@@ -156,16 +153,15 @@ class LabellerNode(Node):
         t0 = time.perf_counter()
         try:
             info: CameraInfo = got["info"]
-            counter = self._counter(int(info.width), int(info.height), float(info.k[0]))
-            labels = label_view(self.scenes[t], drone, image_array(got["instances"]), image_array(got["depth"]),
-                                counter.camera, self.library, counter, self.filters, self.cfg.zebra_detail_distance_m)
+            labeller = self._labeller(int(info.width), int(info.height), float(info.k[0]))
+            labels = labeller.label(self.scenes[t], drone, image_array(got["instances"]), image_array(got["depth"]))
         except (ZebraSimError, KeyError, ValueError) as exc:
             self.stats["bad_messages"] += 1
             self.get_logger().error(f"{drone} stamp {t}: frame skipped ({exc})")
             return
         header = got["instances"].header
         labels_pub, markers_pub, boxes_pub = self.pubs[drone]
-        labels_pub.publish(String(data=json.dumps(labels, separators=(",", ":"))))
+        labels_pub.publish(String(data=labels.to_json()))
         markers_pub.publish(box_markers(header, labels))
         boxes_pub.publish(boxes3d(header, labels))
         self.stats["labelled"] += 1
@@ -176,8 +172,8 @@ class LabellerNode(Node):
 
     def close(self) -> None:
         """Release GL resources."""
-        for c in self.counters.values():
-            c.release()
+        for labeller in self.labellers.values():
+            labeller.release()
         print(f"[labeller] stopping: {self.stats}", flush=True)  # plain: the ROS context may be shut down already
 
 

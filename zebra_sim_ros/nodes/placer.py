@@ -21,6 +21,7 @@ from rclpy.node import Node
 from std_msgs.msg import ColorRGBA, Header, String
 from visualization_msgs.msg import Marker, MarkerArray
 
+from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.nodes.ros_adapter import (
     ACK_TOPIC,
     declare_and_read,
@@ -34,7 +35,6 @@ from zebra_sim_ros.nodes.ros_adapter import (
 )
 from zebra_sim_ros.placement.config import PLACER_PARAMS, PlacerConfig
 from zebra_sim_ros.placement.placer import Placer
-from zebra_sim_ros.placement.scene import Scene
 from zebra_sim_ros.world.world import load_world
 from zebra_sim_ros.zebra.asset import load_library
 
@@ -111,30 +111,26 @@ class PlacerNode(Node):
         self.published += 1
 
     def _publish(self, scene: Scene) -> None:
-        header = Header(stamp=stamp(scene.stamp_ns), frame_id="map")
+        header = Header(stamp=stamp(scene.stamp.ns), frame_id="map")
         self.scene_pub.publish(String(data=scene.to_json()))
         self.marker_pub.publish(self._markers(scene, header))
         for pub, cam in zip(self.pose_pubs, scene.cameras, strict=True):
-            x, y, z, w = cam.quaternion_xyzw()
+            x, y, z, w = cam.orientation_xyzw
             pose = Pose(position=Point(x=cam.position[0], y=cam.position[1], z=cam.position[2]),
                         orientation=Quaternion(x=x, y=y, z=z, w=w))
             pub.publish(PoseStamped(header=header, pose=pose))
         self.sent_at = time.monotonic()
-        self.get_logger().debug(f"step {scene.step}: {scene.herd.count}/{scene.herd.requested} zebras placed")
+        self.get_logger().debug(f"step {scene.step}: {scene.placed}/{scene.requested} zebras placed")
 
     def _markers(self, scene: Scene, header: Header) -> MarkerArray:
-        d = scene.to_dict()
         markers = [Marker(header=header, ns="zebras", action=Marker.DELETEALL)]
-        for z in d["zebras"]:
-            box = z["box"]
-            q = box["orientation_xyzw"]
-            r, g, b, a = _MORPH_RGBA.get(z["morph"], (1.0, 1.0, 1.0, 0.5))
+        for z in scene.zebras:
+            (cx, cy, cz), (sx, sy, sz), (qx, qy, qz, qw) = z.box.center, z.box.size, z.box.orientation_xyzw
+            r, g, b, a = _MORPH_RGBA.get(z.morph, (1.0, 1.0, 1.0, 0.5))
             markers.append(Marker(
-                header=header, ns="zebras", id=int(z["id"]), type=Marker.CUBE, action=Marker.ADD,
-                pose=Pose(position=Point(x=box["center"][0], y=box["center"][1], z=box["center"][2]),
-                          orientation=Quaternion(x=q[0], y=q[1], z=q[2], w=q[3])),
-                scale=Vector3(x=box["size"][0], y=box["size"][1], z=box["size"][2]),
-                color=ColorRGBA(r=r, g=g, b=b, a=a)))
+                header=header, ns="zebras", id=z.id, type=Marker.CUBE, action=Marker.ADD,
+                pose=Pose(position=Point(x=cx, y=cy, z=cz), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw)),
+                scale=Vector3(x=sx, y=sy, z=sz), color=ColorRGBA(r=r, g=g, b=b, a=a)))
         return MarkerArray(markers=markers)
 
     # -- lockstep ---------------------------------------------------------------------------------
@@ -159,7 +155,7 @@ class PlacerNode(Node):
             self._publish(self.pending)
 
     def _on_ack(self, msg: Header) -> None:
-        if self.pending is None or stamp_ns(msg.stamp) != self.pending.stamp_ns:
+        if self.pending is None or stamp_ns(msg.stamp) != self.pending.stamp.ns:
             return  # a late or duplicate acknowledgement of an earlier step
         if msg.frame_id in self.cfg.lockstep_ack_from:
             self.acked.add(msg.frame_id)

@@ -11,11 +11,12 @@ import numpy as np
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import PinholeCamera
+from zebra_sim_ros.messages import Scene, WorldRef
 from zebra_sim_ros.placement.cameras import CameraRanges, sample_cameras
 from zebra_sim_ros.placement.config import PlacerConfig
 from zebra_sim_ros.placement.ground import sample_ground_look
 from zebra_sim_ros.placement.herd import Herd, HerdPlacer, PlacementError, make_pool
-from zebra_sim_ros.placement.scene import Scene
+from zebra_sim_ros.placement.scene import build_scene, scene_zebras
 from zebra_sim_ros.placement.sun import lighting_for, sample_time_and_day
 from zebra_sim_ros.world.world import World
 from zebra_sim_ros.zebra.asset import ZebraLibrary
@@ -48,8 +49,7 @@ class Placer:
             min_clearance=cfg.min_camera_clearance)
         self.camera_names = [f"drone_{i}" for i in range(cfg.num_cameras)]
         self._cache: tuple[int, Herd] | None = None
-        self._world_info = {"name": world.name, "source": world.source, "seed": world.seed,
-                            "terrain_prim": cfg.terrain_prim}
+        self._world_info = WorldRef(world.name, world.source, world.seed, cfg.terrain_prim)
 
     def herd_for(self, placement: int) -> Herd:
         """The herd of ``placement`` (kept while its camera re-rolls are generated).
@@ -90,9 +90,6 @@ class Placer:
         box_center = np.einsum("nij,nj->ni", herd.rotation, centre_local) + herd.position
         box_size = (boxes[:, 1] - boxes[:, 0]) * herd.scale[:, None]
         stamp_ns = int(round(step * 1e9 / c.rate_hz))
-        return Scene(
-            step=step, placement=placement, reroll=reroll, seed=c.seed, stamp_ns=stamp_ns, world=self._world_info,
-            asset_digest=str(lib.manifest["digest"]), morph_names=lib.morphs, clip_names=lib.clip_names,
-            coat_seeds=self.pool.coat_seed[herd.ids], herd=herd, box_center=box_center, box_size=box_size,
-            lighting=lighting_for(tod, doy, c.latitude_deg), cameras=tuple(cams), ground=ground,
-        )
+        zebras = scene_zebras(herd, lib.morphs, lib.clip_names, self.pool.coat_seed[herd.ids], box_center, box_size)
+        return build_scene(step, placement, reroll, c.seed, stamp_ns, self._world_info, str(lib.manifest["digest"]),
+                           zebras, herd, lighting_for(tod, doy, c.latitude_deg), cams, ground)

@@ -1,4 +1,5 @@
-"""The scene of one step and its JSON form (``/zebra_sim/scene``, std_msgs/String).
+"""The scene of one step: the placer's arrays as a typed :class:`~zebra_sim_ros.messages.Scene`, whose JSON form
+(``/zebra_sim/scene``, std_msgs/String) is:
 
 Schema ``zebra_sim_ros/scene`` version 1 (all lengths metres, angles degrees, frame ``map`` = ENU)::
 
@@ -29,90 +30,58 @@ Schema ``zebra_sim_ros/scene`` version 1 (all lengths metres, angles degrees, fr
 
 from __future__ import annotations
 
-import json
-from dataclasses import dataclass
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
-from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.rotations import matrix_to_quat
+from zebra_sim_ros.messages import (
+    GroundLook,
+    Lighting,
+    OrientedBox,
+    Scene,
+    SceneCamera,
+    SceneZebra,
+    Stamp,
+    WorldRef,
+)
 from zebra_sim_ros.placement.cameras import CameraPose
-from zebra_sim_ros.placement.ground import GroundLook
 from zebra_sim_ros.placement.herd import Herd
-from zebra_sim_ros.placement.sun import Lighting
-
-SCHEMA = "zebra_sim_ros/scene"
-VERSION = 1
 
 
-class SceneFormatError(ZebraSimError):
-    """A scene message is not valid JSON of a schema version we read."""
+def scene_camera(c: CameraPose) -> SceneCamera:
+    """A drawn camera pose as the scene lists it."""
+    q = c.quaternion_xyzw()
+    return SceneCamera(c.name, c.strategy, (float(c.position[0]), float(c.position[1]), float(c.position[2])),
+                       (float(q[0]), float(q[1]), float(q[2]), float(q[3])), c.yaw_deg, c.pitch_deg, c.roll_deg,
+                       f"{c.name}_camera_optical")
 
 
-@dataclass(frozen=True)
-class Scene:
-    """Everything drawn for one step."""
-
-    step: int
-    placement: int
-    reroll: int
-    seed: int
-    stamp_ns: int
-    world: dict[str, Any]
-    asset_digest: str
-    morph_names: tuple[str, ...]
-    clip_names: tuple[str, ...]
-    coat_seeds: np.ndarray  # (N,) of the placed zebras
-    herd: Herd
-    box_center: np.ndarray  # (N, 3)
-    box_size: np.ndarray  # (N, 3)
-    lighting: Lighting
-    cameras: tuple[CameraPose, ...]
-    ground: GroundLook = GroundLook()  # the terrain's colour as authored, or this step's randomised look
-
-    def to_dict(self) -> dict[str, Any]:
-        """The scene as the versioned JSON structure of the module docstring."""
-        h = self.herd
-        quats = matrix_to_quat(h.rotation) if h.count else np.zeros((0, 4))
-        zebras = []
-        for i in range(h.count):
-            q = [float(quats[i, 1]), float(quats[i, 2]), float(quats[i, 3]), float(quats[i, 0])]
-            zebras.append({
-                "id": int(h.ids[i]), "morph": self.morph_names[int(h.morph[i])], "coat_seed": int(self.coat_seeds[i]),
-                "clip": self.clip_names[int(h.clip[i])], "frame": int(h.frame[i]), "scale": float(h.scale[i]),
-                "yaw_deg": float(np.degrees(h.yaw[i])), "position": [float(v) for v in h.position[i]],
-                "orientation_xyzw": q,
-                "box": {"center": [float(v) for v in self.box_center[i]], "size": [float(v) for v in self.box_size[i]],
-                        "orientation_xyzw": q},
-            })
-        return {
-            "schema": SCHEMA, "version": VERSION,
-            "stamp": {"sec": self.stamp_ns // 1_000_000_000, "nanosec": self.stamp_ns % 1_000_000_000},
-            "step": self.step, "placement": self.placement, "reroll": self.reroll, "seed": self.seed,
-            "asset_digest": self.asset_digest, "world": self.world, "lighting": self.lighting.to_dict(),
-            "rectangle": {"center": list(h.rect_center), "size": list(h.rect_size)},
-            "requested": h.requested, "placed": h.count, "zebras": zebras,
-            "cameras": [c.to_dict() for c in self.cameras],
-            **({} if self.ground.is_identity else {"ground": self.ground.to_dict()}),
-        }
-
-    def to_json(self) -> str:
-        """Compact JSON text of :meth:`to_dict`."""
-        return json.dumps(self.to_dict(), separators=(",", ":"))
+def scene_zebras(herd: Herd, morph_names: Sequence[str], clip_names: Sequence[str], coat_seeds: np.ndarray,
+                 box_center: np.ndarray, box_size: np.ndarray) -> tuple[SceneZebra, ...]:
+    """The placed zebras of ``herd`` (asset indices named by ``morph_names`` and ``clip_names``) with their coat
+    seeds and oriented boxes (``box_center``, ``box_size``: (N, 3) in map, m)."""
+    quats = matrix_to_quat(herd.rotation) if herd.count else np.zeros((0, 4))
+    out = []
+    for i in range(herd.count):
+        q = (float(quats[i, 1]), float(quats[i, 2]), float(quats[i, 3]), float(quats[i, 0]))
+        box = OrientedBox(_vec3(box_center[i]), _vec3(box_size[i]), q)
+        out.append(SceneZebra(int(herd.ids[i]), morph_names[int(herd.morph[i])], int(coat_seeds[i]),
+                              clip_names[int(herd.clip[i])], int(herd.frame[i]), float(herd.scale[i]),
+                              float(np.degrees(herd.yaw[i])), _vec3(herd.position[i]), q, box))
+    return tuple(out)
 
 
-def parse_scene(text: str) -> dict[str, Any]:
-    """Parse and check a scene message; raises :class:`SceneFormatError` saying what is wrong."""
-    try:
-        d = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise SceneFormatError(f"scene is not JSON: {exc}") from exc
-    if not isinstance(d, dict) or d.get("schema") != SCHEMA:
-        raise SceneFormatError(f"not a {SCHEMA} message (schema={d.get('schema') if isinstance(d, dict) else None!r})")
-    if d.get("version") != VERSION:
-        raise SceneFormatError(f"scene schema version {d.get('version')!r}; this build reads {VERSION}")
-    for key in ("stamp", "step", "seed", "world", "lighting", "zebras", "cameras"):
-        if key not in d:
-            raise SceneFormatError(f"scene lacks '{key}'")
-    return d
+def _vec3(v: Any) -> tuple[float, float, float]:
+    return float(v[0]), float(v[1]), float(v[2])
+
+
+def build_scene(step: int, placement: int, reroll: int, seed: int, stamp_ns: int, world: WorldRef,
+                asset_digest: str, zebras: tuple[SceneZebra, ...], herd: Herd, lighting: Lighting,
+                cameras: Sequence[CameraPose], ground: GroundLook) -> Scene:
+    """The typed scene of one step (the placement rectangle and the count asked for come from ``herd``)."""
+    return Scene(Stamp.from_ns(stamp_ns), step, placement, reroll, seed, asset_digest, world, lighting,
+                 (float(herd.rect_center[0]), float(herd.rect_center[1])),
+                 (float(herd.rect_size[0]), float(herd.rect_size[1])), int(herd.requested), zebras,
+                 tuple(scene_camera(c) for c in cameras), ground)

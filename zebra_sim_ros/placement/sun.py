@@ -7,33 +7,12 @@ time; at night the light is a dim, bluish moon opposite the sun's azimuth.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.messages import Lighting
 
-
-@dataclass(frozen=True)
-class Lighting:
-    """The lighting of one frame. Intensities are relative (1.0 = clear noon sun)."""
-
-    time_of_day_h: float
-    day_of_year: int
-    latitude_deg: float
-    sun_direction: tuple[float, float, float]  # towards the sun, ENU
-    sun_elevation_deg: float
-    sun_azimuth_deg: float  # clockwise from north
-    light_direction: tuple[float, float, float]  # towards the key light (sun by day, moon by night)
-    light_rgb: tuple[float, float, float]
-    light_intensity: float
-    ambient_rgb: tuple[float, float, float]
-    ambient_intensity: float
-    is_night: bool
-
-    def to_dict(self) -> dict[str, object]:
-        """JSON-ready dictionary (see the scene schema)."""
-        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+__all__ = ["DAY_WINDOWS", "Lighting", "daylight_h", "lighting_for", "sample_time_and_day"]
 
 
 DAY_WINDOWS = ("sun", "clock")

@@ -1,112 +1,29 @@
 """Scores from a bag: recorded detections against recorded labels, per drone, COCO-style mAP.
 
-Labels (``/<drone>/labels``) and detections (``/<drone>/detections``) are std_msgs/String JSON; they are
-matched by the stamp inside each message (the image's), so a replayed run's detections are scored against
-the labels of the same frames. Only kept labels count as ground truth, as in the datasets; zebras the labeller
-saw but dropped are don't-care regions (a detection on one is neither right nor wrong), as in ``zebra-sim val``.
+Labels (``/<drone>/labels``) and detections (``/<drone>/detections``) are std_msgs/String JSON of the typed
+messages :class:`~zebra_sim_ros.messages.Labels` and :class:`~zebra_sim_ros.messages.Detections`; they are
+matched by the stamp inside each message (the image's), so a replayed run's detections are scored against the
+labels of the same frames. This module reads the bag (:mod:`~zebra_sim_ros.recording.cdr`) and hands typed
+frames to :mod:`zebra_sim_ros.detection.scoring`, which knows nothing of bags; ``ImageDetector`` can run a
+detector over the recorded images in the same pass.
 """
 
 from __future__ import annotations
 
-import json
 import re
-import struct
 from collections import defaultdict
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from zebra_sim_ros.dataset.coco import is_dont_care
-from zebra_sim_ros.detection.metrics import evaluate_detections
+from zebra_sim_ros.detection.scoring import DroneFrames, score_drones
+from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.messages import Detections, Labels
+from zebra_sim_ros.recording.cdr import MALFORMED, cdr_string, rgb_image
 from zebra_sim_ros.recording.reader import BagMessage, BagReader
-
-
-def cdr_string(data: bytes) -> str:
-    """The ``data`` field of a CDR-serialized std_msgs/String (little- or big-endian encapsulation)."""
-    little = data[1] == 1
-    (n,) = struct.unpack("<I" if little else ">I", data[4:8])
-    return data[8:8 + n - 1].decode("utf-8")  # the length counts the terminating NUL
-
-
-class _Cdr:
-    """A minimal little/big-endian CDR reader (offsets aligned from the start of the payload)."""
-
-    def __init__(self, data: bytes) -> None:
-        self.data, self.pos = data, 4
-        self.end = "<" if data[1] == 1 else ">"
-
-    def _align(self, n: int) -> None:
-        self.pos += (-(self.pos - 4)) % n
-
-    def u32(self) -> int:
-        self._align(4)
-        (v,) = struct.unpack_from(self.end + "I", self.data, self.pos)
-        self.pos += 4
-        return int(v)
-
-    def u8(self) -> int:
-        v = self.data[self.pos]
-        self.pos += 1
-        return v
-
-    def string(self) -> str:
-        n = self.u32()
-        v = self.data[self.pos:self.pos + n - 1].decode("utf-8")
-        self.pos += n
-        return v
-
-    def blob(self) -> bytes:
-        n = self.u32()
-        v = self.data[self.pos:self.pos + n]
-        self.pos += n
-        return v
-
-
-def _stamp_of(r: _Cdr) -> int:
-    sec, nanosec = r.u32(), r.u32()
-    if sec >= 2**31:
-        sec -= 2**32
-    return sec * 1_000_000_000 + nanosec
-
-
-def header_stamp_ns(data: bytes) -> int:
-    """The stamp of a CDR-serialized message that starts with a std_msgs/Header (Image, CameraInfo, ...), in ns,
-    without touching the rest of it."""
-    return _stamp_of(_Cdr(data))
-
-
-def cdr_image(data: bytes) -> tuple[int, int, int, str, int, bytes]:
-    """(stamp ns, height, width, encoding, step, pixel bytes) of a CDR-serialized sensor_msgs/Image."""
-    r = _Cdr(data)
-    t = _stamp_of(r)
-    r.string()  # frame_id
-    height, width = r.u32(), r.u32()
-    encoding = r.string()
-    r.u8()  # is_bigendian
-    step = r.u32()
-    return t, height, width, encoding, step, r.blob()
-
-
-def rgb_image(data: bytes) -> tuple[int, np.ndarray] | None:
-    """(stamp ns, H x W x 3 RGB array) of a CDR-serialized rgb8 or bgr8 sensor_msgs/Image; None for other
-    encodings."""
-    t, height, width, encoding, step, pixels = cdr_image(data)
-    if encoding not in ("rgb8", "bgr8"):
-        return None
-    a = np.frombuffer(pixels, np.uint8).reshape(height, step)[:, : width * 3].reshape(height, width, 3)
-    return t, np.ascontiguousarray(a[..., ::-1] if encoding == "bgr8" else a)
-
-
-def json_stamp_ns(d: dict[str, Any]) -> int:
-    """The ``{"stamp": {"sec", "nanosec"}}`` of a scene, labels or detections JSON, in ns."""
-    return int(d["stamp"]["sec"]) * 1_000_000_000 + int(d["stamp"]["nanosec"])
-
-
-# What reading a malformed message raises: broken CDR (struct.error, IndexError), bad UTF-8 or JSON (ValueError),
-# missing or mistyped fields (KeyError, TypeError). Such a message is noted and skipped; the rest still counts.
-MALFORMED = (ValueError, KeyError, TypeError, IndexError, struct.error)
 
 
 def skip_note(m: BagMessage, why: str | BaseException) -> str:
@@ -115,23 +32,27 @@ def skip_note(m: BagMessage, why: str | BaseException) -> str:
     return f"{m.topic} at log time {m.log_time} ns: {reason}"
 
 
-def _no_frames() -> dict[str, Any]:
-    """One drone's entry in :func:`collect`'s ``drones`` before any of its messages."""
-    return {"labels": {}, "ignore": {}, "detections": {}, "log_times": {"labels": {}, "detections": {}}}
+@dataclass
+class Collected:
+    """What :func:`collect` read from a bag: the typed frames per drone, the first log time of each stamp's labels
+    and detections per drone (ns), and what could not be used."""
+
+    drones: dict[str, DroneFrames] = field(default_factory=lambda: defaultdict(DroneFrames))
+    log_times: dict[str, dict[str, dict[int, int]]] = field(
+        default_factory=lambda: defaultdict(lambda: {"labels": {}, "detections": {}}))
+    damaged: list[str] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
 
 
 def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "detections",
-            each: Callable[[BagMessage], None] | None = None) -> dict[str, Any]:
-    """Per drone: ``{"labels": {stamp: gt boxes (n, 4)}, "ignore": {stamp: don't-care boxes (k, 4)},
-    "detections": {stamp: (m, 5)}, "log_times": {"labels": {stamp: first log time}, "detections": {...}}}`` from a
-    bag; ``each`` sees every message of the same pass (so
+            each: Callable[[BagMessage], None] | None = None) -> Collected:
+    """The labels and detections of a bag per drone and stamp; ``each`` sees every message of the same pass (so
     callers needing more from the bag do not read it twice).
 
-    A labels or detections message that does not parse is skipped and noted in ``"skipped"``; damage to the
-    file itself is in ``"damaged"``."""
+    A labels or detections message that does not parse is skipped and noted in ``skipped``; damage to the file
+    itself is in ``damaged``."""
     reader = BagReader.open(paths)
-    out: dict[str, dict[str, Any]] = defaultdict(_no_frames)
-    skipped: list[str] = []
+    out = Collected()
     pat = re.compile(rf"^/(?P<drone>[^/]+)/(?P<kind>labels|{re.escape(detections_suffix)})$")
     for m in reader.messages():
         if each is not None:
@@ -141,21 +62,21 @@ def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "dete
             continue
         drone = match.group("drone")
         try:
-            d = json.loads(cdr_string(m.data))
-            t = json_stamp_ns(d)
+            text = cdr_string(m.data)
             if match.group("kind") == "labels":
-                kind, rows = "labels", np.array([z["box_visible"] for z in d["zebras"] if z["kept"]], np.float64)
-                ignore = np.array([z["box_visible"] for z in d["zebras"] if is_dont_care(z)], np.float64)
-                out[drone][kind][t] = rows.reshape(-1, 4)
-                out[drone]["ignore"][t] = ignore.reshape(-1, 4)
+                kind, labels = "labels", Labels.from_json(text)
+                t = labels.stamp.ns
+                out.drones[drone].labels[t] = labels
             else:
-                kind, rows = "detections", np.array([[*x["box_xyxy"], x["score"]] for x in d["detections"]],
-                                                    np.float64)
-                out[drone][kind][t] = rows.reshape(-1, 5)
-            out[drone]["log_times"][kind].setdefault(t, m.log_time)
-        except MALFORMED as exc:
-            skipped.append(skip_note(m, exc))
-    return {"drones": dict(out), "damaged": reader.stopped, "skipped": skipped}
+                kind, dets = "detections", Detections.from_json(text)
+                t = dets.stamp.ns
+                out.drones[drone].detections[t] = np.array(
+                    [[*x.box_xyxy, x.score] for x in dets.detections], np.float64).reshape(-1, 5)
+            out.log_times[drone][kind].setdefault(t, m.log_time)
+        except (*MALFORMED, ZebraSimError) as exc:
+            out.skipped.append(skip_note(m, exc))
+    out.damaged = reader.stopped
+    return out
 
 
 class ImageDetector:
@@ -202,34 +123,19 @@ class ImageDetector:
             self.detections[drone][t] = det[:, :5].astype(np.float64)
         self._pending.clear()
 
-    def apply(self, collected: dict[str, Any]) -> dict[str, Any]:
+    def apply(self, collected: Collected) -> Collected:
         """``collected`` with its detections replaced by this detector's (drones with images but no labels
-        included) and the images it could not use added to ``"skipped"``."""
+        included) and the images it could not use added to ``skipped``."""
         self._flush()
-        for d in collected["drones"].values():
-            d["detections"] = {}
+        for frames in collected.drones.values():
+            frames.detections = {}
         for drone, dets in self.detections.items():
-            collected["drones"].setdefault(drone, _no_frames())["detections"] = dict(dets)
-        collected["skipped"] = collected.get("skipped", []) + self.skipped
+            collected.drones[drone].detections = dict(dets)
+        collected.skipped += self.skipped
         return collected
 
 
-def score(collected: dict[str, Any]) -> dict[str, Any]:
-    """mAP50 and mAP50-95 per drone and over all drones, on the frames that have both labels and detections."""
-    result: dict[str, Any] = {}
-    all_p, all_g, all_i = [], [], []
-    for drone, d in sorted(collected["drones"].items()):
-        stamps = sorted(set(d["labels"]) & set(d["detections"]))
-        preds = [d["detections"][s] for s in stamps]
-        gts = [d["labels"][s] for s in stamps]
-        ignores = [d["ignore"][s] for s in stamps]  # collect writes a stamp's labels and don't-care boxes together
-        all_p += preds
-        all_g += gts
-        all_i += ignores
-        m = evaluate_detections(preds, gts, ignores=ignores)
-        result[drone] = {"frames": len(stamps), "unmatched_labels": len(set(d["labels"]) - set(stamps)),
-                         "unmatched_detections": len(set(d["detections"]) - set(stamps)), **m.to_dict()}
-    result["all"] = evaluate_detections(all_p, all_g, ignores=all_i).to_dict() if all_g else None
-    result["damaged"] = collected["damaged"]
-    result["skipped"] = collected.get("skipped", [])
-    return result
+def score(collected: Collected) -> dict[str, Any]:
+    """mAP50 and mAP50-95 per drone and over all drones (:func:`~zebra_sim_ros.detection.scoring.score_drones`),
+    with what was damaged or skipped."""
+    return {**score_drones(collected.drones), "damaged": collected.damaged, "skipped": collected.skipped}

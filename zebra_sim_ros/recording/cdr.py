@@ -1,0 +1,92 @@
+"""Reading the fields we need from CDR-serialized ROS 2 messages (std_msgs/String, sensor_msgs/Image and any
+message that starts with a std_msgs/Header) without rclpy: a bag is read on machines without ROS, and an image's
+stamp is read without decoding its pixels.
+"""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+
+from zebra_sim_ros.messages import stamp_ns
+
+# What reading a malformed message raises: broken CDR (struct.error, IndexError), bad UTF-8 or JSON (ValueError),
+# missing or mistyped fields (KeyError, TypeError). Such a message is noted and skipped; the rest still counts.
+MALFORMED = (ValueError, KeyError, TypeError, IndexError, struct.error)
+
+
+def cdr_string(data: bytes) -> str:
+    """The ``data`` field of a CDR-serialized std_msgs/String (little- or big-endian encapsulation)."""
+    little = data[1] == 1
+    (n,) = struct.unpack("<I" if little else ">I", data[4:8])
+    return data[8:8 + n - 1].decode("utf-8")  # the length counts the terminating NUL
+
+
+class _Cdr:
+    """A minimal little/big-endian CDR reader (offsets aligned from the start of the payload)."""
+
+    def __init__(self, data: bytes) -> None:
+        self.data, self.pos = data, 4
+        self.end = "<" if data[1] == 1 else ">"
+
+    def _align(self, n: int) -> None:
+        self.pos += (-(self.pos - 4)) % n
+
+    def u32(self) -> int:
+        self._align(4)
+        (v,) = struct.unpack_from(self.end + "I", self.data, self.pos)
+        self.pos += 4
+        return int(v)
+
+    def u8(self) -> int:
+        v = self.data[self.pos]
+        self.pos += 1
+        return v
+
+    def string(self) -> str:
+        n = self.u32()
+        v = self.data[self.pos:self.pos + n - 1].decode("utf-8")
+        self.pos += n
+        return v
+
+    def blob(self) -> bytes:
+        n = self.u32()
+        v = self.data[self.pos:self.pos + n]
+        self.pos += n
+        return v
+
+
+def _stamp_of(r: _Cdr) -> int:
+    sec, nanosec = r.u32(), r.u32()
+    if sec >= 2**31:
+        sec -= 2**32
+    return stamp_ns(sec, nanosec)
+
+
+def header_stamp_ns(data: bytes) -> int:
+    """The stamp of a CDR-serialized message that starts with a std_msgs/Header (Image, CameraInfo, ...), in ns,
+    without touching the rest of it."""
+    return _stamp_of(_Cdr(data))
+
+
+def cdr_image(data: bytes) -> tuple[int, int, int, str, int, bytes]:
+    """(stamp ns, height, width, encoding, step, pixel bytes) of a CDR-serialized sensor_msgs/Image."""
+    r = _Cdr(data)
+    t = _stamp_of(r)
+    r.string()  # frame_id
+    height, width = r.u32(), r.u32()
+    encoding = r.string()
+    r.u8()  # is_bigendian
+    step = r.u32()
+    return t, height, width, encoding, step, r.blob()
+
+
+def rgb_image(data: bytes) -> tuple[int, np.ndarray] | None:
+    """(stamp ns, H x W x 3 RGB array) of a CDR-serialized rgb8 or bgr8 sensor_msgs/Image; None for other
+    encodings."""
+    t, height, width, encoding, step, pixels = cdr_image(data)
+    if encoding not in ("rgb8", "bgr8"):
+        return None
+    a = np.frombuffer(pixels, np.uint8).reshape(height, step)[:, : width * 3].reshape(height, width, 3)
+    return t, np.ascontiguousarray(a[..., ::-1] if encoding == "bgr8" else a)
