@@ -311,8 +311,8 @@ def test_validation_serves_each_image_as_detect_does(tmp_path: Path, capsys: pyt
         cv2.imwrite(str(tmp_path / "images" / f"{name}.png"), f[..., ::-1])
     loader = make_loader(tmp_path / "images", lambda side: inference_size(model.cfg, side), batch=2)
     imgs, _, metas = next(iter(loader))
-    assert [m["imgsz"] for m in metas] == [256, 96]  # 300 px x 128/150 -> 256; 100 px -> 85.3, up to 96
-    assert [m["input"] for m in metas] == [(160, 256), (96, 96)]  # 154x256 and 96x67, sides up to multiples of 32
+    assert [m.imgsz for m in metas] == [256, 96]  # 300 px x 128/150 -> 256; 100 px -> 85.3, up to 96
+    assert [m.input for m in metas] == [(160, 256), (96, 96)]  # 154x256 and 96x67, sides up to multiples of 32
     assert tuple(imgs.shape) == (2, 3, 160, 256)  # one batch: the smaller image padded at the bottom and right
     got = predictions(model, loader, conf=0.0)
     for p, name in zip(got, sorted(frames), strict=True):
@@ -460,7 +460,7 @@ def test_training_targets_carry_the_dont_care_boxes(tmp_path: Path) -> None:
                                          [DONT_CARE, 111.36, 88.32, 119.04, 90.88]], atol=1e-4)
     assert len(YoloDataset(tmp_path / "images", 128, still)[0][1]) == 1
     _, labels, meta = YoloDataset(tmp_path / "images", 128, dont_care=True)[0]
-    assert len(labels) == 1 and len(meta["ignore"]) == 2
+    assert len(labels) == 1 and len(meta.ignore) == 2
     base = ["train", "--data", "d.yaml", "--out", "o"]
     assert build_parser().parse_args(base).dont_care
     assert not build_parser().parse_args([*base, "--no-dont-care"]).dont_care

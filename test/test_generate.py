@@ -86,6 +86,7 @@ def test_coco_loads_and_equals_yolo(dataset: Path) -> None:
 
 def test_validation_reads_the_dont_care_boxes(dataset: Path) -> None:
     from zebra_sim_ros.detection.data import YoloDataset, resolve_split
+    from zebra_sim_ros.messages import FrameAnnotation
 
     seen = 0
     for split in ("train", "val"):
@@ -93,9 +94,9 @@ def test_validation_reads_the_dont_care_boxes(dataset: Path) -> None:
             continue
         ds = YoloDataset(resolve_split(dataset, split), 320)
         for i, f in enumerate(ds.files):
-            meta = json.loads((dataset / "annotations" / f"{f.stem}.json").read_text())
-            want = [z["box_visible"] for z in meta["labels"]["zebras"] if not z["kept"] and z["visible_pixels"] > 0]
-            got = ds[i][2]["ignore"][:, 1:]  # image pixels
+            meta = FrameAnnotation.from_json((dataset / "annotations" / f"{f.stem}.json").read_text())
+            want = [z.box_visible for z in meta.labels.dont_care]
+            got = ds[i][2].ignore[:, 1:]  # image pixels
             np.testing.assert_allclose(got, np.array(want).reshape(-1, 4), atol=0.01)
             seen += len(want)
     assert seen > 0

@@ -16,7 +16,7 @@ to a multiple of 32), with the scale and padding kept to map boxes back to the o
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -157,10 +157,26 @@ def letterbox(img: NDArray[np.uint8], size: int,
     return out, r, (left, top)
 
 
+@dataclass(frozen=True)
+class ImageMeta:
+    """What validation keeps of an image beside its letterboxed tensor: where it came from, its size, the
+    letterbox (``x_new = x * scale + left``), the inference size and input shape, and its labels and don't-care
+    boxes ``(n, 5)`` [class, x0, y0, x1, y1] in its own pixels. Training keeps only ``file``."""
+
+    file: str
+    shape: tuple[int, int] = (0, 0)  # (height, width) of the image, px
+    scale: float = 1.0
+    pad: tuple[int, int] = (0, 0)  # (left, top), px
+    imgsz: int = 0  # the long side it was resized to, px
+    input: tuple[int, int] = (0, 0)  # (height, width) of its letterboxed input, px
+    labels: NDArray[np.float32] = field(default_factory=lambda: np.zeros((0, 5), np.float32))
+    ignore: NDArray[np.float32] = field(default_factory=lambda: np.zeros((0, 5), np.float32))
+
+
 class YoloDataset(Dataset[Any]):
     """Images and YOLO labels; ``augment`` None for validation. ``dont_care``: with ``augment``, the don't-care
     boxes of ``ignore/`` join each image's targets as class :data:`DONT_CARE` (validation keeps them apart, in
-    ``meta["ignore"]``). ``size_for``: in validation, each image's inference size from its long side (the
+    :attr:`ImageMeta.ignore`). ``size_for``: in validation, each image's inference size from its long side (the
     detector's rule, :func:`~zebra_sim_ros.detection.predict.inference_size`) instead of ``imgsz``."""
 
     def __init__(self, folder: str | Path, imgsz: int = 640, augment: Augment | None = None, seed: int = 0,
@@ -207,7 +223,7 @@ class YoloDataset(Dataset[Any]):
     def _rng(self, i: int) -> np.random.Generator:
         return np.random.default_rng([self.seed, self.epoch, i])
 
-    def __getitem__(self, i: int) -> tuple[torch.Tensor, torch.Tensor, dict[str, Any]]:
+    def __getitem__(self, i: int) -> tuple[torch.Tensor, torch.Tensor, ImageMeta]:
         a = self.augment
         if a is None:
             img, lab0 = self.load(i)
@@ -217,9 +233,8 @@ class YoloDataset(Dataset[Any]):
             lab = lab0.copy()
             lab[:, [1, 3]] = lab[:, [1, 3]] * r + left
             lab[:, [2, 4]] = lab[:, [2, 4]] * r + top
-            meta = {"file": str(self.files[i]), "shape": (h0, w0), "scale": r, "pad": (left, top), "imgsz": size,
-                    "input": img.shape[:2],
-                    "labels": lab0, "ignore": read_labels(label_path(self.files[i], "ignore"), w0, h0)}
+            meta = ImageMeta(str(self.files[i]), (h0, w0), r, (left, top), size, (img.shape[0], img.shape[1]), lab0,
+                             read_labels(label_path(self.files[i], "ignore"), w0, h0))
         else:
             rng = self._rng(i)
             img, lab = self._mosaic(i, rng) if rng.uniform() < a.mosaic else self._single(i, rng)
@@ -228,7 +243,7 @@ class YoloDataset(Dataset[Any]):
                 lab[:, [1, 3]] = self.imgsz - lab[:, [3, 1]]
             if a.hsv_h or a.hsv_s or a.hsv_v:  # the uint8 HSV round trip is lossy: never apply it for nothing
                 img = _hsv(img, rng, a)
-            meta = {"file": str(self.files[i])}
+            meta = ImageMeta(str(self.files[i]))
         t = torch.from_numpy(np.ascontiguousarray(img.transpose(2, 0, 1))).float() / 255.0
         return t, torch.from_numpy(lab), meta
 
@@ -312,8 +327,8 @@ def _hsv(img: NDArray[np.uint8], rng: np.random.Generator, a: Augment) -> NDArra
     return np.asarray(cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB), dtype=np.uint8)
 
 
-def collate(batch: list[tuple[torch.Tensor, torch.Tensor, dict[str, Any]]]) -> tuple[torch.Tensor, torch.Tensor,
-                                                                                        list[dict[str, Any]]]:
+def collate(batch: list[tuple[torch.Tensor, torch.Tensor, ImageMeta]]) -> tuple[torch.Tensor, torch.Tensor,
+                                                                                  list[ImageMeta]]:
     """Stack images, padding smaller ones at the bottom and right (validation of frames of several sizes; each
     image's letterbox padding in its meta is unchanged); targets become (T, 6) [image index, class, x0, y0, x1,
     y1]."""

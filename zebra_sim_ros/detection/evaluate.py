@@ -19,7 +19,7 @@ from torch.utils.data import DataLoader
 
 from zebra_sim_ros.detection.boxes import postprocess
 from zebra_sim_ros.detection.checkpoint import load_model, select_device
-from zebra_sim_ros.detection.data import YoloDataset, collate, resolve_split
+from zebra_sim_ros.detection.data import ImageMeta, YoloDataset, collate, resolve_split
 from zebra_sim_ros.detection.metrics import DetectionMetrics, evaluate_detections
 from zebra_sim_ros.detection.model import Detector
 from zebra_sim_ros.detection.predict import describe_size, inference_size, unletterbox
@@ -51,18 +51,18 @@ def predictions(model: Detector, loader: DataLoader[Any], conf: float = 0.001, i
     out: list[ImagePredictions] = []
     for imgs, _, metas in loader:
         for det, meta in zip(_forward(model, imgs, metas, conf, iou, max_det), metas, strict=True):
-            h, w = meta["shape"]
-            left, top = meta["pad"]
-            d = unletterbox(det, meta["scale"], left, top, w, h).cpu().numpy()
-            out.append(ImagePredictions(meta["file"], d[:, :5].astype(np.float64),  # labels read once, by the loader
-                                        meta["labels"][:, 1:].astype(np.float64),
-                                        meta["ignore"][:, 1:].astype(np.float64), meta["imgsz"]))
+            h, w = meta.shape
+            left, top = meta.pad
+            d = unletterbox(det, meta.scale, left, top, w, h).cpu().numpy()
+            out.append(ImagePredictions(meta.file, d[:, :5].astype(np.float64),  # labels read once, by the loader
+                                        meta.labels[:, 1:].astype(np.float64), meta.ignore[:, 1:].astype(np.float64),
+                                        meta.imgsz))
     if was_training:
         model.train()
     return out
 
 
-def _forward(model: Detector, imgs: torch.Tensor, metas: list[dict[str, Any]], conf: float, iou: float,
+def _forward(model: Detector, imgs: torch.Tensor, metas: list[ImageMeta], conf: float, iou: float,
              max_det: int) -> list[torch.Tensor]:
     """Detections of a validation batch. Images of another input size than the batch's largest were padded at
     the bottom and right by :func:`~zebra_sim_ros.detection.data.collate`: each size runs on its own, cropped
@@ -70,7 +70,7 @@ def _forward(model: Detector, imgs: torch.Tensor, metas: list[dict[str, Any]], c
     dev = next(model.parameters()).device
     groups: dict[tuple[int, int], list[int]] = defaultdict(list)
     for k, meta in enumerate(metas):
-        groups[meta["input"]].append(k)
+        groups[meta.input].append(k)
     out: list[torch.Tensor] = [torch.zeros(0)] * len(metas)
     for (h, w), idx in groups.items():
         x = imgs[idx, :, :h, :w] if len(groups) > 1 else imgs
