@@ -279,6 +279,37 @@ def _progress(done: int, total: int, t0: float, stream: Any) -> None:
     stream.flush()
 
 
+def _run_workers(cfg: GenerateConfig, todo: list[Job], show: Callable[[int], None]) -> tuple[int, dict[str, float]]:
+    """Run ``todo`` in ``cfg.workers`` spawned processes; returns the frames written and the summed stage times."""
+    ctx = mp.get_context("spawn")  # fresh processes: GL contexts do not survive fork
+    queue = ctx.Queue()
+    chunks = [todo[k::cfg.workers] for k in range(cfg.workers)]
+    procs = [ctx.Process(target=_worker, args=(cfg, ch, queue), daemon=True) for ch in chunks if ch]
+    for p in procs:
+        p.start()
+    done, finished = 0, 0
+    times = {"place": 0.0, "render": 0.0, "label": 0.0, "write": 0.0}
+    try:
+        while finished < len(procs):
+            kind, val = queue.get(timeout=600)
+            if kind == "frames":
+                done += val
+                show(done)
+            else:
+                finished += 1
+                for k in times:
+                    times[k] += val[k]
+    finally:
+        for p in procs:
+            p.join(timeout=30)
+            if p.is_alive():
+                p.terminate()
+    bad = [p.exitcode for p in procs if p.exitcode]
+    if bad:
+        raise ParameterError("--workers", cfg.workers, f"workers that finish (exit codes {bad}); rerun to resume")
+    return done, times
+
+
 def generate(cfg: GenerateConfig, progress: Callable[[int, int, float], None] | None = None) -> dict[str, Any]:
     """Run (or continue) a generation; returns statistics. Rebuilds COCO and the YAML at the end."""
     from zebra_sim_ros.placement.config import PlacerConfig
@@ -306,32 +337,7 @@ def generate(cfg: GenerateConfig, progress: Callable[[int, int, float], None] | 
                 show(done, total, t0)
             times = pipe.times
         else:
-            ctx = mp.get_context("spawn")  # fresh processes: GL contexts do not survive fork
-            queue = ctx.Queue()
-            chunks = [todo[k::cfg.workers] for k in range(cfg.workers)]
-            procs = [ctx.Process(target=_worker, args=(cfg, ch, queue), daemon=True) for ch in chunks if ch]
-            for p in procs:
-                p.start()
-            finished = 0
-            try:
-                while finished < len(procs):
-                    kind, val = queue.get(timeout=600)
-                    if kind == "frames":
-                        done += val
-                        show(done, total, t0)
-                    else:
-                        finished += 1
-                        for k in times:
-                            times[k] += val[k]
-            finally:
-                for p in procs:
-                    p.join(timeout=30)
-                    if p.is_alive():
-                        p.terminate()
-            bad = [p.exitcode for p in procs if p.exitcode]
-            if bad:
-                raise ParameterError("--workers", cfg.workers,
-                                     f"workers that finish (exit codes {bad}); rerun to resume")
+            done, times = _run_workers(cfg, todo, lambda d: show(d, total, t0))
         if progress is None:
             sys.stderr.write("\n")
     seconds = time.perf_counter() - t0

@@ -78,6 +78,33 @@ def coverage_matrix(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[n
     return np.asarray(inter / (area_a[:, None] + 1e-12))
 
 
+def _match_image(pred: NDArray[np.float64], gt: NDArray[np.float64],
+                 ign: NDArray[np.float64]) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """COCO's greedy matching of one image's score-sorted detections at every IoU threshold: which are true
+    positives, and which lie on a don't-care box instead (neither right nor wrong); both (thresholds, n)."""
+    t = len(IOU_THRESHOLDS)
+    ious = iou_matrix(pred[:, :4], gt)
+    cover = coverage_matrix(pred[:, :4], ign)
+    max_cover = cover.max(1) if cover.shape[1] else np.zeros(len(pred))
+    tp = np.zeros((t, len(pred)), dtype=bool)
+    ig = np.zeros((t, len(pred)), dtype=bool)
+    for ti, thr in enumerate(IOU_THRESHOLDS):
+        taken = np.zeros(len(gt), dtype=bool)
+        limit = min(thr, 1 - 1e-10)
+        for d in range(len(pred)):
+            best, best_iou = -1, limit
+            for g in range(len(gt)):
+                if taken[g] or ious[d, g] < best_iou:
+                    continue
+                best, best_iou = g, ious[d, g]
+            if best >= 0:
+                taken[best] = True
+                tp[ti, d] = True
+            elif max_cover[d] >= limit:  # on a don't-care zebra: neither right nor wrong
+                ig[ti, d] = True
+    return tp, ig
+
+
 def evaluate_detections(preds: list[NDArray[np.float64]], gts: list[NDArray[np.float64]],
                         max_det: int = 100,
                         ignores: list[NDArray[np.float64]] | None = None) -> DetectionMetrics:
@@ -95,27 +122,8 @@ def evaluate_detections(preds: list[NDArray[np.float64]], gts: list[NDArray[np.f
         pred = np.asarray(pred, dtype=np.float64).reshape(-1, 5)
         gt = np.asarray(gt, dtype=np.float64).reshape(-1, 4)
         n_gt += len(gt)
-        order = np.argsort(-pred[:, 4], kind="mergesort")[:max_det]
-        pred = pred[order]
-        ious = iou_matrix(pred[:, :4], gt)
-        cover = coverage_matrix(pred[:, :4], np.asarray(ign, dtype=np.float64).reshape(-1, 4))
-        max_cover = cover.max(1) if cover.shape[1] else np.zeros(len(pred))
-        tp = np.zeros((t, len(pred)), dtype=bool)
-        ig = np.zeros((t, len(pred)), dtype=bool)
-        for ti, thr in enumerate(IOU_THRESHOLDS):
-            taken = np.zeros(len(gt), dtype=bool)
-            limit = min(thr, 1 - 1e-10)
-            for d in range(len(pred)):
-                best, best_iou = -1, limit
-                for g in range(len(gt)):
-                    if taken[g] or ious[d, g] < best_iou:
-                        continue
-                    best, best_iou = g, ious[d, g]
-                if best >= 0:
-                    taken[best] = True
-                    tp[ti, d] = True
-                elif max_cover[d] >= limit:  # on a don't-care zebra: neither right nor wrong
-                    ig[ti, d] = True
+        pred = pred[np.argsort(-pred[:, 4], kind="mergesort")[:max_det]]
+        tp, ig = _match_image(pred, gt, np.asarray(ign, dtype=np.float64).reshape(-1, 4))
         scores_all.append(pred[:, 4])
         tp_all.append(tp)
         ig_all.append(ig)

@@ -30,6 +30,26 @@ def _median_ms(values: list[float]) -> float | None:
     return round(float(np.median(values)) * 1e3, 1) if values else None
 
 
+def _stage_seconds(scenes: dict[int, int], times: dict[str, dict[str, dict[int, int]]]) -> dict[str, list[float]]:
+    """Per step, s: render (scene -> its last image), label and detect (image -> its labels, detections; per
+    drone) and end to end (scene -> the last detections, where every drone's arrived), from log times by stamp."""
+    drones = sorted(times)
+    out: dict[str, list[float]] = {"render": [], "label": [], "detect": [], "end_to_end": []}
+    for s, t0 in scenes.items():
+        imgs = [times[d]["image_raw"][s] for d in drones if s in times[d]["image_raw"]]
+        if imgs:
+            out["render"].append((max(imgs) - t0) / 1e9)
+        for d in drones:
+            ti = times[d]["image_raw"].get(s)
+            for stage, kind in (("label", "labels"), ("detect", "detections")):
+                if ti is not None and s in times[d][kind]:
+                    out[stage].append((times[d][kind][s] - ti) / 1e9)
+        dets = [times[d]["detections"][s] for d in drones if s in times[d]["detections"]]
+        if len(dets) == len(drones) and dets:
+            out["end_to_end"].append((max(dets) - t0) / 1e9)
+    return out
+
+
 def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[str, Any]:
     """Summary of the run recorded in ``bag``; writes ``preview`` (one tile per drone) when given."""
     scenes: dict[int, int] = {}  # stamp -> log time
@@ -56,20 +76,7 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[st
         times[drone].update(log_times)
     drones = sorted(times)
     frames = {d: {k: len(times[d][k]) for k in ("image_raw", "labels", "detections")} for d in drones}
-    render, label, detect, e2e = [], [], [], []
-    for s, t0 in scenes.items():
-        imgs = [times[d]["image_raw"][s] for d in drones if s in times[d]["image_raw"]]
-        if imgs:
-            render.append((max(imgs) - t0) / 1e9)
-        for d in drones:
-            ti = times[d]["image_raw"].get(s)
-            if ti is not None and s in times[d]["labels"]:
-                label.append((times[d]["labels"][s] - ti) / 1e9)
-            if ti is not None and s in times[d]["detections"]:
-                detect.append((times[d]["detections"][s] - ti) / 1e9)
-        dets = [times[d]["detections"][s] for d in drones if s in times[d]["detections"]]
-        if len(dets) == len(drones) and dets:
-            e2e.append((max(dets) - t0) / 1e9)
+    stages = _stage_seconds(scenes, times)
     ends = [t for d in drones for t in times[d]["detections"].values()]
     span = (max(ends) - min(scenes.values())) / 1e9 if ends and scenes else 0.0
     images = sum(f["detections"] for f in frames.values())
@@ -80,8 +87,7 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[st
         "skipped": unusable + scores["skipped"],
         "seconds": round(span, 3), "frames_per_s": round(images / span, 3) if span > 0 else None,
         "steps_per_s": round(len(scenes) / span, 3) if span > 0 else None,
-        "median_ms": {"render": _median_ms(render), "label": _median_ms(label), "detect": _median_ms(detect),
-                      "end_to_end": _median_ms(e2e)},
+        "median_ms": {k: _median_ms(v) for k, v in stages.items()},
     }
     images_rgb = {}
     for d, (_, data) in latest.items():

@@ -53,6 +53,25 @@ class Coverage:
     total: NDArray[np.int64]
 
 
+def _shelf_pack(todo: list[int], w: NDArray[np.int64], h: NDArray[np.int64],
+                atlas: int) -> tuple[dict[int, tuple[int, int]], list[int]]:
+    """Shelf packing of tiles ``w x h`` (in ``todo`` order) into one atlas page: each placed tile's top-left
+    corner, and the tiles that go to the next page."""
+    place: dict[int, tuple[int, int]] = {}
+    sx = sy = shelf = 0
+    rest = []
+    for i in todo:
+        if sx + w[i] > atlas:
+            sx, sy, shelf = 0, sy + shelf, 0
+        if sy + h[i] > atlas:
+            rest.append(i)
+            continue
+        place[i] = (sx, sy)
+        sx += int(w[i])
+        shelf = max(shelf, int(h[i]))
+    return place, rest
+
+
 class SilhouetteCounter:
     """Counts unoccluded silhouette pixels of zebras for one camera model."""
 
@@ -119,19 +138,7 @@ class SilhouetteCounter:
         w, h = np.minimum(x1 - x0, self.atlas), np.minimum(y1 - y0, self.atlas)
         todo = [i for i in np.argsort(-h) if ok[i]]  # tallest first: shelves pack well
         while todo:
-            # Shelf packing into one atlas page; what does not fit goes to the next page.
-            place: dict[int, tuple[int, int]] = {}
-            sx = sy = shelf = 0
-            rest = []
-            for i in todo:
-                if sx + w[i] > self.atlas:
-                    sx, sy, shelf = 0, sy + shelf, 0
-                if sy + h[i] > self.atlas:
-                    rest.append(i)
-                    continue
-                place[i] = (sx, sy)
-                sx += int(w[i])
-                shelf = max(shelf, int(h[i]))
+            place, rest = _shelf_pack(todo, w, h, self.atlas)
             idx = np.array(sorted(place), dtype=np.int64)
             offs = np.array([[place[i][0] - x0[i], place[i][1] - y0[i]] for i in idx], dtype=np.float32)
             data = verts[idx]

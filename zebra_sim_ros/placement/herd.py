@@ -94,6 +94,44 @@ class PlacementError(ParameterError):
     """Placement cannot proceed with these settings (e.g. the rectangle cannot fit the world)."""
 
 
+class _BoxGrid:
+    """Placed footprints for the packing: a hash grid of their bounding circles (cells of ``CELL`` metres) for the
+    broad phase, the separating axis test for the few neighbours found. A box is (centre x, y, half extents e0,
+    e1, axis ux, uy (second axis (-uy, ux)), bounding radius), in plain floats: this is the placer's inner loop."""
+
+    CELL = 3.0
+
+    def __init__(self) -> None:
+        self.boxes: list[tuple[float, float, float, float, float, float, float]] = []
+        self.grid: dict[tuple[int, int], list[int]] = {}
+
+    def insert(self, b: tuple[float, float, float, float, float, float, float]) -> None:
+        x, y, r, cell = b[0], b[1], b[6], self.CELL
+        idx = len(self.boxes)
+        self.boxes.append(b)
+        for gx in range(int((x - r) // cell), int((x + r) // cell) + 1):
+            for gy in range(int((y - r) // cell), int((y + r) // cell) + 1):
+                self.grid.setdefault((gx, gy), []).append(idx)
+
+    def clear(self, x: float, y: float, e0: float, e1: float, ux: float, uy: float, rk: float) -> bool:
+        """Whether a box there overlaps none stored."""
+        cell, grid, boxes = self.CELL, self.grid, self.boxes
+        seen: set[int] = set()
+        for gx in range(int((x - rk) // cell), int((x + rk) // cell) + 1):
+            for gy in range(int((y - rk) // cell), int((y + rk) // cell) + 1):
+                for j in grid.get((gx, gy), ()):
+                    if j in seen:
+                        continue
+                    seen.add(j)
+                    bx, by, f0, f1, vx, vy, rj = boxes[j]
+                    dx, dy = bx - x, by - y
+                    if dx * dx + dy * dy >= (rk + rj) ** 2:
+                        continue
+                    if _sat_overlap(dx, dy, e0, e1, ux, uy, f0, f1, vx, vy):
+                        return False
+        return True
+
+
 def _sat_overlap(dx: float, dy: float, e0: float, e1: float, ux: float, uy: float, f0: float, f1: float,
                  vx: float, vy: float) -> bool:
     """Separating axis test of two oriented boxes; ``(dx, dy)`` from the first centre to the second.
@@ -215,23 +253,11 @@ class HerdPlacer:
         reach = float(np.hypot(half[:, 0], half[:, 1]).max()) * 2 + 1.0 if n_req else 1.0
         near = np.flatnonzero((np.abs(self.obstacle_xy[:, 0] - cx) <= w / 2 + reach)
                               & (np.abs(self.obstacle_xy[:, 1] - cy) <= h / 2 + reach))
-        # Stored boxes: centre x, y, half extents e0, e1, axis (ux, uy) (second axis (-uy, ux)), radius.
-        boxes: list[tuple[float, float, float, float, float, float, float]] = []
-        grid: dict[tuple[int, int], list[int]] = {}
-        cell = 3.0
-
-        def insert(b: tuple[float, float, float, float, float, float, float]) -> None:
-            x, y, r = b[0], b[1], b[6]
-            idx = len(boxes)
-            boxes.append(b)
-            for gx in range(int((x - r) // cell), int((x + r) // cell) + 1):
-                for gy in range(int((y - r) // cell), int((y + r) // cell) + 1):
-                    grid.setdefault((gx, gy), []).append(idx)
-
+        grid = _BoxGrid()
         for k in near.tolist():
             ox, oy = self.obstacle_xy[k].tolist()
             rad = float(self.obstacle_radius[k])
-            insert((ox, oy, rad, rad, 1.0, 0.0, rad * 1.4143))
+            grid.insert((ox, oy, rad, rad, 1.0, 0.0, rad * 1.4143))
         placed = np.zeros(n_req, dtype=bool)
         fp_center = np.zeros((n_req, 2))
         e_all, u_all = half.tolist(), axes[:, 0, :].tolist()
@@ -244,27 +270,8 @@ class HerdPlacer:
                 if not ok_k[a]:
                     continue
                 x, y = c_k[a]
-                seen: set[int] = set()
-                clear = True
-                for gx in range(int((x - rk) // cell), int((x + rk) // cell) + 1):
-                    for gy in range(int((y - rk) // cell), int((y + rk) // cell) + 1):
-                        for j in grid.get((gx, gy), ()):
-                            if j in seen:
-                                continue
-                            seen.add(j)
-                            bx, by, f0, f1, vx, vy, rj = boxes[j]
-                            dx, dy = bx - x, by - y
-                            if dx * dx + dy * dy >= (rk + rj) ** 2:
-                                continue
-                            if _sat_overlap(dx, dy, e0, e1, ux, uy, f0, f1, vx, vy):
-                                clear = False
-                                break
-                        if not clear:
-                            break
-                    if not clear:
-                        break
-                if clear:
-                    insert((x, y, e0, e1, ux, uy, rk))
+                if grid.clear(x, y, e0, e1, ux, uy, rk):
+                    grid.insert((x, y, e0, e1, ux, uy, rk))
                     placed[k] = True
                     fp_center[k] = (x, y)
                     break
