@@ -45,6 +45,14 @@ def param_args(params: dict[str, Any]) -> list[str]:
     return out
 
 
+def run_node_once(executable: str, params: dict[str, Any], domain: int | None = None,
+                  timeout: float = 60) -> subprocess.CompletedProcess[str]:
+    """Run a node with ``params`` to its end (a node that refuses its parameters exits at once)."""
+    return subprocess.run([sys.executable, "-m", f"zebra_sim_ros.nodes.{executable}", *param_args(params)],
+                          env=ros_env(fresh_domain_id() if domain is None else domain), capture_output=True,
+                          text=True, timeout=timeout)
+
+
 @contextmanager
 def node_process(module: str, params: dict[str, Any], domain: int, log: Path,
                  ns: str | None = None) -> Iterator[subprocess.Popen[bytes]]:

@@ -3,15 +3,13 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from contextlib import ExitStack
 from pathlib import Path
 
 import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from ros_helpers import Peer, fresh_domain_id, node_process, param_args, ros_env, spin_until
+from ros_helpers import Peer, fresh_domain_id, node_process, run_node_once, spin_until
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import String
 
@@ -84,8 +82,6 @@ def test_placer_and_three_cameras_in_lockstep(tmp_path: Path) -> None:
 
 
 def test_bad_camera_parameter_stops_the_node() -> None:
-    proc = subprocess.run([sys.executable, "-m", "zebra_sim_ros.nodes.camera",
-                           *param_args({"jpeg_quality": 150})], env=ros_env(fresh_domain_id()),
-                          capture_output=True, text=True, timeout=60)
+    proc = run_node_once("camera", {"jpeg_quality": 150})
     assert proc.returncode == 2
     assert "jpeg_quality" in proc.stderr + proc.stdout

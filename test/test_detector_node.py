@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
-from ros_helpers import Peer, fresh_domain_id, node_process, param_args, ros_env, spin_until
+from ros_helpers import Peer, fresh_domain_id, node_process, run_node_once, spin_until
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header, String
 
@@ -85,7 +83,6 @@ def test_bad_weights_stop_the_node(tmp_path: Path, kind: str) -> None:
     path = tmp_path / "w.pt"
     if kind == "corrupt":
         path.write_bytes(b"not a checkpoint at all")
-    proc = subprocess.run([sys.executable, "-m", "zebra_sim_ros.nodes.detector", *param_args({"weights": str(path)})],
-                          env=ros_env(fresh_domain_id()), capture_output=True, text=True, timeout=90)
+    proc = run_node_once("detector", {"weights": str(path)}, timeout=90)
     assert proc.returncode == 2
     assert "weights" in proc.stderr + proc.stdout and str(path) in proc.stderr + proc.stdout

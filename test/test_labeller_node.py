@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from contextlib import ExitStack
 from pathlib import Path
 
 import pytest
-from ros_helpers import Peer, fresh_domain_id, node_process, param_args, ros_env, spin_until
+from ros_helpers import Peer, fresh_domain_id, node_process, run_node_once, spin_until
 from sensor_msgs.msg import Image
 from std_msgs.msg import String
 from visualization_msgs.msg import ImageMarker, MarkerArray
@@ -71,9 +69,7 @@ def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
 
 
 def test_bad_labeller_parameter_stops_the_node() -> None:
-    proc = subprocess.run([sys.executable, "-m", "zebra_sim_ros.nodes.labeller",
-                           *param_args({"min_visible_fraction": 1.5})], env=ros_env(fresh_domain_id()),
-                          capture_output=True, text=True, timeout=60)
+    proc = run_node_once("labeller", {"min_visible_fraction": 1.5})
     assert proc.returncode == 2
     assert "min_visible_fraction" in proc.stderr + proc.stdout
 

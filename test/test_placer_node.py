@@ -13,7 +13,7 @@ import rclpy
 from geometry_msgs.msg import PoseStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from ros_helpers import fresh_domain_id, node_process, param_args, ros_env, spin_until
+from ros_helpers import fresh_domain_id, node_process, run_node_once, spin_until
 from std_msgs.msg import Header, String
 from visualization_msgs.msg import MarkerArray
 
@@ -128,7 +128,6 @@ def _time(stamp: dict):  # type: ignore[no-untyped-def]
     ({"world": "atlantis"}, "world"),
 ])
 def test_bad_parameter_stops_the_node_naming_it(domain: int, params: dict, needle: str) -> None:
-    proc = subprocess.run([sys.executable, "-m", "zebra_sim_ros.nodes.placer", *param_args(params)],
-                          env=ros_env(domain), capture_output=True, text=True, timeout=60)
+    proc = run_node_once("placer", params, domain)
     assert proc.returncode == 2
     assert needle in proc.stderr + proc.stdout

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import cv2
 import numpy as np
 import pytest
@@ -75,16 +77,20 @@ def test_cube_depth_silhouette_and_projection(library: ZebraLibrary, options: Re
     assert np.isinf(out.depth[0, 0])  # sky
 
 
-def test_zebra_mask_is_the_projected_posed_mesh(library: ZebraLibrary, options: RenderOptions) -> None:
-    world = flat_world()
-    r = Renderer(world, library, options)
+def _one_zebra(library: ZebraLibrary, options: RenderOptions, looks: list[tuple[Any, Any]]) -> tuple[Any, Any, list]:
+    """One zebra (id 10, yaw 0.4) on flat ground seen from 12 m south and 6 m up, rendered under each
+    (lighting, ground look); returns the view, the zebras and the renders."""
+    r = Renderer(flat_world(), library, options)
     try:
         view = _view((0.0, -12.0, 6.0), 90.0, -25.0)
         zebras = _zebras(library, [(0.0, 0.0)], yaw=0.4)
-        a = r.render(zebras, NOON, [view])[0]
-        b = r.render(zebras, lighting_for(19.5, 80, -2.3), [view])[0]
+        return view, zebras, [r.render(zebras, light, [view], ground)[0] for light, ground in looks]
     finally:
         r.release()
+
+
+def test_zebra_mask_is_the_projected_posed_mesh(library: ZebraLibrary, options: RenderOptions) -> None:
+    view, zebras, (a, b) = _one_zebra(library, options, [(NOON, None), (lighting_for(19.5, 80, -2.3), None)])
     cam = PinholeCamera(W, H, HFOV)
     posed = library.pose(zebras.morph, zebras.global_frame, zebras.scale, zebras.rotation, zebras.position)
     uv, _ = cam.project(map_to_optical(posed.vertices[0].astype(np.float64), view.position, view.r_optical))
@@ -166,16 +172,8 @@ def test_missing_egl_names_the_debian_packages(monkeypatch: pytest.MonkeyPatch) 
 def test_a_recoloured_ground_changes_the_terrain_only(library: ZebraLibrary, options: RenderOptions) -> None:
     from zebra_sim_ros.placement.ground import GroundLook
 
-    world = flat_world()
-    r = Renderer(world, library, options)
-    try:
-        view = _view((0.0, -12.0, 6.0), 90.0, -25.0)
-        zebras = _zebras(library, [(0.0, 0.0)], yaw=0.4)
-        authored = r.render(zebras, NOON, [view])[0]
-        snowy = r.render(zebras, NOON, [view], GroundLook((4.0, 4.0, 4.0), 1.0))[0]
-        again = r.render(zebras, NOON, [view], GroundLook())[0]
-    finally:
-        r.release()
+    snow = GroundLook((4.0, 4.0, 4.0), 1.0)
+    _, _, (authored, snowy, again) = _one_zebra(library, options, [(NOON, None), (NOON, snow), (NOON, GroundLook())])
     assert np.array_equal(authored.instances, snowy.instances) and np.array_equal(authored.depth, snowy.depth)
     assert np.array_equal(authored.rgb, again.rgb)  # the identity look is the world as authored
     zebra = cv2.erode((authored.instances == 11).astype(np.uint8), np.ones((5, 5), np.uint8)) > 0

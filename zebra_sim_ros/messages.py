@@ -20,7 +20,7 @@ import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, ClassVar, Self
 
 from zebra_sim_ros.errors import ZebraSimError
 
@@ -73,14 +73,33 @@ class Stamp:
 
 # -- parsing helpers ---------------------------------------------------------------------------------------------
 
-def _load(text: str | bytes, schema: str, version: int, required: Sequence[str]) -> dict[str, Any]:
-    """The checked dict of a message's JSON text."""
-    what = schema.rsplit("/", 1)[-1]
+def _json(text: str | bytes, what: str) -> Any:
     try:
-        d = json.loads(text)
+        return json.loads(text)
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise MessageFormatError(f"{what} is not JSON: {exc}") from exc
-    return _checked(d, schema, version, required)
+
+
+class _Message:
+    """JSON text of a message with a ``to_dict`` / ``from_dict`` pair (``KIND`` names it in errors)."""
+
+    KIND: ClassVar[str] = "message"
+
+    def to_dict(self) -> dict[str, Any]:
+        raise NotImplementedError
+
+    @classmethod
+    def from_dict(cls, d: Any) -> Self:
+        raise NotImplementedError
+
+    def to_json(self) -> str:
+        """Compact JSON text."""
+        return json.dumps(self.to_dict(), separators=(",", ":"))
+
+    @classmethod
+    def from_json(cls, text: str | bytes) -> Self:
+        """Parse and check a message; :class:`MessageFormatError` says what is wrong."""
+        return cls.from_dict(_json(text, cls.KIND))
 
 
 def _checked(d: Any, schema: str, version: int, required: Sequence[str]) -> dict[str, Any]:
@@ -123,10 +142,6 @@ def _v3(v: Sequence[Any]) -> Vec3:
 def _v4(v: Sequence[Any]) -> Quat:
     a = _vec(v, 4)
     return a[0], a[1], a[2], a[3]
-
-
-def _compact(d: Mapping[str, Any]) -> str:
-    return json.dumps(d, separators=(",", ":"))
 
 
 # -- the scene ---------------------------------------------------------------------------------------------------
@@ -291,9 +306,11 @@ class WorldRef:
 
 
 @dataclass(frozen=True)
-class Scene:
+class Scene(_Message):
     """Everything drawn for one step (``/zebra_sim/scene``). ``step = placement * camera_rerolls + reroll``;
     ``seed`` and ``step`` are enough to regenerate the scene alone."""
+
+    KIND: ClassVar[str] = "scene"
 
     stamp: Stamp
     step: int
@@ -338,10 +355,6 @@ class Scene:
             **({} if self.ground.is_identity else {"ground": self.ground.to_dict()}),
         }
 
-    def to_json(self) -> str:
-        """Compact JSON text."""
-        return _compact(self.to_dict())
-
     @classmethod
     def from_dict(cls, d: Any) -> Scene:
         d = _checked(d, SCENE_SCHEMA, SCENE_VERSION, ("stamp", "step", "seed", "world", "lighting", "zebras",
@@ -353,11 +366,6 @@ class Scene:
             _v2(d.get("rectangle", {}).get("size", (0, 0))), int(d.get("requested", len(d["zebras"]))),
             tuple(SceneZebra.from_dict(z) for z in d["zebras"]), tuple(SceneCamera.from_dict(c) for c in d["cameras"]),
             GroundLook.from_dict(d.get("ground"))), d)
-
-    @classmethod
-    def from_json(cls, text: str | bytes) -> Scene:
-        """Parse and check a scene message; :class:`MessageFormatError` says what is wrong."""
-        return cls.from_dict(_load(text, SCENE_SCHEMA, SCENE_VERSION, ()))
 
 
 # -- labels ------------------------------------------------------------------------------------------------------
@@ -441,8 +449,10 @@ def _box_or_empty(d: Mapping[str, Any] | None) -> OrientedBox:
 
 
 @dataclass(frozen=True)
-class Labels:
+class Labels(_Message):
     """The labels of one camera frame (``/<drone>/labels``): every zebra seen, kept or not, and the camera."""
+
+    KIND: ClassVar[str] = "labels"
 
     stamp: Stamp
     step: int
@@ -477,9 +487,6 @@ class Labels:
                 "filters": dict(self.filters), "zebras": [z.to_dict() for z in self.zebras],
                 "in_view": len(self.zebras), "kept": len(self.kept), "unknown_instances": list(self.unknown_instances)}
 
-    def to_json(self) -> str:
-        return _compact(self.to_dict())
-
     @classmethod
     def from_dict(cls, d: Any) -> Labels:
         d = _checked(d, LABELS_SCHEMA, LABELS_VERSION, ("stamp", "zebras"))
@@ -489,10 +496,6 @@ class Labels:
             tuple(float(v) for v in d.get("K", ())), tuple(str(n) for n in d.get("keypoint_names", ())),
             dict(d.get("filters", {})), tuple(LabelledZebra.from_dict(z) for z in d["zebras"]),
             tuple(int(i) for i in d.get("unknown_instances", ()))), d)
-
-    @classmethod
-    def from_json(cls, text: str | bytes) -> Labels:
-        return cls.from_dict(_load(text, LABELS_SCHEMA, LABELS_VERSION, ()))
 
 
 # -- detections --------------------------------------------------------------------------------------------------
@@ -517,8 +520,10 @@ class Detection:
 
 
 @dataclass(frozen=True)
-class Detections:
+class Detections(_Message):
     """What the detector found in one image (``/<drone>/detections``), with the image's stamp and frame."""
+
+    KIND: ClassVar[str] = "detections"
 
     stamp: Stamp
     frame_id: str
@@ -531,9 +536,6 @@ class Detections:
                 "frame_id": self.frame_id, "width": self.width, "height": self.height,
                 "detections": [x.to_dict() for x in self.detections]}
 
-    def to_json(self) -> str:
-        return _compact(self.to_dict())
-
     @classmethod
     def from_dict(cls, d: Any) -> Detections:
         d = _checked(d, DETECTIONS_SCHEMA, DETECTIONS_VERSION, ("stamp", "detections"))
@@ -541,17 +543,15 @@ class Detections:
             Stamp.from_dict(d["stamp"]), str(d.get("frame_id", "")), int(d.get("width", 0)), int(d.get("height", 0)),
             tuple(Detection.from_dict(x) for x in d["detections"])), d)
 
-    @classmethod
-    def from_json(cls, text: str | bytes) -> Detections:
-        return cls.from_dict(_load(text, DETECTIONS_SCHEMA, DETECTIONS_VERSION, ()))
-
 
 # -- dataset annotation files ------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
-class FrameAnnotation:
+class FrameAnnotation(_Message):
     """One frame of a generated dataset (``annotations/<frame>.json``): where its files are, the scene facts it
     came from, the command that renders it again alone, and its labels (kept and don't-care zebras outlined)."""
+
+    KIND: ClassVar[str] = "annotation"
 
     frame: str
     split: str
@@ -582,11 +582,7 @@ class FrameAnnotation:
         return json.dumps(self.to_dict(), sort_keys=True, separators=(",", ":"))
 
     @classmethod
-    def from_json(cls, text: str | bytes) -> FrameAnnotation:
-        try:
-            d = json.loads(text)
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise MessageFormatError(f"annotation is not JSON: {exc}") from exc
+    def from_dict(cls, d: Any) -> FrameAnnotation:
         return _parse("annotation", lambda d: cls(
             str(d["frame"]), str(d["split"]), str(d["image"]), str(d["mask"]), d.get("depth"),
             WorldRef.from_dict(d["world"]), int(d["seed"]), int(d["step"]), int(d["placement"]), int(d["reroll"]),
