@@ -1,31 +1,49 @@
-"""Parameter specifications shared by nodes and the command line.
+"""Parameters: each declared once, as a field of its stage's frozen config dataclass.
 
-A node declares every :class:`ParamSpec` as a ROS parameter (name, default, description), reads the
-values once, and hands the dict to :func:`validate`, which checks types and ranges and raises
+A field made with :func:`param` carries the parameter's whole declaration (:class:`Param`: default, help, unit,
+numeric range, choices, whether it may change while the node runs); its name is the field's name. Everything
+else is derived from it: the :class:`ParamSpec` tuples the nodes declare as ROS parameters (with descriptors
+holding the ranges), ``--help``, CLI options (:func:`add_option`), the README tables and ``config/*.yaml``
+(``python -m zebra_sim_ros.params --write-config config/``). :func:`validate` checks types and ranges and raises
 :class:`~zebra_sim_ros.errors.ParameterError` naming the parameter, the value and what is allowed.
 """
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
 import re
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from pathlib import Path
+from typing import Any, Self
 
 from zebra_sim_ros.errors import ParameterError
 
 ParamValue = bool | int | float | str | list[str] | list[float] | list[int]
+_DECLARATION = "zebra_sim_ros.param"  # the key of a field's metadata that holds its Param
 
 
 @dataclass(frozen=True)
 class ParamSpec:
-    """One parameter: its default, a one-line description with unit, and what values are allowed."""
+    """One named parameter as nodes declare it: default, a one-line description (ending with its unit), what
+    values are allowed (text for people, ``check`` for code), the numeric range ``lo..hi`` that goes into the ROS
+    descriptor (None: not numeric; ``check`` may allow less than the range), and whether it may change while the
+    node runs."""
 
     name: str
     default: ParamValue
     description: str
     allowed: str
     check: Callable[[Any], bool]
+    lo: float | None = None
+    hi: float | None = None
+    runtime: bool = False
+
+    @property
+    def meaning(self) -> str:
+        """The description, and whether the value may change while the node runs (README tables, YAML comments)."""
+        return self.description + (" (can change while running)" if self.runtime else "")
 
 
 def in_range(lo: float, hi: float) -> Callable[[Any], bool]:
@@ -47,6 +65,147 @@ def is_regex(v: Any) -> bool:
 def one_of(*choices: str) -> Callable[[Any], bool]:
     """Check: one of the given strings."""
     return lambda v: v in choices
+
+
+def names_list(v: Any) -> bool:
+    """Check: a non-empty list of non-empty strings."""
+    return len(v) > 0 and all(isinstance(x, str) and x for x in v)
+
+
+def _number(x: float) -> str:
+    """A range bound as people write it: ``0.001``, ``100000``, ``1e6``, ``2^31``, ``2^63-1``."""
+    if isinstance(x, int) and x > 10**6:
+        if (x + 1) & x == 0:
+            return f"2^{x.bit_length()}-1"
+        if x & (x - 1) == 0:
+            return f"2^{x.bit_length() - 1}"
+    return f"{x:g}".replace("e+0", "e").replace("e+", "e")
+
+
+@dataclass(frozen=True)
+class Param:
+    """The declaration of one parameter, without its name (the field's name is the parameter's name).
+
+    ``default`` is a tuple for list parameters (the config is frozen; ROS gets a list). ``help`` is one line
+    without the unit; ``unit`` is appended to it and to the range. ``lo``/``hi`` bound a number (and go into the
+    ROS descriptor); ``choices`` list the allowed strings; ``allowed`` replaces the text derived from them where it
+    says more (``count_min..pool_size``); ``check`` adds a rule the range cannot say. ``runtime``: the value may
+    change while the node runs (the node applies it), else a change is refused until a restart.
+    """
+
+    default: Any
+    help: str
+    unit: str = ""
+    lo: float | None = None
+    hi: float | None = None
+    choices: tuple[str, ...] = ()
+    allowed: str = ""
+    check: Callable[[Any], bool] | None = None
+    runtime: bool = False
+
+    def field(self) -> Any:
+        """A dataclass field with this declaration (typed Any so that ``x: float = Param(...).field()`` checks)."""
+        return dataclasses.field(default=self.default, metadata={_DECLARATION: self})
+
+    def allowed_text(self) -> str:
+        """What is allowed, for people: ``allowed``, else the choices, the range with its unit, or true/false."""
+        unit = f" {self.unit}" if self.unit else ""
+        if self.allowed:
+            return self.allowed
+        if self.choices:
+            return (", ".join(self.choices[:-1]) + " or " + self.choices[-1]) if len(self.choices) > 1 \
+                else self.choices[0]
+        if self.lo is not None and self.hi is not None:
+            return f"{_number(self.lo)}..{_number(self.hi)}{unit}"
+        if isinstance(self.default, bool):
+            return "true or false"
+        raise TypeError(f"parameter default {self.default!r} ({self.help}): say what is allowed")
+
+    def spec(self, name: str) -> ParamSpec:
+        """The named :class:`ParamSpec` of this declaration."""
+        checks: list[Callable[[Any], bool]] = []
+        if self.lo is not None and self.hi is not None:
+            checks.append(in_range(self.lo, self.hi))
+        if self.choices:
+            checks.append(one_of(*self.choices))
+        if self.check is not None:
+            checks.append(self.check)
+        default = list(self.default) if isinstance(self.default, tuple) else self.default
+        description = f"{self.help}, {self.unit}" if self.unit else self.help
+        return ParamSpec(name, default, description, self.allowed_text(), lambda v: all(c(v) for c in checks),
+                         self.lo, self.hi, self.runtime)
+
+
+def param(default: Any, help: str, unit: str = "", *, lo: float | None = None, hi: float | None = None,
+          choices: tuple[str, ...] = (), allowed: str = "", check: Callable[[Any], bool] | None = None,
+          runtime: bool = False) -> Any:
+    """A config dataclass field declaring one parameter (see :class:`Param` for the arguments)."""
+    return Param(default, help, unit, lo, hi, choices, allowed, check, runtime).field()
+
+
+RELIABILITY = ("reliable", "best_effort")  # the QoS reliability a node's qos_reliability parameter may name
+
+
+def reliability_param(help: str) -> Any:
+    """The ``qos_reliability`` field every node has (``reliable`` by default)."""
+    return param("reliable", help, choices=RELIABILITY)
+
+
+def declaration(cls: type, name: str) -> Param:
+    """The :class:`Param` of field ``name`` of the config dataclass ``cls``."""
+    for f in dataclasses.fields(cls):
+        if f.name == name and _DECLARATION in f.metadata:
+            return f.metadata[_DECLARATION]  # type: ignore[no-any-return]
+    raise KeyError(f"{cls.__name__} declares no parameter {name!r}")
+
+
+def same_as(cls: type, name: str, **changes: Any) -> Any:
+    """A field declaring the parameter of ``cls``'s field ``name`` again, e.g. with another ``help``: where two
+    stages share a parameter (camera intrinsics, label filters), its default, unit and range are written once."""
+    return dataclasses.replace(declaration(cls, name), **changes).field()
+
+
+_SPECS: dict[type, tuple[ParamSpec, ...]] = {}
+
+
+def specs_of(cls: type) -> tuple[ParamSpec, ...]:
+    """The :class:`ParamSpec` of every field of ``cls`` declared with :func:`param`, in field order (made once)."""
+    if cls not in _SPECS:
+        _SPECS[cls] = tuple(f.metadata[_DECLARATION].spec(f.name) for f in dataclasses.fields(cls)
+                            if _DECLARATION in f.metadata)
+    return _SPECS[cls]
+
+
+class StageConfig:
+    """Base of a stage's frozen config dataclass whose fields are declared with :func:`param`.
+
+    ``from_params`` is the one way from raw values (ROS parameters, a YAML file, CLI options) to a config:
+    defaults for what is missing, every value type-coerced and range-checked, then :meth:`check`.
+    """
+
+    @classmethod
+    def specs(cls) -> tuple[ParamSpec, ...]:
+        """The parameters of this stage, in declaration order."""
+        return specs_of(cls)
+
+    @classmethod
+    def from_params(cls, values: Mapping[str, Any]) -> Self:
+        """Validate raw parameter values (missing ones take their defaults) into a config."""
+        v = validate(cls.specs(), values)
+        cfg = cls(**{k: tuple(x) if isinstance(x, list) else x for k, x in v.items()})
+        cfg.check()
+        return cfg
+
+    def check(self) -> None:
+        """Cross-parameter rules (each parameter alone was checked by its spec); raises :class:`ParameterError`."""
+
+    def as_params(self) -> dict[str, Any]:
+        """The config as ROS parameter values (lists for tuples)."""
+        return {s.name: list(v) if isinstance(v := getattr(self, s.name), tuple) else v for s in self.specs()}
+
+    def with_changes(self, values: Mapping[str, Any]) -> Self:
+        """This config with ``values`` changed, validated as :meth:`from_params` does."""
+        return self.from_params({**self.as_params(), **values})
 
 
 def _coerce(spec: ParamSpec, value: Any) -> Any:
@@ -92,6 +251,28 @@ def validate(specs: Iterable[ParamSpec], values: Mapping[str, Any]) -> dict[str,
     return out
 
 
+_FROM_SPEC: Any = object()
+
+
+def add_option(parser: argparse.ArgumentParser, spec: ParamSpec, flag: str = "", default: Any = _FROM_SPEC) -> None:
+    """An argparse option that mirrors a parameter: ``--name-with-dashes`` (or ``flag``), its type, range and
+    help from ``spec``; the default is the parameter's unless ``default`` is given (e.g. None, to tell "not
+    given" from a value). A bad value is refused by argparse, naming the option and what is allowed. Values are
+    YAML, as with ``-p``."""
+    import yaml
+
+    def parse(text: str) -> Any:
+        value = text if isinstance(spec.default, str) else yaml.safe_load(text)
+        try:
+            return validate([spec], {spec.name: value})[spec.name]
+        except ParameterError as exc:
+            raise argparse.ArgumentTypeError(f"{text!r}: allowed {exc.allowed}") from None
+
+    parser.add_argument(flag or "--" + spec.name.replace("_", "-"), type=parse, dest=spec.name,
+                        default=spec.default if default is _FROM_SPEC else default,
+                        help=f"{spec.description}; allowed {spec.allowed} (default {spec.default!r})")
+
+
 def load_params_file(path: str, node_name: str) -> dict[str, Any]:
     """Parameters for ``node_name`` from a ROS 2 YAML file (``/**:`` or ``<node>:`` with ``ros__parameters``).
 
@@ -130,7 +311,77 @@ def markdown_table(specs: Iterable[ParamSpec]) -> str:
 
     rows = ["| parameter | default | meaning (unit) | allowed |", "| --- | --- | --- | --- |"]
     for s in specs:
-        cells = [f"`{s.name}`", f"`{default(s.default)}`", s.description.replace("|", "\\|"),
+        cells = [f"`{s.name}`", f"`{default(s.default)}`", s.meaning.replace("|", "\\|"),
                  s.allowed.replace("|", "\\|")]
         rows.append("| " + " | ".join(cells) + " |")
     return "\n".join(rows)
+
+
+# -- config/*.yaml ----------------------------------------------------------------------------------------------
+_PLAIN = re.compile(r"[A-Za-z0-9_/][A-Za-z0-9_/.\-]*")
+
+
+def yaml_value(v: Any) -> str:
+    """A parameter value as one line of YAML that reads back as the same value (strings quoted only if needed)."""
+    import yaml
+
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(yaml_value(x) for x in v) + "]"
+    if isinstance(v, str):
+        if _PLAIN.fullmatch(v) and yaml.safe_load(v) == v:
+            return v
+        return "'" + v.replace("'", "''") + "'"
+    return repr(v)
+
+
+def config_yaml(specs: Iterable[ParamSpec], header: str) -> str:
+    """A ``config/<node>.yaml``: ``header`` (comment lines), then every parameter at its default under
+    ``/**: ros__parameters:``, each with its description as a comment."""
+    lines = [header.rstrip("\n"), "/**:", "  ros__parameters:"]
+    lines += [f"    {s.name}: {yaml_value(s.default)}  # {s.meaning}" for s in specs]
+    return "\n".join(lines) + "\n"
+
+
+def yaml_header(executable: str, text: str | None = None) -> str:
+    """The comment lines before ``/**:`` of an existing config file's ``text`` (kept when it is rewritten), else
+    a standard header for ``executable``."""
+    if text is not None:
+        head = text.split("\n/**:", 1)[0] if not text.startswith("/**:") else ""
+        if head and all(line.startswith("#") for line in head.splitlines()):
+            return head + "\n"
+    return (f"# Parameters of the {executable} node (ros2 run zebra_sim_ros {executable} --ros-args --params-file "
+            f"config/{executable}.yaml).\n# `{executable} --help` lists meaning, unit and allowed range of each.\n")
+
+
+def write_config(folder: Path, nodes: Mapping[str, Iterable[ParamSpec]]) -> list[Path]:
+    """Write ``folder/<node>.yaml`` for every node from its specs (keeping each file's header); the paths written."""
+    written = []
+    for executable, specs in nodes.items():
+        path = folder / f"{executable}.yaml"
+        old = path.read_text(encoding="utf-8") if path.is_file() else None
+        text = config_yaml(specs, yaml_header(executable, old))
+        if text != old:
+            path.write_text(text, encoding="utf-8")
+            written.append(path)
+    return written
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m zebra_sim_ros.params --write-config config/``: regenerate the parameter files."""
+    from zebra_sim_ros.graph.spec import NODE_PARAMS
+
+    p = argparse.ArgumentParser(prog="python -m zebra_sim_ros.params", description=main.__doc__)
+    p.add_argument("--write-config", type=Path, required=True, metavar="FOLDER",
+                   help="folder of <node>.yaml files to (re)write from the declarations")
+    args = p.parse_args(argv)
+    if not args.write_config.is_dir():
+        p.error(f"{args.write_config} is not a folder")
+    for path in write_config(args.write_config, NODE_PARAMS):
+        print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -22,7 +22,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Header, String
 
@@ -31,7 +30,7 @@ from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.nodes.placer import SCENE_TOPIC
 from zebra_sim_ros.nodes.ros_adapter import (
     ACK_TOPIC,
-    declare_and_read,
+    ZebraNode,
     describe_qos,
     help_text,
     image_msg,
@@ -55,12 +54,14 @@ def camera_info_msg(header: Header, K: np.ndarray, width: int, height: int) -> C
                       p=[float(v) for v in p.ravel()])
 
 
-class CameraNode(Node):
-    """Thin adapter around :class:`zebra_sim_ros.rendering.renderer.Renderer`."""
+class CameraNode(ZebraNode[CameraConfig]):
+    """Thin adapter around :class:`zebra_sim_ros.rendering.renderer.Renderer` (no parameter changes while running)."""
 
     def __init__(self) -> None:
-        super().__init__("camera")
-        self.cfg = CameraConfig.from_params(declare_and_read(self, CAMERA_PARAMS))
+        super().__init__("camera", CameraConfig)
+
+    def start(self) -> None:
+        """Load the zebras; render each scene that arrives (the world's renderer is made with the first)."""
         c = self.cfg
         self.library = load_library()
         self.sim: Simulator | None = None  # the renderer of the scene's world (its labels are the labeller's)
@@ -135,7 +136,7 @@ class CameraNode(Node):
                                    f"{self.render_seconds / max(self.frames, 1):.2f} s/frame render, "
                                    f"{self.skipped} scenes skipped")
 
-    def close(self) -> None:
+    def stop(self) -> None:
         """Release the GL context."""
         if self.sim is not None:
             self.sim.release()

@@ -23,7 +23,6 @@ from typing import Any
 
 import numpy as np
 import torch
-from rclpy.node import Node
 from sensor_msgs.msg import Image
 from std_msgs.msg import ColorRGBA, String
 from visualization_msgs.msg import ImageMarker
@@ -35,8 +34,8 @@ from zebra_sim_ros.detection.predict import describe_size, detect
 from zebra_sim_ros.messages import Detection, Detections, Stamp
 from zebra_sim_ros.nodes.ros_adapter import (
     StepAcks,
+    ZebraNode,
     box_marker,
-    declare_and_read,
     describe_qos,
     help_text,
     image_msg,
@@ -70,12 +69,15 @@ def to_rgb(msg: Image) -> np.ndarray:
     return np.ascontiguousarray(img if order is None else img[..., order])
 
 
-class DetectorNode(Node):
-    """Thin adapter around :func:`zebra_sim_ros.detection.predict.detect`."""
+class DetectorNode(ZebraNode[DetectorConfig]):
+    """Thin adapter around :func:`zebra_sim_ros.detection.predict.detect`; ``conf``, ``iou``, ``imgsz`` and
+    ``scale`` may change while it runs (the next batch uses them)."""
 
     def __init__(self) -> None:
-        super().__init__("detector")
-        self.cfg = DetectorConfig.from_params(declare_and_read(self, DETECTOR_PARAMS))
+        super().__init__("detector", DetectorConfig)
+
+    def start(self) -> None:
+        """Load the model; subscribe every image topic and publish beside each."""
         c = self.cfg
         torch.set_num_threads(max(1, torch.get_num_threads()))
         self.device = select_device(c.device)
@@ -98,6 +100,12 @@ class DetectorNode(Node):
             f"{self.device}, inference size {describe_size(self.model.cfg, c.imgsz, c.scale)}, conf {c.conf}, "
             f"iou {c.iou}; topics {list(c.image_topics)}; "
             f"QoS {describe_qos(q)}")
+
+    def on_config(self, cfg: DetectorConfig) -> None:
+        """Detect the next batch with the new thresholds and inference size."""
+        self.cfg = cfg
+        self.get_logger().info(f"now conf {cfg.conf}, iou {cfg.iou}, inference size "
+                               f"{describe_size(self.model.cfg, cfg.imgsz, cfg.scale)}")
 
     def _handler(self, topic: str) -> Any:
         def on_image(msg: Image) -> None:

@@ -17,7 +17,6 @@ from typing import Any
 
 import numpy as np
 from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
-from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import ColorRGBA, Header, String
 from visualization_msgs.msg import ImageMarker, Marker, MarkerArray
@@ -30,8 +29,8 @@ from zebra_sim_ros.messages import Labels, Scene
 from zebra_sim_ros.nodes.placer import SCENE_TOPIC
 from zebra_sim_ros.nodes.ros_adapter import (
     StepAcks,
+    ZebraNode,
     box_marker,
-    declare_and_read,
     describe_qos,
     help_text,
     qos,
@@ -75,12 +74,15 @@ def boxes3d(header: Header, labels: Labels) -> MarkerArray:
     return MarkerArray(markers=out)
 
 
-class LabellerNode(Node):
-    """Synchronises scene, masks, depth and camera info by stamp; thin adapter around ``label_view``."""
+class LabellerNode(ZebraNode[LabellerConfig]):
+    """Synchronises scene, masks, depth and camera info by stamp; thin adapter around ``label_view`` (no parameter
+    changes while running)."""
 
     def __init__(self) -> None:
-        super().__init__("labeller")
-        self.cfg = LabellerConfig.from_params(declare_and_read(self, LABELLER_PARAMS))
+        super().__init__("labeller", LabellerConfig)
+
+    def start(self) -> None:
+        """Load the zebras; subscribe every drone's inputs and publish its labels."""
         c = self.cfg
         self.library = load_library()
         self.filters = c.filters()
@@ -170,7 +172,7 @@ class LabellerNode(Node):
         if self.stats["labelled"] % 30 == 1:
             self.get_logger().info(f"{self.stats}; {self.seconds / self.stats['labelled']:.3f} s per frame")
 
-    def close(self) -> None:
+    def stop(self) -> None:
         """Release GL resources."""
         for labeller in self.labellers.values():
             labeller.release()

@@ -17,14 +17,13 @@ from __future__ import annotations
 import time
 
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3
-from rclpy.node import Node
 from std_msgs.msg import ColorRGBA, Header, String
 from visualization_msgs.msg import Marker, MarkerArray
 
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.nodes.ros_adapter import (
     ACK_TOPIC,
-    declare_and_read,
+    ZebraNode,
     describe_qos,
     flush,
     help_text,
@@ -43,12 +42,14 @@ MARKER_TOPIC = "/zebra_sim/zebras/markers"
 _MORPH_RGBA = {"plains": (0.95, 0.85, 0.2, 0.5), "grevy": (0.3, 0.7, 1.0, 0.5), "foal": (1.0, 0.4, 0.6, 0.5)}
 
 
-class PlacerNode(Node):
-    """Thin adapter around :class:`zebra_sim_ros.placement.placer.Placer`."""
+class PlacerNode(ZebraNode[PlacerConfig]):
+    """Thin adapter around :class:`zebra_sim_ros.placement.placer.Placer` (no parameter changes while running)."""
 
     def __init__(self) -> None:
-        super().__init__("placer")
-        self.cfg = PlacerConfig.from_params(declare_and_read(self, PLACER_PARAMS))
+        super().__init__("placer", PlacerConfig)
+
+    def start(self) -> None:
+        """Load the world and the zebras; publish steps by rate or in lockstep."""
         c = self.cfg
         t0 = time.perf_counter()
         world = load_world(c.world, c.terrain_prim, c.world_seed)
@@ -66,8 +67,6 @@ class PlacerNode(Node):
         self.outputs = [self.scene_pub, self.marker_pub, *self.pose_pubs]
         self.step = c.start_step
         self.published = 0
-        self.done = False
-        self.exit_code = 0
         self.pending: Scene | None = None
         self.acked: set[str] = set()
         self.sent_at = 0.0

@@ -17,13 +17,11 @@ import re
 import time
 from typing import Any
 
-from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 
-from zebra_sim_ros.errors import ParameterError, ZebraSimError
-from zebra_sim_ros.nodes.ros_adapter import declare_and_read, describe_qos, help_text, message_class, qos, run_node
-from zebra_sim_ros.params import validate
-from zebra_sim_ros.recording.config import RECORDER_PARAMS
+from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.nodes.ros_adapter import ZebraNode, describe_qos, help_text, message_class, qos, run_node
+from zebra_sim_ros.recording.config import RECORDER_PARAMS, RecorderConfig
 from zebra_sim_ros.recording.qos import profile_dict, replay_profile
 from zebra_sim_ros.recording.recorder import RecorderCore
 from zebra_sim_ros.recording.writer import BagWriter
@@ -36,34 +34,45 @@ def _profile_of(info: Any) -> dict[str, Any]:
                         "transient_local" if q.durability == DurabilityPolicy.TRANSIENT_LOCAL else "volatile")
 
 
-class RecorderNode(Node):
-    """Thin adapter around :class:`zebra_sim_ros.recording.recorder.RecorderCore`."""
+class RecorderNode(ZebraNode[RecorderConfig]):
+    """Thin adapter around :class:`zebra_sim_ros.recording.recorder.RecorderCore`; the topic selection (``topics``,
+    ``topic_regex``, ``exclude_regex``) may change while it records."""
 
     def __init__(self) -> None:
-        super().__init__("recorder")
-        v = validate(RECORDER_PARAMS, declare_and_read(self, RECORDER_PARAMS))
-        self.topics = [t for t in v["topics"] if t]
-        self.include, self.exclude = re.compile(v["topic_regex"]), re.compile(v["exclude_regex"])  # checked
+        super().__init__("recorder", RecorderConfig)
+
+    def start(self) -> None:
+        """Open the bag; subscribe the topics to record now and look for new ones every discovery_period_s."""
+        c = self.cfg
+        self.topics = c.topic_list
+        self.include, self.exclude = re.compile(c.topic_regex), re.compile(c.exclude_regex)  # checked
         mb = 1 << 20
-        least = 2 * v["chunk_size_mb"] + 0.016  # the writer keeps two chunks and the summary in reserve
-        if 0 < v["max_size_mb"] < least:
-            raise ParameterError("max_size_mb", v["max_size_mb"], f"0 or more than {least:.3f} (2 x chunk_size_mb "
-                                 "+ 16 KiB for the summary)")
-        self.writer = BagWriter(v["output"], v["compression"], int(v["chunk_size_mb"] * mb),
-                                int(v["split_size_mb"] * mb), v["split_duration_s"], int(v["max_size_mb"] * mb))
-        self.core = RecorderCore(self.writer, v["queue_size"])
-        self.depth = v["qos_depth"]
+        self.writer = BagWriter(c.output, c.compression, int(c.chunk_size_mb * mb),
+                                int(c.split_size_mb * mb), c.split_duration_s, int(c.max_size_mb * mb))
+        self.core = RecorderCore(self.writer, c.queue_size)
+        self.depth = c.qos_depth
         self.subs: dict[str, Any] = {}
-        self.done = False
-        self.exit_code = 0
-        self.create_timer(v["discovery_period_s"], self._discover)
-        if v["stats_period_s"] > 0:
-            self.create_timer(v["stats_period_s"], self._log_stats)
+        self.create_timer(c.discovery_period_s, self._discover)
+        if c.stats_period_s > 0:
+            self.create_timer(c.stats_period_s, self._log_stats)
         self.create_timer(0.2, self._check_error)
         self.get_logger().info(
-            f"recording to {self.writer.path} ({v['compression']}, chunks {v['chunk_size_mb']} MB, split "
-            f"{v['split_size_mb']} MB / {v['split_duration_s']} s, cap {v['max_size_mb']} MB); "
-            f"topics {self.topics or 'matching ' + v['topic_regex']}")
+            f"recording to {self.writer.path} ({c.compression}, chunks {c.chunk_size_mb} MB, split "
+            f"{c.split_size_mb} MB / {c.split_duration_s} s, cap {c.max_size_mb} MB); "
+            f"topics {self.topics or 'matching ' + c.topic_regex}")
+        self._discover()
+
+    def on_config(self, cfg: RecorderConfig) -> None:
+        """Record the new selection: topics it adds are subscribed at once, topics it drops are no longer recorded."""
+        self.cfg = cfg
+        self.topics = cfg.topic_list
+        self.include, self.exclude = re.compile(cfg.topic_regex), re.compile(cfg.exclude_regex)
+        for topic in [t for t in self.subs if not self._wanted(t)]:
+            sub = self.subs.pop(topic)
+            if sub is not None:
+                self.destroy_subscription(sub)
+                self.get_logger().info(f"no longer recording {topic}")
+        self.get_logger().info(f"topics {self.topics or 'matching ' + cfg.topic_regex}")
         self._discover()
 
     def _wanted(self, topic: str) -> bool:
@@ -109,7 +118,7 @@ class RecorderNode(Node):
             self.get_logger().error(f"recording ended: {self.core.error}")
             self.done, self.exit_code = True, 1
 
-    def close(self) -> None:
+    def stop(self) -> None:
         """Finalise the bag and print the statistics."""
         t0 = time.perf_counter()
         files = self.core.close()

@@ -13,14 +13,14 @@ from __future__ import annotations
 import re
 import threading
 import time
+from pathlib import Path
 from typing import Any
 
 import yaml
-from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
 from zebra_sim_ros.nodes.ros_adapter import (
-    declare_and_read,
+    ZebraNode,
     flush,
     help_text,
     message_class,
@@ -28,35 +28,60 @@ from zebra_sim_ros.nodes.ros_adapter import (
     run_node,
     stamp,
 )
-from zebra_sim_ros.params import validate
-from zebra_sim_ros.recording.config import REPLAY_PARAMS
+from zebra_sim_ros.recording.config import REPLAY_PARAMS, ReplayConfig
 from zebra_sim_ros.recording.qos import from_yaml, replay_profile
 from zebra_sim_ros.recording.reader import BagReader
 
 
-class ReplayNode(Node):
-    """Plays bags from a thread of its own; the executor only serves the graph."""
+class _Pace:
+    """When each bag time is due on the wall clock, at a ``rate`` that may change while playing: after a change
+    the bag goes on from where it is, at the new speed. Times in seconds from the bag's first message."""
+
+    def __init__(self, offset_s: float, rate: float) -> None:
+        self.offset, self.start, self.rate = offset_s, time.monotonic(), rate  # bag time ``offset`` at ``start``
+        self.last_clock = 0.0  # wall time /clock was last published
+
+    def position(self, now: float) -> float:
+        """The bag time reached at wall time ``now``."""
+        return self.offset + (now - self.start) * self.rate
+
+    def set_rate(self, rate: float, now: float) -> None:
+        """Play on at ``rate`` from ``now``."""
+        if rate != self.rate:
+            self.offset, self.start, self.rate = self.position(now), now, rate
+
+    def due(self, rel: float) -> float:
+        """The wall time at which bag time ``rel`` is due."""
+        return self.start + (rel - self.offset) / self.rate
+
+
+class ReplayNode(ZebraNode[ReplayConfig]):
+    """Plays bags from a thread of its own; the executor only serves the graph. ``rate`` may change while it plays."""
 
     def __init__(self) -> None:
-        super().__init__("replay")
-        v = validate(REPLAY_PARAMS, declare_and_read(self, REPLAY_PARAMS))
-        self.v = v
-        self.bags = [b for b in v["bags"] if b]
+        super().__init__("replay", ReplayConfig)
+
+    def start(self) -> None:
+        """Open the bags, make every publisher, and start playing."""
+        c = self.cfg
+        self.bags: list[str | Path] = [b for b in c.bags if b]
         self.reader = BagReader.open(self.bags, name="bags")  # missing files stop the node here, naming them
-        self.regex = re.compile(v["topic_regex"])  # checked by its ParamSpec
-        self.topics = {t for t in v["topics"] if t}
+        self.regex = re.compile(c.topic_regex)  # checked by its ParamSpec
+        self.topics = {t for t in c.topics if t}
         self.pubs: dict[str, Any] = {}
-        self.clock_pub = self.create_publisher(Clock, "/clock", 10) if v["clock"] else None
-        self.done = False
-        self.exit_code = 0
+        self.clock_pub = self.create_publisher(Clock, "/clock", 10) if c.clock else None
         self.published = 0
         for topic, type_name, metadata in self.reader.channel_list():  # publishers up front: subscribers match
             self._publisher(topic, type_name, metadata)                    # before the first message is played
-        self.get_logger().info(f"playing {[str(p) for p in self.reader.paths]} at rate {v['rate']}, "
-                               f"offset {v['start_offset_s']} s, duration {v['duration_s'] or 'all'}, "
-                               f"loop {v['loop']}, clock {v['clock']}, remap prefix '{v['remap_prefix']}'")
+        self.get_logger().info(f"playing {[str(p) for p in self.reader.paths]} at rate {c.rate}, "
+                               f"offset {c.start_offset_s} s, duration {c.duration_s or 'all'}, "
+                               f"loop {c.loop}, clock {c.clock}, remap prefix '{c.remap_prefix}'")
         self.thread = threading.Thread(target=self._play_all, name="replay", daemon=True)
         self.thread.start()
+
+    def on_config(self, cfg: ReplayConfig) -> None:
+        """A new rate applies at once, also to the wait for the next message (the play thread reads ``cfg``)."""
+        self.cfg = cfg
 
     def _wanted(self, topic: str) -> bool:
         return (not self.topics or topic in self.topics) and bool(self.regex.search(topic))
@@ -71,7 +96,7 @@ class ReplayNode(Node):
             try:
                 p = replay_profile(from_yaml(metadata.get("offered_qos_profiles", "")))
                 q = qos(p["reliability"], int(p["depth"]), p["durability"] == "transient_local")
-                pub = self.create_publisher(message_class(type_name), self.v["remap_prefix"] + topic, q)
+                pub = self.create_publisher(message_class(type_name), self.cfg.remap_prefix + topic, q)
             except (ImportError, AttributeError, ValueError, yaml.YAMLError) as exc:
                 self.get_logger().error(f"cannot play {topic} ({type_name or 'no schema'}): {exc}; skipping it")
         self.pubs[topic] = pub
@@ -81,7 +106,7 @@ class ReplayNode(Node):
         try:
             while True:
                 self._play_once()
-                if not self.v["loop"] or self.done:
+                if not self.cfg.loop or self.done:
                     break
                 self.reader = BagReader.open(self.bags)
         except Exception as exc:  # noqa: BLE001 - reported, and the node ends with an error status
@@ -91,12 +116,10 @@ class ReplayNode(Node):
             self.done = True
 
     def _play_once(self) -> None:
-        v = self.v
-        wait_until = time.monotonic() + v["wait_for_subscribers_s"]
+        c = self.cfg  # what may change while playing (rate) is read from self.cfg where it is used
+        wait_until = time.monotonic() + c.wait_for_subscribers_s
         t0_bag: int | None = None
-        start_wall = 0.0
-        offset_bag = 0.0
-        last_clock = 0.0
+        pace: _Pace | None = None
         n = 0
         for m in self.reader.messages():
             if self.done:
@@ -104,29 +127,19 @@ class ReplayNode(Node):
             if t0_bag is None:
                 t0_bag = m.log_time
             rel = (m.log_time - t0_bag) / 1e9
-            if rel < v["start_offset_s"]:
+            if rel < c.start_offset_s:
                 continue
-            if v["duration_s"] and rel > v["start_offset_s"] + v["duration_s"]:
+            if c.duration_s and rel > c.start_offset_s + c.duration_s:
                 break
             pub = self._publisher(m.topic, m.type_name, m.metadata)
             if pub is None:
                 continue
-            if n == 0:  # every publisher known so far should have a subscriber (up to wait_for_subscribers_s)
+            if pace is None:  # every publisher known so far should have a subscriber (up to wait_for_subscribers_s)
                 while time.monotonic() < wait_until and any(p is not None and p.get_subscription_count() == 0
                                                             for p in self.pubs.values()):
                     time.sleep(0.01)
-                start_wall = time.monotonic()
-                offset_bag = rel
-            target = start_wall + (rel - offset_bag) / v["rate"]
-            while True:  # sleep in slices, publishing /clock on the way
-                now = time.monotonic()
-                if self.clock_pub is not None and now - last_clock >= 1.0 / v["clock_rate_hz"]:
-                    sim = t0_bag + int((offset_bag + (now - start_wall) * v["rate"]) * 1e9)
-                    self.clock_pub.publish(Clock(clock=stamp(min(sim, m.log_time))))
-                    last_clock = now
-                if now >= target:
-                    break
-                time.sleep(min(target - now, 0.5 / v["clock_rate_hz"] if self.clock_pub else 0.05))
+                pace = _Pace(rel, self.cfg.rate)
+            self._wait(pace, rel, t0_bag, m.log_time)
             if self.clock_pub is not None:
                 self.clock_pub.publish(Clock(clock=stamp(m.log_time)))
             pub.publish(m.data)
@@ -136,6 +149,21 @@ class ReplayNode(Node):
             self.get_logger().warning(f"bag damaged, played everything intact: {note}")
         flush(self, [p for p in self.pubs.values() if p is not None])
         self.get_logger().info(f"played {n} messages")
+
+    def _wait(self, pace: _Pace, rel: float, t0_bag: int, log_time: int) -> None:
+        """Sleep in slices until bag time ``rel`` is due, publishing /clock on the way; a new rate applies at once."""
+        period = 1.0 / self.cfg.clock_rate_hz
+        while True:
+            now = time.monotonic()
+            pace.set_rate(self.cfg.rate, now)
+            if self.clock_pub is not None and now - pace.last_clock >= period:
+                sim = t0_bag + int(pace.position(now) * 1e9)
+                self.clock_pub.publish(Clock(clock=stamp(min(sim, log_time))))
+                pace.last_clock = now
+            target = pace.due(rel)
+            if now >= target:
+                return
+            time.sleep(min(target - now, period / 2 if self.clock_pub else 0.05))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,4 +1,5 @@
-"""What every node adapter shares: parameter declaration, QoS, stamps and a guarded ``main``.
+"""What every node adapter shares: the node base class (parameters declared from the stage's config, validated,
+changed at run time where allowed; start and stop), QoS, stamps and a guarded ``main``.
 
 Only modules under ``zebra_sim_ros.nodes`` import rclpy.
 """
@@ -8,37 +9,113 @@ from __future__ import annotations
 import importlib
 import sys
 from collections.abc import Callable, Iterable, Sequence
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 import rclpy
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point
-from rcl_interfaces.msg import ParameterDescriptor
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import ImageMarker
 
 from zebra_sim_ros.errors import ZebraSimError
-from zebra_sim_ros.params import ParamSpec
+from zebra_sim_ros.params import ParamSpec, StageConfig
+
+
+def descriptor(spec: ParamSpec, ranges: bool = True) -> ParameterDescriptor:
+    """The ROS descriptor of a parameter: its description and allowed values, and (with ``ranges``) its numeric
+    range, which ``ros2 param describe`` and rqt show and rclpy enforces on values of the range's type.
+
+    Parameters are dynamically typed so that ``rate_hz: 2`` in YAML is accepted for a float (rclpy checks a
+    floating-point range only on float values, an integer range only on integers); the stage's validation then
+    coerces and range-checks every value and names any bad one.
+    """
+    runtime = "; can change while the node runs" if spec.runtime else "; fixed while the node runs"
+    d = ParameterDescriptor(description=f"{spec.description} (allowed: {spec.allowed}{runtime})",
+                            additional_constraints=spec.allowed, dynamic_typing=True)
+    if ranges and spec.lo is not None and spec.hi is not None:
+        if isinstance(spec.default, float):
+            d.floating_point_range = [FloatingPointRange(from_value=float(spec.lo), to_value=float(spec.hi), step=0.0)]
+        elif isinstance(spec.default, int) and not isinstance(spec.default, bool):
+            d.integer_range = [IntegerRange(from_value=int(spec.lo), to_value=int(spec.hi), step=1)]
+    return d
 
 
 def declare_and_read(node: Node, specs: Iterable[ParamSpec]) -> dict[str, Any]:
-    """Declare every spec as a parameter (with its description and range) and return the raw values.
+    """Declare every spec as a parameter (with its description, without its range) and return the raw values.
 
-    Parameters are dynamically typed so that ``rate_hz: 2`` in YAML is accepted for a float; the
-    core's validation then coerces and range-checks every value and names any bad one.
+    The range is left out here so that a value out of range reaches the stage's validation, which names it,
+    instead of failing in rclpy; :func:`add_ranges` adds the ranges once the values are valid.
     """
     values: dict[str, Any] = {}
     for s in specs:
-        desc = ParameterDescriptor(description=f"{s.description} (allowed: {s.allowed})", dynamic_typing=True)
-        node.declare_parameter(s.name, s.default, desc)
+        node.declare_parameter(s.name, s.default, descriptor(s, ranges=False))
         values[s.name] = node.get_parameter(s.name).value
     return values
+
+
+def add_ranges(node: Node, specs: Iterable[ParamSpec]) -> None:
+    """Give every declared parameter its full descriptor (with its numeric range); the values must be valid."""
+    for s in specs:
+        node.set_descriptor(s.name, descriptor(s))
+
+
+C = TypeVar("C", bound=StageConfig)
+
+
+class ZebraNode(Node, Generic[C]):
+    """A node of the pipeline and its lifecycle: declare the stage's parameters, validate them into ``cfg`` (a
+    :class:`ZebraSimError` here stops the node before anything starts), :meth:`start`, spin until ``done``,
+    :meth:`stop`.
+
+    Parameters marked ``runtime`` in the stage's config may change while the node runs (``ros2 param set``): the
+    new values are validated by the same rules and the new config goes to :meth:`on_config`. Any other change is
+    refused with a reason, as is a bad value.
+    """
+
+    def __init__(self, name: str, config: type[C], **node_args: Any) -> None:
+        super().__init__(name, **node_args)  # node_args: rclpy Node's (context, cli_args, parameter_overrides)
+        self.config_class = config
+        self.done = False  # set to end the spin
+        self.exit_code = 0
+        self.cfg: C = config.from_params(declare_and_read(self, config.specs()))
+        add_ranges(self, config.specs())
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.start()
+
+    def start(self) -> None:
+        """Load what the node needs and create its publishers, subscriptions and timers (``cfg`` is valid)."""
+
+    def stop(self) -> None:
+        """Release what :meth:`start` took (GL contexts, open files); called once, before the node is destroyed."""
+
+    def on_config(self, cfg: C) -> None:
+        """Apply a config in which runtime parameters changed (already validated). By default: keep it."""
+        self.cfg = cfg
+
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        specs = {s.name: s for s in self.config_class.specs()}
+        changes = {p.name: p.value for p in params if p.name in specs}  # others (use_sim_time) are rclpy's
+        current = self.cfg.as_params()
+        fixed = [n for n, v in changes.items() if not specs[n].runtime and v != current[n]]
+        if fixed:
+            return SetParametersResult(successful=False, reason=f"'{fixed[0]}' cannot change while the node runs; "
+                                       "restart it")
+        try:
+            cfg = self.cfg.with_changes(changes)
+            if cfg != self.cfg:
+                self.on_config(cfg)
+                self.get_logger().info(f"parameters changed: {changes}")
+        except ZebraSimError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
 
 
 def message_class(type_name: str) -> Any:
@@ -135,18 +212,22 @@ def stamp_ns(t: Time) -> int:
 def help_text(executable: str, doc: str, specs: Iterable[ParamSpec]) -> str:
     """``--help`` text of a node: its docstring and a table of its parameters."""
     lines = [f"usage: ros2 run zebra_sim_ros {executable} [--ros-args -p name:=value ... "
-             f"--params-file FILE]", "", doc.strip(), "", "parameters (name, default, meaning, allowed):"]
+             f"--params-file FILE]", "", doc.strip(), "",
+             "parameters (name, default, meaning, allowed; * = can change while the node runs):"]
     for s in specs:
-        lines.append(f"  {s.name} = {s.default!r}\n      {s.description}; allowed {s.allowed}")
+        lines.append(f"  {s.name} = {s.default!r}{' *' if s.runtime else ''}\n      {s.description}; "
+                     f"allowed {s.allowed}")
     return "\n".join(lines)
 
 
-def run_node(name: str, factory: Callable[[], Any], argv: list[str] | None = None, help: str = "") -> int:
-    """Init rclpy, build the node, spin until it is done or interrupted, and shut down.
+def run_node(name: str, factory: Callable[[], ZebraNode[Any]], argv: list[str] | None = None,
+             help: str = "") -> int:
+    """Init rclpy, build the node (declare, validate, start), spin until it is ``done`` or interrupted, stop it
+    and shut down; returns the exit status.
 
     ``-h``/``--help`` before ``--ros-args`` prints ``help`` and returns 0 without starting ROS. A
     :class:`ZebraSimError` at start-up (a bad parameter, a missing world) is logged as one line naming the
-    problem and gives exit status 2. The node may expose ``done`` (bool) to end the spin by itself.
+    problem and gives exit status 2.
     """
     args = list(argv if argv is not None else sys.argv)
     own = args[1:args.index("--ros-args")] if "--ros-args" in args else args[1:]
@@ -154,23 +235,21 @@ def run_node(name: str, factory: Callable[[], Any], argv: list[str] | None = Non
         print(help or f"usage: ros2 run zebra_sim_ros {name} [--ros-args ...]")
         return 0
     rclpy.init(args=args)
-    node = None
+    node: ZebraNode[Any] | None = None
     try:
         try:
             node = factory()
         except ZebraSimError as exc:
             rclpy.logging.get_logger(name).fatal(f"cannot start: {exc}")
             return 2
-        while rclpy.ok() and getattr(node, "done", False) is not True:
+        while rclpy.ok() and not node.done:
             rclpy.spin_once(node, timeout_sec=0.1)
-        return int(getattr(node, "exit_code", 0))
+        return node.exit_code
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
     finally:
         if node is not None:
-            close = getattr(node, "close", None)
-            if callable(close):
-                close()
+            node.stop()
             node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()

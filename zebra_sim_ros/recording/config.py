@@ -1,58 +1,79 @@
-"""Parameters of the recorder and replay nodes."""
+"""Parameters of the recorder and replay nodes, each declared once."""
 
 from __future__ import annotations
 
-from zebra_sim_ros.params import ParamSpec, in_range, is_regex, one_of
+from dataclasses import dataclass
+
+from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.params import ParamSpec, StageConfig, is_regex, param
+
+SUMMARY_RESERVE_MB = 0.016  # what a bag's summary and indexes may need beyond its chunks, MB (16 KiB)
 
 
 def _str_list(v: object) -> bool:
     return isinstance(v, list) and all(isinstance(x, str) for x in v)
 
 
-RECORDER_PARAMS: tuple[ParamSpec, ...] = (
-    ParamSpec("output", "bags/zebra_sim.mcap", "bag file to write (split files get _0, _1, ... before .mcap)",
-              "a path", lambda v: isinstance(v, str) and len(v) > 0),
-    ParamSpec("topics", [""], "topics to record; [''] (empty) records every topic that matches topic_regex",
-              "a list of topic names", _str_list),
-    ParamSpec("topic_regex", ".*", "record topics matching this regular expression (with topics empty)",
-              "a regular expression", is_regex),
-    ParamSpec("exclude_regex", "^/(rosout|parameter_events)$", "never record topics matching this",
-              "a regular expression", is_regex),
-    ParamSpec("compression", "zstd", "chunk compression", "zstd, lz4 or none", one_of("zstd", "lz4", "none")),
-    ParamSpec("chunk_size_mb", 4.0, "chunk size, MB", "0.01..1024", in_range(0.01, 1024.0)),
-    ParamSpec("split_size_mb", 0.0, "start a new file after this many MB (0: never)", "0..1e6", in_range(0.0, 1e6)),
-    ParamSpec("split_duration_s", 0.0, "start a new file after this many seconds (0: never)", "0..1e7",
-              in_range(0.0, 1e7)),
-    ParamSpec("max_size_mb", 0.0, "stop recording (with a finalised bag) at this total size, MB (0: no cap)",
-              "0..1e7", in_range(0.0, 1e7)),
-    ParamSpec("queue_size", 2000, "messages waiting for the writer thread before drops are counted", "1..1e6",
-              in_range(1, 1_000_000)),
-    ParamSpec("discovery_period_s", 0.5, "how often new topics are looked for, s", "0.05..60", in_range(0.05, 60.0)),
-    ParamSpec("stats_period_s", 10.0, "how often statistics are logged, s (0: never)", "0..3600",
-              in_range(0.0, 3600.0)),
-    ParamSpec("qos_depth", 100, "history depth of the subscriptions", "1..100000", in_range(1, 100000)),
-)
+@dataclass(frozen=True)
+class RecorderConfig(StageConfig):
+    """Validated recorder parameters; the topic selection (``topics``, ``topic_regex``, ``exclude_regex``) may
+    change while it records."""
 
-REPLAY_PARAMS: tuple[ParamSpec, ...] = (
-    ParamSpec("bags", [""], "bag files (or folders of split files) to play, in order", "a non-empty list of paths",
-              lambda v: _str_list(v) and any(x for x in v)),
-    ParamSpec("rate", 1.0, "playback speed (2: twice as fast)", "0.01..1000", in_range(0.01, 1000.0)),
-    ParamSpec("loop", False, "play again from the start when done", "true or false", lambda v: isinstance(v, bool)),
-    ParamSpec("start_offset_s", 0.0, "skip this many seconds of the bag", "0..1e9", in_range(0.0, 1e9)),
-    ParamSpec("duration_s", 0.0, "play only this many seconds of the bag (0: to the end)", "0..1e9",
-              in_range(0.0, 1e9)),
-    ParamSpec("topics", [""], "play only these topics ([''] = all matching topic_regex)", "a list of topic names",
-              _str_list),
-    ParamSpec("topic_regex", ".*", "play topics matching this regular expression", "a regular expression",
-              is_regex),
-    ParamSpec("remap_prefix", "", "prefix added to every topic name (e.g. /replay)",
-              "empty, or starting and not ending with /",
-              lambda v: isinstance(v, str) and (v == "" or (v.startswith("/") and not v.endswith("/")))),
-    ParamSpec("clock", False, "publish /clock (rosgraph_msgs/Clock) with the bag's time, for use_sim_time",
-              "true or false", lambda v: isinstance(v, bool)),
-    ParamSpec("clock_rate_hz", 100.0, "how often /clock is published between messages", "1..10000",
-              in_range(1.0, 10000.0)),
-    ParamSpec("wait_for_subscribers_s", 0.0,
-              "wait up to this long, before playing, for every played topic to have a subscriber, s", "0..3600",
-              in_range(0.0, 3600.0)),
-)
+    output: str = param("bags/zebra_sim.mcap", "bag file to write (split files get _0, _1, ... before .mcap)",
+                        allowed="a path", check=lambda v: len(v) > 0)
+    topics: tuple[str, ...] = param(("",), "topics to record; [''] (empty) records every topic that matches "
+                                    "topic_regex", allowed="a list of topic names", check=_str_list, runtime=True)
+    topic_regex: str = param(".*", "record topics matching this regular expression (with topics empty)",
+                             allowed="a regular expression", check=is_regex, runtime=True)
+    exclude_regex: str = param("^/(rosout|parameter_events)$", "never record topics matching this",
+                               allowed="a regular expression", check=is_regex, runtime=True)
+    compression: str = param("zstd", "chunk compression", choices=("zstd", "lz4", "none"))
+    chunk_size_mb: float = param(4.0, "chunk size", "MB", lo=0.01, hi=1024.0)
+    split_size_mb: float = param(0.0, "start a new file after this size (0: never)", "MB", lo=0.0, hi=1e6)
+    split_duration_s: float = param(0.0, "start a new file after this long (0: never)", "s", lo=0.0, hi=1e7)
+    max_size_mb: float = param(0.0, "stop recording (with a finalised bag) at this total size (0: no cap)", "MB",
+                               lo=0.0, hi=1e7)
+    queue_size: int = param(2000, "messages waiting for the writer thread before drops are counted", lo=1,
+                            hi=1_000_000)
+    discovery_period_s: float = param(0.5, "how often new topics are looked for", "s", lo=0.05, hi=60.0)
+    stats_period_s: float = param(10.0, "how often statistics are logged (0: never)", "s", lo=0.0, hi=3600.0)
+    qos_depth: int = param(100, "history depth of the subscriptions", lo=1, hi=100000)
+
+    def check(self) -> None:
+        """A size cap must leave room for two chunks (the writer keeps them) and the summary."""
+        least = 2 * self.chunk_size_mb + SUMMARY_RESERVE_MB
+        if 0 < self.max_size_mb < least:
+            raise ParameterError("max_size_mb", self.max_size_mb, f"0 or more than {least:.3f} (2 x chunk_size_mb "
+                                 "+ 16 KiB for the summary)")
+
+    @property
+    def topic_list(self) -> list[str]:
+        """The topics named (``['']`` and empty names dropped): empty means every topic the regexes select."""
+        return [t for t in self.topics if t]
+
+
+@dataclass(frozen=True)
+class ReplayConfig(StageConfig):
+    """Validated replay parameters; ``rate`` may change while it plays."""
+
+    bags: tuple[str, ...] = param(("",), "bag files (or folders of split files) to play, in order",
+                                  allowed="a non-empty list of paths", check=lambda v: _str_list(v) and any(v))
+    rate: float = param(1.0, "playback speed (2: twice as fast)", lo=0.01, hi=1000.0, runtime=True)
+    loop: bool = param(False, "play again from the start when done")
+    start_offset_s: float = param(0.0, "skip this much of the bag's start", "s", lo=0.0, hi=1e9)
+    duration_s: float = param(0.0, "play only this much of the bag (0: to the end)", "s", lo=0.0, hi=1e9)
+    topics: tuple[str, ...] = param(("",), "play only these topics ([''] = all matching topic_regex)",
+                                    allowed="a list of topic names", check=_str_list)
+    topic_regex: str = param(".*", "play topics matching this regular expression", allowed="a regular expression",
+                             check=is_regex)
+    remap_prefix: str = param("", "prefix added to every topic name (e.g. /replay)",
+                              allowed="empty, or starting and not ending with /",
+                              check=lambda v: v == "" or (v.startswith("/") and not v.endswith("/")))
+    clock: bool = param(False, "publish /clock (rosgraph_msgs/Clock) with the bag's time, for use_sim_time")
+    clock_rate_hz: float = param(100.0, "how often /clock is published between messages", "Hz", lo=1.0, hi=10000.0)
+    wait_for_subscribers_s: float = param(0.0, "wait up to this long, before playing, for every played topic to "
+                                          "have a subscriber", "s", lo=0.0, hi=3600.0)
+
+
+RECORDER_PARAMS: tuple[ParamSpec, ...] = RecorderConfig.specs()
+REPLAY_PARAMS: tuple[ParamSpec, ...] = ReplayConfig.specs()
