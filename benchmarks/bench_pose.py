@@ -16,13 +16,34 @@ import statistics
 import time
 
 import numpy as np
+from numpy.typing import NDArray
 
 from zebra_sim_ros.geometry.rotations import euler_zyx, rigid, rot_y, rot_z
 from zebra_sim_ros.zebra.animation import CLIPS
-from zebra_sim_ros.zebra.asset import load_library
-from zebra_sim_ros.zebra.mesh import build_mesh
+from zebra_sim_ros.zebra.asset import ZebraLibrary, load_library
+from zebra_sim_ros.zebra.mesh import ZebraMesh, build_mesh
 from zebra_sim_ros.zebra.skeleton import MORPHS, bind_positions, forward_kinematics
 from zebra_sim_ros.zebra.skinning import skin, skinning_matrices
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+def _pose_from_scratch(lib: ZebraLibrary, meshes: dict[str, ZebraMesh], binds: dict[str, FloatArray],
+                       morph: IntArray, frame: IntArray, scale: FloatArray, rot: FloatArray, t: FloatArray) -> None:
+    """The cache's work done from scratch: forward kinematics and skinning of each zebra's frame, then its box."""
+    clip_of = np.searchsorted(lib.clip_start, frame, side="right") - 1
+    for i in range(len(morph)):
+        clip = CLIPS[int(clip_of[i])]
+        pose = clip.pose(int(frame[i] - lib.clip_start[clip_of[i]]))
+        name = lib.morphs[int(morph[i])]
+        ang = np.radians(pose.angles)
+        g = forward_kinematics(binds[name], euler_zyx(ang[:, 0], ang[:, 1], ang[:, 2]),
+                               rigid(rot_y(np.radians(pose.root_pitch)), np.zeros(3)))
+        msh = meshes[name]
+        v = skin(msh.vertices, msh.joint_indices, msh.joint_weights, skinning_matrices(g, binds[name]))
+        v = (v * scale[i]) @ rot[i].T + t[i]
+        v.min(axis=0), v.max(axis=0)
 
 
 def main() -> None:
@@ -55,20 +76,8 @@ def main() -> None:
         cached.append(time.perf_counter() - t0)
         assert posed.vertices.shape[0] == n
 
-        # The same work from scratch: forward kinematics and skinning of each zebra's frame.
-        clip_of = np.searchsorted(lib.clip_start, frame, side="right") - 1
         t0 = time.perf_counter()
-        for i in range(n):
-            clip = CLIPS[int(clip_of[i])]
-            pose = clip.pose(int(frame[i] - lib.clip_start[clip_of[i]]))
-            name = lib.morphs[int(morph[i])]
-            ang = np.radians(pose.angles)
-            g = forward_kinematics(binds[name], euler_zyx(ang[:, 0], ang[:, 1], ang[:, 2]),
-                                   rigid(rot_y(np.radians(pose.root_pitch)), np.zeros(3)))
-            msh = meshes[name]
-            v = skin(msh.vertices, msh.joint_indices, msh.joint_weights, skinning_matrices(g, binds[name]))
-            v = (v * scale[i]) @ rot[i].T + t[i]
-            v.min(axis=0), v.max(axis=0)
+        _pose_from_scratch(lib, meshes, binds, morph, frame, scale, rot, t)
         lbs.append(time.perf_counter() - t0)
 
     med_cached = statistics.median(cached) * 1000

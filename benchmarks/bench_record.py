@@ -30,6 +30,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 PUBLISHER = r'''
 import sys, time, numpy as np, rclpy
@@ -62,28 +63,20 @@ node.destroy_node(); rclpy.shutdown()
 '''
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seconds", type=float, default=60.0)
-    ap.add_argument("--compression", default="none")
-    ap.add_argument("--stock", action="store_true", help="Fast DDS defaults instead of config/fastdds.xml")
-    ap.add_argument("--json", action="store_true")
-    args = ap.parse_args()
-    from mcap.writer import Writer
-
-    from zebra_sim_ros.recording.qos import profile_dict
-    from zebra_sim_ros.recording.reader import BagReader, summarize
-    from zebra_sim_ros.recording.recorder import RecorderCore
-    from zebra_sim_ros.recording.writer import COMPRESSIONS, BagWriter
-
-    tmp = Path(tempfile.mkdtemp(prefix="bench_record_"))
+def _dds_env(stock: bool) -> dict[str, str]:
+    """The processes' environment: a private ROS domain on this host, the project's Fast DDS profile unless stock."""
     env = dict(os.environ, ROS_DOMAIN_ID=str(150 + os.getpid() % 50), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
                PYTHONUNBUFFERED="1")
     for var in ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE"):
         env.pop(var, None)
-    if not args.stock:
+    if not stock:
         env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(Path(__file__).resolve().parents[1] / "config" / "fastdds.xml")
-    bag = tmp / "bench.mcap"
+    return env
+
+
+def _record_live(tmp: Path, bag: Path, args: argparse.Namespace) -> tuple[int, str]:
+    """Run the recorder and three publishers for ``args.seconds``: messages published, the recorder's output."""
+    env = _dds_env(args.stock)
     rec = subprocess.Popen([sys.executable, "-m", "zebra_sim_ros.nodes.recorder", "--ros-args", "-p",
                             f"output:={bag}", "-p", f"compression:={args.compression}", "-p", "topic_regex:=^/drone_",
                             "-p", "discovery_period_s:=0.2", "-p", "stats_period_s:=0.0"], env=env,
@@ -99,6 +92,57 @@ def main() -> None:
     time.sleep(2.0)
     os.killpg(rec.pid, signal.SIGINT)
     rec_out, _ = rec.communicate(timeout=120)
+    return published, rec_out
+
+
+def _plain_write(msgs: list[Any], path: Path, compression: str) -> float:
+    """Seconds the mcap library's plain ``Writer`` takes to write ``msgs`` (one channel per topic) to ``path``."""
+    from mcap.writer import Writer
+
+    from zebra_sim_ros.recording.writer import COMPRESSIONS
+
+    t0 = time.perf_counter()
+    with open(path, "wb") as f:
+        w = Writer(f, chunk_size=4 << 20, compression=COMPRESSIONS[compression])
+        w.start(profile="ros2", library="bench")
+        sid = w.register_schema("sensor_msgs/msg/Image", "ros2msg", b"")
+        chans = {t: w.register_channel(t, "cdr", sid) for t in {msg.topic for msg in msgs}}
+        for msg in msgs:
+            w.add_message(chans[msg.topic], msg.log_time, msg.data, msg.publish_time)
+        w.finish()
+    return time.perf_counter() - t0
+
+
+def _recorder_write(msgs: list[Any], path: Path, compression: str) -> float:
+    """Seconds the recorder's core (queue, writer thread, BagWriter) takes to write ``msgs``, fed as the node does."""
+    from zebra_sim_ros.recording.qos import profile_dict
+    from zebra_sim_ros.recording.recorder import RecorderCore
+    from zebra_sim_ros.recording.writer import BagWriter
+
+    t0 = time.perf_counter()
+    writer = BagWriter(path, compression, 4 << 20)
+    for t in sorted({msg.topic for msg in msgs}):
+        writer.add_channel(t, "sensor_msgs/msg/Image", [profile_dict("keep_last", 10, "reliable", "volatile")])
+    core = RecorderCore(writer, 2000)
+    for msg in msgs:
+        while not core.offer(msg.topic, msg.data, msg.log_time):  # a live recorder would count a drop; here: wait
+            time.sleep(0.001)
+    core.close()
+    return time.perf_counter() - t0
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=60.0)
+    ap.add_argument("--compression", default="none")
+    ap.add_argument("--stock", action="store_true", help="Fast DDS defaults instead of config/fastdds.xml")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    from zebra_sim_ros.recording.reader import BagReader, summarize
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench_record_"))
+    bag = tmp / "bench.mcap"
+    published, rec_out = _record_live(tmp, bag, args)
     s = summarize(bag)
     recorded = s["messages"]
     wm = re.search(r"writer ([\d.]+) MB/s", rec_out)
@@ -108,27 +152,9 @@ def main() -> None:
     total_bytes = sum(len(msg.data) for msg in msgs)
     plain_times, core_times = [], []
     for _ in range(3):  # interleaved: the same page cache and disk state for both
-        t0 = time.perf_counter()
-        with open(tmp / "plain.mcap", "wb") as f:
-            w = Writer(f, chunk_size=4 << 20, compression=COMPRESSIONS[args.compression])
-            w.start(profile="ros2", library="bench")
-            sid = w.register_schema("sensor_msgs/msg/Image", "ros2msg", b"")
-            chans = {t: w.register_channel(t, "cdr", sid) for t in {msg.topic for msg in msgs}}
-            for msg in msgs:
-                w.add_message(chans[msg.topic], msg.log_time, msg.data, msg.publish_time)
-            w.finish()
-        plain_times.append(time.perf_counter() - t0)
+        plain_times.append(_plain_write(msgs, tmp / "plain.mcap", args.compression))
         (tmp / "plain.mcap").unlink()
-        t0 = time.perf_counter()
-        writer = BagWriter(tmp / "core.mcap", args.compression, 4 << 20)
-        for t in sorted({msg.topic for msg in msgs}):
-            writer.add_channel(t, "sensor_msgs/msg/Image", [profile_dict("keep_last", 10, "reliable", "volatile")])
-        core = RecorderCore(writer, 2000)
-        for msg in msgs:
-            while not core.offer(msg.topic, msg.data, msg.log_time):  # a live recorder would count a drop; here: wait
-                time.sleep(0.001)
-        core.close()
-        core_times.append(time.perf_counter() - t0)
+        core_times.append(_recorder_write(msgs, tmp / "core.mcap", args.compression))
         (tmp / "core.mcap").unlink()
     plain = total_bytes / statistics.median(plain_times) / 1e6
     core_speed = total_bytes / statistics.median(core_times) / 1e6

@@ -17,10 +17,15 @@ import signal
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from zebra_sim_ros.cli import Summary, add_json_flag, parse_size
 from zebra_sim_ros.errors import ParameterError
+
+if TYPE_CHECKING:  # the graph and rclpy are imported only when the command runs
+    from zebra_sim_ros.graph.spec import NodeSpec, UpConfig
+    from zebra_sim_ros.graph.supervisor import Child, Supervisor
+    from zebra_sim_ros.nodes.graph_watch import GraphWatch
 
 
 def register(sub: Any) -> None:
@@ -53,8 +58,38 @@ class _Stop(Exception):
 
 def cmd_up(args: argparse.Namespace) -> Summary:
     """Run the graph; returns the summary (``exit_code`` 0, 1 when a node died, 130 when interrupted)."""
-    from zebra_sim_ros.graph.spec import DRONES, UpConfig, command, config_dir, dds_environment, graph_spec
-    from zebra_sim_ros.graph.supervisor import NodeDied, Supervisor
+    from zebra_sim_ros.graph.spec import DRONES, config_dir, graph_spec
+    from zebra_sim_ros.zebra.asset import load_library
+
+    cfg = _up_config(args)
+    detect_imgsz = cfg.detect_imgsz  # reads the checkpoint's serving rule: an unreadable file stops here
+    conf = config_dir(cfg.config_dir)
+    out = Path(cfg.out)
+    out.mkdir(parents=True, exist_ok=True)
+    for old in (cfg.bag_path, out / "summary.json", out / "preview.jpg"):
+        old.unlink(missing_ok=True)
+    env = _graph_environment(conf, args.domain_id)
+    load_library()  # build the zebra cache once here, not in five nodes at the same time
+    specs = graph_spec(cfg)
+    result: dict[str, Any] = {"out": str(out), "config": str(conf), "frames_asked": cfg.frames, "exit_code": 0,
+                              "detect_imgsz": detect_imgsz}
+    t_start = time.monotonic()
+    _run_graph(cfg, specs, conf, env, args.domain_id, result, t_start)
+    result["wall_s"] = round(time.monotonic() - t_start, 2)
+    if cfg.record and cfg.bag_path.is_file():
+        from zebra_sim_ros.graph.summary import summarize_run
+
+        result.update(summarize_run(cfg.bag_path, out / "preview.jpg"))
+        _print_summary(result, DRONES)
+    with open(out / "summary.json", "w") as f:
+        json.dump(result, f, indent=1, sort_keys=True)
+    print(f"[up] summary: {out / 'summary.json'}", flush=True)
+    return result
+
+
+def _up_config(args: argparse.Namespace) -> UpConfig:
+    """The run's :class:`~zebra_sim_ros.graph.spec.UpConfig` from the options, checked (``ParameterError``)."""
+    from zebra_sim_ros.graph.spec import UpConfig
 
     w, h = parse_size(args.size)
     cfg = UpConfig(frames=args.frames, world=args.world, seed=args.seed, out=args.out, width=w, height=h,
@@ -66,67 +101,48 @@ def cmd_up(args: argparse.Namespace) -> Summary:
         raise ParameterError("--domain-id", args.domain_id, "0..232 (ROS_DOMAIN_ID)")
     if args.weights and not Path(args.weights).is_file():
         raise ParameterError("--weights", args.weights, "an existing checkpoint file")
-    detect_imgsz = cfg.detect_imgsz  # reads the checkpoint's serving rule: an unreadable file stops here
-    conf = config_dir(cfg.config_dir)
-    out = Path(cfg.out)
-    out.mkdir(parents=True, exist_ok=True)
-    for old in (cfg.bag_path, out / "summary.json", out / "preview.jpg"):
-        old.unlink(missing_ok=True)
+    return cfg
+
+
+def _graph_environment(conf: Path, domain_id: int | None) -> dict[str, str]:
+    """The nodes' environment: ours with the config's DDS profile and ``domain_id`` (None: inherited)."""
+    from zebra_sim_ros.graph.spec import dds_environment
+
     env = dds_environment(conf, dict(os.environ, PYTHONUNBUFFERED="1", RCUTILS_COLORIZED_OUTPUT="0"))
     if env.get("FASTRTPS_DEFAULT_PROFILES_FILE"):  # the watcher's participant reads it from this process's env
         os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = env["FASTRTPS_DEFAULT_PROFILES_FILE"]
-    if args.domain_id is not None:
-        env["ROS_DOMAIN_ID"] = str(args.domain_id)
-    from zebra_sim_ros.zebra.asset import load_library
+    if domain_id is not None:
+        env["ROS_DOMAIN_ID"] = str(domain_id)
+    return env
 
-    load_library()  # build the zebra cache once here, not in five nodes at the same time
-    specs = graph_spec(cfg)
+
+def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, str], domain_id: int | None,
+               result: dict[str, Any], t_start: float) -> None:
+    """Start the nodes, wait until ready, run the placer's steps and stop the graph (recorder last).
+
+    The placer is the last of ``specs``. How it ended goes into ``result`` (``exit_code``, ``died``, ``error``,
+    ``exit_status``, ``ready_s``); SIGTERM stops it like Ctrl-C.
+    """
+    from zebra_sim_ros.graph.spec import command
+    from zebra_sim_ros.graph.supervisor import NodeDied, Supervisor
+    from zebra_sim_ros.nodes.graph_watch import GraphWatch
+
     placer, others = specs[-1], specs[:-1]
-    ackers = placer.overrides["lockstep_ack_from"]
+    out = Path(cfg.out)
 
     def on_term(signum: int, frame: Any) -> None:
         raise _Stop()
 
     old_term = signal.signal(signal.SIGTERM, on_term)
-    from zebra_sim_ros.nodes.graph_watch import GraphWatch
-
-    result: dict[str, Any] = {"out": str(out), "config": str(conf), "frames_asked": cfg.frames, "exit_code": 0,
-                              "detect_imgsz": detect_imgsz}
-    t_start = time.monotonic()
     sup = Supervisor(out / "logs", env)
     try:
-        with GraphWatch(ackers, args.domain_id) as watch:  # None: rclpy reads ROS_DOMAIN_ID as the nodes do
+        # domain_id None: rclpy reads ROS_DOMAIN_ID as the nodes do
+        with GraphWatch(placer.overrides["lockstep_ack_from"], domain_id) as watch:
             try:
-                for s in others:
-                    sup.start(s, command(s, conf))
-                print(f"[up] started {', '.join(s.label for s in others)}; logs in {out / 'logs'}", flush=True)
-                topics = [t for s in others for t in s.publishes]
-                while missing := watch.missing(topics, "recorder" if cfg.record else None):
-                    sup.check()
-                    if time.monotonic() - t_start > cfg.ready_timeout_s:
-                        raise TimeoutError(f"the graph was not ready after {cfg.ready_timeout_s:.0f} s: missing "
-                                           f"{missing[:6]}{' ...' if len(missing) > 6 else ''}")
-                    watch.spin(0.25)
-                result["ready_s"] = round(time.monotonic() - t_start, 2)
+                result["ready_s"] = _start_and_wait(sup, watch, others, conf, cfg, t_start)
                 print(f"[up] {len(others)} nodes ready in {result['ready_s']:.1f} s; placer starts "
                       f"{cfg.frames} steps of '{cfg.world}' (seed {cfg.seed}) in lockstep", flush=True)
-                pl = sup.start(placer, command(placer, conf), expected_exit=True)
-                last, done, t_steps = time.monotonic(), 0, time.monotonic()
-                cr, end = ("\r", "") if sys.stdout.isatty() else ("", "\n")
-                while pl.proc.poll() is None:
-                    sup.check()
-                    watch.spin(0.2)
-                    if (now_done := watch.steps_done()) != done:
-                        done, last = now_done, time.monotonic()
-                        rate = done / (last - t_steps)
-                        print(f"{cr}[up] step {done}/{cfg.frames} ({rate:.2f} steps/s)", end=end, flush=True)
-                    elif time.monotonic() - last > cfg.step_timeout_s + 10.0:
-                        raise TimeoutError(f"no step finished for {cfg.step_timeout_s + 10:.0f} s (at step {done}); "
-                                           f"see the logs in {out / 'logs'}")
-                sup.check()  # the placer ended: with status 0 only after its last step
-                if cr:
-                    print("", flush=True)
-                watch.spin(1.0)  # the recorder receives the last detections
+                _run_steps(sup, watch, sup.start(placer, command(placer, conf), expected_exit=True), cfg)
             except NodeDied as exc:
                 print(f"\n[up] {exc}\n[up] stopping the other nodes", flush=True)
                 result.update(exit_code=1, died=exc.child.label, died_status=exc.code)
@@ -144,16 +160,45 @@ def cmd_up(args: argparse.Namespace) -> Summary:
                     print(f"[up] nodes that did not stop cleanly (exit status): {bad}", flush=True)
     finally:
         signal.signal(signal.SIGTERM, old_term)
-    result["wall_s"] = round(time.monotonic() - t_start, 2)
-    if cfg.record and cfg.bag_path.is_file():
-        from zebra_sim_ros.graph.summary import summarize_run
 
-        result.update(summarize_run(cfg.bag_path, out / "preview.jpg"))
-        _print_summary(result, DRONES)
-    with open(out / "summary.json", "w") as f:
-        json.dump(result, f, indent=1, sort_keys=True)
-    print(f"[up] summary: {out / 'summary.json'}", flush=True)
-    return result
+
+def _start_and_wait(sup: Supervisor, watch: GraphWatch, others: list[NodeSpec], conf: Path, cfg: UpConfig,
+                    t_start: float) -> float:
+    """Start every node but the placer and wait until their topics are up (and recorded); seconds it took."""
+    from zebra_sim_ros.graph.spec import command
+
+    out = Path(cfg.out)
+    for s in others:
+        sup.start(s, command(s, conf))
+    print(f"[up] started {', '.join(s.label for s in others)}; logs in {out / 'logs'}", flush=True)
+    topics = [t for s in others for t in s.publishes]
+    while missing := watch.missing(topics, "recorder" if cfg.record else None):
+        sup.check()
+        if time.monotonic() - t_start > cfg.ready_timeout_s:
+            raise TimeoutError(f"the graph was not ready after {cfg.ready_timeout_s:.0f} s: missing "
+                               f"{missing[:6]}{' ...' if len(missing) > 6 else ''}")
+        watch.spin(0.25)
+    return round(time.monotonic() - t_start, 2)
+
+
+def _run_steps(sup: Supervisor, watch: GraphWatch, pl: Child, cfg: UpConfig) -> None:
+    """Follow the placer's lockstep steps until it exits, printing progress; TimeoutError when a step stalls."""
+    last, done, t_steps = time.monotonic(), 0, time.monotonic()
+    cr, end = ("\r", "") if sys.stdout.isatty() else ("", "\n")
+    while pl.proc.poll() is None:
+        sup.check()
+        watch.spin(0.2)
+        if (now_done := watch.steps_done()) != done:
+            done, last = now_done, time.monotonic()
+            rate = done / (last - t_steps)
+            print(f"{cr}[up] step {done}/{cfg.frames} ({rate:.2f} steps/s)", end=end, flush=True)
+        elif time.monotonic() - last > cfg.step_timeout_s + 10.0:
+            raise TimeoutError(f"no step finished for {cfg.step_timeout_s + 10:.0f} s (at step {done}); "
+                               f"see the logs in {Path(cfg.out) / 'logs'}")
+    sup.check()  # the placer ended: with status 0 only after its last step
+    if cr:
+        print("", flush=True)
+    watch.spin(1.0)  # the recorder receives the last detections
 
 
 def _print_summary(r: dict[str, Any], drones: tuple[str, ...]) -> None:

@@ -23,20 +23,25 @@ def register(sub: Any) -> None:
     add_json_flag(ls)
     ls.set_defaults(func=cmd_list)
 
-    e = wsub.add_parser("export", help="generate a preset world and write it as a USD stage (z up, metres)")
-    e.add_argument("out", type=Path, help="USD file to write (.usd, .usda or .usdc)")
-    e.add_argument("--preset", default="savanna", help="world preset (see 'zebra-sim world list')")
-    e.add_argument("--seed", type=int, default=0, help="world seed (>= 0): same seed, same world")
+    e = _preset_parser(wsub, "export", "generate a preset world and write it as a USD stage (z up, metres)",
+                       "USD file to write (.usd, .usda or .usdc)", "world seed (>= 0): same seed, same world")
     add_json_flag(e)
     e.set_defaults(func=cmd_export)
 
-    v = wsub.add_parser("preview", help="top-down map of a preset world: ground colours, hillshade, vegetation")
-    v.add_argument("out", type=Path, help="PNG file to write")
-    v.add_argument("--preset", default="savanna", help="world preset (see 'zebra-sim world list')")
-    v.add_argument("--seed", type=int, default=0, help="world seed (>= 0)")
+    v = _preset_parser(wsub, "preview", "top-down map of a preset world: ground colours, hillshade, vegetation",
+                       "PNG file to write", "world seed (>= 0)")
     v.add_argument("--px-per-m", type=float, default=2.0, help="image pixels per metre (0.5..8)")
     add_json_flag(v)
     v.set_defaults(func=cmd_preview)
+
+
+def _preset_parser(wsub: Any, name: str, help_text: str, out_help: str, seed_help: str) -> argparse.ArgumentParser:
+    """A subcommand that writes ``out`` from the world of ``--preset`` and ``--seed`` (checked by :func:`_check`)."""
+    p: argparse.ArgumentParser = wsub.add_parser(name, help=help_text)
+    p.add_argument("out", type=Path, help=out_help)
+    p.add_argument("--preset", default="savanna", help="world preset (see 'zebra-sim world list')")
+    p.add_argument("--seed", type=int, default=0, help=seed_help)
+    return p
 
 
 def _check(args: argparse.Namespace) -> None:

@@ -1,7 +1,7 @@
-"""Boxes: conversions, IoU (plain and complete), the distance codec and batched non-maximum suppression.
+"""Boxes: IoU (plain and complete), the distance codec and batched non-maximum suppression.
 
-Formats: ``xyxy`` = (x_min, y_min, x_max, y_max) in pixels; ``cxcywh`` = centre and size; a box is encoded
-relative to an anchor point as distances (left, top, right, bottom) to its sides, in units of the stride.
+Format: ``xyxy`` = (x_min, y_min, x_max, y_max) in pixels; a box is encoded relative to an anchor point as
+distances (left, top, right, bottom) to its sides, in units of the stride.
 """
 
 from __future__ import annotations
@@ -11,16 +11,6 @@ import math
 import numpy as np
 import torch
 from torch import Tensor
-
-
-def xyxy_to_cxcywh(b: Tensor) -> Tensor:
-    """(..., 4) xyxy to cxcywh."""
-    return torch.cat([(b[..., :2] + b[..., 2:]) / 2, b[..., 2:] - b[..., :2]], dim=-1)
-
-
-def cxcywh_to_xyxy(b: Tensor) -> Tensor:
-    """(..., 4) cxcywh to xyxy."""
-    return torch.cat([b[..., :2] - b[..., 2:] / 2, b[..., :2] + b[..., 2:] / 2], dim=-1)
 
 
 def encode_ltrb(anchors: Tensor, boxes: Tensor, reg_max: int) -> Tensor:

@@ -150,70 +150,221 @@ def _is_main() -> bool:
     return int(os.environ.get("RANK", "0")) == 0
 
 
-def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
-    """Train; returns a summary (best metrics, paths, speed)."""
-    cfg.check()
-    distributed = int(os.environ.get("WORLD_SIZE", "1")) > 1
-    if distributed:
-        # Rank 0 validates while the others wait at the next step's all-reduce: allow a long validation.
-        torch.distributed.init_process_group("nccl" if torch.cuda.is_available() else "gloo",
-                                             timeout=datetime.timedelta(hours=2))
-        local = int(os.environ.get("LOCAL_RANK", "0"))
-        device = torch.device(f"cuda:{local}") if torch.cuda.is_available() else torch.device("cpu")
-        if device.type == "cuda":
-            torch.cuda.set_device(device)
-    else:
-        device = select_device(cfg.device)
-    torch.manual_seed(cfg.seed)
-    out = Path(cfg.out)
-    out.mkdir(parents=True, exist_ok=True)
-    train_dir, val_dir = resolve_split(cfg.data, "train"), resolve_split(cfg.data, "val")
+def _init_device(cfg: TrainConfig) -> tuple[torch.device, bool]:
+    """This process's device, and whether it is one of several under torchrun (then the process group is up)."""
+    if int(os.environ.get("WORLD_SIZE", "1")) <= 1:
+        return select_device(cfg.device), False
+    # Rank 0 validates while the others wait at the next step's all-reduce: allow a long validation.
+    torch.distributed.init_process_group("nccl" if torch.cuda.is_available() else "gloo",
+                                         timeout=datetime.timedelta(hours=2))
+    local = int(os.environ.get("LOCAL_RANK", "0"))
+    device = torch.device(f"cuda:{local}") if torch.cuda.is_available() else torch.device("cpu")
+    if device.type == "cuda":
+        torch.cuda.set_device(device)
+    return device, True
+
+
+def _train_set(cfg: TrainConfig, train_dir: Path) -> YoloDataset:
+    """The training images, augmented unless ``cfg.augment`` is off, cut to ``max_train_images``."""
     no_aug = Augment(mosaic=0.0, scale=0.0, translate=0.0, fliplr=0.0, hsv_h=0.0, hsv_s=0.0, hsv_v=0.0)
     ds = YoloDataset(train_dir, cfg.imgsz, Augment() if cfg.augment else no_aug, seed=cfg.seed,
                      dont_care=cfg.dont_care)
     if cfg.max_train_images:
         ds.files = ds.files[: cfg.max_train_images]
-    # The checkpoint records its training frames' size beside imgsz: served, a frame of another size is scaled
-    # as these were (ModelConfig.serve_size).
-    model_cfg = ModelConfig(size=cfg.model, imgsz=cfg.imgsz, frame=ds.frame_size())
-    # Channels-last (NHWC), as served: 1.24x faster training steps on our 2-core CPU; tensor cores want it too.
-    model = serving_layout(build_model(model_cfg).to(device))
-    start_epoch, best, updates = 0, -1.0, 0
-    opt_state = None
+    return ds
+
+
+@dataclass
+class _Start:
+    """Where a run starts: epoch 0 (random or ``--init`` weights), or where the run it resumes stopped."""
+
+    epoch: int = 0
+    best: float = -1.0
+    ema_updates: int = 0
+    optimizer: dict[str, Any] | None = None
+    ema_weights: dict[str, Any] | None = None
+
+
+def _load_weights(cfg: TrainConfig, model: Detector, out: Path) -> _Start:
+    """Load ``--init`` weights, or the resumed run's raw weights, into ``model``; where the run starts."""
     if cfg.init:
         init = read_checkpoint(cfg.init, "--init")
         if init["config"].get("size") != cfg.model:
             raise ParameterError("--init", cfg.init, f"a checkpoint of model size {cfg.model!r} "
                                  f"(it holds {init['config'].get('size')!r})")
         model.load_state_dict({k: v.float() for k, v in init["model"].items()})
-    if cfg.resume:
-        ckpt = read_checkpoint(out / "last.pt", "--resume")
-        check_resume(cfg, ckpt.get("train_args", {}), out / "last.pt")
-        model.load_state_dict(ckpt["model_raw"])
-        start_epoch, best, updates = ckpt["epoch"] + 1, ckpt.get("best_fitness", -1.0), ckpt.get("ema_updates", 0)
-        if start_epoch >= cfg.epochs:
-            raise ParameterError("--epochs", cfg.epochs,
-                                 f"more than the {start_epoch} epochs the run in {out} has done")
-        opt_state = ckpt.get("optimizer")
-    ema = EMA(model, updates=updates)
-    if cfg.resume:
-        ema.ema.load_state_dict(ckpt["model"])
+    if not cfg.resume:
+        return _Start()
+    ckpt = read_checkpoint(out / "last.pt", "--resume")
+    check_resume(cfg, ckpt.get("train_args", {}), out / "last.pt")
+    model.load_state_dict(ckpt["model_raw"])
+    start_epoch = ckpt["epoch"] + 1
+    if start_epoch >= cfg.epochs:
+        raise ParameterError("--epochs", cfg.epochs, f"more than the {start_epoch} epochs the run in {out} has done")
+    return _Start(start_epoch, ckpt.get("best_fitness", -1.0), ckpt.get("ema_updates", 0), ckpt.get("optimizer"),
+                  ckpt["model"])
+
+
+def _optimizer(model: Detector, cfg: TrainConfig, state: dict[str, Any] | None) -> torch.optim.SGD:
+    """SGD with Nesterov momentum; weight decay on weights only (not on biases and norm parameters)."""
     decay: list[nn.Parameter] = []
     no_decay: list[nn.Parameter] = []
     for name, p in model.named_parameters():
         (no_decay if p.ndim <= 1 or name.endswith(".bias") else decay).append(p)
     groups = [{"params": decay, "weight_decay": cfg.weight_decay}, {"params": no_decay, "weight_decay": 0.0}]
     opt = torch.optim.SGD(groups, lr=cfg.lr0, momentum=cfg.momentum, nesterov=True)
-    if opt_state is not None:
-        opt.load_state_dict(opt_state)
-    net: nn.Module = model
-    if distributed:
-        net = nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
+    if state is not None:
+        opt.load_state_dict(state)
+    return opt
+
+
+def _train_loader(ds: YoloDataset, cfg: TrainConfig,
+                  distributed: bool) -> tuple[DataLoader[Any], DistributedSampler[Any] | None]:
+    """The shuffled, seeded batches of ``ds`` (this process's share of them under torchrun) and the sampler."""
     sampler: DistributedSampler[Any] | None = DistributedSampler(ds, seed=cfg.seed) if distributed else None
     loader = DataLoader(ds, batch_size=cfg.batch, shuffle=sampler is None, sampler=sampler, num_workers=cfg.workers,
                         collate_fn=collate, drop_last=(len(sampler) if sampler else len(ds)) >= 2 * cfg.batch,
                         generator=torch.Generator().manual_seed(cfg.seed))  # workers restart each epoch: they must see
     # the dataset's new epoch (augmentation seeds) and, for the last epochs, mosaic switched off
+    return loader, sampler
+
+
+@dataclass
+class _Run:
+    """What one training process carries from step to step and epoch to epoch."""
+
+    cfg: TrainConfig
+    out: Path
+    log: Any
+    device: torch.device
+    model: Detector  # the raw model: the EMA's source, clipped, checkpointed as model_raw
+    net: nn.Module  # the model, or its DistributedDataParallel wrapper
+    ema: EMA
+    opt: torch.optim.SGD
+    criterion: DetectionLoss
+    autocast: torch.dtype | None
+    scaler: torch.amp.GradScaler
+    best: float
+    rows: list[dict[str, Any]]
+
+    def step(self, imgs: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
+        """One optimisation step on a batch (imgs (B, 3, H, W)); the loss components [box, cls, dfl] on the CPU."""
+        imgs = imgs.to(self.device, non_blocking=True).contiguous(memory_format=torch.channels_last)
+        targets = targets.to(self.device)
+        with torch.autocast(device_type=self.device.type, dtype=self.autocast, enabled=self.autocast is not None):
+            feats = self.net(imgs)
+        loss, parts = self.criterion([f.float() for f in feats], targets)
+        self.opt.zero_grad(set_to_none=True)
+        self.scaler.scale(loss).backward()
+        self.scaler.unscale_(self.opt)
+        nn.utils.clip_grad_norm_(self.model.parameters(), 10.0)
+        self.scaler.step(self.opt)
+        self.scaler.update()
+        self.ema.update(self.model)
+        return parts.cpu()
+
+
+def _set_lr(opt: torch.optim.SGD, cfg: TrainConfig, epoch: int, it: int, warmup: int) -> None:
+    """The epoch's cosine learning rate; during the first ``warmup`` iterations a linear ramp of it and the momentum."""
+    lr_cos = cfg.lr0 * (((1 - math.cos(epoch * math.pi / cfg.epochs)) / 2) * (cfg.lrf - 1) + 1)
+    if it < warmup:  # linear warm-up of the learning rate and the momentum
+        frac = it / warmup
+        for g in opt.param_groups:
+            g["lr"] = lr_cos * frac
+            g["momentum"] = 0.8 + (cfg.momentum - 0.8) * frac
+    else:
+        for g in opt.param_groups:
+            g["lr"] = lr_cos
+
+
+def _train_epoch(run_: _Run, loader: DataLoader[Any], epoch: int, warmup: int) -> tuple[torch.Tensor, int]:
+    """One pass over ``loader``: summed loss components [box, cls, dfl] and the number of images seen."""
+    cfg, nb = run_.cfg, len(loader)
+    run_.net.train()
+    sums = torch.zeros(3)
+    seen = 0
+    t_epoch = time.perf_counter()
+    for i, (imgs, targets, _) in enumerate(loader):
+        _set_lr(run_.opt, cfg, epoch, i + nb * epoch, warmup)
+        sums += run_.step(imgs, targets)
+        seen += len(imgs)
+        if _is_main() and (i % 10 == 0 or i == nb - 1):
+            el = time.perf_counter() - t_epoch
+            print(f"\r[train] epoch {epoch + 1}/{cfg.epochs} {i + 1}/{nb} loss box {sums[0] / (i + 1):.3f} "
+                  f"cls {sums[1] / (i + 1):.3f} dfl {sums[2] / (i + 1):.3f} "
+                  f"{(i + 1) * cfg.batch / max(el, 1e-9):.1f} img/s   ", end="", file=run_.log, flush=True)
+    return sums, seen
+
+
+def _end_epoch(run_: _Run, epoch: int, sums: torch.Tensor, nb: int, val_loader: DataLoader[Any] | None) -> None:
+    """Validate the EMA weights (every ``val_every`` epochs and the last), add the epoch's row to results.csv,
+    save last.pt (and best.pt when the fitness improved) and redraw results.png."""
+    cfg, out = run_.cfg, run_.out
+    print("", file=run_.log)
+    metrics: dict[str, Any] = {}
+    if val_loader is not None and ((epoch + 1) % cfg.val_every == 0 or epoch == cfg.epochs - 1):
+        m = run(run_.ema.ema, val_loader)
+        metrics = m.to_dict()
+        print(f"[train] epoch {epoch + 1}: val P {m.precision:.3f} R {m.recall:.3f} mAP50 {m.map50:.3f} "
+              f"mAP50-95 {m.map50_95:.3f}", file=run_.log)
+    fitness = 0.1 * metrics.get("mAP50", 0.0) + 0.9 * metrics.get("mAP50-95", 0.0) if metrics else run_.best
+    row = {"epoch": epoch + 1, "box": float(sums[0] / nb), "cls": float(sums[1] / nb), "dfl": float(sums[2] / nb),
+           "lr": run_.opt.param_groups[0]["lr"], **{k: metrics.get(k, "") for k in ("precision", "recall", "mAP50",
+                                                                                    "mAP50-95")}}
+    run_.rows.append(row)
+    with open(out / "results.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(row))
+        w.writeheader()
+        w.writerows(run_.rows)
+    extra = {"epoch": epoch, "metrics": metrics, "train_args": asdict(cfg), "best_fitness": max(run_.best, fitness)}
+    save_checkpoint(out / "last.pt", run_.ema.ema, model_raw=run_.model.state_dict(), optimizer=run_.opt.state_dict(),
+                    ema_updates=run_.ema.updates, **extra)
+    if metrics and fitness > run_.best:
+        run_.best = fitness
+        half = copy.deepcopy(run_.ema.ema).half()
+        save_checkpoint(out / "best.pt", half, **extra)
+    results_png(run_.rows, out / "results.png")
+
+
+def _previous_rows(cfg: TrainConfig, results_path: Path) -> list[dict[str, Any]]:
+    """The results table of the run being resumed (empty for a new run)."""
+    if cfg.resume and results_path.exists():
+        with open(results_path) as f:
+            return list(csv.DictReader(f))
+    return []
+
+
+def _images_everywhere(images_seen: int, device: torch.device) -> int:
+    """The images every torchrun process has trained on, summed; then leaves the process group."""
+    seen = torch.tensor([images_seen], dtype=torch.int64, device=device)
+    torch.distributed.all_reduce(seen)  # the images of every process
+    torch.distributed.destroy_process_group()
+    return int(seen.item())
+
+
+def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
+    """Train; returns a summary (best metrics, paths, speed)."""
+    cfg.check()
+    device, distributed = _init_device(cfg)
+    torch.manual_seed(cfg.seed)
+    out = Path(cfg.out)
+    out.mkdir(parents=True, exist_ok=True)
+    train_dir, val_dir = resolve_split(cfg.data, "train"), resolve_split(cfg.data, "val")
+    ds = _train_set(cfg, train_dir)
+    # The checkpoint records its training frames' size beside imgsz: served, a frame of another size is scaled
+    # as these were (ModelConfig.serve_size).
+    model_cfg = ModelConfig(size=cfg.model, imgsz=cfg.imgsz, frame=ds.frame_size())
+    # Channels-last (NHWC), as served: 1.24x faster training steps on our 2-core CPU; tensor cores want it too.
+    model = serving_layout(build_model(model_cfg).to(device))
+    start = _load_weights(cfg, model, out)
+    ema = EMA(model, updates=start.ema_updates)
+    if start.ema_weights is not None:
+        ema.ema.load_state_dict(start.ema_weights)
+    opt = _optimizer(model, cfg, start.optimizer)
+    net: nn.Module = model
+    if distributed:
+        net = nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
+    loader, sampler = _train_loader(ds, cfg, distributed)
     val_loader = make_loader(val_dir, cfg.imgsz, cfg.batch, cfg.workers) if _is_main() else None
     criterion = DetectionLoss(model)
     autocast = amp_dtype(cfg.amp, device)
@@ -221,96 +372,34 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
     nb = len(loader)
     # Warm-up: the given epochs, at least 100 iterations on big sets, at most a tenth of a short run.
     warmup = max(round(cfg.warmup_epochs * nb), min(100, cfg.epochs * nb // 10))
-    results_path = out / "results.csv"
     if _is_main():
         print(f"[train] {count_parameters(model) / 1e6:.2f} M parameters ({cfg.model}), {len(ds)} train images, "
               f"device {device}, imgsz {cfg.imgsz}, batch {cfg.batch}, epochs {cfg.epochs}, "
               f"autocast {str(autocast).replace('torch.', '') if autocast else 'off'}", file=log)
-    rows: list[dict[str, Any]] = []
-    if cfg.resume and results_path.exists():
-        with open(results_path) as f:
-            rows = list(csv.DictReader(f))
+    run_ = _Run(cfg, out, log, device, model, net, ema, opt, criterion, autocast, scaler, start.best,
+                _previous_rows(cfg, out / "results.csv"))
     t_start = time.perf_counter()
     images_seen = 0
-    for epoch in range(start_epoch, cfg.epochs):
+    for epoch in range(start.epoch, cfg.epochs):
         ds.epoch = epoch
         if sampler is not None:
             sampler.set_epoch(epoch)
         if cfg.augment and epoch >= cfg.epochs - cfg.close_mosaic:
             ds.augment = Augment(mosaic=0.0)
-        net.train()
-        sums = torch.zeros(3)
-        t_epoch = time.perf_counter()
-        for i, (imgs, targets, _) in enumerate(loader):
-            it = i + nb * epoch
-            lr_cos = cfg.lr0 * (((1 - math.cos(epoch * math.pi / cfg.epochs)) / 2) * (cfg.lrf - 1) + 1)
-            if it < warmup:  # linear warm-up of the learning rate and the momentum
-                frac = it / warmup
-                for g in opt.param_groups:
-                    g["lr"] = lr_cos * frac
-                    g["momentum"] = 0.8 + (cfg.momentum - 0.8) * frac
-            else:
-                for g in opt.param_groups:
-                    g["lr"] = lr_cos
-            imgs = imgs.to(device, non_blocking=True).contiguous(memory_format=torch.channels_last)
-            targets = targets.to(device)
-            with torch.autocast(device_type=device.type, dtype=autocast, enabled=autocast is not None):
-                feats = net(imgs)
-            loss, parts = criterion([f.float() for f in feats], targets)
-            opt.zero_grad(set_to_none=True)
-            scaler.scale(loss).backward()
-            scaler.unscale_(opt)
-            nn.utils.clip_grad_norm_(model.parameters(), 10.0)
-            scaler.step(opt)
-            scaler.update()
-            ema.update(model)
-            sums += parts.cpu()
-            images_seen += len(imgs)
-            if _is_main() and (i % 10 == 0 or i == nb - 1):
-                el = time.perf_counter() - t_epoch
-                print(f"\r[train] epoch {epoch + 1}/{cfg.epochs} {i + 1}/{nb} loss box {sums[0] / (i + 1):.3f} "
-                      f"cls {sums[1] / (i + 1):.3f} dfl {sums[2] / (i + 1):.3f} "
-                      f"{(i + 1) * cfg.batch / max(el, 1e-9):.1f} img/s   ", end="", file=log, flush=True)
-        if not _is_main():
-            continue
-        print("", file=log)
-        metrics: dict[str, Any] = {}
-        if val_loader is not None and ((epoch + 1) % cfg.val_every == 0 or epoch == cfg.epochs - 1):
-            m = run(ema.ema, val_loader)
-            metrics = m.to_dict()
-            print(f"[train] epoch {epoch + 1}: val P {m.precision:.3f} R {m.recall:.3f} mAP50 {m.map50:.3f} "
-                  f"mAP50-95 {m.map50_95:.3f}", file=log)
-        fitness = 0.1 * metrics.get("mAP50", 0.0) + 0.9 * metrics.get("mAP50-95", 0.0) if metrics else best
-        row = {"epoch": epoch + 1, "box": float(sums[0] / nb), "cls": float(sums[1] / nb), "dfl": float(sums[2] / nb),
-               "lr": opt.param_groups[0]["lr"], **{k: metrics.get(k, "") for k in ("precision", "recall", "mAP50",
-                                                                                   "mAP50-95")}}
-        rows.append(row)
-        with open(results_path, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(row))
-            w.writeheader()
-            w.writerows(rows)
-        extra = {"epoch": epoch, "metrics": metrics, "train_args": asdict(cfg), "best_fitness": max(best, fitness)}
-        save_checkpoint(out / "last.pt", ema.ema, model_raw=model.state_dict(), optimizer=opt.state_dict(),
-                        ema_updates=ema.updates, **extra)
-        if metrics and fitness > best:
-            best = fitness
-            half = copy.deepcopy(ema.ema).half()
-            save_checkpoint(out / "best.pt", half, **extra)
-        results_png(rows, out / "results.png")
+        sums, seen = _train_epoch(run_, loader, epoch, warmup)
+        images_seen += seen
+        if _is_main():
+            _end_epoch(run_, epoch, sums, nb, val_loader)
     seconds = time.perf_counter() - t_start
-    world = 1
+    world = torch.distributed.get_world_size() if distributed else 1
     if distributed:
-        world = torch.distributed.get_world_size()
-        seen = torch.tensor([images_seen], dtype=torch.int64, device=device)
-        torch.distributed.all_reduce(seen)  # the images of every process
-        images_seen = int(seen.item())
-        torch.distributed.destroy_process_group()
-    last = rows[-1] if rows else {}
+        images_seen = _images_everywhere(images_seen, device)
+    last = run_.rows[-1] if run_.rows else {}
     return {"out": str(out), "best": str(out / "best.pt"), "last": str(out / "last.pt"), "epochs": cfg.epochs,
             "seconds": round(seconds, 1), "processes": world, "images_seen": images_seen,
             "train_images_per_s": round(images_seen / max(seconds, 1e-9), 2),
             "final": {k: last.get(k) for k in ("mAP50", "mAP50-95", "precision", "recall")},
-            "best_fitness": round(best, 4)}
+            "best_fitness": round(run_.best, 4)}
 
 
 def results_png(rows: list[dict[str, Any]], path: Path) -> None:

@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical
 from zebra_sim_ros.rendering.gl import create_context
-from zebra_sim_ros.rendering.renderer import ZebraSet, _unweld, perspective, view_matrix
+from zebra_sim_ros.rendering.renderer import ZebraSet, perspective, unweld_uvs, view_matrix
 from zebra_sim_ros.zebra.asset import ZebraLibrary
 from zebra_sim_ros.zebra.lod import DETAIL_DISTANCE_M, lod_of
 
@@ -88,7 +88,7 @@ class SilhouetteCounter:
         self.fbo = c.framebuffer([self.tex])
         self.lod: dict[int, dict[str, Any]] = {}
         for lod in (0, 1):
-            src, _, faces = _unweld(library.faces(lod), library.uv(lod))
+            src, _, faces = unweld_uvs(library.faces(lod), library.uv(lod))
             inst = c.buffer(reserve=8 * 1024, dynamic=True)
             vao = c.vertex_array(self.prog, [(inst, "2f/i", "i_offset")], c.buffer(faces.tobytes()))
             self.lod[lod] = {"src": src, "vao": vao, "inst": inst, "ssbo": c.buffer(reserve=4, dynamic=True)}

@@ -14,14 +14,14 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import PinholeCamera
-from zebra_sim_ros.placement.ground import GroundLook
-from zebra_sim_ros.placement.sun import Lighting
+from zebra_sim_ros.messages import GroundLook, Lighting
 from zebra_sim_ros.rendering import shaders
 from zebra_sim_ros.rendering.gl import create_context
 from zebra_sim_ros.world.world import World
@@ -153,14 +153,18 @@ def _vertex_normals(v: FloatArray, f: NDArray[np.int64]) -> NDArray[np.float32]:
     return n.astype(np.float32)
 
 
-def _unweld(faces: NDArray[np.int64], uv: NDArray[np.float32]) -> tuple[NDArray[np.int64], NDArray[np.float32],
-                                                                         NDArray[np.int32]]:
-    """Per-vertex UVs from face-varying ones: (source vertex per new vertex, uv per new vertex, new faces)."""
+def unweld_uvs(faces: NDArray[np.int64], uv: NDArray[np.float32]) -> tuple[NDArray[np.int64], NDArray[np.float32],
+                                                                            NDArray[np.int32]]:
+    """Per-vertex UVs from face-varying ones (faces (F, 3), uv (F, 3, 2)): the source vertex of each new vertex,
+    the uv of each new vertex and the new faces (F, 3) int32. A vertex is split only where its UVs differ (the
+    texture seam), so a posed vertex array indexed by the sources is all a draw needs."""
     q = np.round(uv.reshape(-1, 2) * 65536).astype(np.int64)
     key = faces.reshape(-1) * (1 << 40) + q[:, 0] * (1 << 20) + q[:, 1]
-    uniq, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
     src = faces.reshape(-1)[first]
     return src, uv.reshape(-1, 2)[first].astype(np.float32), inverse.reshape(-1, 3).astype(np.int32)
+
+
 
 
 class Renderer:
@@ -306,7 +310,7 @@ class Renderer:
         ctx = self.ctx
         self.zebra_lod: dict[int, dict[str, object]] = {}
         for lod in (0, 1):
-            src, uv, faces = _unweld(self.library.faces(lod), self.library.uv(lod))
+            src, uv, faces = unweld_uvs(self.library.faces(lod), self.library.uv(lod))
             uv_buf = ctx.buffer(uv.tobytes())
             ibo = ctx.buffer(faces.tobytes())
             inst = ctx.buffer(reserve=8 * 1024, dynamic=True)
@@ -392,21 +396,59 @@ class Renderer:
 
     def _render_view(self, zebras: ZebraSet, layers: NDArray[np.float32], lighting: Lighting,
                      view: CameraView) -> RenderedView:
-        ctx, o = self.ctx, self.options
+        o = self.options
         times: dict[str, float] = {}
         t0 = time.perf_counter()
         pos = np.asarray(view.position, dtype=np.float64)
         vp = perspective(self.camera, o.near_m, o.far_m) @ view_matrix(pos, view.r_optical)
         planes = _frustum_planes(vp)
-        fwd = view.r_optical[:, 2]
-        # Zebras: cull, split by distance into the two levels of detail.
+        counts = self._cull_zebras(zebras, layers, planes, pos)
+        veg_counts = self._cull_vegetation(planes, pos)
+        times["prepare"] = time.perf_counter() - t0
+
+        t1 = time.perf_counter()
+        light_vp = self._light_matrix(view, lighting)
+        use_shadow = o.shadows and lighting.light_direction[2] > 0.02
+        if use_shadow:
+            self._shadow_pass(light_vp, counts, veg_counts)
+        times["shadow"] = time.perf_counter() - t1
+
+        t2 = time.perf_counter()
+        self.fbo.use()
+        self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        self.ctx.enable(self.ctx.DEPTH_TEST)
+        self.ctx.disable(self.ctx.CULL_FACE)
+        self._set_view_uniforms(vp, light_vp, pos, view.r_optical[:, 2], lighting, use_shadow)
+        self._draw_terrain(planes, pos)
+        for g, n in zip(self.veg, veg_counts, strict=True):
+            if n:
+                g["vao"].render(instances=n)  # type: ignore[attr-defined]
+        self.coats.use(location=3)
+        self.p_zebra["u_coats"].value = 3
+        self._draw_zebras(self.p_zebra, "vao", counts)
+        self._draw_sky(vp, lighting)
+        times["draw"] = time.perf_counter() - t2
+
+        t3 = time.perf_counter()
+        rgb, depth, id16 = self._read_images()
+        times["read"] = time.perf_counter() - t3
+        times["zebras_lod0"], times["zebras_lod1"] = counts[0], counts[1]
+        return RenderedView(view.name, rgb, depth, id16, self.camera.K, times)
+
+    def _cull_zebras(self, zebras: ZebraSet, layers: NDArray[np.float32], planes: FloatArray,
+                     pos: FloatArray) -> dict[int, int]:
+        """Fill each level of detail's buffers with the zebras in view (near: LOD 0, far: LOD 1); counts per LOD."""
+        o = self.options
         counts = {0: 0, 1: 0}
         if zebras.count:
             d = np.linalg.norm(zebras.position - pos, axis=1)
             vis = _spheres_visible(planes, zebras.position, 2.5 * zebras.scale + 0.5)
             for lod, mask in ((0, d < o.zebra_detail_distance_m), (1, d >= o.zebra_detail_distance_m)):
                 counts[lod] = self._zebra_buffers(zebras, layers, np.flatnonzero(vis & mask), lod)
-        # Vegetation: cull by distance and frustum, fill instance buffers.
+        return counts
+
+    def _cull_vegetation(self, planes: FloatArray, pos: FloatArray) -> list[int]:
+        """Fill each prototype's instance buffer with the copies within its draw distance and in view; counts."""
         veg_counts = []
         for g in self.veg:
             data = g["data"]
@@ -417,33 +459,32 @@ class Renderer:
             if len(sel):
                 g["ibuf"].write(np.ascontiguousarray(sel).tobytes())  # type: ignore[attr-defined]
             veg_counts.append(len(sel))
-        times["prepare"] = time.perf_counter() - t0
+        return veg_counts
 
-        t1 = time.perf_counter()
-        light_vp = self._light_matrix(view, lighting)
-        use_shadow = o.shadows and lighting.light_direction[2] > 0.02
-        if use_shadow:
-            self.fbo_shadow.use()
-            self.fbo_shadow.clear(depth=1.0)
-            ctx.enable(ctx.DEPTH_TEST)
-            for prog in (self.p_dveg, self.p_dzebra):
-                prog["u_light_view_proj"].write(_gl(light_vp))
-            for g, n in zip(self.veg, veg_counts, strict=True):
-                if n and g["casts"]:
-                    g["dvao"].render(instances=n)  # type: ignore[attr-defined]
-            for lod in (0, 1):
-                if counts[lod]:
-                    z = self.zebra_lod[lod]
-                    z["ssbo"].bind_to_storage_buffer(0)  # type: ignore[attr-defined]
-                    self.p_dzebra["u_verts"].value = z["verts"]
-                    z["dvao"].render(instances=counts[lod])  # type: ignore[attr-defined]
-        times["shadow"] = time.perf_counter() - t1
+    def _draw_zebras(self, prog: Any, vao: str, counts: dict[int, int]) -> None:
+        """Draw the culled zebras of each level of detail with ``prog`` through their ``vao`` ("vao" or "dvao")."""
+        for lod in (0, 1):
+            if counts[lod]:
+                z = self.zebra_lod[lod]
+                z["ssbo"].bind_to_storage_buffer(0)  # type: ignore[attr-defined]
+                prog["u_verts"].value = z["verts"]
+                z[vao].render(instances=counts[lod])  # type: ignore[attr-defined]
 
-        t2 = time.perf_counter()
-        self.fbo.use()
-        self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        ctx.enable(ctx.DEPTH_TEST)
-        ctx.disable(ctx.CULL_FACE)
+    def _shadow_pass(self, light_vp: FloatArray, counts: dict[int, int], veg_counts: list[int]) -> None:
+        """Render the shadow map: the depth of vegetation that casts shadows and of the zebras, seen from the sun."""
+        self.fbo_shadow.use()
+        self.fbo_shadow.clear(depth=1.0)
+        self.ctx.enable(self.ctx.DEPTH_TEST)
+        for prog in (self.p_dveg, self.p_dzebra):
+            prog["u_light_view_proj"].write(_gl(light_vp))
+        for g, n in zip(self.veg, veg_counts, strict=True):
+            if n and g["casts"]:
+                g["dvao"].render(instances=n)  # type: ignore[attr-defined]
+        self._draw_zebras(self.p_dzebra, "dvao", counts)
+
+    def _set_view_uniforms(self, vp: FloatArray, light_vp: FloatArray, pos: FloatArray, fwd: FloatArray,
+                           lighting: Lighting, use_shadow: bool) -> None:
+        """Camera, light, sky and exposure uniforms of every colour pass program."""
         sky = self.world.sky
         light_rgb = np.array(lighting.light_rgb) * lighting.light_intensity * sky.sun * 2.2
         ambient = np.array(lighting.ambient_rgb) * lighting.ambient_intensity * (sky.ambient / 0.35) * 1.6
@@ -461,14 +502,16 @@ class Renderer:
             for k, val in uniforms.items():
                 if k in prog:
                     prog[k].write(val)
-            for k, val2 in (("u_haze", sky.haze_per_m), ("u_exposure", o.exposure)):
+            for k, val2 in (("u_haze", sky.haze_per_m), ("u_exposure", self.options.exposure)):
                 if k in prog:
                     prog[k].value = float(val2)
             if "u_shadow" in prog:
                 prog["u_shadow"].value = 1
             if "u_use_shadow" in prog:
                 prog["u_use_shadow"].value = int(use_shadow)
-        # Terrain tiles.
+
+    def _draw_terrain(self, planes: FloatArray, pos: FloatArray) -> None:
+        """The terrain tiles in view (fine near the camera, coarse farther) and the apron around them."""
         self.t_ground.use(location=2)
         self.p_terrain["u_ground"].value = 2
         self.p_terrain["u_ground_xform"].value = self.ground_xform
@@ -476,30 +519,23 @@ class Renderer:
         for centre, radius, lods in self.tiles:
             if not _spheres_visible(planes, centre[None], np.array([radius]))[0]:
                 continue
-            near = np.linalg.norm(centre[:2] - pos[:2]) - radius < o.terrain_detail_distance_m
+            near = np.linalg.norm(centre[:2] - pos[:2]) - radius < self.options.terrain_detail_distance_m
             lods[0 if near else 1].render()  # type: ignore[attr-defined]
         self.apron.render()
-        for g, n in zip(self.veg, veg_counts, strict=True):
-            if n:
-                g["vao"].render(instances=n)  # type: ignore[attr-defined]
-        self.coats.use(location=3)
-        self.p_zebra["u_coats"].value = 3
-        for lod in (0, 1):
-            if counts[lod]:
-                z = self.zebra_lod[lod]
-                z["ssbo"].bind_to_storage_buffer(0)  # type: ignore[attr-defined]
-                self.p_zebra["u_verts"].value = z["verts"]
-                z["vao"].render(instances=counts[lod])  # type: ignore[attr-defined]
-        # Sky where nothing else was drawn.
+
+    def _draw_sky(self, vp: FloatArray, lighting: Lighting) -> None:
+        """The sky where nothing else was drawn (at the far plane, depth test <=)."""
+        ctx = self.ctx
         ctx.depth_func = "<="
         self.p_sky["u_inv_view_proj"].write(_gl(np.asarray(np.linalg.inv(vp), dtype=np.float64)))
         self.p_sky["u_sun_dir"].value = tuple(float(x) for x in lighting.sun_direction)
         self.p_sky["u_sun_visible"].value = 1.0 if lighting.sun_elevation_deg > -1 else 0.0
         self.empty_vao.render(vertices=3)
         ctx.depth_func = "<"
-        times["draw"] = time.perf_counter() - t2
 
-        t3 = time.perf_counter()
+    def _read_images(self) -> tuple[NDArray[np.uint8], NDArray[np.float32], NDArray[np.uint16]]:
+        """RGB (after FXAA when antialias is on), depth in metres (+inf for sky) and instance ids, rows top first."""
+        ctx, o = self.ctx, self.options
         w, h = o.width, o.height
         if o.antialias:
             self.fbo_final.use()
@@ -516,9 +552,7 @@ class Renderer:
         depth[depth <= 0] = np.inf
         ids = np.frombuffer(self.fbo.read(components=1, attachment=2, dtype="u4"), dtype=np.uint32)
         id16: NDArray[np.uint16] = ids.reshape(h, w)[::-1].astype(np.uint16)
-        times["read"] = time.perf_counter() - t3
-        times["zebras_lod0"], times["zebras_lod1"] = counts[0], counts[1]
-        return RenderedView(view.name, rgb, depth, id16, self.camera.K, times)
+        return rgb, depth, id16
 
     def release(self) -> None:
         """Free the GL context."""

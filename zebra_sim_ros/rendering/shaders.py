@@ -62,6 +62,16 @@ layout(location = 1) out float f_depth;
 layout(location = 2) out uint f_id;
 """
 
+# What every lit surface (terrain, vegetation, zebras) writes: one function, so the three outputs agree everywhere.
+SURFACE = LIGHTING + OUTPUTS + """
+in vec3 v_wpos;
+void write_surface(vec3 albedo, vec3 n, uint id) {
+    f_color = encode(haze(shade(albedo, n, v_wpos), v_wpos));
+    f_depth = dot(v_wpos - u_cam_pos, u_cam_fwd);
+    f_id = id;
+}
+"""
+
 TERRAIN_VS = COMMON + """
 in vec3 in_pos;
 in vec3 in_normal;
@@ -74,13 +84,12 @@ void main() {
 }
 """
 
-TERRAIN_FS = COMMON + LIGHTING + OUTPUTS + """
-in vec3 v_wpos;
+TERRAIN_FS = COMMON + SURFACE + """
 in vec3 v_normal;
 uniform sampler2D u_ground;      // ground colour (linear) over the terrain grid
 uniform vec4 u_ground_xform;     // origin x, origin y, 1/size x, 1/size y
 uniform vec3 u_ground_mean;      // beyond the terrain (the apron): the mean ground colour
-uniform vec3 u_ground_tint;      // the step's ground look (placement/ground.py): 1 = as authored
+uniform vec3 u_ground_tint;      // the step's ground look (messages.GroundLook): 1 = as authored
 uniform float u_ground_desat;
 float hash(vec2 p) { return fract(sin(dot(p, vec2(127.1, 311.7))) * 43758.5453); }
 float vnoise(vec2 p) {
@@ -95,26 +104,30 @@ void main() {
     albedo *= 0.82 + 0.36 * d;
     albedo = min(mix(albedo, vec3(dot(albedo, vec3(0.2126, 0.7152, 0.0722))), u_ground_desat) * u_ground_tint,
                  vec3(0.95));
-    vec3 n = normalize(v_normal);
-    f_color = encode(haze(shade(albedo, n, v_wpos), v_wpos));
-    f_depth = dot(v_wpos - u_cam_pos, u_cam_fwd);
-    f_id = 0u;
+    write_surface(albedo, normalize(v_normal), 0u);
 }
 """
 
-VEG_VS = COMMON + """
-in vec3 in_pos;
-in vec3 in_normal;
-in vec3 in_color;
+# A vegetation copy: per-instance position (map, m), yaw about +z (rad) and uniform scale of the prototype mesh.
+INSTANCE = """
 in vec3 i_pos;
 in float i_yaw;
 in float i_scale;
+mat3 instance_yaw() {
+    float c = cos(i_yaw), s = sin(i_yaw);
+    return mat3(c, s, 0.0, -s, c, 0.0, 0.0, 0.0, 1.0);
+}
+"""
+
+VEG_VS = COMMON + INSTANCE + """
+in vec3 in_pos;
+in vec3 in_normal;
+in vec3 in_color;
 out vec3 v_wpos;
 out vec3 v_normal;
 out vec3 v_color;
 void main() {
-    float c = cos(i_yaw), s = sin(i_yaw);
-    mat3 r = mat3(c, s, 0.0, -s, c, 0.0, 0.0, 0.0, 1.0);
+    mat3 r = instance_yaw();
     v_wpos = i_pos + r * (in_pos * i_scale);
     v_normal = r * in_normal;
     v_color = in_color;
@@ -122,22 +135,27 @@ void main() {
 }
 """
 
-VEG_FS = COMMON + LIGHTING + OUTPUTS + """
-in vec3 v_wpos;
+VEG_FS = COMMON + SURFACE + """
 in vec3 v_normal;
 in vec3 v_color;
 void main() {
     vec3 n = normalize(v_normal);
     if (!gl_FrontFacing) n = -n;
-    f_color = encode(haze(shade(v_color, n, v_wpos), v_wpos));
-    f_depth = dot(v_wpos - u_cam_pos, u_cam_fwd);
-    f_id = 0u;
+    write_surface(v_color, n, 0u);
 }
 """
 
-ZEBRA_VS = COMMON + """
+# A posed zebra vertex: all zebras' vertices (x, y, z in map, m) packed in one buffer, ``u_verts`` per zebra.
+POSED = """
 layout(std430, binding = 0) buffer Posed { float posed[]; };
 uniform int u_verts;             // vertices per zebra
+vec3 posed_vertex() {
+    int k = (gl_InstanceID * u_verts + gl_VertexID) * 3;
+    return vec3(posed[k], posed[k + 1], posed[k + 2]);
+}
+"""
+
+ZEBRA_VS = COMMON + POSED + """
 in vec2 in_uv;
 in uint i_id;
 in float i_layer;
@@ -146,8 +164,7 @@ out vec2 v_uv;
 flat out uint v_id;
 flat out float v_layer;
 void main() {
-    int k = (gl_InstanceID * u_verts + gl_VertexID) * 3;
-    v_wpos = vec3(posed[k], posed[k + 1], posed[k + 2]);
+    v_wpos = posed_vertex();
     v_uv = in_uv;
     v_id = i_id;
     v_layer = i_layer;
@@ -155,8 +172,7 @@ void main() {
 }
 """
 
-ZEBRA_FS = COMMON + LIGHTING + OUTPUTS + """
-in vec3 v_wpos;
+ZEBRA_FS = COMMON + SURFACE + """
 in vec2 v_uv;
 flat in uint v_id;
 flat in float v_layer;
@@ -165,9 +181,7 @@ void main() {
     vec3 n = normalize(cross(dFdx(v_wpos), dFdy(v_wpos)));
     if (dot(n, u_cam_pos - v_wpos) < 0.0) n = -n;
     vec3 albedo = pow(texture(u_coats, vec3(v_uv, v_layer)).rgb, vec3(2.2));
-    f_color = encode(haze(shade(albedo, n, v_wpos), v_wpos));
-    f_depth = dot(v_wpos - u_cam_pos, u_cam_fwd);
-    f_id = v_id;
+    write_surface(albedo, n, v_id);
 }
 """
 
@@ -201,35 +215,22 @@ void main() {
 }
 """
 
-DEPTH_TERRAIN_VS = """
-#version 430
-uniform mat4 u_light_view_proj;
-in vec3 in_pos;
-void main() { gl_Position = u_light_view_proj * vec4(in_pos, 1.0); }
-"""
-
 DEPTH_VEG_VS = """
 #version 430
 uniform mat4 u_light_view_proj;
 in vec3 in_pos;
-in vec3 i_pos;
-in float i_yaw;
-in float i_scale;
+""" + INSTANCE + """
 void main() {
-    float c = cos(i_yaw), s = sin(i_yaw);
-    mat3 r = mat3(c, s, 0.0, -s, c, 0.0, 0.0, 0.0, 1.0);
-    gl_Position = u_light_view_proj * vec4(i_pos + r * (in_pos * i_scale), 1.0);
+    gl_Position = u_light_view_proj * vec4(i_pos + instance_yaw() * (in_pos * i_scale), 1.0);
 }
 """
 
 DEPTH_ZEBRA_VS = """
 #version 430
-layout(std430, binding = 0) buffer Posed { float posed[]; };
 uniform mat4 u_light_view_proj;
-uniform int u_verts;
+""" + POSED + """
 void main() {
-    int k = (gl_InstanceID * u_verts + gl_VertexID) * 3;
-    gl_Position = u_light_view_proj * vec4(posed[k], posed[k + 1], posed[k + 2], 1.0);
+    gl_Position = u_light_view_proj * vec4(posed_vertex(), 1.0);
 }
 """
 

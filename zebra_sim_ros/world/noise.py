@@ -28,6 +28,12 @@ def derive_rng(seed: int, *tags: str) -> np.random.Generator:
     return np.random.default_rng([int(seed), *(zlib.crc32(t.encode()) for t in tags)])
 
 
+def smoothstep(e0: float, e1: float, x: FloatArray) -> FloatArray:
+    """0 below ``e0``, 1 above ``e1``, the cubic 3t^2 - 2t^3 between (``e1 < e0`` runs it backwards)."""
+    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
+    return np.asarray(t * t * (3 - 2 * t))
+
+
 def _fft_size(n: int) -> int:
     """Smallest 2^a * 3^b >= n (fast FFT lengths)."""
     best = 1 << int(np.ceil(np.log2(n)))

@@ -26,7 +26,7 @@ def srgb(r: float, g: float, b: float) -> Rgb:
 
     return (round(lin(r), 4), round(lin(g), 4), round(lin(b), 4))
 
-KINDS = ("tree", "bush", "rock", "grass")
+
 STYLES = {"acacia": "tree", "deciduous": "tree", "conifer": "tree", "bush": "bush", "rock": "rock",
           "mound": "rock", "tuft": "grass"}
 PATTERNS = ("uniform", "clustered", "gradient", "hedgerow")

@@ -23,10 +23,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zebra_sim_ros.errors import DependencyError
+from zebra_sim_ros.world.model import Instances, World, WorldError, build_obstacles
 from zebra_sim_ros.world.presets import PRESETS, Sky
 from zebra_sim_ros.world.terrain import Heightfield, TerrainError
 from zebra_sim_ros.world.vegetation import PrototypeMesh
-from zebra_sim_ros.world.world import Instances, World, WorldError, build_obstacles
 
 FloatArray = NDArray[np.float64]
 VEGETATION_ROOT = "/World/Vegetation"
@@ -248,16 +248,10 @@ def _guess_kind(name: str) -> str:
     return "other"
 
 
-def read_world_usd(path: Path, terrain_prim: str = "/World/Terrain") -> World:
-    """Read a world from a USD stage (see the module docstring); heights sampled on a 1 m grid.
-
-    Raises :class:`WorldError` when the stage cannot be opened, ``terrain_prim`` is missing (listing up
-    to 10 mesh prims the stage has) or is not a ``UsdGeom.Mesh`` (naming its type).
-    """
-    _pxr()
+def _open_terrain(path: Path, terrain_prim: str) -> tuple[Any, Any]:
+    """The stage at ``path`` and its terrain prim, or :class:`WorldError` saying what is missing."""
     from pxr import Usd, UsdGeom
 
-    path = Path(path)
     if not path.is_file():
         raise WorldError(f"USD world file not found: {path}")
     try:
@@ -272,13 +266,13 @@ def read_world_usd(path: Path, terrain_prim: str = "/World/Terrain") -> World:
     if not prim.IsA(UsdGeom.Mesh):
         raise WorldError(f"terrain prim {terrain_prim} in {path} is a {prim.GetTypeName() or 'typeless prim'}, "
                          f"not a Mesh")
-    to_map = _stage_to_map(stage)
-    verts, tri, rgb = _mesh_arrays(prim, to_map)
-    try:
-        terrain = Heightfield.from_mesh(verts, tri, 1.0)
-    except TerrainError as exc:
-        raise WorldError(f"terrain prim {terrain_prim} in {path}: {exc}") from exc
-    ground = _grid_colors(terrain, verts, rgb) if rgb is not None else None
+    return stage, prim
+
+
+def _read_vegetation(stage: Any, to_map: FloatArray) -> tuple[
+        dict[str, Instances], dict[str, PrototypeMesh], dict[str, tuple[float, float]]]:
+    """Instances, prototype meshes and footprints of every PointInstancer under :data:`VEGETATION_ROOT`."""
+    from pxr import Usd, UsdGeom
 
     vegetation: dict[str, Instances] = {}
     prototypes: dict[str, PrototypeMesh] = {}
@@ -289,52 +283,81 @@ def read_world_usd(path: Path, terrain_prim: str = "/World/Terrain") -> World:
             if not p.IsA(UsdGeom.PointInstancer):
                 continue
             _read_instancer(p, to_map, vegetation, prototypes, radius_at)
+    return vegetation, prototypes, radius_at
 
-    root = stage.GetDefaultPrim() or stage.GetPrimAtPath("/World")
-    get = (lambda k, d=None: _custom(root, k, d)) if root and root.IsValid() else (lambda k, d=None: d)
-    preset = get("zebra_sim:preset")
-    seed = get("zebra_sim:seed")
-    x0, y0, x1, y1 = terrain.bounds
-    margin = min(DEFAULT_MARGIN_M, 0.1 * min(x1 - x0, y1 - y0))
-    placeable_cd = get("zebra_sim:placeable")
-    placeable = (tuple(float(a) for a in placeable_cd) if placeable_cd is not None
-                 else (x0 + margin, y0 + margin, x1 - margin, y1 - margin))
+
+def _read_sky(get: Any) -> Sky:
+    """The sky from the root's ``zebra_sim:sky_*`` customData, :class:`Sky`'s defaults where absent."""
     d = Sky()
-    sky = Sky(
+    return Sky(
         _rgb(get("zebra_sim:sky_zenith_rgb", d.zenith_rgb)),
         _rgb(get("zebra_sim:sky_horizon_rgb", d.horizon_rgb)),
         float(get("zebra_sim:sky_haze_per_m", d.haze_per_m)),
         float(get("zebra_sim:sky_ambient", d.ambient)),
         float(get("zebra_sim:sky_sun", d.sun)),
     )
+
+
+def _read_placeable(get: Any, terrain: Heightfield) -> tuple[float, float, float, float]:
+    """The stored placeable rectangle, or the terrain kept a margin (30 m, at most a tenth of a side) inside."""
+    x0, y0, x1, y1 = terrain.bounds
+    margin = min(DEFAULT_MARGIN_M, 0.1 * min(x1 - x0, y1 - y0))
+    placeable_cd = get("zebra_sim:placeable")
+    placeable = (tuple(float(a) for a in placeable_cd) if placeable_cd is not None
+                 else (x0 + margin, y0 + margin, x1 - margin, y1 - margin))
+    return (placeable[0], placeable[1], placeable[2], placeable[3])
+
+
+def read_world_usd(path: Path, terrain_prim: str = "/World/Terrain") -> World:
+    """Read a world from a USD stage (see the module docstring); heights sampled on a 1 m grid.
+
+    Raises :class:`WorldError` when the stage cannot be opened, ``terrain_prim`` is missing (listing up
+    to 10 mesh prims the stage has) or is not a ``UsdGeom.Mesh`` (naming its type).
+    """
+    _pxr()
+    path = Path(path)
+    stage, prim = _open_terrain(path, terrain_prim)
+    to_map = _stage_to_map(stage)
+    verts, tri, rgb = _mesh_arrays(prim, to_map)
+    try:
+        terrain = Heightfield.from_mesh(verts, tri, 1.0)
+    except TerrainError as exc:
+        raise WorldError(f"terrain prim {terrain_prim} in {path}: {exc}") from exc
+    ground = _grid_colors(terrain, verts, rgb) if rgb is not None else None
+    vegetation, prototypes, radius_at = _read_vegetation(stage, to_map)
+
+    root = stage.GetDefaultPrim() or stage.GetPrimAtPath("/World")
+    get = (lambda k, d=None: _custom(root, k, d)) if root and root.IsValid() else (lambda k, d=None: d)
+    preset = get("zebra_sim:preset")
+    seed = get("zebra_sim:seed")
     return World(
         name=str(get("zebra_sim:name", path.stem)),
         source=str(path),
         seed=int(seed) if seed is not None else None,
         terrain=terrain,
-        placeable=(placeable[0], placeable[1], placeable[2], placeable[3]),
+        placeable=_read_placeable(get, terrain),
         max_slope_deg=float(get("zebra_sim:max_slope_deg", DEFAULT_MAX_SLOPE_DEG)),
         obstacles=build_obstacles(vegetation, radius_at),
         vegetation=vegetation,
         prototypes=prototypes,
         materials=PRESETS[preset].materials if preset in PRESETS else (),
-        sky=sky,
+        sky=_read_sky(get),
         description=PRESETS[preset].description if preset in PRESETS else f"USD stage {path.name}",
         footprints=radius_at,
         ground_rgb=ground,
     )
 
 
-def _read_instancer(pi_prim: Any, to_map: FloatArray, vegetation: dict[str, Instances],
-                    prototypes: dict[str, PrototypeMesh], radius_at: dict[str, tuple[float, float]]) -> None:
-    """Add one PointInstancer's instances (grouped by prototype prim name) and prototype meshes."""
-    from pxr import Usd, UsdGeom
+def _instance_frames(pi_prim: Any, to_map: FloatArray) -> tuple[
+        NDArray[np.int64], FloatArray, FloatArray, FloatArray, float] | None:
+    """A PointInstancer's prototype index, map position (M, 3) m, yaw (M,) rad and scale (M,) per instance, and the
+    stage's metres per unit; None when it has no instances or no prototypes."""
+    from pxr import UsdGeom
 
     pi = UsdGeom.PointInstancer(pi_prim)
-    targets = pi.GetPrototypesRel().GetTargets()
     pos = np.asarray(pi.GetPositionsAttr().Get() or [], dtype=np.float64).reshape(-1, 3)
-    if len(pos) == 0 or not targets:
-        return
+    if len(pos) == 0 or not pi.GetPrototypesRel().GetTargets():
+        return None
     ids = np.asarray(pi.GetProtoIndicesAttr().Get() or np.zeros(len(pos), dtype=np.int32), dtype=np.int64)
     ori = pi.GetOrientationsAttr().Get()
     q = np.asarray(ori, dtype=np.float64).reshape(-1, 4) if ori else np.tile([0.0, 0, 0, 1], (len(pos), 1))
@@ -351,7 +374,41 @@ def _read_instancer(pi_prim: Any, to_map: FloatArray, vegetation: dict[str, Inst
     ax_map = (ax @ lin) / unit
     yaw = np.arctan2(ax_map[:, 1], ax_map[:, 0])
     scale = s.mean(axis=1) * (unit / mpu)  # prototypes are read in metres, so only the instancer's own scale
-    for k, target in enumerate(targets):
+    return ids, world_pos, yaw, scale, mpu
+
+
+def _prototype_mesh(proto: Any, to_map: FloatArray) -> PrototypeMesh | None:
+    """Every Mesh under a prototype prim as one mesh in its own frame (z up, metres); None when it has none."""
+    from pxr import Usd, UsdGeom
+
+    root_xf = _world_xf(proto)
+    vs, fs, cs = [], [], []
+    n = 0
+    for mp in Usd.PrimRange(proto):
+        if not mp.IsA(UsdGeom.Mesh):
+            continue
+        v, f, c = _mesh_arrays(mp, np.eye(4), relative_to=root_xf)
+        v = v @ to_map[:3, :3]  # prototype frame, z up, metres
+        vs.append(v)
+        fs.append(f + n)
+        cs.append(c if c is not None else np.full((len(v), 3), 0.5))
+        n += len(v)
+    if not vs:
+        return None
+    return (np.concatenate(vs).astype(np.float32), np.concatenate(fs).astype(np.int32),
+            np.clip(np.concatenate(cs), 0, 1).astype(np.float32))
+
+
+def _read_instancer(pi_prim: Any, to_map: FloatArray, vegetation: dict[str, Instances],
+                    prototypes: dict[str, PrototypeMesh], radius_at: dict[str, tuple[float, float]]) -> None:
+    """Add one PointInstancer's instances (grouped by prototype prim name) and prototype meshes."""
+    from pxr import UsdGeom
+
+    frames = _instance_frames(pi_prim, to_map)
+    if frames is None:
+        return
+    ids, world_pos, yaw, scale, mpu = frames
+    for k, target in enumerate(UsdGeom.PointInstancer(pi_prim).GetPrototypesRel().GetTargets()):
         sel = ids == k
         if not sel.any():
             continue
@@ -361,22 +418,10 @@ def _read_instancer(pi_prim: Any, to_map: FloatArray, vegetation: dict[str, Inst
         name = proto.GetName()
         kind = str(_custom(proto, "zebra_sim:kind", _guess_kind(name)))
         if name not in prototypes:
-            root_xf = _world_xf(proto)
-            vs, fs, cs = [], [], []
-            n = 0
-            for mp in Usd.PrimRange(proto):
-                if not mp.IsA(UsdGeom.Mesh):
-                    continue
-                v, f, c = _mesh_arrays(mp, np.eye(4), relative_to=root_xf)
-                v = v @ to_map[:3, :3]  # prototype frame, z up, metres
-                vs.append(v)
-                fs.append(f + n)
-                cs.append(c if c is not None else np.full((len(v), 3), 0.5))
-                n += len(v)
-            if not vs:
+            mesh = _prototype_mesh(proto, to_map)
+            if mesh is None:
                 continue
-            prototypes[name] = (np.concatenate(vs).astype(np.float32), np.concatenate(fs).astype(np.int32),
-                                np.clip(np.concatenate(cs), 0, 1).astype(np.float32))
+            prototypes[name] = mesh
             r1 = proto.GetCustomDataByKey("zebra_sim:footprint_radius")
             if r1 is not None and kind in ("tree", "rock"):
                 radius_at[name] = (float(r1) * mpu, float(_custom(proto, "zebra_sim:clearance", 0.0)))

@@ -393,6 +393,52 @@ class Scatter:
     variant: NDArray[np.int64]
 
 
+def _hedgerow_candidates(layer: VegetationLayer, terrain: Heightfield, rng: np.random.Generator,
+                         hedges: FloatArray | None) -> FloatArray:
+    """Candidate (x, y) (K, 2) m every ``hedge_spacing_m`` along the hedge segments, jittered; 70% kept for trees."""
+    x0, y0, x1, y1 = terrain.bounds
+    if hedges is None or len(hedges) == 0:
+        return np.zeros((0, 2))
+    a, b = hedges[:, 0], hedges[:, 1]
+    length = np.linalg.norm(b - a, axis=1)
+    counts = np.maximum(np.floor(length / layer.hedge_spacing_m).astype(np.int64), 0)
+    seg = np.repeat(np.arange(len(hedges)), counts)
+    k = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    t = (k + 0.5 + rng.uniform(-0.35, 0.35, len(k))) / np.maximum(counts[seg], 1)
+    d = (b - a)[seg] / length[seg, None]
+    normal = np.stack([-d[:, 1], d[:, 0]], 1)
+    xy = a[seg] + (b - a)[seg] * t[:, None] + normal * rng.uniform(-0.6, 0.6, (len(k), 1))
+    if layer.kind == "tree":
+        xy = xy[rng.random(len(xy)) < 0.7]
+    return np.asarray(xy[(xy[:, 0] >= x0) & (xy[:, 0] <= x1) & (xy[:, 1] >= y0) & (xy[:, 1] <= y1)])
+
+
+def _area_candidates(layer: VegetationLayer, terrain: Heightfield, rng: np.random.Generator,
+                     edge: ForestEdge | None) -> FloatArray:
+    """Candidate (x, y) (K, 2) m drawn uniformly at ``per_hectare``, thinned by the layer's relative density."""
+    x0, y0, x1, y1 = terrain.bounds
+    area_ha = (x1 - x0) * (y1 - y0) / 1e4
+    target = layer.per_hectare * area_ha
+    if layer.pattern == "clustered":
+        ny, nx = terrain.shape
+        field = value_noise((ny, nx), layer.cluster_scale_m / terrain.resolution, rng, octaves=2) ** 2
+        n_cand = int(rng.poisson(target / max(float(field.mean()), 1e-3)))
+        xy = np.stack([rng.uniform(x0, x1, n_cand), rng.uniform(y0, y1, n_cand)], 1)
+        return np.asarray(xy[rng.random(n_cand) < _sample_grid(field, terrain, xy[:, 0], xy[:, 1])])
+    if layer.pattern == "gradient":
+        if edge is None:
+            raise ParameterError("vegetation.pattern", layer.pattern, "a forest edge for 'gradient'")
+        n_cand = int(rng.poisson(target))
+        xy = np.stack([rng.uniform(x0, x1, n_cand), rng.uniform(y0, y1, n_cand)], 1)
+        ny, nx = terrain.shape
+        clearings = value_noise((ny, nx), 45.0 / terrain.resolution, rng, octaves=2)
+        dens = edge.density(xy[:, 0], xy[:, 1], layer.cluster_scale_m)
+        dens = dens * np.clip(1.6 * _sample_grid(clearings, terrain, xy[:, 0], xy[:, 1]) - 0.1, 0, 1)
+        return np.asarray(xy[rng.random(n_cand) < np.maximum(dens, 0.01)])
+    n_cand = int(rng.poisson(target))
+    return np.stack([rng.uniform(x0, x1, n_cand), rng.uniform(y0, y1, n_cand)], 1)
+
+
 def scatter_layer(
     layer: VegetationLayer,
     terrain: Heightfield,
@@ -410,45 +456,10 @@ def scatter_layer(
     ``layer.max_slope_deg``, outside ``layer.height_band``, on ``exclusion`` samples, and closer than
     ``layer.min_spacing_m`` to an earlier instance. At most ``max_count`` instances are kept.
     """
-    x0, y0, x1, y1 = terrain.bounds
-    area_ha = (x1 - x0) * (y1 - y0) / 1e4
     if layer.pattern == "hedgerow":
-        if hedges is None or len(hedges) == 0:
-            xy = np.zeros((0, 2))
-        else:
-            a, b = hedges[:, 0], hedges[:, 1]
-            length = np.linalg.norm(b - a, axis=1)
-            counts = np.maximum(np.floor(length / layer.hedge_spacing_m).astype(np.int64), 0)
-            seg = np.repeat(np.arange(len(hedges)), counts)
-            k = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-            t = (k + 0.5 + rng.uniform(-0.35, 0.35, len(k))) / np.maximum(counts[seg], 1)
-            d = (b - a)[seg] / length[seg, None]
-            normal = np.stack([-d[:, 1], d[:, 0]], 1)
-            xy = a[seg] + (b - a)[seg] * t[:, None] + normal * rng.uniform(-0.6, 0.6, (len(k), 1))
-            if layer.kind == "tree":
-                xy = xy[rng.random(len(xy)) < 0.7]
-            xy = xy[(xy[:, 0] >= x0) & (xy[:, 0] <= x1) & (xy[:, 1] >= y0) & (xy[:, 1] <= y1)]
+        xy = _hedgerow_candidates(layer, terrain, rng, hedges)
     else:
-        target = layer.per_hectare * area_ha
-        if layer.pattern == "clustered":
-            ny, nx = terrain.shape
-            field = value_noise((ny, nx), layer.cluster_scale_m / terrain.resolution, rng, octaves=2) ** 2
-            n_cand = int(rng.poisson(target / max(float(field.mean()), 1e-3)))
-            xy = np.stack([rng.uniform(x0, x1, n_cand), rng.uniform(y0, y1, n_cand)], 1)
-            xy = xy[rng.random(n_cand) < _sample_grid(field, terrain, xy[:, 0], xy[:, 1])]
-        elif layer.pattern == "gradient":
-            if edge is None:
-                raise ParameterError("vegetation.pattern", layer.pattern, "a forest edge for 'gradient'")
-            n_cand = int(rng.poisson(target))
-            xy = np.stack([rng.uniform(x0, x1, n_cand), rng.uniform(y0, y1, n_cand)], 1)
-            ny, nx = terrain.shape
-            clearings = value_noise((ny, nx), 45.0 / terrain.resolution, rng, octaves=2)
-            dens = edge.density(xy[:, 0], xy[:, 1], layer.cluster_scale_m)
-            dens = dens * np.clip(1.6 * _sample_grid(clearings, terrain, xy[:, 0], xy[:, 1]) - 0.1, 0, 1)
-            xy = xy[rng.random(n_cand) < np.maximum(dens, 0.01)]
-        else:
-            n_cand = int(rng.poisson(target))
-            xy = np.stack([rng.uniform(x0, x1, n_cand), rng.uniform(y0, y1, n_cand)], 1)
+        xy = _area_candidates(layer, terrain, rng, edge)
     ok = terrain.slope_deg(xy[:, 0], xy[:, 1]) <= layer.max_slope_deg
     z = terrain.height_at(xy[:, 0], xy[:, 1])
     ok &= (z >= layer.height_band[0]) & (z <= layer.height_band[1])

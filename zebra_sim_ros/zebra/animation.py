@@ -174,13 +174,6 @@ TROT = Gait({"fl": 0.0, "hr": 0.0, "fr": 0.5, "hl": 0.5}, 0.45, 20, 22, 75, 3)
 GALLOP = Gait({"hl": 0.0, "hr": 0.1, "fl": 0.35, "fr": 0.45}, 0.32, 30, 30, 95, 8, pitch=4)
 
 
-def leg_swing_phase(gait: Gait, leg: str, t: float) -> float:
-    """Where ``leg`` is in its swing: 0 at lift-off, 1 at touch-down; negative while on the ground."""
-    p = (t - gait.offsets[leg]) % 1.0
-    swing = 1.0 - gait.duty
-    return p / swing if p < swing else -1.0
-
-
 def _gait_pose(gait: Gait, t: float) -> Pose:
     a = _new()
     for leg, chain in LEG_CHAINS.items():

@@ -127,8 +127,8 @@ class ZebraLibrary:
         """Posed vertices in the asset frame: (V, 3), or (N, V, 3) for an array of frames."""
         return np.asarray(self._a[f"vertices_lod{lod}"][morph, frame])
 
-    def joint_transforms(self, morph: int, frame: int) -> NDArray[np.float32]:
-        """(J, 4, 4) posed joint-to-asset transforms."""
+    def joint_transforms(self, morph: int, frame: int | NDArray[np.int64]) -> NDArray[np.float32]:
+        """(J, 4, 4) posed joint-to-asset transforms, or (N, J, 4, 4) for an array of frames."""
         return np.asarray(self._a["joints"][morph, frame])
 
     def keypoints(self, morph: int, frame: int) -> NDArray[np.float32]:

@@ -97,66 +97,74 @@ def _part_samples(mesh: ZebraMesh, name: str, size: int) -> tuple[NDArray[np.int
     return rows, cols, p, along, around
 
 
+def _part_pattern(name: str, p: FloatArray, along: FloatArray, around: FloatArray, morph: Morph,
+                  period: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Stripe phase (in periods), forced black (0..1) and forced white (0..1) under each texel of part ``name``
+    (``p`` bind positions, ``along``/``around`` 0..1 on the part's tube)."""
+    j = bind_positions(morph)
+    pel, n1, hd = j[JOINT_INDEX["pelvis"]], j[JOINT_INDEX["neck_1"]], j[JOINT_INDEX["head"]]
+    x, z = p[..., 0], p[..., 2]
+    dark_extra = np.zeros_like(x)
+    white_extra = np.zeros_like(x)
+    if name == "barrel":
+        haunch = pel + np.array([0.45, 0.0, -0.55]) * morph.withers_height / 1.3
+        rump = _smoothstep(pel[0] + 0.25, pel[0] - 0.15, x)
+        phase_body = x / period
+        phase_rump = np.linalg.norm((p - haunch)[..., [0, 2]], axis=-1) / (1.2 * period)
+        phase = (1 - rump) * phase_body + rump * phase_rump
+        ang = np.abs(around - 0.5)  # 0.5 = straight down; 0 or 1 = along the spine
+        dark_extra = (ang > 0.47).astype(float)  # dorsal stripe
+        if morph.white_belly:
+            white_extra = _smoothstep(0.14, 0.08, ang)
+    elif name in ("neck", "mane"):
+        nd = (hd - n1) / np.linalg.norm(hd - n1)
+        phase = (p @ nd) / (0.9 * period)
+    elif name == "head":
+        hdir = np.array([np.cos(np.radians(-52)), 0.0, np.sin(np.radians(-52))])
+        phase = (p @ hdir) / (0.35 * period)
+        dark_extra = _smoothstep(0.80, 0.88, along)  # the dark muzzle
+    elif name.startswith("leg"):
+        phase = z / (0.45 * period) ** 0.95
+        dark_extra = _smoothstep(0.955, 0.97, along)  # hooves
+        if morph.white_belly:
+            white_extra = _smoothstep(0.30, 0.20, z)  # Grévy's fade to white low on the legs
+    elif name.startswith("ear"):
+        phase = z / (0.5 * period)
+        dark_extra = _smoothstep(0.72, 0.8, along)
+        white_extra = 0.6 * _smoothstep(0.5, 0.3, around % 1.0)
+    else:  # tail: striped at the root, black tuft
+        phase = z / (0.5 * period)
+        dark_extra = _smoothstep(0.62, 0.7, along)
+    return phase, dark_extra, white_extra
+
+
 def bake_coat(morph: Morph, params: CoatParams, size: int = 512, mesh: ZebraMesh | None = None) -> NDArray[np.uint8]:
     """The coat atlas (size, size, 3) uint8 RGB for one individual; row 0 is the top (v = 1)."""
     if not 32 <= size <= 4096:
         raise ParameterError("coat size", size, "32..4096 texels")
     mesh = mesh or build_mesh(morph, 0)
-    j = bind_positions(morph)
+    pel_x = bind_positions(morph)[JOINT_INDEX["pelvis"], 0]
     period = morph.stripe_period * params.period_scale
     img = np.zeros((size, size, 3))
     base = np.array(params.base_rgb)
     black = np.array(params.stripe_rgb)
     k = np.array(params.wave_k)
     ph = np.array(params.wave_phase)
-    pel, n1, hd = j[JOINT_INDEX["pelvis"]], j[JOINT_INDEX["neck_1"]], j[JOINT_INDEX["head"]]
-    nd = (hd - n1) / np.linalg.norm(hd - n1)
-    hdir = np.array([np.cos(np.radians(-52)), 0.0, np.sin(np.radians(-52))])
-    haunch = pel + np.array([0.45, 0.0, -0.55]) * morph.withers_height / 1.3
     edge = 0.06  # soft edge, in stripe periods, so the texture is anti-aliased already
 
     for pg in mesh.parts:
         rows, cols, p, along, around = _part_samples(mesh, pg.name, size)
         warp = params.warp_amplitude * np.mean(np.sin(p @ k.T + ph), axis=-1) * 2.0
-        x, z = p[..., 0], p[..., 2]
-        name = pg.name
-        dark_extra = np.zeros_like(x)
-        white_extra = np.zeros_like(x)
-        if name == "barrel":
-            rump = _smoothstep(pel[0] + 0.25, pel[0] - 0.15, x)
-            phase_body = x / period
-            phase_rump = np.linalg.norm((p - haunch)[..., [0, 2]], axis=-1) / (1.2 * period)
-            phase = (1 - rump) * phase_body + rump * phase_rump
-            ang = np.abs(around - 0.5)  # 0.5 = straight down; 0 or 1 = along the spine
-            dark_extra = (ang > 0.47).astype(float)  # dorsal stripe
-            if morph.white_belly:
-                white_extra = _smoothstep(0.14, 0.08, ang)
-        elif name in ("neck", "mane"):
-            phase = (p @ nd) / (0.9 * period)
-        elif name == "head":
-            phase = (p @ hdir) / (0.35 * period)
-            dark_extra = _smoothstep(0.80, 0.88, along)  # the dark muzzle
-        elif name.startswith("leg"):
-            phase = z / (0.45 * period) ** 0.95
-            dark_extra = _smoothstep(0.955, 0.97, along)  # hooves
-            if morph.white_belly:
-                white_extra = _smoothstep(0.30, 0.20, z)  # Grévy's fade to white low on the legs
-        elif name.startswith("ear"):
-            phase = z / (0.5 * period)
-            dark_extra = _smoothstep(0.72, 0.8, along)
-            white_extra = 0.6 * _smoothstep(0.5, 0.3, around % 1.0)
-        else:  # tail: striped at the root, black tuft
-            phase = z / (0.5 * period)
-            dark_extra = _smoothstep(0.62, 0.7, along)
+        phase, dark_extra, white_extra = _part_pattern(pg.name, p, along, around, morph, period)
         f = (phase + warp) % 1.0
         # Black where f < black_fraction, with soft edges at both ends of the band.
         b = _smoothstep(-edge, edge, f) * _smoothstep(params.black_fraction + edge, params.black_fraction - edge, f)
         b = b + _smoothstep(1 - edge, 1 + edge, f)
         b = np.clip(np.maximum(b, dark_extra) * (1 - white_extra), 0, 1)
         col = base * (1 - b[..., None]) + black * b[..., None]
-        if params.shadow_stripes and name == "barrel":
+        if params.shadow_stripes and pg.name == "barrel":
             mid = params.black_fraction + (1 - params.black_fraction) / 2
-            sh = _smoothstep(0.12, 0.0, np.abs(f - mid)) * _smoothstep(pel[0] + 0.4, pel[0], x) * 0.45
+            sh = _smoothstep(0.12, 0.0, np.abs(f - mid)) * _smoothstep(pel_x + 0.4, pel_x, p[..., 0]) * 0.45
             col = col * (1 - sh[..., None]) + np.array([0.55, 0.45, 0.36]) * sh[..., None]
         img[rows, cols] = col
     return np.clip(np.round(img * 255), 0, 255).astype(np.uint8)

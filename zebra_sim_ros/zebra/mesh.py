@@ -178,68 +178,77 @@ def _unit(v: FloatArray) -> FloatArray:
     return np.asarray(v / np.linalg.norm(v))
 
 
-def part_specs(m: Morph) -> list[PartSpec]:
-    """The tubes of a zebra of morph ``m``, placed on its bind skeleton."""
-    j = bind_positions(m)
-    P = {n: j[i] for n, i in JOINT_INDEX.items()}  # noqa: N806 - P for 'position' reads best here
-    s = m.withers_height / 1.3
+def _offset(base: FloatArray, dx: float = 0.0, dy: float = 0.0, dz: float = 0.0) -> FloatArray:
+    return np.asarray(base + np.array([dx, dy, dz]))
+
+
+_X, _Z = np.array([1.0, 0, 0]), np.array([0, 0, 1.0])  # rings' 'up' references: along the body, straight up
+
+
+def _barrel(m: Morph, P: dict[str, FloatArray], s: float) -> PartSpec:  # noqa: N803 - P for 'position'
+    """Barrel: rump to the point of the chest; centre line below the spine."""
     g = m.girth_radius
-    x, z = np.array([1.0, 0, 0]), np.array([0, 0, 1.0])
-    specs: list[PartSpec] = []
-
-    def pt(base: FloatArray, dx: float = 0.0, dy: float = 0.0, dz: float = 0.0) -> FloatArray:
-        return np.asarray(base + np.array([dx, dy, dz]))
-
-    # Barrel: rump to the point of the chest; centre line below the spine.
     pel, s1, s2, ch = P["pelvis"], P["spine_1"], P["spine_2"], P["chest"]
-    rump_end = pt(pel, -0.37 * s - 0.25 * (m.body_length - 1.45 * s), 0, -0.10 * s)
-    chest_front = pt(ch, 0.26 * s, 0, -0.10 * s)
-    pts = np.array([rump_end, pt(pel, -0.28 * s, 0, -0.11 * s), pt(pel, -0.10 * s, 0, -0.13 * s),
-                    pt(pel, 0.08 * s, 0, -0.16 * s), pt(s1, 0, 0, -0.20 * s), pt(s2, 0, 0, -0.21 * s),
-                    pt(ch, 0, 0, -0.13 * s), pt(ch, 0.16 * s, 0, -0.10 * s), chest_front])
+    rump_end = _offset(pel, -0.37 * s - 0.25 * (m.body_length - 1.45 * s), 0, -0.10 * s)
+    chest_front = _offset(ch, 0.26 * s, 0, -0.10 * s)
+    pts = np.array([rump_end, _offset(pel, -0.28 * s, 0, -0.11 * s), _offset(pel, -0.10 * s, 0, -0.13 * s),
+                    _offset(pel, 0.08 * s, 0, -0.16 * s), _offset(s1, 0, 0, -0.20 * s), _offset(s2, 0, 0, -0.21 * s),
+                    _offset(ch, 0, 0, -0.13 * s), _offset(ch, 0.16 * s, 0, -0.10 * s), chest_front])
     ra = g * np.array([0.25, 0.80, 0.95, 0.98, 1.0, 1.04, 1.04, 0.90, 0.35])
     rb = g * np.array([0.22, 0.70, 0.86, 0.88, 0.94, 0.98, 0.86, 0.70, 0.30])
-    specs.append(PartSpec("barrel", pts, ra, rb, z, (
+    return PartSpec("barrel", pts, ra, rb, _Z, (
         ("pelvis", rump_end, s1), ("spine_1", s1, s2), ("spine_2", s2, ch), ("chest", ch, chest_front),
-    ), 0.10 * s))
+    ), 0.10 * s)
 
-    # Neck: from inside the chest up to just behind the poll.
+
+def _neck(m: Morph, P: dict[str, FloatArray], s: float) -> PartSpec:  # noqa: N803
+    """Neck: from inside the chest up to just behind the poll."""
+    g = m.girth_radius
     n1, n2, hd = P["neck_1"], P["neck_2"], P["head"]
     nd = _unit(hd - n1)
-    neck_start = pt(ch, 0.08 * s, 0, -0.06 * s)
+    neck_start = _offset(P["chest"], 0.08 * s, 0, -0.06 * s)
     neck_end = hd + nd * 0.06 * s
     pts = np.array([neck_start, n1, (n1 + n2) / 2, n2, (n2 + hd) / 2, hd, neck_end])
     ra = g * np.array([0.80, 0.78, 0.66, 0.56, 0.48, 0.42, 0.18])
     rb = g * np.array([0.62, 0.52, 0.44, 0.38, 0.33, 0.30, 0.14])
-    neck = PartSpec("neck", pts, ra, rb, x, (
+    return PartSpec("neck", pts, ra, rb, _X, (
         ("chest", neck_start, n1), ("neck_1", n1, n2), ("neck_2", n2, hd), ("head", hd, neck_end),
     ), 0.08 * s)
-    specs.append(neck)
 
-    # Mane: a stiff crest on the neck's top line, from the withers to between the ears.
+
+def _mane(m: Morph, P: dict[str, FloatArray], s: float, neck: PartSpec) -> PartSpec:  # noqa: N803
+    """Mane: a stiff crest on the neck's top line, from the withers to between the ears (skinned as the neck)."""
+    g = m.girth_radius
+    n1, hd = P["neck_1"], P["head"]
+    nd = _unit(hd - n1)
     dorsal = _unit(np.cross(nd, np.array([0, 1.0, 0])) * -1.0)
     if dorsal[2] < 0:
         dorsal = -dorsal
     u = np.linspace(0.0, 1.0, 6)
     axis = n1[None, :] * (1 - u[:, None]) + (hd + nd * 0.03 * s)[None, :] * u[:, None]
-    axis[0] = pt(ch, 0.02 * s, 0, 0.02 * s)
+    axis[0] = _offset(P["chest"], 0.02 * s, 0, 0.02 * s)
     depth = g * np.interp(u, [0, 0.5, 1], [0.78, 0.56, 0.42])
     pts = axis + dorsal[None, :] * (depth + 0.3 * m.mane_height)[:, None]
     ra = np.interp(u, [0, 0.15, 0.85, 1], [0.2, 1.0, 1.0, 0.4]) * (0.5 * m.mane_height + 0.015 * s)
     rb = np.full(6, 0.018 * s)
-    specs.append(PartSpec("mane", pts, ra, rb, dorsal, neck.bones, 0.08 * s))
+    return PartSpec("mane", pts, ra, rb, dorsal, neck.bones, 0.08 * s)
 
-    # Head: behind the poll to the nose, hanging ~50 degrees below horizontal.
+
+def _head(m: Morph, P: dict[str, FloatArray], s: float) -> PartSpec:  # noqa: N803
+    """Head: behind the poll to the nose, hanging ~50 degrees below horizontal."""
     hdir = np.array([np.cos(np.radians(-52)), 0.0, np.sin(np.radians(-52))])
     L = m.head_length  # noqa: N806
     u = np.array([0.0, 0.12, 0.32, 0.55, 0.78, 0.93, 1.0])
-    pts = (hd - hdir * 0.08 * L)[None, :] + (u * L)[:, None] * hdir[None, :]
+    pts = (P["head"] - hdir * 0.08 * L)[None, :] + (u * L)[:, None] * hdir[None, :]
     pts[1:3] += np.array([0, 0, -0.03 * L])  # jowls hang a little below the face line
     ra = L * np.array([0.12, 0.20, 0.18, 0.13, 0.115, 0.10, 0.05])
     rb = L * np.array([0.10, 0.15, 0.14, 0.10, 0.095, 0.085, 0.045])
-    specs.append(PartSpec("head", pts, ra, rb, z, (("head", pts[0], pts[-1]),), 0.05 * s, jaw=True))
+    return PartSpec("head", pts, ra, rb, _Z, (("head", pts[0], pts[-1]),), 0.05 * s, jaw=True)
 
-    # Ears: leaf-shaped, up and a little outwards and back.
+
+def _ears(m: Morph, P: dict[str, FloatArray], s: float) -> list[PartSpec]:  # noqa: N803
+    """Ears: leaf-shaped, up and a little outwards and back; left first."""
+    specs = []
     for side, sy in (("l", 1.0), ("r", -1.0)):
         base = P[f"ear_{side}"]
         edir = _unit(np.array([-0.15, 0.38 * sy, 1.0]))
@@ -247,39 +256,56 @@ def part_specs(m: Morph) -> list[PartSpec]:
         pts = base[None, :] + (u * m.ear_length)[:, None] * edir[None, :]
         rb = m.ear_width * np.array([0.55, 1.0, 0.92, 0.50, 0.12])
         ra = 0.022 * s * np.array([1.0, 0.9, 0.7, 0.45, 0.2])
-        specs.append(PartSpec(f"ear_{side}", pts, ra, rb, x, ((f"ear_{side}", pts[0], pts[-1]),), 0.05 * s))
+        specs.append(PartSpec(f"ear_{side}", pts, ra, rb, _X, ((f"ear_{side}", pts[0], pts[-1]),), 0.05 * s))
+    return specs
 
-    # Tail: from under the rump's top to a tuft.
+
+def _tail(m: Morph, P: dict[str, FloatArray], s: float) -> PartSpec:  # noqa: N803
+    """Tail: from under the rump's top to a tuft."""
     t1, t2, t3 = P["tail_1"], P["tail_2"], P["tail_3"]
     tip = t3 + _unit(t3 - t2) * (m.tail_length / 3.2) * 1.25
-    t0 = pt(t1, 0.06 * s, 0, 0.0)
+    t0 = _offset(t1, 0.06 * s, 0, 0.0)
     pts = np.array([t0, t1, t2, t3, (t3 + tip) / 2, tip * 0.7 + t3 * 0.3, tip])
     r = s * np.array([0.040, 0.040, 0.028, 0.022, 0.030, 0.038, 0.012])
-    specs.append(PartSpec("tail", pts, r, r * 0.9, x, (
+    return PartSpec("tail", pts, r, r * 0.9, _X, (
         ("tail_1", t0, t2), ("tail_2", t2, t3), ("tail_3", t3, tip),
-    ), 0.05 * s))
+    ), 0.05 * s)
 
-    # Legs, down to flat hoof soles on z = 0.
+
+def _legs(P: dict[str, FloatArray], s: float) -> list[PartSpec]:  # noqa: N803
+    """Legs, down to flat hoof soles on z = 0, in :data:`LEG_CHAINS` order."""
+    specs = []
     for leg, chain in LEG_CHAINS.items():
         fore = leg.startswith("f")
         top, mid, low, fet, hoof = (P[c] for c in chain)
         body_joint = "chest" if fore else "pelvis"
         sole = np.array([hoof[0] + 0.01 * s, hoof[1], 0.0])
-        start = pt(top, 0.0, -0.25 * top[1], 0.14 * s)
+        start = _offset(top, 0.0, -0.25 * top[1], 0.14 * s)
         if fore:
             pts = np.array([start, top, (top + mid) / 2, mid, mid * 0.55 + low * 0.45, low,
-                            (low + fet) / 2, fet, pt(hoof, 0, 0, 0.035 * s), sole])
+                            (low + fet) / 2, fet, _offset(hoof, 0, 0, 0.035 * s), sole])
             ra = s * np.array([0.12, 0.12, 0.10, 0.085, 0.062, 0.045, 0.033, 0.042, 0.036, 0.047])
             rb = s * np.array([0.09, 0.085, 0.075, 0.065, 0.050, 0.044, 0.029, 0.036, 0.034, 0.043])
         else:
             pts = np.array([start, top, top * 0.45 + mid * 0.55, mid, (mid + low) / 2, low,
-                            (low + fet) / 2, fet, pt(hoof, 0, 0, 0.035 * s), sole])
+                            (low + fet) / 2, fet, _offset(hoof, 0, 0, 0.035 * s), sole])
             ra = s * np.array([0.17, 0.17, 0.16, 0.115, 0.07, 0.052, 0.036, 0.042, 0.036, 0.047])
             rb = s * np.array([0.11, 0.105, 0.095, 0.075, 0.05, 0.042, 0.030, 0.036, 0.034, 0.043])
         bones = ((body_joint, start, top), (chain[0], top, mid), (chain[1], mid, low), (chain[2], low, fet),
                  (chain[3], fet, hoof), (chain[4], hoof, sole))
-        specs.append(PartSpec(f"leg_{leg}", pts, ra, rb, x, bones, 0.05 * s))
+        specs.append(PartSpec(f"leg_{leg}", pts, ra, rb, _X, bones, 0.05 * s))
     return specs
+
+
+def part_specs(m: Morph) -> list[PartSpec]:
+    """The tubes of a zebra of morph ``m``, placed on its bind skeleton, in :data:`PART_NAMES`' drawing order
+    (barrel, neck, mane, head, ears, tail, legs)."""
+    j = bind_positions(m)
+    P = {n: j[i] for n, i in JOINT_INDEX.items()}  # noqa: N806 - P for 'position' reads best here
+    s = m.withers_height / 1.3
+    neck = _neck(m, P, s)
+    return [_barrel(m, P, s), neck, _mane(m, P, s, neck), _head(m, P, s), *_ears(m, P, s), _tail(m, P, s),
+            *_legs(P, s)]
 
 
 def build_mesh(m: Morph, lod: int = 0) -> ZebraMesh:

@@ -15,6 +15,7 @@ USD matrices use row vectors (``p' = p * M``), so our column-vector matrices are
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -49,10 +50,9 @@ def local_transforms(global_xf: FloatArray) -> FloatArray:
 def write_usd(lib: ZebraLibrary, morph: str, path: Path, coat_png: str | None = None) -> Path:
     """Write morph ``morph`` of ``lib`` with all its clips to ``path`` (.usd, .usda or .usdc)."""
     try:
-        from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, UsdSkel, Vt
+        from pxr import Usd, UsdGeom, UsdSkel
     except ImportError as exc:  # pragma: no cover - usd-core is a declared dependency
         raise DependencyError("usd-core is needed to write USD: pip install usd-core") from exc
-    from zebra_sim_ros.geometry.rotations import matrix_to_quat
 
     m = lib.morphs.index(morph)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -67,16 +67,36 @@ def write_usd(lib: ZebraLibrary, morph: str, path: Path, coat_png: str | None = 
     root.GetPrim().SetCustomDataByKey("zebra_sim_ros:morph", morph)
     root.GetPrim().SetCustomDataByKey("zebra_sim_ros:asset_digest", str(lib.manifest["digest"]))
 
+    skel = _define_skeleton(stage, morph)
+    material = _coat_material(stage, coat_png) if coat_png else None
+    for lod in LODS:
+        _define_mesh(stage, morph, lod, skel, material)
+    _define_animations(stage, lib, m)
+    UsdSkel.BindingAPI.Apply(skel.GetPrim())
+    _clip_variants(root.GetPrim(), skel.GetPrim(), lib.clip_names)
+    stage.GetRootLayer().Save()
+    return path
+
+
+def _matrices(xf: FloatArray) -> Any:
+    """(N, 4, 4) column-vector matrices as a USD (row-vector) matrix array."""
+    from pxr import Gf, Vt
+
+    return Vt.Matrix4dArray([Gf.Matrix4d(*x.T.ravel().tolist()) for x in xf])
+
+
+def _define_skeleton(stage: Any, morph: str) -> Any:
+    """``/Zebra/Skeleton``: joints, bind and rest transforms, and the keypoint definitions as custom attributes."""
+    from pxr import Sdf, UsdSkel, Vt
+
     paths = joint_paths()
-    bind = bind_positions(MORPHS[morph])
     bind_xf = np.tile(np.eye(4), (len(paths), 1, 1))
-    bind_xf[:, :3, 3] = bind
+    bind_xf[:, :3, 3] = bind_positions(MORPHS[morph])
     skel = UsdSkel.Skeleton.Define(stage, "/Zebra/Skeleton")
     skel.CreateJointsAttr(paths)
     skel.CreateJointNamesAttr(list(JOINT_NAMES))
-    skel.CreateBindTransformsAttr(Vt.Matrix4dArray([Gf.Matrix4d(*x.T.ravel().tolist()) for x in bind_xf]))
-    rest = local_transforms(bind_xf)
-    skel.CreateRestTransformsAttr(Vt.Matrix4dArray([Gf.Matrix4d(*x.T.ravel().tolist()) for x in rest]))
+    skel.CreateBindTransformsAttr(_matrices(bind_xf))
+    skel.CreateRestTransformsAttr(_matrices(local_transforms(bind_xf)))
     kp_idx, kp_w = keypoint_weights(build_mesh(MORPHS[morph], 0))
     sp = skel.GetPrim()
     sp.CreateAttribute("zebra:keypointNames", Sdf.ValueTypeNames.TokenArray).Set(list(KEYPOINT_NAMES))
@@ -85,31 +105,43 @@ def write_usd(lib: ZebraLibrary, morph: str, path: Path, coat_png: str | None = 
     sp.CreateAttribute("zebra:keypointVertexWeights", Sdf.ValueTypeNames.FloatArray).Set(
         Vt.FloatArray(kp_w.ravel().tolist()))
     sp.CreateAttribute("zebra:keypointElementSize", Sdf.ValueTypeNames.Int).Set(int(kp_idx.shape[1]))
+    return skel
 
-    material = _coat_material(stage, coat_png) if coat_png else None
-    for lod in LODS:
-        msh = build_mesh(MORPHS[morph], lod)
-        geom = UsdGeom.Mesh.Define(stage, f"/Zebra/Mesh_LOD{lod}")
-        geom.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(msh.vertices.astype(np.float32)))
-        geom.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(msh.faces)))
-        geom.CreateFaceVertexIndicesAttr(Vt.IntArray(msh.faces.ravel().tolist()))
-        geom.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-        geom.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
-        geom.CreatePurposeAttr(UsdGeom.Tokens.render if lod == 0 else UsdGeom.Tokens.proxy)
-        lo, hi = msh.vertices.min(axis=0), msh.vertices.max(axis=0)
-        geom.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*lo.tolist()), Gf.Vec3f(*hi.tolist())]))
-        st = UsdGeom.PrimvarsAPI(geom.GetPrim()).CreatePrimvar(
-            "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
-        st.Set(Vt.Vec2fArray.FromNumpy(msh.uv.reshape(-1, 2)))
-        binding = UsdSkel.BindingAPI.Apply(geom.GetPrim())
-        binding.CreateSkeletonRel().SetTargets([skel.GetPath()])
-        binding.CreateJointIndicesPrimvar(False, 4).Set(Vt.IntArray(msh.joint_indices.ravel().tolist()))
-        binding.CreateJointWeightsPrimvar(False, 4).Set(
-            Vt.FloatArray(msh.joint_weights.astype(np.float32).ravel().tolist()))
-        binding.CreateGeomBindTransformAttr(Gf.Matrix4d(1.0))
-        if material is not None:
-            UsdShade.MaterialBindingAPI.Apply(geom.GetPrim()).Bind(material)
 
+def _define_mesh(stage: Any, morph: str, lod: int, skel: Any, material: Any) -> None:
+    """``/Zebra/Mesh_LOD<lod>`` (purpose render for LOD 0, proxy otherwise): skinned, face-varying ``st``."""
+    from pxr import Gf, Sdf, UsdGeom, UsdShade, UsdSkel, Vt
+
+    msh = build_mesh(MORPHS[morph], lod)
+    geom = UsdGeom.Mesh.Define(stage, f"/Zebra/Mesh_LOD{lod}")
+    geom.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(msh.vertices.astype(np.float32)))
+    geom.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(msh.faces)))
+    geom.CreateFaceVertexIndicesAttr(Vt.IntArray(msh.faces.ravel().tolist()))
+    geom.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    geom.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
+    geom.CreatePurposeAttr(UsdGeom.Tokens.render if lod == 0 else UsdGeom.Tokens.proxy)
+    lo, hi = msh.vertices.min(axis=0), msh.vertices.max(axis=0)
+    geom.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*lo.tolist()), Gf.Vec3f(*hi.tolist())]))
+    st = UsdGeom.PrimvarsAPI(geom.GetPrim()).CreatePrimvar(
+        "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
+    st.Set(Vt.Vec2fArray.FromNumpy(msh.uv.reshape(-1, 2)))
+    binding = UsdSkel.BindingAPI.Apply(geom.GetPrim())
+    binding.CreateSkeletonRel().SetTargets([skel.GetPath()])
+    binding.CreateJointIndicesPrimvar(False, 4).Set(Vt.IntArray(msh.joint_indices.ravel().tolist()))
+    binding.CreateJointWeightsPrimvar(False, 4).Set(
+        Vt.FloatArray(msh.joint_weights.astype(np.float32).ravel().tolist()))
+    binding.CreateGeomBindTransformAttr(Gf.Matrix4d(1.0))
+    if material is not None:
+        UsdShade.MaterialBindingAPI.Apply(geom.GetPrim()).Bind(material)
+
+
+def _define_animations(stage: Any, lib: ZebraLibrary, m: int) -> None:
+    """``/Zebra/Animations/<clip>``: one SkelAnimation per clip of morph index ``m``, a time sample per frame."""
+    from pxr import Gf, Usd, UsdGeom, UsdSkel, Vt
+
+    from zebra_sim_ros.geometry.rotations import matrix_to_quat
+
+    paths = joint_paths()
     UsdGeom.Scope.Define(stage, "/Zebra/Animations")
     for c, name in enumerate(lib.clip_names):
         anim = UsdSkel.Animation.Define(stage, f"/Zebra/Animations/{name}")
@@ -117,7 +149,7 @@ def write_usd(lib: ZebraLibrary, morph: str, path: Path, coat_png: str | None = 
         start, n = int(lib.clip_start[c]), int(lib.clip_frames[c])
         anim.GetPrim().SetCustomDataByKey("zebra_sim_ros:frames", n)
         anim.GetPrim().SetCustomDataByKey("zebra_sim_ros:loop", bool(lib.clip_loop[c]))
-        xf = local_transforms(np.asarray(lib._a["joints"][m, start:start + n], dtype=np.float64))
+        xf = local_transforms(np.asarray(lib.joint_transforms(m, np.arange(start, start + n)), dtype=np.float64))
         quats = matrix_to_quat(xf[..., :3, :3])
         t_attr, r_attr, s_attr = anim.CreateTranslationsAttr(), anim.CreateRotationsAttr(), anim.CreateScalesAttr()
         s_attr.Set(Vt.Vec3hArray([Gf.Vec3h(1, 1, 1)] * len(paths)))
@@ -125,17 +157,18 @@ def write_usd(lib: ZebraLibrary, morph: str, path: Path, coat_png: str | None = 
             t_attr.Set(Vt.Vec3fArray.FromNumpy(xf[f, :, :3, 3].astype(np.float32)), Usd.TimeCode(f))
             r_attr.Set(Vt.QuatfArray([Gf.Quatf(*q.tolist()) for q in quats[f]]), Usd.TimeCode(f))
 
-    UsdSkel.BindingAPI.Apply(skel.GetPrim())
-    vset = root.GetPrim().GetVariantSets().AddVariantSet("clip")
-    for name in lib.clip_names:
+
+def _clip_variants(root: Any, skel: Any, clip_names: tuple[str, ...]) -> None:
+    """The variant set ``clip`` on the root: each variant binds the skeleton to that clip; the first is selected."""
+    from pxr import Sdf, UsdSkel
+
+    vset = root.GetVariantSets().AddVariantSet("clip")
+    for name in clip_names:
         vset.AddVariant(name)
         vset.SetVariantSelection(name)
         with vset.GetVariantEditContext():
-            UsdSkel.BindingAPI(skel.GetPrim()).CreateAnimationSourceRel().SetTargets(
-                [Sdf.Path(f"/Zebra/Animations/{name}")])
-    vset.SetVariantSelection(lib.clip_names[0])
-    stage.GetRootLayer().Save()
-    return path
+            UsdSkel.BindingAPI(skel).CreateAnimationSourceRel().SetTargets([Sdf.Path(f"/Zebra/Animations/{name}")])
+    vset.SetVariantSelection(clip_names[0])
 
 
 def _coat_material(stage: object, coat_png: str) -> object:
