@@ -26,6 +26,8 @@ from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import ImageMarker
 
 from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.messages import Stamp
+from zebra_sim_ros.messages import stamp_ns as messages_stamp_ns
 from zebra_sim_ros.params import ParamSpec, StageConfig
 
 
@@ -201,12 +203,13 @@ def flush(node: Node, publishers: Iterable[Any], timeout_s: float = 5.0) -> None
 
 def stamp(ns: int) -> Time:
     """builtin_interfaces/Time from integer nanoseconds."""
-    return Time(sec=int(ns // 1_000_000_000), nanosec=int(ns % 1_000_000_000))
+    s = Stamp.from_ns(ns)
+    return Time(sec=s.sec, nanosec=s.nanosec)
 
 
 def stamp_ns(t: Time) -> int:
     """Integer nanoseconds of a builtin_interfaces/Time."""
-    return int(t.sec) * 1_000_000_000 + int(t.nanosec)
+    return messages_stamp_ns(t.sec, t.nanosec)
 
 
 def help_text(executable: str, doc: str, specs: Iterable[ParamSpec]) -> str:
