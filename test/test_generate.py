@@ -210,7 +210,7 @@ def test_regenerate_command_reproduces_the_frames_scene(dataset: Path) -> None:
         assert "--set count_max=60" in meta["regenerate"]
         args = build_parser().parse_args(shlex.split(meta["regenerate"])[1:] + ["--out", "unused"])
         values = {**placer_values(argparse.Namespace(**{**vars(args), "start_step": None})),
-                  "camera_width": args.width, "camera_height": args.height, "camera_hfov_deg": args.hfov}
+                  "camera_width": args.width, "camera_height": args.height, "camera_hfov_deg": args.hfov_deg}
         cfg = PlacerConfig.from_params(values)
         scene = Placer(cfg, load_world(cfg.world), load_library()).scene(args.step)
         assert scene.lighting.to_dict() == meta["lighting"]

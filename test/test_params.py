@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import argparse
+
 import json
 import re
 from dataclasses import dataclass, fields
@@ -34,11 +36,11 @@ REPO = Path(__file__).resolve().parents[1]
 # -- one declaration, everything derived ------------------------------------------------------------------------
 @pytest.mark.parametrize("executable", sorted(NODE_PARAMS))
 def test_config_file_is_what_the_declarations_write(executable: str) -> None:
-    """Regenerate with ``python -m zebra_sim_ros.params --write-config config/`` when this fails."""
+    """Regenerate with ``python -m zebra_sim_ros.graph.spec --write-config config/`` when this fails."""
     text = (REPO / "config" / f"{executable}.yaml").read_text(encoding="utf-8")
     assert text == config_yaml(NODE_PARAMS[executable], yaml_header(executable, text)), \
-        f"config/{executable}.yaml differs from its declarations: run python -m zebra_sim_ros.params --write-config " \
-        "config/"
+        f"config/{executable}.yaml differs from its declarations: run " \
+        "python -m zebra_sim_ros.graph.spec --write-config config/"
 
 
 def test_written_config_reads_back_as_the_defaults_and_keeps_its_header(tmp_path: Path) -> None:
@@ -104,6 +106,42 @@ def test_cli_options_mirror_the_declarations(capsys: pytest.CaptureFixture[str])
     with pytest.raises(SystemExit):
         p.parse_args(["--rate-hz", "0"])
     assert "--rate-hz" in capsys.readouterr().err
+
+
+# (subcommand, flag, node, parameter) for every zebra-sim option that mirrors a node parameter.
+MIRRORED = [
+    ("generate", "--min-visible-pixels", "labeller", "min_visible_pixels"),
+    ("generate", "--min-box-px", "labeller", "min_box_px"),
+    ("generate", "--hfov", "camera", "hfov_deg"),
+    ("generate", "--world-seed", "placer", "world_seed"),
+    ("render", "--width", "camera", "width"),
+    ("render", "--strategy", "placer", "strategy"),
+    ("place", "--start-step", "placer", "start_step"),
+    ("up", "--detect-scale", "detector", "scale"),
+    ("up", "--seed", "placer", "seed"),
+    ("val", "--imgsz", "detector", "imgsz"),
+    ("val", "--iou", "detector", "iou"),
+]
+
+
+@pytest.mark.parametrize(("command", "flag", "node", "name"), MIRRORED)
+def test_zebra_sim_options_are_derived_from_the_declarations(command: str, flag: str, node: str, name: str) -> None:
+    """The option's help carries the parameter's description and range; a value outside the range is refused by
+    the option, naming it, as the node would refuse it at start."""
+    from zebra_sim_ros.cli import build_parser
+
+    spec = {s.name: s for s in NODE_PARAMS[node]}[name]
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    parser = sub.choices[command]
+    action = next(a for a in parser._actions if flag in a.option_strings)
+    assert action.dest == name
+    help_text = " ".join((action.help or "").split())
+    assert spec.description.split(",")[0].split("(")[0].strip() in help_text and spec.allowed in help_text
+    bad = str(int(spec.lo) - 7) if spec.lo is not None else "'not a value'"
+    assert callable(action.type)
+    with pytest.raises(argparse.ArgumentTypeError, match="allowed"):
+        action.type(bad)
+    assert action.type(repr(spec.default) if not isinstance(spec.default, str) else spec.default) == spec.default
 
 
 def test_descriptors_carry_the_ranges() -> None:

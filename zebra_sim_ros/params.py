@@ -4,7 +4,7 @@ A field made with :func:`param` carries the parameter's whole declaration (:clas
 numeric range, choices, whether it may change while the node runs); its name is the field's name. Everything
 else is derived from it: the :class:`ParamSpec` tuples the nodes declare as ROS parameters (with descriptors
 holding the ranges), ``--help``, CLI options (:func:`add_option`), the README tables and ``config/*.yaml``
-(``python -m zebra_sim_ros.params --write-config config/``). :func:`validate` checks types and ranges and raises
+(``python -m zebra_sim_ros.graph.spec --write-config config/``). :func:`validate` checks types and ranges and raises
 :class:`~zebra_sim_ros.errors.ParameterError` naming the parameter, the value and what is allowed.
 """
 
@@ -254,11 +254,20 @@ def validate(specs: Iterable[ParamSpec], values: Mapping[str, Any]) -> dict[str,
 _FROM_SPEC: Any = object()
 
 
-def add_option(parser: argparse.ArgumentParser, spec: ParamSpec, flag: str = "", default: Any = _FROM_SPEC) -> None:
+def spec_of(cls: type, name: str) -> ParamSpec:
+    """The :class:`ParamSpec` of field ``name`` of the config dataclass ``cls`` (for CLI options that mirror it)."""
+    for spec in specs_of(cls):
+        if spec.name == name:
+            return spec
+    raise KeyError(f"{cls.__name__} declares no parameter {name!r}")
+
+
+def add_option(parser: argparse.ArgumentParser, spec: ParamSpec, flag: str = "", default: Any = _FROM_SPEC,
+               note: str = "") -> None:
     """An argparse option that mirrors a parameter: ``--name-with-dashes`` (or ``flag``), its type, range and
     help from ``spec``; the default is the parameter's unless ``default`` is given (e.g. None, to tell "not
-    given" from a value). A bad value is refused by argparse, naming the option and what is allowed. Values are
-    YAML, as with ``-p``."""
+    given" from a value); ``note`` is appended to the help. A bad value is refused by argparse, naming the option
+    and what is allowed. Values are YAML, as with ``-p``."""
     import yaml
 
     def parse(text: str) -> Any:
@@ -268,9 +277,15 @@ def add_option(parser: argparse.ArgumentParser, spec: ParamSpec, flag: str = "",
         except ParameterError as exc:
             raise argparse.ArgumentTypeError(f"{text!r}: allowed {exc.allowed}") from None
 
+    if default is _FROM_SPEC or default == spec.default:
+        shown = f"default {spec.default!r}"
+    else:  # None: "not given", which the note explains
+        shown = f"the parameter's default {spec.default!r}" if default is None else (
+            f"default {default!r}; the parameter's {spec.default!r}")
+    text = f"{spec.description}; allowed {spec.allowed} ({shown}){'; ' + note if note else ''}"
     parser.add_argument(flag or "--" + spec.name.replace("_", "-"), type=parse, dest=spec.name,
-                        default=spec.default if default is _FROM_SPEC else default,
-                        help=f"{spec.description}; allowed {spec.allowed} (default {spec.default!r})")
+                        default=spec.default if default is _FROM_SPEC else default, metavar=spec.name.upper(),
+                        help=text.replace("%", "%%"))
 
 
 def load_params_file(path: str, node_name: str) -> dict[str, Any]:
@@ -366,22 +381,3 @@ def write_config(folder: Path, nodes: Mapping[str, Iterable[ParamSpec]]) -> list
             path.write_text(text, encoding="utf-8")
             written.append(path)
     return written
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m zebra_sim_ros.params --write-config config/``: regenerate the parameter files."""
-    from zebra_sim_ros.graph.spec import NODE_PARAMS
-
-    p = argparse.ArgumentParser(prog="python -m zebra_sim_ros.params", description=main.__doc__)
-    p.add_argument("--write-config", type=Path, required=True, metavar="FOLDER",
-                   help="folder of <node>.yaml files to (re)write from the declarations")
-    args = p.parse_args(argv)
-    if not args.write_config.is_dir():
-        p.error(f"{args.write_config} is not a folder")
-    for path in write_config(args.write_config, NODE_PARAMS):
-        print(f"wrote {path}")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

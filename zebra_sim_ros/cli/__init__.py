@@ -10,38 +10,13 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Sequence
 
 from zebra_sim_ros import __version__
-from zebra_sim_ros.errors import ParameterError, ZebraSimError
+from zebra_sim_ros.cli.common import Command, Summary, add_json_flag, parse_size, size_arg
+from zebra_sim_ros.errors import ZebraSimError
 
-Summary = dict[str, Any]
-Command = Callable[[argparse.Namespace], Summary]
-
-
-def add_json_flag(p: argparse.ArgumentParser) -> None:
-    """Give a computing subcommand the shared ``--json`` flag."""
-    p.add_argument("--json", action="store_true", help="print one JSON summary line last on stdout")
-
-
-def parse_size(text: str, name: str = "--size") -> tuple[int, int]:
-    """'1280x720' to (width, height), each 16..8192 px; raises :class:`ParameterError` naming ``name``."""
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise ParameterError(name, text, "WxH in pixels, e.g. 1280x720") from None
-    if not (16 <= w <= 8192 and 16 <= h <= 8192):
-        raise ParameterError(name, text, "16..8192 pixels per side")
-    return w, h
-
-
-def size_arg(text: str) -> tuple[int, int]:
-    """:func:`parse_size` as an argparse ``type`` (argparse names the option in its error)."""
-    try:
-        return parse_size(text)
-    except ParameterError as exc:
-        raise argparse.ArgumentTypeError(f"{text!r}: allowed {exc.allowed}") from None
+__all__ = ["Command", "Summary", "add_json_flag", "build_parser", "main", "parse_size", "size_arg"]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from zebra_sim_ros.cli import Summary, add_json_flag
+from zebra_sim_ros.cli.common import Summary, add_json_flag
 from zebra_sim_ros.errors import ParameterError
 
 

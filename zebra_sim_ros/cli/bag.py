@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from zebra_sim_ros.cli import Summary, add_json_flag
+from zebra_sim_ros.cli.common import Summary, add_json_flag, detector_options
 
 
 def register(sub: Any) -> None:
@@ -31,12 +31,7 @@ def register(sub: Any) -> None:
                    help="name of the detections topic under each drone (default: detections)")
     e.add_argument("--weights", default=None,
                    help="run this detector over the recorded /<drone>/image_raw instead of using recorded detections")
-    e.add_argument("--device", default="auto", help="auto, cpu or cuda (with --weights)")
-    e.add_argument("--imgsz", type=int, default=None,
-                   help="with --weights: inference size, px, for every frame (default: the checkpoint's rule, each "
-                   "frame at the scale the checkpoint serves at; -1: each frame's long side)")
-    e.add_argument("--scale", type=float, default=0.0, help="with --weights: inference size as a multiple of each "
-                   "frame's long side, rounded up to a multiple of 32 (overrides --imgsz; 0: off)")
+    detector_options(e)  # with --weights
     add_json_flag(e)
     e.set_defaults(func=cmd_eval)
 

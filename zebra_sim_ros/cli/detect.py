@@ -7,12 +7,15 @@ import os
 from pathlib import Path
 from typing import Any
 
-from zebra_sim_ros.cli import Summary, add_json_flag
+from zebra_sim_ros.cli.common import Summary, add_json_flag, detector_options
 from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.params import add_option, spec_of
 
 
 def register(sub: Any) -> None:
     """Add ``train``, ``val`` and ``export``."""
+    from zebra_sim_ros.detection.config import DetectorConfig
+
     t = sub.add_parser("train", help="train our YOLO from scratch on a YOLO-format dataset",
                        description="Train from scratch. Under torchrun (torchrun --nproc_per_node N -m "
                                    "zebra_sim_ros.cli train ...) it trains with DistributedDataParallel.")
@@ -46,15 +49,10 @@ def register(sub: Any) -> None:
     v.add_argument("--weights", default=None, help="checkpoint (default: the shipped weights)")
     v.add_argument("--data", required=True, help="dataset.yaml, or a folder of images with a sibling labels/ folder")
     v.add_argument("--split", default="val", help="split of a dataset.yaml: val or train")
-    v.add_argument("--imgsz", type=int, default=None, help="inference size, px, for every image (default: the "
-                   "checkpoint's rule: each image at the scale the checkpoint serves at, config.imgsz over the long "
-                   "side of its training frames)")
-    v.add_argument("--scale", type=float, default=0.0, help="inference size as a multiple of each image's long "
-                   "side, rounded up to a multiple of 32 (overrides --imgsz; 0: off)")
+    detector_options(v)
     v.add_argument("--batch", type=int, default=8)
-    v.add_argument("--device", default="auto")
-    v.add_argument("--conf", type=float, default=0.001, help="confidence threshold for AP")
-    v.add_argument("--iou", type=float, default=0.7, help="NMS IoU threshold")
+    add_option(v, spec_of(DetectorConfig, "conf"), default=0.001, note="val counts every detection above it into AP")
+    add_option(v, spec_of(DetectorConfig, "iou"))
     v.add_argument("--plot", type=Path, default=None, help="write the PR curve (IoU 0.5) to this PNG")
     add_json_flag(v)
     v.set_defaults(func=cmd_val)

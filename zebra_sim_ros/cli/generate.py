@@ -8,13 +8,17 @@ from typing import Any
 
 import yaml
 
-from zebra_sim_ros.cli import Summary, add_json_flag, parse_size
+from zebra_sim_ros.cli.common import Summary, add_json_flag, parse_size
 from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.params import add_option, spec_of
 
 
 def register(sub: Any) -> None:
     """Add the ``generate`` subcommand."""
     from zebra_sim_ros.dataset.generate import __doc__ as layout
+    from zebra_sim_ros.labels.config import LabelFilters
+    from zebra_sim_ros.placement.config import PlacerConfig
+    from zebra_sim_ros.rendering.config import CameraConfig
 
     p = sub.add_parser("generate", help="generate a labelled dataset (images, masks, depth, YOLO, COCO)",
                        description=(layout or "").strip(), formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -24,21 +28,19 @@ def register(sub: Any) -> None:
     p.add_argument("--worlds", default="savanna", help="comma-separated world presets or USD paths, or 'all'")
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the run; each world and strategy draws its own stream from it (in the frame names)")
-    p.add_argument("--world-seed", type=int, default=0, help="seed of the procedural worlds")
+    add_option(p, spec_of(PlacerConfig, "world_seed"))
     p.add_argument("--out", type=Path, required=True, help="output folder (reruns continue in it)")
     p.add_argument("--workers", type=int, default=1, help="worker processes (each renders on its own)")
     p.add_argument("--shard", default="0/1", help="i/n: make only steps with step %% n == i")
     p.add_argument("--imgsz", default="1280x720", help="WxH, or W for 16:9 (e.g. 1920)")
-    p.add_argument("--hfov", type=float, default=80.0, help="horizontal field of view, deg")
+    add_option(p, spec_of(CameraConfig, "hfov_deg"), "--hfov")
     p.add_argument("--format", default="jpg", help="jpg or png for the RGB images")
     p.add_argument("--jpeg-quality", type=int, default=95, help="JPEG quality 1..100")
     p.add_argument("--yolo-box", default="visible", help="box in the YOLO labels: visible (tight) or full (amodal)")
     p.add_argument("--depth", default="float32", help="depth images: float32 (exact), float16 (half size) or none")
     p.add_argument("--val-fraction", type=float, default=0.2, help="share of placements in val")
-    p.add_argument("--min-visible-pixels", type=int, default=10, help="label filter: fewest visible pixels")
-    p.add_argument("--min-visible-fraction", type=float, default=0.0, help="label filter: least visible fraction")
-    p.add_argument("--min-box-px", type=float, default=3.0, help="label filter: smallest box side, px")
-    p.add_argument("--max-aspect-ratio", type=float, default=100.0, help="label filter: largest box side ratio")
+    for name in ("min_visible_pixels", "min_visible_fraction", "min_box_px", "max_aspect_ratio"):
+        add_option(p, spec_of(LabelFilters, name))  # the labeller node's filters, declared once
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="override a placer parameter")
     p.add_argument("--finalize-only", action="store_true", help="only rebuild COCO, split lists and dataset.yaml")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -80,7 +82,7 @@ def cmd_generate(args: argparse.Namespace) -> Summary:
         placer[name.strip()] = yaml.safe_load(raw)
     cfg = GenerateConfig(
         out=str(args.out), frames=args.frames, strategy=NAMED_SETS.get(args.strategy, args.strategy), worlds=worlds,
-        seed=args.seed, world_seed=args.world_seed, width=width, height=height, hfov_deg=args.hfov,
+        seed=args.seed, world_seed=args.world_seed, width=width, height=height, hfov_deg=args.hfov_deg,
         image_format=args.format, jpeg_quality=args.jpeg_quality, workers=args.workers, shard=(i, n),
         yolo_box=args.yolo_box, val_fraction=args.val_fraction, depth=args.depth, placer=placer,
         filters=LabelFilters(args.min_visible_pixels, args.min_visible_fraction, args.min_box_px,

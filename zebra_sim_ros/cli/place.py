@@ -10,20 +10,21 @@ from typing import Any
 
 import yaml
 
-from zebra_sim_ros.cli import Summary, add_json_flag
+from zebra_sim_ros.cli.common import Summary, add_json_flag
 from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.params import add_option, spec_of
 
 
 def register(sub: Any) -> None:
     """Add the ``place`` subcommand."""
+    from zebra_sim_ros.placement.config import PlacerConfig
+
     p = sub.add_parser("place", help="generate placer scenes (zebras, time of day, cameras) as JSON lines",
                        description="Prints one scene JSON per line, exactly what the placer node publishes on "
                                    "/zebra_sim/scene for the same parameters.")
-    p.add_argument("--seed", type=int, default=None, help="seed (default: the parameter file's, else 0)")
     p.add_argument("--steps", type=int, default=1, help="number of steps (>= 1)")
-    p.add_argument("--start-step", type=int, default=None, help="first step index (any step can be made alone)")
-    p.add_argument("--world", default=None, help="world preset name or USD path (default savanna)")
-    p.add_argument("--strategy", default=None, help="far, closeby or mixed")
+    for name in ("seed", "start_step", "world", "strategy"):  # not given: the parameter file's, else the default
+        add_option(p, spec_of(PlacerConfig, name), default=None)
     p.add_argument("--params-file", type=Path, default=None,
                    help="ROS 2 parameter YAML (e.g. config/placer.yaml); --set and flags override it")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
@@ -44,7 +45,7 @@ def placer_values(args: argparse.Namespace) -> dict[str, Any]:
         name, raw = item.split("=", 1)
         values[name.strip()] = yaml.safe_load(raw)
     for flag, key in (("seed", "seed"), ("world", "world"), ("strategy", "strategy"), ("start_step", "start_step")):
-        if getattr(args, flag) is not None:
+        if getattr(args, flag, None) is not None:
             values[key] = getattr(args, flag)
     return values
 

@@ -10,29 +10,32 @@ from typing import Any
 
 import numpy as np
 
-from zebra_sim_ros.cli import Summary, add_json_flag
+from zebra_sim_ros.cli.common import Summary, add_json_flag
 from zebra_sim_ros.cli.place import placer_values
 from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.params import add_option, spec_of
 
 
 def register(sub: Any) -> None:
     """Add the ``render`` subcommand."""
+    from zebra_sim_ros.placement.config import PlacerConfig
+    from zebra_sim_ros.rendering.config import CameraConfig
+
     p = sub.add_parser(
         "render", help="render one step's camera views to files (PNG RGB, depth, instance mask)",
         description="Writes per camera: <name>_rgb.png (sRGB), <name>_depth.npy (float32 metres along the optical "
                     "axis, inf = sky), <name>_depth_mm.png (uint16 millimetres, 0 = sky or beyond 65.5 m), "
                     "<name>_instances.png (uint16: zebra id + 1, 0 = not a zebra), plus scene.json, "
                     "camera_info.json and a contact sheet preview.png.")
-    p.add_argument("--seed", type=int, default=None, help="seed (default 0)")
+    for name in ("seed", "world", "strategy"):  # the placer's parameters; not given: the parameter file's
+        add_option(p, spec_of(PlacerConfig, name), default=None)
     p.add_argument("--step", type=int, default=0, help="which step of the seed's sequence (>= 0)")
-    p.add_argument("--world", default=None, help="world preset name or USD path (default savanna)")
-    p.add_argument("--strategy", default=None, help="far, closeby or mixed")
     p.add_argument("--params-file", type=Path, default=None, help="placer parameter YAML (config/placer.yaml)")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="override a placer parameter")
     p.add_argument("--time-of-day", type=float, default=None, help="override the drawn time of day, hours")
-    p.add_argument("--width", type=int, default=1280, help="image width, px")
-    p.add_argument("--height", type=int, default=720, help="image height, px")
-    p.add_argument("--hfov", type=float, default=None, help="horizontal field of view, deg (default: the placer's)")
+    add_option(p, spec_of(CameraConfig, "width"))
+    add_option(p, spec_of(CameraConfig, "height"))
+    add_option(p, spec_of(CameraConfig, "hfov_deg"), "--hfov", default=None, note="not given: the placer's")
     p.add_argument("--no-shadows", action="store_true", help="render without sun shadows")
     p.add_argument("--out", type=Path, required=True, help="output folder")
     add_json_flag(p)
@@ -56,8 +59,8 @@ def cmd_render(args: argparse.Namespace) -> Summary:
     values = placer_values(argparse.Namespace(**{**vars(args), "start_step": None}))
     values.setdefault("camera_width", args.width)
     values.setdefault("camera_height", args.height)
-    if args.hfov is not None:
-        values["camera_hfov_deg"] = args.hfov
+    if args.hfov_deg is not None:
+        values["camera_hfov_deg"] = args.hfov_deg
     cfg = PlacerConfig.from_params(values)
     t0 = time.perf_counter()
     world = load_world(cfg.world, cfg.terrain_prim, cfg.world_seed)

@@ -19,8 +19,9 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from zebra_sim_ros.cli import Summary, add_json_flag, parse_size
+from zebra_sim_ros.cli.common import Summary, add_json_flag, parse_size
 from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.params import add_option, spec_of
 
 if TYPE_CHECKING:  # the graph and rclpy are imported only when the command runs
     from zebra_sim_ros.graph.spec import NodeSpec, UpConfig
@@ -30,18 +31,19 @@ if TYPE_CHECKING:  # the graph and rclpy are imported only when the command runs
 
 def register(sub: Any) -> None:
     """Add the ``up`` subcommand."""
+    from zebra_sim_ros.detection.config import DetectorConfig
+    from zebra_sim_ros.placement.config import PlacerConfig
+
     p = sub.add_parser("up", help="run the whole graph for N steps in lockstep, record it and score the detector",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--frames", type=int, default=10, help="steps to run (each gives one frame per drone)")
-    p.add_argument("--world", default="savanna", help="world preset or USD terrain file")
-    p.add_argument("--seed", type=int, default=0, help="seed of the placer (recorded in every scene)")
-    p.add_argument("--strategy", default="far", help="camera strategy: far, closeby or mixed")
+    for name in ("world", "seed", "strategy"):
+        add_option(p, spec_of(PlacerConfig, name))
     p.add_argument("--size", default="1280x720", help="image size of the cameras, WxH px")
     p.add_argument("--weights", default="", help="detector checkpoint (default: the shipped weights)")
-    p.add_argument("--device", default="auto", help="detector device: auto, cpu or cuda")
-    p.add_argument("--detect-scale", type=float, default=0.0, help="detector input long side as a multiple of the "
-                   "cameras' (0: the checkpoint's rule, the scale it serves its training frames at: 1.7 for the "
-                   "shipped weights; 1.0: native resolution)")
+    add_option(p, spec_of(DetectorConfig, "device"))
+    add_option(p, spec_of(DetectorConfig, "scale"), "--detect-scale", note="the checkpoint's rule serves the shipped "
+               "weights at 1.7 x the cameras' long side; 1.0: native resolution")
     p.add_argument("--out", default="out/up", help="folder for the bag, logs, summary.json and preview.jpg")
     p.add_argument("--config", default="", help="folder of the parameter files (default: the installed config/)")
     p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID for the graph (default: inherited)")
@@ -93,7 +95,7 @@ def _up_config(args: argparse.Namespace) -> UpConfig:
 
     w, h = parse_size(args.size)
     cfg = UpConfig(frames=args.frames, world=args.world, seed=args.seed, out=args.out, width=w, height=h,
-                   weights=args.weights, device=args.device, detect_scale=args.detect_scale, strategy=args.strategy,
+                   weights=args.weights, device=args.device, detect_scale=args.scale, strategy=args.strategy,
                    config_dir=args.config, ready_timeout_s=args.ready_timeout, step_timeout_s=args.step_timeout,
                    record=not args.no_record)
     cfg.check()

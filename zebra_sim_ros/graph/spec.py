@@ -5,6 +5,7 @@ and overrides, and which topics each one publishes. ``zebra-sim up`` starts exac
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 from dataclasses import dataclass, field
@@ -14,7 +15,7 @@ from typing import Any
 from zebra_sim_ros.detection.config import DETECTOR_PARAMS
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LABELLER_PARAMS
-from zebra_sim_ros.params import ParamSpec, validate
+from zebra_sim_ros.params import ParamSpec, validate, write_config
 from zebra_sim_ros.placement.config import PLACER_PARAMS
 from zebra_sim_ros.recording.config import RECORDER_PARAMS, REPLAY_PARAMS
 from zebra_sim_ros.rendering.config import CAMERA_PARAMS
@@ -183,3 +184,21 @@ def command(spec: NodeSpec, config: Path, python: str = sys.executable) -> list[
     for k, v in spec.overrides.items():
         args += ["-p", f"{k}:={ros_value(v)}"]
     return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m zebra_sim_ros.graph.spec --write-config config/``: regenerate the nodes' parameter files
+    from their declarations (the test suite fails while a file and its declarations disagree)."""
+    p = argparse.ArgumentParser(prog="python -m zebra_sim_ros.graph.spec", description=main.__doc__)
+    p.add_argument("--write-config", type=Path, required=True, metavar="FOLDER",
+                   help="folder of <node>.yaml files to (re)write from the declarations")
+    args = p.parse_args(argv)
+    if not args.write_config.is_dir():
+        p.error(f"{args.write_config} is not a folder")
+    for path in write_config(args.write_config, NODE_PARAMS):
+        print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

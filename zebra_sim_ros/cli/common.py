@@ -1,0 +1,50 @@
+"""What every ``zebra-sim`` subcommand shares: the summary type, the ``--json`` flag and the size parser.
+
+A module of its own (not ``cli/__init__``), so the subcommands import it and ``cli/__init__`` imports the
+subcommands without an import circle.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from typing import Any
+
+from zebra_sim_ros.errors import ParameterError
+
+Summary = dict[str, Any]
+Command = Callable[[argparse.Namespace], Summary]
+
+
+def add_json_flag(p: argparse.ArgumentParser) -> None:
+    """Give a computing subcommand the shared ``--json`` flag."""
+    p.add_argument("--json", action="store_true", help="print one JSON summary line last on stdout")
+
+
+def parse_size(text: str, name: str = "--size") -> tuple[int, int]:
+    """'1280x720' to (width, height), each 16..8192 px; raises :class:`ParameterError` naming ``name``."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise ParameterError(name, text, "WxH in pixels, e.g. 1280x720") from None
+    if not (16 <= w <= 8192 and 16 <= h <= 8192):
+        raise ParameterError(name, text, "16..8192 pixels per side")
+    return w, h
+
+
+def size_arg(text: str) -> tuple[int, int]:
+    """:func:`parse_size` as an argparse ``type`` (argparse names the option in its error)."""
+    try:
+        return parse_size(text)
+    except ParameterError as exc:
+        raise argparse.ArgumentTypeError(f"{text!r}: allowed {exc.allowed}") from None
+
+
+def detector_options(p: argparse.ArgumentParser) -> None:
+    """``--device``, ``--imgsz`` and ``--scale``, mirroring the detector node's parameters (``val``, ``bag eval``):
+    the same names, ranges and defaults, so a figure from the command line is the node's figure."""
+    from zebra_sim_ros.detection.config import DetectorConfig
+    from zebra_sim_ros.params import add_option, spec_of
+
+    for name in ("device", "imgsz", "scale"):
+        add_option(p, spec_of(DetectorConfig, name))
