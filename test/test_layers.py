@@ -36,10 +36,7 @@ ALLOWED_CYCLE: set[tuple[str, str]] = set()
 # (b) private names imported from another module: (importer, imported module, name).
 ALLOWED_PRIVATE: set[tuple[str, str, str]] = set()
 # (c) layer edges (importer, imported module) against FORBIDDEN.
-ALLOWED_LAYER: set[tuple[str, str]] = {
-    # rendering/config.py takes MAX_CAMERAS and PlacerConfig (the camera count) from placement/config.py.
-    ("zebra_sim_ros.rendering.config", "zebra_sim_ros.placement.config"),
-}
+ALLOWED_LAYER: set[tuple[str, str]] = set()
 # (c) ROS imports outside ROS_ALLOWED: (importer, ROS module).
 ALLOWED_ROS: set[tuple[str, str]] = set()
 

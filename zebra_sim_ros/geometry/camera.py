@@ -20,11 +20,24 @@ from numpy.typing import NDArray
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.rotations import rot_x, rot_y, rot_z
+from zebra_sim_ros.params import param
 
 FloatArray = NDArray[np.float64]
 
 # Columns are the optical axes (x right, y down, z forward) expressed in the body frame.
 BODY_FROM_OPTICAL: FloatArray = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+
+MAX_CAMERAS = 16  # drones per step at most (the placer's num_cameras; a camera node's drone_index is below it)
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """The declarations of a drone camera's image size and field of view, made once: the placer (which aims the
+    cameras) and the camera node (which renders them) both declare these parameters with ``same_as``."""
+
+    width: int = param(1280, "image width", "px", lo=16, hi=8192)
+    height: int = param(720, "image height", "px", lo=16, hi=8192)
+    hfov_deg: float = param(80.0, "horizontal field of view", "deg", lo=20.0, hi=150.0)
 
 
 @dataclass(frozen=True)

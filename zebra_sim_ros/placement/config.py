@@ -13,10 +13,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from zebra_sim_ros.errors import ParameterError
-from zebra_sim_ros.params import ParamSpec, StageConfig, names_list, param, reliability_param
+from zebra_sim_ros.geometry.camera import MAX_CAMERAS, Intrinsics
+from zebra_sim_ros.params import ParamSpec, StageConfig, names_list, param, reliability_param, same_as
 from zebra_sim_ros.placement.sun import DAY_WINDOWS
-
-MAX_CAMERAS = 16  # drones per step at most (num_cameras; a camera node's drone_index is below it)
 
 
 def _nonneg_list(n: int) -> Any:
@@ -69,10 +68,9 @@ class PlacerConfig(StageConfig):
     min_camera_separation: float = param(0.5, "least distance between two cameras", "m", lo=0.0, hi=100.0)
     min_camera_clearance: float = param(2.0, "least height of a camera above the ground below it", "m", lo=0.0,
                                         hi=100.0)
-    camera_width: int = param(1280, "image width the cameras render (the pivot must be in view)", "px", lo=16,
-                              hi=8192)
-    camera_height: int = param(720, "image height the cameras render", "px", lo=16, hi=8192)
-    camera_hfov_deg: float = param(80.0, "horizontal field of view of the cameras", "deg", lo=20.0, hi=150.0)
+    camera_width: int = same_as(Intrinsics, "width", help="image width the cameras render (the pivot must be in view)")
+    camera_height: int = same_as(Intrinsics, "height", help="image height the cameras render")
+    camera_hfov_deg: float = same_as(Intrinsics, "hfov_deg", help="horizontal field of view of the cameras")
     night_fraction: float = param(0.1, "share of frames outside the day window", lo=0.0, hi=1.0)
     day_window: str = param("sun", "the day window: sun = each frame's sunrise..sunset at latitude_deg (the paper's "
                             "90% of frames in good light); clock = day_start_h..day_end_h literally",

@@ -1,15 +1,15 @@
 """The camera node's parameters: one frozen dataclass, each parameter declared once (see ``CAMERA_PARAMS``).
 
-Its intrinsics (width, height, hfov_deg) are the placer's camera declarations (``same_as``): one default, unit
-and range for the cameras the placer aims and the cameras that render.
+Its intrinsics (width, height, hfov_deg) are declared once in :class:`~zebra_sim_ros.geometry.camera.Intrinsics`:
+one default, unit and range for the cameras the placer aims and the cameras that render.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from zebra_sim_ros.geometry.camera import MAX_CAMERAS, Intrinsics
 from zebra_sim_ros.params import ParamSpec, StageConfig, param, reliability_param, same_as
-from zebra_sim_ros.placement.config import MAX_CAMERAS, PlacerConfig
 from zebra_sim_ros.rendering.effects import CameraEffects
 from zebra_sim_ros.rendering.renderer import RenderOptions
 
@@ -19,9 +19,9 @@ class CameraConfig(StageConfig):
     """Validated camera parameters."""
 
     drone_index: int = param(0, "which drone this camera is: drone_{index} in the scene", lo=0, hi=MAX_CAMERAS - 1)
-    width: int = same_as(PlacerConfig, "camera_width", help="image width (the paper used 1920)")
-    height: int = same_as(PlacerConfig, "camera_height", help="image height (the paper used 1080)")
-    hfov_deg: float = same_as(PlacerConfig, "camera_hfov_deg",
+    width: int = same_as(Intrinsics, "width", help="image width (the paper used 1920)")
+    height: int = same_as(Intrinsics, "height", help="image height (the paper used 1080)")
+    hfov_deg: float = same_as(Intrinsics, "hfov_deg",
                               help="horizontal field of view (keep equal to the placer's camera_hfov_deg)")
     shadows: bool = param(True, "render sun shadows")
     shadow_size: int = param(2048, "shadow map size", "px", lo=256, hi=8192)
