@@ -215,3 +215,21 @@ def test_regenerate_command_reproduces_the_frames_scene(dataset: Path) -> None:
         scene = Placer(cfg, load_world(cfg.world), load_library()).scene(args.step)
         assert scene.lighting.to_dict() == meta["lighting"]
         assert scene.camera("drone_1").position == pytest.approx(meta["camera"]["position"])
+
+
+def test_each_frame_records_its_drawn_camera(dataset: Path) -> None:
+    """generate applies the photograph's camera by default, drawn per frame from the frame's seed, step and camera,
+    and records the draw in the annotation, so the frame can be made again exactly."""
+    from zebra_sim_ros.messages import FrameAnnotation
+    from zebra_sim_ros.rendering.effects import SensorModel
+
+    draws = {}
+    for p in sorted((dataset / "annotations").glob("*.json")):
+        meta = FrameAnnotation.from_json(p.read_text())
+        assert meta.sensor is not None and 55 <= meta.sensor.jpeg_quality <= 95
+        assert "--sensor-strength 1.0" in meta.regenerate
+        order = int(meta.camera.name.split("_")[1])
+        again = SensorModel().draw(np.random.default_rng([meta.seed, meta.step, order, 0x5E50]))
+        assert again == meta.sensor
+        draws[p.stem] = meta.sensor
+    assert len(set(draws.values())) == len(draws)  # every frame its own camera

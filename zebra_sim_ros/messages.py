@@ -178,6 +178,41 @@ class Lighting:
 
 
 @dataclass(frozen=True)
+class SensorDraw:
+    """One frame's drawn camera (:class:`~zebra_sim_ros.rendering.effects.SensorModel`), recorded in its annotation:
+    exposure in EV, white-balance gains (r, g, b), corner vignetting (brightness lost), chromatic aberration,
+    defocus sigma and motion-blur length in px at 1280 px wide, motion direction in degrees, shot-noise variance per
+    unit signal and read-noise standard deviation (signal 0..1), JPEG quality (0 = none)."""
+
+    exposure_ev: float = 0.0
+    wb_gain: Vec3 = (1.0, 1.0, 1.0)
+    vignetting: float = 0.0
+    chromatic_px: float = 0.0
+    defocus_px: float = 0.0
+    motion_px: float = 0.0
+    motion_angle_deg: float = 0.0
+    shot_noise: float = 0.0
+    read_noise: float = 0.0
+    jpeg_quality: int = 0
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready dictionary (an annotation's ``sensor``)."""
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any] | None) -> SensorDraw | None:
+        """From an annotation's ``sensor`` (None: no camera model was applied)."""
+        if d is None:
+            return None
+        try:
+            values = {k: (_v3(v) if k == "wb_gain" else int(v) if k == "jpeg_quality" else float(v))
+                      for k, v in d.items()}
+            return cls(**values)  # type: ignore[arg-type]
+        except (TypeError, ValueError) as exc:
+            raise MessageFormatError(f"sensor {dict(d)!r} is not a SensorDraw ({exc})") from exc
+
+
+@dataclass(frozen=True)
 class GroundLook:
     """How the renderer recolours the terrain: ``albedo' = min(mix(albedo, luma(albedo), desaturation) * tint,
     0.95)`` in linear RGB. The default is the world as authored."""
@@ -569,13 +604,14 @@ class FrameAnnotation(_Message):
     camera: SceneCamera
     regenerate: str
     labels: Labels
+    sensor: SensorDraw | None = None  # the camera drawn for this frame; None: a perfect camera
 
     def to_dict(self) -> dict[str, Any]:
         return {"frame": self.frame, "split": self.split, "image": self.image, "mask": self.mask, "depth": self.depth,
                 "world": self.world.to_dict(), "seed": self.seed, "step": self.step, "placement": self.placement,
                 "reroll": self.reroll, "strategy": self.strategy, "asset_digest": self.asset_digest,
                 "lighting": self.lighting.to_dict(), "camera": self.camera.to_dict(), "regenerate": self.regenerate,
-                "labels": self.labels.to_dict()}
+                "labels": self.labels.to_dict(), "sensor": self.sensor.to_dict() if self.sensor else None}
 
     def to_json(self) -> str:
         """Compact JSON with sorted keys (the file format)."""
@@ -587,4 +623,5 @@ class FrameAnnotation(_Message):
             str(d["frame"]), str(d["split"]), str(d["image"]), str(d["mask"]), d.get("depth"),
             WorldRef.from_dict(d["world"]), int(d["seed"]), int(d["step"]), int(d["placement"]), int(d["reroll"]),
             str(d["strategy"]), str(d["asset_digest"]), Lighting.from_dict(d["lighting"]),
-            SceneCamera.from_dict(d["camera"]), str(d["regenerate"]), Labels.from_dict(d["labels"])), d)
+            SceneCamera.from_dict(d["camera"]), str(d["regenerate"]), Labels.from_dict(d["labels"]),
+            SensorDraw.from_dict(d.get("sensor"))), d)

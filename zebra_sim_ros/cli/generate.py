@@ -34,6 +34,7 @@ def register(sub: Any) -> None:
     p.add_argument("--shard", default="0/1", help="i/n: make only steps with step %% n == i")
     p.add_argument("--imgsz", default="1280x720", help="WxH, or W for 16:9 (e.g. 1920)")
     add_option(p, spec_of(CameraConfig, "hfov_deg"), "--hfov")
+    add_option(p, spec_of(CameraConfig, "sensor_strength"))
     p.add_argument("--format", default="jpg", help="jpg or png for the RGB images")
     p.add_argument("--jpeg-quality", type=int, default=95, help="JPEG quality 1..100")
     p.add_argument("--yolo-box", default="visible", help="box in the YOLO labels: visible (tight) or full (amodal)")
@@ -84,7 +85,8 @@ def cmd_generate(args: argparse.Namespace) -> Summary:
         out=str(args.out), frames=args.frames, strategy=NAMED_SETS.get(args.strategy, args.strategy), worlds=worlds,
         seed=args.seed, world_seed=args.world_seed, width=width, height=height, hfov_deg=args.hfov_deg,
         image_format=args.format, jpeg_quality=args.jpeg_quality, workers=args.workers, shard=(i, n),
-        yolo_box=args.yolo_box, val_fraction=args.val_fraction, depth=args.depth, placer=placer,
+        sensor_strength=args.sensor_strength, yolo_box=args.yolo_box, val_fraction=args.val_fraction,
+        depth=args.depth, placer=placer,
         filters=LabelFilters(args.min_visible_pixels, args.min_visible_fraction, args.min_box_px,
                              args.max_aspect_ratio))
     if args.finalize_only:

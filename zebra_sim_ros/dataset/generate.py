@@ -77,6 +77,7 @@ class GenerateConfig:
     depth: str = "float32"
     placer: dict[str, Any] = field(default_factory=dict)
     filters: LabelFilters = field(default_factory=LabelFilters)
+    sensor_strength: float = 1.0  # the photograph's camera (rendering.effects.SensorModel); 0 = a perfect camera
 
     def check(self) -> None:
         """Raise :class:`ParameterError` naming the first bad setting."""
@@ -173,6 +174,7 @@ class _Pipeline:
     def _world(self, name: str) -> None:
         if name == self.world_name:
             return
+        from zebra_sim_ros.rendering.effects import SensorModel
         from zebra_sim_ros.rendering.renderer import RenderOptions
         from zebra_sim_ros.simulation import Simulator
         from zebra_sim_ros.world.world import load_world
@@ -182,7 +184,8 @@ class _Pipeline:
         c = self.cfg
         self.world = load_world(name, "/World/Terrain", c.world_seed)
         self.sim = Simulator(self.world, self.library, RenderOptions(width=c.width, height=c.height,
-                                                                      hfov_deg=c.hfov_deg), c.filters)
+                                                                      hfov_deg=c.hfov_deg), c.filters,
+                             SensorModel(c.sensor_strength) if c.sensor_strength > 0 else None)
         self.placers = {}
         self.world_name = name
 
@@ -257,7 +260,8 @@ class _Pipeline:
             f"depth/{name}.npz" if c.depth != "none" else None, scene.world, scene.seed, scene.step, scene.placement,
             scene.reroll, job.strategy, scene.asset_digest, scene.lighting, scene.camera(v.name),
             f"zebra-sim render --seed {job.seed} --step {job.step} --world {job.world} --strategy {job.strategy} "
-            f"--width {c.width} --height {c.height} --hfov {c.hfov_deg}{self.set_args}", labels)
+            f"--width {c.width} --height {c.height} --hfov {c.hfov_deg} --sensor-strength {c.sensor_strength}"
+            f"{self.set_args}", labels, v.sensor)
         _write_atomic(self.out / "annotations" / f"{name}.json", meta.to_json().encode())
         return name
 

@@ -92,7 +92,7 @@ class CameraNode(ZebraNode[CameraConfig]):
             world = load_world(*key)
             if self.sim is not None:
                 self.sim.release()
-            self.sim = Simulator(world, self.library, self.cfg.render_options())
+            self.sim = Simulator(world, self.library, self.cfg.render_options(), sensor=self.cfg.sensor_model())
             self.world_key = key
             info = self.sim.renderer.info
             self.get_logger().info(f"world '{world.name}' loaded; OpenGL {info['GL_RENDERER']} ({info['device']}) "

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 from zebra_sim_ros.geometry.camera import MAX_CAMERAS, Intrinsics
 from zebra_sim_ros.params import ParamSpec, StageConfig, param, reliability_param, same_as
-from zebra_sim_ros.rendering.effects import CameraEffects
+from zebra_sim_ros.rendering.effects import CameraEffects, SensorModel
 from zebra_sim_ros.rendering.renderer import RenderOptions
 
 
@@ -29,6 +29,10 @@ class CameraConfig(StageConfig):
     blur_sigma_px: float = param(0.0, "camera effect: Gaussian blur sigma (0 = off)", "px", lo=0.0, hi=20.0)
     noise_std: float = param(0.0, "camera effect: Gaussian noise (0 = off)", "8-bit levels", lo=0.0, hi=64.0)
     jpeg_quality: int = param(0, "camera effect: JPEG re-encode quality (0 = off)", lo=0, hi=100)
+    sensor_strength: float = param(1.0, "the photograph's camera drawn per frame (exposure, white balance, "
+                                   "vignetting, chromatic aberration, defocus and motion blur, Poisson-Gaussian "
+                                   "noise, JPEG) as a multiple of its default ranges (0 = a perfect camera)",
+                                   lo=0.0, hi=3.0)
     qos_reliability: str = reliability_param("QoS reliability of the image topics")
     qos_depth: int = param(5, "history depth of the image topics", lo=1, hi=1000)
     ack: bool = param(True, "acknowledge each published frame on /zebra_sim/frame_done (placer lockstep)")
@@ -47,6 +51,10 @@ class CameraConfig(StageConfig):
         """Renderer settings from these parameters."""
         return RenderOptions(width=self.width, height=self.height, hfov_deg=self.hfov_deg, shadows=self.shadows,
                              shadow_size=self.shadow_size, antialias=self.antialias)
+
+    def sensor_model(self) -> SensorModel | None:
+        """The per-frame camera model (None when ``sensor_strength`` is 0)."""
+        return SensorModel(self.sensor_strength) if self.sensor_strength > 0 else None
 
     def effects(self) -> CameraEffects:
         """Camera effects from these parameters."""

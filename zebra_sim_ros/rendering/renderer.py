@@ -21,9 +21,10 @@ from numpy.typing import NDArray
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import PinholeCamera
-from zebra_sim_ros.messages import GroundLook, Lighting
+from zebra_sim_ros.messages import GroundLook, Lighting, SensorDraw
 from zebra_sim_ros.rendering import shaders
 from zebra_sim_ros.rendering.gl import create_context
+from zebra_sim_ros.rendering.ground import contact_map, surface_from_colours
 from zebra_sim_ros.world.world import World
 from zebra_sim_ros.zebra.asset import ZebraLibrary
 from zebra_sim_ros.zebra.coat import bake_coat, random_coat
@@ -53,6 +54,8 @@ class RenderOptions:
     zebra_detail_distance_m: float = 35.0
     coat_size: int = 256
     max_coats: int = 1024
+    detail: bool = True  # procedural ground detail (grass tufts, soil, stones, micro-relief); False: flat colours
+    contact_shadows: bool = True  # soft occlusion on the ground under every animal
 
     def check(self) -> None:
         """Raise :class:`ParameterError` for values outside their range."""
@@ -103,6 +106,7 @@ class RenderedView:
     instances: NDArray[np.uint16]
     K: FloatArray
     timings: dict[str, float] = field(default_factory=dict)
+    sensor: SensorDraw | None = None  # the camera model applied to ``rgb`` (None: the renderer's clean image)
 
 
 def perspective(cam: PinholeCamera, near: float, far: float) -> FloatArray:
@@ -225,6 +229,12 @@ class Renderer:
         self.t_ground = ctx.texture((nx, ny), 3, np.ascontiguousarray(gc, dtype=np.float32).tobytes(), dtype="f4")
         self.t_ground.filter = (ctx.LINEAR, ctx.LINEAR)
         self.t_ground.repeat_x = self.t_ground.repeat_y = False
+        surf = self._surface_weights(gc)
+        self.t_surface = ctx.texture((nx, ny), 4, surf.tobytes(), dtype="f4")
+        self.t_surface.filter = (ctx.LINEAR, ctx.LINEAR)
+        self.t_surface.repeat_x = self.t_surface.repeat_y = False
+        self.t_contact = ctx.texture((1, 1), 1, np.ones(1, dtype=np.float32).tobytes(), dtype="f4")
+        self.contact_xform = (0.0, 0.0, 1.0, 1.0)
         x0, y0, x1, y1 = t.bounds
         self.ground_xform = (x0, y0, 1.0 / (x1 - x0 + t.resolution) , 1.0 / (y1 - y0 + t.resolution))
         step_per_tile = max(1, int(round(TILE_M / t.resolution)))
@@ -346,7 +356,31 @@ class Renderer:
                           dtype=np.float32)
         if self._coats_dirty:
             self.coats.build_mipmaps()
+        self._upload_contact(zebras)
+        if "u_ground_z" in self.p_zebra:
+            self.p_zebra["u_ground_z"].value = float(np.median(zebras.position[:, 2])) if zebras.count else 0.0
         return [self._render_view(zebras, layers, lighting, v) for v in views]
+
+    def _surface_weights(self, colours: NDArray[np.float32]) -> NDArray[np.float32]:
+        """The world's surface classes per terrain sample (grass, soil, rock, wet), or ones read off the colours."""
+        surface = getattr(self.world, "ground_surface", None)
+        weights = surface() if callable(surface) else surface_from_colours(colours)
+        return np.ascontiguousarray(weights, dtype=np.float32)
+
+    def _upload_contact(self, zebras: ZebraSet) -> None:
+        """This frame's contact shadows under the zebras (a texture over the herd; none when switched off)."""
+        if not self.options.contact_shadows or not zebras.count:
+            self.contact_xform = (0.0, 0.0, 0.0, 0.0)  # every ground point maps to uv 0: one texel of 1.0
+            return
+        cmap = contact_map(zebras.position, zebras.rotation[:, :2, 0], zebras.scale)
+        ny, nx = cmap.values.shape
+        if self.t_contact.size != (nx, ny):
+            self.t_contact.release()
+            self.t_contact = self.ctx.texture((nx, ny), 1, dtype="f4")
+            self.t_contact.filter = (self.ctx.LINEAR, self.ctx.LINEAR)
+            self.t_contact.repeat_x = self.t_contact.repeat_y = False
+        self.t_contact.write(cmap.values.tobytes())
+        self.contact_xform = cmap.xform
 
     def _zebra_buffers(self, zebras: ZebraSet, layers: NDArray[np.float32], sel: NDArray[np.int64],
                        lod: int) -> int:
@@ -516,6 +550,12 @@ class Renderer:
         self.p_terrain["u_ground"].value = 2
         self.p_terrain["u_ground_xform"].value = self.ground_xform
         self.p_terrain["u_ground_mean"].value = self.ground_mean
+        self.t_surface.use(location=4)
+        self.p_terrain["u_surface"].value = 4
+        self.t_contact.use(location=5)
+        self.p_terrain["u_contact"].value = 5
+        self.p_terrain["u_contact_xform"].value = self.contact_xform
+        self.p_terrain["u_detail"].value = 1.0 if self.options.detail else 0.0
         for centre, radius, lods in self.tiles:
             if not _spheres_visible(planes, centre[None], np.array([radius]))[0]:
                 continue

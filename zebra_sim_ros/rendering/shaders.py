@@ -37,11 +37,15 @@ float shadow_at(vec3 wpos, vec3 n) {
     return s * 0.25;
 }
 
+// Shadowing below the surface's own detail (the gaps between grass tufts, the foot of a stone): 1 = none.
+// A surface sets it before write_surface; the sun loses more of it than the sky does.
+float g_cavity = 1.0;
+
 vec3 shade(vec3 albedo, vec3 n, vec3 wpos) {
     float ndl = max(dot(n, u_light_dir), 0.0);
     float sh = ndl > 0.0 ? shadow_at(wpos, n) : 0.0;
-    float sky = 0.6 + 0.4 * n.z;  // hemisphere ambient: more from the sky than from the ground
-    return albedo * (u_light_rgb * ndl * sh + u_ambient_rgb * sky);
+    float sky = (0.6 + 0.4 * n.z) * mix(0.55, 1.0, g_cavity);  // hemisphere ambient, more from the sky
+    return albedo * (u_light_rgb * ndl * sh * g_cavity + u_ambient_rgb * sky);
 }
 
 vec3 haze(vec3 c, vec3 wpos) {
@@ -84,27 +88,128 @@ void main() {
 }
 """
 
-TERRAIN_FS = COMMON + SURFACE + """
-in vec3 v_normal;
-uniform sampler2D u_ground;      // ground colour (linear) over the terrain grid
-uniform vec4 u_ground_xform;     // origin x, origin y, 1/size x, 1/size y
-uniform vec3 u_ground_mean;      // beyond the terrain (the apron): the mean ground colour
-uniform vec3 u_ground_tint;      // the step's ground look (messages.GroundLook): 1 = as authored
-uniform float u_ground_desat;
+# Procedural detail shared by the ground and the foliage: value noise, cellular (Worley) noise and a
+# footprint-filtered fbm. ``fw`` is the pixel footprint in metres (fwidth of the world position): every
+# octave finer than about two pixels fades out, so detail never aliases into sparkle.
+NOISE = """
 float hash(vec2 p) { return fract(sin(dot(p, vec2(127.1, 311.7))) * 43758.5453); }
+vec2 hash2(vec2 p) {
+    return fract(sin(vec2(dot(p, vec2(127.1, 311.7)), dot(p, vec2(269.5, 183.3)))) * 43758.5453);
+}
 float vnoise(vec2 p) {
     vec2 i = floor(p); vec2 f = fract(p); vec2 u = f * f * (3.0 - 2.0 * f);
     return mix(mix(hash(i), hash(i + vec2(1, 0)), u.x), mix(hash(i + vec2(0, 1)), hash(i + vec2(1, 1)), u.x), u.y);
 }
+float fade(float cell_m, float fw) { return clamp(cell_m / (fw * 2.5) - 1.0, 0.0, 1.0); }
+float fbm(vec2 p, float cell_m, float fw, int octaves) {
+    float s = 0.0, a = 0.5, c = cell_m;
+    for (int i = 0; i < octaves; ++i) {
+        s += a * (vnoise(p / c) - 0.5) * fade(c, fw);
+        c *= 0.5; a *= 0.55;
+    }
+    return s;
+}
+// Nearest feature point of a jittered grid of cell ``cell_m``: x = distance / cell, y = the cell's random id.
+vec2 worley(vec2 p, float cell_m) {
+    vec2 q = p / cell_m; vec2 i = floor(q); vec2 f = fract(q);
+    float best = 8.0, id = 0.0;
+    for (int y = -1; y <= 1; ++y) for (int x = -1; x <= 1; ++x) {
+        vec2 g = vec2(x, y); vec2 o = hash2(i + g);
+        float d = length(g + o - f);
+        if (d < best) { best = d; id = hash(i + g + 17.0); }
+    }
+    return vec2(best, id);
+}
+"""
+
+TERRAIN_FS = COMMON + SURFACE + NOISE + """
+in vec3 v_normal;
+uniform sampler2D u_ground;      // ground colour (linear) over the terrain grid
+uniform sampler2D u_surface;     // surface weights over the same grid: grass, soil, rock, wet
+uniform sampler2D u_contact;     // contact shadows (ambient occlusion under animals) over u_contact_xform
+uniform vec4 u_contact_xform;    // origin x, origin y, 1/size x, 1/size y
+uniform vec4 u_ground_xform;     // origin x, origin y, 1/size x, 1/size y
+uniform vec3 u_ground_mean;      // beyond the terrain (the apron): the mean ground colour
+uniform vec3 u_ground_tint;      // the step's ground look (messages.GroundLook): 1 = as authored
+uniform float u_ground_desat;
+uniform float u_detail;          // 0 = flat colours (the old look), 1 = full procedural detail
+
+// Grass: clumps of tussocks (metres), tufts (decimetres) and blades (centimetres), each scale with dark gaps
+// where soil and shade show through, multiplied so that the contrast of the coarse scales survives distance.
+vec3 grass_detail(vec2 xy, float fw, out float h) {
+    vec2 clump = worley(xy, 1.7);
+    vec2 big = worley(xy + 3.7, 0.45);
+    vec2 small = worley(xy + 7.3, 0.16);
+    float c0 = (1.0 - smoothstep(0.2, 1.0, clump.x)) * fade(1.7, fw);
+    float c1 = (1.0 - smoothstep(0.15, 0.95, big.x)) * fade(0.45, fw);
+    float c2 = (1.0 - smoothstep(0.1, 0.9, small.x)) * fade(0.16, fw);
+    float blades = (vnoise(vec2(xy.x * 90.0, xy.y * 9.0) + vnoise(xy * 23.0) * 4.0) - 0.5) * fade(0.03, fw);
+    h = 0.5 * c0 + 0.3 * c1 + 0.2 * c2 + 0.2 * blades;
+    float shade = (0.5 + 0.9 * c0 - 0.3 * fade(1.7, fw) * step(0.8, clump.y))
+                * (0.62 + 0.7 * c1) * (0.75 + 0.5 * c2) * (1.0 + 0.6 * blades) * (1.0 + 1.1 * fbm(xy, 3.0, fw, 3));
+    vec3 hue = mix(vec3(1.1, 1.0, 0.8), vec3(0.88, 1.06, 1.12), clump.y * 0.7 + big.y * 0.3);
+    return hue * shade;
+}
+
+// Bare soil and sand: mottling, grain, pebbles and stones with a lit and a shaded side, fine cracks.
+vec3 soil_detail(vec2 xy, float fw, vec3 l, out float h) {
+    vec2 peb = worley(xy, 0.09);
+    vec2 rock = worley(xy + 11.0, 0.8);
+    float stone = (1.0 - smoothstep(0.25, 0.45, peb.x)) * step(0.55, peb.y) * fade(0.09, fw);
+    float boulder = (1.0 - smoothstep(0.15, 0.3, rock.x)) * step(0.75, rock.y) * fade(0.8, fw);
+    vec2 crack = worley(xy + 3.1, 0.6);
+    float grain = fbm(xy, 0.05, fw, 3);
+    float mottle = fbm(xy, 2.5, fw, 4);
+    h = stone * 0.6 + boulder + grain;
+    float lit = 0.5 + 0.5 * clamp(dot(normalize(vec2(0.3, 0.2) + l.xy), vec2(0.7, 0.7)), -1.0, 1.0);
+    float shade = (1.0 + 1.4 * mottle) * (1.0 + 0.9 * grain) + (stone + boulder) * (0.45 * lit - 0.15)
+                  - 0.3 * (1.0 - smoothstep(0.0, 0.08, crack.x)) * fade(0.6, fw);
+    return vec3(shade) * mix(vec3(1.0), vec3(1.08, 0.98, 0.9), peb.y * stone);
+}
+
+vec3 rock_detail(vec2 xy, float fw, out float h) {
+    vec2 c = worley(xy, 0.35);
+    float edge = smoothstep(0.0, 0.18, c.x) * fade(0.35, fw);
+    h = (1.0 - c.x) * 0.8;
+    return vec3(0.75 + 0.45 * c.y) * mix(1.0, 0.55 + 0.45 * edge, fade(0.35, fw)) * (1.0 + fbm(xy, 0.2, fw, 3));
+}
+
 void main() {
     vec2 uv = (v_wpos.xy - u_ground_xform.xy) * u_ground_xform.zw;
     bool inside = all(greaterThanEqual(uv, vec2(0.0))) && all(lessThanEqual(uv, vec2(1.0)));
     vec3 albedo = inside ? texture(u_ground, uv).rgb : u_ground_mean;
-    float d = vnoise(v_wpos.xy * 4.0) * 0.5 + vnoise(v_wpos.xy * 0.7) * 0.5;  // grass/soil detail
-    albedo *= 0.82 + 0.36 * d;
+    vec4 surf = inside ? texture(u_surface, uv) : vec4(0.6, 0.4, 0.0, 0.0);
+    surf /= max(surf.x + surf.y + surf.z + surf.w, 1e-3);
+    // The footprint's geometric mean: on ground seen at a grazing angle a pixel is long in depth but narrow
+    // across, and detail across the view stays visible.
+    float fw = max(sqrt(length(dFdx(v_wpos.xy)) * length(dFdy(v_wpos.xy))), 1e-4);
+    vec2 xy = v_wpos.xy;
+    // Patches at metre scales: dry and green, worn and thick, so no terrain cell is one flat colour.
+    float patches = fbm(xy, 6.0, fw, 4);
+    float hg, hs, hr;
+    vec3 g = grass_detail(xy, fw, hg);
+    vec3 so = soil_detail(xy, fw, u_light_dir, hs);
+    vec3 r = rock_detail(xy, fw, hr);
+    vec3 wet = vec3(0.55 + 0.4 * fbm(xy, 0.4, fw, 3));
+    vec3 detail = g * surf.x + so * surf.y + r * surf.z + wet * surf.w;
+    detail *= 1.0 + 0.8 * patches;
+    albedo *= mix(vec3(1.0), detail, u_detail);
     albedo = min(mix(albedo, vec3(dot(albedo, vec3(0.2126, 0.7152, 0.0722))), u_ground_desat) * u_ground_tint,
                  vec3(0.95));
-    write_surface(albedo, normalize(v_normal), 0u);
+    // Micro-relief: the detail's height field tilts the normal, so the sun models tufts and stones.
+    float hgt = (hg * surf.x + hs * surf.y + hr * surf.z) * u_detail;
+    g_cavity = mix(1.0, clamp(0.25 + 0.9 * (hg * surf.x + (0.6 + hs) * surf.y + hr * surf.z + 0.7 * surf.w), 0.0, 1.0),
+                   u_detail);
+    vec2 grad = vec2(dFdx(hgt), dFdy(hgt));
+    vec3 n = normalize(v_normal);
+    vec3 dpx = dFdx(v_wpos), dpy = dFdy(v_wpos);
+    vec3 bump = normalize(n - 0.08 * (grad.x * normalize(dpx) / max(length(dpx), 1e-4)
+                                     + grad.y * normalize(dpy) / max(length(dpy), 1e-4)) * 0.05);
+    vec2 cuv = (xy - u_contact_xform.xy) * u_contact_xform.zw;
+    float contact = all(greaterThanEqual(cuv, vec2(0.0))) && all(lessThanEqual(cuv, vec2(1.0)))
+                    ? texture(u_contact, cuv).r : 1.0;
+    albedo *= contact;
+    write_surface(albedo, mix(n, bump, u_detail), 0u);
 }
 """
 
@@ -177,10 +282,22 @@ in vec2 v_uv;
 flat in uint v_id;
 flat in float v_layer;
 uniform sampler2DArray u_coats;
+uniform float u_ground_z;       // ground height under the herd (dust on the lower body)
 void main() {
     vec3 n = normalize(cross(dFdx(v_wpos), dFdy(v_wpos)));
     if (dot(n, u_cam_pos - v_wpos) < 0.0) n = -n;
     vec3 albedo = pow(texture(u_coats, vec3(v_uv, v_layer)).rgb, vec3(2.2));
+    // Coats as photographs show them: near-black stripes on near-white hair (contrast about the coat's mid-grey),
+    // a darker belly and legs in their own shade, dust on the lower body that differs per animal, and a sheen
+    // of short hair towards grazing light.
+    float luma = dot(albedo, vec3(0.2126, 0.7152, 0.0722));
+    albedo = clamp(mix(vec3(luma), albedo, 0.7) * (luma > 0.12 ? 1.35 : 0.45), 0.0, 0.9);
+    float dust = fract(sin(float(v_id) * 12.9898) * 43758.5453);
+    float low = clamp(1.0 - (v_wpos.z - u_ground_z) / 0.9, 0.0, 1.0);
+    albedo = mix(albedo, vec3(0.32, 0.25, 0.17), low * dust * 0.45);
+    albedo *= mix(0.7, 1.0, clamp(n.z * 0.5 + 0.5, 0.0, 1.0));
+    float rim = pow(1.0 - abs(dot(n, normalize(u_cam_pos - v_wpos))), 3.0);
+    albedo += rim * 0.06 * max(dot(n, u_light_dir), 0.0);
     write_surface(albedo, n, v_id);
 }
 """
