@@ -233,3 +233,29 @@ def test_each_frame_records_its_drawn_camera(dataset: Path) -> None:
         assert again == meta.sensor
         draws[p.stem] = meta.sensor
     assert len(set(draws.values())) == len(draws)  # every frame its own camera
+
+
+def test_low_and_nadir_frames_and_the_box_size_histogram(tmp_path: Path) -> None:
+    """``--strategy all`` splits the frames over far, closeby, low and nadir; the run reports the size histogram of
+    the boxes it labelled, per strategy, and the ground-level camera sees bigger zebras than the survey drone."""
+    from zebra_sim_ros.dataset.generate import box_size_histogram
+    from zebra_sim_ros.messages import FrameAnnotation
+
+    cfg = GenerateConfig(out=str(tmp_path / "all"), frames=24, strategy="all", seed=4, width=320, height=180,
+                         depth="none")
+    stats = generate(cfg, progress=lambda *a: None)
+    metas = [FrameAnnotation.from_json(p.read_text()) for p in sorted((tmp_path / "all" / "annotations").glob("*"))]
+    by: dict[str, list[float]] = {}
+    for m in metas:
+        assert m.camera.strategy == m.strategy
+        by.setdefault(m.strategy, []).extend(
+            float(np.sqrt((z.box_visible[2] - z.box_visible[0]) * (z.box_visible[3] - z.box_visible[1])))
+            for z in m.labels.zebras if z.kept)
+    assert sorted(by) == ["closeby", "far", "low", "nadir"] and len(metas) == 24
+    assert sum(stats["box_sizes_px"].values()) == stats["zebras_labelled"] == sum(len(v) for v in by.values())
+    for strategy, sizes in by.items():
+        assert stats["box_sizes_px_by_strategy"].get(strategy, box_size_histogram([])) == box_size_histogram(sizes)
+    assert max(by["low"]) > 3 * max(by["nadir"] or [1.0])  # the nearest zebra of a low view fills much of it
+    hist = box_size_histogram([3.0, 8.0, 15.9, 300.0, 96.0])
+    assert list(hist) == ["<8", "8-16", "16-32", "32-96", "96-256", ">=256"]
+    assert list(hist.values()) == [1, 2, 0, 0, 1, 1]

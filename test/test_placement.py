@@ -9,7 +9,7 @@ from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.boxes import box_axes, obb_corners, obb_overlap
 from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical, optical_rotation
 from zebra_sim_ros.messages import MessageFormatError, Scene
-from zebra_sim_ros.placement.cameras import CameraRanges, sample_cameras
+from zebra_sim_ros.placement.cameras import LOW_ZEBRA_CLEARANCE_M, CameraRanges, Surroundings, sample_cameras
 from zebra_sim_ros.placement.config import PlacerConfig
 from zebra_sim_ros.placement.herd import HerdPlacer, make_pool
 from zebra_sim_ros.placement.placer import Placer
@@ -138,7 +138,8 @@ def test_camera_poses_follow_the_paper(savanna: World, strategy: str) -> None:
         centre = rng.uniform(-150, 150, 2)
         xy = centre + rng.uniform(-40, 40, (n, 2))
         zebras = np.column_stack([xy, savanna.terrain.height_at(xy[:, 0], xy[:, 1])])
-        poses = sample_cameras(rng, zebras, strategy, ["drone_0", "drone_1", "drone_2"], r, savanna.terrain, cam)
+        poses = sample_cameras(rng, _surroundings(savanna, zebras), strategy, ["drone_0", "drone_1", "drone_2"], r,
+                               cam)
         pivot = zebras.mean(axis=0)
         lo, hi = zebras[:, :2].min(axis=0), zebras[:, :2].max(axis=0)
         for i, p in enumerate(poses):
@@ -168,6 +169,73 @@ def test_camera_poses_follow_the_paper(savanna: World, strategy: str) -> None:
     _uniform_ok(a[:, 0], 5, 20)
     _uniform_ok(a[:, 2], -10, 10)
     assert a[:, 1].min() < -0.9 * jitter and a[:, 1].max() > 0.9 * jitter
+
+
+def _surroundings(world: World, zebras: np.ndarray) -> Surroundings:
+    centres = zebras + np.array([0.0, 0.0, 0.7])
+    return Surroundings(world.terrain, zebras, centres, world.obstacles.positions[:, :2], world.obstacles.radii)
+
+
+def _herd(rng: np.random.Generator, world: World) -> np.ndarray:
+    n = int(rng.integers(2, 60))
+    xy = rng.uniform(-150, 150, 2) + rng.uniform(-40, 40, (n, 2))
+    return np.column_stack([xy, world.terrain.height_at(xy[:, 0], xy[:, 1])])
+
+
+def test_low_cameras_stand_on_the_ground_near_a_zebra_and_look_at_it(savanna: World) -> None:
+    rng = np.random.default_rng(5)
+    cam = PinholeCamera(1280, 720, 80.0)
+    r = CameraRanges()
+    obs_xy, obs_r = savanna.obstacles.positions[:, :2], savanna.obstacles.radii
+    heights, dists, fills = [], [], []
+    for _ in range(300):
+        zebras = _herd(rng, savanna)
+        env = _surroundings(savanna, zebras)
+        for p in sample_cameras(rng, env, "low", ["drone_0", "drone_1", "drone_2"], r, cam):
+            pos = np.array(p.position)
+            heights.append(pos[2] - float(savanna.terrain.height_at(pos[0], pos[1])))
+            flat = np.hypot(*(zebras[:, :2] - pos[:2]).T)
+            assert flat.min() >= LOW_ZEBRA_CLEARANCE_M
+            assert np.all(np.hypot(*(obs_xy - pos[:2]).T) >= obs_r + 0.5)
+            assert abs(p.roll_deg) <= 3.0 + 1e-9 and -45 < p.pitch_deg < 30
+            # Some zebra centre 4..40 m away projects inside the image (the target).
+            seen = cam.in_image(map_to_optical(env.zebra_centres, pos, p.r_optical))
+            near = (flat >= 4.0 - 1e-6) & (np.hypot(*(env.zebra_centres[:, :2] - pos[:2]).T) <= 40.0 + 1e-6)
+            assert np.any(seen & near)
+            dists.append(flat[seen].min())
+            fills.append(2.5 * cam.fx / flat[seen].min() / cam.width)  # a 2.5 m zebra's share of the width
+    _uniform_ok(np.array(heights), 1.0, 3.0)
+    d = np.array(dists)
+    assert d.min() < 5.0 and np.median(d) < 15.0  # log-uniform 4..40: half the targets nearer than 12.6 m
+    assert max(fills) > 0.5  # some frames are filled by a zebra
+
+
+def test_nadir_cameras_look_straight_down_from_survey_height(savanna: World) -> None:
+    rng = np.random.default_rng(6)
+    cam = PinholeCamera(1280, 720, 80.0)
+    heights, tilts = [], []
+    for _ in range(300):
+        zebras = _herd(rng, savanna)
+        pivot = zebras.mean(axis=0)
+        for p in sample_cameras(rng, _surroundings(savanna, zebras), "nadir", ["drone_0", "drone_1"],
+                                CameraRanges(), cam):
+            pos = np.array(p.position)
+            heights.append(pos[2] - pivot[2])
+            tilt = np.degrees(np.arccos(-p.r_optical[2, 2]))  # optical axis from straight down
+            tilts.append(tilt)
+            assert cam.in_image(map_to_optical(pivot[None], pos, p.r_optical))[0]
+    _uniform_ok(np.array(heights), 20.0, 120.0)
+    t = np.array(tilts)
+    assert t.max() <= 10.0 + 1e-6 and t.max() > 9.0
+
+
+def test_placer_strategy_any_draws_all_four(savanna: World, library: ZebraLibrary) -> None:
+    placer = Placer(PlacerConfig.from_params({"seed": 3, "strategy": "any", "count_max": 20}), savanna, library)
+    seen = {placer.scene(step).cameras[0].strategy for step in range(24)}
+    assert seen == {"far", "closeby", "low", "nadir"}
+    for strategy in ("low", "nadir"):
+        one = Placer(PlacerConfig.from_params({"seed": 3, "strategy": strategy, "count_max": 20}), savanna, library)
+        assert {c.strategy for c in one.scene(0).cameras} == {strategy}
 
 
 def test_optical_frame_convention() -> None:

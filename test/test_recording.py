@@ -240,7 +240,7 @@ def test_eval_by_running_a_detector_over_recorded_images(tmp_path: Path, capsys:
 
     for bad in ("9", "-1", "0.1"):
         assert main(["bag", "eval", str(tmp_path / "i.mcap"), "--weights", str(tmp_path / "w.pt"), "--scale", bad]) == 2
-    assert "'--scale' = 0.1" in capsys.readouterr().err
+    assert "--scale: '0.1': allowed 0 (off) or 0.25..4" in capsys.readouterr().err
 
 
 def test_cdr_image_reader_matches_rclpy() -> None:

@@ -153,9 +153,9 @@ def test_ctrl_c_stops_the_graph_with_a_complete_bag(tmp_path: Path) -> None:
         while time.monotonic() < end:
             line = proc.stdout.readline()
             lines.append(line)
-            if line.startswith("[up] step 1/") or not line:
+            if line.startswith("[up] step ") or not line:  # the first step shown (a fast step may go unprinted)
                 break
-        assert lines[-1].startswith("[up] step 1/"), "".join(lines)
+        assert lines[-1].startswith("[up] step "), "".join(lines)
         proc.send_signal(signal.SIGINT)
         rest, _ = proc.communicate(timeout=120)
     finally:

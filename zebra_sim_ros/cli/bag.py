@@ -72,9 +72,10 @@ def cmd_eval(args: argparse.Namespace) -> Summary:
     if args.weights:
         from zebra_sim_ros.detection.checkpoint import check_imgsz, check_scale
 
-        check_imgsz("--imgsz", args.imgsz, native=True)
+        check_imgsz("--imgsz", args.imgsz or None, native=True)  # 0: the checkpoint's rule
         check_scale("--scale", args.scale)
-    detector = ImageDetector(args.weights, args.device, imgsz=args.imgsz, scale=args.scale) if args.weights else None
+    detector = (ImageDetector(args.weights, args.device, imgsz=args.imgsz or None, scale=args.scale) if args.weights
+                else None)
     collected = collect(args.bag, args.detections, each=detector)  # one pass, with or without a detector
     if detector is not None:
         collected = detector.apply(collected)

@@ -93,6 +93,7 @@ def cmd_val(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.detection.evaluate import evaluate
     from zebra_sim_ros.detection.metrics import pr_curve_png
 
+    args.imgsz = args.imgsz or None  # 0: the checkpoint's rule
     check_imgsz("--imgsz", args.imgsz)
     check_scale("--scale", args.scale)
     if args.batch < 1:

@@ -24,7 +24,9 @@ def register(sub: Any) -> None:
                        description=(layout or "").strip(), formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--frames", type=int, required=True, help="camera images in all (the paper: 36000)")
     p.add_argument("--strategy", default="both",
-                   help="far, closeby, both (half each), or the paper's sets SF (= both) and SC (= closeby)")
+                   help="far, closeby, low (ground level), nadir (survey drone looking down), both (far and "
+                        "closeby, half each), all (the four, a quarter each), or the paper's sets SF (= both) and SC "
+                        "(= closeby)")
     p.add_argument("--worlds", default="savanna", help="comma-separated world presets or USD paths, or 'all'")
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the run; each world and strategy draws its own stream from it (in the frame names)")
@@ -35,6 +37,7 @@ def register(sub: Any) -> None:
     p.add_argument("--imgsz", default="1280x720", help="WxH, or W for 16:9 (e.g. 1920)")
     add_option(p, spec_of(CameraConfig, "hfov_deg"), "--hfov")
     add_option(p, spec_of(CameraConfig, "sensor_strength"))
+    add_option(p, spec_of(CameraConfig, "look"))
     p.add_argument("--format", default="jpg", help="jpg or png for the RGB images")
     p.add_argument("--jpeg-quality", type=int, default=95, help="JPEG quality 1..100")
     p.add_argument("--yolo-box", default="visible", help="box in the YOLO labels: visible (tight) or full (amodal)")
@@ -65,7 +68,7 @@ def parse_imgsz(text: str) -> tuple[int, int]:
 
 def cmd_generate(args: argparse.Namespace) -> Summary:
     """Generate (or continue generating) the dataset."""
-    from zebra_sim_ros.dataset.generate import NAMED_SETS, GenerateConfig, finalize, generate
+    from zebra_sim_ros.dataset.generate import NAMED_SETS, GenerateConfig, finalize, format_histogram, generate
     from zebra_sim_ros.labels.config import LabelFilters
     from zebra_sim_ros.world.presets import PRESETS
 
@@ -85,7 +88,7 @@ def cmd_generate(args: argparse.Namespace) -> Summary:
         out=str(args.out), frames=args.frames, strategy=NAMED_SETS.get(args.strategy, args.strategy), worlds=worlds,
         seed=args.seed, world_seed=args.world_seed, width=width, height=height, hfov_deg=args.hfov_deg,
         image_format=args.format, jpeg_quality=args.jpeg_quality, workers=args.workers, shard=(i, n),
-        sensor_strength=args.sensor_strength, yolo_box=args.yolo_box, val_fraction=args.val_fraction,
+        sensor_strength=args.sensor_strength, look=args.look, yolo_box=args.yolo_box, val_fraction=args.val_fraction,
         depth=args.depth, placer=placer,
         filters=LabelFilters(args.min_visible_pixels, args.min_visible_fraction, args.min_box_px,
                              args.max_aspect_ratio))
@@ -93,5 +96,12 @@ def cmd_generate(args: argparse.Namespace) -> Summary:
         stats = finalize(args.out, cfg)
     else:
         stats = generate(cfg, (lambda d, t, s: None) if args.quiet else None)
+    hist = stats.pop("box_sizes_px")
+    by_strategy = stats.pop("box_sizes_px_by_strategy")
     print(f"dataset at {args.out}: {stats}")
+    print("labelled boxes by size (sqrt of visible box area)" + "".join(
+        f"; {k}: {sum(v.values())}" for k, v in by_strategy.items()))
+    for line in format_histogram(hist):
+        print(line)
+    stats = {**stats, "box_sizes_px": hist, "box_sizes_px_by_strategy": by_strategy}
     return {"out": str(args.out), **stats}

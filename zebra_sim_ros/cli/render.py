@@ -37,6 +37,7 @@ def register(sub: Any) -> None:
     add_option(p, spec_of(CameraConfig, "height"))
     add_option(p, spec_of(CameraConfig, "hfov_deg"), "--hfov", default=None, note="not given: the placer's")
     add_option(p, spec_of(CameraConfig, "sensor_strength"))
+    add_option(p, spec_of(CameraConfig, "look"))
     p.add_argument("--no-shadows", action="store_true", help="render without sun shadows")
     p.add_argument("--out", type=Path, required=True, help="output folder")
     add_json_flag(p)
@@ -50,6 +51,7 @@ def cmd_render(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.placement.config import PlacerConfig
     from zebra_sim_ros.placement.placer import Placer
     from zebra_sim_ros.placement.sun import lighting_for
+    from zebra_sim_ros.rendering.config import look_options
     from zebra_sim_ros.rendering.effects import SensorModel
     from zebra_sim_ros.rendering.renderer import RenderOptions
     from zebra_sim_ros.simulation import Simulator
@@ -72,7 +74,7 @@ def cmd_render(args: argparse.Namespace) -> Summary:
         light = scene.lighting
         scene = scene.with_lighting(lighting_for(args.time_of_day % 24.0, light.day_of_year, light.latitude_deg))
     sim = Simulator(world, lib, RenderOptions(width=args.width, height=args.height, hfov_deg=cfg.camera_hfov_deg,
-                                              shadows=not args.no_shadows),
+                                              shadows=not args.no_shadows, **look_options(args.look)),
                     sensor=SensorModel(args.sensor_strength) if args.sensor_strength > 0 else None)
     renderer = sim.renderer
     t1 = time.perf_counter()

@@ -50,7 +50,9 @@ from zebra_sim_ros.messages import FrameAnnotation, Labels, Rle, Scene
 if TYPE_CHECKING:
     from zebra_sim_ros.rendering.renderer import RenderedView
 
-STRATEGIES = ("far", "closeby", "both")
+STRATEGY_SETS = {"both": ("far", "closeby"), "all": ("far", "closeby", "low", "nadir")}
+"""Named sets of camera strategies: the run's frames are split evenly over the set's members."""
+STRATEGIES = ("far", "closeby", "low", "nadir", *STRATEGY_SETS)
 # The paper's two training sets by name.
 NAMED_SETS = {"SF": "both", "SC": "closeby"}
 
@@ -78,6 +80,7 @@ class GenerateConfig:
     placer: dict[str, Any] = field(default_factory=dict)
     filters: LabelFilters = field(default_factory=LabelFilters)
     sensor_strength: float = 1.0  # the photograph's camera (rendering.effects.SensorModel); 0 = a perfect camera
+    look: str = "photo"  # rendering.config.LOOKS: photo, or plain (flat ground, bare coats)
 
     def check(self) -> None:
         """Raise :class:`ParameterError` naming the first bad setting."""
@@ -100,6 +103,8 @@ class GenerateConfig:
             raise ParameterError("--yolo-box", self.yolo_box, "visible or full")
         if self.depth not in ("float32", "float16", "none"):
             raise ParameterError("--depth", self.depth, "float32, float16 or none")
+        if self.look not in ("photo", "plain"):
+            raise ParameterError("--look", self.look, "photo or plain")
         if not 0.0 <= self.val_fraction < 1.0:
             raise ParameterError("--val-fraction", self.val_fraction, "0 <= f < 1")
 
@@ -131,14 +136,15 @@ def stream_seed(seed: int, world: str, strategy_index: int) -> int:
     Every world draws its own stream (offset by a hash of its name, so a world's frames do not depend on which
     other worlds share the run); with the bare seed for all, every world drew the same herd sizes, times of day
     and camera jitter at the same step, and a run of seven worlds held a seventh of the lighting it seemed to.
-    Closeby (strategy index 1) draws its own placements too, as the paper's second set did.
+    Closeby (strategy index 1) draws its own placements too, as the paper's second set did; so do low and nadir
+    (indices 2 and 3 in the set ``all``). A strategy run alone has index 0.
     """
     return seed + 1_000_003 * strategy_index + 1_009 * (zlib.crc32(world.encode()) % 9_973)
 
 
 def plan(cfg: GenerateConfig, cameras: int) -> list[Job]:
     """The steps needed for ``cfg.frames`` images: split evenly over worlds (and strategies for 'both')."""
-    strategies = ("far", "closeby") if cfg.strategy == "both" else (cfg.strategy,)
+    strategies = STRATEGY_SETS.get(cfg.strategy, (cfg.strategy,))
     parts = len(cfg.worlds) * len(strategies)
     per_part = -(-cfg.frames // parts)  # images
     steps = -(-per_part // cameras)
@@ -174,6 +180,7 @@ class _Pipeline:
     def _world(self, name: str) -> None:
         if name == self.world_name:
             return
+        from zebra_sim_ros.rendering.config import look_options
         from zebra_sim_ros.rendering.effects import SensorModel
         from zebra_sim_ros.rendering.renderer import RenderOptions
         from zebra_sim_ros.simulation import Simulator
@@ -184,7 +191,8 @@ class _Pipeline:
         c = self.cfg
         self.world = load_world(name, "/World/Terrain", c.world_seed)
         self.sim = Simulator(self.world, self.library, RenderOptions(width=c.width, height=c.height,
-                                                                      hfov_deg=c.hfov_deg), c.filters,
+                                                                      hfov_deg=c.hfov_deg, **look_options(c.look)),
+                             c.filters,
                              SensorModel(c.sensor_strength) if c.sensor_strength > 0 else None)
         self.placers = {}
         self.world_name = name
@@ -260,7 +268,8 @@ class _Pipeline:
             f"depth/{name}.npz" if c.depth != "none" else None, scene.world, scene.seed, scene.step, scene.placement,
             scene.reroll, job.strategy, scene.asset_digest, scene.lighting, scene.camera(v.name),
             f"zebra-sim render --seed {job.seed} --step {job.step} --world {job.world} --strategy {job.strategy} "
-            f"--width {c.width} --height {c.height} --hfov {c.hfov_deg} --sensor-strength {c.sensor_strength}"
+            f"--width {c.width} --height {c.height} --hfov {c.hfov_deg} --sensor-strength {c.sensor_strength} "
+            f"--look {c.look}"
             f"{self.set_args}", labels, v.sensor)
         _write_atomic(self.out / "annotations" / f"{name}.json", meta.to_json().encode())
         return name
@@ -360,11 +369,32 @@ def _config_json(cfg: GenerateConfig) -> dict[str, Any]:
     return d
 
 
+BOX_SIZE_BINS_PX = (8, 16, 32, 96, 256)
+"""Edges of the box-size histogram, in pixels of sqrt(width x height) of the visible box: under 8, 8-16, 16-32
+(COCO small ends at 32), 32-96 (COCO medium), 96-256 and 256 or more."""
+
+
+def box_size_histogram(sizes: list[float]) -> dict[str, int]:
+    """Counts of box sizes (sqrt of area, px) per :data:`BOX_SIZE_BINS_PX` bin, in order, keyed like ``"8-16"``."""
+    edges = (0, *BOX_SIZE_BINS_PX, float("inf"))
+    counts, _ = np.histogram(np.asarray(sizes, dtype=np.float64), bins=np.asarray(edges, dtype=np.float64))
+    pairs = zip(BOX_SIZE_BINS_PX[:-1], BOX_SIZE_BINS_PX[1:], strict=True)
+    keys = [f"<{BOX_SIZE_BINS_PX[0]}", *(f"{a}-{b}" for a, b in pairs), f">={BOX_SIZE_BINS_PX[-1]}"]
+    return {k: int(c) for k, c in zip(keys, counts, strict=True)}
+
+
+def format_histogram(hist: dict[str, int], width: int = 40) -> list[str]:
+    """Text bars of a histogram, one line per bin."""
+    top = max(max(hist.values(), default=0), 1)
+    return [f"{k:>8} px {v:7d} {'#' * round(width * v / top)}" for k, v in hist.items()]
+
+
 def finalize(out: Path, cfg: GenerateConfig | None = None) -> dict[str, Any]:
     """Rebuild coco/{train,val}.json, the split lists and dataset.yaml from the annotation files."""
     images: dict[str, list[dict[str, Any]]] = {"train": [], "val": []}
     anns: dict[str, list[dict[str, Any]]] = {"train": [], "val": []}
     kept = 0
+    sizes: dict[str, list[float]] = {}
     for path in sorted((out / "annotations").glob("*.json")):
         meta = FrameAnnotation.from_json(path.read_text())
         image_id = len(images[meta.split]) + 1
@@ -377,6 +407,8 @@ def finalize(out: Path, cfg: GenerateConfig | None = None) -> dict[str, Any]:
             if z.kept:
                 split_anns.append(zebra_annotation(z, image_id, len(split_anns) + 1))
                 kept += 1
+                x0, y0, x1, y1 = z.box_visible
+                sizes.setdefault(meta.strategy, []).append(float(np.sqrt(max(x1 - x0, 0.0) * max(y1 - y0, 0.0))))
             elif z.dont_care and z.rle is not None:  # sets written before don't-care regions have no outline
                 split_anns.append(crowd_annotation(z, image_id, len(split_anns) + 1))
     for split in ("train", "val"):
@@ -387,4 +419,6 @@ def finalize(out: Path, cfg: GenerateConfig | None = None) -> dict[str, Any]:
     yaml_text = (f"# zebra_sim_ros synthetic dataset (YOLO format); COCO in coco/\n"
                  f"path: {out.resolve()}\ntrain: images/train\nval: images/val\nnc: 1\nnames:\n  0: zebra\n")
     (out / "dataset.yaml").write_text(yaml_text)
-    return {"images_train": len(images["train"]), "images_val": len(images["val"]), "zebras_labelled": kept}
+    return {"images_train": len(images["train"]), "images_val": len(images["val"]), "zebras_labelled": kept,
+            "box_sizes_px": box_size_histogram([v for vs in sizes.values() for v in vs]),
+            "box_sizes_px_by_strategy": {k: box_size_histogram(v) for k, v in sorted(sizes.items())}}

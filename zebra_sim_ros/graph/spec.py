@@ -83,8 +83,10 @@ class UpConfig:
             raise ParameterError("--frames", self.frames, ">= 1")
         if not (16 <= self.width <= 8192 and 16 <= self.height <= 8192):
             raise ParameterError("--size", f"{self.width}x{self.height}", "WxH with 16..8192 each")
-        if self.strategy not in ("far", "closeby", "mixed"):
-            raise ParameterError("--strategy", self.strategy, "far, closeby or mixed")
+        from zebra_sim_ros.placement.config import STRATEGY_CHOICES
+
+        if self.strategy not in STRATEGY_CHOICES:
+            raise ParameterError("--strategy", self.strategy, f"one of {', '.join(STRATEGY_CHOICES)}")
         from zebra_sim_ros.detection.checkpoint import check_scale
 
         check_scale("--detect-scale", self.detect_scale)

@@ -1,6 +1,8 @@
-"""Drone camera poses: the paper's ``far`` and ``closeby`` strategies around the zebras' pivot.
+"""Camera poses: the paper's ``far`` and ``closeby`` drone strategies, a ground-level ``low`` camera and a
+survey drone looking straight down (``nadir``).
 
-Pivot = mean zebra position (x, y, and the ground height z under them). Every camera is drawn as:
+Pivot = mean zebra position (x, y, and the ground height z under them). ``far`` and ``closeby`` cameras are
+drawn as:
 
 - height ``z = pivot_z + U(height_min, height_max)``;
 - ``far``: ``x, y = pivot + U(-far_radius, far_radius)`` each; ``closeby``: x, y uniform in the zebras'
@@ -8,6 +10,16 @@ Pivot = mean zebra position (x, y, and the ground height z under them). Every ca
 - yaw = bearing from camera to pivot + U(-j, j) (j = 30 deg far, 15 deg closeby);
 - pitch = atan2(pivot_z - cam_z, d_xy) + ``pitch_offset_deg`` (the pivot's elevation, raised 15 deg);
 - roll = U(-roll_max, roll_max).
+
+``low`` (a person or camera trap on the ground; zebras fill up to most of the frame and are cut by its edges):
+a target zebra is drawn; the camera stands at a horizontal distance log-U(low_distance_min, low_distance_max)
+from it on a uniform bearing, ``U(low_height_min, low_height_max)`` above the ground below it, not inside a zebra
+or a tree; yaw = bearing to the target + U(-low_yaw_jitter, low_yaw_jitter), pitch = elevation of the target's
+centre + U(-5, 5) deg, roll U(-low_roll_max, low_roll_max).
+
+``nadir`` (a survey flight): ``U(nadir_height_min, nadir_height_max)`` above the pivot's ground, x, y within
+0.3 x height of the pivot, yaw uniform, pitch -90 + U(0, nadir_tilt_max) deg (the tilt's direction is uniform
+through the yaw), roll as ``far``.
 
 Angles follow :mod:`zebra_sim_ros.geometry.camera`: pitch is the elevation of the optical axis (negative
 looks down), yaw counter-clockwise from east. A draw is kept only if the camera is at least
@@ -49,6 +61,44 @@ class CameraRanges:
     min_separation: float = 0.5
     min_clearance: float = 2.0
     max_tries: int = 1000
+    low_height_min: float = 1.0
+    low_height_max: float = 3.0
+    low_distance_min: float = 4.0
+    low_distance_max: float = 40.0
+    low_yaw_jitter_deg: float = 20.0
+    low_roll_max_deg: float = 3.0
+    nadir_height_min: float = 20.0
+    nadir_height_max: float = 120.0
+    nadir_tilt_max_deg: float = 10.0
+
+
+STRATEGIES = ("far", "closeby", "low", "nadir")
+"""Every camera strategy, in the order of their stream index (see ``dataset.generate.stream_seed``)."""
+
+LOW_ZEBRA_CLEARANCE_M = 2.0
+"""A ``low`` camera stands at least this far (horizontally) from every zebra's centre: never inside an animal."""
+
+
+@dataclass(frozen=True)
+class Surroundings:
+    """What a camera must keep out of and look at: the terrain, the zebras' ground positions and box centres
+    (N, 3), and the trees and rocks (centres (M, 2) and radii (M,))."""
+
+    terrain: Heightfield
+    zebra_xyz: FloatArray
+    zebra_centres: FloatArray
+    obstacle_xy: FloatArray
+    obstacle_radii: FloatArray
+
+
+@dataclass(frozen=True)
+class _Draw:
+    position: FloatArray
+    yaw: float
+    pitch: float
+    roll: float
+    target: FloatArray  # must project inside the image
+    clearance: float  # least height above the ground below
 
 
 @dataclass(frozen=True)
@@ -75,43 +125,86 @@ class CameraPose:
                 "pitch_deg": self.pitch_deg, "roll_deg": self.roll_deg, "frame_id": f"{self.name}_camera_optical"}
 
 
-def sample_cameras(rng: np.random.Generator, zebra_xyz: FloatArray, strategy: str, names: list[str],
-                   ranges: CameraRanges, terrain: Heightfield, camera: PinholeCamera) -> list[CameraPose]:
-    """Draw one pose per name around the zebras at ``zebra_xyz`` (N, 3), N >= 1."""
-    if len(zebra_xyz) == 0:
+def _draw_drone(rng: np.random.Generator, strategy: str, r: CameraRanges, env: Surroundings) -> _Draw:
+    xyz = env.zebra_xyz
+    pivot = xyz.mean(axis=0)
+    if strategy == "far":
+        xy = pivot[:2] + rng.uniform(-r.far_radius, r.far_radius, size=2)
+    else:
+        xy = rng.uniform(xyz[:, :2].min(axis=0) - r.closeby_margin, xyz[:, :2].max(axis=0) + r.closeby_margin)
+    jitter = np.radians(r.far_yaw_jitter_deg if strategy == "far" else r.closeby_yaw_jitter_deg)
+    z = pivot[2] + rng.uniform(r.height_min, r.height_max)
+    d = pivot[:2] - xy
+    yaw = float(np.arctan2(d[1], d[0])) + rng.uniform(-jitter, jitter)
+    pitch = float(np.arctan2(pivot[2] - z, float(np.hypot(d[0], d[1])))) + np.radians(r.pitch_offset_deg)
+    roll = rng.uniform(-np.radians(r.roll_max_deg), np.radians(r.roll_max_deg))
+    return _Draw(np.array([xy[0], xy[1], z]), yaw, pitch, roll, pivot, r.min_clearance)
+
+
+def _draw_low(rng: np.random.Generator, r: CameraRanges, env: Surroundings) -> _Draw | None:
+    target = env.zebra_centres[rng.integers(len(env.zebra_centres))]
+    dist = float(np.exp(rng.uniform(np.log(r.low_distance_min), np.log(r.low_distance_max))))
+    bearing = rng.uniform(-np.pi, np.pi)
+    xy = target[:2] + dist * np.array([np.cos(bearing), np.sin(bearing)])
+    ground = float(env.terrain.height_at(xy[0], xy[1]))
+    z = ground + rng.uniform(r.low_height_min, r.low_height_max)
+    yaw = bearing + np.pi + rng.uniform(-np.radians(r.low_yaw_jitter_deg), np.radians(r.low_yaw_jitter_deg))
+    pitch = float(np.arctan2(target[2] - z, dist)) + np.radians(rng.uniform(-5.0, 5.0))
+    roll = rng.uniform(-np.radians(r.low_roll_max_deg), np.radians(r.low_roll_max_deg))
+    if np.min(np.hypot(*(env.zebra_xyz[:, :2] - xy).T)) < LOW_ZEBRA_CLEARANCE_M:
+        return None
+    if len(env.obstacle_radii) and np.any(np.hypot(*(env.obstacle_xy - xy).T) < env.obstacle_radii + 0.5):
+        return None
+    return _Draw(np.array([xy[0], xy[1], z]), float(yaw), pitch, roll, target, r.low_height_min * 0.99)
+
+
+def _draw_nadir(rng: np.random.Generator, r: CameraRanges, env: Surroundings) -> _Draw:
+    pivot = env.zebra_xyz.mean(axis=0)
+    height = rng.uniform(r.nadir_height_min, r.nadir_height_max)
+    offset = 0.3 * height * np.sqrt(rng.uniform()) * np.array([np.cos(a := rng.uniform(-np.pi, np.pi)), np.sin(a)])
+    yaw = rng.uniform(-np.pi, np.pi)
+    pitch = np.radians(-90.0 + rng.uniform(0.0, r.nadir_tilt_max_deg))
+    roll = rng.uniform(-np.radians(r.roll_max_deg), np.radians(r.roll_max_deg))
+    xy = pivot[:2] + offset
+    return _Draw(np.array([xy[0], xy[1], pivot[2] + height]), yaw, pitch, roll, pivot, r.min_clearance)
+
+
+def _draw(rng: np.random.Generator, strategy: str, r: CameraRanges, env: Surroundings) -> _Draw | None:
+    if strategy == "low":
+        return _draw_low(rng, r, env)
+    if strategy == "nadir":
+        return _draw_nadir(rng, r, env)
+    return _draw_drone(rng, strategy, r, env)
+
+
+def sample_cameras(rng: np.random.Generator, env: Surroundings, strategy: str, names: list[str],
+                   ranges: CameraRanges, camera: PinholeCamera) -> list[CameraPose]:
+    """Draw one pose per name around the zebras of ``env`` (at least one)."""
+    if len(env.zebra_xyz) == 0:
         raise CameraPlacementError("no zebra was placed, so there is no pivot to look at")
-    if strategy not in ("far", "closeby"):
-        raise CameraPlacementError(f"strategy {strategy!r} is not far or closeby")
-    pivot = zebra_xyz.mean(axis=0)
-    lo, hi = zebra_xyz[:, :2].min(axis=0), zebra_xyz[:, :2].max(axis=0)
-    jitter = np.radians(ranges.far_yaw_jitter_deg if strategy == "far" else ranges.closeby_yaw_jitter_deg)
+    if strategy not in STRATEGIES:
+        raise CameraPlacementError(f"strategy {strategy!r} is not one of {STRATEGIES}")
     poses: list[CameraPose] = []
     for name in names:
         for _ in range(ranges.max_tries):
-            if strategy == "far":
-                xy = pivot[:2] + rng.uniform(-ranges.far_radius, ranges.far_radius, size=2)
-            else:
-                xy = rng.uniform(lo - ranges.closeby_margin, hi + ranges.closeby_margin)
-            z = pivot[2] + rng.uniform(ranges.height_min, ranges.height_max)
-            d = pivot[:2] - xy
-            d_xy = float(np.hypot(d[0], d[1]))
-            yaw = float(np.arctan2(d[1], d[0])) + rng.uniform(-jitter, jitter)
-            pitch = float(np.arctan2(pivot[2] - z, d_xy)) + np.radians(ranges.pitch_offset_deg)
-            roll = rng.uniform(-np.radians(ranges.roll_max_deg), np.radians(ranges.roll_max_deg))
-            pos = np.array([xy[0], xy[1], z])
-            if z < float(terrain.height_at(xy[0], xy[1])) + ranges.min_clearance:
+            d = _draw(rng, strategy, ranges, env)
+            if d is None:
+                continue
+            pos = d.position
+            if pos[2] < float(env.terrain.height_at(pos[0], pos[1])) + d.clearance:
                 continue
             if any(np.linalg.norm(pos - np.array(p.position)) < ranges.min_separation for p in poses):
                 continue
-            r = optical_rotation(yaw, pitch, roll)
-            if not camera.in_image(map_to_optical(pivot[None], pos, r))[0]:
+            r = optical_rotation(d.yaw, d.pitch, d.roll)
+            if not camera.in_image(map_to_optical(d.target[None], pos, r))[0]:
                 continue
-            poses.append(CameraPose(name=name, strategy=strategy, position=(float(pos[0]), float(pos[1]), float(z)),
-                                    yaw_deg=float(np.degrees(yaw)), pitch_deg=float(np.degrees(pitch)),
-                                    roll_deg=float(np.degrees(roll)), r_optical=r))
+            poses.append(CameraPose(name=name, strategy=strategy, position=(float(pos[0]), float(pos[1]),
+                                                                            float(pos[2])),
+                                    yaw_deg=float(np.degrees(d.yaw)), pitch_deg=float(np.degrees(d.pitch)),
+                                    roll_deg=float(np.degrees(d.roll)), r_optical=r))
             break
         else:
             raise CameraPlacementError(
                 f"no valid pose for {name} ({strategy}) in {ranges.max_tries} draws: the ground may be higher than "
-                f"{ranges.height_max} m above the zebras, or the field of view too narrow ({camera.hfov_deg} deg)")
+                f"the camera's height range above the zebras, or the field of view too narrow ({camera.hfov_deg} deg)")
     return poses

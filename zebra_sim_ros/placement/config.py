@@ -15,7 +15,12 @@ from typing import Any
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import MAX_CAMERAS, Intrinsics
 from zebra_sim_ros.params import ParamSpec, StageConfig, names_list, param, reliability_param, same_as
+from zebra_sim_ros.placement.cameras import STRATEGIES
 from zebra_sim_ros.placement.sun import DAY_WINDOWS
+
+STRATEGY_CHOICES = (*STRATEGIES, "mixed", "any")
+"""The placer's ``strategy`` values: one strategy for every step, or a draw per step (``mixed``: far or closeby;
+``any``: each of the four)."""
 
 
 def _nonneg_list(n: int) -> Any:
@@ -33,8 +38,10 @@ class PlacerConfig(StageConfig):
     terrain_prim: str = param("/World/Terrain", "USD prim path of the terrain mesh (USD worlds only)",
                               allowed="an absolute prim path", check=lambda v: v.startswith("/"))
     world_seed: int = param(0, "seed of the procedural world (presets only)", lo=0, hi=2**31 - 1)
-    strategy: str = param("far", "camera strategy: far, closeby, or mixed (each step picks one, 50/50)",
-                          choices=("far", "closeby", "mixed"))
+    strategy: str = param("far", "camera strategy: far, closeby (the paper's drones 5-20 m up), low (ground level, "
+                          "zebras 4-40 m away), nadir (survey drone 20-120 m up looking down), mixed (each step far "
+                          "or closeby, 50/50) or any (each step one of the four, 25% each)",
+                          choices=STRATEGY_CHOICES)
     pool_size: int = param(250, "zebras preloaded per experiment", lo=1, hi=1000)
     count_min: int = param(2, "fewest zebras asked for per placement", lo=1, hi=1000, allowed="1..pool_size")
     count_max: int = param(250, "most zebras asked for per placement", lo=1, hi=1000,
@@ -65,6 +72,22 @@ class PlacerConfig(StageConfig):
     far_yaw_jitter_deg: float = param(30.0, "far: yaw = bearing to pivot + U(-j, j)", "deg", lo=0.0, hi=90.0)
     closeby_yaw_jitter_deg: float = param(15.0, "closeby: yaw jitter", "deg", lo=0.0, hi=90.0)
     pitch_offset_deg: float = param(15.0, "added to the elevation angle of the pivot", "deg", lo=-45.0, hi=45.0)
+    low_height_min: float = param(1.0, "low: camera height above the ground below it, minimum", "m", lo=0.2,
+                                  hi=20.0)
+    low_height_max: float = param(3.0, "low: camera height above the ground below it, maximum", "m", lo=0.2,
+                                  hi=20.0, allowed="low_height_min..20 m")
+    low_distance_min: float = param(4.0, "low: horizontal distance to the target zebra, minimum (log-uniform)", "m",
+                                    lo=2.5, hi=500.0)
+    low_distance_max: float = param(40.0, "low: horizontal distance to the target zebra, maximum", "m", lo=2.5,
+                                    hi=500.0, allowed="low_distance_min..500 m")
+    low_yaw_jitter_deg: float = param(20.0, "low: yaw = bearing to the target + U(-j, j)", "deg", lo=0.0, hi=60.0)
+    low_roll_max_deg: float = param(3.0, "low: camera roll U(-r, r)", "deg", lo=0.0, hi=45.0)
+    nadir_height_min: float = param(20.0, "nadir: camera height above the zebras' ground, minimum", "m", lo=2.0,
+                                    hi=1000.0)
+    nadir_height_max: float = param(120.0, "nadir: camera height above the zebras' ground, maximum", "m", lo=2.0,
+                                    hi=1000.0, allowed="nadir_height_min..1000 m")
+    nadir_tilt_max_deg: float = param(10.0, "nadir: pitch = -90 + U(0, t), in a uniform direction", "deg", lo=0.0,
+                                      hi=45.0)
     min_camera_separation: float = param(0.5, "least distance between two cameras", "m", lo=0.0, hi=100.0)
     min_camera_clearance: float = param(2.0, "least height of a camera above the ground below it", "m", lo=0.0,
                                         hi=100.0)
@@ -112,6 +135,10 @@ class PlacerConfig(StageConfig):
         if self.camera_height_min > self.camera_height_max:
             raise ParameterError("camera_height_min", self.camera_height_min,
                                  f"<= camera_height_max ({self.camera_height_max})")
+        for lo_name, hi_name in (("low_height_min", "low_height_max"), ("low_distance_min", "low_distance_max"),
+                                 ("nadir_height_min", "nadir_height_max")):
+            if getattr(self, lo_name) > getattr(self, hi_name):
+                raise ParameterError(lo_name, getattr(self, lo_name), f"<= {hi_name} ({getattr(self, hi_name)})")
         if self.day_start_h >= self.day_end_h:
             raise ParameterError("day_start_h", self.day_start_h, f"< day_end_h ({self.day_end_h})")
         if len(set(self.lockstep_ack_from)) != len(self.lockstep_ack_from):

@@ -12,7 +12,7 @@ import numpy as np
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import PinholeCamera
 from zebra_sim_ros.messages import Scene, WorldRef
-from zebra_sim_ros.placement.cameras import CameraRanges, sample_cameras
+from zebra_sim_ros.placement.cameras import STRATEGIES, CameraRanges, Surroundings, sample_cameras
 from zebra_sim_ros.placement.config import PlacerConfig
 from zebra_sim_ros.placement.ground import sample_ground_look
 from zebra_sim_ros.placement.herd import Herd, HerdPlacer, PlacementError, make_pool
@@ -46,7 +46,11 @@ class Placer:
             closeby_margin=cfg.closeby_margin, roll_max_deg=cfg.roll_max_deg,
             far_yaw_jitter_deg=cfg.far_yaw_jitter_deg, closeby_yaw_jitter_deg=cfg.closeby_yaw_jitter_deg,
             pitch_offset_deg=cfg.pitch_offset_deg, min_separation=cfg.min_camera_separation,
-            min_clearance=cfg.min_camera_clearance)
+            min_clearance=cfg.min_camera_clearance, low_height_min=cfg.low_height_min,
+            low_height_max=cfg.low_height_max, low_distance_min=cfg.low_distance_min,
+            low_distance_max=cfg.low_distance_max, low_yaw_jitter_deg=cfg.low_yaw_jitter_deg,
+            low_roll_max_deg=cfg.low_roll_max_deg, nadir_height_min=cfg.nadir_height_min,
+            nadir_height_max=cfg.nadir_height_max, nadir_tilt_max_deg=cfg.nadir_tilt_max_deg)
         self.camera_names = [f"drone_{i}" for i in range(cfg.num_cameras)]
         self._cache: tuple[int, Herd] | None = None
         self._world_info = WorldRef(world.name, world.source, world.seed, cfg.terrain_prim)
@@ -70,6 +74,14 @@ class Placer:
         raise PlacementError("world", self.world.name,
                              "ground where at least one zebra can stand (10 draws placed none)")
 
+    def _strategy(self, rng: np.random.Generator) -> str:
+        """The step's camera strategy: the configured one, or drawn (``mixed``: far/closeby, ``any``: all four)."""
+        if self.cfg.strategy == "mixed":
+            return "far" if rng.uniform() < 0.5 else "closeby"
+        if self.cfg.strategy == "any":
+            return STRATEGIES[int(rng.integers(len(STRATEGIES)))]
+        return self.cfg.strategy
+
     def scene(self, step: int) -> Scene:
         """The scene of step ``step`` (any step, in any order)."""
         if step < 0:
@@ -80,15 +92,17 @@ class Placer:
         rng = np.random.default_rng([c.seed, placement, reroll + 1])
         tod, doy = sample_time_and_day(rng, c.night_fraction, c.day_window, c.day_start_h, c.day_end_h,
                                        c.latitude_deg)
-        strategy = c.strategy if c.strategy != "mixed" else ("far" if rng.uniform() < 0.5 else "closeby")
-        cams = sample_cameras(rng, herd.position, strategy, self.camera_names, self.ranges, self.world.terrain,
-                              self.camera)
-        ground = sample_ground_look(rng, c.ground_recolor)  # drawn last: the draws above do not depend on it
+        strategy = self._strategy(rng)
         lib = self.library
         boxes = np.asarray(lib.boxes()[herd.morph, herd.global_frame], dtype=np.float64)  # (N, 2, 3)
         centre_local = boxes.mean(axis=1) * herd.scale[:, None]
         box_center = np.einsum("nij,nj->ni", herd.rotation, centre_local) + herd.position
         box_size = (boxes[:, 1] - boxes[:, 0]) * herd.scale[:, None]
+        obstacles = self.world.obstacles
+        env = Surroundings(self.world.terrain, herd.position, box_center, obstacles.positions[:, :2],
+                           obstacles.radii)
+        cams = sample_cameras(rng, env, strategy, self.camera_names, self.ranges, self.camera)
+        ground = sample_ground_look(rng, c.ground_recolor)  # drawn last: the draws above do not depend on it
         stamp_ns = int(round(step * 1e9 / c.rate_hz))
         zebras = scene_zebras(herd, lib.morphs, lib.clip_names, self.pool.coat_seed[herd.ids], box_center, box_size)
         return build_scene(step, placement, reroll, c.seed, stamp_ns, self._world_info, str(lib.manifest["digest"]),

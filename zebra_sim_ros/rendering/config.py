@@ -13,6 +13,14 @@ from zebra_sim_ros.params import ParamSpec, StageConfig, param, reliability_para
 from zebra_sim_ros.rendering.effects import CameraEffects, SensorModel
 from zebra_sim_ros.rendering.renderer import RenderOptions
 
+LOOKS = ("photo", "plain")
+
+
+def look_options(look: str) -> dict[str, bool]:
+    """The :class:`RenderOptions` switches of a look (``LOOKS``)."""
+    photo = look == "photo"
+    return {"detail": photo, "contact_shadows": photo}
+
 
 @dataclass(frozen=True)
 class CameraConfig(StageConfig):
@@ -29,6 +37,9 @@ class CameraConfig(StageConfig):
     blur_sigma_px: float = param(0.0, "camera effect: Gaussian blur sigma (0 = off)", "px", lo=0.0, hi=20.0)
     noise_std: float = param(0.0, "camera effect: Gaussian noise (0 = off)", "8-bit levels", lo=0.0, hi=64.0)
     jpeg_quality: int = param(0, "camera effect: JPEG re-encode quality (0 = off)", lo=0, hi=100)
+    look: str = param("photo", "photo: procedural ground detail, contact shadows and photographic coat shading; "
+                      "plain: flat ground colours and the bare coat texture (the look before photographic "
+                      "rendering, which the shipped weights were trained on)", choices=LOOKS)
     sensor_strength: float = param(1.0, "the photograph's camera drawn per frame (exposure, white balance, "
                                    "vignetting, chromatic aberration, defocus and motion blur, Poisson-Gaussian "
                                    "noise, JPEG) as a multiple of its default ranges (0 = a perfect camera)",
@@ -50,7 +61,7 @@ class CameraConfig(StageConfig):
     def render_options(self) -> RenderOptions:
         """Renderer settings from these parameters."""
         return RenderOptions(width=self.width, height=self.height, hfov_deg=self.hfov_deg, shadows=self.shadows,
-                             shadow_size=self.shadow_size, antialias=self.antialias)
+                             shadow_size=self.shadow_size, antialias=self.antialias, **look_options(self.look))
 
     def sensor_model(self) -> SensorModel | None:
         """The per-frame camera model (None when ``sensor_strength`` is 0)."""

@@ -54,7 +54,8 @@ class RenderOptions:
     zebra_detail_distance_m: float = 35.0
     coat_size: int = 256
     max_coats: int = 1024
-    detail: bool = True  # procedural ground detail (grass tufts, soil, stones, micro-relief); False: flat colours
+    detail: bool = True  # procedural ground detail (grass tufts, soil, stones, micro-relief) and the photographic coat
+    # shading (contrast, belly, dust, sheen); False: flat ground colours and the coat texture as it is
     contact_shadows: bool = True  # soft occlusion on the ground under every animal
 
     def check(self) -> None:
@@ -357,6 +358,8 @@ class Renderer:
         if self._coats_dirty:
             self.coats.build_mipmaps()
         self._upload_contact(zebras)
+        if "u_detail" in self.p_zebra:
+            self.p_zebra["u_detail"].value = 1.0 if self.options.detail else 0.0
         if "u_ground_z" in self.p_zebra:
             self.p_zebra["u_ground_z"].value = float(np.median(zebras.position[:, 2])) if zebras.count else 0.0
         return [self._render_view(zebras, layers, lighting, v) for v in views]

@@ -283,10 +283,12 @@ flat in uint v_id;
 flat in float v_layer;
 uniform sampler2DArray u_coats;
 uniform float u_ground_z;       // ground height under the herd (dust on the lower body)
+uniform float u_detail;         // 0 = the coat texture as it is (the plain look), 1 = as photographs show it
 void main() {
     vec3 n = normalize(cross(dFdx(v_wpos), dFdy(v_wpos)));
     if (dot(n, u_cam_pos - v_wpos) < 0.0) n = -n;
     vec3 albedo = pow(texture(u_coats, vec3(v_uv, v_layer)).rgb, vec3(2.2));
+    vec3 plain = albedo;
     // Coats as photographs show them: near-black stripes on near-white hair (contrast about the coat's mid-grey),
     // a darker belly and legs in their own shade, dust on the lower body that differs per animal, and a sheen
     // of short hair towards grazing light.
@@ -298,7 +300,7 @@ void main() {
     albedo *= mix(0.7, 1.0, clamp(n.z * 0.5 + 0.5, 0.0, 1.0));
     float rim = pow(1.0 - abs(dot(n, normalize(u_cam_pos - v_wpos))), 3.0);
     albedo += rim * 0.06 * max(dot(n, u_light_dir), 0.0);
-    write_surface(albedo, n, v_id);
+    write_surface(mix(plain, albedo, u_detail), n, v_id);
 }
 """
 
