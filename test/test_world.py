@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -27,8 +28,8 @@ def _world(name: str, seed: int = 0) -> World:
     return _CACHE[name, seed]
 
 
-def test_at_least_eight_presets_with_savanna_default() -> None:
-    assert len(PRESETS) >= 8
+def test_at_least_twelve_presets_with_savanna_default() -> None:
+    assert len(PRESETS) >= 12
     for name in ("savanna", "grassland", "meadow", "woodland", "moorland", "snowy_highland", "scrubland",
                  "farmland"):
         assert name in PRESETS
@@ -69,7 +70,7 @@ def test_preset_terrain_placeable_and_obstacles(name: str) -> None:
     ob = w.obstacles
     assert len(ob) > 0 and ob.positions.shape == (len(ob), 3) and len(ob.kinds) == len(ob)
     assert np.all(ob.radii > 0) and np.all(ob.radii < 5)
-    assert set(ob.kinds) <= {"tree", "rock"}
+    assert set(ob.kinds) <= {"tree", "rock", "prop"}
     assert np.all(hf.contains(ob.positions[:, 0], ob.positions[:, 1]))
 
 
@@ -93,7 +94,7 @@ def test_preset_vegetation_matches_its_declaration(name: str) -> None:
         assert v.dtype == np.float32 and f.dtype == np.int32 and c.dtype == np.float32
         assert v.shape[1] == 3 and c.shape == v.shape and f.min() >= 0 and f.max() < len(v)
         assert 0 <= c.min() and c.max() <= 1
-        if inst.kind in ("tree", "rock"):
+        if inst.kind in ("tree", "rock", "prop"):
             n_obstacles += m
     assert n_obstacles == len(w.obstacles)
     for layer in preset.vegetation:  # instances of one layer keep its spacing
@@ -146,11 +147,70 @@ def test_thin_min_distance_never_keeps_a_close_pair() -> None:
 
 
 def test_prototypes_stand_on_the_ground() -> None:
-    for style in ("acacia", "deciduous", "conifer", "bush", "rock", "mound", "tuft"):
+    for style in ("acacia", "deciduous", "conifer", "bush", "rock", "mound", "tuft", "fence", "wall", "trough", "hut",
+                  "vehicle", "person"):
         p = build_prototype(style, 1)
         v = p.mesh[0]
         assert -0.6 < v[:, 2].min() <= 0.05 and v[:, 2].max() > 0.2, style
-        assert (p.footprint_m > 0) == (p.kind in ("tree", "rock")), style
+        assert (p.footprint_m > 0) == (p.kind in ("tree", "rock", "prop")), style
+    sizes = {s: np.ptp(build_prototype(s, 0).mesh[0], axis=0) for s in ("fence", "wall", "hut", "vehicle", "person")}
+    assert 2.9 < sizes["fence"][0] < 3.2 and 1.3 < sizes["fence"][2] < 1.9  # a 3 m panel, 1.45 m above ground
+    assert 4.5 < sizes["vehicle"][0] < 5.0 and 1.5 < sizes["vehicle"][2] < 2.2
+    assert 1.6 < sizes["person"][2] < 2.0 and sizes["person"][0] < 0.5
+    assert 3.5 < sizes["hut"][2] < 4.2
+
+
+def test_waterhole_has_flat_open_water_where_nothing_stands() -> None:
+    """The waterhole's basin is filled to a flat surface: the terrain there is level at the water line, the world
+    says how deep the water is, no tree, bush, rock or tuft stands in it and no zebra is placed in it."""
+    from zebra_sim_ros.placement.config import PlacerConfig
+    from zebra_sim_ros.placement.placer import Placer
+    from zebra_sim_ros.zebra.asset import load_library
+
+    w = _world("waterhole")
+    assert w.water is not None and w.water.shape == w.terrain.shape
+    wet = w.water > 0
+    area_m2 = float(wet.sum()) * w.terrain.resolution ** 2
+    assert 2000 < area_m2 < 20000, area_m2  # a pond some 50-160 m across
+    surface = w.terrain.heights[wet]
+    assert float(np.ptp(surface)) < 1e-5  # flat
+    assert w.water.max() > 1.0  # deep in the middle
+    for inst in w.vegetation.values():
+        depth = _sample(w.water, w, inst.positions[:, :2])
+        assert np.all(depth <= -0.3 + 1e-6), inst.prototype
+    placer = Placer(PlacerConfig.from_params({"world": "waterhole", "seed": 2, "count_min": 150}), w, load_library())
+    for step in range(0, 12, 3):
+        feet = np.array([z.position for z in placer.scene(step).zebras])
+        assert np.all(_sample(w.water, w, feet[:, :2]) < 0.0)
+    assert _world("savanna").water is None
+
+
+def _sample(grid: np.ndarray, w: World, xy: np.ndarray) -> np.ndarray:
+    t = w.terrain
+    i = np.clip(np.rint((xy[:, 0] - t.origin[0]) / t.resolution).astype(int), 0, t.shape[1] - 1)
+    j = np.clip(np.rint((xy[:, 1] - t.origin[1]) / t.resolution).astype(int), 0, t.shape[0] - 1)
+    return grid[j, i]
+
+
+def test_zoo_fences_run_along_the_paddock_lines_and_tracks_are_painted() -> None:
+    """Fence and wall panels stand end to end along the paddock boundaries, turned along them; people, vehicles,
+    huts and troughs are obstacles no zebra stands in; tracks darken or lighten thin lines of the ground."""
+    w = _world("zoo")
+    fences = [i for k, i in w.vegetation.items() if k.startswith(("fence", "wall"))]
+    assert sum(len(i) for i in fences) > 100
+    xy = np.concatenate([i.positions[:, :2] for i in fences])
+    yaw = np.concatenate([i.yaw for i in fences])
+    nearest = np.linalg.norm(xy[:, None] - xy[None], axis=-1) + np.eye(len(xy)) * 1e9
+    j = nearest.argmin(axis=1)
+    assert np.median(nearest.min(axis=1)) < 3.2  # panels meet end to end
+    d = xy[j] - xy
+    along = np.abs(np.cos(np.arctan2(d[:, 1], d[:, 0]) - yaw))
+    assert np.median(along) > 0.95  # each panel is turned along its line
+    assert "prop" in set(w.obstacles.kinds)
+    plain = generate_world(replace(PRESETS["dusty_plain"], materials=PRESETS["dusty_plain"].materials[:3]), 0)
+    diff = np.abs(_world("dusty_plain").ground_colors() - plain.ground_colors()).sum(axis=-1)
+    share = float((diff > 0.01).mean())
+    assert 0.01 < share < 0.5, share  # thin lines, not a wash over everything
     assert build_prototype("acacia", 0).mesh[0][:, 2].max() > 4.0  # a tree, not a shrub
 
 

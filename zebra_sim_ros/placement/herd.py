@@ -166,7 +166,10 @@ class HerdPlacer:
     """Places herds on one world; holds what does not change between placements."""
 
     def __init__(self, terrain: Heightfield, placeable: tuple[float, float, float, float], max_slope_deg: float,
-                 obstacle_xy: FloatArray, obstacle_radius: FloatArray, library: ZebraLibrary) -> None:
+                 obstacle_xy: FloatArray, obstacle_radius: FloatArray, library: ZebraLibrary,
+                 water: NDArray[np.float32] | None = None) -> None:
+        """``water``: the world's water depth per terrain sample (m, negative above the water line), if it has
+        water; zebras stand only where the ground is at least 5 cm above it."""
         self.terrain = terrain
         self.placeable = placeable
         self.library = library
@@ -178,6 +181,8 @@ class HerdPlacer:
         ys = terrain.origin[1] + np.arange(ny) * terrain.resolution
         gx, gy = np.meshgrid(xs, ys)
         self.slope_ok = terrain.slope_deg(gx, gy) <= max_slope_deg
+        if water is not None:
+            self.slope_ok &= np.asarray(water) < -0.05
         boxes = np.asarray(library.boxes(), dtype=np.float64)  # (M, F, 2, 3)
         self._box_center_xy = (boxes[:, :, 0, :2] + boxes[:, :, 1, :2]) / 2
         self._box_half_xy = (boxes[:, :, 1, :2] - boxes[:, :, 0, :2]) / 2

@@ -39,7 +39,7 @@ class Placer:
             self.clip_ids = np.array([library.clip_names.index(c) for c in cfg.clips])
         max_slope = world.max_slope_deg if cfg.max_slope_deg < 0 else cfg.max_slope_deg
         self.herds = HerdPlacer(world.terrain, world.placeable, max_slope, world.obstacles.positions[:, :2],
-                                world.obstacles.radii, library)
+                                world.obstacles.radii, library, world.water)
         self.camera = PinholeCamera(cfg.camera_width, cfg.camera_height, cfg.camera_hfov_deg)
         self.ranges = CameraRanges(
             height_min=cfg.camera_height_min, height_max=cfg.camera_height_max, far_radius=cfg.far_radius,

@@ -227,7 +227,10 @@ class Renderer:
         normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
         gc = self.world.ground_colors()
         self.ground_mean = tuple(float(v) for v in gc.reshape(-1, 3).mean(axis=0))
-        self.t_ground = ctx.texture((nx, ny), 3, np.ascontiguousarray(gc, dtype=np.float32).tobytes(), dtype="f4")
+        # Alpha: the water depth (m; negative above the water line, -2 where a world has no water).
+        water = self.world.water if self.world.water is not None else np.full(gc.shape[:2], -2.0)
+        rgba = np.concatenate([gc, np.clip(water, -2.0, 50.0)[..., None]], axis=-1)
+        self.t_ground = ctx.texture((nx, ny), 4, np.ascontiguousarray(rgba, dtype=np.float32).tobytes(), dtype="f4")
         self.t_ground.filter = (ctx.LINEAR, ctx.LINEAR)
         self.t_ground.repeat_x = self.t_ground.repeat_y = False
         surf = self._surface_weights(gc)

@@ -174,6 +174,31 @@ vec3 rock_detail(vec2 xy, float fw, out float h) {
     return vec3(0.75 + 0.45 * c.y) * mix(1.0, 0.55 + 0.45 * edge, fade(0.35, fw)) * (1.0 + fbm(xy, 0.2, fw, 3));
 }
 
+// Open water: the sky mirrored by Fresnel's law on a surface rippled at two scales, the sun's glint, and below it
+// the bed fading into murky water with depth.
+void write_water(vec3 bed, float depth, float fw) {
+    vec2 xy = v_wpos.xy;
+    float e = 0.05;
+    float r0 = fbm(xy, 2.0, fw, 3) + 0.5 * fbm(xy * 1.7 + 5.0, 0.4, fw, 2);
+    float rx = fbm(xy + vec2(e, 0.0), 2.0, fw, 3) + 0.5 * fbm((xy + vec2(e, 0.0)) * 1.7 + 5.0, 0.4, fw, 2);
+    float ry = fbm(xy + vec2(0.0, e), 2.0, fw, 3) + 0.5 * fbm((xy + vec2(0.0, e)) * 1.7 + 5.0, 0.4, fw, 2);
+    vec3 n = normalize(vec3(-(rx - r0) / e * 0.06, -(ry - r0) / e * 0.06, 1.0));
+    vec3 v = normalize(u_cam_pos - v_wpos);
+    float cosv = clamp(dot(n, v), 0.0, 1.0);
+    float fres = 0.02 + 0.98 * pow(1.0 - cosv, 5.0);
+    vec3 r = reflect(-v, n);
+    float level = clamp(length(u_ambient_rgb) * 1.6, 0.03, 1.0);
+    vec3 sky = mix(u_horizon_rgb, u_zenith_rgb, pow(clamp(r.z, 0.0, 1.0), 0.5)) * level;
+    float murk = 1.0 - exp(-depth * 1.2);
+    vec3 body = shade(mix(bed * 0.6, vec3(0.05, 0.06, 0.04), murk), vec3(0.0, 0.0, 1.0), v_wpos);
+    float sun = u_use_shadow == 0 ? 1.0 : shadow_at(v_wpos, vec3(0.0, 0.0, 1.0));
+    vec3 glint = u_light_rgb * pow(max(dot(r, u_light_dir), 0.0), 300.0) * 4.0 * sun;
+    vec3 c = mix(body, sky, fres) + glint;
+    f_color = encode(haze(c, v_wpos));
+    f_depth = dot(v_wpos - u_cam_pos, u_cam_fwd);
+    f_id = 0u;
+}
+
 void main() {
     vec2 uv = (v_wpos.xy - u_ground_xform.xy) * u_ground_xform.zw;
     bool inside = all(greaterThanEqual(uv, vec2(0.0))) && all(lessThanEqual(uv, vec2(1.0)));
@@ -209,6 +234,13 @@ void main() {
     float contact = all(greaterThanEqual(cuv, vec2(0.0))) && all(lessThanEqual(cuv, vec2(1.0)))
                     ? texture(u_contact, cuv).r : 1.0;
     albedo *= contact;
+    float water = inside ? texture(u_ground, uv).a : -2.0;
+    // Wet mud darkens the shore up to half a metre above the water line.
+    albedo *= mix(1.0, 0.55, smoothstep(-0.5, 0.0, water));
+    if (water > 0.0) {
+        write_water(albedo, water, fw);
+        return;
+    }
     write_surface(albedo, mix(n, bump, u_detail), 0u);
 }
 """

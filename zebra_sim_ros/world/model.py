@@ -76,7 +76,9 @@ class World:
     per-vertex RGB (N, 3) float32 0..1) in its local frame (base at z = 0); ``vegetation`` has the
     instances of each. ``footprints`` gives tree and rock prototypes' (radius at scale 1, clearance) in
     metres: each instance is an obstacle of radius ``radius * scale + clearance``. ``ground_rgb``
-    (optional, (ny, nx, 3)) overrides the colours painted from ``materials``.
+    (optional, (ny, nx, 3)) overrides the colours painted from ``materials``. ``water`` (optional, (ny, nx)
+    float32) is the depth of open water per sample in metres, negative above the water line (how far above it);
+    the terrain there is the flat water surface.
     """
 
     name: str
@@ -93,6 +95,7 @@ class World:
     description: str = ""
     footprints: dict[str, tuple[float, float]] = field(default_factory=dict)
     ground_rgb: NDArray[np.float32] | None = None
+    water: NDArray[np.float32] | None = None
 
     def ground_colors(self) -> NDArray[np.float32]:
         """Linear RGB 0..1 of the ground per heightfield sample, (ny, nx, 3) float32, indexed like heights.
@@ -117,12 +120,16 @@ def _canopy_radius(mesh: PrototypeMesh) -> float:
     return float(np.max(np.hypot(v[:, 0], v[:, 1]))) if len(v) else 0.0
 
 
+OBSTACLE_KINDS = ("tree", "rock", "prop")
+"""Kinds of instances a zebra keeps out of (bushes and grass it may stand in)."""
+
+
 def build_obstacles(vegetation: dict[str, Instances], radius_at: dict[str, tuple[float, float]]) -> Obstacles:
-    """Obstacles from tree and rock instances; ``radius_at[name]`` = (radius at scale 1, clearance) m."""
+    """Obstacles from tree, rock and prop instances; ``radius_at[name]`` = (radius at scale 1, clearance) m."""
     pos, rad, kinds = [], [], []
     for name in sorted(vegetation):
         inst = vegetation[name]
-        if inst.kind not in ("tree", "rock") or name not in radius_at or not len(inst):
+        if inst.kind not in OBSTACLE_KINDS or name not in radius_at or not len(inst):
             continue
         r1, clearance = radius_at[name]
         pos.append(inst.positions)

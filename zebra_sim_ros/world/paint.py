@@ -45,6 +45,21 @@ def _field_colours(layer: MaterialLayer, terrain: Heightfield, seed: int, name: 
     return np.asarray(pal[pick[ids]] * rows[..., None])
 
 
+def _track_cover(layer: MaterialLayer, terrain: Heightfield, rng: np.random.Generator) -> FloatArray:
+    """(ny, nx) 0..1: pairs of ruts ``track_width_m`` apart along the winding mid-level lines of a smooth noise
+    (lines about ``patch_scale_m`` apart), each rut about a third of that width, with a worn strip between."""
+    ny, nx = terrain.heights.shape
+    res = terrain.resolution
+    n = value_noise((ny, nx), layer.patch_scale_m / res, rng, octaves=2)
+    gy, gx = np.gradient(n, res)
+    dist = np.abs(n - 0.5) / (np.hypot(gx, gy) + 1e-9)  # metres to the line
+    half = layer.track_width_m / 2
+    rut = np.exp(-(((dist - half) / (0.22 * half + 0.5 * res)) ** 2))
+    worn = 0.35 * (1.0 - smoothstep(0.5 * half, 1.2 * half, dist))
+    present = smoothstep(0.3, 0.45, value_noise((ny, nx), 2.5 * layer.patch_scale_m / res, rng, octaves=2))
+    return np.asarray(np.clip(np.maximum(rut, worn) * present, 0.0, 1.0))
+
+
 def _canopy_cover(terrain: Heightfield, canopy: list[tuple[FloatArray, FloatArray, float]] | None) -> FloatArray:
     """(ny, nx) 0..1: how much crowns cover each sample (discs 1.1x the crown, weighted, blurred over 2 m)."""
     ny, nx = terrain.heights.shape
@@ -86,10 +101,12 @@ def paint_ground(
         base = np.broadcast_to(np.asarray(layer.rgb), (ny, nx, 3))
         if layer.pattern == "fields":
             base = _field_colours(layer, terrain, seed, name)
+        elif layer.pattern == "tracks":
+            w *= _track_cover(layer, terrain, rng)
         elif layer.pattern == "canopy":
             cover = _canopy_cover(terrain, canopy)
             w *= np.clip(cover * (0.6 + 0.8 * value_noise((ny, nx), 8.0 / res, rng)), 0, 1)
-        if layer.coverage < 1 and layer.pattern != "canopy":
+        if layer.coverage < 1 and layer.pattern not in ("canopy", "tracks"):
             n = value_noise((ny, nx), layer.patch_scale_m / res, rng, octaves=3)
             thr = float(np.quantile(n, 1.0 - layer.coverage))
             w *= smoothstep(thr - 0.05, thr + 0.05, n)

@@ -28,9 +28,10 @@ def srgb(r: float, g: float, b: float) -> Rgb:
 
 
 STYLES = {"acacia": "tree", "deciduous": "tree", "conifer": "tree", "bush": "bush", "rock": "rock",
-          "mound": "rock", "tuft": "grass"}
+          "mound": "rock", "tuft": "grass", "fence": "prop", "wall": "prop", "trough": "prop", "hut": "prop",
+          "vehicle": "prop", "person": "prop"}
 PATTERNS = ("uniform", "clustered", "gradient", "hedgerow")
-MATERIAL_PATTERNS = ("noise", "fields", "canopy")
+MATERIAL_PATTERNS = ("noise", "fields", "canopy", "tracks")
 
 
 @dataclass(frozen=True)
@@ -56,6 +57,9 @@ class TerrainSpec:
     flat_zone_m: float = 340.0  # side of the central square where relief is damped; zebras stand here
     flat_factor: float = 0.4  # relief multiplier inside that square (1 = no flattening)
     flat_transition_m: float = 60.0
+    basin_depth_m: float = 0.0  # a waterhole: a bowl this deep, off the centre of the flat zone (0 = none)
+    basin_radius_m: float = 45.0
+    water_fill: float = 0.0  # 0..1: the basin's water level as a share of its depth (0 = dry)
 
 
 @dataclass(frozen=True)
@@ -66,7 +70,8 @@ class MaterialLayer:
     noise), slope inside ``slope_band`` (degrees, blurred by ``slope_soft_deg``), and — if ``coverage`` < 1 —
     inside noise patches of about ``patch_scale_m`` covering that fraction of the ground. ``pattern``
     "fields" colours each farm field (mean side ``patch_scale_m``) from ``palette``; "canopy" covers the
-    ground under and around trees (forest floor, shade-dried soil). The texture is value noise of grain
+    ground under and around trees (forest floor, shade-dried soil); "tracks" paints pairs of wheel ruts
+    ``track_width_m`` apart along winding lines about ``patch_scale_m`` apart. The texture is value noise of grain
     ``noise_scale_m`` changing brightness by +-``contrast``.
     """
 
@@ -83,6 +88,7 @@ class MaterialLayer:
     pattern: str = "noise"
     palette: tuple[Rgb, ...] = ()
     opacity: float = 1.0  # < 1 lets the layers below show through (sparse flowers in grass)
+    track_width_m: float = 1.7
 
 
 @dataclass(frozen=True)
@@ -355,6 +361,117 @@ PRESETS: dict[str, WorldPreset] = {
             VegetationLayer("grass", "tuft", 600.0, scale=(0.8, 1.4)),
         ),
         sky=Sky(srgb(0.30, 0.50, 0.86), srgb(0.78, 0.84, 0.92), 0.0005, 0.36, 1.0),
+        max_slope_deg=25.0,
+    ),
+    "zoo": WorldPreset(
+        name="zoo",
+        description="zoo enclosures: raked sand and trodden grass in paddocks divided by fences and walls, shade "
+                    "trees, water troughs, keepers' huts, vehicles and visitors",
+        terrain=TerrainSpec(relief_m=0.8, exponent=4.3, min_wavelength_m=8.0, max_wavelength_m=300.0,
+                            flat_factor=0.6),
+        materials=(
+            MaterialLayer("sand", srgb(0.76, 0.66, 0.50), noise_scale_m=3.0, contrast=0.10),
+            MaterialLayer("paddocks", srgb(0.7, 0.6, 0.45), pattern="fields", patch_scale_m=70.0, contrast=0.10,
+                          noise_scale_m=2.0,
+                          palette=(srgb(0.78, 0.68, 0.52), srgb(0.70, 0.60, 0.44), srgb(0.50, 0.52, 0.30),
+                                   srgb(0.62, 0.56, 0.40), srgb(0.82, 0.76, 0.62))),
+            MaterialLayer("trodden", srgb(0.56, 0.47, 0.36), coverage=0.25, patch_scale_m=12.0, contrast=0.15),
+            MaterialLayer("paths", srgb(0.62, 0.55, 0.45), pattern="tracks", patch_scale_m=60.0, track_width_m=1.2,
+                          contrast=0.08),
+            MaterialLayer("tree_shade", srgb(0.40, 0.36, 0.28), pattern="canopy", coverage=0.6),
+        ),
+        vegetation=(
+            VegetationLayer("prop", "fence", 0.0, pattern="hedgerow", hedge_spacing_m=3.0, variants=2),
+            VegetationLayer("prop", "wall", 0.0, pattern="hedgerow", hedge_spacing_m=3.0, variants=2,
+                            max_slope_deg=20.0),
+            VegetationLayer("tree", "deciduous", 0.8, scale=(0.7, 1.1), min_spacing_m=10.0, pattern="clustered",
+                            cluster_scale_m=60.0),
+            VegetationLayer("tree", "acacia", 0.4, scale=(0.6, 1.0), min_spacing_m=12.0),
+            VegetationLayer("prop", "trough", 0.6, min_spacing_m=20.0),
+            VegetationLayer("prop", "hut", 0.12, min_spacing_m=40.0, scale=(0.8, 1.2)),
+            VegetationLayer("prop", "vehicle", 0.15, min_spacing_m=25.0, scale=(0.95, 1.05)),
+            VegetationLayer("prop", "person", 0.5, scale=(0.95, 1.05), pattern="clustered", cluster_scale_m=40.0,
+                            variants=5),
+            VegetationLayer("bush", "bush", 3.0, scale=(0.5, 1.0), min_spacing_m=3.0, pattern="clustered"),
+            VegetationLayer("rock", "rock", 0.3, scale=(0.4, 0.9), min_spacing_m=6.0),
+            VegetationLayer("grass", "tuft", 400.0, scale=(0.6, 1.1), tint=(1.1, 1.05, 0.8)),
+        ),
+        sky=Sky(srgb(0.32, 0.50, 0.82), srgb(0.80, 0.83, 0.88), 0.0006, 0.38, 1.0),
+        max_slope_deg=25.0,
+    ),
+    "waterhole": WorldPreset(
+        name="waterhole",
+        description="a waterhole on the savanna: open water that mirrors the sky, a ring of wet mud and trampled "
+                    "soil, green grass near the shore, fever trees and bush",
+        terrain=TerrainSpec(relief_m=2.0, exponent=4.3, min_wavelength_m=6.0, max_wavelength_m=300.0,
+                            flat_zone_m=380.0, flat_factor=0.45, basin_depth_m=4.0, basin_radius_m=55.0,
+                            water_fill=0.55),
+        materials=(
+            MaterialLayer("dry_grass", srgb(0.72, 0.62, 0.38), noise_scale_m=4.0, contrast=0.10),
+            MaterialLayer("green_grass", srgb(0.45, 0.50, 0.24), height_band=(-INF, 0.2), height_soft_m=1.0),
+            MaterialLayer("trampled", srgb(0.52, 0.43, 0.32), height_band=(-INF, -0.6), height_soft_m=0.8,
+                          contrast=0.15),
+            MaterialLayer("mud", srgb(0.30, 0.25, 0.19), height_band=(-INF, -1.5), height_soft_m=0.5, contrast=0.12),
+            MaterialLayer("game_trails", srgb(0.55, 0.45, 0.33), pattern="tracks", patch_scale_m=45.0,
+                          track_width_m=0.6, contrast=0.1, opacity=0.8),
+        ),
+        vegetation=(
+            VegetationLayer("tree", "acacia", 2.5, scale=(0.7, 1.2), min_spacing_m=10.0, max_slope_deg=20.0,
+                            pattern="clustered", cluster_scale_m=60.0, tint=(1.0, 1.05, 0.85)),
+            VegetationLayer("bush", "bush", 8.0, scale=(0.6, 1.3), min_spacing_m=3.0, pattern="clustered",
+                            cluster_scale_m=40.0),
+            VegetationLayer("rock", "rock", 0.6, scale=(0.4, 1.0), min_spacing_m=5.0),
+            VegetationLayer("grass", "tuft", 1600.0, scale=(0.8, 1.5), tint=(1.15, 1.05, 0.75)),
+        ),
+        sky=Sky(srgb(0.28, 0.48, 0.85), srgb(0.84, 0.84, 0.80), 0.0005, 0.34, 1.05),
+        max_slope_deg=22.0,
+    ),
+    "bushland": WorldPreset(
+        name="bushland",
+        description="acacia bushland: dense thorn bush and small acacias over red-brown soil and tussock grass",
+        terrain=TerrainSpec(relief_m=3.0, exponent=4.2, min_wavelength_m=6.0, max_wavelength_m=300.0,
+                            flat_factor=0.5),
+        materials=(
+            MaterialLayer("tussock", srgb(0.66, 0.58, 0.38), noise_scale_m=3.0, contrast=0.14),
+            MaterialLayer("red_soil", srgb(0.58, 0.38, 0.25), coverage=0.35, patch_scale_m=20.0, contrast=0.16),
+            MaterialLayer("green_flush", srgb(0.46, 0.50, 0.26), coverage=0.15, patch_scale_m=30.0),
+            MaterialLayer("under_bush", srgb(0.42, 0.33, 0.24), pattern="canopy", coverage=0.7),
+        ),
+        vegetation=(
+            VegetationLayer("tree", "acacia", 12.0, scale=(0.45, 0.85), min_spacing_m=6.0, pattern="clustered",
+                            cluster_scale_m=50.0, tint=(0.95, 1.0, 0.85)),
+            VegetationLayer("bush", "bush", 70.0, scale=(0.6, 1.6), min_spacing_m=2.5, pattern="clustered",
+                            cluster_scale_m=35.0, tint=(0.85, 0.9, 0.65)),
+            VegetationLayer("rock", "mound", 0.8, scale=(0.6, 1.3), min_spacing_m=10.0),
+            VegetationLayer("rock", "rock", 0.5, scale=(0.3, 0.9), min_spacing_m=4.0),
+            VegetationLayer("grass", "tuft", 1500.0, scale=(0.7, 1.4), tint=(1.2, 1.0, 0.7)),
+        ),
+        sky=Sky(srgb(0.26, 0.46, 0.86), srgb(0.84, 0.82, 0.78), 0.0006, 0.33, 1.05),
+        max_slope_deg=25.0,
+    ),
+    "dusty_plain": WorldPreset(
+        name="dusty_plain",
+        description="a dusty, overgrazed plain in the dry season: pale bare soil, sparse dry grass, vehicle and "
+                    "game tracks, a few lone trees and a hazy sky",
+        terrain=TerrainSpec(relief_m=1.5, exponent=4.4, min_wavelength_m=8.0, max_wavelength_m=400.0,
+                            flat_factor=0.6),
+        materials=(
+            MaterialLayer("dust", srgb(0.76, 0.68, 0.55), noise_scale_m=5.0, contrast=0.08),
+            MaterialLayer("dry_grass", srgb(0.72, 0.64, 0.45), coverage=0.35, patch_scale_m=30.0, contrast=0.12),
+            MaterialLayer("darker_soil", srgb(0.60, 0.52, 0.42), coverage=0.2, patch_scale_m=60.0),
+            MaterialLayer("vehicle_tracks", srgb(0.64, 0.56, 0.45), pattern="tracks", patch_scale_m=90.0,
+                          track_width_m=1.8, contrast=0.06),
+            MaterialLayer("game_tracks", srgb(0.66, 0.58, 0.47), pattern="tracks", patch_scale_m=35.0,
+                          track_width_m=0.5, contrast=0.06, opacity=0.7),
+        ),
+        vegetation=(
+            VegetationLayer("tree", "acacia", 0.3, scale=(0.6, 1.1), min_spacing_m=30.0, tint=(0.9, 0.9, 0.75)),
+            VegetationLayer("bush", "bush", 1.5, scale=(0.4, 0.9), min_spacing_m=6.0, tint=(0.85, 0.85, 0.6)),
+            VegetationLayer("prop", "vehicle", 0.12, min_spacing_m=60.0, scale=(0.95, 1.05)),
+            VegetationLayer("rock", "rock", 0.4, scale=(0.3, 0.8), min_spacing_m=5.0, tint=(1.1, 1.0, 0.9)),
+            VegetationLayer("grass", "tuft", 500.0, scale=(0.6, 1.1), tint=(1.3, 1.1, 0.75)),
+        ),
+        sky=Sky(srgb(0.45, 0.55, 0.72), srgb(0.86, 0.82, 0.74), 0.0012, 0.40, 0.95),
         max_slope_deg=25.0,
     ),
 }

@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zebra_sim_ros.errors import DependencyError
-from zebra_sim_ros.world.model import Instances, World, WorldError, build_obstacles
+from zebra_sim_ros.world.model import OBSTACLE_KINDS, Instances, World, WorldError, build_obstacles
 from zebra_sim_ros.world.presets import PRESETS, Sky
 from zebra_sim_ros.world.terrain import Heightfield, TerrainError
 from zebra_sim_ros.world.vegetation import PrototypeMesh
@@ -423,7 +423,7 @@ def _read_instancer(pi_prim: Any, to_map: FloatArray, vegetation: dict[str, Inst
                 continue
             prototypes[name] = mesh
             r1 = proto.GetCustomDataByKey("zebra_sim:footprint_radius")
-            if r1 is not None and kind in ("tree", "rock"):
+            if r1 is not None and kind in OBSTACLE_KINDS:
                 radius_at[name] = (float(r1) * mpu, float(_custom(proto, "zebra_sim:clearance", 0.0)))
         new = Instances(name, world_pos[sel], yaw[sel], scale[sel], kind)
         if name in vegetation:

@@ -44,7 +44,7 @@ class Prototype:
         s = np.asarray(scale, dtype=np.float64)
         if self.kind == "tree":
             return self.footprint_m * s + TREE_CLEARANCE_M
-        if self.kind == "rock":
+        if self.kind in ("rock", "prop"):
             return self.footprint_m * s
         return np.zeros_like(s)
 
@@ -256,10 +256,109 @@ def _tuft(rng: np.random.Generator) -> tuple[PrototypeMesh, float]:
     return (v.astype(np.float32), f.astype(np.int32), np.clip(col, 0, 1).astype(np.float32)), 0.0
 
 
+# --- man-made props: local x along the length, y across, z up; footprint = half the length ------------------
+
+def _box(lo: tuple[float, float, float], hi: tuple[float, float, float]) -> tuple[FloatArray, NDArray[np.int64]]:
+    """Closed axis-aligned box between corners ``lo`` and ``hi`` (metres), faces outward."""
+    x0, y0, z0 = lo
+    x1, y1, z1 = hi
+    v = np.array([[x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0],
+                  [x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]], dtype=np.float64)
+    f = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4], [1, 2, 6], [1, 6, 5],
+                  [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]], dtype=np.int64)
+    return v, f
+
+
+def _fence(rng: np.random.Generator) -> tuple[PrototypeMesh, float]:
+    """A 3 m panel of post-and-rail fence, 1.4 m high: weathered wood or galvanised steel."""
+    b = _Builder(rng)
+    wood = rng.uniform() < 0.6
+    col = srgb(0.42, 0.34, 0.25) if wood else srgb(0.62, 0.63, 0.62)
+    post = 0.06 if wood else 0.035
+    for x in (-1.5, 0.0, 1.5):
+        b.add(_box((x - post, -post, -0.3), (x + post, post, 1.45)), col, jitter=0.1, shade=0.2)
+    for z in (0.45, 0.85, 1.25):
+        b.add(_box((-1.5, -0.025, z - 0.04), (1.5, 0.025, z + 0.04)), col, jitter=0.08)
+    return b.mesh(), 1.5
+
+
+def _wall(rng: np.random.Generator) -> tuple[PrototypeMesh, float]:
+    """A 3 m section of enclosure wall, 1.8-2.4 m high: rendered block or stone, with a coping on top."""
+    b = _Builder(rng)
+    h = rng.uniform(1.8, 2.4)
+    col = [srgb(0.72, 0.66, 0.56), srgb(0.58, 0.55, 0.50), srgb(0.66, 0.52, 0.40)][int(rng.integers(3))]
+    b.add(_box((-1.5, -0.18, -0.3), (1.5, 0.18, h)), col, jitter=0.05, shade=0.3)
+    b.add(_box((-1.5, -0.24, h), (1.5, 0.24, h + 0.08)), tuple(np.array(col) * 0.8), jitter=0.03)
+    return b.mesh(), 1.6
+
+
+def _trough(rng: np.random.Generator) -> tuple[PrototypeMesh, float]:
+    """A concrete water trough, 2 m long, with dark water a little below its rim."""
+    b = _Builder(rng)
+    concrete = srgb(0.60, 0.59, 0.56)
+    b.add(_box((-1.0, -0.4, -0.1), (1.0, -0.3, 0.6)), concrete)
+    b.add(_box((-1.0, 0.3, -0.1), (1.0, 0.4, 0.6)), concrete)
+    b.add(_box((-1.0, -0.3, -0.1), (-0.9, 0.3, 0.6)), concrete)
+    b.add(_box((0.9, -0.3, -0.1), (1.0, 0.3, 0.6)), concrete)
+    b.add(_box((-0.9, -0.3, -0.1), (0.9, 0.3, 0.5)), srgb(0.10, 0.13, 0.12), jitter=0.02)
+    return b.mesh(), 1.1
+
+
+def _hut(rng: np.random.Generator) -> tuple[PrototypeMesh, float]:
+    """A small building: walls 5 x 4 x 2.6 m and a pitched roof of thatch or iron sheet."""
+    b = _Builder(rng)
+    wall = [srgb(0.78, 0.72, 0.62), srgb(0.60, 0.46, 0.34), srgb(0.85, 0.84, 0.80)][int(rng.integers(3))]
+    b.add(_box((-2.5, -2.0, -0.2), (2.5, 2.0, 2.6)), wall, jitter=0.04, shade=0.25)
+    roof = srgb(0.55, 0.47, 0.30) if rng.uniform() < 0.5 else srgb(0.50, 0.30, 0.24)
+    v = np.array([[-2.8, -2.3, 2.6], [2.8, -2.3, 2.6], [2.8, 2.3, 2.6], [-2.8, 2.3, 2.6], [-2.8, 0, 3.8],
+                  [2.8, 0, 3.8]], dtype=np.float64)
+    f = np.array([[0, 1, 5], [0, 5, 4], [2, 3, 4], [2, 4, 5], [1, 2, 5], [3, 0, 4], [0, 2, 1], [0, 3, 2]],
+                 dtype=np.int64)
+    b.add((v, f), roof, jitter=0.06)
+    b.add(_box((2.5, -0.5, 0.0), (2.56, 0.5, 2.0)), srgb(0.25, 0.20, 0.16))  # a door
+    return b.mesh(), 3.2
+
+
+def _vehicle(rng: np.random.Generator) -> tuple[PrototypeMesh, float]:
+    """A safari or farm vehicle, 4.6 m long: body, cabin, dark windows and four wheels."""
+    b = _Builder(rng)
+    paint = [srgb(0.85, 0.85, 0.82), srgb(0.70, 0.64, 0.48), srgb(0.30, 0.36, 0.26), srgb(0.55, 0.12, 0.10),
+             srgb(0.20, 0.25, 0.40)][int(rng.integers(5))]
+    b.add(_box((-2.3, -0.9, 0.45), (2.3, 0.9, 1.2)), paint, jitter=0.03, shade=0.3)
+    b.add(_box((-1.6, -0.85, 1.2), (0.9, 0.85, 1.95)), paint, jitter=0.03)
+    b.add(_box((0.9, -0.8, 1.25), (0.95, 0.8, 1.85)), srgb(0.08, 0.09, 0.10), jitter=0.02)  # windscreen
+    tyre = srgb(0.07, 0.07, 0.07)
+    for x in (-1.5, 1.5):
+        for y in (-0.9, 0.9):
+            b.add(_tube(np.array([x, y - 0.14 * np.sign(y), 0.4]), np.array([x, y + 0.14 * np.sign(y), 0.4]),
+                        0.4, 0.4, 10), tyre, jitter=0.02)
+    return b.mesh(), 2.4
+
+
+def _person(rng: np.random.Generator) -> tuple[PrototypeMesh, float]:
+    """A standing person, 1.6-1.9 m: legs, torso, arms and head in clothing colours."""
+    b = _Builder(rng)
+    h = rng.uniform(1.6, 1.9)
+    cloth = [srgb(0.70, 0.62, 0.45), srgb(0.30, 0.35, 0.25), srgb(0.85, 0.85, 0.82), srgb(0.20, 0.28, 0.50),
+             srgb(0.65, 0.20, 0.15)][int(rng.integers(5))]
+    trousers = [srgb(0.25, 0.22, 0.18), srgb(0.55, 0.48, 0.35), srgb(0.18, 0.20, 0.30)][int(rng.integers(3))]
+    skin = [srgb(0.35, 0.23, 0.16), srgb(0.60, 0.45, 0.35), srgb(0.85, 0.70, 0.58)][int(rng.integers(3))]
+    for y in (-0.1, 0.1):
+        b.add(_tube(np.array([0.0, y, -0.05]), np.array([0.0, y, 0.47 * h]), 0.07, 0.08, 6), trousers)
+    b.add(_blob(np.array([0.0, 0.0, 0.64 * h]), np.array([0.13, 0.22, 0.19 * h]), rng, 1, 0.05), cloth)
+    for y in (-0.27, 0.27):
+        b.add(_tube(np.array([0.0, y, 0.78 * h]), np.array([0.05, y * 1.1, 0.45 * h]), 0.05, 0.04, 6), cloth)
+    b.add(_blob(np.array([0.0, 0.0, 0.92 * h]), np.array([0.1, 0.09, 0.12]), rng, 1, 0.03), skin)
+    return b.mesh(), 0.35
+
+
 _BUILDERS: dict[str, Callable[[np.random.Generator], tuple[PrototypeMesh, float]]] = {
     "acacia": _acacia, "deciduous": _deciduous, "conifer": _conifer, "bush": _bush, "rock": _rock,
-    "mound": _mound, "tuft": _tuft,
+    "mound": _mound, "tuft": _tuft, "fence": _fence, "wall": _wall, "trough": _trough, "hut": _hut,
+    "vehicle": _vehicle, "person": _person,
 }
+ALIGNED_STYLES = ("fence", "wall")
+"""Props that follow the line they stand on (hedgerow pattern): yaw along the line, no sideways jitter."""
 
 
 @lru_cache(maxsize=64)
@@ -274,7 +373,8 @@ def build_prototype(style: str, variant: int = 0, tint: Rgb = (1.0, 1.0, 1.0)) -
     """Prototype mesh ``<style>_<variant>`` (same for every world), its colours multiplied by ``tint``.
 
     Styles: acacia (umbrella tree, ~6 m tall, ~9 m canopy), deciduous (~10 m), conifer (~12 m), bush
-    (~1.2 m), rock (~1.6 m across), mound (termite-mound-like, ~2 m tall), tuft (grass, ~0.5 m).
+    (~1.2 m), rock (~1.6 m across), mound (termite-mound-like, ~2 m tall), tuft (grass, ~0.5 m); props: fence
+    and wall (3 m panels), trough (2 m), hut (5 x 4 m), vehicle (4.6 m), person (~1.75 m).
     """
     if style not in _BUILDERS:
         raise ParameterError("vegetation.style", style, f"one of {sorted(_BUILDERS)}")
@@ -393,6 +493,27 @@ class Scatter:
     variant: NDArray[np.int64]
 
 
+def _line_candidates(layer: VegetationLayer, terrain: Heightfield, hedges: FloatArray | None) -> tuple[
+        FloatArray, FloatArray]:
+    """Fence and wall panels end to end along the hedge segments: centres (K, 2) m and yaw along the line (K,)."""
+    x0, y0, x1, y1 = terrain.bounds
+    if hedges is None or len(hedges) == 0:
+        return np.zeros((0, 2)), np.zeros(0)
+    walls = np.arange(len(hedges)) % 4 == 0  # a quarter of the lines are walls, the rest fences
+    hedges = hedges[walls if layer.style == "wall" else ~walls]
+    a, b = hedges[:, 0], hedges[:, 1]
+    length = np.linalg.norm(b - a, axis=1)
+    counts = np.maximum(np.ceil(length / layer.hedge_spacing_m).astype(np.int64), 1)
+    seg = np.repeat(np.arange(len(hedges)), counts)
+    k = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    t = (k + 0.5) / counts[seg]
+    xy = a[seg] + (b - a)[seg] * t[:, None]
+    d = (b - a)[seg]
+    yaw = np.arctan2(d[:, 1], d[:, 0])
+    inside = (xy[:, 0] >= x0) & (xy[:, 0] <= x1) & (xy[:, 1] >= y0) & (xy[:, 1] <= y1)
+    return np.asarray(xy[inside]), np.asarray(yaw[inside])
+
+
 def _hedgerow_candidates(layer: VegetationLayer, terrain: Heightfield, rng: np.random.Generator,
                          hedges: FloatArray | None) -> FloatArray:
     """Candidate (x, y) (K, 2) m every ``hedge_spacing_m`` along the hedge segments, jittered; 70% kept for trees."""
@@ -456,7 +577,10 @@ def scatter_layer(
     ``layer.max_slope_deg``, outside ``layer.height_band``, on ``exclusion`` samples, and closer than
     ``layer.min_spacing_m`` to an earlier instance. At most ``max_count`` instances are kept.
     """
-    if layer.pattern == "hedgerow":
+    along: FloatArray | None = None
+    if layer.pattern == "hedgerow" and layer.style in ALIGNED_STYLES:
+        xy, along = _line_candidates(layer, terrain, hedges)
+    elif layer.pattern == "hedgerow":
         xy = _hedgerow_candidates(layer, terrain, rng, hedges)
     else:
         xy = _area_candidates(layer, terrain, rng, edge)
@@ -470,24 +594,30 @@ def scatter_layer(
     if max_count is not None and len(xy) > max_count:
         xy, z = xy[:max_count], z[:max_count]
     m = len(xy)
-    return Scatter(layer, np.column_stack([xy, z]), rng.uniform(0, 2 * np.pi, m),
-                   rng.uniform(layer.scale[0], layer.scale[1], m), rng.integers(0, layer.variants, m))
+    yaw = rng.uniform(0, 2 * np.pi, m)
+    if along is not None:  # panels along their line, the same scale so they meet end to end
+        yaw = along[ok][keep][:m]
+        return Scatter(layer, np.column_stack([xy, z]), yaw, np.ones(m), rng.integers(0, layer.variants, m))
+    return Scatter(layer, np.column_stack([xy, z]), yaw, rng.uniform(layer.scale[0], layer.scale[1], m),
+                   rng.integers(0, layer.variants, m))
 
 
-_KIND_ORDER = {"tree": 0, "rock": 1, "bush": 2, "grass": 3}
-_EXCLUDE_PAD_M = {"tree": 0.8, "rock": 0.3, "bush": 0.0, "grass": 0.0}
+_KIND_ORDER = {"prop": 0, "tree": 1, "rock": 2, "bush": 3, "grass": 4}
+_EXCLUDE_PAD_M = {"prop": 0.5, "tree": 0.8, "rock": 0.3, "bush": 0.0, "grass": 0.0}
 
 
-def scatter_vegetation(preset: WorldPreset, terrain: Heightfield, seed: int) -> tuple[
+def scatter_vegetation(preset: WorldPreset, terrain: Heightfield, seed: int,
+                       keep_out: NDArray[np.bool_] | None = None) -> tuple[
         dict[str, tuple[FloatArray, FloatArray, FloatArray]], dict[str, Prototype]]:
     """All vegetation of a preset world: per prototype name ``(positions (M,3), yaw (M,), scale (M,))``
     and the prototypes themselves. Trees go first, then rocks, bushes and grass, each avoiding the
-    footprints of what came before; grass tufts are capped at ``MAX_GRASS_TUFTS`` per world.
+    footprints of what came before; grass tufts are capped at ``MAX_GRASS_TUFTS`` per world. Nothing grows or
+    stands on ``keep_out`` samples (open water).
     """
     edge = forest_edge(preset, seed) if any(v.pattern == "gradient" for v in preset.vegetation) else None
     layout = field_layout(preset, terrain, seed)
     hedges = hedge_segments(preset, layout, seed) if layout is not None else None
-    exclusion = np.zeros(terrain.shape, dtype=bool)
+    exclusion = np.zeros(terrain.shape, dtype=bool) if keep_out is None else keep_out.copy()
     grass_left = MAX_GRASS_TUFTS
     parts: dict[str, list[tuple[FloatArray, FloatArray, FloatArray]]] = {}
     protos: dict[str, Prototype] = {}
@@ -508,7 +638,7 @@ def scatter_vegetation(preset: WorldPreset, terrain: Heightfield, seed: int) -> 
                 protos[name] = build_prototype(layer.style, v, layer.tint)
             proto = protos[name]
             parts.setdefault(name, []).append((sc.positions[sel], sc.yaw[sel], sc.scale[sel]))
-            if layer.kind in ("tree", "rock"):
+            if layer.kind in ("tree", "rock", "prop"):
                 r = proto.obstacle_radius(sc.scale[sel]) + _EXCLUDE_PAD_M[layer.kind]
                 stamp_discs(exclusion, terrain, sc.positions[sel, :2], r)
             elif layer.kind == "bush":

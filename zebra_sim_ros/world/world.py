@@ -66,8 +66,55 @@ def synthesize_terrain(preset: WorldPreset, seed: int) -> Heightfield:
         a = rng.uniform(0, np.pi)
         d = -np.sin(a) * x + np.cos(a) * y
         h = h + t.valley_depth_m * (1.0 - np.exp(-((d / t.valley_width_m) ** 2)))
+    if t.basin_depth_m > 0:
+        h = h - basin_profile(preset, seed, x, y)
     h = h - float(h[inside].mean())
     return Heightfield((-half, -half), res, h.astype(np.float32))
+
+
+def basin_centre(preset: WorldPreset, seed: int) -> tuple[float, float]:
+    """Where a preset's waterhole lies (map x, y, m): a quarter of the flat zone off the centre, per seed."""
+    rng = derive_rng(seed, preset.name, "basin")
+    a = float(rng.uniform(0, 2 * np.pi))
+    r = 0.25 * preset.terrain.flat_zone_m / 2
+    return (r * float(np.cos(a)), r * float(np.sin(a)))
+
+
+def basin_profile(preset: WorldPreset, seed: int, x: FloatArray, y: FloatArray) -> FloatArray:
+    """How far (m) the waterhole lowers the ground at (x, y): ``basin_depth_m`` at its centre, a smooth bowl out to
+    a shoreline whose radius wanders by +-25% around ``basin_radius_m``."""
+    t = preset.terrain
+    cx, cy = basin_centre(preset, seed)
+    rng = derive_rng(seed, preset.name, "basin_shape")
+    ang = np.arctan2(y - cy, x - cx)
+    k, ph = rng.uniform(0.5, 1.0, 4), rng.uniform(0, 2 * np.pi, 4)
+    wobble = sum(k[i] * np.sin((i + 2) * ang + ph[i]) for i in range(4)) / k.sum()
+    rel = np.hypot(x - cx, y - cy) / (t.basin_radius_m * (1.0 + 0.25 * wobble))
+    return np.asarray(t.basin_depth_m * np.clip(1.0 - rel ** 2, 0.0, 1.0) ** 2)
+
+
+def fill_water(preset: WorldPreset, seed: int, terrain: Heightfield) -> tuple[Heightfield, NDArray[np.float32] | None]:
+    """A preset's open water: the terrain with its basin filled to ``water_fill`` of the basin's depth (a flat water
+    surface) and the water depth per sample (negative above the water line); the terrain unchanged and None for a
+    preset without water."""
+    t = preset.terrain
+    if t.basin_depth_m <= 0 or t.water_fill <= 0:
+        return terrain, None
+    cx, cy = basin_centre(preset, seed)
+    level = float(terrain.height_at(cx, cy)) + t.water_fill * t.basin_depth_m
+    bed = terrain.heights.astype(np.float32)
+    water = (level - bed).astype(np.float32)
+    # Only the pond itself: the ground below the water line that connects to the basin's centre (other hollows
+    # of the relief stay dry land, 2 m "above" the water for the shore rules).
+    import cv2
+
+    _, labels = cv2.connectedComponents((water > 0).astype(np.uint8), connectivity=4)
+    ci = int(round((cx - terrain.origin[0]) / terrain.resolution))
+    cj = int(round((cy - terrain.origin[1]) / terrain.resolution))
+    pond = labels == labels[cj, ci]
+    water[(water > 0) & ~pond] = -2.0
+    filled = Heightfield(terrain.origin, terrain.resolution, np.where(pond, np.float32(level), bed))
+    return filled, water
 
 
 def preset_placeable(preset: WorldPreset, terrain: Heightfield) -> tuple[float, float, float, float]:
@@ -87,8 +134,8 @@ def generate_world(preset: str | WorldPreset = "savanna", seed: int = 0) -> Worl
     if not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ParameterError("seed", seed, "an integer >= 0")
     seed = int(seed)
-    terrain = synthesize_terrain(p, seed)
-    scattered, protos = scatter_vegetation(p, terrain, seed)
+    terrain, water = fill_water(p, seed, synthesize_terrain(p, seed))
+    scattered, protos = scatter_vegetation(p, terrain, seed, None if water is None else water > -0.3)
     vegetation = {name: Instances(name, pos, yaw, scale, protos[name].kind)
                   for name, (pos, yaw, scale) in scattered.items()}
     radius_at = {name: (pr.footprint_m, TREE_CLEARANCE_M if pr.kind == "tree" else 0.0)
@@ -107,6 +154,7 @@ def generate_world(preset: str | WorldPreset = "savanna", seed: int = 0) -> Worl
         sky=p.sky,
         description=p.description,
         footprints=radius_at,
+        water=water,
     )
 
 
