@@ -7,6 +7,12 @@ resolution to 1280x720 measured in the same run. Coats are baked before timing (
 each individual's coat once, the first time it is seen).
 
     python benchmarks/bench_render.py [--world savanna] [--steps 8] [--json]
+    python benchmarks/bench_render.py --looks [--steps 8] [--json]
+
+``--looks`` compares, at 1280x720 in one run over the same scenes, the plain look (flat ground colours, bare
+coats, no contact shadows), the photographic look (the default: procedural ground detail, contact shadows, coat
+shading) and the photographic look plus the per-frame camera model (``rendering.effects.SensorModel``, applied to
+each view's RGB on the CPU), with the split per pass and the ratios to plain.
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ import numpy as np
 
 from zebra_sim_ros.placement.config import PlacerConfig
 from zebra_sim_ros.placement.placer import Placer
+from zebra_sim_ros.rendering.effects import SensorModel
 from zebra_sim_ros.rendering.renderer import Renderer, RenderOptions
 from zebra_sim_ros.rendering.views import views_from_scene, zebras_from_scene
 from zebra_sim_ros.world.world import generate_world
@@ -38,12 +45,16 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=8)
     ap.add_argument("--no-shadows", action="store_true")
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--looks", action="store_true", help="plain vs photographic look vs + camera model, 1280x720")
     args = ap.parse_args()
     world = generate_world(args.world, 0)
     lib = load_library()
     placer = Placer(PlacerConfig.from_params({"count_min": 250, "count_max": 250, "strategy": args.strategy,
                                               "night_fraction": 0.0}), world, lib)
     scenes = [placer.scene(k * 3) for k in range(args.steps)]
+    if args.looks:
+        looks(world, lib, scenes, args)
+        return
     results: dict[str, dict[str, Any]] = {}
     info: dict[str, str] = {}
     for w, h in SIZES:
@@ -81,6 +92,51 @@ def main() -> None:
     if args.json:
         print(json.dumps(summary))
     _ = np
+
+
+def _timed(r: Renderer, lib: Any, scenes: list[Any], sensor: SensorModel | None) -> dict[str, Any]:
+    per_frame: list[float] = []
+    parts: dict[str, list[float]] = {"prepare": [], "shadow": [], "draw": [], "read": [], "sensor": []}
+    for k, sc in enumerate(scenes):
+        zs, light, views = zebras_from_scene(sc, lib), sc.lighting, views_from_scene(sc)
+        r.render(zs, light, views[:1])  # warm
+        t0 = time.perf_counter()
+        outs = r.render(zs, light, views)
+        t1 = time.perf_counter()
+        if sensor is not None:
+            for j, o in enumerate(outs):
+                rng = np.random.default_rng([sc.seed, sc.step, j, 0x5E50])
+                o.rgb = sensor.apply(o.rgb, sensor.draw(rng), rng)
+        t2 = time.perf_counter()
+        per_frame.append(t2 - t0)
+        for key in ("prepare", "shadow", "draw", "read"):
+            parts[key].append(sum(o.timings[key] for o in outs))
+        parts["sensor"].append(t2 - t1)
+        del k
+    return {"s_per_3cam_frame_median": round(statistics.median(per_frame), 3),
+            "split_median_s": {k: round(statistics.median(v), 3) for k, v in parts.items()}}
+
+
+def looks(world: Any, lib: Any, scenes: list[Any], args: argparse.Namespace) -> None:
+    """The ``--looks`` comparison (module docstring)."""
+    res: dict[str, dict[str, Any]] = {}
+    info: dict[str, str] = {}
+    for name, detail, sensor in (("plain", False, None), ("photo", True, None), ("photo+camera", True, SensorModel())):
+        r = Renderer(world, lib, RenderOptions(width=1280, height=720, detail=detail, contact_shadows=detail))
+        info = r.info
+        res[name] = _timed(r, lib, scenes, sensor)
+        r.release()
+    base = res["plain"]["s_per_3cam_frame_median"]
+    for v in res.values():
+        v["ratio_to_plain"] = round(v["s_per_3cam_frame_median"] / base, 2)
+    summary = {"benchmark": "render_looks", "world": args.world, "strategy": args.strategy, "steps": args.steps,
+               "size": "1280x720", "renderer": info.get("GL_RENDERER"),
+               "machine": f"{platform.machine()} cpus={os.cpu_count()}", "results": res}
+    for name, v in res.items():
+        print(f"{name}: {v['s_per_3cam_frame_median']:.3f} s per three-camera frame ({v['ratio_to_plain']}x plain), "
+              f"split {v['split_median_s']}")
+    if args.json:
+        print(json.dumps(summary))
 
 
 if __name__ == "__main__":

@@ -62,7 +62,7 @@ def test_coco_loads_and_equals_yolo(dataset: Path) -> None:
             stem = Path(img["file_name"]).stem
             mask = cv2.imread(str(dataset / "masks" / f"{stem}.png"), cv2.IMREAD_UNCHANGED)
             for crowd, folder in ((0, "labels"), (1, "ignore")):
-                anns = coco.loadAnns(coco.getAnnIds(imgIds=img["id"], iscrowd=None))
+                anns = coco.loadAnns(coco.getAnnIds(imgIds=img["id"], catIds=[1], iscrowd=None))  # zebras
                 anns = [a for a in anns if a["iscrowd"] == crowd]
                 path = dataset / folder / split / f"{stem}.txt"
                 lines = path.read_text().split() if path.exists() else []
@@ -259,3 +259,34 @@ def test_low_and_nadir_frames_and_the_box_size_histogram(tmp_path: Path) -> None
     hist = box_size_histogram([3.0, 8.0, 15.9, 300.0, 96.0])
     assert list(hist) == ["<8", "8-16", "16-32", "32-96", "96-256", ">=256"]
     assert list(hist.values()) == [1, 2, 0, 0, 1, 1]
+
+
+def test_a_default_run_holds_other_species_never_as_zebras(tmp_path: Path) -> None:
+    """A default generate of 24 frames places animals of other species with the zebras: the annotations and COCO
+    list them under their own categories (ids 2 and up), and the YOLO labels, the don't-care boxes and COCO's
+    zebra category hold zebras only."""
+    from zebra_sim_ros.messages import FrameAnnotation
+
+    cfg = GenerateConfig(out=str(tmp_path / "d"), frames=24, seed=2, width=320, height=180, depth="none")
+    stats = generate(cfg, progress=lambda *a: None)
+    assert len(stats["other_species_labelled"]) >= 2, stats["other_species_labelled"]
+    coco = {split: json.loads((tmp_path / "d" / "coco" / f"{split}.json").read_text()) for split in ("train", "val")}
+    names = {c["id"]: c["name"] for c in coco["train"]["categories"]}
+    assert names[1] == "zebra" and set(stats["other_species_labelled"]) <= set(names.values())
+    per_cat: dict[str, int] = {}
+    for c in coco.values():
+        for a in c["annotations"]:
+            per_cat[names[a["category_id"]]] = per_cat.get(names[a["category_id"]], 0) + 1
+    assert {k: v for k, v in per_cat.items() if k != "zebra"} == stats["other_species_labelled"]
+    yolo_lines = 0
+    for path in (tmp_path / "d" / "annotations").glob("*.json"):
+        meta = FrameAnnotation.from_json(path.read_text())
+        others = [z for z in meta.labels.zebras if not z.is_zebra]
+        assert all(not z.kept and not z.dont_care and z.drop_reason == "other_species" for z in others)
+        assert {z.morph for z in others} == {z.species for z in others}
+        label = tmp_path / "d" / "labels" / meta.split / f"{meta.frame}.txt"
+        lines = label.read_text().split()
+        assert len(lines) == 5 * len(meta.labels.kept)
+        yolo_lines += len(meta.labels.kept)
+    crowd_and_zebras = sum(1 for c in coco.values() for a in c["annotations"] if a["category_id"] == 1)
+    assert crowd_and_zebras >= yolo_lines == stats["zebras_labelled"]

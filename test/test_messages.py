@@ -80,7 +80,7 @@ def test_labels_and_annotations_written_by_generate_parse_back(dataset: Path) ->
         assert Labels.from_json(labels.to_json()) == labels
         assert labels.width == 256 and labels.camera == meta.camera.name
         for z in labels.zebras:
-            assert z.instance == z.id + 1 and (z.rle is not None) == (z.kept or z.dont_care)
+            assert z.instance == z.id + 1 and (z.rle is not None) == (z.kept or z.dont_care or not z.is_zebra)
             assert z.kept == (z.drop_reason is None)
         lines = (dataset / "labels" / "train" / f"{meta.frame}.txt").read_text().split()
         assert len(lines) == 5 * len(labels.kept)

@@ -372,3 +372,34 @@ def test_shipped_yaml_matches_the_defaults() -> None:
     values = load_params_file(str(Path(__file__).resolve().parents[1] / "config" / "placer.yaml"), "placer")
     assert PlacerConfig.from_params(values) == PlacerConfig()
     assert set(values) == {f for f in PlacerConfig().as_params()}
+
+
+def test_other_species_join_the_herd_without_moving_a_zebra(savanna: World, library: ZebraLibrary) -> None:
+    """Animals of other species are placed after the zebras, by the same footprint rules, from their own stream: the
+    zebras of a placement are exactly those drawn without them; the others are of the allowed species, never
+    overlap a zebra or each other, and carry their species into the scene."""
+    base = {"seed": 9, "count_min": 20, "count_max": 60}
+    alone = Placer(PlacerConfig.from_params(base), savanna, library)
+    mixed = Placer(PlacerConfig.from_params({**base, "other_animals_max": 40}), savanna, library)
+    only = Placer(PlacerConfig.from_params({**base, "other_animals_max": 40, "other_species": ["giraffe", "cattle"]}),
+                  savanna, library)
+    seen: set[str] = set()
+    for step in (0, 3, 6, 9):
+        a, m = alone.scene(step), mixed.scene(step)
+        zebras = [z for z in m.zebras if z.is_zebra]
+        assert [z.to_dict() for z in zebras] == [z.to_dict() for z in a.zebras]
+        others = [z for z in m.zebras if not z.is_zebra]
+        assert all(z.id >= mixed.pool.zebras and z.morph == z.species for z in others)
+        seen |= {z.species for z in others}
+        herd = mixed.herd_for(step // 3)
+        assert herd.count == len(m.zebras) > len(zebras)
+        axes = box_axes(herd.yaw)
+        c, e = herd.footprint_center, herd.footprint_half
+        hit = obb_overlap(c[:, None], e[:, None], axes[:, None], c[None], e[None], axes[None])
+        np.fill_diagonal(hit, False)
+        assert not hit.any(), "two footprints overlap"
+        assert {z.species for z in only.scene(step).zebras if not z.is_zebra} <= {"giraffe", "cattle"}
+        assert m.cameras == a.cameras or step % 3  # the cameras aim at the zebras alone
+    assert len(seen) >= 4
+    with pytest.raises(ParameterError, match="other_species"):
+        PlacerConfig.from_params({"other_species": ["unicorn"]})

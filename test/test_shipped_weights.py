@@ -38,6 +38,7 @@ TRAINING_STREAMS = {100, 1_000_103} | {stream_seed(s, w, k) for s in (200, 400) 
 def _held_out_set(root: Path, worlds: tuple[str, ...], frames: int) -> Path:
     cfg = GenerateConfig(out=str(root), frames=frames, strategy="both", worlds=worlds, seed=HELD_OUT_SEED,
                          width=640, height=360, val_fraction=0.0, depth="none", look="plain", sensor_strength=0.0,
+                         other_animals=0,
                          filters=LabelFilters(min_visible_pixels=25))
     generate(cfg, progress=lambda *a: None)
     return root / "dataset.yaml"

@@ -264,8 +264,8 @@ class OrientedBox:
 
 @dataclass(frozen=True)
 class SceneZebra:
-    """One placed zebra: ``id`` is its pool index (instance masks use id + 1); ``position`` the asset origin (the
-    ground under the body); asset frame x forward, y left, z up."""
+    """One placed zebra, or an animal of another species (``species``): ``id`` is its pool index (instance masks
+    use id + 1); ``position`` the asset origin (the ground under the body); asset frame x forward, y left, z up."""
 
     id: int
     morph: str
@@ -277,17 +277,24 @@ class SceneZebra:
     position: Vec3
     orientation_xyzw: Quat
     box: OrientedBox
+    species: str = "zebra"  # another species (a distractor: never a zebra label) when not "zebra"
+
+    @property
+    def is_zebra(self) -> bool:
+        """Whether this animal is a zebra (only zebras are ever labelled as zebra)."""
+        return self.species == "zebra"
 
     def to_dict(self) -> dict[str, Any]:
-        return {"id": self.id, "morph": self.morph, "coat_seed": self.coat_seed, "clip": self.clip,
-                "frame": self.frame, "scale": self.scale, "yaw_deg": self.yaw_deg, "position": list(self.position),
-                "orientation_xyzw": list(self.orientation_xyzw), "box": self.box.to_dict()}
+        d = {"id": self.id, "morph": self.morph, "coat_seed": self.coat_seed, "clip": self.clip,
+             "frame": self.frame, "scale": self.scale, "yaw_deg": self.yaw_deg, "position": list(self.position),
+             "orientation_xyzw": list(self.orientation_xyzw), "box": self.box.to_dict()}
+        return d if self.is_zebra else {**d, "species": self.species}  # zebras' scenes read as before
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> SceneZebra:
         return cls(int(d["id"]), str(d["morph"]), int(d["coat_seed"]), str(d["clip"]), int(d["frame"]),
                    float(d["scale"]), float(d["yaw_deg"]), _v3(d["position"]),
-                   _v4(d["orientation_xyzw"]), OrientedBox.from_dict(d["box"]))
+                   _v4(d["orientation_xyzw"]), OrientedBox.from_dict(d["box"]), str(d.get("species", "zebra")))
 
 
 @dataclass(frozen=True)
@@ -446,12 +453,18 @@ class LabelledZebra:
     kept: bool
     drop_reason: str | None
     rle: Rle | None = None  # its mask, where a dataset writer outlined it
+    species: str = "zebra"  # another species is never kept: it is labelled with its species, not as a zebra
+
+    @property
+    def is_zebra(self) -> bool:
+        """Whether this animal is a zebra."""
+        return self.species == "zebra"
 
     @property
     def dont_care(self) -> bool:
-        """Seen (visible pixels) but not labelled (the filters dropped it): a don't-care region for evaluation,
-        as COCO's crowd boxes are."""
-        return not self.kept and self.visible_pixels > 0
+        """A zebra seen (visible pixels) but not labelled (the filters dropped it): a don't-care region for
+        evaluation, as COCO's crowd boxes are. Other species are never don't-care: a detection on one is false."""
+        return self.is_zebra and not self.kept and self.visible_pixels > 0
 
     def to_dict(self) -> dict[str, Any]:
         d = {"id": self.id, "instance": self.instance, "morph": self.morph, "clip": self.clip, "frame": self.frame,
@@ -463,6 +476,8 @@ class LabelledZebra:
              "keypoints": [list(k) for k in self.keypoints], "kept": self.kept, "drop_reason": self.drop_reason}
         if self.rle is not None:
             d["rle"] = self.rle.to_dict()
+        if not self.is_zebra:
+            d["species"] = self.species
         return d
 
     @classmethod
@@ -476,7 +491,8 @@ class LabelledZebra:
                    float(d.get("visible_fraction", 0.0)), float(d.get("in_frame_fraction", 0.0)),
                    _box_or_empty(d.get("box3d_map")), _box_or_empty(d.get("box3d_camera")),
                    tuple((float(k[0]), float(k[1]), int(k[2])) for k in d.get("keypoints", ())),
-                   bool(d["kept"]), d.get("drop_reason"), Rle.from_dict(d["rle"]) if "rle" in d else None)
+                   bool(d["kept"]), d.get("drop_reason"), Rle.from_dict(d["rle"]) if "rle" in d else None,
+                   str(d.get("species", "zebra")))
 
 
 def _box_or_empty(d: Mapping[str, Any] | None) -> OrientedBox:
@@ -506,6 +522,11 @@ class Labels(_Message):
     def kept(self) -> tuple[LabelledZebra, ...]:
         """The labelled zebras (kept by the filters)."""
         return tuple(z for z in self.zebras if z.kept)
+
+    @property
+    def others(self) -> tuple[LabelledZebra, ...]:
+        """The animals of other species seen in the frame (never zebra labels)."""
+        return tuple(z for z in self.zebras if not z.is_zebra)
 
     @property
     def dont_care(self) -> tuple[LabelledZebra, ...]:

@@ -38,6 +38,8 @@ def register(sub: Any) -> None:
     add_option(p, spec_of(CameraConfig, "hfov_deg"), "--hfov")
     add_option(p, spec_of(CameraConfig, "sensor_strength"))
     add_option(p, spec_of(CameraConfig, "look"))
+    add_option(p, spec_of(PlacerConfig, "other_animals_max"), "--other-animals", default=20,
+               note="distractors for training sets: on in generate, off in the placer node")
     p.add_argument("--format", default="jpg", help="jpg or png for the RGB images")
     p.add_argument("--jpeg-quality", type=int, default=95, help="JPEG quality 1..100")
     p.add_argument("--yolo-box", default="visible", help="box in the YOLO labels: visible (tight) or full (amodal)")
@@ -88,7 +90,8 @@ def cmd_generate(args: argparse.Namespace) -> Summary:
         out=str(args.out), frames=args.frames, strategy=NAMED_SETS.get(args.strategy, args.strategy), worlds=worlds,
         seed=args.seed, world_seed=args.world_seed, width=width, height=height, hfov_deg=args.hfov_deg,
         image_format=args.format, jpeg_quality=args.jpeg_quality, workers=args.workers, shard=(i, n),
-        sensor_strength=args.sensor_strength, look=args.look, yolo_box=args.yolo_box, val_fraction=args.val_fraction,
+        sensor_strength=args.sensor_strength, look=args.look, other_animals=args.other_animals_max,
+        yolo_box=args.yolo_box, val_fraction=args.val_fraction,
         depth=args.depth, placer=placer,
         filters=LabelFilters(args.min_visible_pixels, args.min_visible_fraction, args.min_box_px,
                              args.max_aspect_ratio))
@@ -97,11 +100,14 @@ def cmd_generate(args: argparse.Namespace) -> Summary:
     else:
         stats = generate(cfg, (lambda d, t, s: None) if args.quiet else None)
     hist = stats.pop("box_sizes_px")
+    others = stats.pop("other_species_labelled")
     by_strategy = stats.pop("box_sizes_px_by_strategy")
     print(f"dataset at {args.out}: {stats}")
     print("labelled boxes by size (sqrt of visible box area)" + "".join(
         f"; {k}: {sum(v.values())}" for k, v in by_strategy.items()))
     for line in format_histogram(hist):
         print(line)
-    stats = {**stats, "box_sizes_px": hist, "box_sizes_px_by_strategy": by_strategy}
+    print("animals of other species (never zebra labels; COCO categories 2+): "
+          + (", ".join(f"{k} {v}" for k, v in others.items()) or "none"))
+    stats = {**stats, "box_sizes_px": hist, "box_sizes_px_by_strategy": by_strategy, "other_species_labelled": others}
     return {"out": str(args.out), **stats}

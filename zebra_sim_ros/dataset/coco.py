@@ -16,11 +16,17 @@ from numpy.typing import NDArray
 
 from zebra_sim_ros.messages import LabelledZebra, Labels
 from zebra_sim_ros.zebra.keypoints import KEYPOINT_EDGES, KEYPOINT_NAMES
+from zebra_sim_ros.zebra.skeleton import OTHER_SPECIES
 
 CATEGORY = {
     "id": 1, "name": "zebra", "supercategory": "animal", "keypoints": list(KEYPOINT_NAMES),
     "skeleton": [[a + 1, b + 1] for a, b in KEYPOINT_EDGES],
 }
+SPECIES_CATEGORIES = [{"id": 2 + k, "name": name, "supercategory": "other_species", "keypoints": list(KEYPOINT_NAMES),
+                       "skeleton": CATEGORY["skeleton"]} for k, name in enumerate(OTHER_SPECIES)]
+"""The second category set: the other species, ids 2 and up (zebra stays 1, so a zebra-only reader filtering
+on category 1 sees exactly the zebra labels)."""
+SPECIES_CATEGORY_ID = {c["name"]: c["id"] for c in SPECIES_CATEGORIES}
 
 
 def rle_encode(binary: NDArray[np.bool_]) -> dict[str, Any]:
@@ -82,6 +88,13 @@ def zebra_annotation(z: LabelledZebra, image_id: int, ann_id: int) -> dict[str, 
         "visible_fraction": z.visible_fraction, "in_frame_fraction": z.in_frame_fraction,
         "distance_m": z.distance_m,
     }
+
+
+def species_annotation(z: LabelledZebra, image_id: int, ann_id: int) -> dict[str, Any]:
+    """The COCO annotation of an animal of another species (its category from :data:`SPECIES_CATEGORIES`): the same
+    fields as a zebra's, so the data can train a multi-species detector."""
+    return {**zebra_annotation(z, image_id, ann_id), "category_id": SPECIES_CATEGORY_ID[z.species],
+            "species": z.species}
 
 
 def crowd_annotation(z: LabelledZebra, image_id: int, ann_id: int) -> dict[str, Any]:

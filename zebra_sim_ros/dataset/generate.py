@@ -42,7 +42,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from zebra_sim_ros.dataset.coco import CATEGORY, crowd_annotation, rle_encode_all, yolo_lines, zebra_annotation
+from zebra_sim_ros.dataset.coco import (
+    CATEGORY,
+    SPECIES_CATEGORIES,
+    crowd_annotation,
+    rle_encode_all,
+    species_annotation,
+    yolo_lines,
+    zebra_annotation,
+)
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LabelFilters
 from zebra_sim_ros.messages import FrameAnnotation, Labels, Rle, Scene
@@ -81,6 +89,7 @@ class GenerateConfig:
     filters: LabelFilters = field(default_factory=LabelFilters)
     sensor_strength: float = 1.0  # the photograph's camera (rendering.effects.SensorModel); 0 = a perfect camera
     look: str = "photo"  # rendering.config.LOOKS: photo, or plain (flat ground, bare coats)
+    other_animals: int = 20  # the placer's other_animals_max: distractors of other species (0 = zebras only)
 
     def check(self) -> None:
         """Raise :class:`ParameterError` naming the first bad setting."""
@@ -201,7 +210,8 @@ class _Pipeline:
     def set_args(self) -> str:
         """The placer overrides (and a non-default world seed) as ``render`` options, so a frame's
         ``regenerate`` command reproduces it alone."""
-        over = {**self.cfg.placer, **({"world_seed": self.cfg.world_seed} if self.cfg.world_seed else {})}
+        over = {"other_animals_max": self.cfg.other_animals, **self.cfg.placer,
+                **({"world_seed": self.cfg.world_seed} if self.cfg.world_seed else {})}
         return "".join(f" --set {shlex.quote(f'{k}={v if isinstance(v, str) else json.dumps(v)}')}"
                        for k, v in sorted(over.items()))
 
@@ -213,7 +223,8 @@ class _Pipeline:
         key = (job.strategy, job.seed)
         if key not in self.placers:
             c = self.cfg
-            params = {**c.placer, "seed": job.seed, "strategy": job.strategy, "world": job.world,
+            params = {"other_animals_max": c.other_animals, **c.placer, "seed": job.seed, "strategy": job.strategy,
+                      "world": job.world,
                       "world_seed": c.world_seed, "camera_width": c.width, "camera_height": c.height,
                       "camera_hfov_deg": c.hfov_deg}
             self.placers[key] = Placer(PlacerConfig.from_params(params), self.world, self.library)
@@ -259,7 +270,7 @@ class _Pipeline:
         dont_care = yolo_lines(labels, c.yolo_box, dont_care=True)
         if dont_care:
             _write_atomic(self.out / "ignore" / split / f"{name}.txt", ("\n".join(dont_care) + "\n").encode())
-        outlined = [z.instance for z in labels.zebras if z.kept or z.dont_care]
+        outlined = [z.instance for z in labels.zebras if z.kept or z.dont_care or not z.is_zebra]
         rles = rle_encode_all(v.instances, outlined)
         labels = labels.with_zebras([replace(z, rle=Rle.from_dict(rles[z.instance])) if z.instance in rles else z
                                      for z in labels.zebras])
@@ -394,6 +405,7 @@ def finalize(out: Path, cfg: GenerateConfig | None = None) -> dict[str, Any]:
     images: dict[str, list[dict[str, Any]]] = {"train": [], "val": []}
     anns: dict[str, list[dict[str, Any]]] = {"train": [], "val": []}
     kept = 0
+    others: dict[str, int] = {}
     sizes: dict[str, list[float]] = {}
     for path in sorted((out / "annotations").glob("*.json")):
         meta = FrameAnnotation.from_json(path.read_text())
@@ -404,7 +416,11 @@ def finalize(out: Path, cfg: GenerateConfig | None = None) -> dict[str, Any]:
                                    "time_of_day_h": meta.lighting.time_of_day_h})
         split_anns = anns[meta.split]
         for z in lab.zebras:
-            if z.kept:
+            if not z.is_zebra:
+                if z.rle is not None and z.visible_pixels > 0:
+                    split_anns.append(species_annotation(z, image_id, len(split_anns) + 1))
+                    others[z.species] = others.get(z.species, 0) + 1
+            elif z.kept:
                 split_anns.append(zebra_annotation(z, image_id, len(split_anns) + 1))
                 kept += 1
                 x0, y0, x1, y1 = z.box_visible
@@ -413,12 +429,13 @@ def finalize(out: Path, cfg: GenerateConfig | None = None) -> dict[str, Any]:
                 split_anns.append(crowd_annotation(z, image_id, len(split_anns) + 1))
     for split in ("train", "val"):
         coco = {"info": {"description": "zebra_sim_ros synthetic zebras", "version": "1"}, "licenses": [],
-                "categories": [CATEGORY], "images": images[split], "annotations": anns[split]}
+                "categories": [CATEGORY, *SPECIES_CATEGORIES], "images": images[split], "annotations": anns[split]}
         (out / "coco" / f"{split}.json").write_text(json.dumps(coco, separators=(",", ":")))
         (out / f"{split}.txt").write_text("".join(f"./{im['file_name']}\n" for im in images[split]))
     yaml_text = (f"# zebra_sim_ros synthetic dataset (YOLO format); COCO in coco/\n"
                  f"path: {out.resolve()}\ntrain: images/train\nval: images/val\nnc: 1\nnames:\n  0: zebra\n")
     (out / "dataset.yaml").write_text(yaml_text)
     return {"images_train": len(images["train"]), "images_val": len(images["val"]), "zebras_labelled": kept,
+            "other_species_labelled": dict(sorted(others.items())),
             "box_sizes_px": box_size_histogram([v for vs in sizes.values() for v in vs]),
             "box_sizes_px_by_strategy": {k: box_size_histogram(v) for k, v in sorted(sizes.items())}}

@@ -139,6 +139,10 @@ def keypoint_visibility(present: _Present, camera: PinholeCamera, library: Zebra
     return kp_uv, np.where(inside, np.where(unoccluded, 2, 1), 0)
 
 
+OTHER_SPECIES_REASON = "other_species"
+"""The drop reason of an animal of another species: labelled with its species, never as a zebra."""
+
+
 def drop_reason(visible_px: int, silhouette_px: int, box: NDArray[np.float64], filters: LabelFilters) -> str | None:
     """Which label filter drops a zebra (None: kept)."""
     bw, bh = box[2] - box[0], box[3] - box[1]
@@ -192,14 +196,14 @@ def label_view(scene: Scene, camera_name: str, mask: NDArray[np.integer], depth:
         for k, i in enumerate(p.sel):
             z = scene.zebras[int(i)]
             vis_px, sil, total = int(counts[k]), int(cover.in_image[k]), int(cover.total[k])
-            reason = drop_reason(vis_px, sil, tight[k], filters)
+            reason = drop_reason(vis_px, sil, tight[k], filters) if z.is_zebra else OTHER_SPECIES_REASON
             labels.append(LabelledZebra(
                 z.id, z.id + 1, z.morph, z.clip, z.frame, z.scale, round(float(dist_cam[k]), 3),
                 _box(tight[k]), _box(full_c[k], 2), _box(full_u[k], 2), vis_px, sil,
                 round(min(1.0, vis_px / sil), 4) if sil else 0.0, round(sil / total, 4) if total else 0.0,
                 z.box, camera_box(z.box, p.pos, p.r_opt),
                 tuple((round(float(kp_uv[k, j, 0]), 2), round(float(kp_uv[k, j, 1]), 2), int(vis[k, j]))
-                      for j in range(len(KEYPOINT_NAMES))), reason is None, reason))
+                      for j in range(len(KEYPOINT_NAMES))), reason is None, reason, species=z.species))
     return Labels(scene.stamp, scene.step, scene.seed, camera_name, f"{camera_name}_camera_optical",
                   int(camera.width), int(camera.height), tuple(float(v) for v in camera.K.ravel()),
                   tuple(KEYPOINT_NAMES), filters.to_dict(), tuple(labels), tuple(unknown))

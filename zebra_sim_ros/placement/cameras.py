@@ -29,7 +29,7 @@ drawn, and the pivot projects inside its image; otherwise it is drawn again (at 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -82,13 +82,14 @@ LOW_ZEBRA_CLEARANCE_M = 2.0
 @dataclass(frozen=True)
 class Surroundings:
     """What a camera must keep out of and look at: the terrain, the zebras' ground positions and box centres
-    (N, 3), and the trees and rocks (centres (M, 2) and radii (M,))."""
+    (N, 3), the trees and rocks (centres (M, 2) and radii (M,)) and the other animals (K, 2)."""
 
     terrain: Heightfield
     zebra_xyz: FloatArray
     zebra_centres: FloatArray
     obstacle_xy: FloatArray
     obstacle_radii: FloatArray
+    others_xy: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))  # other species (K, 2)
 
 
 @dataclass(frozen=True)
@@ -151,7 +152,8 @@ def _draw_low(rng: np.random.Generator, r: CameraRanges, env: Surroundings) -> _
     yaw = bearing + np.pi + rng.uniform(-np.radians(r.low_yaw_jitter_deg), np.radians(r.low_yaw_jitter_deg))
     pitch = float(np.arctan2(target[2] - z, dist)) + np.radians(rng.uniform(-5.0, 5.0))
     roll = rng.uniform(-np.radians(r.low_roll_max_deg), np.radians(r.low_roll_max_deg))
-    if np.min(np.hypot(*(env.zebra_xyz[:, :2] - xy).T)) < LOW_ZEBRA_CLEARANCE_M:
+    animals = np.concatenate([env.zebra_xyz[:, :2], env.others_xy])
+    if np.min(np.hypot(*(animals - xy).T)) < LOW_ZEBRA_CLEARANCE_M:
         return None
     if len(env.obstacle_radii) and np.any(np.hypot(*(env.obstacle_xy - xy).T) < env.obstacle_radii + 0.5):
         return None

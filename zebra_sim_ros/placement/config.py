@@ -17,6 +17,7 @@ from zebra_sim_ros.geometry.camera import MAX_CAMERAS, Intrinsics
 from zebra_sim_ros.params import ParamSpec, StageConfig, names_list, param, reliability_param, same_as
 from zebra_sim_ros.placement.cameras import STRATEGIES
 from zebra_sim_ros.placement.sun import DAY_WINDOWS
+from zebra_sim_ros.zebra.skeleton import OTHER_SPECIES
 
 STRATEGY_CHOICES = (*STRATEGIES, "mixed", "any")
 """The placer's ``strategy`` values: one strategy for every step, or a draw per step (``mixed``: far or closeby;
@@ -57,6 +58,13 @@ class PlacerConfig(StageConfig):
     clips: tuple[str, ...] = param(("all",), "animation clips to draw from, or [all]",
                                    allowed="clip names of the asset, or [all]",
                                    check=lambda v: len(v) > 0 and all(isinstance(x, str) for x in v))
+    other_animals_max: int = param(0, "animals of other species per placement, U{0..this} (wildebeest, impala, "
+                                   "giraffe, buffalo, cattle, donkey), placed around the zebras by the same rules; "
+                                   "never labelled as zebra (0 = zebras only, the paper's setting)", lo=0, hi=500)
+    other_species: tuple[str, ...] = param(("all",), "species the other animals are drawn from, or [all]",
+                                           allowed=f"names among {list(OTHER_SPECIES)}, or [all]",
+                                           check=lambda v: len(v) > 0 and all(
+                                               x in (*OTHER_SPECIES, "all") for x in v))
     max_attempts: int = param(100, "candidate positions tried per zebra before it is dropped", lo=1, hi=10000)
     max_slope_deg: float = param(-1.0, "steepest ground a zebra stands on (-1: the world's own)", "deg", lo=-1.0,
                                  hi=89.0, allowed="-1 or 0..89 deg", check=lambda v: v == -1.0 or v >= 0.0)

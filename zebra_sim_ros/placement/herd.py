@@ -28,26 +28,48 @@ IntArray = NDArray[np.int64]
 
 @dataclass(frozen=True)
 class ZebraPool:
-    """The individuals preloaded for an experiment: stable ids, morphs and coat seeds."""
+    """The individuals preloaded for an experiment: stable ids, morphs and coat seeds. The first ``zebras`` are
+    zebras; the rest (ids ``zebras`` and up) animals of other species."""
 
     morph: IntArray  # (P,) index into the library's morphs
     coat_seed: IntArray  # (P,)
+    zebras: int = -1  # -1: all
+
+    def __post_init__(self) -> None:
+        if self.zebras < 0:
+            object.__setattr__(self, "zebras", int(len(self.morph)))
 
     @property
     def size(self) -> int:
         """Number of individuals."""
         return int(len(self.morph))
 
+    @property
+    def others(self) -> int:
+        """Number of animals of other species."""
+        return self.size - self.zebras
 
-def make_pool(seed: int, size: int, morph_weights: tuple[float, ...], n_morphs: int) -> ZebraPool:
-    """Draw the pool of an experiment from ``seed`` (its own stream, independent of the step draws)."""
+
+OTHER_POOL_SIZE = 120
+"""Animals of other species preloaded per experiment (each species equally likely among those allowed)."""
+
+
+def make_pool(seed: int, size: int, morph_weights: tuple[float, ...], n_morphs: int,
+              other_morphs: tuple[int, ...] = ()) -> ZebraPool:
+    """Draw the pool of an experiment from ``seed`` (its own stream, independent of the step draws): ``size``
+    zebras of the first ``n_morphs`` morphs by ``morph_weights``, then, if ``other_morphs`` (library morph indices
+    of other species) are given, :data:`OTHER_POOL_SIZE` animals of those from a second stream."""
     if len(morph_weights) != n_morphs:
         raise ParameterError("morph_weights", list(morph_weights), f"{n_morphs} weights")
     rng = np.random.default_rng([seed, 0x9001])
     p = np.asarray(morph_weights, dtype=np.float64)
     morph = rng.choice(n_morphs, size=size, p=p / p.sum())
     coat = rng.integers(0, 2**31 - 1, size=size)
-    return ZebraPool(morph=morph.astype(np.int64), coat_seed=coat.astype(np.int64))
+    if other_morphs:
+        orng = np.random.default_rng([seed, 0x9002])
+        morph = np.concatenate([morph, np.asarray(other_morphs)[orng.integers(0, len(other_morphs), OTHER_POOL_SIZE)]])
+        coat = np.concatenate([coat, orng.integers(0, 2**31 - 1, size=OTHER_POOL_SIZE)])
+    return ZebraPool(morph=morph.astype(np.int64), coat_seed=coat.astype(np.int64), zebras=size)
 
 
 @dataclass(frozen=True)
@@ -207,7 +229,7 @@ class HerdPlacer:
         cx = rng.uniform(x0 + w / 2, x1 - w / 2)
         cy = rng.uniform(y0 + h / 2, y1 - h / 2)
         n_req = int(rng.integers(count_range[0], count_range[1] + 1))
-        ids = np.sort(rng.choice(pool.size, size=n_req, replace=False))
+        ids = np.sort(rng.choice(pool.zebras, size=n_req, replace=False))
         clip = clip_ids[rng.integers(0, len(clip_ids), size=n_req)]
         frame = np.floor(rng.uniform(0, 1, size=n_req) * lib.clip_frames[clip]).astype(np.int64)
         scale = rng.uniform(scale_range[0], scale_range[1], size=n_req)
@@ -218,15 +240,39 @@ class HerdPlacer:
         return PlacementDraw((float(cx), float(cy)), (float(w), float(h)), ids, clip, frame,
                              lib.clip_start[clip] + frame, scale, yaw, cand)
 
+    def draw_others(self, rng: np.random.Generator, pool: ZebraPool, zebras: PlacementDraw, count_max: int,
+                    clip_ids: IntArray, max_attempts: int) -> PlacementDraw:
+        """The draws of the other species' animals of a placement (their own stream ``rng``): U{0..count_max} of
+        the pool's others, in the zebras' rectangle grown by half (a mixed herd thins out at its edges), their
+        own size x U(0.85, 1.1)."""
+        lib = self.library
+        n = min(int(rng.integers(0, count_max + 1)), pool.others)
+        ids = np.sort(pool.zebras + rng.choice(pool.others, size=n, replace=False)) if n else np.zeros(0, np.int64)
+        clip = clip_ids[rng.integers(0, len(clip_ids), size=n)]
+        frame = np.floor(rng.uniform(0, 1, size=n) * lib.clip_frames[clip]).astype(np.int64)
+        scale = rng.uniform(0.85, 1.1, size=n)
+        yaw = rng.uniform(-np.pi, np.pi, size=n)
+        (cx, cy), (w, h) = zebras.rect_center, zebras.rect_size
+        x0, y0, x1, y1 = self.placeable
+        cand = np.stack([np.clip(rng.uniform(cx - 0.75 * w, cx + 0.75 * w, size=(n, max_attempts)), x0, x1),
+                         np.clip(rng.uniform(cy - 0.75 * h, cy + 0.75 * h, size=(n, max_attempts)), y0, y1)], axis=-1)
+        return PlacementDraw(zebras.rect_center, zebras.rect_size, ids, clip, frame, lib.clip_start[clip] + frame,
+                             scale, yaw, cand)
+
     def place(self, rng: np.random.Generator, pool: ZebraPool, count_range: tuple[int, int],
               scale_range: tuple[float, float], rect_range: tuple[float, float], clip_ids: IntArray,
-              max_attempts: int) -> Herd:
-        """One placement: :meth:`draw`, then place the zebras one after another."""
+              max_attempts: int, others: tuple[np.random.Generator, int, IntArray] | None = None) -> Herd:
+        """One placement: :meth:`draw`, then place the zebras one after another, then the animals of other
+        species (``others``: their stream, most per placement and clips) around them by the same rules."""
         d = self.draw(rng, pool, count_range, scale_range, rect_range, clip_ids, max_attempts)
+        if others is not None and others[1] > 0 and pool.others:
+            o = self.draw_others(others[0], pool, d, others[1], others[2], max_attempts)
+            d = PlacementDraw(d.rect_center, d.rect_size, *(np.concatenate([a, b]) for a, b in (
+                (d.ids, o.ids), (d.clip, o.clip), (d.frame, o.frame), (d.global_frame, o.global_frame),
+                (d.scale, o.scale), (d.yaw, o.yaw), (d.candidates, o.candidates))))
         (cx, cy), (w, h) = d.rect_center, d.rect_size
         ids, clip, frame, gframe = d.ids, d.clip, d.frame, d.global_frame
         scale, yaw, cand = d.scale, d.yaw, d.candidates
-        n_req = len(ids)
         morph = pool.morph[ids]
         half = self._box_half_xy[morph, gframe] * scale[:, None]
         off_local = self._box_center_xy[morph, gframe] * scale[:, None]
@@ -238,7 +284,7 @@ class HerdPlacer:
         centre = fp_center[sel] - off[sel]
         position, rotation = self._stand(centre, yaw[sel], morph[sel], gframe[sel], scale[sel])
         return Herd(
-            rect_center=d.rect_center, rect_size=d.rect_size, requested=n_req, ids=ids[sel],
+            rect_center=d.rect_center, rect_size=d.rect_size, requested=int((ids < pool.zebras).sum()), ids=ids[sel],
             morph=morph[sel], clip=clip[sel], frame=frame[sel], global_frame=gframe[sel], scale=scale[sel],
             yaw=yaw[sel], position=position, rotation=rotation, footprint_center=fp_center[sel],
             footprint_half=half[sel],

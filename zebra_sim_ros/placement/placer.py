@@ -20,6 +20,10 @@ from zebra_sim_ros.placement.scene import build_scene, scene_zebras
 from zebra_sim_ros.placement.sun import lighting_for, sample_time_and_day
 from zebra_sim_ros.world.world import World
 from zebra_sim_ros.zebra.asset import ZebraLibrary
+from zebra_sim_ros.zebra.skeleton import MORPHS, OTHER_SPECIES, ZEBRA_MORPHS
+
+OTHER_CLIPS = ("idle", "graze", "walk", "look_around", "tail_swish")
+"""The clips animals of other species are shown in: standing, grazing and walking."""
 
 
 class Placer:
@@ -29,7 +33,13 @@ class Placer:
         self.cfg = cfg
         self.world = world
         self.library = library
-        self.pool = make_pool(cfg.seed, cfg.pool_size, cfg.morph_weights, len(library.morphs))
+        others = OTHER_SPECIES if cfg.other_species == ("all",) else cfg.other_species
+        self.other_morphs = tuple(library.morphs.index(n) for n in others if n in library.morphs)
+        self.pool = make_pool(cfg.seed, cfg.pool_size, cfg.morph_weights, len(ZEBRA_MORPHS),
+                              self.other_morphs if cfg.other_animals_max > 0 else ())
+        self.species = tuple(MORPHS[n].species if n in MORPHS else "zebra" for n in library.morphs)
+        other_clips = [library.clip_names.index(c) for c in OTHER_CLIPS if c in library.clip_names]
+        self.other_clip_ids = np.array(other_clips or [0])
         if cfg.clips == ("all",):
             self.clip_ids = np.arange(len(library.clip_names))
         else:
@@ -66,9 +76,11 @@ class Placer:
         c = self.cfg
         for attempt in range(10):
             rng = np.random.default_rng([c.seed, placement] + ([0, attempt] if attempt else []))
+            others = (np.random.default_rng([c.seed, placement, 0x07E5] + ([attempt] if attempt else [])),
+                      c.other_animals_max, self.other_clip_ids)
             herd = self.herds.place(rng, self.pool, (c.count_min, c.count_max), (c.scale_min, c.scale_max),
-                                    (c.rect_min, c.rect_max), self.clip_ids, c.max_attempts)
-            if herd.count:
+                                    (c.rect_min, c.rect_max), self.clip_ids, c.max_attempts, others)
+            if np.any(herd.ids < self.pool.zebras):
                 self._cache = (placement, herd)
                 return herd
         raise PlacementError("world", self.world.name,
@@ -99,11 +111,13 @@ class Placer:
         box_center = np.einsum("nij,nj->ni", herd.rotation, centre_local) + herd.position
         box_size = (boxes[:, 1] - boxes[:, 0]) * herd.scale[:, None]
         obstacles = self.world.obstacles
-        env = Surroundings(self.world.terrain, herd.position, box_center, obstacles.positions[:, :2],
-                           obstacles.radii)
+        zeb = herd.ids < self.pool.zebras  # the cameras look at the zebras and keep out of every animal
+        env = Surroundings(self.world.terrain, herd.position[zeb], box_center[zeb], obstacles.positions[:, :2],
+                           obstacles.radii, herd.position[~zeb, :2])
         cams = sample_cameras(rng, env, strategy, self.camera_names, self.ranges, self.camera)
         ground = sample_ground_look(rng, c.ground_recolor)  # drawn last: the draws above do not depend on it
         stamp_ns = int(round(step * 1e9 / c.rate_hz))
-        zebras = scene_zebras(herd, lib.morphs, lib.clip_names, self.pool.coat_seed[herd.ids], box_center, box_size)
+        zebras = scene_zebras(herd, lib.morphs, lib.clip_names, self.pool.coat_seed[herd.ids], box_center, box_size,
+                              self.species)
         return build_scene(step, placement, reroll, c.seed, stamp_ns, self._world_info, str(lib.manifest["digest"]),
                            zebras, herd, lighting_for(tod, doy, c.latitude_deg), cams, ground)

@@ -59,9 +59,11 @@ def scene_camera(c: CameraPose) -> SceneCamera:
 
 
 def scene_zebras(herd: Herd, morph_names: Sequence[str], clip_names: Sequence[str], coat_seeds: np.ndarray,
-                 box_center: np.ndarray, box_size: np.ndarray) -> tuple[SceneZebra, ...]:
+                 box_center: np.ndarray, box_size: np.ndarray,
+                 species: Sequence[str] | None = None) -> tuple[SceneZebra, ...]:
     """The placed zebras of ``herd`` (asset indices named by ``morph_names`` and ``clip_names``) with their coat
-    seeds and oriented boxes (``box_center``, ``box_size``: (N, 3) in map, m)."""
+    seeds and oriented boxes (``box_center``, ``box_size``: (N, 3) in map, m); ``species`` names each morph's
+    species (None: all zebras)."""
     quats = matrix_to_quat(herd.rotation) if herd.count else np.zeros((0, 4))
     out = []
     for i in range(herd.count):
@@ -69,7 +71,8 @@ def scene_zebras(herd: Herd, morph_names: Sequence[str], clip_names: Sequence[st
         box = OrientedBox(_vec3(box_center[i]), _vec3(box_size[i]), q)
         out.append(SceneZebra(int(herd.ids[i]), morph_names[int(herd.morph[i])], int(coat_seeds[i]),
                               clip_names[int(herd.clip[i])], int(herd.frame[i]), float(herd.scale[i]),
-                              float(np.degrees(herd.yaw[i])), _vec3(herd.position[i]), q, box))
+                              float(np.degrees(herd.yaw[i])), _vec3(herd.position[i]), q, box,
+                              species[int(herd.morph[i])] if species is not None else "zebra"))
     return tuple(out)
 
 

@@ -1,10 +1,15 @@
-"""Per-individual zebra coats: procedural stripe textures drawn from a seed.
+"""Per-individual coats: procedural stripe textures drawn from a seed (and the other species' coats).
 
 The stripes are a solid texture: a stripe phase defined on the bind-pose body (vertical bands on the
 barrel, arcs over the haunch, rings round the legs, bands across the neck and a fine pattern on the
 face), warped by smooth random waves. Baking it into each part's atlas rectangle through the mesh
 makes stripes continue across part seams. Each individual draws its own warp, stripe width, stripe
 spacing and colours from a ``numpy.random.Generator``; the same seed gives the same coat, bit for bit.
+
+Other species (:data:`~zebra_sim_ros.zebra.skeleton.OTHER_SPECIES`) use the same machinery with their morph's
+``coat``: brindle (faint bands, a wildebeest), solid (an impala, buffalo or donkey: one colour with dark points
+and a white belly where the morph has one), network (a giraffe: dark cells parted by pale lines) or patches (cattle:
+cells of one colour or the other, or a solid coat).
 """
 
 from __future__ import annotations
@@ -34,6 +39,8 @@ class CoatParams:
     base_rgb: tuple[float, float, float]
     stripe_rgb: tuple[float, float, float]
     shadow_stripes: bool
+    pattern: str = "stripes"  # the morph's coat (skeleton.COATS)
+    cell_seed: int = 0  # cells of network and patches coats
 
 
 def random_coat(seed: int, morph: Morph) -> CoatParams:
@@ -41,6 +48,8 @@ def random_coat(seed: int, morph: Morph) -> CoatParams:
     if seed < 0:
         raise ParameterError("coat seed", seed, "an integer >= 0")
     rng = np.random.default_rng([seed, 0xC0A7])
+    if morph.coat != "stripes":
+        return _species_coat(seed, morph, rng)
     n = 6
     direction = rng.normal(size=(n, 3))
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
@@ -63,6 +72,48 @@ def random_coat(seed: int, morph: Morph) -> CoatParams:
         stripe_rgb=tuple(float(v) for v in stripe),  # type: ignore[arg-type]
         shadow_stripes=morph.name == "plains" and bool(rng.uniform() < 0.8),
     )
+
+
+def _species_coat(seed: int, morph: Morph, rng: np.random.Generator) -> CoatParams:
+    """A coat of another species: its morph's colours varied per individual (+-12% brightness, a little hue)."""
+    base = np.asarray(morph.coat_rgb) * rng.uniform(0.88, 1.12) * rng.uniform(0.95, 1.05, 3)
+    alt = np.asarray(morph.coat_alt_rgb) * rng.uniform(0.85, 1.15) * rng.uniform(0.95, 1.05, 3)
+    pattern = morph.coat
+    if pattern == "patches":  # cattle: black and white, brown and white, or a solid brown, black or red coat
+        kind = rng.uniform()
+        if kind < 0.3:
+            alt = np.array([0.38, 0.22, 0.12]) * rng.uniform(0.8, 1.2)
+        elif kind < 0.6:
+            pattern = "solid"
+            base = [np.array([0.36, 0.22, 0.12]), np.array([0.07, 0.06, 0.06]),
+                    np.array([0.55, 0.30, 0.15])][int(rng.integers(3))] * rng.uniform(0.85, 1.15)
+    direction = rng.normal(size=(6, 3))
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    k = direction * rng.uniform(3.0, 8.0, size=(6, 1))
+    return CoatParams(
+        seed=seed, period_scale=float(rng.uniform(0.85, 1.15)), black_fraction=0.35,
+        warp_amplitude=float(rng.uniform(0.1, 0.25)),
+        wave_k=tuple((float(row[0]), float(row[1]), float(row[2])) for row in k),
+        wave_phase=tuple(float(v) for v in rng.uniform(0, 2 * np.pi, size=6)),
+        base_rgb=tuple(float(v) for v in np.clip(base, 0, 1)),  # type: ignore[arg-type]
+        stripe_rgb=tuple(float(v) for v in np.clip(alt, 0, 1)),  # type: ignore[arg-type]
+        shadow_stripes=False, pattern=pattern, cell_seed=int(rng.integers(0, 2**31 - 1)))
+
+
+def _cells(p: FloatArray, seeds: FloatArray, line: float, rng_pick: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Cellular pattern at bind positions ``p`` (N, 3): how far inside its cell each point is (0 on the border line
+    of width ``line`` m, 1 beyond it) and that cell's random pick 0..1."""
+    inside = np.empty(len(p))
+    pick = np.empty(len(p))
+    for a in range(0, len(p), 8192):
+        q = p[a:a + 8192]
+        d = np.linalg.norm(q[:, None, :] - seeds[None], axis=-1)
+        two = np.argpartition(d, 1, axis=1)[:, :2]
+        d0, d1 = np.take_along_axis(d, two, axis=1).T
+        near = np.where(d0 <= d1, two[:, 0], two[:, 1])
+        inside[a:a + 8192] = _smoothstep(0.5 * line, 1.5 * line, np.abs(d1 - d0))
+        pick[a:a + 8192] = rng_pick[near]
+    return inside, pick
 
 
 def _smoothstep(e0: float, e1: float, x: FloatArray) -> FloatArray:
@@ -113,7 +164,7 @@ def _part_pattern(name: str, p: FloatArray, along: FloatArray, around: FloatArra
         phase_rump = np.linalg.norm((p - haunch)[..., [0, 2]], axis=-1) / (1.2 * period)
         phase = (1 - rump) * phase_body + rump * phase_rump
         ang = np.abs(around - 0.5)  # 0.5 = straight down; 0 or 1 = along the spine
-        dark_extra = (ang > 0.47).astype(float)  # dorsal stripe
+        dark_extra = (ang > 0.47).astype(float) * (morph.coat in ("stripes", "brindle"))  # dorsal stripe
         if morph.white_belly:
             white_extra = _smoothstep(0.14, 0.08, ang)
     elif name in ("neck", "mane"):
@@ -152,6 +203,12 @@ def bake_coat(morph: Morph, params: CoatParams, size: int = 512, mesh: ZebraMesh
     ph = np.array(params.wave_phase)
     edge = 0.06  # soft edge, in stripe periods, so the texture is anti-aliased already
 
+    seeds = picks = np.zeros((0, 3))
+    if params.pattern in ("network", "patches"):
+        crng = np.random.default_rng([params.cell_seed, 0xCE11])
+        lo, hi = mesh.vertices.min(axis=0) - 0.1, mesh.vertices.max(axis=0) + 0.1
+        n_cells = int(np.clip(np.prod(hi - lo) / period ** 3, 8, 4000))
+        seeds, picks = crng.uniform(lo, hi, (n_cells, 3)), crng.uniform(0, 1, n_cells)
     for pg in mesh.parts:
         rows, cols, p, along, around = _part_samples(mesh, pg.name, size)
         warp = params.warp_amplitude * np.mean(np.sin(p @ k.T + ph), axis=-1) * 2.0
@@ -160,6 +217,14 @@ def bake_coat(morph: Morph, params: CoatParams, size: int = 512, mesh: ZebraMesh
         # Black where f < black_fraction, with soft edges at both ends of the band.
         b = _smoothstep(-edge, edge, f) * _smoothstep(params.black_fraction + edge, params.black_fraction - edge, f)
         b = b + _smoothstep(1 - edge, 1 + edge, f)
+        if params.pattern in ("network", "patches"):
+            flat = p.reshape(-1, 3) + 0.05 * warp.reshape(-1, 1)
+            inside, pick = _cells(flat, seeds, 0.12 * period, picks)
+            b = (inside if params.pattern == "network" else (pick < 0.45) * (0.3 + 0.7 * inside)).reshape(f.shape)
+        elif params.pattern == "solid":
+            b = np.zeros_like(f)
+        elif params.pattern == "brindle":
+            b = 0.6 * b  # faint bands
         b = np.clip(np.maximum(b, dark_extra) * (1 - white_extra), 0, 1)
         col = base * (1 - b[..., None]) + black * b[..., None]
         if params.shadow_stripes and pg.name == "barrel":

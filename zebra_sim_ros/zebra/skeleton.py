@@ -88,9 +88,20 @@ class Morph:
     stripe_period: float = 0.11  # metres between black stripes on the barrel
     white_belly: bool = False
     extra: dict[str, float] = field(default_factory=dict)
+    species: str = "zebra"  # what the labels call it: only "zebra" is ever a zebra label
+    coat: str = "stripes"  # stripes, brindle (faint bands), solid, network (giraffe) or patches (cattle)
+    coat_rgb: tuple[float, float, float] = (0.9, 0.88, 0.82)  # base hair colour (other species)
+    coat_alt_rgb: tuple[float, float, float] = (0.1, 0.1, 0.1)  # bands, patches, points (other species)
 
     def validate(self) -> None:
-        """Raise :class:`ParameterError` for proportions no zebra has."""
+        """Raise :class:`ParameterError` for proportions no animal of its species has."""
+        if self.coat not in COATS:
+            raise ParameterError(f"morph.{self.name}.coat", self.coat, f"one of {COATS}")
+        if self.species != "zebra":  # other species: any quadruped the skeleton can carry
+            for name in ("withers_height", "body_length", "girth_radius", "neck_length", "head_length"):
+                if not 0.1 <= getattr(self, name) <= 3.5:
+                    raise ParameterError(f"morph.{self.name}.{name}", getattr(self, name), "[0.1, 3.5] m")
+            return
         checks = {
             "withers_height": (0.5, 1.7),
             "body_length": (0.6, 2.0),
@@ -140,7 +151,40 @@ FOAL = Morph(
     mane_height=0.07,
     stripe_period=0.075,
 )
-MORPHS: dict[str, Morph] = {m.name: m for m in (PLAINS, GREVY, FOAL)}
+ZEBRA_MORPHS: tuple[str, ...] = ("plains", "grevy", "foal")
+"""The zebra morphs, first in the asset: their indices are the pool's ``morph_weights``."""
+COATS = ("stripes", "brindle", "solid", "network", "patches")
+
+# Other species of the savanna and farmland, on the same skeleton and clips: never labelled as zebra. Sizes from
+# field guides (shoulder height, body length); coats as they read from a distance.
+WILDEBEEST = Morph(name="wildebeest", species="wildebeest", withers_height=1.35, body_length=1.55, leg_fraction=0.55,
+                   girth_radius=0.32, neck_length=0.55, head_length=0.62, ear_length=0.13, ear_width=0.05,
+                   tail_length=0.75, mane_height=0.14, stripe_period=0.22, coat="brindle",
+                   coat_rgb=(0.36, 0.34, 0.32), coat_alt_rgb=(0.20, 0.19, 0.18))
+IMPALA = Morph(name="impala", species="impala", withers_height=0.90, body_length=1.05, leg_fraction=0.62,
+               girth_radius=0.19, neck_length=0.48, head_length=0.36, ear_length=0.15, ear_width=0.05,
+               tail_length=0.30, mane_height=0.02, white_belly=True, coat="solid", coat_rgb=(0.64, 0.40, 0.22),
+               coat_alt_rgb=(0.12, 0.09, 0.07))
+GIRAFFE = Morph(name="giraffe", species="giraffe", withers_height=2.9, body_length=1.9, leg_fraction=0.62,
+                girth_radius=0.42, neck_length=1.9, head_length=0.62, ear_length=0.18, ear_width=0.06,
+                tail_length=1.0, mane_height=0.05, stripe_period=0.30, coat="network", coat_rgb=(0.86, 0.80, 0.64),
+                coat_alt_rgb=(0.52, 0.29, 0.13))
+BUFFALO = Morph(name="buffalo", species="buffalo", withers_height=1.5, body_length=1.95, leg_fraction=0.46,
+                girth_radius=0.48, neck_length=0.42, head_length=0.60, ear_length=0.20, ear_width=0.10,
+                tail_length=0.75, mane_height=0.02, coat="solid", coat_rgb=(0.10, 0.09, 0.085),
+                coat_alt_rgb=(0.05, 0.045, 0.04))
+CATTLE = Morph(name="cattle", species="cattle", withers_height=1.4, body_length=1.75, leg_fraction=0.50,
+               girth_radius=0.42, neck_length=0.50, head_length=0.55, ear_length=0.18, ear_width=0.08,
+               tail_length=0.85, mane_height=0.02, stripe_period=0.45, coat="patches", coat_rgb=(0.88, 0.86, 0.82),
+               coat_alt_rgb=(0.08, 0.07, 0.07))
+DONKEY = Morph(name="donkey", species="donkey", withers_height=1.15, body_length=1.25, leg_fraction=0.55,
+               girth_radius=0.26, neck_length=0.55, head_length=0.56, ear_length=0.28, ear_width=0.07,
+               tail_length=0.50, mane_height=0.07, white_belly=True, coat="solid", coat_rgb=(0.46, 0.43, 0.41),
+               coat_alt_rgb=(0.16, 0.14, 0.13))
+OTHER_SPECIES: tuple[str, ...] = ("wildebeest", "impala", "giraffe", "buffalo", "cattle", "donkey")
+MORPHS: dict[str, Morph] = {m.name: m for m in (PLAINS, GREVY, FOAL, WILDEBEEST, IMPALA, GIRAFFE, BUFFALO, CATTLE,
+                                                DONKEY)}
+"""Every body the asset bakes: the zebra morphs, then one per other species (in :data:`OTHER_SPECIES` order)."""
 
 
 def get_morph(name: str) -> Morph:
