@@ -4,17 +4,20 @@ value (labels stay exact)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import cv2
 import numpy as np
 import pytest
-from render_helpers import flat_world
+from render_helpers import cube_mesh, flat_world
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import optical_rotation
-from zebra_sim_ros.messages import SensorDraw
+from zebra_sim_ros.messages import GroundLook, MessageFormatError, SensorDraw, Weather
 from zebra_sim_ros.placement.sun import lighting_for
+from zebra_sim_ros.placement.weather import rotate_sun, sample_weather
 from zebra_sim_ros.rendering.effects import SensorModel
-from zebra_sim_ros.rendering.ground import contact_map, surface_from_colours
+from zebra_sim_ros.rendering.ground import contact_map, surface_from_colours, vegetation_occlusion
 from zebra_sim_ros.rendering.renderer import CameraView, Renderer, RenderOptions, ZebraSet
 from zebra_sim_ros.zebra.asset import ZebraLibrary
 
@@ -111,3 +114,115 @@ def test_sensor_apply_vignettes_and_adds_signal_dependent_noise() -> None:
     assert lin(bright).var() > 2.0 * lin(dark).var()
     warm = SensorModel.apply(grey, SensorDraw(wb_gain=(1.1, 1.0, 0.9)), rng)
     assert warm[..., 0].mean() > grey[..., 0].mean() + 5 > warm[..., 2].mean() + 10
+
+
+# -- the sky, clouds and structured domain randomisation ---------------------------------------------------------
+
+def _sky_render(library: ZebraLibrary, weather: Weather | None, tree: bool = False,
+                ground: GroundLook | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A flat world (a box, and with ``tree`` a green crown), one zebra, a camera 3 m up looking a little down so
+    that the upper third of the image is sky."""
+    opts = RenderOptions(width=320, height=240, hfov_deg=70.0, coat_size=64, max_coats=16)
+    things = {"box": (cube_mesh(2.0), [(4.0, 6.0, 1.0)])}
+    if tree:
+        things["crown"] = (cube_mesh(4.0, (0.05, 0.2, 0.02)), [(-3.0, 8.0, 1.0)])
+    r = Renderer(flat_world(things), library, opts)
+    try:
+        zebras = ZebraSet(ids=np.array([4]), morph=np.zeros(1, dtype=np.int64),
+                          global_frame=np.full(1, library.frame_index("idle", 0), dtype=np.int64), scale=np.ones(1),
+                          rotation=np.eye(3)[None], position=np.array([[0.0, 0.0, 0.0]]),
+                          coat_seed=np.zeros(1, dtype=np.int64))
+        view = CameraView("cam", np.array([0.0, -10.0, 3.0]), optical_rotation(np.radians(90.0), np.radians(-5.0), 0.0))
+        out = r.render(zebras, NOON, [view], ground, weather)[0]
+    finally:
+        r.release()
+    return out.rgb, out.depth, out.instances
+
+
+def test_weather_changes_the_image_never_the_labels(library: ZebraLibrary) -> None:
+    clear_rgb, clear_depth, clear_ids = _sky_render(library, None)
+    over_rgb, over_depth, over_ids = _sky_render(library, Weather(1.0, (10.0, 20.0)))
+    assert np.array_equal(over_ids, clear_ids) and np.array_equal(over_depth, clear_depth)
+    sky = ~np.isfinite(clear_depth)
+    assert sky.sum() > 5000
+    # A clear sky is blue; an overcast one is grey.
+    c, o = clear_rgb[sky].astype(float), over_rgb[sky].astype(float)
+    assert (c[:, 2] - c[:, 0]).mean() > 20 > (o[:, 2] - o[:, 0]).mean() + 10
+    # Under an overcast sky the box casts no hard shadow: the ground beside it is as bright as the ground in the sun.
+    ground = np.isfinite(clear_depth) & (clear_ids == 0)
+    g_clear = cv2.cvtColor(clear_rgb, cv2.COLOR_RGB2GRAY)[ground].astype(float)
+    g_over = cv2.cvtColor(over_rgb, cv2.COLOR_RGB2GRAY)[ground].astype(float)
+    assert np.percentile(g_over, 95) - np.percentile(g_over, 5) < np.percentile(g_clear, 95) - np.percentile(
+        g_clear, 5)
+
+
+def test_broken_clouds_show_in_the_sky(library: ZebraLibrary) -> None:
+    clear_rgb, depth, _ = _sky_render(library, None)
+    broken_rgb, _, _ = _sky_render(library, Weather(0.5, (0.0, 0.0)))
+    sky = ~np.isfinite(depth)
+    grey = lambda im: cv2.cvtColor(im, cv2.COLOR_RGB2GRAY).astype(float)  # noqa: E731
+    # Clouds are white and grey patches: the sky's brightness varies far more than a clear gradient's row to row.
+    assert grey(broken_rgb)[sky].std() > 1.5 * grey(clear_rgb)[sky].std()
+
+
+def test_look_randomisation_tints_plants_and_sky(library: ZebraLibrary) -> None:
+    base, depth, ids = _sky_render(library, None, tree=True)
+    tinted, depth2, ids2 = _sky_render(library, Weather(0.0, (0.0, 0.0), sky_tint=(1.2, 0.9, 0.8)), tree=True,
+                                       ground=GroundLook(vegetation_tint=(2.0, 1.0, 0.5)))
+    assert np.array_equal(ids, ids2) and np.array_equal(depth, depth2)
+    sky = ~np.isfinite(depth)
+    assert tinted[sky][:, 0].mean() > base[sky][:, 0].mean() + 5  # redder sky
+    crown = (np.abs(depth - np.hypot(3.0, 18.0)) < 4.0) & (base[..., 1] > base[..., 0] + 5)
+    assert crown.sum() > 100
+    assert tinted[crown][:, 0].mean() > base[crown][:, 0].mean() + 5  # the plants' red channel doubled
+
+
+def test_vegetation_occlusion_darkens_the_ground_under_a_crown() -> None:
+    world = flat_world({"tree": (cube_mesh(6.0, (0.1, 0.3, 0.05)), [(10.0, -5.0, 1.0)])})
+    world.vegetation["tree"] = replace(world.vegetation["tree"], kind="tree")
+    occl = vegetation_occlusion(world, strength=0.5)
+    t = world.terrain
+    at = lambda x, y: float(occl[int(round(y - t.origin[1])), int(round(x - t.origin[0]))])  # noqa: E731
+    assert at(10.0, -5.0) == pytest.approx(0.5, abs=0.01)
+    assert at(10.0, -5.0) < at(13.0, -5.0) < at(20.0, -5.0)
+    assert at(40.0, 40.0) == 1.0
+    rocks = flat_world({"rock": (cube_mesh(6.0), [(10.0, -5.0, 1.0)])})  # rocks are not crowns
+    assert vegetation_occlusion(rocks).min() == 1.0
+
+
+def test_weather_is_seeded_bounded_and_its_own_stream() -> None:
+    draws = [sample_weather(np.random.default_rng(s), 1.0, 0.0) for s in range(300)]
+    covers = np.array([w.cloud_cover for w, _, _ in draws])
+    assert 0.0 <= covers.min() and covers.max() <= 1.0
+    assert 0.1 < np.mean(covers > 0.7) < 0.3 and 0.3 < np.mean(covers < 0.15) < 0.6  # overcast and clear days
+    assert all(w.sky_tint == (1.0, 1.0, 1.0) and v == (1.0, 1.0, 1.0) and t == 0.0 for w, v, t in draws)
+    half = [sample_weather(np.random.default_rng(s), 0.5, 1.0) for s in range(300)]
+    assert max(w.cloud_cover for w, _, _ in half) <= 0.5
+    # The same draws whatever the settings: cover scales, the cloud field stays where it was.
+    assert all(a.cloud_offset == b.cloud_offset for (a, _, _), (b, _, _) in zip(draws, half, strict=True))
+    assert np.mean([t != 0.0 for _, _, t in half]) == 1.0
+    assert sample_weather(np.random.default_rng(7), 1.0, 0.5) == sample_weather(np.random.default_rng(7), 1.0, 0.5)
+    with pytest.raises(ParameterError, match="cloud_cover_max"):
+        sample_weather(np.random.default_rng(0), 1.5, 0.0)
+    with pytest.raises(ParameterError, match="look_randomise"):
+        sample_weather(np.random.default_rng(0), 1.0, -0.1)
+
+
+def test_rotate_sun_keeps_elevation_and_turns_azimuth_and_shadows() -> None:
+    turned = rotate_sun(NOON, 90.0)
+    assert turned.sun_elevation_deg == NOON.sun_elevation_deg
+    assert turned.sun_azimuth_deg == pytest.approx((NOON.sun_azimuth_deg + 90.0) % 360.0)
+    sx, sy, sz = turned.sun_direction
+    assert np.degrees(np.arctan2(sx, sy)) % 360.0 == pytest.approx(turned.sun_azimuth_deg, abs=1e-9)
+    assert sz == pytest.approx(NOON.sun_direction[2]) and turned.light_direction == turned.sun_direction
+    assert rotate_sun(NOON, 0.0) is NOON
+
+
+def test_weather_and_look_round_trip_and_old_scenes_read_clear() -> None:
+    w = Weather(0.42, (12.5, -3.0), (1.1, 1.0, 0.9), (1.2, 1.0, 0.8))
+    assert Weather.from_dict(w.to_dict()) == w and Weather.from_dict(None) == Weather()
+    g = GroundLook((1.0, 2.0, 0.5), 0.3, (0.8, 1.2, 0.7))
+    assert GroundLook.from_dict(g.to_dict()) == g
+    assert "vegetation_tint" not in GroundLook((2.0, 1.0, 1.0), 0.1).to_dict()  # scenes of before read the same
+    with pytest.raises(MessageFormatError, match="cloud_cover"):
+        Weather.from_dict({"cloud_cover": 1.5, "cloud_offset": [0, 0], "sky_tint": [1, 1, 1], "light_tint": [1, 1, 1]})

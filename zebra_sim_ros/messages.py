@@ -214,19 +214,22 @@ class SensorDraw:
 
 @dataclass(frozen=True)
 class GroundLook:
-    """How the renderer recolours the terrain: ``albedo' = min(mix(albedo, luma(albedo), desaturation) * tint,
-    0.95)`` in linear RGB. The default is the world as authored."""
+    """How the renderer recolours the landscape: ``albedo' = min(mix(albedo, luma(albedo), desaturation) * tint,
+    0.95)`` in linear RGB for the terrain, and ``albedo * vegetation_tint`` for plants. The default is the world
+    as authored."""
 
     tint: Vec3 = (1.0, 1.0, 1.0)
     desaturation: float = 0.0
+    vegetation_tint: Vec3 = (1.0, 1.0, 1.0)
 
     @property
     def is_identity(self) -> bool:
-        return self.tint == (1.0, 1.0, 1.0) and self.desaturation == 0.0
+        return self == GroundLook()
 
     def to_dict(self) -> dict[str, object]:
-        """JSON-ready dictionary (the scene's ``ground``)."""
-        return {"tint": list(self.tint), "desaturation": self.desaturation}
+        """JSON-ready dictionary (the scene's ``ground``; ``vegetation_tint`` only when it is not identity)."""
+        d: dict[str, object] = {"tint": list(self.tint), "desaturation": self.desaturation}
+        return d if self.vegetation_tint == (1.0, 1.0, 1.0) else {**d, "vegetation_tint": list(self.vegetation_tint)}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None) -> GroundLook:
@@ -237,13 +240,50 @@ class GroundLook:
         try:
             tint = _v3(d["tint"])
             desat = float(d["desaturation"])
+            veg = _v3(d.get("vegetation_tint", (1.0, 1.0, 1.0)))
         except (KeyError, TypeError, ValueError) as exc:
             raise MessageFormatError(f"scene ground {dict(d)!r} is not {{'tint': [r, g, b], 'desaturation': "
-                                     "0..1}") from exc
-        if not all(0.0 <= t <= 100.0 for t in tint) or not 0.0 <= desat <= 1.0:
-            raise MessageFormatError(f"scene ground {dict(d)!r}: want a tint of three factors in 0..100 and "
+                                     "0..1, 'vegetation_tint': [r, g, b]}") from exc
+        if not all(0.0 <= t <= 100.0 for t in tint + veg) or not 0.0 <= desat <= 1.0:
+            raise MessageFormatError(f"scene ground {dict(d)!r}: want tints of three factors in 0..100 and "
                                      "desaturation in 0..1")
-        return cls((tint[0], tint[1], tint[2]), desat)
+        return cls(tint, desat, veg)
+
+
+@dataclass(frozen=True)
+class Weather:
+    """The sky of one step: ``cloud_cover`` 0 (clear) .. 1 (overcast), the cloud field's offset in ``map`` (m; a
+    different sky each step), and the structured domain randomisation of the sky's and the light's colours (linear
+    factors, 1 = as the world and the sun's position give them). Clouds shade the ground where they hide the
+    sun; an overcast sky hides it everywhere and the light is the sky's."""
+
+    cloud_cover: float = 0.0
+    cloud_offset: tuple[float, float] = (0.0, 0.0)
+    sky_tint: Vec3 = (1.0, 1.0, 1.0)
+    light_tint: Vec3 = (1.0, 1.0, 1.0)
+
+    @property
+    def is_clear(self) -> bool:
+        return self == Weather()
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready dictionary (the scene's ``weather``)."""
+        return {"cloud_cover": self.cloud_cover, "cloud_offset": list(self.cloud_offset),
+                "sky_tint": list(self.sky_tint), "light_tint": list(self.light_tint)}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any] | None) -> Weather:
+        """From a scene's ``weather`` (None or absent: a clear sky); :class:`MessageFormatError` on bad values."""
+        if not d:
+            return cls()
+        try:
+            w = cls(float(d["cloud_cover"]), _v2(d["cloud_offset"]), _v3(d["sky_tint"]), _v3(d["light_tint"]))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise MessageFormatError(f"scene weather {dict(d)!r} is not {{'cloud_cover': 0..1, 'cloud_offset': "
+                                     "[x, y], 'sky_tint': [r, g, b], 'light_tint': [r, g, b]}") from exc
+        if not 0.0 <= w.cloud_cover <= 1.0 or not all(0.0 <= t <= 100.0 for t in w.sky_tint + w.light_tint):
+            raise MessageFormatError(f"scene weather {dict(d)!r}: want cloud_cover in 0..1 and tints in 0..100")
+        return w
 
 
 @dataclass(frozen=True)
@@ -368,6 +408,7 @@ class Scene(_Message):
     zebras: tuple[SceneZebra, ...]
     cameras: tuple[SceneCamera, ...]
     ground: GroundLook = field(default_factory=GroundLook)
+    weather: Weather = field(default_factory=Weather)
 
     @property
     def placed(self) -> int:
@@ -386,7 +427,8 @@ class Scene(_Message):
         return replace(self, lighting=lighting)
 
     def to_dict(self) -> dict[str, Any]:
-        """The versioned JSON structure (the ``ground`` only when it differs from the world as authored)."""
+        """The versioned JSON structure (the ``ground`` only when it differs from the world as authored, the
+        ``weather`` only when the sky is not clear)."""
         return {
             "schema": SCENE_SCHEMA, "version": SCENE_VERSION, "stamp": self.stamp.to_dict(), "step": self.step,
             "placement": self.placement, "reroll": self.reroll, "seed": self.seed, "asset_digest": self.asset_digest,
@@ -395,6 +437,7 @@ class Scene(_Message):
             "requested": self.requested, "placed": self.placed, "zebras": [z.to_dict() for z in self.zebras],
             "cameras": [c.to_dict() for c in self.cameras],
             **({} if self.ground.is_identity else {"ground": self.ground.to_dict()}),
+            **({} if self.weather.is_clear else {"weather": self.weather.to_dict()}),
         }
 
     @classmethod
@@ -407,7 +450,7 @@ class Scene(_Message):
             Lighting.from_dict(d["lighting"]), _v2(d.get("rectangle", {}).get("center", (0, 0))),
             _v2(d.get("rectangle", {}).get("size", (0, 0))), int(d.get("requested", len(d["zebras"]))),
             tuple(SceneZebra.from_dict(z) for z in d["zebras"]), tuple(SceneCamera.from_dict(c) for c in d["cameras"]),
-            GroundLook.from_dict(d.get("ground"))), d)
+            GroundLook.from_dict(d.get("ground")), Weather.from_dict(d.get("weather"))), d)
 
 
 # -- labels ------------------------------------------------------------------------------------------------------

@@ -53,7 +53,7 @@ class Simulator:
     def render(self, scene: Scene, names: list[str] | None = None) -> list[RenderedView]:
         """The views of the scene's cameras (all, or those named)."""
         views = self.renderer.render(zebras_from_scene(scene, self.library), scene.lighting,
-                                     views_from_scene(scene, names), scene.ground)
+                                     views_from_scene(scene, names), scene.ground, scene.weather)
         if self.sensor is not None:
             order = [c.name for c in scene.cameras]
             for v in views:

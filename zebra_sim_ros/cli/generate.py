@@ -40,6 +40,9 @@ def register(sub: Any) -> None:
     add_option(p, spec_of(CameraConfig, "look"))
     add_option(p, spec_of(PlacerConfig, "other_animals_max"), "--other-animals", default=20,
                note="distractors for training sets: on in generate, off in the placer node")
+    add_option(p, spec_of(PlacerConfig, "look_randomise"), "--randomise", default=0.5,
+               note="on in generate, off in the placer node; half of it is also the placer's ground_recolor "
+                    "(terrain brightness and tint)")
     p.add_argument("--format", default="jpg", help="jpg or png for the RGB images")
     p.add_argument("--jpeg-quality", type=int, default=95, help="JPEG quality 1..100")
     p.add_argument("--yolo-box", default="visible", help="box in the YOLO labels: visible (tight) or full (amodal)")
@@ -91,6 +94,7 @@ def cmd_generate(args: argparse.Namespace) -> Summary:
         seed=args.seed, world_seed=args.world_seed, width=width, height=height, hfov_deg=args.hfov_deg,
         image_format=args.format, jpeg_quality=args.jpeg_quality, workers=args.workers, shard=(i, n),
         sensor_strength=args.sensor_strength, look=args.look, other_animals=args.other_animals_max,
+        randomise=args.look_randomise,
         yolo_box=args.yolo_box, val_fraction=args.val_fraction,
         depth=args.depth, placer=placer,
         filters=LabelFilters(args.min_visible_pixels, args.min_visible_fraction, args.min_box_px,

@@ -90,6 +90,13 @@ class GenerateConfig:
     sensor_strength: float = 1.0  # the photograph's camera (rendering.effects.SensorModel); 0 = a perfect camera
     look: str = "photo"  # rendering.config.LOOKS: photo, or plain (flat ground, bare coats)
     other_animals: int = 20  # the placer's other_animals_max: distractors of other species (0 = zebras only)
+    randomise: float = 0.5  # the placer's look_randomise (and half of it as ground_recolor): domain randomisation
+
+    @property
+    def placer_params(self) -> dict[str, Any]:
+        """What this run sets of the placer's parameters (``placer``, the ``--set`` overrides, win)."""
+        return {"other_animals_max": self.other_animals, "look_randomise": self.randomise,
+                "ground_recolor": round(self.randomise / 2, 6), **self.placer}
 
     def check(self) -> None:
         """Raise :class:`ParameterError` naming the first bad setting."""
@@ -114,6 +121,8 @@ class GenerateConfig:
             raise ParameterError("--depth", self.depth, "float32, float16 or none")
         if self.look not in ("photo", "plain"):
             raise ParameterError("--look", self.look, "photo or plain")
+        if not 0.0 <= self.randomise <= 1.0:
+            raise ParameterError("--randomise", self.randomise, "0..1")
         if not 0.0 <= self.val_fraction < 1.0:
             raise ParameterError("--val-fraction", self.val_fraction, "0 <= f < 1")
 
@@ -210,8 +219,7 @@ class _Pipeline:
     def set_args(self) -> str:
         """The placer overrides (and a non-default world seed) as ``render`` options, so a frame's
         ``regenerate`` command reproduces it alone."""
-        over = {"other_animals_max": self.cfg.other_animals, **self.cfg.placer,
-                **({"world_seed": self.cfg.world_seed} if self.cfg.world_seed else {})}
+        over = {**self.cfg.placer_params, **({"world_seed": self.cfg.world_seed} if self.cfg.world_seed else {})}
         return "".join(f" --set {shlex.quote(f'{k}={v if isinstance(v, str) else json.dumps(v)}')}"
                        for k, v in sorted(over.items()))
 
@@ -223,7 +231,7 @@ class _Pipeline:
         key = (job.strategy, job.seed)
         if key not in self.placers:
             c = self.cfg
-            params = {"other_animals_max": c.other_animals, **c.placer, "seed": job.seed, "strategy": job.strategy,
+            params = {**c.placer_params, "seed": job.seed, "strategy": job.strategy,
                       "world": job.world,
                       "world_seed": c.world_seed, "camera_width": c.width, "camera_height": c.height,
                       "camera_hfov_deg": c.hfov_deg}

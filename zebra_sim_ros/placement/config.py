@@ -112,6 +112,12 @@ class PlacerConfig(StageConfig):
     ground_recolor: float = param(0.0, "share of steps whose terrain colour is randomised (brightness x0.5..x4, "
                                   "desaturation, tint; domain randomisation for training sets; 0 = every world as "
                                   "authored)", lo=0.0, hi=1.0)
+    cloud_cover_max: float = param(1.0, "largest cloud cover of a step's sky: 45% of steps clear, 35% broken, 20% "
+                                   "overcast, scaled by this (0 = always a clear sky); clouds shade the ground",
+                                   lo=0.0, hi=1.0)
+    look_randomise: float = param(0.0, "share of steps with a randomised look: sky and light tints, recoloured "
+                                  "plants, the sun turned to another azimuth (structured domain randomisation for "
+                                  "training sets; 0 = as authored)", lo=0.0, hi=1.0)
     latitude_deg: float = param(-2.3, "latitude for the sun's path (Serengeti: -2.3)", "deg", lo=-90.0, hi=90.0)
     mode: str = param("rate", "rate: publish at rate_hz; lockstep: next step when every acker acknowledged",
                       choices=("rate", "lockstep"))

@@ -7,6 +7,8 @@ same seed gives the same sequence bit for bit, and any step can be regenerated a
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from zebra_sim_ros.errors import ParameterError
@@ -18,6 +20,7 @@ from zebra_sim_ros.placement.ground import sample_ground_look
 from zebra_sim_ros.placement.herd import Herd, HerdPlacer, PlacementError, make_pool
 from zebra_sim_ros.placement.scene import build_scene, scene_zebras
 from zebra_sim_ros.placement.sun import lighting_for, sample_time_and_day
+from zebra_sim_ros.placement.weather import WEATHER_STREAM, rotate_sun, sample_weather
 from zebra_sim_ros.world.world import World
 from zebra_sim_ros.zebra.asset import ZebraLibrary
 from zebra_sim_ros.zebra.skeleton import MORPHS, OTHER_SPECIES, ZEBRA_MORPHS
@@ -116,8 +119,13 @@ class Placer:
                            obstacles.radii, herd.position[~zeb, :2])
         cams = sample_cameras(rng, env, strategy, self.camera_names, self.ranges, self.camera)
         ground = sample_ground_look(rng, c.ground_recolor)  # drawn last: the draws above do not depend on it
+        weather, veg_tint, sun_turn = sample_weather(np.random.default_rng([c.seed, placement, reroll + 1,
+                                                                            WEATHER_STREAM]),
+                                                     c.cloud_cover_max, c.look_randomise)
+        ground = replace(ground, vegetation_tint=veg_tint)
         stamp_ns = int(round(step * 1e9 / c.rate_hz))
         zebras = scene_zebras(herd, lib.morphs, lib.clip_names, self.pool.coat_seed[herd.ids], box_center, box_size,
                               self.species)
         return build_scene(step, placement, reroll, c.seed, stamp_ns, self._world_info, str(lib.manifest["digest"]),
-                           zebras, herd, lighting_for(tod, doy, c.latitude_deg), cams, ground)
+                           zebras, herd, rotate_sun(lighting_for(tod, doy, c.latitude_deg), sun_turn), cams, ground,
+                           weather)

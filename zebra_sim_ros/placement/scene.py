@@ -44,6 +44,7 @@ from zebra_sim_ros.messages import (
     SceneCamera,
     SceneZebra,
     Stamp,
+    Weather,
     WorldRef,
 )
 from zebra_sim_ros.placement.cameras import CameraPose
@@ -82,9 +83,9 @@ def _vec3(v: Any) -> tuple[float, float, float]:
 
 def build_scene(step: int, placement: int, reroll: int, seed: int, stamp_ns: int, world: WorldRef,
                 asset_digest: str, zebras: tuple[SceneZebra, ...], herd: Herd, lighting: Lighting,
-                cameras: Sequence[CameraPose], ground: GroundLook) -> Scene:
+                cameras: Sequence[CameraPose], ground: GroundLook, weather: Weather) -> Scene:
     """The typed scene of one step (the placement rectangle and the count asked for come from ``herd``)."""
     return Scene(Stamp.from_ns(stamp_ns), step, placement, reroll, seed, asset_digest, world, lighting,
                  (float(herd.rect_center[0]), float(herd.rect_center[1])),
                  (float(herd.rect_size[0]), float(herd.rect_size[1])), int(herd.requested), zebras,
-                 tuple(scene_camera(c) for c in cameras), ground)
+                 tuple(scene_camera(c) for c in cameras), ground, weather)

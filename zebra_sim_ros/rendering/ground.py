@@ -3,7 +3,8 @@
 Pure numpy (no GL), so both are tested without a context. The shader (``shaders.TERRAIN_FS``) turns the
 surface weights into procedural detail at every scale: grass tufts and blades, soil grain, pebbles and
 cracks, rock plates and wet mud. Contact shadows darken the ground under each animal where the sun's
-shadow map cannot (ambient occlusion of the light from the sky: under the belly, between the hooves).
+shadow map cannot (ambient occlusion of the light from the sky: under the belly, between the hooves), and the
+vegetation's occlusion does the same under every tree and bush.
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+
+from zebra_sim_ros.world.world import World
 
 FloatArray = NDArray[np.float64]
 SURFACES = ("grass", "soil", "rock", "wet")  # the four channels of a surface map, in order
@@ -80,3 +83,30 @@ def contact_map(position: FloatArray, forward: FloatArray, scale: FloatArray, ma
         occl[j0:j1, i0:i1] = np.maximum(occl[j0:j1, i0:i1], blob)
     values = np.ascontiguousarray(1.0 - strength * occl, dtype=np.float32)
     return ContactMap(values, (float(lo[0]), float(lo[1])), res)
+
+
+def vegetation_occlusion(world: World, strength: float = 0.45) -> NDArray[np.float32]:
+    """Ambient occlusion of the ground under trees and bushes, over the terrain grid (ny, nx), 1 = open sky: a
+    soft disc of the plant's crown radius (its prototype's horizontal extent times its scale) darkening the
+    ground by up to ``strength``, what a crown hides of the sky. Computed once per world (plants do not move)."""
+    t = world.terrain
+    ny, nx = t.heights.shape
+    occl = np.zeros((ny, nx), dtype=np.float32)
+    for name, inst in world.vegetation.items():
+        if inst.kind not in ("tree", "bush") or not len(inst) or name not in world.prototypes:
+            continue
+        v = np.asarray(world.prototypes[name][0], dtype=np.float64)
+        crown = float(np.max(np.hypot(v[:, 0], v[:, 1])))
+        for p, sc in zip(inst.positions, inst.scale, strict=True):
+            r = crown * float(sc)
+            k = int(np.ceil(1.5 * r / t.resolution))
+            ci, cj = (int(round((p[a] - t.origin[a]) / t.resolution)) for a in (0, 1))
+            i0, i1, j0, j1 = max(ci - k, 0), min(ci + k + 1, nx), max(cj - k, 0), min(cj + k + 1, ny)
+            if i0 >= i1 or j0 >= j1:
+                continue
+            gx = t.origin[0] + np.arange(i0, i1) * t.resolution - p[0]
+            gy = t.origin[1] + np.arange(j0, j1) * t.resolution - p[1]
+            d2 = (gx[None, :] ** 2 + gy[:, None] ** 2) / (r * r)
+            blob = np.exp(-1.4 * d2).astype(np.float32)
+            occl[j0:j1, i0:i1] = np.maximum(occl[j0:j1, i0:i1], blob)
+    return 1.0 - strength * occl

@@ -21,10 +21,10 @@ from numpy.typing import NDArray
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import PinholeCamera
-from zebra_sim_ros.messages import GroundLook, Lighting, SensorDraw
+from zebra_sim_ros.messages import GroundLook, Lighting, SensorDraw, Weather
 from zebra_sim_ros.rendering import shaders
 from zebra_sim_ros.rendering.gl import create_context
-from zebra_sim_ros.rendering.ground import contact_map, surface_from_colours
+from zebra_sim_ros.rendering.ground import contact_map, surface_from_colours, vegetation_occlusion
 from zebra_sim_ros.world.world import World
 from zebra_sim_ros.zebra.asset import ZebraLibrary
 from zebra_sim_ros.zebra.coat import bake_coat, random_coat
@@ -181,6 +181,7 @@ class Renderer:
         self.world = world
         self.library = library
         self.camera = PinholeCamera(self.options.width, self.options.height, self.options.hfov_deg)
+        self.weather = Weather()
         t0 = time.perf_counter()
         self.ctx, self.info = create_context()
         ctx = self.ctx
@@ -226,6 +227,8 @@ class Renderer:
         normal = np.stack([-dx, -dy, np.ones_like(h)], axis=-1)
         normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
         gc = self.world.ground_colors()
+        if self.options.detail:  # ambient occlusion under trees and bushes, baked once (they do not move)
+            gc = gc * vegetation_occlusion(self.world)[..., None]
         self.ground_mean = tuple(float(v) for v in gc.reshape(-1, 3).mean(axis=0))
         # Alpha: the water depth (m; negative above the water line, -2 where a world has no water).
         water = self.world.water if self.world.water is not None else np.full(gc.shape[:2], -2.0)
@@ -350,11 +353,15 @@ class Renderer:
 
     # -- per frame -------------------------------------------------------------------------------
     def render(self, zebras: ZebraSet, lighting: Lighting, views: list[CameraView],
-               ground: GroundLook | None = None) -> list[RenderedView]:
-        """Render every view of one frame (``ground``: the terrain's look; None = as authored)."""
+               ground: GroundLook | None = None, weather: Weather | None = None) -> list[RenderedView]:
+        """Render every view of one frame (``ground``: the landscape's look, None = as authored; ``weather``: the
+        sky, None = clear; the plain look, ``detail`` off, always renders a clear sky)."""
         g = ground or GroundLook()
+        self.weather = (weather or Weather()) if self.options.detail else Weather()
         self.p_terrain["u_ground_tint"].value = g.tint
         self.p_terrain["u_ground_desat"].value = g.desaturation
+        self.p_veg["u_veg_tint"].value = g.vegetation_tint
+        self.p_veg["u_detail"].value = 1.0 if self.options.detail else 0.0
         self._coats_dirty = False
         layers = np.array([self._layer(int(m), int(s)) for m, s in zip(zebras.morph, zebras.coat_seed, strict=True)],
                           dtype=np.float32)
@@ -525,8 +532,8 @@ class Renderer:
     def _set_view_uniforms(self, vp: FloatArray, light_vp: FloatArray, pos: FloatArray, fwd: FloatArray,
                            lighting: Lighting, use_shadow: bool) -> None:
         """Camera, light, sky and exposure uniforms of every colour pass program."""
-        sky = self.world.sky
-        light_rgb = np.array(lighting.light_rgb) * lighting.light_intensity * sky.sun * 2.2
+        sky, w = self.world.sky, self.weather
+        light_rgb = np.array(lighting.light_rgb) * w.light_tint * lighting.light_intensity * sky.sun * 2.2
         ambient = np.array(lighting.ambient_rgb) * lighting.ambient_intensity * (sky.ambient / 0.35) * 1.6
         uniforms = {
             "u_view_proj": _gl(vp), "u_light_view_proj": _gl(light_vp),
@@ -534,15 +541,17 @@ class Renderer:
             "u_light_dir": np.array(lighting.light_direction, dtype=np.float32).tobytes(),
             "u_light_rgb": light_rgb.astype(np.float32).tobytes(),
             "u_ambient_rgb": ambient.astype(np.float32).tobytes(),
-            "u_horizon_rgb": np.array(sky.horizon_rgb, dtype=np.float32).tobytes(),
-            "u_zenith_rgb": np.array(sky.zenith_rgb, dtype=np.float32).tobytes(),
+            "u_horizon_rgb": (np.array(sky.horizon_rgb) * w.sky_tint).astype(np.float32).tobytes(),
+            "u_zenith_rgb": (np.array(sky.zenith_rgb) * w.sky_tint).astype(np.float32).tobytes(),
+            "u_cloud_offset": np.array(w.cloud_offset, dtype=np.float32).tobytes(),
         }
         self.shadow_tex.use(location=1)
         for prog in (self.p_terrain, self.p_veg, self.p_zebra, self.p_sky):
             for k, val in uniforms.items():
                 if k in prog:
                     prog[k].write(val)
-            for k, val2 in (("u_haze", sky.haze_per_m), ("u_exposure", self.options.exposure)):
+            for k, val2 in (("u_haze", sky.haze_per_m), ("u_exposure", self.options.exposure),
+                            ("u_cloud_cover", w.cloud_cover)):
                 if k in prog:
                     prog[k].value = float(val2)
             if "u_shadow" in prog:

@@ -19,9 +19,47 @@ uniform float u_haze;          // extinction per metre
 uniform float u_exposure;
 uniform sampler2DShadow u_shadow;
 uniform int u_use_shadow;
+uniform float u_cloud_cover;   // 0 clear .. 1 overcast (messages.Weather)
+uniform vec2 u_cloud_offset;   // the cloud field's offset, m
 """
 
-LIGHTING = """
+# Procedural detail shared by the ground and the foliage: value noise, cellular (Worley) noise and a
+# footprint-filtered fbm. ``fw`` is the pixel footprint in metres (fwidth of the world position): every
+# octave finer than about two pixels fades out, so detail never aliases into sparkle.
+NOISE = """
+float hash(vec2 p) { return fract(sin(dot(p, vec2(127.1, 311.7))) * 43758.5453); }
+vec2 hash2(vec2 p) {
+    return fract(sin(vec2(dot(p, vec2(127.1, 311.7)), dot(p, vec2(269.5, 183.3)))) * 43758.5453);
+}
+float vnoise(vec2 p) {
+    vec2 i = floor(p); vec2 f = fract(p); vec2 u = f * f * (3.0 - 2.0 * f);
+    return mix(mix(hash(i), hash(i + vec2(1, 0)), u.x), mix(hash(i + vec2(0, 1)), hash(i + vec2(1, 1)), u.x), u.y);
+}
+float fade(float cell_m, float fw) { return clamp(cell_m / (fw * 2.5) - 1.0, 0.0, 1.0); }
+float fbm(vec2 p, float cell_m, float fw, int octaves) {
+    float s = 0.0, a = 0.5, c = cell_m;
+    for (int i = 0; i < octaves; ++i) {
+        s += a * (vnoise(p / c) - 0.5) * fade(c, fw);
+        c *= 0.5; a *= 0.55;
+    }
+    return s;
+}
+// Nearest feature point of a jittered grid of cell ``cell_m``: x = distance / cell, y = the cell's random id.
+vec2 worley(vec2 p, float cell_m) {
+    vec2 q = p / cell_m; vec2 i = floor(q); vec2 f = fract(q);
+    float best = 8.0, id = 0.0;
+    for (int y = -1; y <= 1; ++y) for (int x = -1; x <= 1; ++x) {
+        vec2 g = vec2(x, y); vec2 o = hash2(i + g);
+        float d = length(g + o - f);
+        if (d < best) { best = d; id = hash(i + g + 17.0); }
+    }
+    return vec2(best, id);
+}
+"""
+
+SHADOW = """
+// Soft shadows: eight taps of the hardware 2x2 comparison filter on a disc turned per pixel, so the penumbra is a
+// smooth gradient of about three texels instead of a staircase.
 float shadow_at(vec3 wpos, vec3 n) {
     if (u_use_shadow == 0) return 1.0;
     vec4 lp = u_light_view_proj * vec4(wpos + n * 0.05, 1.0);
@@ -29,23 +67,48 @@ float shadow_at(vec3 wpos, vec3 n) {
     if (p.x <= 0.0 || p.x >= 1.0 || p.y <= 0.0 || p.y >= 1.0 || p.z >= 1.0) return 1.0;
     float bias = 0.0015;
     vec2 texel = 1.0 / vec2(textureSize(u_shadow, 0));
+    float a = hash(gl_FragCoord.xy) * 6.2831853;
+    mat2 rot = mat2(cos(a), sin(a), -sin(a), cos(a)) * 1.6;
+    const vec2 DISC[8] = vec2[8](vec2(-0.61, 0.31), vec2(0.12, -0.93), vec2(0.84, 0.42), vec2(-0.27, -0.36),
+                                 vec2(0.37, 0.05), vec2(-0.88, -0.45), vec2(-0.05, 0.79), vec2(0.63, -0.57));
     float s = 0.0;
-    s += texture(u_shadow, vec3(p.xy + vec2(-0.5, -0.5) * texel, p.z - bias));
-    s += texture(u_shadow, vec3(p.xy + vec2( 0.5, -0.5) * texel, p.z - bias));
-    s += texture(u_shadow, vec3(p.xy + vec2(-0.5,  0.5) * texel, p.z - bias));
-    s += texture(u_shadow, vec3(p.xy + vec2( 0.5,  0.5) * texel, p.z - bias));
-    return s * 0.25;
+    for (int i = 0; i < 8; ++i) s += texture(u_shadow, vec3(p.xy + rot * DISC[i] * texel, p.z - bias));
+    return s * 0.125;
 }
+"""
 
+CLOUDS = """
+// Clouds: a layer of fbm at CLOUD_Z metres, thresholded by the cover (0 clear .. 1 overcast). The ground sees the
+// sun through it along the light direction (cloud shadows); the sky shows it.
+const float CLOUD_Z = 1200.0;
+float cloud_density(vec2 p) {
+    if (u_cloud_cover <= 0.0) return 0.0;
+    vec2 q = (p + u_cloud_offset) / 650.0;
+    float n = (0.5 * vnoise(q) + 0.25 * vnoise(q * 2.03 + 3.1) + 0.125 * vnoise(q * 4.07 + 7.7)
+               + 0.0625 * vnoise(q * 8.3 + 1.3)) / 0.9375;
+    float thr = 0.5 + 0.6 * (0.5 - u_cloud_cover);
+    return max(smoothstep(thr - 0.05, thr + 0.12, n), smoothstep(0.75, 1.0, u_cloud_cover));
+}
+float sun_through_clouds(vec3 wpos) {
+    if (u_cloud_cover <= 0.0) return 1.0;
+    vec2 p = wpos.xy + u_light_dir.xy * (CLOUD_Z - wpos.z) / max(u_light_dir.z, 0.05);
+    return 1.0 - 0.9 * cloud_density(p);
+}
+"""
+
+LIGHTING = NOISE + SHADOW + CLOUDS + """
 // Shadowing below the surface's own detail (the gaps between grass tufts, the foot of a stone): 1 = none.
 // A surface sets it before write_surface; the sun loses more of it than the sky does.
 float g_cavity = 1.0;
 
 vec3 shade(vec3 albedo, vec3 n, vec3 wpos) {
     float ndl = max(dot(n, u_light_dir), 0.0);
-    float sh = ndl > 0.0 ? shadow_at(wpos, n) : 0.0;
-    float sky = (0.6 + 0.4 * n.z) * mix(0.55, 1.0, g_cavity);  // hemisphere ambient, more from the sky
-    return albedo * (u_light_rgb * ndl * sh * g_cavity + u_ambient_rgb * sky);
+    float sh = ndl > 0.0 ? shadow_at(wpos, n) * sun_through_clouds(wpos) : 0.0;
+    // Hemisphere ambient, more from the sky; a cloudy sky is brighter and lights from all around.
+    // Its light is whiter too: clouds scatter all colours alike.
+    float sky = (0.6 + 0.4 * n.z) * mix(0.55, 1.0, g_cavity) * (1.0 + 1.3 * u_cloud_cover);
+    vec3 ambient = mix(u_ambient_rgb, vec3(dot(u_ambient_rgb, vec3(0.3, 0.5, 0.2))), 0.7 * u_cloud_cover);
+    return albedo * (u_light_rgb * ndl * sh * g_cavity + ambient * sky);
 }
 
 vec3 haze(vec3 c, vec3 wpos) {
@@ -88,41 +151,7 @@ void main() {
 }
 """
 
-# Procedural detail shared by the ground and the foliage: value noise, cellular (Worley) noise and a
-# footprint-filtered fbm. ``fw`` is the pixel footprint in metres (fwidth of the world position): every
-# octave finer than about two pixels fades out, so detail never aliases into sparkle.
-NOISE = """
-float hash(vec2 p) { return fract(sin(dot(p, vec2(127.1, 311.7))) * 43758.5453); }
-vec2 hash2(vec2 p) {
-    return fract(sin(vec2(dot(p, vec2(127.1, 311.7)), dot(p, vec2(269.5, 183.3)))) * 43758.5453);
-}
-float vnoise(vec2 p) {
-    vec2 i = floor(p); vec2 f = fract(p); vec2 u = f * f * (3.0 - 2.0 * f);
-    return mix(mix(hash(i), hash(i + vec2(1, 0)), u.x), mix(hash(i + vec2(0, 1)), hash(i + vec2(1, 1)), u.x), u.y);
-}
-float fade(float cell_m, float fw) { return clamp(cell_m / (fw * 2.5) - 1.0, 0.0, 1.0); }
-float fbm(vec2 p, float cell_m, float fw, int octaves) {
-    float s = 0.0, a = 0.5, c = cell_m;
-    for (int i = 0; i < octaves; ++i) {
-        s += a * (vnoise(p / c) - 0.5) * fade(c, fw);
-        c *= 0.5; a *= 0.55;
-    }
-    return s;
-}
-// Nearest feature point of a jittered grid of cell ``cell_m``: x = distance / cell, y = the cell's random id.
-vec2 worley(vec2 p, float cell_m) {
-    vec2 q = p / cell_m; vec2 i = floor(q); vec2 f = fract(q);
-    float best = 8.0, id = 0.0;
-    for (int y = -1; y <= 1; ++y) for (int x = -1; x <= 1; ++x) {
-        vec2 g = vec2(x, y); vec2 o = hash2(i + g);
-        float d = length(g + o - f);
-        if (d < best) { best = d; id = hash(i + g + 17.0); }
-    }
-    return vec2(best, id);
-}
-"""
-
-TERRAIN_FS = COMMON + SURFACE + NOISE + """
+TERRAIN_FS = COMMON + SURFACE + """
 in vec3 v_normal;
 uniform sampler2D u_ground;      // ground colour (linear) over the terrain grid
 uniform sampler2D u_surface;     // surface weights over the same grid: grass, soil, rock, wet
@@ -263,22 +292,55 @@ in vec3 in_color;
 out vec3 v_wpos;
 out vec3 v_normal;
 out vec3 v_color;
+out vec3 v_opos;
+flat out float v_seed;
 void main() {
     mat3 r = instance_yaw();
     v_wpos = i_pos + r * (in_pos * i_scale);
     v_normal = r * in_normal;
     v_color = in_color;
+    v_opos = in_pos * i_scale;
+    v_seed = fract(i_pos.x * 0.1307 + i_pos.y * 0.7131);
     gl_Position = u_view_proj * vec4(v_wpos, 1.0);
 }
 """
 
+# Plants: green parts read as leaves (clusters of leaves with dark gaps between them, each cluster facing its own way
+# and coloured its own shade, self-shadowed inside the crown); the rest (bark, rock, props) gets grain and streaks.
 VEG_FS = COMMON + SURFACE + """
 in vec3 v_normal;
 in vec3 v_color;
+in vec3 v_opos;
+flat in float v_seed;
+uniform vec3 u_veg_tint;        // the step's plant colour (messages.GroundLook.vegetation_tint)
+uniform float u_detail;         // 0 = flat vertex colours (the plain look)
 void main() {
     vec3 n = normalize(v_normal);
     if (!gl_FrontFacing) n = -n;
-    write_surface(v_color, n, 0u);
+    vec3 albedo = v_color * u_veg_tint;
+    if (u_detail > 0.0) {
+        float fw = max(length(fwidth(v_opos)), 1e-4);
+        float leafy = smoothstep(0.0, 0.015, v_color.g - max(v_color.r, v_color.b));
+        vec2 p = v_opos.xy + v_opos.z * vec2(0.61, -0.37) + v_seed * 97.0;
+        vec2 cl = worley(p + 0.25 * vec2(vnoise(p * 3.1), vnoise(p * 2.7 + 9.0)), 0.26);
+        vec2 lf = worley(p + 5.3, 0.09);
+        // A ragged crown: where the surface turns away from the camera, the gaps between leaf clusters are holes.
+        // All three outputs show what lies behind, so labels stay exact.
+        float facing = abs(dot(n, normalize(u_cam_pos - v_wpos)));
+        if (leafy > 0.5 && cl.x > 0.3 + 2.0 * facing && fade(0.26, fw) > 0.5) discard;
+        float clump = 1.0 - smoothstep(0.3, 0.95, cl.x);
+        float leaf = 1.0 - smoothstep(0.25, 0.9, lf.x);
+        float gaps = mix(1.0, 0.22 + 0.78 * clump, fade(0.26, fw));
+        float lshade = gaps * mix(1.0, 0.65 + 0.6 * leaf, fade(0.09, fw));
+        vec3 hue = mix(vec3(0.8, 1.0, 0.85), vec3(1.2, 1.02, 0.8), cl.y);
+        vec2 tilt = (hash2(vec2(cl.y * 37.0, v_seed * 11.0)) - 0.5) * 1.6 * fade(0.26, fw);
+        float grain = (1.0 + 0.9 * fbm(vec2(v_opos.x + v_opos.y, v_opos.z * 0.2), 0.3, fw, 3))
+                    * (1.0 + 0.5 * fbm(v_opos.xy * 1.3 + v_opos.z, 0.07, fw, 2));
+        albedo = mix(albedo * grain, albedo * mix(vec3(1.0), hue, fade(0.26, fw)) * lshade, leafy);
+        n = normalize(mix(n, normalize(n + vec3(tilt, 0.0)), leafy));
+        g_cavity = mix(1.0, 0.3 + 0.7 * clump, leafy * fade(0.26, fw));
+    }
+    write_surface(albedo, n, 0u);
 }
 """
 
@@ -346,7 +408,10 @@ void main() {
 }
 """
 
-SKY_FS = COMMON + OUTPUTS + """
+# The sky: a gradient from horizon to zenith, brighter round the sun (forward scattering), the sun's disk, and the
+# cloud layer the ground's cloud shadows come from (lit from the sun's side, grey where thick, fading into haze
+# towards the horizon); an overcast sky is a bright grey.
+SKY_FS = COMMON + NOISE + CLOUDS + OUTPUTS + """
 in vec2 v_ndc;
 uniform mat4 u_inv_view_proj;
 uniform vec3 u_sun_dir;
@@ -355,10 +420,26 @@ void main() {
     vec4 far = u_inv_view_proj * vec4(v_ndc, 1.0, 1.0);
     vec3 dir = normalize(far.xyz / far.w - u_cam_pos);
     float up = clamp(dir.z, 0.0, 1.0);
-    vec3 sky = mix(u_horizon_rgb, u_zenith_rgb, pow(up, 0.5));
-    float glow = pow(max(dot(dir, u_sun_dir), 0.0), 64.0) * u_sun_visible;
     float level = clamp(length(u_ambient_rgb) * 1.6, 0.03, 1.0);
-    vec3 c = sky * level + u_light_rgb * glow * 0.4;
+    vec3 sky = mix(u_horizon_rgb, u_zenith_rgb, pow(up, 0.5));
+    float grey = dot(sky, vec3(0.3, 0.5, 0.2));
+    sky = mix(sky, vec3(grey * 1.15), u_cloud_cover * 0.85);
+    float mu = max(dot(dir, u_sun_dir), 0.0);
+    float halo = (pow(mu, 64.0) * 0.4 + pow(mu, 6.0) * 0.12) * u_sun_visible;
+    vec3 c = sky * level + u_light_rgb * halo;
+    float disk = smoothstep(0.99993, 0.99997, mu) * u_sun_visible;
+    float cover = 0.0;
+    if (dir.z > 0.0 && u_cloud_cover > 0.0) {
+        vec2 p = u_cam_pos.xy + dir.xy * (CLOUD_Z - u_cam_pos.z) / max(dir.z, 0.01);
+        float d = cloud_density(p);
+        float toward = cloud_density(p + u_light_dir.xy * 180.0);
+        // Cloud droplets scatter all colours alike: lit by the sun's colour and the sky's brightness, not its blue.
+        vec3 lit = u_light_rgb * (0.25 + 0.55 * (1.0 - toward)) + vec3(dot(u_ambient_rgb, vec3(0.3, 0.5, 0.2))) * 1.9;
+        vec3 cloud = lit * mix(1.0, 0.55, d * toward) * (1.0 - 0.3 * u_cloud_cover);
+        cover = d * smoothstep(0.0, 0.12, dir.z);
+        c = mix(c, cloud, cover);
+    }
+    c += u_light_rgb * disk * 12.0 * (1.0 - cover);
     if (dir.z < 0.0) c = u_horizon_rgb * level * 0.6;
     f_color = vec4(pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
     f_depth = 0.0;
