@@ -15,7 +15,7 @@ from pycocotools.cocoeval import COCOeval
 
 from zebra_sim_ros.detection.boxes import box_iou, decode_ltrb, encode_ltrb, nms, postprocess
 from zebra_sim_ros.detection.checkpoint import load_model, read_checkpoint, save_checkpoint
-from zebra_sim_ros.detection.metrics import evaluate_detections
+from zebra_sim_ros.detection.metrics import ap_by_size, evaluate_detections, precision_recall_at
 from zebra_sim_ros.detection.model import ModelConfig, build_model, count_parameters
 from zebra_sim_ros.errors import AssetError, ParameterError
 
@@ -79,6 +79,12 @@ def _random_eval_set(seed: int) -> tuple[list[np.ndarray], list[np.ndarray]]:
 def _pycocotools_map(preds: list[np.ndarray], gts: list[np.ndarray],
                      crowds: list[np.ndarray]) -> tuple[float, float]:
     """(mAP50-95, mAP50) by pycocotools, ``crowds`` as iscrowd=1 annotations."""
+    stats = _pycocotools_stats(preds, gts, crowds)
+    return float(stats[0]), float(stats[1])
+
+
+def _pycocotools_stats(preds: list[np.ndarray], gts: list[np.ndarray], crowds: list[np.ndarray]) -> np.ndarray:
+    """COCOeval's 12 summary numbers (0 AP, 1 AP50, 3-5 AP small/medium/large)."""
     images, anns, dets = [], [], []
     for i, (p, g, c) in enumerate(zip(preds, gts, crowds, strict=True)):
         images.append({"id": i + 1, "width": 700, "height": 700})
@@ -98,7 +104,7 @@ def _pycocotools_map(preds: list[np.ndarray], gts: list[np.ndarray],
         ev.evaluate()
         ev.accumulate()
         ev.summarize()
-    return float(ev.stats[0]), float(ev.stats[1])
+    return np.asarray(ev.stats)
 
 
 @pytest.mark.parametrize("seed", [3, 4])
@@ -133,6 +139,28 @@ def test_ignore_regions_agree_with_pycocotools_crowds(seed: int) -> None:
     assert ours.instances == sum(len(g) for g in kept)  # don't-care boxes are not instances
     plain = evaluate_detections(with_inner, kept)  # the same detections, scored as false positives
     assert plain.map50 < ours.map50 - 0.05
+
+
+def test_ap_by_size_agrees_with_pycocotools_area_ranges() -> None:
+    preds, gts = _random_eval_set(7)
+    preds = [p * [2.2, 2.2, 2.2, 2.2, 1.0] for p in preds]  # sizes 9..200 px: all three COCO ranges are filled
+    gts = [g * 2.2 for g in gts]
+    stats = _pycocotools_stats(preds, gts, [np.zeros((0, 4))] * len(gts))
+    ours = ap_by_size(preds, gts)
+    for k, name in ((3, "small"), (4, "medium"), (5, "large")):
+        assert ours[name]["instances"] > 10
+        assert ours[name]["mAP50-95"] == pytest.approx(stats[k], abs=0.01), name
+    total = sum(ours[n]["instances"] for n in ("<8", "8-16", "16-32", "32-96", ">=96"))
+    assert total == sum(len(g) for g in gts)
+
+
+def test_precision_recall_at_a_threshold() -> None:
+    gts = [np.array([[0.0, 0, 10, 10], [20, 20, 40, 50]]), np.zeros((0, 4))]
+    preds = [np.array([[0.0, 0, 10, 10, 0.9], [100, 100, 120, 120, 0.5], [20, 20, 40, 50, 0.1]]),
+             np.array([[5.0, 5, 30, 30, 0.6]])]
+    assert precision_recall_at(preds, gts, 0.25) == pytest.approx((1 / 3, 1 / 2))
+    assert precision_recall_at(preds, gts, 0.05) == pytest.approx((2 / 4, 1.0))
+    assert precision_recall_at(preds, gts, 0.95) == (0.0, 0.0)
 
 
 def test_perfect_and_empty_predictions() -> None:

@@ -78,14 +78,27 @@ def coverage_matrix(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[n
     return np.asarray(inter / (area_a[:, None] + 1e-12))
 
 
-def _match_image(pred: NDArray[np.float64], gt: NDArray[np.float64],
-                 ign: NDArray[np.float64]) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+def _match_image(pred: NDArray[np.float64], gt: NDArray[np.float64], ign: NDArray[np.float64],
+                 size_range: tuple[float, float] | None = None) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
     """COCO's greedy matching of one image's score-sorted detections at every IoU threshold: which are true
-    positives, and which lie on a don't-care box instead (neither right nor wrong); both (thresholds, n)."""
+    positives, and which lie on a don't-care box instead (neither right nor wrong); both (thresholds, n).
+
+    ``size_range`` (lo, hi) in px of sqrt(box area), COCO's area ranges: ground truth outside it is ignored (a
+    detection may take it, and then counts for nothing, but only when no box in range is left), and so is an
+    unmatched detection outside it."""
     t = len(IOU_THRESHOLDS)
     ious = iou_matrix(pred[:, :4], gt)
     cover = coverage_matrix(pred[:, :4], ign)
     max_cover = cover.max(1) if cover.shape[1] else np.zeros(len(pred))
+    if size_range is None:
+        gt_out = np.zeros(len(gt), dtype=bool)
+        det_out = np.zeros(len(pred), dtype=bool)
+    else:
+        lo, hi = size_range
+        gt_size = np.sqrt(np.clip((gt[:, 2] - gt[:, 0]) * (gt[:, 3] - gt[:, 1]), 0, None))
+        det_size = np.sqrt(np.clip((pred[:, 2] - pred[:, 0]) * (pred[:, 3] - pred[:, 1]), 0, None))
+        gt_out, det_out = (gt_size < lo) | (gt_size >= hi), (det_size < lo) | (det_size >= hi)
+    gt_order = np.argsort(gt_out, kind="stable")  # boxes in range first, as pycocotools sorts ignored gt last
     tp = np.zeros((t, len(pred)), dtype=bool)
     ig = np.zeros((t, len(pred)), dtype=bool)
     for ti, thr in enumerate(IOU_THRESHOLDS):
@@ -93,26 +106,32 @@ def _match_image(pred: NDArray[np.float64], gt: NDArray[np.float64],
         limit = min(thr, 1 - 1e-10)
         for d in range(len(pred)):
             best, best_iou = -1, limit
-            for g in range(len(gt)):
+            for g in gt_order:
                 if taken[g] or ious[d, g] < best_iou:
                     continue
-                best, best_iou = g, ious[d, g]
+                if best >= 0 and not gt_out[best] and gt_out[g]:
+                    break  # a box in range is matched: ignored ones come after and never replace it
+                best, best_iou = int(g), ious[d, g]
             if best >= 0:
                 taken[best] = True
-                tp[ti, d] = True
-            elif max_cover[d] >= limit:  # on a don't-care zebra: neither right nor wrong
+                if gt_out[best]:
+                    ig[ti, d] = True
+                else:
+                    tp[ti, d] = True
+            elif max_cover[d] >= limit or det_out[d]:  # on a don't-care zebra, or out of range: not counted
                 ig[ti, d] = True
     return tp, ig
 
 
 def evaluate_detections(preds: list[NDArray[np.float64]], gts: list[NDArray[np.float64]],
-                        max_det: int = 100,
-                        ignores: list[NDArray[np.float64]] | None = None) -> DetectionMetrics:
+                        max_det: int = 100, ignores: list[NDArray[np.float64]] | None = None,
+                        size_range: tuple[float, float] | None = None) -> DetectionMetrics:
     """Metrics of per-image predictions (n, 5) [x0, y0, x1, y1, score] against ground truths (m, 4) xyxy.
 
     Single class (zebra); boxes in the same pixel coordinates. ``ignores``: per image, don't-care boxes (k, 4)
-    xyxy (pycocotools' ``iscrowd=1``: see the module's docstring); None for none. With no ground truth at all,
-    AP is 0.
+    xyxy (pycocotools' ``iscrowd=1``: see the module's docstring); None for none. ``size_range``: only objects
+    whose sqrt(area) in px lies in [lo, hi) count (COCO's area ranges; see :func:`_match_image`). With no ground
+    truth at all, AP is 0.
     """
     t = len(IOU_THRESHOLDS)
     scores_all, tp_all, ig_all = [], [], []
@@ -121,9 +140,13 @@ def evaluate_detections(preds: list[NDArray[np.float64]], gts: list[NDArray[np.f
     for pred, gt, ign in zip(preds, gts, per_image_ignores, strict=True):
         pred = np.asarray(pred, dtype=np.float64).reshape(-1, 5)
         gt = np.asarray(gt, dtype=np.float64).reshape(-1, 4)
-        n_gt += len(gt)
+        if size_range is None:
+            n_gt += len(gt)
+        else:
+            side = np.sqrt(np.clip((gt[:, 2] - gt[:, 0]) * (gt[:, 3] - gt[:, 1]), 0, None))
+            n_gt += int(np.sum((side >= size_range[0]) & (side < size_range[1])))
         pred = pred[np.argsort(-pred[:, 4], kind="mergesort")[:max_det]]
-        tp, ig = _match_image(pred, gt, np.asarray(ign, dtype=np.float64).reshape(-1, 4))
+        tp, ig = _match_image(pred, gt, np.asarray(ign, dtype=np.float64).reshape(-1, 4), size_range)
         scores_all.append(pred[:, 4])
         tp_all.append(tp)
         ig_all.append(ig)
@@ -153,6 +176,41 @@ def evaluate_detections(preds: list[NDArray[np.float64]], gts: list[NDArray[np.f
                 best_p, best_r, best_conf = float(pc[k]), float(rc[k]), float(scores[k])
     return DetectionMetrics(ap=ap, precision=best_p, recall=best_r, f1_confidence=best_conf, images=len(gts),
                             instances=n_gt, pr_curve=pr)
+
+
+# Object sizes (sqrt of box area, px) for AP by size: ours (half our zebras are under 12 px) and COCO's.
+SIZE_BINS: dict[str, tuple[float, float]] = {
+    "<8": (0.0, 8.0), "8-16": (8.0, 16.0), "16-32": (16.0, 32.0), "32-96": (32.0, 96.0), ">=96": (96.0, 1e9),
+    "small": (0.0, 32.0), "medium": (32.0, 96.0), "large": (96.0, 1e9)}
+
+
+def ap_by_size(preds: list[NDArray[np.float64]], gts: list[NDArray[np.float64]], max_det: int = 100,
+               ignores: list[NDArray[np.float64]] | None = None) -> dict[str, dict[str, float | int]]:
+    """AP50, AP50-95 and the instance count in each of :data:`SIZE_BINS` (COCO's small/medium/large are sqrt
+    areas under 32, 32-96 and over 96 px, i.e. areas of 32² and 96²); a bin with no instances has AP 0."""
+    out: dict[str, dict[str, float | int]] = {}
+    for name, rng in SIZE_BINS.items():
+        m = evaluate_detections(preds, gts, max_det, ignores, rng)
+        out[name] = {"mAP50": round(m.map50, 4), "mAP50-95": round(m.map50_95, 4), "instances": m.instances}
+    return out
+
+
+def precision_recall_at(preds: list[NDArray[np.float64]], gts: list[NDArray[np.float64]], conf: float,
+                        ignores: list[NDArray[np.float64]] | None = None) -> tuple[float, float]:
+    """Precision and recall at IoU 0.5 of the detections with score >= ``conf`` (what a deployed detector with
+    that threshold reports), don't-care boxes honoured."""
+    tp = fp = n_gt = 0
+    per_image_ignores = ignores if ignores is not None else [np.zeros((0, 4))] * len(gts)
+    for pred, gt, ign in zip(preds, gts, per_image_ignores, strict=True):
+        pred = np.asarray(pred, dtype=np.float64).reshape(-1, 5)
+        pred = pred[pred[:, 4] >= conf]
+        pred = pred[np.argsort(-pred[:, 4], kind="mergesort")]
+        gt = np.asarray(gt, dtype=np.float64).reshape(-1, 4)
+        t, ig = _match_image(pred, gt, np.asarray(ign, dtype=np.float64).reshape(-1, 4))
+        tp += int(t[0].sum())
+        fp += int((~t[0] & ~ig[0]).sum())
+        n_gt += len(gt)
+    return tp / max(tp + fp, 1), tp / max(n_gt, 1)
 
 
 def pr_curve_png(metrics: DetectionMetrics, path: str, title: str = "precision-recall, IoU 0.5") -> None:

@@ -166,10 +166,13 @@ uniform float u_detail;          // 0 = flat colours (the old look), 1 = full pr
 // Grass: clumps of tussocks (metres), tufts (decimetres) and blades (centimetres), each scale with dark gaps
 // where soil and shade show through, multiplied so that the contrast of the coarse scales survives distance.
 vec3 grass_detail(vec2 xy, float fw, out float h) {
-    vec2 clump = worley(xy, 1.7);
-    vec2 big = worley(xy + 3.7, 0.45);
+    // The tussock grid is warped and comes and goes in patches, so from above it never reads as a regular tiling.
+    vec2 warp = 0.9 * vec2(vnoise(xy * 0.37), vnoise(xy * 0.37 + 7.0));
+    vec2 clump = worley(xy + warp, 1.7);
+    vec2 big = worley(xy + 3.7 + 0.3 * warp, 0.45);
     vec2 small = worley(xy + 7.3, 0.16);
-    float c0 = (1.0 - smoothstep(0.2, 1.0, clump.x)) * fade(1.7, fw);
+    float tussocky = smoothstep(-0.12, 0.18, fbm(xy + 31.0, 11.0, fw, 2));
+    float c0 = (1.0 - smoothstep(0.2, 1.0, clump.x)) * fade(1.7, fw) * mix(0.35, 1.0, tussocky);
     float c1 = (1.0 - smoothstep(0.15, 0.95, big.x)) * fade(0.45, fw);
     float c2 = (1.0 - smoothstep(0.1, 0.9, small.x)) * fade(0.16, fw);
     float blades = (vnoise(vec2(xy.x * 90.0, xy.y * 9.0) + vnoise(xy * 23.0) * 4.0) - 0.5) * fade(0.03, fw);

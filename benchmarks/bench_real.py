@@ -1,0 +1,151 @@
+"""Benchmark: how the detector finds REAL zebras (real photographs are for measuring only, never for training).
+
+    python benchmarks/bench_real.py WEIGHTS [WEIGHTS ...] [--sets real/a real/b] [--imgsz 0 640] [--no-append]
+
+``WEIGHTS``: checkpoints (``shipped``: the package's own). ``--sets``: folders laid out as ``scripts/real_sets/``
+rebuilds them: ``images/``, ``labels/`` (YOLO, class 0 = zebra) and optionally ``other_species/`` (the other
+animals' boxes, any class). Default: every such folder under ``real/`` and ``../shared/real/``.
+
+For each weights, set and inference size (``0``: the checkpoint's rule, as ``zebra-sim val`` and the detector node
+serve a frame; a number: the long side every photo is letterboxed to) it prints and appends to BENCHMARKS.md:
+
+- mAP50 and mAP50-95 (COCO, conf 0.001) over the images that show zebras, and AP50 by box size (sqrt of area, px:
+  COCO's small < 32, medium 32-96, large >= 96);
+- precision and recall at IoU 0.5 at the detector's default threshold (conf 0.25);
+- on the photos that show only other species: detections per image at conf 0.25, and the share of those
+  detections that sit on another animal (IoU >= 0.5 with one of its boxes): zebras seen in a buffalo.
+
+The table's header names the date, the machine and each weights' sha256 (first 12 hex digits).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import hashlib
+import json
+import os
+import platform
+import time
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import torch
+
+from zebra_sim_ros.detection.checkpoint import SHIPPED, load_model
+from zebra_sim_ros.detection.data import read_labels
+from zebra_sim_ros.detection.evaluate import ImagePredictions, make_loader, predictions
+from zebra_sim_ros.detection.metrics import ap_by_size, evaluate_detections, iou_matrix, precision_recall_at
+from zebra_sim_ros.detection.predict import inference_size
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_ROOTS = (ROOT / "real", ROOT.parent / "shared" / "real")
+CONF = 0.25  # the detector node's default threshold
+
+
+def find_sets(roots: tuple[Path, ...] = DEFAULT_ROOTS) -> list[Path]:
+    """Every ``<root>/<name>/`` that holds ``images/`` and ``labels/``; a name found under several roots is taken
+    from the first."""
+    found: dict[str, Path] = {}
+    for r in roots:
+        for p in sorted(r.glob("*/images")) if r.is_dir() else []:
+            if (p.parent / "labels").is_dir():
+                found.setdefault(p.parent.name, p.parent)
+    return [found[k] for k in sorted(found)]
+
+
+def sha256_12(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()[:12]
+
+
+def other_boxes(p: ImagePredictions) -> np.ndarray:
+    """The other species' boxes of an image (xyxy, its own pixels), from ``other_species/``."""
+    f = Path(p.file)
+    parts = list(f.parts)
+    parts[len(parts) - 1 - parts[::-1].index("images")] = "other_species"
+    h, w = cv2.imread(str(f), cv2.IMREAD_UNCHANGED).shape[:2]
+    return read_labels(Path(*parts).with_suffix(".txt"), w, h)[:, 1:].astype(np.float64)
+
+
+def score_set(weights: str, folder: Path, imgsz: int) -> dict[str, Any]:
+    model, _ = load_model(None if weights == "shipped" else weights, torch.device("cpu"))
+
+    def rule(long_side: int) -> int:
+        return inference_size(model.cfg, long_side, imgsz or None)
+
+    t0 = time.perf_counter()
+    per = predictions(model, make_loader(folder / "images", rule, batch=4))
+    seconds = time.perf_counter() - t0
+    zebra = [p for p in per if len(p.labels)]
+    others = [p for p in per if not len(p.labels)]
+    dets, gts = [p.detections for p in zebra], [p.labels for p in zebra]
+    m = evaluate_detections(dets, gts)
+    prec, rec = precision_recall_at(dets, gts, CONF)
+    sizes = ap_by_size(dets, gts)
+    on_other = n_other = 0
+    for p in others:
+        d = p.detections[p.detections[:, 4] >= CONF]
+        n_other += len(d)
+        ob = other_boxes(p) if (folder / "other_species").is_dir() else np.zeros((0, 4))
+        if len(d) and len(ob):
+            on_other += int((iou_matrix(d[:, :4], ob).max(1) >= 0.5).sum())
+    return {"weights": weights, "set": folder.name, "imgsz": imgsz or "rule",
+            "served": sorted({p.imgsz for p in per}), "zebra_images": len(zebra), "zebras": m.instances,
+            "mAP50": round(m.map50, 4), "mAP50-95": round(m.map50_95, 4), "P@0.25": round(prec, 4),
+            "R@0.25": round(rec, 4), "AP50_small": sizes["small"]["mAP50"], "AP50_medium": sizes["medium"]["mAP50"],
+            "AP50_large": sizes["large"]["mAP50"],
+            "n_small/medium/large": [sizes[k]["instances"] for k in ("small", "medium", "large")],
+            "other_images": len(others), "other_det_per_image": round(n_other / max(len(others), 1), 4),
+            "other_on_animal_share": round(on_other / max(n_other, 1), 4),
+            "ms_per_image": round(1000 * seconds / max(len(per), 1), 1)}
+
+
+def table(rows: list[dict[str, Any]]) -> list[str]:
+    out = ["| weights | set | imgsz | zebra images / boxes | mAP50 | mAP50-95 | P / R at 0.25 | AP50 small / medium / "
+           "large (boxes) | other-species photos: det/img (on an animal) | ms/img |",
+           "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for r in rows:
+        n = r["n_small/medium/large"]
+        sv = r["served"]
+        served = str(sv[0]) if len(sv) == 1 else f"{sv[0]}-{sv[-1]}"
+        out.append(f"| {r['weights']} | {r['set']} | {r['imgsz']} ({served}) | "
+                   f"{r['zebra_images']} / {r['zebras']} | {r['mAP50']:.3f} | {r['mAP50-95']:.3f} | "
+                   f"{r['P@0.25']:.3f} / {r['R@0.25']:.3f} | {r['AP50_small']:.3f} / {r['AP50_medium']:.3f} / "
+                   f"{r['AP50_large']:.3f} ({n[0]}/{n[1]}/{n[2]}) | {r['other_det_per_image']:.3f} "
+                   f"({100 * r['other_on_animal_share']:.0f}%) | {r['ms_per_image']} |")
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
+    ap.add_argument("weights", nargs="+", help="checkpoints ('shipped': the package's own)")
+    ap.add_argument("--sets", nargs="*", type=Path, default=None, help="real set folders (default: all found)")
+    ap.add_argument("--imgsz", nargs="+", type=int, default=[0], help="inference long sides (0: the checkpoint's "
+                    "rule)")
+    ap.add_argument("--no-append", action="store_true", help="do not append the table to BENCHMARKS.md")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    torch.set_num_threads(max(1, int(os.environ.get("OMP_NUM_THREADS", os.cpu_count() or 1))))
+    sets = args.sets if args.sets is not None else find_sets()
+    if not sets:
+        raise SystemExit("no real sets found: run scripts/real_sets/*.sh first, or pass --sets")
+    for s in sets:
+        if not (s / "images").is_dir() or not (s / "labels").is_dir():
+            raise SystemExit(f"--sets {s}: want a folder with images/ and labels/")
+    rows = [score_set(w, s, n) for w in args.weights for s in sets for n in args.imgsz]
+    machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores"
+    digests = ", ".join(f"{w} {sha256_12(SHIPPED if w == 'shipped' else Path(w))}" for w in args.weights)
+    head = f"`bench_real.py` {dt.date.today().isoformat()}, {machine}; weights sha256: {digests}"
+    lines = [head, "", *table(rows)]
+    print("\n".join(lines))
+    if args.json:
+        print(json.dumps(rows))
+    if not args.no_append:
+        with open(ROOT / "BENCHMARKS.md", "a", encoding="utf-8") as f:
+            f.write("\n" + "\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()

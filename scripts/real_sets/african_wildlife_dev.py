@@ -1,0 +1,71 @@
+"""Rebuild the real set ``real/african_wildlife_dev/`` (measuring only: never training data, never in git).
+
+Source: github:EricJakovac/Animals, commit 676be7122cb9b9fa8f86367621da2a5e1c8d692c, the TRAIN split of
+``datasets/african-wildlife`` (a copy of the "African Wildlife" detection set published with ultralytics; classes
+0 buffalo, 1 elephant, 2 rhino, 3 zebra). License: AGPL-3.0 (the ultralytics dataset's). The test and valid
+splits of that repository are held back, unused, to check that figures generalise to images nobody tuned on.
+What it holds: 400 ground-level photographs listed in ``african_wildlife_dev.txt`` beside this script, 200 that
+show zebras (436 zebra boxes) and 200 that show only buffalo, elephant or rhino, spread through the split's file
+names. Files are copied byte for byte.
+
+Layout written: ``images/train_<name>.jpg`` (the source name with every character but letters and digits turned
+into ``_``), ``labels/*.txt`` (class 0 = zebra), ``other_species/*.txt`` (the other animals' boxes in the source
+classes 0-2), ``data.yaml``, ``SOURCE.txt``.
+
+    python scripts/real_sets/african_wildlife_dev.py GIT_DIR [--out real/african_wildlife_dev]
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+COMMIT = "676be7122cb9b9fa8f86367621da2a5e1c8d692c"
+ZEBRA = "3"
+HERE = Path(__file__).resolve().parent
+
+
+def git(git_dir: Path, *args: str) -> bytes:
+    return subprocess.run(["git", "-C", str(git_dir), *args], check=True, capture_output=True).stdout
+
+
+def local_name(source: str) -> str:
+    return "train_" + re.sub(r"[^A-Za-z0-9]", "_", Path(source).stem)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
+    ap.add_argument("git_dir", type=Path)
+    ap.add_argument("--out", type=Path, default=HERE.parents[1] / "real" / "african_wildlife_dev")
+    args = ap.parse_args()
+    sources = [s for s in (HERE / "african_wildlife_dev.txt").read_text().splitlines() if s.strip()]
+    if args.out.exists():
+        shutil.rmtree(args.out)
+    for sub in ("images", "labels", "other_species"):
+        (args.out / sub).mkdir(parents=True)
+    zebra_images = zebra_boxes = 0
+    for src in sources:
+        name = local_name(src)
+        (args.out / "images" / f"{name}{Path(src).suffix.lower()}").write_bytes(git(args.git_dir, "show",
+                                                                                    f"{COMMIT}:{src}"))
+        label = src.replace("/images/", "/labels/").rsplit(".", 1)[0] + ".txt"
+        rows = [ln.split() for ln in git(args.git_dir, "show", f"{COMMIT}:{label}").decode().splitlines()
+                if ln.strip()]
+        zebra = [" ".join(["0", *r[1:5]]) for r in rows if r[0] == ZEBRA]
+        other = [" ".join(r[:5]) for r in rows if r[0] != ZEBRA]
+        (args.out / "labels" / f"{name}.txt").write_text("".join(z + "\n" for z in zebra))
+        (args.out / "other_species" / f"{name}.txt").write_text("".join(o + "\n" for o in other))
+        zebra_images += bool(zebra)
+        zebra_boxes += len(zebra)
+    (args.out / "data.yaml").write_text("# real photographs for measuring only (never training)\npath: .\n"
+                                        "train: images\nval: images\nnames:\n  0: zebra\n")
+    (args.out / "SOURCE.txt").write_text(f"github:EricJakovac/Animals@{COMMIT} datasets/african-wildlife/train "
+                                         "(AGPL-3.0); see scripts/real_sets/african_wildlife_dev.py\n")
+    print(f"wrote {args.out}: {len(sources)} images, {zebra_images} with zebras, {zebra_boxes} zebra boxes")
+
+
+if __name__ == "__main__":
+    main()
