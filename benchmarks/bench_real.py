@@ -65,7 +65,10 @@ def other_boxes(p: ImagePredictions) -> np.ndarray:
     f = Path(p.file)
     parts = list(f.parts)
     parts[len(parts) - 1 - parts[::-1].index("images")] = "other_species"
-    h, w = cv2.imread(str(f), cv2.IMREAD_UNCHANGED).shape[:2]
+    img = cv2.imread(str(f), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise SystemExit(f"not a readable image: {f}")
+    h, w = img.shape[:2]
     return read_labels(Path(*parts).with_suffix(".txt"), w, h)[:, 1:].astype(np.float64)
 
 
