@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -380,7 +381,7 @@ def test_mosaic_tiles_are_resized_as_inference_resizes(tmp_path: Path, imgsz: in
     frame = np.random.default_rng(1).integers(0, 256, (40, 60, 3), np.uint8)
     (tmp_path / "images").mkdir()
     cv2.imwrite(str(tmp_path / "images" / "a.png"), frame[..., ::-1])
-    still = Augment(mosaic=1.0, scale=0.0, translate=0.0, fliplr=0.0, hsv_h=0.0, hsv_s=0.0, hsv_v=0.0)
+    still = replace(Augment.none(), mosaic=1.0)
     served, r, (left, top) = letterbox(frame, imgsz)
     tile = served[top:top + round(40 * r), left:left + round(60 * r)]  # the frame as inference sees it
     th, tw = tile.shape[:2]
@@ -481,7 +482,7 @@ def test_training_targets_carry_the_dont_care_boxes(tmp_path: Path) -> None:
     cv2.imwrite(str(tmp_path / "images" / "a.png"), np.zeros((50, 100, 3), np.uint8))
     (tmp_path / "labels" / "a.txt").write_text("0 0.5 0.5 0.2 0.2\n")
     (tmp_path / "ignore" / "a.txt").write_text("0 0.1 0.1 0.04 0.04\n0 0.9 0.9 0.06 0.04\n")
-    still = Augment(mosaic=0.0, scale=0.0, translate=0.0, fliplr=0.0, hsv_h=0.0, hsv_s=0.0, hsv_v=0.0)
+    still = Augment.none()
     # letterbox to 128: scale 1.28, 32 px of padding above
     targets = YoloDataset(tmp_path / "images", 128, still, dont_care=True)[0][1].numpy()
     np.testing.assert_allclose(targets, [[0, 51.2, 57.6, 76.8, 70.4], [DONT_CARE, 10.24, 37.12, 15.36, 39.68],
@@ -520,3 +521,104 @@ def test_bf16_autocast_trains_where_the_cpu_has_bf16_instructions() -> None:
         losses[dtype] = float(loss.detach())
     # bf16 keeps 8 bits of mantissa: the loss of a fresh model agrees to a few percent, not to the last bit
     assert losses[torch.bfloat16] == pytest.approx(losses[None], rel=0.05)
+
+
+# -- augmentations that break the synthetic shortcuts ------------------------------------------------------------
+
+def _one_zebra_set(tmp_path: Path, box_px: tuple[int, int] = (24, 12)) -> Path:
+    """A 640x360 grey frame with one small white 'zebra' box (w, h px) at (400, 200) and its YOLO label."""
+    import cv2
+
+    for sub in ("images", "labels"):
+        (tmp_path / sub).mkdir(exist_ok=True)
+    img = np.full((360, 640, 3), 90, np.uint8)
+    w, h = box_px
+    img[200:200 + h, 400:400 + w] = 255
+    cv2.imwrite(str(tmp_path / "images" / "a.png"), img)
+    (tmp_path / "labels" / "a.txt").write_text(f"0 {(400 + w / 2) / 640} {(200 + h / 2) / 360} {w / 640} {h / 360}\n")
+    return tmp_path / "images"
+
+
+def test_zoom_makes_a_large_zebra_from_a_small_one(tmp_path: Path) -> None:
+    from zebra_sim_ros.detection.data import Augment, YoloDataset
+
+    folder = _one_zebra_set(tmp_path)
+    sides = []
+    for seed in range(12):
+        img, lab, _ = YoloDataset(folder, 320, replace(Augment.none(), zoom=1.0), seed=seed)[0]
+        assert len(lab) == 1
+        x0, y0, x1, y1 = lab[0, 1:].numpy()
+        sides.append(max(x1 - x0, y1 - y0))
+        # the box still frames the white object: its inside is white, drawn from the enlarged frame
+        inner = img[:, int(y0) + 2:int(y1) - 2, int(x0) + 2:int(x1) - 2]
+        assert inner.numel() and float(inner.mean()) > 0.95
+    # enlarged up to 4x (24 px -> at most 96 px) and never beyond; the plain pipeline keeps it at 24 * 0.5 px
+    assert max(sides) <= 96.5 and min(sides) > 24 and np.median(sides) > 40
+    plain = YoloDataset(folder, 320, Augment.none())[0][1]
+    assert float(plain[0, 3] - plain[0, 1]) == pytest.approx(12.0, abs=0.1)
+
+
+def test_photometric_augmentations_do_what_they_say(tmp_path: Path) -> None:
+    from zebra_sim_ros.detection.data import Augment, YoloDataset
+
+    folder = _one_zebra_set(tmp_path, (120, 60))
+    base = Augment.none()
+
+    def sample(**kw: float) -> np.ndarray:
+        return YoloDataset(folder, 320, replace(base, **kw), seed=3)[0][0].numpy()
+
+    plain = sample()
+    assert np.array_equal(sample(gamma=0.0, white_balance=0.0, blur=0.0), plain)  # all off: nothing changes
+    grey = sample(grayscale=1.0)
+    assert np.abs(grey[0] - grey[1]).max() < 1e-6 and np.abs(grey[1] - grey[2]).max() < 1e-6
+    noisy = sample(noise=1.0)
+    assert 1.5 / 255 < float((noisy - plain).std()) < 12 / 255
+    blurred = sample(blur=1.0)
+    edge = lambda x: float(np.abs(np.diff(x[0], axis=1)).max())  # noqa: E731
+    assert edge(blurred) < 0.9 * edge(plain)  # the white box's hard edge is softened
+    jpeg = sample(jpeg=1.0)
+    assert 0 < float(np.abs(jpeg - plain).mean()) < 0.05
+    tinted = sample(white_balance=0.3)
+    assert np.abs(tinted - plain).max() > 0.01
+    labels = YoloDataset(folder, 320, replace(base, grayscale=1.0, noise=1.0, jpeg=1.0, blur=1.0), seed=3)[0][1]
+    assert np.allclose(labels.numpy(), YoloDataset(folder, 320, base, seed=3)[0][1].numpy())  # boxes untouched
+
+
+def test_cutout_drops_boxes_it_hides(tmp_path: Path) -> None:
+    from zebra_sim_ros.detection.data import _cutout
+
+    img = np.zeros((100, 100, 3), np.uint8)
+    lab = np.array([[0, 10, 10, 14, 14], [0, 60, 60, 95, 95]], np.float32)
+    kept_counts = set()
+    for seed in range(60):
+        out, kept = _cutout(img, lab, np.random.default_rng(seed), 1.0)
+        assert (out > 0).any()
+        for row in lab:
+            x0, y0, x1, y1 = row[1:].astype(int)
+            covered = float((out[y0:y1, x0:x1].max(axis=2) > 0).mean())
+            if covered > 0.99:  # wholly under one grey rectangle: it must be gone
+                assert not any(np.array_equal(row, k) for k in kept)
+        kept_counts.add(len(kept))
+    assert 2 in kept_counts and min(kept_counts) < 2
+    assert _cutout(img, lab, np.random.default_rng(0), 0.0)[0] is img
+
+
+def test_augment_options_are_checked_recorded_and_held_on_resume(tmp_path: Path) -> None:
+    from zebra_sim_ros.cli import build_parser
+    from zebra_sim_ros.cli.detect import augment_from_args
+    from zebra_sim_ros.detection.data import Augment
+    from zebra_sim_ros.detection.train import TrainConfig, check_resume
+
+    args = build_parser().parse_args(["train", "--data", "d.yaml", "--out", "o", "--aug-zoom", "0.6",
+                                      "--aug-jpeg", "0"])
+    aug = augment_from_args(args)
+    assert aug.zoom == 0.6 and aug.jpeg == 0.0 and aug.mosaic == Augment().mosaic
+    with pytest.raises(ParameterError, match="'--aug-zoom'"):
+        TrainConfig(data="d.yaml", out="o", aug=replace(aug, zoom=1.5)).check()
+    cfg = TrainConfig(data="d.yaml", out="o", aug=aug)
+    from dataclasses import asdict
+
+    check_resume(cfg, asdict(cfg), tmp_path / "last.pt")  # the same settings resume
+    with pytest.raises(ParameterError, match="'--aug-zoom'"):
+        check_resume(replace(cfg, aug=replace(aug, zoom=0.2)), asdict(cfg), tmp_path / "last.pt")
+    assert Augment.from_dict(asdict(aug)) == aug and Augment.from_dict(None) == Augment()

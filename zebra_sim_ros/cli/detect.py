@@ -38,6 +38,7 @@ def register(sub: Any) -> None:
     t.add_argument("--dont-care", action=argparse.BooleanOptionalAction, default=True,
                    help="the sets' ignore/ boxes (zebras dropped by the label filters) are neither zebra nor "
                    "background in the loss; --no-dont-care trains them as background")
+    add_augment_options(t)
     t.add_argument("--out", type=Path, required=True, help="run folder: best.pt, last.pt, results.csv, results.png")
     t.add_argument("--resume", action="store_true", help="continue the run in --out from last.pt")
     t.add_argument("--init", default="", help="start from this checkpoint's weights (fresh schedule), e.g. to "
@@ -70,6 +71,27 @@ def register(sub: Any) -> None:
     e.set_defaults(func=cmd_export)
 
 
+def add_augment_options(parser: argparse.ArgumentParser) -> None:
+    """``--aug-<name>`` for every field of :class:`~zebra_sim_ros.detection.data.Augment` (declared there once)."""
+    from dataclasses import fields
+
+    from zebra_sim_ros.detection.data import Augment
+
+    g = parser.add_argument_group("augmentation (0 switches one off)")
+    for f in fields(Augment):
+        g.add_argument(f"--aug-{f.name.replace('_', '-')}", type=float, default=f.default, dest=f"aug_{f.name}",
+                       metavar="X", help=f"{f.metadata['help']} (default {f.default})")
+
+
+def augment_from_args(args: argparse.Namespace) -> Any:
+    """The :class:`~zebra_sim_ros.detection.data.Augment` the ``--aug-*`` options give."""
+    from dataclasses import fields
+
+    from zebra_sim_ros.detection.data import Augment
+
+    return Augment(**{f.name: getattr(args, f"aug_{f.name}") for f in fields(Augment)})
+
+
 def cmd_train(args: argparse.Namespace) -> Summary:
     """Train."""
     from zebra_sim_ros.detection.train import TrainConfig, train
@@ -78,7 +100,7 @@ def cmd_train(args: argparse.Namespace) -> Summary:
                       batch=args.batch, device=args.device, workers=args.workers, lr0=args.lr0,
                       warmup_epochs=args.warmup_epochs, close_mosaic=args.close_mosaic, seed=args.seed,
                       val_every=args.val_every, max_train_images=args.max_train_images, resume=args.resume,
-                      init=args.init, amp=args.amp, dont_care=args.dont_care)
+                      init=args.init, amp=args.amp, dont_care=args.dont_care, aug=augment_from_args(args))
     summary = train(cfg)
     if int(os.environ.get("RANK", "0")) != 0:  # under torchrun: only the first process reports
         args.json = False

@@ -9,14 +9,16 @@ Batches are ``(images (B, 3, H, W) float in [0, 1], targets (T, 6) [image index,
 training batches are square (H = W = imgsz).
 
 Training augmentation: mosaic of four images, random affine (scale, translation), horizontal flip and HSV
-jitter. Validation: letterbox only, as inference letterboxes (long side to the inference size, each side padded
+jitter (YOLOv5's), then what breaks the synthetic shortcuts (:class:`Augment`): crops zoomed around one zebra,
+cut-out, grey images, gamma and white balance, blur, sensor noise and JPEG.
+Validation: letterbox only, as inference letterboxes (long side to the inference size, each side padded
 to a multiple of 32), with the scale and padding kept to map boxes back to the original image.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -34,17 +36,52 @@ IMAGE_EXTS = (".jpg", ".jpeg", ".png", ".bmp")
 DONT_CARE = -1  # the class of a don't-care box among training targets
 
 
+def _aug(default: float, text: str) -> Any:
+    return field(default=default, metadata={"help": text})
+
+
 @dataclass(frozen=True)
 class Augment:
-    """Augmentation strengths (YOLOv5/8 defaults)."""
+    """Augmentation strengths: the geometry and HSV of YOLOv5/8's defaults, and what breaks the shortcuts a
+    detector learns from rendered frames (a clean sensor, one camera's colours, small far zebras only). Each field
+    is a ``zebra-sim train`` option (``--aug-<name>``); :meth:`none` switches all off."""
 
-    mosaic: float = 1.0
-    scale: float = 0.5
-    translate: float = 0.1
-    fliplr: float = 0.5
-    hsv_h: float = 0.015
-    hsv_s: float = 0.7
-    hsv_v: float = 0.4
+    mosaic: float = _aug(1.0, "probability of a mosaic of four images")
+    scale: float = _aug(0.5, "random scale 1 +- this")
+    translate: float = _aug(0.1, "random translation, share of the image side")
+    fliplr: float = _aug(0.5, "probability of a horizontal flip")
+    hsv_h: float = _aug(0.015, "hue jitter, share of the hue circle")
+    hsv_s: float = _aug(0.7, "saturation gain 1 +- this")
+    hsv_v: float = _aug(0.4, "brightness gain 1 +- this")
+    zoom: float = _aug(0.3, "probability that a sample is a crop around one labelled zebra, enlarged (at most 4x) "
+                            "until it spans 15-80%% of the side, often cut by the edges: large zebras from far ones")
+    grayscale: float = _aug(0.05, "probability of a grey image")
+    gamma: float = _aug(0.25, "gamma exp(U(-this, this)) on the whole image")
+    white_balance: float = _aug(0.12, "per-channel gain exp(U(-this, this)): another camera's colour")
+    blur: float = _aug(0.2, "probability of a Gaussian blur of sigma 0.4-1.6 px (defocus)")
+    noise: float = _aug(0.25, "probability of Gaussian sensor noise of 2-10 levels")
+    jpeg: float = _aug(0.3, "probability of a JPEG round trip at quality 30-90")
+    cutout: float = _aug(0.15, "probability of 1-3 grey rectangles of 5-25%% of the side; a box hidden over 60%% "
+                               "is dropped")
+
+    @classmethod
+    def none(cls) -> Augment:
+        """Letterbox only: every augmentation off."""
+        return cls(**{f.name: 0.0 for f in fields(cls)})
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any] | None) -> Augment:
+        """From a checkpoint's record (unknown or missing names: the defaults)."""
+        names = {f.name for f in fields(cls)}
+        return cls(**{k: float(v) for k, v in (d or {}).items() if k in names})
+
+    def check(self) -> None:
+        """Raise :class:`ParameterError` naming the first value out of range."""
+        for f in fields(self):
+            v = getattr(self, f.name)
+            hi = 10.0 if f.name in ("scale", "hsv_s", "hsv_v") else 1.0
+            if not 0.0 <= v <= hi:
+                raise ParameterError(f"--aug-{f.name.replace('_', '-')}", v, f"0..{hi:g}")
 
 
 def resolve_split(data: str | Path, split: str) -> Path:
@@ -237,12 +274,18 @@ class YoloDataset(Dataset[Any]):
                              read_labels(label_path(self.files[i], "ignore"), w0, h0))
         else:
             rng = self._rng(i)
-            img, lab = self._mosaic(i, rng) if rng.uniform() < a.mosaic else self._single(i, rng)
+            u = rng.uniform(size=2)
+            if u[0] < a.zoom:
+                img, lab = self._zoom(i, rng)
+            else:
+                img, lab = self._mosaic(i, rng) if u[1] < a.mosaic else self._single(i, rng)
             if rng.uniform() < a.fliplr:
                 img = img[:, ::-1].copy()
                 lab[:, [1, 3]] = self.imgsz - lab[:, [3, 1]]
             if a.hsv_h or a.hsv_s or a.hsv_v:  # the uint8 HSV round trip is lossy: never apply it for nothing
                 img = _hsv(img, rng, a)
+            img, lab = _cutout(img, lab, rng, a.cutout)
+            img = _photometric(img, rng, a)
             meta = ImageMeta(str(self.files[i]))
         t = torch.from_numpy(np.ascontiguousarray(img.transpose(2, 0, 1))).float() / 255.0
         return t, torch.from_numpy(lab), meta
@@ -254,6 +297,26 @@ class YoloDataset(Dataset[Any]):
         lab[:, [1, 3]] = lab[:, [1, 3]] * r + left
         lab[:, [2, 4]] = lab[:, [2, 4]] * r + top
         return _affine(img, lab, rng, self.augment or Augment(), self.imgsz)
+
+    def _zoom(self, i: int, rng: np.random.Generator) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+        """A square crop around one labelled zebra (a random one; don't-care boxes are never the centre), scaled so
+        the zebra's long side spans 15-80% of ``imgsz`` (log-uniform; enlarged at most 4x, shrunk freely), its
+        centre anywhere in the middle 80% of the crop so edges may cut it. Without a labelled zebra: as
+        :meth:`_single`."""
+        img, lab = self.load(i, self.dont_care)
+        real = lab[lab[:, 0] != DONT_CARE] if len(lab) else lab
+        if not len(real):
+            return self._single(i, rng)
+        b = real[int(rng.integers(len(real)))]
+        side = max(float(b[3] - b[1]), float(b[4] - b[2]), 1.0)
+        share = float(np.exp(rng.uniform(np.log(0.15), np.log(0.8))))
+        s = min(share * self.imgsz / side, 4.0)
+        cx, cy = (b[1] + b[3]) / 2, (b[2] + b[4]) / 2
+        ox, oy = rng.uniform(0.1, 0.9, 2) * self.imgsz  # where the zebra's centre lands in the output
+        m = np.array([[s, 0.0, ox - s * cx], [0.0, s, oy - s * cy]])
+        interp = cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR
+        out = cv2.warpAffine(img, m, (self.imgsz, self.imgsz), flags=interp, borderValue=(114, 114, 114))
+        return np.asarray(out, dtype=np.uint8), _warp_labels(lab, m, s, self.imgsz)
 
     def _mosaic(self, i: int, rng: np.random.Generator) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
         s = self.imgsz
@@ -303,17 +366,71 @@ def _affine(img: NDArray[np.uint8], lab: NDArray[np.float32], rng: np.random.Gen
         out: NDArray[np.uint8] = img  # letterbox only (no scale or translation): nothing to warp
     else:
         out = np.asarray(cv2.warpAffine(img, m, (size, size), borderValue=(114, 114, 114)), dtype=np.uint8)
-    if len(lab):
-        pts = np.ones((len(lab) * 4, 3), np.float64)
-        pts[:, :2] = lab[:, [1, 2, 3, 4, 1, 4, 3, 2]].reshape(-1, 2)
-        xy = (pts @ m.T).reshape(-1, 8)
-        new = np.stack([xy[:, [0, 2, 4, 6]].min(1), xy[:, [1, 3, 5, 7]].min(1), xy[:, [0, 2, 4, 6]].max(1),
-                        xy[:, [1, 3, 5, 7]].max(1)], 1).clip(0, size)
-        w0, h0 = (lab[:, 3] - lab[:, 1]) * s, (lab[:, 4] - lab[:, 2]) * s
-        w1, h1 = new[:, 2] - new[:, 0], new[:, 3] - new[:, 1]
-        keep = (w1 > 2) & (h1 > 2) & (w1 * h1 / (w0 * h0 + 1e-9) > 0.1)
-        lab = np.concatenate([lab[keep, :1], new[keep]], 1).astype(np.float32)
-    return np.asarray(out, dtype=np.uint8), lab
+    return np.asarray(out, dtype=np.uint8), _warp_labels(lab, m, s, size)
+
+
+def _warp_labels(lab: NDArray[np.float32], m: NDArray[np.float64], s: float, size: int) -> NDArray[np.float32]:
+    """Boxes (n, 5) [class, x0, y0, x1, y1] through the affine ``m`` (scale ``s``) into a ``size`` square,
+    clipped; a box under 3 px or with less than 10% of its area left is dropped."""
+    if not len(lab):
+        return lab
+    pts = np.ones((len(lab) * 4, 3), np.float64)
+    pts[:, :2] = lab[:, [1, 2, 3, 4, 1, 4, 3, 2]].reshape(-1, 2)
+    xy = (pts @ m.T).reshape(-1, 8)
+    new = np.stack([xy[:, [0, 2, 4, 6]].min(1), xy[:, [1, 3, 5, 7]].min(1), xy[:, [0, 2, 4, 6]].max(1),
+                    xy[:, [1, 3, 5, 7]].max(1)], 1).clip(0, size)
+    w0, h0 = (lab[:, 3] - lab[:, 1]) * s, (lab[:, 4] - lab[:, 2]) * s
+    w1, h1 = new[:, 2] - new[:, 0], new[:, 3] - new[:, 1]
+    keep = (w1 > 2) & (h1 > 2) & (w1 * h1 / (w0 * h0 + 1e-9) > 0.1)
+    return np.concatenate([lab[keep, :1], new[keep]], 1).astype(np.float32)
+
+
+def _cutout(img: NDArray[np.uint8], lab: NDArray[np.float32], rng: np.random.Generator,
+            p: float) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+    """With probability ``p``, 1-3 grey rectangles of 5-25% of the side; boxes hidden over 60% are dropped."""
+    if rng.uniform() >= p:
+        return img, lab
+    h, w = img.shape[:2]
+    img = img.copy()
+    hidden = np.zeros(len(lab))
+    for _ in range(int(rng.integers(1, 4))):
+        rw, rh = (rng.uniform(0.05, 0.25, 2) * (w, h)).astype(int)
+        x0, y0 = int(rng.integers(0, max(w - rw, 1))), int(rng.integers(0, max(h - rh, 1)))
+        img[y0:y0 + rh, x0:x0 + rw] = rng.integers(64, 192, 3).astype(np.uint8)
+        if len(lab):
+            ix = np.clip(np.minimum(lab[:, 3], x0 + rw) - np.maximum(lab[:, 1], x0), 0, None)
+            iy = np.clip(np.minimum(lab[:, 4], y0 + rh) - np.maximum(lab[:, 2], y0), 0, None)
+            area = np.maximum((lab[:, 3] - lab[:, 1]) * (lab[:, 4] - lab[:, 2]), 1e-9)
+            hidden = np.maximum(hidden, ix * iy / area)  # the largest single rectangle's share (a lower bound)
+    return img, lab[hidden <= 0.6]
+
+
+def _photometric(img: NDArray[np.uint8], rng: np.random.Generator, a: Augment) -> NDArray[np.uint8]:
+    """Another camera: grey, gamma and white balance (one lookup table per channel), then defocus blur, sensor noise
+    and a JPEG round trip, each with its probability (the last draws of a sample: a setting here changes nothing
+    before it)."""
+    u = rng.uniform(size=10)
+    if u[0] < a.grayscale:
+        img = np.repeat(cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)[..., None], 3, axis=2)
+    if a.gamma or a.white_balance:
+        g = float(np.exp((2 * u[1] - 1) * a.gamma))
+        gains = np.exp((2 * u[2:5] - 1) * a.white_balance)
+        x = np.arange(256, dtype=np.float64) / 255.0
+        luts = [np.clip(255.0 * np.clip(x * k, 0, 1) ** g + 0.5, 0, 255).astype(np.uint8) for k in gains]
+        img = np.dstack([cv2.LUT(np.ascontiguousarray(img[..., c]), luts[c]) for c in range(3)])
+    if u[5] < a.blur:
+        img = np.asarray(cv2.GaussianBlur(img, (0, 0), 0.4 + 1.2 * float(u[6])), dtype=np.uint8)
+    if u[7] < a.noise:
+        sigma = 2.0 + 8.0 * float(u[8])
+        noisy = img.astype(np.float32) + rng.normal(0.0, sigma, img.shape).astype(np.float32)
+        img = np.clip(noisy + 0.5, 0, 255).astype(np.uint8)
+    if u[9] < a.jpeg:
+        quality = int(30 + 60 * rng.uniform())
+        ok, buf = cv2.imencode(".jpg", np.ascontiguousarray(img[..., ::-1]), [cv2.IMWRITE_JPEG_QUALITY, quality])
+        decoded = cv2.imdecode(buf, cv2.IMREAD_COLOR) if ok else None
+        if decoded is not None:  # encoded as BGR, as OpenCV's colour conversion for chroma subsampling expects
+            img = np.asarray(decoded[..., ::-1], dtype=np.uint8)
+    return np.ascontiguousarray(img, dtype=np.uint8)
 
 
 def _hsv(img: NDArray[np.uint8], rng: np.random.Generator, a: Augment) -> NDArray[np.uint8]:

@@ -12,7 +12,7 @@ import math
 import os
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -78,6 +78,7 @@ class TrainConfig:
     val_every: int = 1
     max_train_images: int = 0  # 0 = all
     augment: bool = True  # False: letterbox only (for overfitting tests and debugging)
+    aug: Augment = field(default_factory=Augment)  # the augmentation strengths (zebra-sim train --aug-<name>)
     resume: bool = False
     init: str = ""  # start from this checkpoint's (EMA) weights with a fresh schedule; "" = random init
     amp: str = "auto"  # mixed precision of the forward pass: auto, fp16 (CUDA), bf16, off (see amp_dtype)
@@ -102,6 +103,7 @@ class TrainConfig:
                 raise ParameterError(name, value, allowed)
         if self.amp not in AMP_MODES:
             raise ParameterError("--amp", self.amp, " or ".join(AMP_MODES))
+        self.aug.check()
         if self.init and self.resume:
             raise ParameterError("--init", self.init, "empty when --resume is given (resume continues its own run)")
 
@@ -135,7 +137,10 @@ RESUME_MAY_CHANGE = ("epochs", "device", "workers", "amp", "val_every")
 def check_resume(cfg: TrainConfig, recorded: dict[str, Any], last: Path) -> None:
     """Raise :class:`ParameterError` naming the first setting of ``cfg`` that differs from the run's recorded
     ``train_args`` (other than :data:`RESUME_MAY_CHANGE`); the data are compared as resolved paths."""
-    for name, value in asdict(cfg).items():
+    settings = asdict(cfg)
+    aug = settings.pop("aug")
+    recorded = {**recorded, **{f"aug_{k}": v for k, v in (recorded.get("aug") or {}).items()}}
+    for name, value in (settings | {f"aug_{k}": v for k, v in aug.items()}).items():
         if name in (*RESUME_MAY_CHANGE, "resume", "init", "out") or name not in recorded:
             continue
         was = recorded[name]
@@ -166,8 +171,7 @@ def _init_device(cfg: TrainConfig) -> tuple[torch.device, bool]:
 
 def _train_set(cfg: TrainConfig, train_dir: Path) -> YoloDataset:
     """The training images, augmented unless ``cfg.augment`` is off, cut to ``max_train_images``."""
-    no_aug = Augment(mosaic=0.0, scale=0.0, translate=0.0, fliplr=0.0, hsv_h=0.0, hsv_s=0.0, hsv_v=0.0)
-    ds = YoloDataset(train_dir, cfg.imgsz, Augment() if cfg.augment else no_aug, seed=cfg.seed,
+    ds = YoloDataset(train_dir, cfg.imgsz, cfg.aug if cfg.augment else Augment.none(), seed=cfg.seed,
                      dont_care=cfg.dont_care)
     if cfg.max_train_images:
         ds.files = ds.files[: cfg.max_train_images]
@@ -385,7 +389,7 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
         if sampler is not None:
             sampler.set_epoch(epoch)
         if cfg.augment and epoch >= cfg.epochs - cfg.close_mosaic:
-            ds.augment = Augment(mosaic=0.0)
+            ds.augment = replace(cfg.aug, mosaic=0.0)
         sums, seen = _train_epoch(run_, loader, epoch, warmup)
         images_seen += seen
         if _is_main():
