@@ -279,8 +279,12 @@ def test_a_default_run_holds_other_species_never_as_zebras(tmp_path: Path) -> No
             per_cat[names[a["category_id"]]] = per_cat.get(names[a["category_id"]], 0) + 1
     assert {k: v for k, v in per_cat.items() if k != "zebra"} == stats["other_species_labelled"]
     yolo_lines = 0
+    skies = set()
+    randomised = 0
     for path in (tmp_path / "d" / "annotations").glob("*.json"):
         meta = FrameAnnotation.from_json(path.read_text())
+        skies.add(meta.weather.cloud_cover)
+        randomised += meta.weather.sky_tint != (1.0, 1.0, 1.0)
         others = [z for z in meta.labels.zebras if not z.is_zebra]
         assert all(not z.kept and not z.dont_care and z.drop_reason == "other_species" for z in others)
         assert {z.morph for z in others} == {z.species for z in others}
@@ -290,3 +294,22 @@ def test_a_default_run_holds_other_species_never_as_zebras(tmp_path: Path) -> No
         yolo_lines += len(meta.labels.kept)
     crowd_and_zebras = sum(1 for c in coco.values() for a in c["annotations"] if a["category_id"] == 1)
     assert crowd_and_zebras >= yolo_lines == stats["zebras_labelled"]
+    # every step draws its own sky, and generate's default randomises the look of about half the steps
+    assert len(skies) >= 4 and 0 < randomised < 24
+    settings = json.loads((tmp_path / "d" / "generate.json").read_text())
+    assert "look_randomise=0.5" in FrameAnnotation.from_json(path.read_text()).regenerate, settings
+
+
+def test_randomise_zero_renders_the_worlds_as_authored(tmp_path: Path) -> None:
+    from zebra_sim_ros.messages import FrameAnnotation, GroundLook
+
+    cfg = GenerateConfig(out=str(tmp_path / "d"), frames=6, seed=2, width=160, height=90, depth="none",
+                         randomise=0.0)
+    generate(cfg, progress=lambda *a: None)
+    for path in (tmp_path / "d" / "annotations").glob("*.json"):
+        meta = FrameAnnotation.from_json(path.read_text())
+        assert meta.ground == GroundLook() and meta.weather.sky_tint == (1.0, 1.0, 1.0)
+        assert meta.lighting.sun_azimuth_deg == pytest.approx(
+            float(np.degrees(np.arctan2(meta.lighting.sun_direction[0], meta.lighting.sun_direction[1])) % 360))
+    with pytest.raises(Exception, match="--randomise"):
+        GenerateConfig(out="x", frames=6, randomise=1.5).check()

@@ -669,9 +669,12 @@ class FrameAnnotation(_Message):
     regenerate: str
     labels: Labels
     sensor: SensorDraw | None = None  # the camera drawn for this frame; None: a perfect camera
+    weather: Weather = field(default_factory=Weather)  # the step's sky and its randomised colours
+    ground: GroundLook = field(default_factory=GroundLook)  # the step's landscape colours
 
     def to_dict(self) -> dict[str, Any]:
-        return {"frame": self.frame, "split": self.split, "image": self.image, "mask": self.mask, "depth": self.depth,
+        return {"weather": self.weather.to_dict(), "ground": self.ground.to_dict(),
+                "frame": self.frame, "split": self.split, "image": self.image, "mask": self.mask, "depth": self.depth,
                 "world": self.world.to_dict(), "seed": self.seed, "step": self.step, "placement": self.placement,
                 "reroll": self.reroll, "strategy": self.strategy, "asset_digest": self.asset_digest,
                 "lighting": self.lighting.to_dict(), "camera": self.camera.to_dict(), "regenerate": self.regenerate,
@@ -688,4 +691,5 @@ class FrameAnnotation(_Message):
             WorldRef.from_dict(d["world"]), int(d["seed"]), int(d["step"]), int(d["placement"]), int(d["reroll"]),
             str(d["strategy"]), str(d["asset_digest"]), Lighting.from_dict(d["lighting"]),
             SceneCamera.from_dict(d["camera"]), str(d["regenerate"]), Labels.from_dict(d["labels"]),
-            SensorDraw.from_dict(d.get("sensor"))), d)
+            SensorDraw.from_dict(d.get("sensor")), Weather.from_dict(d.get("weather")),
+            GroundLook.from_dict(d.get("ground"))), d)

@@ -289,7 +289,7 @@ class _Pipeline:
             f"zebra-sim render --seed {job.seed} --step {job.step} --world {job.world} --strategy {job.strategy} "
             f"--width {c.width} --height {c.height} --hfov {c.hfov_deg} --sensor-strength {c.sensor_strength} "
             f"--look {c.look}"
-            f"{self.set_args}", labels, v.sensor)
+            f"{self.set_args}", labels, v.sensor, scene.weather, scene.ground)
         _write_atomic(self.out / "annotations" / f"{name}.json", meta.to_json().encode())
         return name
 
