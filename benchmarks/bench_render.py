@@ -10,8 +10,10 @@ each individual's coat once, the first time it is seen).
     python benchmarks/bench_render.py --looks [--steps 8] [--json]
 
 ``--looks`` compares, at 1280x720 in one run over the same scenes, the plain look (flat ground colours, bare
-coats, no contact shadows), the photographic look (the default: procedural ground detail, contact shadows, coat
-shading) and the photographic look plus the per-frame camera model (``rendering.effects.SensorModel``, applied to
+coats, no contact shadows), the photographic look under a clear sky (procedural ground detail, foliage, contact
+shadows, coat shading), the same with the scene's weather and randomised look (cloud cover at least 0.6, so the
+cloud layer and its shadows are paid for in every frame) and that plus the per-frame camera model
+(``rendering.effects.SensorModel``, applied to
 each view's RGB on the CPU), with the split per pass and the ratios to plain.
 """
 
@@ -23,6 +25,7 @@ import os
 import platform
 import statistics
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -94,14 +97,19 @@ def main() -> None:
     _ = np
 
 
-def _timed(r: Renderer, lib: Any, scenes: list[Any], sensor: SensorModel | None) -> dict[str, Any]:
+def _timed(r: Renderer, lib: Any, scenes: list[Any], sensor: SensorModel | None,
+           weather: bool = False) -> dict[str, Any]:
+    """Median seconds per three-camera frame; ``weather``: each scene's look and sky with a cloud cover of at least
+    0.6 (so every frame pays for the cloud layer and its shadows)."""
     per_frame: list[float] = []
     parts: dict[str, list[float]] = {"prepare": [], "shadow": [], "draw": [], "read": [], "sensor": []}
     for k, sc in enumerate(scenes):
         zs, light, views = zebras_from_scene(sc, lib), sc.lighting, views_from_scene(sc)
-        r.render(zs, light, views[:1])  # warm
+        ground, sky = (sc.ground, replace(sc.weather, cloud_cover=max(sc.weather.cloud_cover, 0.6))) if weather \
+            else (None, None)
+        r.render(zs, light, views[:1], ground, sky)  # warm
         t0 = time.perf_counter()
-        outs = r.render(zs, light, views)
+        outs = r.render(zs, light, views, ground, sky)
         t1 = time.perf_counter()
         if sensor is not None:
             for j, o in enumerate(outs):
@@ -121,10 +129,12 @@ def looks(world: Any, lib: Any, scenes: list[Any], args: argparse.Namespace) -> 
     """The ``--looks`` comparison (module docstring)."""
     res: dict[str, dict[str, Any]] = {}
     info: dict[str, str] = {}
-    for name, detail, sensor in (("plain", False, None), ("photo", True, None), ("photo+camera", True, SensorModel())):
+    for name, detail, sensor, weather in (("plain", False, None, False), ("photo, clear sky", True, None, False),
+                                          ("photo+weather", True, None, True),
+                                          ("photo+weather+camera", True, SensorModel(), True)):
         r = Renderer(world, lib, RenderOptions(width=1280, height=720, detail=detail, contact_shadows=detail))
         info = r.info
-        res[name] = _timed(r, lib, scenes, sensor)
+        res[name] = _timed(r, lib, scenes, sensor, weather)
         r.release()
     base = res["plain"]["s_per_3cam_frame_median"]
     for v in res.values():
