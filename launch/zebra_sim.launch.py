@@ -7,6 +7,10 @@ names, namespaces, parameter files (share/zebra_sim_ros/config) and overrides; a
 ``zebra-sim up`` adds what launch does not: it waits until every node is ready before the placer's first step,
 stops the graph after the last step and scores the run. Here the placer waits for the recorder through
 ``wait_for_subscribers`` and exits after ``frames`` steps; stop the rest with Ctrl-C.
+
+Topic names are relative: wrap this launch file in a group with ``PushRosNamespace`` to move the whole graph (and
+remap ``/tf``, ``/tf_static`` and ``/clock`` into it, as ``zebra-sim up --namespace`` does). The placer is the
+clock (``/clock``, the simulated time of each step); every other node runs with ``use_sim_time``.
 """
 
 import os
@@ -45,19 +49,21 @@ def generate_launch_description():
         return os.path.join(config, name)
 
     cameras = [
-        Node(package=PACKAGE, executable="camera", name="camera", namespace=f"drone_{i}", output="screen",
+        Node(package=PACKAGE, executable="camera", name=f"drone_{i}_camera", namespace="", output="screen",
              parameters=[file("camera.yaml"), {"drone_index": i, "width": arg("width", int),
-                                               "height": arg("height", int), "ack": False}])
+                                               "height": arg("height", int), "ack": False, "use_sim_time": True}])
         for i in range(3)
     ]
     nodes = cameras + [
         Node(package=PACKAGE, executable="labeller", name="labeller", namespace="", output="screen",
-             parameters=[file("labeller.yaml"), {"ack_name": "labeller"}]),
+             parameters=[file("labeller.yaml"), {"ack_name": "labeller", "image_reliability": "reliable",
+                                                 "use_sim_time": True}]),
         Node(package=PACKAGE, executable="detector", name="detector", namespace="", output="screen",
              parameters=[file("detector.yaml"), {"ack_name": "detector", "weights": arg("weights"),
-                                                 "device": arg("device"), "scale": arg("detect_scale", float)}]),
+                                                 "device": arg("device"), "scale": arg("detect_scale", float),
+                                                 "image_reliability": "reliable", "use_sim_time": True}]),
         Node(package=PACKAGE, executable="recorder", name="recorder", namespace="", output="screen",
-             parameters=[file("recorder.yaml"), {"output": arg("bag")}]),
+             parameters=[file("recorder.yaml"), {"output": arg("bag"), "use_sim_time": True}]),
         Node(package=PACKAGE, executable="placer", name="placer", namespace="", output="screen",
              parameters=[file("placer.yaml"), {
                  "world": arg("world"), "seed": arg("seed", int), "strategy": arg("strategy"), "mode": "lockstep",

@@ -12,9 +12,9 @@ STAMP="$VENV/.zebra_sim_setup_stamp"
 log() { echo "[setup] $*"; }
 die() { echo "[setup] error: $*" >&2; exit 1; }
 
-# (a) System libraries for moderngl on headless EGL (Mesa llvmpipe without a GPU). opencv is the
-# headless wheel, which needs no libGL or glib from the system.
-APT_PACKAGES=(libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri)
+# (a) System libraries for moderngl on headless EGL (Mesa llvmpipe without a GPU), and CMake and a C++ compiler
+# for the message packages under interfaces/. opencv is the headless wheel, which needs no libGL or glib.
+APT_PACKAGES=(libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri cmake g++)
 if ! command -v dpkg-query >/dev/null 2>&1; then
     log "no dpkg here: make sure EGL and Mesa (${APT_PACKAGES[*]}) are installed"
 else
@@ -56,7 +56,7 @@ else
 fi
 
 # (c) Python packages, skipped when the inputs have not changed since the last success.
-want="$(cat requirements.txt setup.py setup.cfg | sha256sum | cut -d' ' -f1)"
+want="$(cat requirements.txt requirements-interfaces.txt setup.py setup.cfg | sha256sum | cut -d' ' -f1)"
 have="$(cat "$STAMP" 2>/dev/null || true)"
 if [[ "$want" == "$have" && -x "$VENV/bin/zebra-sim" ]]; then
     log "python packages up to date (stamp matches)"
@@ -68,8 +68,13 @@ else
     "${PIP[@]}" "torch==2.13.0"
     log "pip: requirements.txt"
     "${PIP[@]}" -r requirements.txt
+    log "pip: requirements-interfaces.txt (to build the message packages)"
+    "${PIP[@]}" -r requirements-interfaces.txt
     log "pip: zebra_sim_ros (editable; console scripts in .venv/bin)"
     "${PIP[@]}" --no-deps -e .
     echo "$want" >"$STAMP"
 fi
+# (d) The message packages (tf2_msgs/TFMessage where ROS 2's own is missing, zebra_sim_msgs/Detection2DArray),
+# built into the venv; skipped when their sources have not changed.
+bash scripts/build_interfaces.sh
 log "done"

@@ -55,9 +55,10 @@ def run_node_once(executable: str, params: dict[str, Any], domain: int | None = 
 
 @contextmanager
 def node_process(module: str, params: dict[str, Any], domain: int, log: Path,
-                 ns: str | None = None) -> Iterator[subprocess.Popen[bytes]]:
-    """Run ``python -m zebra_sim_ros.nodes.<module>`` with parameters (and a namespace); always killed at the end."""
-    args = param_args(params) + (["-r", f"__ns:={ns}"] if ns else [])
+                 ns: str | None = None, name: str | None = None) -> Iterator[subprocess.Popen[bytes]]:
+    """Run ``python -m zebra_sim_ros.nodes.<module>`` with parameters (and a namespace, a node name); always killed
+    at the end."""
+    args = param_args(params) + (["-r", f"__ns:={ns}"] if ns else []) + (["-r", f"__node:={name}"] if name else [])
     with open(log, "wb") as out:
         proc = subprocess.Popen([sys.executable, "-m", f"zebra_sim_ros.nodes.{module}", *args],
                                 env=ros_env(domain), stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
@@ -104,3 +105,22 @@ class Peer:
         self.ex.shutdown()
         self.node.destroy_node()
         rclpy.shutdown(context=self.ctx)
+
+
+def detection_array_class() -> Any:
+    """The Detection2DArray class the detector publishes (vision_msgs where installed, else zebra_sim_msgs)."""
+    from zebra_sim_ros.nodes.ros_adapter import detection_array_type, message_class
+
+    return message_class(detection_array_type())
+
+
+def detections_dict(msg: Any) -> dict[str, Any]:
+    """A Detection2DArray as {stamp, frame_id, detections: [{box_xyxy, score, class_name, id}]} for assertions."""
+    out = []
+    for d in msg.detections:
+        cx, cy, w, h = d.bbox.center.position.x, d.bbox.center.position.y, d.bbox.size_x, d.bbox.size_y
+        hyp = d.results[0].hypothesis
+        out.append({"box_xyxy": [cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2], "score": hyp.score,
+                    "class_name": hyp.class_id, "id": d.id, "frame_id": d.header.frame_id})
+    return {"stamp": {"sec": msg.header.stamp.sec, "nanosec": msg.header.stamp.nanosec},
+            "frame_id": msg.header.frame_id, "detections": out}

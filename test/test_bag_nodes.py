@@ -37,7 +37,7 @@ def _domain(peer: Peer) -> int:
 
 
 def _image(k: int) -> Image:
-    img = Image(header=Header(frame_id="drone_0_camera_optical"), height=48, width=64, encoding="rgb8", step=192,
+    img = Image(header=Header(frame_id="drone_0/camera_optical"), height=48, width=64, encoding="rgb8", step=192,
                 data=bytes([k % 256]) * (48 * 192))
     img.header.stamp.sec = 100 + k
     return img

@@ -43,7 +43,7 @@ def test_placer_and_three_cameras_in_lockstep(tmp_path: Path) -> None:
         with ExitStack() as stack:
             cams = [stack.enter_context(node_process(
                 "camera", {"drone_index": i, "width": 256, "height": 144, "shadow_size": 512},
-                domain, tmp_path / f"camera_{i}.log", ns=f"/drone_{i}")) for i in range(3)]
+                domain, tmp_path / f"camera_{i}.log", name=f"drone_{i}_camera")) for i in range(3)]
             placer = stack.enter_context(node_process(
                 "placer", {"mode": "lockstep", "max_steps": STEPS, "count_max": 40, "seed": 2, "rate_hz": 2.0,
                            "camera_width": 256, "camera_height": 144}, domain, tmp_path / "placer.log"))
@@ -67,7 +67,7 @@ def test_placer_and_three_cameras_in_lockstep(tmp_path: Path) -> None:
                 rgb, depth, ids = (got[(name, t)][s] for t in ("image_raw", "depth", "instances"))
                 info = got[(name, "camera_info")][s]
                 for m in (rgb, depth, ids, info):
-                    assert m.header.frame_id == f"{name}_camera_optical"
+                    assert m.header.frame_id == f"{name}/camera_optical"
                 assert (rgb.encoding, depth.encoding, ids.encoding) == ("rgb8", "32FC1", "mono16")
                 assert rgb.width == depth.width == ids.width == info.width == 256
                 assert rgb.height == info.height == 144

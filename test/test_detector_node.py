@@ -2,15 +2,22 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
-from ros_helpers import Peer, fresh_domain_id, node_process, run_node_once, spin_until
+from ros_helpers import (
+    Peer,
+    detection_array_class,
+    detections_dict,
+    fresh_domain_id,
+    node_process,
+    run_node_once,
+    spin_until,
+)
 from sensor_msgs.msg import Image
-from std_msgs.msg import Header, String
+from std_msgs.msg import Header
 
 from zebra_sim_ros.detection.checkpoint import SHIPPED, save_checkpoint
 from zebra_sim_ros.detection.model import ModelConfig, build_model
@@ -29,7 +36,7 @@ def _weights(tmp_path: Path) -> str:
 def _image(stamp: Time, rgb: np.ndarray, encoding: str) -> Image:
     data = rgb[..., ::-1] if encoding == "bgr8" else rgb
     h, w = rgb.shape[:2]
-    return Image(header=Header(stamp=stamp, frame_id="drone_0_camera_optical"), height=h, width=w,
+    return Image(header=Header(stamp=stamp, frame_id="drone_0/camera_optical"), height=h, width=w,
                  encoding=encoding, is_bigendian=0, step=w * 3, data=np.ascontiguousarray(data).tobytes())
 
 
@@ -37,7 +44,7 @@ def _same_detections(a: list[dict], b: list[dict]) -> bool:
     """The same detections up to float noise (the same pixels through one code path, maybe in other batches) and
     the rounding the node applies (boxes to 0.01 px, scores to 1e-4): one rounding step apart at most."""
     return len(a) == len(b) and all(
-        x["class"] == y["class"] and x["box_xyxy"] == pytest.approx(y["box_xyxy"], abs=0.011)
+        x["class_name"] == y["class_name"] and x["box_xyxy"] == pytest.approx(y["box_xyxy"], abs=0.011)
         and x["score"] == pytest.approx(y["score"], abs=1.1e-4) for x, y in zip(a, b, strict=True))
 
 
@@ -47,7 +54,8 @@ def test_detections_keep_the_image_stamp(tmp_path: Path) -> None:
     node, ex = peer.node, peer.ex
     got: list[dict] = []
     annotated: list[Image] = []
-    node.create_subscription(String, "/drone_0/detections", lambda m: got.append(json.loads(m.data)), 10)
+    node.create_subscription(detection_array_class(), "/drone_0/detections", lambda m: got.append(detections_dict(m)),
+                             10)
     node.create_subscription(Image, "/drone_0/detections/image", annotated.append, 10)
     pub = node.create_publisher(Image, "/drone_0/image_raw", 10)
     rgb = np.random.default_rng(0).integers(0, 255, (180, 320, 3), dtype=np.uint8)
@@ -69,7 +77,11 @@ def test_detections_keep_the_image_stamp(tmp_path: Path) -> None:
                 (tmp_path / "detector.log").read_text()
             assert proc.poll() is None  # the bad image did not stop it
         assert [(d["stamp"]["sec"], d["stamp"]["nanosec"]) for d in got] == [(s.sec, s.nanosec) for s in stamps]
-        assert all(d["frame_id"] == "drone_0_camera_optical" and d["width"] == 320 for d in got)
+        assert all(d["frame_id"] == "drone_0/camera_optical" for d in got)
+        assert all(x["frame_id"] == "drone_0/camera_optical" and x["class_name"] == "zebra" for d in got
+                   for x in d["detections"])
+        assert all([x["id"] for x in d["detections"]] == [str(k) for k in range(len(d["detections"]))] for d in got)
+        assert all(0 <= x["box_xyxy"][0] <= x["box_xyxy"][2] <= 320 for d in got for x in d["detections"])
         assert _same_detections(got[0]["detections"], got[1]["detections"])  # bgr8 was converted, not misread
         assert annotated[0].encoding == "rgb8" and annotated[0].header.stamp.sec == 10
         log = (tmp_path / "detector.log").read_text()

@@ -15,6 +15,7 @@ from typing import Any
 
 import pytest
 
+from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.graph.spec import (
     DDS_PROFILE,
     NODE_PARAMS,
@@ -27,7 +28,7 @@ from zebra_sim_ros.graph.spec import (
     ros_value,
 )
 from zebra_sim_ros.graph.supervisor import NodeDied, Supervisor
-from zebra_sim_ros.params import load_params_file, validate
+from zebra_sim_ros.params import ROS_BUILTIN_PARAMS, load_params_file, validate
 
 REPO = Path(__file__).resolve().parents[1]
 SPECS = NODE_PARAMS
@@ -55,8 +56,10 @@ def test_graph_overrides_are_declared_parameters_with_allowed_values(tmp_path: P
     specs = graph_spec(UpConfig(out=str(tmp_path), weights=str(tmp_path / "w.pt")))
     assert [s.executable for s in specs] == ["camera"] * 3 + ["labeller", "detector", "recorder", "placer"]
     for s in specs:
-        known = {p.name for p in SPECS[s.executable]}
+        known = {p.name for p in SPECS[s.executable]} | set(ROS_BUILTIN_PARAMS)
         assert set(s.overrides) <= known, (s.label, set(s.overrides) - known)
+        # the placer is the clock; every other node runs on its simulated time
+        assert s.overrides.get("use_sim_time", False) is (s.executable != "placer"), s.label
         validate(SPECS[s.executable], s.overrides)  # raises naming a bad value
         assert (config_dir() / s.params_file).is_file()
     assert len({s.fqn for s in specs}) == len(specs)
@@ -64,6 +67,23 @@ def test_graph_overrides_are_declared_parameters_with_allowed_values(tmp_path: P
     assert placer["mode"] == "lockstep" and placer["wait_for_subscribers"] == 1
     assert set(placer["lockstep_ack_from"]) == {specs[3].overrides["ack_name"], specs[4].overrides["ack_name"]}
     assert not any(s.executable == "recorder" for s in graph_spec(UpConfig(record=False)))
+
+
+def test_a_namespace_moves_every_topic_and_the_global_ones_are_remapped() -> None:
+    root = graph_spec(UpConfig())
+    g1 = graph_spec(UpConfig(namespace="/g1"))
+    assert all(s.namespace == "" and not s.remaps for s in root)
+    assert all(s.namespace == "/g1" for s in g1)
+    assert all(dict(s.remaps) == {"/tf": "/g1/tf", "/tf_static": "/g1/tf_static", "/clock": "/g1/clock"} for s in g1)
+    for a, b in zip(root, g1, strict=True):
+        assert b.publishes == tuple("/g1" + t for t in a.publishes), b.label
+        assert all(t.startswith("/") for t in a.publishes)
+    assert "/tf" in root[-1].publishes and "/clock" in root[-1].publishes
+    cmd = command(g1[0], Path("cfg"))
+    assert cmd[cmd.index("-r", 6) + 1] == "__ns:=/g1" and "/tf:=/g1/tf" in cmd and "/clock:=/g1/clock" in cmd
+    for bad in ("g1", "/1g", "/g 1", "/g1/"):
+        with pytest.raises(ParameterError, match="--namespace"):
+            UpConfig(namespace=bad).check()
 
 
 def test_command_line_passes_names_files_and_overrides() -> None:

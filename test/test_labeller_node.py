@@ -41,8 +41,9 @@ def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
         with ExitStack() as stack:
             for i, d in enumerate(DRONES):
                 params = {"drone_index": i, "width": 256, "height": 144, "shadow_size": 512}
-                stack.enter_context(node_process("camera", params, domain, tmp_path / f"{d}.log", ns=f"/{d}"))
-            stack.enter_context(node_process("labeller", {"ack_name": "labeller"}, domain, tmp_path / "labeller.log"))
+                stack.enter_context(node_process("camera", params, domain, tmp_path / f"{d}.log", name=f"{d}_camera"))
+            stack.enter_context(node_process("labeller", {"ack_name": "labeller", "image_reliability": "reliable"},
+                                             domain, tmp_path / "labeller.log"))
             placer = stack.enter_context(node_process(
                 "placer", {"mode": "lockstep", "max_steps": STEPS, "count_max": 60, "seed": 8,
                            "lockstep_ack_from": ["drone_0", "drone_1", "drone_2", "labeller"],
@@ -55,13 +56,13 @@ def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
         for d in DRONES:
             assert set(labels[d]) <= image_stamps[d]  # every label carries the stamp of an image
             for x in labels[d].values():
-                assert x["camera"] == d and x["frame_id"] == f"{d}_camera_optical"
+                assert x["camera"] == d and x["frame_id"] == f"{d}/camera_optical"
                 assert x["width"] == 256 and x["in_view"] == len(x["zebras"])
                 for z in x["zebras"]:
                     assert z["visible_pixels"] <= z["silhouette_pixels"] + 2
                     assert len(z["keypoints"]) == 26
             assert markers[d] and markers[d][-1].type == ImageMarker.LINE_LIST
-            assert markers[d][-1].header.frame_id == f"{d}_camera_optical"
+            assert markers[d][-1].header.frame_id == f"{d}/camera_optical"
             assert len(markers[d][-1].points) % 2 == 0
             assert boxes[d]
     finally:

@@ -58,7 +58,7 @@ def _scene(library: ZebraLibrary, cam_pos: np.ndarray, r_opt: np.ndarray, yaw: f
     zebra = SceneZebra(4, "plains", 1, "idle", 0, 1.0, float(np.degrees(yaw)), (0.0, 0.0, 0.0), xyzw,
                        OrientedBox(tuple(centre.tolist()), tuple((box[1] - box[0]).tolist()), xyzw))
     qc_xyzw = (float(qc[1]), float(qc[2]), float(qc[3]), float(qc[0]))
-    camera = SceneCamera("drone_0", "far", tuple(cam_pos.tolist()), qc_xyzw, 0.0, 0.0, 0.0, "drone_0_camera_optical")
+    camera = SceneCamera("drone_0", "far", tuple(cam_pos.tolist()), qc_xyzw, 0.0, 0.0, 0.0, "drone_0/camera_optical")
     return Scene(Stamp(1, 0), 0, 0, 0, 0, library.manifest["digest"], WorldRef("flat", "test", None), NOON,
                  (0.0, 0.0), (10.0, 10.0), 1, (zebra,), (camera,))
 

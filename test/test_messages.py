@@ -55,7 +55,7 @@ def test_scene_round_trips_and_refuses_other_schemas(savanna: World, library: Ze
     back = Scene.from_json(text)
     assert back == scene and back.to_json() == text  # same object, same bytes
     assert scene.placed == len(json.loads(text)["zebras"]) > 0 and not scene.ground.is_identity
-    assert scene.camera("drone_1").frame_id == "drone_1_camera_optical"
+    assert scene.camera("drone_1").frame_id == "drone_1/camera_optical"
     with pytest.raises(MessageFormatError, match="no camera 'drone_9'"):
         scene.camera("drone_9")
     d = json.loads(text)
@@ -95,7 +95,7 @@ def test_detections_round_trip_as_the_node_publishes_them() -> None:
     from zebra_sim_ros.nodes.detector import detections_message
 
     rows = np.array([[10.123, 20.456, 30.789, 40.0, 0.91234, 0], [1, 2, 3, 4, 0.5, 0]], np.float32)
-    msg = detections_message(Stamp(4, 2), "drone_0_camera_optical", 320, 180, rows, ("zebra",))
+    msg = detections_message(Stamp(4, 2), "drone_0/camera_optical", 320, 180, rows, ("zebra",))
     first = msg.detections[0]  # boxes to 0.01 px, scores to 1e-4, as published
     assert first.box_xyxy == pytest.approx((10.12, 20.46, 30.79, 40.0), abs=1e-9)
     assert first.score == pytest.approx(0.9123, abs=1e-9) and (first.class_id, first.class_name) == (0, "zebra")

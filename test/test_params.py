@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import re
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -262,9 +261,9 @@ def _get_conf(peer: Any) -> float:
 def test_param_set_changes_the_running_detector(tmp_path: Path) -> None:
     from builtin_interfaces.msg import Time
     from rcl_interfaces.srv import DescribeParameters
-    from ros_helpers import Peer, fresh_domain_id, node_process
+    from ros_helpers import Peer, detection_array_class, detections_dict, fresh_domain_id, node_process
     from sensor_msgs.msg import Image
-    from std_msgs.msg import Header, String
+    from std_msgs.msg import Header
 
     from zebra_sim_ros.detection.checkpoint import save_checkpoint
     from zebra_sim_ros.detection.model import ModelConfig, build_model
@@ -275,21 +274,22 @@ def test_param_set_changes_the_running_detector(tmp_path: Path) -> None:
     got: dict[int, list[float]] = {}  # image stamp (s) -> detection scores
 
     def on_detections(msg: Any) -> None:
-        d = json.loads(msg.data)
+        d = detections_dict(msg)
         got[d["stamp"]["sec"]] = [x["score"] for x in d["detections"]]
 
-    peer.node.create_subscription(String, "/drone_0/detections", on_detections, 10)
+    peer.node.create_subscription(detection_array_class(), "/drone_0/detections", on_detections, 10)
     pub = peer.node.create_publisher(Image, "/drone_0/image_raw", 10)
     rgb = np.random.default_rng(0).integers(0, 255, (180, 320, 3), dtype=np.uint8)
 
     def detect(sec: int) -> list[float]:
-        pub.publish(Image(header=Header(stamp=Time(sec=sec), frame_id="drone_0_camera_optical"), height=180,
+        pub.publish(Image(header=Header(stamp=Time(sec=sec), frame_id="drone_0/camera_optical"), height=180,
                           width=320, encoding="rgb8", step=960, data=rgb.tobytes()))
         assert peer.spin(lambda: sec in got, 60), log.read_text()
         return got[sec]
 
     log = tmp_path / "detector.log"
     params = {"image_topics": ["/drone_0/image_raw"], "weights": str(weights), "imgsz": 320, "conf": 0.0,
+              "image_reliability": "reliable",
               "max_det": 50}
     try:
         with node_process("detector", params, peer.ctx.get_domain_id(), log) as proc:

@@ -246,7 +246,7 @@ def test_eval_by_running_a_detector_over_recorded_images(tmp_path: Path, capsys:
 def test_cdr_image_reader_matches_rclpy() -> None:
     from zebra_sim_ros.recording.cdr import cdr_image
 
-    img = Image(header=Header(frame_id="drone_1_camera_optical"), height=3, width=5, encoding="bgr8", step=15,
+    img = Image(header=Header(frame_id="drone_1/camera_optical"), height=3, width=5, encoding="bgr8", step=15,
                 data=bytes(range(45)))
     img.header.stamp.sec, img.header.stamp.nanosec = 1234, 5678
     assert cdr_image(serialize_message(img)) == (1234 * 10**9 + 5678, 3, 5, "bgr8", 15, bytes(range(45)))

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import cv2
-from ros_helpers import Peer, fresh_domain_id, node_process, ros_env
+from ros_helpers import Peer, detection_array_class, fresh_domain_id, node_process, ros_env
 
 from zebra_sim_ros.graph.spec import UpConfig, graph_spec
 
@@ -62,6 +62,7 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     preview = cv2.imread(live["preview"])
     assert preview is not None and preview.shape == (180, 960, 3)
     assert "mAP50" in run.stdout and live["bag"] in run.stdout
+    _check_time_base_tf_and_typed_detections(Path(live["bag"]), steps=3)
 
     # Replay the recorded images (and labels) into a fresh detector with the live one's settings (the checkpoint's
     # rule: the shipped weights serve 640 px frames at 1088, so 320 px frames at 544); record its detections.
@@ -74,15 +75,13 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     labels = [f"/{d}/labels" for d in DRONES]
     peer = Peer(domain)
     got: dict[str, int] = {d: 0 for d in DRONES}
-    from std_msgs.msg import String
-
     def counter(drone: str) -> Any:
-        def on_detections(msg: String) -> None:  # one parameter: rclpy passes message info to two
+        def on_detections(msg: Any) -> None:  # one parameter: rclpy passes message info to two
             got[drone] += 1
         return on_detections
 
     for d in DRONES:
-        peer.node.create_subscription(String, f"/{d}/detections", counter(d), 10)
+        peer.node.create_subscription(detection_array_class(), f"/{d}/detections", counter(d), 10)
     try:
         with node_process("recorder", {"output": str(bag2), "topic_regex": r"^/drone_\d+/(labels|detections)$",
                                        "discovery_period_s": 0.1}, domain, tmp_path / "recorder.log"), \
@@ -94,7 +93,9 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
                     i.node_name == "recorder" for i in peer.node.get_subscriptions_info_by_topic(t)) for t in outputs)
             assert peer.spin(matched, 120), "the detector and the recorder did not come up"
             peer.spin(lambda: False, 0.5)
-            with node_process("replay", {"bags": [live["bag"]], "topics": images + labels,
+            # Half speed: the bag's steps are 1 s of simulated time apart, and a fresh detector's first batch (torch
+            # warming up) may take longer, after which it keeps only each topic's newest frame, as live.
+            with node_process("replay", {"bags": [live["bag"]], "topics": images + labels, "rate": 0.5,
                                          "wait_for_subscribers_s": 60.0}, domain, tmp_path / "replay.log") as rp:
                 assert peer.spin(lambda: rp.poll() is not None, 120), "replay did not finish"
                 assert rp.returncode == 0
@@ -109,6 +110,40 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     assert [replayed[d]["frames"] for d in DRONES] == [3, 3, 3]
     assert abs(replayed["all"]["mAP50"] - a["mAP50"]) <= 0.01, (replayed["all"], a)
     assert abs(replayed["all"]["mAP50-95"] - a["mAP50-95"]) <= 0.01, (replayed["all"], a)
+
+
+def _check_time_base_tf_and_typed_detections(bag: Path, steps: int) -> None:
+    """The bag, read by rosbags (an independent reader): /clock once per step, /tf with one transform per drone
+    per step (map -> drone_i/base_link) and /tf_static base_link -> camera_optical, typed detections, and every
+    message's log time equal to its header stamp."""
+    from rosbags.highlevel import AnyReader
+
+    clocks, tf, static, stamped, detections = [], [], [], 0, 0
+    with AnyReader([bag]) as reader:
+        for conn, t, raw in reader.messages():
+            msg = reader.deserialize(raw, conn.msgtype)
+            if conn.topic == "/clock":
+                clocks.append(msg.clock.sec * 10**9 + msg.clock.nanosec)
+                assert t == clocks[-1]
+            elif conn.topic in ("/tf", "/tf_static"):
+                assert conn.msgtype == "tf2_msgs/msg/TFMessage"
+                (tf if conn.topic == "/tf" else static).append((t, msg))
+            elif conn.topic.endswith("/detections"):
+                assert conn.msgtype.endswith("/msg/Detection2DArray"), conn.msgtype
+                detections += 1
+                for d in msg.detections:
+                    assert d.results[0].hypothesis.class_id == "zebra" and 0 < d.results[0].hypothesis.score <= 1
+            header = getattr(msg, "header", None)
+            if header is not None:
+                assert t == header.stamp.sec * 10**9 + header.stamp.nanosec, (conn.topic, t, header.stamp)
+                stamped += 1
+    assert len(clocks) == steps and clocks == sorted(clocks)
+    assert [t for t, _ in tf] == clocks
+    assert all(sorted(x.child_frame_id for x in m.transforms) == [f"{d}/base_link" for d in DRONES] and
+               all(x.header.frame_id == "map" for x in m.transforms) for _, m in tf)
+    links = {(x.header.frame_id, x.child_frame_id) for _, m in static for x in m.transforms}
+    assert links == {(f"{d}/base_link", f"{d}/camera_optical") for d in DRONES}
+    assert detections == steps * len(DRONES) and stamped > 20
 
 
 def test_up_stops_everything_and_names_the_node_that_died(tmp_path: Path) -> None:

@@ -1,8 +1,8 @@
 """Typed messages: the data that crosses a boundary (a topic, a file, a process), defined once.
 
-A :class:`Scene` is what the placer draws for one step (``/zebra_sim/scene``); :class:`Labels` the exact ground
-truth of one camera frame (``/<drone>/labels`` and the ``labels`` of a dataset's annotation files);
-:class:`Detections` what the detector found in one image (``/<drone>/detections``); :class:`FrameAnnotation` one
+A :class:`Scene` is what the placer draws for one step (``zebra_sim/scene``); :class:`Labels` the exact ground
+truth of one camera frame (``<drone>/labels`` and the ``labels`` of a dataset's annotation files);
+:class:`Detections` what the detector found in one image (``<drone>/detections``); :class:`FrameAnnotation` one
 frame of a generated dataset (``annotations/<frame>.json``). Each is a frozen dataclass with ``to_json`` /
 ``from_json`` (and ``to_dict`` / ``from_dict``), carries a schema name and version, and refuses a message of
 another schema or version with :class:`MessageFormatError` naming what is wrong. The JSON texts are those the
@@ -389,7 +389,7 @@ class WorldRef:
 
 @dataclass(frozen=True)
 class Scene(_Message):
-    """Everything drawn for one step (``/zebra_sim/scene``). ``step = placement * camera_rerolls + reroll``;
+    """Everything drawn for one step (``zebra_sim/scene``). ``step = placement * camera_rerolls + reroll``;
     ``seed`` and ``step`` are enough to regenerate the scene alone."""
 
     KIND: ClassVar[str] = "scene"
@@ -544,7 +544,7 @@ def _box_or_empty(d: Mapping[str, Any] | None) -> OrientedBox:
 
 @dataclass(frozen=True)
 class Labels(_Message):
-    """The labels of one camera frame (``/<drone>/labels``): every zebra seen, kept or not, and the camera."""
+    """The labels of one camera frame (``<drone>/labels``): every zebra seen, kept or not, and the camera."""
 
     KIND: ClassVar[str] = "labels"
 
@@ -620,7 +620,7 @@ class Detection:
 
 @dataclass(frozen=True)
 class Detections(_Message):
-    """What the detector found in one image (``/<drone>/detections``), with the image's stamp and frame."""
+    """What the detector found in one image (``<drone>/detections``), with the image's stamp and frame."""
 
     KIND: ClassVar[str] = "detections"
 

@@ -151,6 +151,18 @@ def reliability_param(help: str) -> Any:
     return param("reliable", help, choices=RELIABILITY)
 
 
+def image_reliability_param() -> Any:
+    """The ``image_reliability`` of nodes that subscribe camera images (best effort by default: what camera
+    drivers offer with the sensor-data QoS; a reliable subscription would receive nothing from them)."""
+    return param("best_effort", "QoS reliability of the image subscriptions (best_effort matches camera drivers' "
+                 "sensor-data QoS and reliable publishers alike; reliable only matches reliable publishers)",
+                 choices=RELIABILITY)
+
+
+# Parameters every rclpy node has, which a node's own declarations never list.
+ROS_BUILTIN_PARAMS = ("use_sim_time", "start_type_description_service")
+
+
 def declaration(cls: type, name: str) -> Param:
     """The :class:`Param` of field ``name`` of the config dataclass ``cls``."""
     for f in dataclasses.fields(cls):
@@ -239,7 +251,7 @@ def validate(specs: Iterable[ParamSpec], values: Mapping[str, Any]) -> dict[str,
     """Defaults overridden by ``values``, type-coerced and range-checked. Unknown names are errors."""
     specs = list(specs)
     known = {s.name for s in specs}
-    unknown = sorted(set(values) - known)
+    unknown = sorted(set(values) - known - set(ROS_BUILTIN_PARAMS))
     if unknown:
         raise ParameterError(unknown[0], values[unknown[0]], f"one of the known parameters {sorted(known)}")
     out: dict[str, Any] = {}
@@ -330,6 +342,21 @@ def markdown_table(specs: Iterable[ParamSpec]) -> str:
                  s.allowed.replace("|", "\\|")]
         rows.append("| " + " | ".join(cells) + " |")
     return "\n".join(rows)
+
+
+def replace_tables(readme: str, tables: Mapping[str, Iterable[ParamSpec]]) -> str:
+    """``readme`` with each node's parameter table (found by its header and first parameter) replaced by
+    :func:`markdown_table` of its specs; ``ParameterError`` names a node whose table is not there."""
+    header = "| parameter | default | meaning (unit) | allowed |\n| --- | --- | --- | --- |\n"
+    for node, specs in tables.items():
+        specs = list(specs)
+        start = readme.find(header + f"| `{specs[0].name}` |")
+        if start < 0:
+            raise ParameterError("README table", node, f"a table starting with `{specs[0].name}`")
+        end = readme.find("\n\n", start)
+        end = len(readme) if end < 0 else end
+        readme = readme[:start] + markdown_table(specs) + readme[end:]
+    return readme
 
 
 # -- config/*.yaml ----------------------------------------------------------------------------------------------

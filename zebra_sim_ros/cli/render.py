@@ -13,6 +13,7 @@ import numpy as np
 from zebra_sim_ros.cli.common import Summary, add_json_flag
 from zebra_sim_ros.cli.place import placer_values
 from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.geometry.frames import optical_frame
 from zebra_sim_ros.params import add_option, spec_of
 
 
@@ -92,7 +93,7 @@ def cmd_render(args: argparse.Namespace) -> Summary:
         cv2.imwrite(str(out / f"{v.name}_depth_mm.png"), mm)
         cv2.imwrite(str(out / f"{v.name}_instances.png"), v.instances)
         info[v.name] = {"width": args.width, "height": args.height, "K": v.K.tolist(),
-                        "frame_id": f"{v.name}_camera_optical", "depth_unit": "m", "instances": "zebra id + 1"}
+                        "frame_id": optical_frame(v.name), "depth_unit": "m", "instances": "zebra id + 1"}
         tiles.append(preview_row(v.rgb, v.depth, v.instances))
     (out / "camera_info.json").write_text(json.dumps(info, indent=1))
     cv2.imwrite(str(out / "preview.png"), np.concatenate(tiles, axis=0)[..., ::-1])

@@ -47,6 +47,8 @@ def register(sub: Any) -> None:
     p.add_argument("--out", default="out/up", help="folder for the bag, logs, summary.json and preview.jpg")
     p.add_argument("--config", default="", help="folder of the parameter files (default: the installed config/)")
     p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID for the graph (default: inherited)")
+    p.add_argument("--namespace", default="", help="run the whole graph in this namespace (e.g. /g1): every topic "
+                   "moves under it, and /tf, /tf_static and /clock become <namespace>/tf, ... (default: the root)")
     p.add_argument("--ready-timeout", type=float, default=180.0, help="longest wait for the nodes to be ready, s")
     p.add_argument("--step-timeout", type=float, default=120.0, help="longest wait for one step, s")
     p.add_argument("--no-record", action="store_true", help="run without the recorder (no bag, no scores)")
@@ -97,7 +99,7 @@ def _up_config(args: argparse.Namespace) -> UpConfig:
     cfg = UpConfig(frames=args.frames, world=args.world, seed=args.seed, out=args.out, width=w, height=h,
                    weights=args.weights, device=args.device, detect_scale=args.scale, strategy=args.strategy,
                    config_dir=args.config, ready_timeout_s=args.ready_timeout, step_timeout_s=args.step_timeout,
-                   record=not args.no_record)
+                   record=not args.no_record, namespace=args.namespace)
     cfg.check()
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         raise ParameterError("--domain-id", args.domain_id, "0..232 (ROS_DOMAIN_ID)")
@@ -139,7 +141,7 @@ def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, 
     sup = Supervisor(out / "logs", env)
     try:
         # domain_id None: rclpy reads ROS_DOMAIN_ID as the nodes do
-        with GraphWatch(placer.overrides["lockstep_ack_from"], domain_id) as watch:
+        with GraphWatch(placer.overrides["lockstep_ack_from"], domain_id, cfg.namespace) as watch:
             try:
                 result["ready_s"] = _start_and_wait(sup, watch, others, conf, cfg, t_start)
                 print(f"[up] {len(others)} nodes ready in {result['ready_s']:.1f} s; placer starts "

@@ -5,7 +5,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from zebra_sim_ros.params import ParamSpec, StageConfig, names_list, param, reliability_param
+from zebra_sim_ros.params import (
+    ParamSpec,
+    StageConfig,
+    image_reliability_param,
+    names_list,
+    param,
+    reliability_param,
+)
 
 NATIVE = -1  # as imgsz: each batch at its frames' own resolution (predict.native_size)
 STRIDE = 32  # the largest stride of the model: input sides must be multiples of it
@@ -38,7 +45,7 @@ class DetectorConfig(StageConfig):
     change while the node runs."""
 
     image_topics: tuple[str, ...] = param(
-        ("/drone_0/image_raw", "/drone_1/image_raw", "/drone_2/image_raw"),
+        ("drone_0/image_raw", "drone_1/image_raw", "drone_2/image_raw"),
         "sensor_msgs/Image topics to detect on; outputs go beside each (…/detections)",
         allowed="a non-empty list of topic names", check=names_list)
     weights: str = param("", "checkpoint file (empty: the shipped weights)", allowed="a path or empty")
@@ -61,9 +68,10 @@ class DetectorConfig(StageConfig):
     batch_window_s: float = param(0.05, "frames arriving within this of each other are detected as one batch",
                                   "s", lo=0.001, hi=10.0)
     publish_image: bool = param(True, "publish the annotated image on …/detections/image")
-    ack_name: str = param("", "if set, acknowledge each detected image on /zebra_sim/frame_done as <ack_name> "
+    ack_name: str = param("", "if set, acknowledge each detected image on zebra_sim/frame_done as <ack_name> "
                           "(for the placer's lockstep)", allowed="a name or empty")
-    qos_reliability: str = reliability_param("QoS reliability of subscriptions and outputs")
+    qos_reliability: str = reliability_param("QoS reliability of the outputs")
+    image_reliability: str = image_reliability_param()
     qos_depth: int = param(5, "history depth", lo=1, hi=1000)
 
 
@@ -71,6 +79,9 @@ DETECTOR_PARAMS: tuple[ParamSpec, ...] = DetectorConfig.specs()
 
 
 def output_base(image_topic: str) -> str:
-    """Where a topic's outputs go: ``/drone_0/image_raw`` -> ``/drone_0/detections``."""
-    parent = image_topic.rstrip("/").rsplit("/", 1)[0]
-    return f"{parent}/detections" if parent else "/detections"
+    """Where a topic's outputs go: ``drone_0/image_raw`` -> ``drone_0/detections`` (absolute names stay
+    absolute: ``/drone_0/image_raw`` -> ``/drone_0/detections``; a name without a parent: ``detections``)."""
+    topic = image_topic.rstrip("/")
+    if "/" not in topic.lstrip("/"):
+        return "/detections" if topic.startswith("/") else "detections"
+    return f"{topic.rsplit('/', 1)[0]}/detections"

@@ -15,7 +15,7 @@ from typing import Any
 from zebra_sim_ros.detection.config import DETECTOR_PARAMS
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LABELLER_PARAMS
-from zebra_sim_ros.params import ParamSpec, validate, write_config
+from zebra_sim_ros.params import ParamSpec, replace_tables, validate, write_config
 from zebra_sim_ros.placement.config import PLACER_PARAMS
 from zebra_sim_ros.recording.config import RECORDER_PARAMS, REPLAY_PARAMS
 from zebra_sim_ros.rendering.config import CAMERA_PARAMS
@@ -25,7 +25,9 @@ DRONES = ("drone_0", "drone_1", "drone_2")
 CAMERA_TOPICS = ("image_raw", "depth", "instances", "camera_info")
 LABELLER_TOPICS = ("labels", "labels/markers", "labels/boxes3d")
 DETECTOR_TOPICS = ("detections", "detections/image", "detections/markers")
-PLACER_TOPICS = ("/zebra_sim/scene", "/zebra_sim/zebras/markers", *(f"/{d}/camera/pose" for d in DRONES))
+PLACER_TOPICS = ("zebra_sim/scene", "zebra_sim/zebras/markers", *(f"{d}/camera/pose" for d in DRONES))
+# By convention absolute (tf2 listeners and every node's time source use them); a namespaced graph remaps them.
+GLOBAL_TOPICS = ("/tf", "/tf_static", "/clock")
 BAG_NAME = "zebra_sim.mcap"
 NODE_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
     "placer": PLACER_PARAMS, "camera": CAMERA_PARAMS, "labeller": LABELLER_PARAMS, "detector": DETECTOR_PARAMS,
@@ -38,19 +40,20 @@ class NodeSpec:
 
     executable: str  # console script and module zebra_sim_ros.nodes.<executable>
     name: str  # node name
-    namespace: str  # "" or "/drone_i"
+    namespace: str  # "" or the graph's namespace, e.g. "/g1"
     params_file: str  # file name in the config folder
     overrides: dict[str, Any] = field(default_factory=dict)  # -p name:=value after the file
     publishes: tuple[str, ...] = ()  # absolute topic names this node publishes (readiness and docs)
+    remaps: tuple[tuple[str, str], ...] = ()  # -r from:=to (a namespaced graph's /tf, /tf_static, /clock)
 
     @property
     def fqn(self) -> str:
-        """Fully qualified node name, e.g. ``/drone_0/camera``."""
+        """Fully qualified node name, e.g. ``/drone_0_camera`` or ``/g1/placer``."""
         return f"{self.namespace}/{self.name}"
 
     @property
     def label(self) -> str:
-        """Short unique label for logs and messages: ``placer``, ``drone_0/camera``."""
+        """Short unique label for logs and messages: ``placer``, ``drone_0_camera``, ``g1/placer``."""
         return self.fqn.lstrip("/")
 
 
@@ -76,6 +79,7 @@ class UpConfig:
     # frames at 1280x720 of the training worlds (seed 777): 1.0 (1280) mAP50 0.797 / mAP50-95 0.533, 1.3 (1664)
     # 0.833 / 0.578, 1.7 (2176) 0.843 / 0.581 at twice 1.3's cost.
     detect_scale: float = 0.0
+    namespace: str = ""  # the graph's namespace ("" = the root): every topic moves under it
 
     def check(self) -> None:
         """Raise :class:`ParameterError` naming the first bad setting."""
@@ -90,6 +94,7 @@ class UpConfig:
         from zebra_sim_ros.detection.checkpoint import check_scale
 
         check_scale("--detect-scale", self.detect_scale)
+        check_namespace(self.namespace)
         if self.ready_timeout_s <= 0 or self.step_timeout_s <= 0:
             raise ParameterError("--timeout", min(self.ready_timeout_s, self.step_timeout_s), "> 0 s")
         from zebra_sim_ros.world.world import check_world_source
@@ -141,28 +146,44 @@ def dds_environment(config: Path, environ: dict[str, str]) -> dict[str, str]:
     return env
 
 
+def check_namespace(namespace: str) -> str:
+    """``namespace`` if it is "" or an absolute ROS name (``/g1``, ``/site_a/g1``); ParameterError otherwise."""
+    import re
+
+    if namespace and not re.fullmatch(r"(/[A-Za-z][A-Za-z0-9_]*)+", namespace):
+        raise ParameterError("--namespace", namespace, "empty or /name[/name...] (letters, digits, _; a letter first)")
+    return namespace
+
+
 def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
-    """The processes of the whole graph, in start order (the placer last: it starts the steps)."""
+    """The processes of the whole graph, in start order (the placer last: it starts the steps). Every node runs
+    in ``cfg.namespace`` with relative topic names, so the namespace moves the whole graph; the placer is the clock
+    (``/clock``), the others run on its simulated time (``use_sim_time``)."""
+    ns = check_namespace(cfg.namespace)
+    remaps = tuple((t, f"{ns}{t}") for t in GLOBAL_TOPICS) if ns else ()
+    sim = {"use_sim_time": True}
     nodes: list[NodeSpec] = []
     for i, d in enumerate(DRONES):
-        nodes.append(NodeSpec("camera", "camera", f"/{d}", "camera.yaml",
-                              {"drone_index": i, "width": cfg.width, "height": cfg.height, "ack": False},
-                              tuple(f"/{d}/{t}" for t in CAMERA_TOPICS)))
-    nodes.append(NodeSpec("labeller", "labeller", "", "labeller.yaml", {"ack_name": "labeller"},
-                          tuple(f"/{d}/{t}" for d in DRONES for t in LABELLER_TOPICS)))
+        nodes.append(NodeSpec("camera", f"{d}_camera", ns, "camera.yaml",
+                              {"drone_index": i, "width": cfg.width, "height": cfg.height, "ack": False, **sim},
+                              tuple(f"{ns}/{d}/{t}" for t in CAMERA_TOPICS), remaps))
+    # The graph's own cameras publish reliably and lockstep waits for every frame: subscribe reliably too.
+    nodes.append(NodeSpec("labeller", "labeller", ns, "labeller.yaml",
+                          {"ack_name": "labeller", "image_reliability": "reliable", **sim},
+                          tuple(f"{ns}/{d}/{t}" for d in DRONES for t in LABELLER_TOPICS), remaps))
     # scale 0: the detector sizes the cameras' frames by the checkpoint's rule (far zebras are a few pixels tall).
     det = {"ack_name": "detector", "weights": str(Path(cfg.weights).resolve()) if cfg.weights else "",
-           "device": cfg.device, "scale": cfg.detect_scale}
-    nodes.append(NodeSpec("detector", "detector", "", "detector.yaml", det,
-                          tuple(f"/{d}/{t}" for d in DRONES for t in DETECTOR_TOPICS)))
+           "device": cfg.device, "scale": cfg.detect_scale, "image_reliability": "reliable", **sim}
+    nodes.append(NodeSpec("detector", "detector", ns, "detector.yaml", det,
+                          tuple(f"{ns}/{d}/{t}" for d in DRONES for t in DETECTOR_TOPICS), remaps))
     if cfg.record:
-        nodes.append(NodeSpec("recorder", "recorder", "", "recorder.yaml",
-                              {"output": str(cfg.bag_path.resolve())}))
-    nodes.append(NodeSpec("placer", "placer", "", "placer.yaml", {
+        nodes.append(NodeSpec("recorder", "recorder", ns, "recorder.yaml",
+                              {"output": str(cfg.bag_path.resolve()), **sim}, (), remaps))
+    nodes.append(NodeSpec("placer", "placer", ns, "placer.yaml", {
         "world": cfg.world, "seed": cfg.seed, "strategy": cfg.strategy, "mode": "lockstep", "max_steps": cfg.frames,
         "lockstep_ack_from": ["labeller", "detector"], "lockstep_timeout_s": cfg.step_timeout_s,
         "camera_width": cfg.width, "camera_height": cfg.height, "wait_for_subscribers": 1 if cfg.record else 0},
-        PLACER_TOPICS))
+        tuple(f"{ns}/{t}" for t in PLACER_TOPICS) + tuple(f"{ns}{t}" for t in GLOBAL_TOPICS), remaps))
     return nodes
 
 
@@ -182,6 +203,8 @@ def command(spec: NodeSpec, config: Path, python: str = sys.executable) -> list[
     args = [python, "-m", f"{PACKAGE}.nodes.{spec.executable}", "--ros-args", "-r", f"__node:={spec.name}"]
     if spec.namespace:
         args += ["-r", f"__ns:={spec.namespace}"]
+    for src, dst in spec.remaps:
+        args += ["-r", f"{src}:={dst}"]
     args += ["--params-file", str(config / spec.params_file)]
     for k, v in spec.overrides.items():
         args += ["-p", f"{k}:={ros_value(v)}"]
@@ -194,11 +217,18 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m zebra_sim_ros.graph.spec", description=main.__doc__)
     p.add_argument("--write-config", type=Path, required=True, metavar="FOLDER",
                    help="folder of <node>.yaml files to (re)write from the declarations")
+    p.add_argument("--write-readme", type=Path, default=None, metavar="README",
+                   help="also rewrite the nodes' parameter tables in this README")
     args = p.parse_args(argv)
     if not args.write_config.is_dir():
         p.error(f"{args.write_config} is not a folder")
     for path in write_config(args.write_config, NODE_PARAMS):
         print(f"wrote {path}")
+    if args.write_readme is not None:
+        text = args.write_readme.read_text()
+        new = replace_tables(text, NODE_PARAMS)
+        args.write_readme.write_text(new)
+        print(f"wrote {args.write_readme}" if new != text else f"{args.write_readme} was up to date")
     return 0
 
 

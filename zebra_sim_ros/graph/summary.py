@@ -1,7 +1,8 @@
 """What a run of the whole graph did, read back from its bag: frames per drone, detection scores against the live
 ground truth, throughput, time per stage and end-to-end latency, and a preview image.
 
-Times are the recorder's receive times (``log_time``) of the messages of one step, matched by the scene's
+Times are the recorder's receive times (each message's ``publish_time``, wall clock; log times are the simulated
+stamps) of the messages of one step, matched by the scene's
 stamp: render = scene -> last ``image_raw`` of the step, label = ``image_raw`` -> ``labels``, detect =
 ``image_raw`` -> ``detections`` (per drone), end to end = scene -> last ``detections`` of the step.
 """
@@ -23,7 +24,8 @@ from zebra_sim_ros.recording.cdr import MALFORMED, cdr_string, header_stamp_ns, 
 from zebra_sim_ros.recording.evaluate import collect, score, skip_note
 from zebra_sim_ros.recording.reader import BagMessage
 
-_IMAGE_TOPIC = re.compile(r"^/(?P<drone>drone_\d+)/image_raw$")
+_IMAGE_TOPIC = re.compile(r"^(?:/[^/]+)*/(?P<drone>drone_\d+)/image_raw$")
+_SCENE_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/scene$")
 
 
 def _median_ms(values: list[float]) -> float | None:
@@ -61,18 +63,18 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[st
     def visit(m: BagMessage) -> None:  # scenes and images; collect itself parses labels and detections
         match = _IMAGE_TOPIC.match(m.topic)
         try:
-            if m.topic == "/zebra_sim/scene":
-                scenes[Scene.from_json(cdr_string(m.data)).stamp.ns] = m.log_time
+            if _SCENE_TOPIC.match(m.topic):
+                scenes[Scene.from_json(cdr_string(m.data)).stamp.ns] = m.publish_time
             elif match:
                 drone, t = match.group("drone"), header_stamp_ns(m.data)
                 if t >= latest.get(drone, (-1, b""))[0]:
                     latest[drone] = (t, m.data)
-                times[drone]["image_raw"].setdefault(t, m.log_time)
+                times[drone]["image_raw"].setdefault(t, m.publish_time)
         except (*MALFORMED, ZebraSimError) as exc:
             unusable.append(skip_note(m, exc))
 
     collected = collect(bag, each=visit)  # one pass over the bag for the scores and the timings
-    for drone, log_times in collected.log_times.items():
+    for drone, log_times in collected.arrivals.items():
         times[drone].update(log_times)
     drones = sorted(times)
     frames = {d: {k: len(times[d][k]) for k in ("image_raw", "labels", "detections")} for d in drones}

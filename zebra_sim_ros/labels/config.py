@@ -4,7 +4,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 
-from zebra_sim_ros.params import ParamSpec, StageConfig, names_list, param, reliability_param, same_as
+from zebra_sim_ros.params import (
+    ParamSpec,
+    StageConfig,
+    image_reliability_param,
+    names_list,
+    param,
+    reliability_param,
+    same_as,
+)
 from zebra_sim_ros.zebra.lod import DETAIL_DISTANCE_M
 
 
@@ -44,9 +52,10 @@ class LabellerConfig(StageConfig):
     max_aspect_ratio: float = same_as(LabelFilters, "max_aspect_ratio")
     keypoint_depth_tolerance_m: float = same_as(LabelFilters, "keypoint_depth_tolerance_m")
     sync_window: int = param(20, "frames kept while waiting for a stamp's missing inputs", lo=1, hi=1000)
-    ack_name: str = param("", "if set, acknowledge a step on /zebra_sim/frame_done under this name once every drone "
+    ack_name: str = param("", "if set, acknowledge a step on zebra_sim/frame_done under this name once every drone "
                           "of it is labelled (for the placer's lockstep)", allowed="a name or empty")
-    qos_reliability: str = reliability_param("QoS reliability of subscriptions and outputs")
+    qos_reliability: str = reliability_param("QoS reliability of the outputs and of the scene subscription")
+    image_reliability: str = image_reliability_param()
     qos_depth: int = param(10, "history depth", lo=1, hi=1000)
 
     def filters(self) -> LabelFilters:

@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical
+from zebra_sim_ros.geometry.frames import optical_frame
 from zebra_sim_ros.geometry.rotations import matrix_to_quat, quat_to_matrix
 from zebra_sim_ros.labels.config import LabelFilters
 from zebra_sim_ros.labels.silhouettes import SilhouetteCounter
@@ -204,7 +205,7 @@ def label_view(scene: Scene, camera_name: str, mask: NDArray[np.integer], depth:
                 z.box, camera_box(z.box, p.pos, p.r_opt),
                 tuple((round(float(kp_uv[k, j, 0]), 2), round(float(kp_uv[k, j, 1]), 2), int(vis[k, j]))
                       for j in range(len(KEYPOINT_NAMES))), reason is None, reason, species=z.species))
-    return Labels(scene.stamp, scene.step, scene.seed, camera_name, f"{camera_name}_camera_optical",
+    return Labels(scene.stamp, scene.step, scene.seed, camera_name, optical_frame(camera_name),
                   int(camera.width), int(camera.height), tuple(float(v) for v in camera.K.ravel()),
                   tuple(KEYPOINT_NAMES), filters.to_dict(), tuple(labels), tuple(unknown))
 

@@ -1,18 +1,18 @@
 """The ``camera`` node: one drone's RGB, metric depth and instance mask per scene.
 
-Run one per drone, each in its namespace::
+Run one per drone, in the graph's namespace (topic names are relative, so a namespace moves the whole graph)::
 
-    ros2 run zebra_sim_ros camera --ros-args -r __ns:=/drone_0 -p drone_index:=0
+    ros2 run zebra_sim_ros camera --ros-args -r __node:=drone_1_camera -p drone_index:=1
 
-Subscribes ``/zebra_sim/scene`` (std_msgs/String, reliable, transient local) and publishes, all four with
-the scene's stamp and frame_id ``drone_{i}_camera_optical`` (z forward, x right, y down):
+Subscribes ``zebra_sim/scene`` (std_msgs/String, reliable, transient local) and publishes, all four with
+the scene's stamp and frame_id ``drone_{i}/camera_optical`` (z forward, x right, y down):
 
-- ``image_raw`` (sensor_msgs/Image ``rgb8``), gamma-encoded sRGB;
-- ``depth`` (sensor_msgs/Image ``32FC1``): metres along the optical axis; +inf where only sky (REP 118);
-- ``instances`` (sensor_msgs/Image ``mono16``): 0 = not a zebra, else the zebra's scene id + 1;
-- ``camera_info`` (sensor_msgs/CameraInfo): K and P of the ideal pinhole, no distortion.
+- ``drone_{i}/image_raw`` (sensor_msgs/Image ``rgb8``), gamma-encoded sRGB;
+- ``drone_{i}/depth`` (sensor_msgs/Image ``32FC1``): metres along the optical axis; +inf where only sky (REP 118);
+- ``drone_{i}/instances`` (sensor_msgs/Image ``mono16``): 0 = not a zebra, else the zebra's scene id + 1;
+- ``drone_{i}/camera_info`` (sensor_msgs/CameraInfo): K and P of the ideal pinhole, no distortion.
 
-Then, with ``ack`` true, it acknowledges the step on ``/zebra_sim/frame_done`` (std_msgs/Header, stamp = the
+Then, with ``ack`` true, it acknowledges the step on ``zebra_sim/frame_done`` (std_msgs/Header, stamp = the
 scene's, frame_id = ``drone_{i}``) so a lockstep placer can go on. A scene it cannot read is logged, counted
 and skipped; a repeated scene (same stamp) is published again but rendered once.
 """
@@ -26,6 +26,7 @@ from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Header, String
 
 from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.geometry.frames import optical_frame
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.nodes.placer import SCENE_TOPIC
 from zebra_sim_ros.nodes.ros_adapter import (
@@ -67,13 +68,13 @@ class CameraNode(ZebraNode[CameraConfig]):
         self.sim: Simulator | None = None  # the renderer of the scene's world (its labels are the labeller's)
         self.world_key: tuple[str, str, int] | None = None
         self.effects = c.effects()
-        self.frame_id = f"{c.name}_camera_optical"
+        self.frame_id = optical_frame(c.name)
         out_qos = qos(c.qos_reliability, c.qos_depth)
         scene_qos = qos("reliable", 1, transient_local=True)
-        self.pub_rgb = self.create_publisher(Image, "image_raw", out_qos)
-        self.pub_depth = self.create_publisher(Image, "depth", out_qos)
-        self.pub_ids = self.create_publisher(Image, "instances", out_qos)
-        self.pub_info = self.create_publisher(CameraInfo, "camera_info", out_qos)
+        self.pub_rgb = self.create_publisher(Image, f"{c.name}/image_raw", out_qos)
+        self.pub_depth = self.create_publisher(Image, f"{c.name}/depth", out_qos)
+        self.pub_ids = self.create_publisher(Image, f"{c.name}/instances", out_qos)
+        self.pub_info = self.create_publisher(CameraInfo, f"{c.name}/camera_info", out_qos)
         self.pub_ack = self.create_publisher(Header, ACK_TOPIC, qos("reliable", 100))
         self.create_subscription(String, SCENE_TOPIC, self._on_scene, scene_qos)
         self.get_logger().info(

@@ -2,16 +2,16 @@
 
 Subscribes every topic in ``image_topics`` (sensor_msgs/Image; rgb8, bgr8, rgba8, bgra8 and mono8 are
 converted, other encodings are logged, counted and skipped), detects frames that arrive within
-``batch_window_s`` of each other as one batch, and publishes beside each input topic (``/drone_0/image_raw``
--> ``/drone_0/detections...``), keeping the image's header:
+``batch_window_s`` of each other as one batch, and publishes beside each input topic (``drone_0/image_raw``
+-> ``drone_0/detections...``; names are relative, so a namespace moves them), keeping the image's header:
 
-- ``detections`` (std_msgs/String): ``{"schema": "zebra_sim_ros/detections", "version": 1, "stamp", "frame_id",
-  "width", "height", "detections": [{"box_xyxy": [x0, y0, x1, y1] (pixels, pixel-edge coordinates), "score",
-  "class": 0, "class_name": "zebra"}]}``;
+- ``detections`` (vision_msgs/Detection2DArray where vision_msgs can be imported, else
+  zebra_sim_msgs/Detection2DArray, the same fields): per box one ``results`` hypothesis (``class_id`` "zebra",
+  ``score``) and ``bbox`` (centre and size in pixels, pixel-edge coordinates), ``id`` its rank by score;
 - ``detections/image`` (sensor_msgs/Image rgb8): the image with the boxes drawn;
 - ``detections/markers`` (visualization_msgs/ImageMarker): one LINE_LIST with every box.
 
-With ``ack_name`` set it acknowledges a stamp on ``/zebra_sim/frame_done`` once every input topic of that stamp
+With ``ack_name`` set it acknowledges a stamp on ``zebra_sim/frame_done`` once every input topic of that stamp
 is detected, so the placer's lockstep can wait for detections too.
 """
 
@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 import torch
 from sensor_msgs.msg import Image
-from std_msgs.msg import ColorRGBA, String
+from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import ImageMarker
 
 from zebra_sim_ros.detection.checkpoint import load_model, select_device
@@ -37,8 +37,11 @@ from zebra_sim_ros.nodes.ros_adapter import (
     ZebraNode,
     box_marker,
     describe_qos,
+    detection_array_msg,
+    detection_array_type,
     help_text,
     image_msg,
+    message_class,
     qos,
     run_node,
 )
@@ -83,23 +86,26 @@ class DetectorNode(ZebraNode[DetectorConfig]):
         self.device = select_device(c.device)
         self.model, ckpt = load_model(c.weights or None, self.device)
         q = qos(c.qos_reliability, c.qos_depth)
+        image_q = qos(c.image_reliability, c.qos_depth)
         self.pending: dict[str, Image] = {}
         self.pubs: dict[str, tuple[Any, Any, Any]] = {}
+        self.det_type = detection_array_type()
+        det_class = message_class(self.det_type)
         for topic in c.image_topics:
             base = output_base(topic)
-            self.pubs[topic] = (self.create_publisher(String, base, q),
+            self.pubs[topic] = (self.create_publisher(det_class, base, q),
                                 self.create_publisher(Image, f"{base}/image", q),
                                 self.create_publisher(ImageMarker, f"{base}/markers", q))
-            self.create_subscription(Image, topic, self._handler(topic), q)
+            self.create_subscription(Image, topic, self._handler(topic), image_q)
         self.acks = StepAcks(self, c.ack_name, c.image_topics, window=50)
-        self.timer = self.create_timer(c.batch_window_s, self._flush)
+        self.timer = self.wall_timer(c.batch_window_s, self._flush)
         self.stats = {"images": 0, "batches": 0, "skipped": 0}
         self.seconds = 0.0
         self.get_logger().info(
             f"weights {c.weights or 'shipped'} ({self.model.cfg.size}, epoch {ckpt.get('epoch')}), device "
             f"{self.device}, inference size {describe_size(self.model.cfg, c.imgsz, c.scale)}, conf {c.conf}, "
-            f"iou {c.iou}; topics {list(c.image_topics)}; "
-            f"QoS {describe_qos(q)}")
+            f"iou {c.iou}; topics {list(c.image_topics)} -> {self.det_type}; "
+            f"QoS images: {describe_qos(image_q)}, outputs: {describe_qos(q)}")
 
     def on_config(self, cfg: DetectorConfig) -> None:
         """Detect the next batch with the new thresholds and inference size."""
@@ -145,7 +151,7 @@ class DetectorNode(ZebraNode[DetectorConfig]):
         payload = detections_message(Stamp(header.stamp.sec, header.stamp.nanosec), header.frame_id, int(msg.width),
                                      int(msg.height), dets, self.model.cfg.names)
         det_pub, img_pub, mark_pub = self.pubs[topic]
-        det_pub.publish(String(data=payload.to_json()))
+        det_pub.publish(detection_array_msg(self.det_type, header, payload))
         if self.cfg.publish_image:
             img_pub.publish(image_msg(header, draw_boxes(img, dets), "rgb8"))
         col = ColorRGBA(r=1.0, g=0.25, b=0.0, a=1.0)

@@ -3,7 +3,7 @@
 Not an executable: the supervisor (``zebra_sim_ros.graph``) stays free of rclpy and asks this observer.
 Ready means: every expected topic has a publisher (nodes create their publishers last, after loading
 worlds, assets and weights), and, when recording, the recorder subscribes to each of them.
-Progress is read from the acknowledgements on ``/zebra_sim/frame_done``.
+Progress is read from the acknowledgements on ``zebra_sim/frame_done``.
 """
 
 from __future__ import annotations
@@ -24,11 +24,11 @@ from zebra_sim_ros.nodes.ros_adapter import ACK_TOPIC, qos, stamp_ns
 class GraphWatch:
     """Own context, node and executor; call :meth:`close` (or use as a context manager)."""
 
-    def __init__(self, ackers: Iterable[str] = (), domain_id: int | None = None) -> None:
+    def __init__(self, ackers: Iterable[str] = (), domain_id: int | None = None, namespace: str = "") -> None:
         self.context = Context()
         rclpy.init(context=self.context, args=[], domain_id=domain_id,  # Ctrl-C stays the supervisor's
                    signal_handler_options=SignalHandlerOptions.NO)
-        self.node = Node("zebra_sim_up", context=self.context)
+        self.node = Node("zebra_sim_up", context=self.context, namespace=namespace or None)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.ackers = set(ackers)

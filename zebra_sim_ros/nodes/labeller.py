@@ -1,13 +1,13 @@
 """The ``labeller`` node: exact ground truth for every drone frame (``ros2 run zebra_sim_ros labeller``).
 
-Subscribes ``/zebra_sim/scene`` and, per drone in ``drones``, ``/<drone>/instances``, ``/<drone>/depth`` and
-``/<drone>/camera_info``; matches them by stamp (frames whose inputs do not all arrive within ``sync_window``
+Subscribes ``zebra_sim/scene`` and, per drone in ``drones``, ``<drone>/instances``, ``<drone>/depth`` and
+``<drone>/camera_info``; matches them by stamp (frames whose inputs do not all arrive within ``sync_window``
 newer stamps are dropped and counted) and publishes per drone, with the image's stamp:
 
-- ``/<drone>/labels`` (std_msgs/String): the label JSON (schema in ``zebra_sim_ros.labels.labeller``);
-- ``/<drone>/labels/markers`` (visualization_msgs/ImageMarker): one LINE_LIST with every zebra's visible box
+- ``<drone>/labels`` (std_msgs/String): the label JSON (schema in ``zebra_sim_ros.labels.labeller``);
+- ``<drone>/labels/markers`` (visualization_msgs/ImageMarker): one LINE_LIST with every zebra's visible box
   (green) and full box (orange), frame_id of the image, for Foxglove's image panel;
-- ``/<drone>/labels/boxes3d`` (visualization_msgs/MarkerArray): the zebras' oriented 3D boxes in ``map``.
+- ``<drone>/labels/boxes3d`` (visualization_msgs/MarkerArray): the zebras' oriented 3D boxes in ``map``.
 """
 
 from __future__ import annotations
@@ -88,6 +88,7 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         self.filters = c.filters()
         self.labellers: dict[tuple[int, int, float], Labeller] = {}  # per camera model
         q = qos(c.qos_reliability, c.qos_depth)
+        image_q = qos(c.image_reliability, c.qos_depth)
         scene_qos = qos("reliable", 1, transient_local=True)
         self.scenes: dict[int, Scene] = {}
         self.pending: dict[tuple[str, int], dict[str, Any]] = {}
@@ -97,12 +98,13 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         for d in c.drones:
             for topic, kind, typ in (("instances", "instances", Image), ("depth", "depth", Image),
                                      ("camera_info", "info", CameraInfo)):
-                self.create_subscription(typ, f"/{d}/{topic}", self._handler(d, kind), q)
-            self.pubs[d] = (self.create_publisher(String, f"/{d}/labels", q),
-                            self.create_publisher(ImageMarker, f"/{d}/labels/markers", q),
-                            self.create_publisher(MarkerArray, f"/{d}/labels/boxes3d", q))
+                self.create_subscription(typ, f"{d}/{topic}", self._handler(d, kind), image_q)
+            self.pubs[d] = (self.create_publisher(String, f"{d}/labels", q),
+                            self.create_publisher(ImageMarker, f"{d}/labels/markers", q),
+                            self.create_publisher(MarkerArray, f"{d}/labels/boxes3d", q))
         self.acks = StepAcks(self, c.ack_name, c.drones, window=c.sync_window)
-        self.get_logger().info(f"labelling {list(c.drones)}; QoS inputs and outputs: {describe_qos(q)}; "
+        self.get_logger().info(f"labelling {list(c.drones)}; QoS images: {describe_qos(image_q)}, outputs: "
+                               f"{describe_qos(q)}; "
                                f"scene: {describe_qos(scene_qos)}; filters {self.filters.to_dict()}")
         self.seconds = 0.0
 

@@ -1,14 +1,21 @@
 """The ``placer`` node: publishes one scene per step (``ros2 run zebra_sim_ros placer``).
 
-Topics (all stamped with the scene's simulated time, frame ``map`` = ENU):
+Topics (all stamped with the scene's simulated time, frame ``map`` = ENU; names are relative, so a namespace moves
+the whole graph, except the conventional ``/tf``, ``/tf_static`` and ``/clock``, which ``up --namespace`` remaps):
 
-- ``/zebra_sim/scene`` (std_msgs/String): the scene JSON (schema in ``zebra_sim_ros.placement.scene``);
+- ``zebra_sim/scene`` (std_msgs/String): the scene JSON (schema in ``zebra_sim_ros.placement.scene``);
   reliable, transient local, so a camera that starts late still gets the current step.
-- ``/zebra_sim/zebras/markers`` (visualization_msgs/MarkerArray): the zebras' oriented 3D boxes.
-- ``/drone_{i}/camera/pose`` (geometry_msgs/PoseStamped): pose of ``drone_{i}_camera_optical`` in ``map``.
+- ``zebra_sim/zebras/markers`` (visualization_msgs/MarkerArray): the zebras' oriented 3D boxes.
+- ``drone_{i}/camera/pose`` (geometry_msgs/PoseStamped): pose of ``drone_{i}/camera_optical`` in ``map``.
+- ``/tf`` (tf2_msgs/TFMessage): ``map -> drone_{i}/base_link`` of every drone, each step (REP 105);
+  ``/tf_static``: ``drone_{i}/base_link -> drone_{i}/camera_optical`` once (transient local), so RViz, Foxglove
+  and tf2 place each camera's images in 3D.
+- ``/clock`` (rosgraph_msgs/Clock): the simulated time of each step, published first; every other node stamps
+  with that time (their header stamps are the scene's), ``up`` runs them with ``use_sim_time``, and bags are
+  written with log times equal to the stamps.
 
 Modes: ``rate`` publishes a step every 1/rate_hz s; ``lockstep`` publishes step k+1 only after every name
-in ``lockstep_ack_from`` has acknowledged step k on ``/zebra_sim/frame_done`` (std_msgs/Header: stamp = the
+in ``lockstep_ack_from`` has acknowledged step k on ``zebra_sim/frame_done`` (std_msgs/Header: stamp = the
 scene's stamp, frame_id = the acknowledging node's name, e.g. ``drone_0``).
 """
 
@@ -16,10 +23,13 @@ from __future__ import annotations
 
 import time
 
-from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3
+from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3
+from rosgraph_msgs.msg import Clock
 from std_msgs.msg import ColorRGBA, Header, String
+from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
+from zebra_sim_ros.geometry.frames import OPTICAL_IN_BASE_XYZW, base_frame, body_orientation, optical_frame
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.nodes.ros_adapter import (
     ACK_TOPIC,
@@ -37,8 +47,9 @@ from zebra_sim_ros.placement.placer import Placer
 from zebra_sim_ros.world.world import load_world
 from zebra_sim_ros.zebra.asset import load_library
 
-SCENE_TOPIC = "/zebra_sim/scene"
-MARKER_TOPIC = "/zebra_sim/zebras/markers"
+SCENE_TOPIC = "zebra_sim/scene"
+MARKER_TOPIC = "zebra_sim/zebras/markers"
+CLOCK_TOPIC, TF_TOPIC, TF_STATIC_TOPIC = "/clock", "/tf", "/tf_static"
 _MORPH_RGBA = {"plains": (0.95, 0.85, 0.2, 0.5), "grevy": (0.3, 0.7, 1.0, 0.5), "foal": (1.0, 0.4, 0.6, 0.5)}
 
 
@@ -62,9 +73,16 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         self.get_logger().info(f"QoS {SCENE_TOPIC}: {describe_qos(latched)}; markers and poses: {describe_qos(stream)}")
         self.scene_pub = self.create_publisher(String, SCENE_TOPIC, latched)
         self.marker_pub = self.create_publisher(MarkerArray, MARKER_TOPIC, stream)
-        self.pose_pubs = [self.create_publisher(PoseStamped, f"/{n}/camera/pose", stream)
+        self.pose_pubs = [self.create_publisher(PoseStamped, f"{n}/camera/pose", stream)
                           for n in self.placer.camera_names]
-        self.outputs = [self.scene_pub, self.marker_pub, *self.pose_pubs]
+        self.clock_pub = self.create_publisher(Clock, CLOCK_TOPIC, qos("reliable", 10))
+        self.tf_pub = self.create_publisher(TFMessage, TF_TOPIC, qos("reliable", 100))
+        latched_tf = qos("reliable", 1, transient_local=True)
+        self.tf_static_pub = self.create_publisher(TFMessage, TF_STATIC_TOPIC, latched_tf)
+        self.tf_static_pub.publish(TFMessage(transforms=[
+            _transform(Header(frame_id=base_frame(n)), optical_frame(n), (0.0, 0.0, 0.0), OPTICAL_IN_BASE_XYZW)
+            for n in self.placer.camera_names]))
+        self.outputs = [self.scene_pub, self.marker_pub, *self.pose_pubs]  # what wait_for_subscribers waits for
         self.step = c.start_step
         self.published = 0
         self.pending: Scene | None = None
@@ -73,13 +91,13 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         self.started = c.wait_for_subscribers == 0
         self.waiting_since = time.monotonic()
         if c.mode == "rate":
-            self.timer = self.create_timer(1.0 / c.rate_hz, self._publish_next)
+            self.timer = self.wall_timer(1.0 / c.rate_hz, self._publish_next)
         else:
             ack_qos = qos("reliable", 100)
             self.get_logger().info(f"lockstep: waiting for {list(c.lockstep_ack_from)} on {ACK_TOPIC} "
                                    f"({describe_qos(ack_qos)})")
             self.create_subscription(Header, ACK_TOPIC, self._on_ack, ack_qos)
-            self.timer = self.create_timer(0.05, self._lockstep_tick)
+            self.timer = self.wall_timer(0.05, self._lockstep_tick)
 
     def _finished(self) -> bool:
         return self.cfg.max_steps > 0 and self.published >= self.cfg.max_steps
@@ -100,7 +118,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         if not self._subscribed():
             return
         if self._finished():
-            flush(self, self.outputs)
+            flush(self, [*self.outputs, self.clock_pub, self.tf_pub])
             self.get_logger().info(f"published {self.published} steps; stopping")
             self.done = True
             return
@@ -111,6 +129,10 @@ class PlacerNode(ZebraNode[PlacerConfig]):
 
     def _publish(self, scene: Scene) -> None:
         header = Header(stamp=stamp(scene.stamp.ns), frame_id="map")
+        self.clock_pub.publish(Clock(clock=header.stamp))  # first: the step's time, before anything stamped with it
+        self.tf_pub.publish(TFMessage(transforms=[
+            _transform(header, base_frame(cam.name), cam.position, body_orientation(cam.orientation_xyzw))
+            for cam in scene.cameras]))
         self.scene_pub.publish(String(data=scene.to_json()))
         self.marker_pub.publish(self._markers(scene, header))
         for pub, cam in zip(self.pose_pubs, scene.cameras, strict=True):
@@ -137,7 +159,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         c = self.cfg
         if self.pending is None:
             if self._finished():
-                flush(self, self.outputs)
+                flush(self, [*self.outputs, self.clock_pub, self.tf_pub])
                 self.get_logger().info(f"all {self.published} steps acknowledged; stopping")
                 self.done = True
                 return
@@ -163,6 +185,14 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             self.step += 1
             self.published += 1
             self._lockstep_tick()
+
+
+def _transform(header: Header, child: str, xyz: tuple[float, float, float],
+               xyzw: tuple[float, float, float, float]) -> TransformStamped:
+    """A TransformStamped: ``child`` in ``header.frame_id`` at ``xyz`` (m) turned by ``xyzw``."""
+    return TransformStamped(header=header, child_frame_id=child, transform=Transform(
+        translation=Vector3(x=float(xyz[0]), y=float(xyz[1]), z=float(xyz[2])),
+        rotation=Quaternion(x=xyzw[0], y=xyzw[1], z=xyzw[2], w=xyzw[3])))
 
 
 def main(argv: list[str] | None = None) -> int:

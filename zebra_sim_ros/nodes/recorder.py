@@ -5,7 +5,10 @@ Subscribes, as serialized messages (no deserialisation), to the topics in ``topi
 empty, to every topic matching ``topic_regex`` and not ``exclude_regex``, found again every
 ``discovery_period_s`` (topics that appear later are recorded from then on). Each subscription takes the
 QoS its publishers offer (reliable and transient local only if they all are), and the offered profiles go
-into the bag as rosbag2's ``offered_qos_profiles``. Callbacks only queue the bytes; one thread writes. A full
+into the bag as rosbag2's ``offered_qos_profiles``. Log times are the messages' header stamps where their type has
+one (``recording.stamps``), else the node's clock: run with ``use_sim_time`` (``up`` does) and every log time is
+simulated time, the stamps' time base. Each message's publish time is when it arrived (wall clock), which is
+what latencies are measured from. Callbacks only queue the bytes; one thread writes. A full
 queue counts drops per topic; a full disk or ``max_size_mb`` ends the recording with a finalised bag and an
 error. SIGINT, SIGTERM and node shutdown finalise the bag (summary and indexes); after SIGKILL use
 ``zebra-sim bag recover``.
@@ -24,6 +27,7 @@ from zebra_sim_ros.nodes.ros_adapter import ZebraNode, describe_qos, help_text, 
 from zebra_sim_ros.recording.config import RECORDER_PARAMS, RecorderConfig
 from zebra_sim_ros.recording.qos import profile_dict, replay_profile
 from zebra_sim_ros.recording.recorder import RecorderCore
+from zebra_sim_ros.recording.stamps import header_stamp_ns
 from zebra_sim_ros.recording.writer import BagWriter
 
 
@@ -52,10 +56,10 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         self.core = RecorderCore(self.writer, c.queue_size)
         self.depth = c.qos_depth
         self.subs: dict[str, Any] = {}
-        self.create_timer(c.discovery_period_s, self._discover)
+        self.wall_timer(c.discovery_period_s, self._discover)
         if c.stats_period_s > 0:
-            self.create_timer(c.stats_period_s, self._log_stats)
-        self.create_timer(0.2, self._check_error)
+            self.wall_timer(c.stats_period_s, self._log_stats)
+        self.wall_timer(0.2, self._check_error)
         self.get_logger().info(
             f"recording to {self.writer.path} ({c.compression}, chunks {c.chunk_size_mb} MB, split "
             f"{c.split_size_mb} MB / {c.split_duration_s} s, cap {c.max_size_mb} MB); "
@@ -98,14 +102,17 @@ class RecorderNode(ZebraNode[RecorderConfig]):
                 continue
             p = replay_profile(profiles)  # reliable and transient local only if every publisher is
             q = qos(p["reliability"], self.depth, p["durability"] == "transient_local")
-            self.subs[topic] = self.create_subscription(cls, topic, self._callback(topic), q, raw=True)
+            self.subs[topic] = self.create_subscription(cls, topic, self._callback(topic, type_name), q, raw=True)
             self.get_logger().info(f"recording {topic} ({type_name}), QoS {describe_qos(q)}")
 
-    def _callback(self, topic: str) -> Any:
+    def _callback(self, topic: str, type_name: str) -> Any:
+        """Queue each message with its log time: its header stamp where its type has one (so log times equal the
+        stamps), else the node's clock (simulated time under use_sim_time, as ``up`` runs it)."""
         offer, clock = self.core.offer, self.get_clock()
 
         def on_message(data: bytes) -> None:
-            offer(topic, data, clock.now().nanoseconds)
+            t = header_stamp_ns(type_name, data)
+            offer(topic, data, clock.now().nanoseconds if t is None else t, time.time_ns())
         return on_message
 
     def _log_stats(self) -> None:

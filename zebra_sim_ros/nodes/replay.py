@@ -92,7 +92,10 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         if topic in self.pubs:
             return self.pubs[topic]
         pub = None
-        if self._wanted(topic):
+        if self.cfg.clock and type_name == "rosgraph_msgs/msg/Clock":
+            self.get_logger().info(f"not playing the recorded {topic}: this node publishes /clock from the bag's "
+                                   "log times (the same times)")
+        elif self._wanted(topic):
             try:
                 p = replay_profile(from_yaml(metadata.get("offered_qos_profiles", "")))
                 q = qos(p["reliability"], int(p["depth"]), p["durability"] == "transient_local")

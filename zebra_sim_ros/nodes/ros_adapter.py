@@ -16,6 +16,7 @@ import rclpy
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -26,9 +27,9 @@ from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import ImageMarker
 
 from zebra_sim_ros.errors import ZebraSimError
-from zebra_sim_ros.messages import Stamp
+from zebra_sim_ros.messages import Detections, Stamp
 from zebra_sim_ros.messages import stamp_ns as messages_stamp_ns
-from zebra_sim_ros.params import ParamSpec, StageConfig
+from zebra_sim_ros.params import ROS_BUILTIN_PARAMS, ParamSpec, StageConfig
 
 
 def descriptor(spec: ParamSpec, ranges: bool = True) -> ParameterDescriptor:
@@ -89,8 +90,25 @@ class ZebraNode(Node, Generic[C]):
         self.exit_code = 0
         self.cfg: C = config.from_params(declare_and_read(self, config.specs()))
         add_ranges(self, config.specs())
+        self._warn_unknown_parameters()
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.start()
+
+    def _warn_unknown_parameters(self) -> None:
+        """A parameter given on the command line or in a params file that this node does not declare is ignored by
+        rclpy without a word; say so (a typo otherwise looks like a setting that does nothing)."""
+        known = {s.name for s in self.config_class.specs()} | set(ROS_BUILTIN_PARAMS)
+        given = getattr(self, "_parameter_overrides", {}) or {}
+        unknown = sorted(n for n in given if n not in known and not n.startswith("qos_overrides."))
+        if unknown:
+            self.get_logger().warning(f"unknown parameter(s) ignored: {unknown}; {self.get_name()} declares "
+                                      f"{sorted(known - set(ROS_BUILTIN_PARAMS))}")
+
+    def wall_timer(self, period_s: float, callback: Callable[[], None]) -> Any:
+        """A timer on the steady wall clock. rclpy's timers follow the node's clock, which under ``use_sim_time``
+        stands still between two ``/clock`` messages: a recorder's topic discovery or a detector's batch window
+        would then wait for the next simulated step, which waits for them."""
+        return self.create_timer(period_s, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def start(self) -> None:
         """Load what the node needs and create its publishers, subscriptions and timers (``cfg`` is valid)."""
@@ -150,7 +168,7 @@ def image_msg(header: Header, array: np.ndarray, encoding: str) -> Image:
                  data=a.tobytes())
 
 
-ACK_TOPIC = "/zebra_sim/frame_done"  # std_msgs/Header: stamp = the step's, frame_id = who is done with it
+ACK_TOPIC = "zebra_sim/frame_done"  # std_msgs/Header: stamp = the step's, frame_id = who is done with it
 
 
 def box_marker(header: Header, ns: str, boxes: Iterable[tuple[Sequence[float], ColorRGBA]]) -> ImageMarker:
@@ -256,3 +274,35 @@ def run_node(name: str, factory: Callable[[], ZebraNode[Any]], argv: list[str] |
             node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()
+
+
+# -- typed detections ---------------------------------------------------------------------------------------------
+# vision_msgs/Detection2DArray where a ROS 2 install has vision_msgs; else ours, with the same fields.
+DETECTION_TYPES = ("vision_msgs/msg/Detection2DArray", "zebra_sim_msgs/msg/Detection2DArray")
+
+
+def detection_array_type() -> str:
+    """The Detection2DArray type this machine can publish (the first of :data:`DETECTION_TYPES` that imports)."""
+    for name in DETECTION_TYPES:
+        try:
+            message_class(name)
+            return name
+        except (ImportError, AttributeError):
+            continue
+    raise ZebraSimError(f"none of {DETECTION_TYPES} can be imported: run scripts/build_interfaces.sh")
+
+
+def detection_array_msg(type_name: str, header: Header, dets: Detections) -> Any:
+    """``dets`` as a Detection2DArray of ``type_name``: per box one hypothesis (class name, score), the box as
+    centre and size in the image's pixels, ``id`` its rank by score; the image's header on the array and on
+    each detection."""
+    pkg = type_name.split("/")[0]
+    msg = importlib.import_module(f"{pkg}.msg")
+    out = []
+    for k, d in enumerate(dets.detections):
+        x0, y0, x1, y1 = d.box_xyxy
+        hyp = msg.ObjectHypothesisWithPose(hypothesis=msg.ObjectHypothesis(class_id=d.class_name, score=d.score))
+        box = msg.BoundingBox2D(center=msg.Pose2D(position=msg.Point2D(x=(x0 + x1) / 2, y=(y0 + y1) / 2)),
+                                size_x=float(x1 - x0), size_y=float(y1 - y0))
+        out.append(msg.Detection2D(header=header, results=[hyp], bbox=box, id=str(k)))
+    return msg.Detection2DArray(header=header, detections=out)

@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical, optical_rotation
+from zebra_sim_ros.geometry.frames import optical_frame
 from zebra_sim_ros.geometry.rotations import matrix_to_quat
 from zebra_sim_ros.world.terrain import Heightfield
 
@@ -123,7 +124,7 @@ class CameraPose:
         """JSON-ready dictionary (see the scene schema)."""
         return {"name": self.name, "strategy": self.strategy, "position": list(self.position),
                 "orientation_xyzw": list(self.quaternion_xyzw()), "yaw_deg": self.yaw_deg,
-                "pitch_deg": self.pitch_deg, "roll_deg": self.roll_deg, "frame_id": f"{self.name}_camera_optical"}
+                "pitch_deg": self.pitch_deg, "roll_deg": self.roll_deg, "frame_id": optical_frame(self.name)}
 
 
 def _draw_drone(rng: np.random.Generator, strategy: str, r: CameraRanges, env: Surroundings) -> _Draw:

@@ -124,7 +124,7 @@ class PlacerConfig(StageConfig):
     rate_hz: float = param(1.0, "steps per second in rate mode (a step also advances simulated time by 1/rate_hz)",
                            "Hz", lo=0.001, hi=1000.0)
     lockstep_ack_from: tuple[str, ...] = param(
-        ("drone_0", "drone_1", "drone_2"), "names whose acknowledgement on /zebra_sim/frame_done completes a step",
+        ("drone_0", "drone_1", "drone_2"), "names whose acknowledgement on zebra_sim/frame_done completes a step",
         allowed="a non-empty list of names", check=names_list)
     lockstep_timeout_s: float = param(30.0, "warn and re-publish when a step is not acknowledged within this", "s",
                                       lo=0.1, hi=3600.0)

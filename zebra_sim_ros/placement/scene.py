@@ -1,5 +1,5 @@
 """The scene of one step: the placer's arrays as a typed :class:`~zebra_sim_ros.messages.Scene`, whose JSON form
-(``/zebra_sim/scene``, std_msgs/String) is:
+(``zebra_sim/scene``, std_msgs/String) is:
 
 Schema ``zebra_sim_ros/scene`` version 1 (all lengths metres, angles degrees, frame ``map`` = ENU)::
 
@@ -20,7 +20,7 @@ Schema ``zebra_sim_ros/scene`` version 1 (all lengths metres, angles degrees, fr
                   "position": [x, y, z] (asset origin: the ground under the body),
                   "orientation_xyzw": [4] (asset frame x forward, y left, z up, in map),
                   "box": {"center": [3], "size": [3] (length, width, height), "orientation_xyzw": [4]}}],
-      "cameras": [{"name": "drone_0", "strategy": "far" | "closeby", "frame_id": "drone_0_camera_optical",
+      "cameras": [{"name": "drone_0", "strategy": "far" | "closeby", "frame_id": "drone_0/camera_optical",
                    "position": [3], "orientation_xyzw": [4] (optical frame: z forward, x right, y down),
                    "yaw_deg", "pitch_deg" (optical-axis elevation, negative looks down), "roll_deg"}],
       "ground": {"tint": [3], "desaturation": float}   # optional, absent = the terrain as authored: linear
@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from zebra_sim_ros.geometry.frames import optical_frame
 from zebra_sim_ros.geometry.rotations import matrix_to_quat
 from zebra_sim_ros.messages import (
     GroundLook,
@@ -56,7 +57,7 @@ def scene_camera(c: CameraPose) -> SceneCamera:
     q = c.quaternion_xyzw()
     return SceneCamera(c.name, c.strategy, (float(c.position[0]), float(c.position[1]), float(c.position[2])),
                        (float(q[0]), float(q[1]), float(q[2]), float(q[3])), c.yaw_deg, c.pitch_deg, c.roll_deg,
-                       f"{c.name}_camera_optical")
+                       optical_frame(c.name))
 
 
 def scene_zebras(herd: Herd, morph_names: Sequence[str], clip_names: Sequence[str], coat_seeds: np.ndarray,

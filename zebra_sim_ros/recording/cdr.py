@@ -1,6 +1,6 @@
-"""Reading the fields we need from CDR-serialized ROS 2 messages (std_msgs/String, sensor_msgs/Image and any
-message that starts with a std_msgs/Header) without rclpy: a bag is read on machines without ROS, and an image's
-stamp is read without decoding its pixels.
+"""Reading the fields we need from CDR-serialized ROS 2 messages (std_msgs/String, sensor_msgs/Image,
+Detection2DArray and any message that starts with a std_msgs/Header) without rclpy: a bag is read on machines
+without ROS, and an image's stamp is read without decoding its pixels.
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import struct
 
 import numpy as np
 
-from zebra_sim_ros.messages import stamp_ns
+from zebra_sim_ros.messages import Detection, Detections, Stamp, stamp_ns
 
 # What reading a malformed message raises: broken CDR (struct.error, IndexError), bad UTF-8 or JSON (ValueError),
 # missing or mistyped fields (KeyError, TypeError). Such a message is noted and skipped; the rest still counts.
@@ -43,6 +43,12 @@ class _Cdr:
         v = self.data[self.pos]
         self.pos += 1
         return v
+
+    def f64(self) -> float:
+        self._align(8)
+        (v,) = struct.unpack_from(self.end + "d", self.data, self.pos)
+        self.pos += 8
+        return float(v)
 
     def string(self) -> str:
         n = self.u32()
@@ -90,3 +96,26 @@ def rgb_image(data: bytes) -> tuple[int, np.ndarray] | None:
         return None
     a = np.frombuffer(pixels, np.uint8).reshape(height, step)[:, : width * 3].reshape(height, width, 3)
     return t, np.ascontiguousarray(a[..., ::-1] if encoding == "bgr8" else a)
+
+
+def cdr_detections(data: bytes) -> Detections:
+    """A CDR-serialized ``vision_msgs/Detection2DArray`` (or ``zebra_sim_msgs/``'s, the same layout) as our typed
+    :class:`~zebra_sim_ros.messages.Detections` (boxes back to [x0, y0, x1, y1]; each detection's best hypothesis;
+    width and height 0: the message does not carry them)."""
+    r = _Cdr(data)
+    t = _stamp_of(r)
+    frame_id = r.string()
+    out = []
+    for _ in range(r.u32()):
+        _stamp_of(r)
+        r.string()  # the detection's own header: the image's
+        best = ("", -1.0)
+        for _ in range(r.u32()):
+            class_id, score = r.string(), r.f64()
+            for _ in range(7 + 36):  # the pose (position, orientation) and its covariance: unused
+                r.f64()
+            best = max(best, (class_id, score), key=lambda h: h[1])
+        cx, cy, _theta, w, h = (r.f64() for _ in range(5))
+        r.string()  # id
+        out.append(Detection((cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2), best[1], 0, best[0] or "zebra"))
+    return Detections(Stamp.from_ns(t), frame_id, 0, 0, tuple(out))

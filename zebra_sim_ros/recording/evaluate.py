@@ -22,7 +22,7 @@ import numpy as np
 from zebra_sim_ros.detection.scoring import DroneFrames, score_drones
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.messages import Detections, Labels
-from zebra_sim_ros.recording.cdr import MALFORMED, cdr_string, rgb_image
+from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections, cdr_string, rgb_image
 from zebra_sim_ros.recording.reader import BagMessage, BagReader
 
 
@@ -34,11 +34,11 @@ def skip_note(m: BagMessage, why: str | BaseException) -> str:
 
 @dataclass
 class Collected:
-    """What :func:`collect` read from a bag: the typed frames per drone, the first log time of each stamp's labels
-    and detections per drone (ns), and what could not be used."""
+    """What :func:`collect` read from a bag: the typed frames per drone, when each stamp's labels and detections
+    first arrived per drone (their publish times, wall clock, ns), and what could not be used."""
 
     drones: dict[str, DroneFrames] = field(default_factory=lambda: defaultdict(DroneFrames))
-    log_times: dict[str, dict[str, dict[int, int]]] = field(
+    arrivals: dict[str, dict[str, dict[int, int]]] = field(
         default_factory=lambda: defaultdict(lambda: {"labels": {}, "detections": {}}))
     damaged: list[str] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
@@ -53,26 +53,26 @@ def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "dete
     itself is in ``damaged``."""
     reader = BagReader.open(paths)
     out = Collected()
-    pat = re.compile(rf"^/(?P<drone>[^/]+)/(?P<kind>labels|{re.escape(detections_suffix)})$")
+    pat = re.compile(rf"^(?:/[^/]+)*/(?P<drone>[^/]+)/(?P<kind>labels|{re.escape(detections_suffix)})$")
     for m in reader.messages():
         if each is not None:
             each(m)
         match = pat.match(m.topic)
-        if not match or m.type_name != "std_msgs/msg/String":
+        typed = m.type_name.endswith("/msg/Detection2DArray")
+        if not match or not (typed or m.type_name == "std_msgs/msg/String"):
             continue
         drone = match.group("drone")
         try:
-            text = cdr_string(m.data)
             if match.group("kind") == "labels":
-                kind, labels = "labels", Labels.from_json(text)
+                kind, labels = "labels", Labels.from_json(cdr_string(m.data))
                 t = labels.stamp.ns
                 out.drones[drone].labels[t] = labels
-            else:
-                kind, dets = "detections", Detections.from_json(text)
+            else:  # typed (Detection2DArray), or the JSON of bags recorded before it
+                kind, dets = "detections", cdr_detections(m.data) if typed else Detections.from_json(cdr_string(m.data))
                 t = dets.stamp.ns
                 out.drones[drone].detections[t] = np.array(
                     [[*x.box_xyxy, x.score] for x in dets.detections], np.float64).reshape(-1, 5)
-            out.log_times[drone][kind].setdefault(t, m.log_time)
+            out.arrivals[drone][kind].setdefault(t, m.publish_time)
         except (*MALFORMED, ZebraSimError) as exc:
             out.skipped.append(skip_note(m, exc))
     out.damaged = reader.stopped
@@ -83,7 +83,7 @@ class ImageDetector:
     """A :func:`collect` visitor that runs a detector over every ``/<drone>/image_raw`` (rgb8 or bgr8) in batches
     during the same pass; :meth:`apply` then puts its detections in place of the recorded ones."""
 
-    TOPIC = re.compile(r"^/(?P<drone>[^/]+)/image_raw$")
+    TOPIC = re.compile(r"^(?:/[^/]+)*/(?P<drone>[^/]+)/image_raw$")
 
     def __init__(self, weights: str | Path | None, device: str = "auto", batch: int = 8, conf: float = 0.001,
                  imgsz: int | None = None, scale: float = 0.0) -> None:

@@ -47,8 +47,9 @@ class RecorderCore:
         self._thread.start()
         self.started = time.monotonic()
 
-    def offer(self, topic: str, data: bytes, log_time_ns: int) -> bool:
-        """Queue one message without blocking; False (and a counted drop) when the queue is full or stopped."""
+    def offer(self, topic: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None) -> bool:
+        """Queue one message without blocking; False (and a counted drop) when the queue is full or stopped.
+        ``publish_time_ns``: when it arrived (wall clock; None = the log time)."""
         with self._lock:
             s = self.stats[topic]
             s.received += 1
@@ -56,7 +57,7 @@ class RecorderCore:
                 s.dropped += 1
                 return False
             try:
-                self._q.put_nowait((topic, data, log_time_ns))
+                self._q.put_nowait((topic, data, log_time_ns, publish_time_ns))
             except queue.Full:
                 s.dropped += 1
                 return False
@@ -67,14 +68,14 @@ class RecorderCore:
             item = self._q.get()
             if item is _STOP:
                 return
-            topic, data, t = item
+            topic, data, t, pt = item
             if self.error is not None:  # the recording has ended: what is still queued is dropped, and counted
                 with self._lock:
                     self.stats[topic].dropped += 1
                 continue
             t0 = time.perf_counter()
             try:
-                self.writer.write(topic, data, t)
+                self.writer.write(topic, data, t, pt)
                 self.write_seconds += time.perf_counter() - t0
             except (BagFullError, OSError) as exc:
                 self.error = str(exc)

@@ -46,7 +46,7 @@ class CameraConfig(StageConfig):
                                    lo=0.0, hi=3.0)
     qos_reliability: str = reliability_param("QoS reliability of the image topics")
     qos_depth: int = param(5, "history depth of the image topics", lo=1, hi=1000)
-    ack: bool = param(True, "acknowledge each published frame on /zebra_sim/frame_done (placer lockstep)")
+    ack: bool = param(True, "acknowledge each published frame on zebra_sim/frame_done (placer lockstep)")
 
     def check(self) -> None:
         """The renderer's and the effects' own rules."""

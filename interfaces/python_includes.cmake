@@ -1,0 +1,17 @@
+# The PyPI wheels of ROS 2's message packages export the Python include path of the machine that built them
+# (/opt/python/...): point their imported Python targets at this interpreter's headers instead.
+# Installed libraries find each other and the wheels' libraries in <prefix>/lib (the venv's), where the wheels'
+# bootstrapper puts LD_LIBRARY_PATH; the RPATH makes them load without it too.
+find_package(Python3 REQUIRED COMPONENTS Interpreter Development)
+set(CMAKE_INSTALL_RPATH "$ORIGIN;$ORIGIN/../../..;${CMAKE_INSTALL_PREFIX}/lib")
+macro(fix_python_includes)
+  foreach(pkg ${ARGN})
+    set(tgt ${pkg}::${pkg}__rosidl_generator_py)
+    if(TARGET ${tgt})
+      get_target_property(dirs ${tgt} INTERFACE_INCLUDE_DIRECTORIES)
+      list(FILTER dirs EXCLUDE REGEX "^/opt/python/")
+      list(APPEND dirs ${Python3_INCLUDE_DIRS})
+      set_target_properties(${tgt} PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${dirs}")
+    endif()
+  endforeach()
+endmacro()

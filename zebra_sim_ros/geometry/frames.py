@@ -1,0 +1,40 @@
+"""The coordinate frames of a drone (REP 103 / REP 105), as the placer publishes them on ``/tf``:
+``map -> <drone>/base_link -> <drone>/camera_optical``.
+
+``map`` is ENU. ``base_link`` is the drone body (here: the camera's mount): x forward along the optical axis, y
+left, z up, so a level camera has a level body, and the camera's pitch and roll are the body's.
+``camera_optical`` is z forward, x right, y down. The body-to-optical rotation is fixed (``/tf_static``); the body
+moves each step (``/tf``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zebra_sim_ros.geometry.rotations import matrix_to_quat, quat_to_matrix
+
+FloatArray = NDArray[np.float64]
+
+# Columns: the optical frame's x, y, z axes in base_link (x_opt = -y_base, y_opt = -z_base, z_opt = x_base).
+OPTICAL_IN_BASE = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+OPTICAL_IN_BASE_XYZW = (-0.5, 0.5, -0.5, 0.5)  # the same rotation as a quaternion [x, y, z, w]
+
+
+def base_frame(drone: str) -> str:
+    """``<drone>/base_link``."""
+    return f"{drone}/base_link"
+
+
+def optical_frame(drone: str) -> str:
+    """``<drone>/camera_optical``: the frame of the drone's images, camera_info and labels."""
+    return f"{drone}/camera_optical"
+
+
+def body_orientation(optical_xyzw: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+    """The body's orientation in ``map`` ([x, y, z, w]) of a camera whose optical frame has ``optical_xyzw``."""
+    r_map_opt = quat_to_matrix(np.asarray(optical_xyzw, dtype=np.float64))
+    q = matrix_to_quat(r_map_opt @ OPTICAL_IN_BASE.T)
+    if q[3] < 0:  # one of the two equal quaternions, w >= 0
+        q = -q
+    return float(q[0]), float(q[1]), float(q[2]), float(q[3])

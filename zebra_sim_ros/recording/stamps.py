@@ -1,0 +1,84 @@
+"""The header stamp of a serialized message, read without deserialising it: bags are written with log times equal
+to the stamps (one time base: the simulated time of the step; see the placer's ``/clock``).
+
+A CDR message starts with a 4-byte encapsulation header. When a type's first field is a ``std_msgs/Header`` or a
+``builtin_interfaces/Time`` (``rosgraph_msgs/Clock``), its stamp (int32 sec, uint32 nanosec) follows at offset 4;
+when the first field is an array of a type that starts with one (``visualization_msgs/MarkerArray``,
+``tf2_msgs/TFMessage``), the first element's stamp follows the uint32 length, at offset 8. A ``std_msgs/String``
+holding one of our JSON messages (scene, labels, detections) gives the ``stamp`` it carries. Other types: None.
+"""
+
+from __future__ import annotations
+
+import re
+import struct
+from functools import lru_cache
+
+from zebra_sim_ros.recording.schemas import SchemaError, msg_text
+
+NS_PER_S = 1_000_000_000
+_STAMPED = ("std_msgs/Header", "Header", "builtin_interfaces/Time")
+_JSON_STAMP = re.compile(rb'"stamp":\s*\{"sec":\s*(-?\d+),\s*"nanosec":\s*(\d+)\}')
+
+
+def _first_field(type_name: str) -> str | None:
+    """The type of the first field of ``pkg/msg/Type`` as written in its .msg (constants and comments skipped)."""
+    for line in msg_text(type_name).splitlines():
+        fields = line.split("#", 1)[0].split()
+        if len(fields) >= 2 and "=" not in fields[1] and "=" not in fields[0]:
+            return fields[0]
+    return None
+
+
+def _qualified(base: str, pkg: str) -> str:
+    if base == "Header":
+        return "std_msgs/msg/Header"
+    p = (base if "/" in base else f"{pkg}/{base}").split("/")
+    return f"{p[0]}/msg/{p[-1]}"
+
+
+@lru_cache(maxsize=256)
+def stamp_offset(type_name: str) -> tuple[int, bool] | None:
+    """(byte offset of the stamp, whether it is behind an array length) for ``type_name``, or None."""
+    try:
+        first = _first_field(type_name)
+        if first is None:
+            return None
+        base = re.sub(r"\[.*\]$", "", first)
+        if type_name in ("std_msgs/msg/Header", "builtin_interfaces/msg/Time") or base in _STAMPED:
+            return 4, False
+        if first.endswith("[]"):
+            inner = _first_field(_qualified(base, type_name.split("/")[0]))
+            if inner is not None and re.sub(r"\[.*\]$", "", inner) in _STAMPED:
+                return 8, True
+    except SchemaError:
+        return None
+    return None
+
+
+def header_stamp_ns(type_name: str, data: bytes) -> int | None:
+    """The stamp, ns, of a serialized (CDR, little- or big-endian) message of ``type_name``; None if the type has
+    none, an array is empty or the bytes are too short."""
+    if type_name == "std_msgs/msg/String":
+        return _json_stamp_ns(data)
+    where = stamp_offset(type_name)
+    if where is None or len(data) < 4:
+        return None
+    offset, behind_length = where
+    endian = "<" if data[1] in (1, 3) else ">"  # CDR_LE / PL_CDR_LE
+    if behind_length:
+        if len(data) < 8 or struct.unpack_from(endian + "I", data, 4)[0] == 0:
+            return None
+    if len(data) < offset + 8:
+        return None
+    sec, nanosec = struct.unpack_from(endian + "iI", data, offset)
+    return sec * NS_PER_S + nanosec
+
+
+def _json_stamp_ns(data: bytes) -> int | None:
+    """The ``stamp`` of our JSON messages in a serialized std_msgs/String (searched in its first 512 bytes: the
+    messages write it near the start), or None."""
+    m = _JSON_STAMP.search(data[8:520])
+    if m is None or b'"schema"' not in data[8:200]:
+        return None
+    return int(m.group(1)) * NS_PER_S + int(m.group(2))
