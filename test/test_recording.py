@@ -279,3 +279,43 @@ def test_run_summary_reads_a_cut_bag_once_and_notes_the_cut_once(tmp_path: Path)
     cut.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
     s = summarize_run(cut)
     assert len(s["damaged"]) == 1 and "stopped at byte" in s["damaged"][0]
+
+
+def test_typed_detections_decode_as_rosbags_reads_them_and_score(tmp_path: Path) -> None:
+    """The detector's Detection2DArray in a bag: our CDR reader gives the boxes and scores rosbags (an independent
+    reader, from the schema in the bag) gives, and bag evaluation scores them as it scored the JSON."""
+    from zebra_sim_ros.messages import Detection, Detections, Stamp
+    from zebra_sim_ros.nodes.ros_adapter import detection_array_msg, detection_array_type
+    from zebra_sim_ros.recording.cdr import cdr_detections
+
+    type_name = detection_array_type()
+    w = BagWriter(tmp_path / "t.mcap")
+    w.add_channel("/drone_0/labels", "std_msgs/msg/String", [profile_dict()])
+    w.add_channel("/drone_0/detections", type_name, [profile_dict()])
+    sent = []
+    for k in range(3):
+        stamp = {"sec": k, "nanosec": 7}
+        z = [{"box_visible": [10.0, 10, 50, 40], "kept": True, "visible_pixels": 1100}]
+        dets = Detections(Stamp(k, 7), "drone_0/camera_optical", 320, 180, (
+            Detection((10.0, 10.0, 50.0, 40.0), 0.9), Detection((200.5, 20.25, 230.0, 60.0), 0.3 + 0.1 * k)))
+        header = Header(frame_id="drone_0/camera_optical")
+        header.stamp.sec, header.stamp.nanosec = k, 7
+        data = serialize_message(detection_array_msg(type_name, header, dets))
+        sent.append(dets)
+        w.write("/drone_0/labels", serialize_message(String(data=json.dumps(_labels(stamp, z)))), k * 10**9 + 7)
+        w.write("/drone_0/detections", data, k * 10**9 + 7)
+    w.close()
+    with AnyReader([tmp_path / "t.mcap"]) as reader:
+        conns = [c for c in reader.connections if c.topic == "/drone_0/detections"]
+        theirs = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=conns)]
+    for msg, back, orig in zip(theirs, (cdr_detections(m.data) for m in BagReader.open(tmp_path / "t.mcap").messages()
+                                        if m.topic == "/drone_0/detections"), sent, strict=True):
+        assert back.stamp == orig.stamp and back.frame_id == orig.frame_id
+        for d, b, o in zip(msg.detections, back.detections, orig.detections, strict=True):
+            cx, cy = d.bbox.center.position.x, d.bbox.center.position.y
+            assert b.box_xyxy == pytest.approx((cx - d.bbox.size_x / 2, cy - d.bbox.size_y / 2,
+                                                cx + d.bbox.size_x / 2, cy + d.bbox.size_y / 2))
+            assert b.box_xyxy == pytest.approx(o.box_xyxy) and b.score == pytest.approx(o.score)
+            assert d.results[0].hypothesis.class_id == b.class_name == "zebra"
+    s = score(collect(tmp_path / "t.mcap"))
+    assert s["drone_0"]["frames"] == 3 and s["drone_0"]["mAP50"] == pytest.approx(1.0)

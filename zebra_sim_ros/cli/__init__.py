@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 from zebra_sim_ros import __version__
 from zebra_sim_ros.cli.common import Command, Summary, add_json_flag, parse_size, size_arg
@@ -19,29 +21,48 @@ from zebra_sim_ros.errors import ZebraSimError
 __all__ = ["Command", "Summary", "add_json_flag", "build_parser", "main", "parse_size", "size_arg"]
 
 
+class _Parser(argparse.ArgumentParser):
+    """No abbreviations: ``generate --frame 3`` is an error naming ``--frame``, not ``--frames 3``."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs["allow_abbrev"] = False
+        super().__init__(*args, **kwargs)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full ``zebra-sim`` argument parser."""
-    from zebra_sim_ros.cli import asset, bag, detect, generate, place, render, up, world
+    from zebra_sim_ros.cli import asset, bag, detect, generate, place, predict, render, up, world
 
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="zebra-sim",
         description="Synthetic drone imagery of zebras with exact ground truth: batch tools.",
     )
     parser.add_argument("--version", action="version", version=f"zebra_sim_ros {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
     asset.register(sub)
     world.register(sub)
     place.register(sub)
     render.register(sub)
     generate.register(sub)
     detect.register(sub)
+    predict.register(sub)
     bag.register(sub)
     up.register(sub)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``zebra-sim`` console script; returns the exit status."""
+    """Entry point of the ``zebra-sim`` console script; returns the exit status. A reader that closes the pipe
+    early (``zebra-sim bag info x.mcap | head``) ends it quietly, as Unix tools do."""
+    try:
+        return _main(argv)
+    except BrokenPipeError:
+        devnull = os.open(os.devnull, os.O_WRONLY)  # the interpreter's final flush must not fail again
+        os.dup2(devnull, sys.stdout.fileno())
+        return 141  # 128 + SIGPIPE, what a shell reports for a tool killed by the closed pipe
+
+
+def _main(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

@@ -18,7 +18,6 @@ is detected, so the placer's lockstep can wait for detections too.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -30,8 +29,8 @@ from visualization_msgs.msg import ImageMarker
 from zebra_sim_ros.detection.checkpoint import load_model, select_device
 from zebra_sim_ros.detection.config import DETECTOR_PARAMS, DetectorConfig, output_base
 from zebra_sim_ros.detection.draw import draw_boxes
-from zebra_sim_ros.detection.predict import describe_size, detect
-from zebra_sim_ros.messages import Detection, Detections, Stamp
+from zebra_sim_ros.detection.predict import describe_size, detect, detections_message
+from zebra_sim_ros.messages import Stamp
 from zebra_sim_ros.nodes.ros_adapter import (
     StepAcks,
     ZebraNode,
@@ -48,14 +47,6 @@ from zebra_sim_ros.nodes.ros_adapter import (
 
 _CHANNELS = {"rgb8": (3, None), "bgr8": (3, [2, 1, 0]), "rgba8": (4, [0, 1, 2]), "bgra8": (4, [2, 1, 0]),
              "mono8": (1, [0, 0, 0])}
-
-
-def detections_message(stamp: Stamp, frame_id: str, width: int, height: int, dets: np.ndarray,
-                       names: Sequence[str]) -> Detections:
-    """The typed message of ``detect``'s (n, 6) rows for one image (boxes to 0.01 px, scores to 1e-4)."""
-    return Detections(stamp, frame_id, width, height, tuple(
-        Detection((round(float(d[0]), 2), round(float(d[1]), 2), round(float(d[2]), 2), round(float(d[3]), 2)),
-                  round(float(d[4]), 4), int(d[5]), names[int(d[5])]) for d in dets))
 
 
 def to_rgb(msg: Image) -> np.ndarray:
