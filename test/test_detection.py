@@ -355,8 +355,11 @@ def test_validation_serves_each_image_as_detect_does(tmp_path: Path, capsys: pyt
     save_checkpoint(tmp_path / "m.pt", model)
     for extra, sizes in (([], [96, 256]), (["--imgsz", "128"], 128), (["--scale", "0.5"], [64, 160])):
         assert main(["val", "--weights", str(tmp_path / "m.pt"), "--data", str(tmp_path / "images"), "--device", "cpu",
-                     "--json", *extra]) == 0
-        assert json.loads(capsys.readouterr().out.splitlines()[-1])["imgsz"] == sizes, extra
+                     "--json", "--plots", str(tmp_path / "plots"), *extra]) == 0
+        out = json.loads(capsys.readouterr().out.splitlines()[-1])
+        assert out["imgsz"] == sizes, extra
+        assert set(out["ap_by_size"]) == {"<8", "8-16", "16-32", "32-96", ">=96", "small", "medium", "large"}
+        assert all(cv2.imread(out["plots"][k]) is not None for k in ("pr_curve", "predictions"))
     for bad in ("9", "-0.5", "0.2"):
         assert main(["val", "--data", str(tmp_path / "images"), "--scale", bad]) == 2
         assert f"argument --scale: '{bad}': allowed 0 (off) or 0.25..4" in capsys.readouterr().err

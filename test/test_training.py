@@ -7,6 +7,7 @@ import csv
 import io
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -37,10 +38,12 @@ def tiny(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_resume_continues_from_last(tiny: Path, tmp_path: Path) -> None:
     base = dict(data=str(tiny / "overfit.yaml"), out=str(tmp_path / "run"), model="n", imgsz=128, batch=4,
                 device="cpu", workers=0, max_train_images=4, val_every=1, close_mosaic=1)
-    summary = train(TrainConfig(epochs=2, **base), log=io.StringIO())
+    log = io.StringIO()
+    summary = train(TrainConfig(epochs=2, **base), log=log)
     assert summary["train_images_per_s"] > 0
-    for name in ("best.pt", "last.pt", "results.csv", "results.png"):
+    for name in ("best.pt", "last.pt", "results.csv", "results.png", "val_pr_curve.png", "val_predictions.jpg"):
         assert (tmp_path / "run" / name).exists(), name
+    assert re.search(r"ETA \d+s", log.getvalue())  # the time left, on every progress line
     model, _ = load_model(tmp_path / "run" / "best.pt")
     # It records the frames it was trained on beside imgsz: served, a 512 px frame gets 256 (the same scale).
     assert (model.cfg.imgsz, model.cfg.frame, model.cfg.serve_size(512)) == (128, 256, 256)

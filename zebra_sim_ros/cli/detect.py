@@ -54,7 +54,9 @@ def register(sub: Any) -> None:
     v.add_argument("--batch", type=int, default=8)
     add_option(v, spec_of(DetectorConfig, "conf"), default=0.001, note="val counts every detection above it into AP")
     add_option(v, spec_of(DetectorConfig, "iou"))
-    v.add_argument("--plot", type=Path, default=None, help="write the PR curve (IoU 0.5) to this PNG")
+    v.add_argument("--plot", type=Path, default=None, help="also write the PR curve (IoU 0.5) to this PNG")
+    v.add_argument("--plots", type=Path, default=Path("runs/val"), help="folder for pr_curve.png and "
+                   "predictions.jpg (16 images: ground truth green, detections at conf 0.25 red); '' for none")
     add_json_flag(v)
     v.set_defaults(func=cmd_val)
 
@@ -126,14 +128,22 @@ def cmd_val(args: argparse.Namespace) -> Summary:
 
     m, facts = evaluate(args.weights, args.data, args.split, args.imgsz, args.batch, args.device, args.conf, args.iou,
                         scale=args.scale)
+    per_image = facts.pop("per_image")
     print(f"inference size: {facts['imgsz']} ({facts['imgsz_rule']})")
     d = m.to_dict()
     print(f"{'images':>8}{'instances':>11}{'P':>8}{'R':>8}{'mAP50':>8}{'mAP50-95':>10}")
     print(f"{d['images']:>8}{d['instances']:>11}{d['precision']:>8.3f}{d['recall']:>8.3f}{d['mAP50']:>8.3f}"
           f"{d['mAP50-95']:>10.3f}")
+    print("by box size (sqrt of area, px):" + "".join(
+        f"  {k} {v['mAP50']:.3f}/{v['mAP50-95']:.3f} ({v['instances']})" for k, v in facts["ap_by_size"].items()))
     if args.plot:
         pr_curve_png(m, str(args.plot))
         print(f"PR curve: {args.plot}")
+    if str(args.plots) not in ("", "."):
+        from zebra_sim_ros.detection.evaluate import write_plots
+
+        facts["plots"] = write_plots(per_image, args.plots)
+        print(f"plots: {facts['plots']['pr_curve']}, {facts['plots']['predictions']}")
     return {**d, **facts}
 
 

@@ -20,7 +20,7 @@ from torch.utils.data import DataLoader
 from zebra_sim_ros.detection.boxes import postprocess
 from zebra_sim_ros.detection.checkpoint import load_model, select_device
 from zebra_sim_ros.detection.data import ImageMeta, YoloDataset, collate, resolve_split
-from zebra_sim_ros.detection.metrics import DetectionMetrics, evaluate_detections
+from zebra_sim_ros.detection.metrics import DetectionMetrics, ap_by_size, evaluate_detections
 from zebra_sim_ros.detection.model import Detector
 from zebra_sim_ros.detection.predict import describe_size, inference_size, unletterbox
 
@@ -106,6 +106,35 @@ def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", i
     per_image = predictions(model, loader, conf, iou)
     m = score(per_image)
     sizes = sorted({p.imgsz for p in per_image})
-    return m, {"weights": str(weights or "shipped"), "data": str(folder),
+    by_size = ap_by_size([p.detections for p in per_image], [p.labels for p in per_image],
+                         ignores=[p.ignore for p in per_image])
+    return m, {"weights": str(weights or "shipped"), "data": str(folder), "ap_by_size": by_size,
+               "per_image": per_image,
                "imgsz": sizes[0] if len(sizes) == 1 else sizes, "imgsz_rule": describe_size(model.cfg, imgsz, scale),
                "device": str(dev), "seconds": round(time.perf_counter() - t0, 2), "epoch": ckpt.get("epoch")}
+
+
+def write_plots(per_image: list[ImagePredictions], folder: Path, prefix: str = "", conf: float = 0.25,
+                count: int = 16) -> dict[str, str]:
+    """``<prefix>pr_curve.png`` (IoU 0.5) and ``<prefix>predictions.jpg`` (a grid of ``count`` images spread over
+    the set: ground truth green, detections at ``conf`` or more red) in ``folder``; their paths."""
+    import cv2
+
+    from zebra_sim_ros.detection.draw import predictions_grid
+    from zebra_sim_ros.detection.metrics import pr_curve_png
+
+    folder.mkdir(parents=True, exist_ok=True)
+    pr = folder / f"{prefix}pr_curve.png"
+    pr_curve_png(score(per_image), str(pr))
+    picks: list[int] = sorted({int(round(v)) for v in np.linspace(0, len(per_image) - 1, min(count, len(per_image)))}) \
+        if per_image else []
+    items = []
+    for k in picks:
+        p = per_image[int(k)]
+        bgr = cv2.imread(p.file, cv2.IMREAD_COLOR)
+        if bgr is not None:
+            items.append((np.ascontiguousarray(bgr[..., ::-1], dtype=np.uint8), p.labels,
+                          p.detections[p.detections[:, 4] >= conf]))
+    grid = folder / f"{prefix}predictions.jpg"
+    cv2.imwrite(str(grid), predictions_grid(items)[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 90])
+    return {"pr_curve": str(pr), "predictions": str(grid)}

@@ -29,7 +29,7 @@ from zebra_sim_ros.detection.checkpoint import (
     serving_layout,
 )
 from zebra_sim_ros.detection.data import Augment, YoloDataset, collate, resolve_split
-from zebra_sim_ros.detection.evaluate import make_loader, run
+from zebra_sim_ros.detection.evaluate import make_loader, predictions, score, write_plots
 from zebra_sim_ros.detection.loss import DetectionLoss
 from zebra_sim_ros.detection.model import Detector, ModelConfig, build_model, count_parameters
 from zebra_sim_ros.errors import ParameterError
@@ -294,9 +294,11 @@ def _train_epoch(run_: _Run, loader: DataLoader[Any], epoch: int, warmup: int) -
         seen += len(imgs)
         if _is_main() and (i % 10 == 0 or i == nb - 1):
             el = time.perf_counter() - t_epoch
+            left = (cfg.epochs - epoch - 1) * nb + (nb - i - 1)  # steps to go; validation time not counted
             print(f"\r[train] epoch {epoch + 1}/{cfg.epochs} {i + 1}/{nb} loss box {sums[0] / (i + 1):.3f} "
                   f"cls {sums[1] / (i + 1):.3f} dfl {sums[2] / (i + 1):.3f} "
-                  f"{(i + 1) * cfg.batch / max(el, 1e-9):.1f} img/s   ", end="", file=run_.log, flush=True)
+                  f"{(i + 1) * cfg.batch / max(el, 1e-9):.1f} img/s, ETA {_hms(left * el / (i + 1))}   ", end="",
+                  file=run_.log, flush=True)
     return sums, seen
 
 
@@ -307,8 +309,10 @@ def _end_epoch(run_: _Run, epoch: int, sums: torch.Tensor, nb: int, val_loader: 
     print("", file=run_.log)
     metrics: dict[str, Any] = {}
     if val_loader is not None and ((epoch + 1) % cfg.val_every == 0 or epoch == cfg.epochs - 1):
-        m = run(run_.ema.ema, val_loader)
+        per_image = predictions(run_.ema.ema, val_loader)
+        m = score(per_image)
         metrics = m.to_dict()
+        write_plots(per_image, out, prefix="val_")  # val_pr_curve.png, val_predictions.jpg: the latest validation
         print(f"[train] epoch {epoch + 1}: val P {m.precision:.3f} R {m.recall:.3f} mAP50 {m.map50:.3f} "
               f"mAP50-95 {m.map50_95:.3f}", file=run_.log)
     fitness = 0.1 * metrics.get("mAP50", 0.0) + 0.9 * metrics.get("mAP50-95", 0.0) if metrics else run_.best
@@ -328,6 +332,14 @@ def _end_epoch(run_: _Run, epoch: int, sums: torch.Tensor, nb: int, val_loader: 
         half = copy.deepcopy(run_.ema.ema).half()
         save_checkpoint(out / "best.pt", half, **extra)
     results_png(run_.rows, out / "results.png")
+
+
+def _hms(seconds: float) -> str:
+    """``1h02m``, ``12m05s`` or ``42s``."""
+    s = int(max(seconds, 0))
+    if s >= 3600:
+        return f"{s // 3600}h{s % 3600 // 60:02d}m"
+    return f"{s // 60}m{s % 60:02d}s" if s >= 60 else f"{s}s"
 
 
 def _previous_rows(cfg: TrainConfig, results_path: Path) -> list[dict[str, Any]]:
