@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import cv2
+import pytest
 from ros_helpers import Peer, detection_array_class, fresh_domain_id, node_process, ros_env
 
 from zebra_sim_ros.graph.spec import UpConfig, graph_spec
@@ -202,3 +203,63 @@ def test_ctrl_c_stops_the_graph_with_a_complete_bag(tmp_path: Path) -> None:
     assert summary["damaged"] == [] and 1 <= summary["steps"] < 500
     assert all(code is not None for code in summary["exit_status"].values())
     assert _processes_in(domain) == []
+
+
+def test_two_graphs_in_two_namespaces_share_a_domain_without_crosstalk(tmp_path: Path) -> None:
+    """Two whole graphs on one domain, in /g1 and /g2: each records its own topics only (its /gN/tf, /gN/clock
+    included), each with its own three steps, and each scores its own frames."""
+    from rosbags.highlevel import AnyReader
+
+    domain = fresh_domain_id()
+    procs = {ns: subprocess.Popen([sys.executable, "-m", "zebra_sim_ros.cli", "up", "--frames", "3", "--size",
+                                   "256x144", "--out", str(tmp_path / ns), "--domain-id", str(domain), "--namespace",
+                                   f"/{ns}", "--seed", str(k), "--json"], env=ros_env(domain), text=True,
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+             for k, ns in enumerate(("g1", "g2"))}
+    try:
+        outs = {ns: p.communicate(timeout=600) for ns, p in procs.items()}
+    finally:
+        for p in procs.values():
+            if p.poll() is None:
+                p.kill()
+    for ns, (stdout, stderr) in outs.items():
+        assert procs[ns].returncode == 0, stdout[-3000:] + stderr[-2000:]
+        s = _last_json(stdout)
+        assert s["steps"] == 3 and s["frames"] == {d: {"image_raw": 3, "labels": 3, "detections": 3} for d in DRONES}
+        with AnyReader([Path(s["bag"])]) as reader:
+            topics = {c.topic for c in reader.connections}
+            clocks = [t for c, t, _ in reader.messages() if c.topic == f"/{ns}/clock"]
+        assert all(t.startswith(f"/{ns}/") for t in topics), sorted(topics)
+        assert {f"/{ns}/tf", f"/{ns}/tf_static", f"/{ns}/zebra_sim/scene", f"/{ns}/drone_0/detections"} <= topics
+        assert len(clocks) == 3  # its own steps only: the other graph's clock never reached it
+    assert _processes_in(domain) == []
+
+
+def test_up_on_a_full_disk_ends_with_one_line_and_a_finalised_bag(tmp_path: Path) -> None:
+    """On a 6 MB tmpfs the recorder stops before the disk is full: the bag is finalised (summary and indexes)
+    with every message the recorder reported written, and up ends with one error line and a failure status."""
+    import shutil
+
+    from mcap.reader import make_reader
+    from rosbags.highlevel import AnyReader
+
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    if shutil.which("mount") is None or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=6m", "tmpfs", str(disk)],
+                                                       capture_output=True).returncode != 0:
+        pytest.skip("cannot mount a tmpfs here (needs root): the full-disk check needs a small file system")
+    try:
+        run = _up(disk / "up", fresh_domain_id(), "--frames", "8", timeout=600)
+        assert run.returncode == 1, run.stdout[-3000:]
+        assert "Traceback" not in run.stdout + run.stderr
+        last = [ln for ln in run.stdout.splitlines() if ln.startswith("[up]")][-1]
+        assert last.startswith("[up] error: the recording stopped early: disk nearly full"), last
+        reported = int(last.split("finalised with the ")[1].split(" messages")[0])
+        with open(disk / "up" / "zebra_sim.mcap", "rb") as f:
+            summary = make_reader(f).get_summary()
+        assert summary is not None and summary.statistics is not None  # finalised: a summary section
+        assert summary.statistics.message_count == reported > 50
+        with AnyReader([disk / "up" / "zebra_sim.mcap"]) as reader:
+            assert sum(1 for _ in reader.messages()) == reported
+    finally:
+        subprocess.run(["umount", str(disk)], capture_output=True)

@@ -80,15 +80,50 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     t_start = time.monotonic()
     _run_graph(cfg, specs, conf, env, args.domain_id, result, t_start)
     result["wall_s"] = round(time.monotonic() - t_start, 2)
+    recorder_log = out / "logs" / (next((s.label for s in specs if s.executable == "recorder"), "recorder")
+                                   .replace("/", "_") + ".log")
+    result.update(_recorder_report(recorder_log))
     if cfg.record and cfg.bag_path.is_file():
         from zebra_sim_ros.graph.summary import summarize_run
 
-        result.update(summarize_run(cfg.bag_path, out / "preview.jpg"))
+        try:
+            result.update(summarize_run(cfg.bag_path, out / "preview.jpg"))
+        except OSError as exc:  # a full disk: the scores still come, the preview does not
+            result.update(summarize_run(cfg.bag_path, None))
+            result["preview_error"] = f"{exc.strerror or exc}: {out / 'preview.jpg'}"
         _print_summary(result, DRONES)
-    with open(out / "summary.json", "w") as f:
-        json.dump(result, f, indent=1, sort_keys=True)
-    print(f"[up] summary: {out / 'summary.json'}", flush=True)
+    if result.get("recording_error"):
+        result["exit_code"] = result["exit_code"] or 1
+    try:
+        with open(out / "summary.json", "w") as f:
+            json.dump(result, f, indent=1, sort_keys=True)
+        print(f"[up] summary: {out / 'summary.json'}", flush=True)
+    except OSError as exc:
+        result["summary_error"] = f"cannot write {out / 'summary.json'}: {exc.strerror or exc}"
+        result["exit_code"] = result["exit_code"] or 1
+    if result.get("recording_error"):  # the last line says what went wrong, once
+        kept = f" (the bag is finalised with the {result['recorded_messages']} messages written)" \
+            if "recorded_messages" in result else ""
+        print(f"[up] error: the recording stopped early: {result['recording_error']}{kept}", flush=True)
+    elif result.get("summary_error"):
+        print(f"[up] error: {result['summary_error']}", flush=True)
     return result
+
+
+def _recorder_report(log: Path) -> dict[str, Any]:
+    """What the recorder said of its bag: the messages it wrote (its last line) and why it stopped early, if it did."""
+    import re
+
+    try:
+        text = log.read_text(errors="replace")
+    except OSError:
+        return {}
+    out: dict[str, Any] = {}
+    if m := re.findall(r"\[recorder\] bag .*?: (\d+) messages, (\d+) dropped", text):
+        out["recorded_messages"], out["recorder_dropped"] = int(m[-1][0]), int(m[-1][1])
+    if m := re.findall(r"recording ended: (.*)", text):
+        out["recording_error"] = m[-1].strip()
+    return out
 
 
 def _up_config(args: argparse.Namespace) -> UpConfig:

@@ -177,8 +177,10 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
     nodes.append(NodeSpec("detector", "detector", ns, "detector.yaml", det,
                           tuple(f"{ns}/{d}/{t}" for d in DRONES for t in DETECTOR_TOPICS), remaps))
     if cfg.record:
-        nodes.append(NodeSpec("recorder", "recorder", ns, "recorder.yaml",
-                              {"output": str(cfg.bag_path.resolve()), **sim}, (), remaps))
+        rec = {"output": str(cfg.bag_path.resolve()), **sim}
+        if ns:  # this graph's topics only, not another graph's on the same domain
+            rec["topic_regex"] = f"^{ns}/"
+        nodes.append(NodeSpec("recorder", "recorder", ns, "recorder.yaml", rec, (), remaps))
     nodes.append(NodeSpec("placer", "placer", ns, "placer.yaml", {
         "world": cfg.world, "seed": cfg.seed, "strategy": cfg.strategy, "mode": "lockstep", "max_steps": cfg.frames,
         "lockstep_ack_from": ["labeller", "detector"], "lockstep_timeout_s": cfg.step_timeout_s,

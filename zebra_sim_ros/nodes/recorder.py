@@ -51,8 +51,9 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         self.topics = c.topic_list
         self.include, self.exclude = re.compile(c.topic_regex), re.compile(c.exclude_regex)  # checked
         mb = 1 << 20
+        reserve = -1 if c.disk_reserve_mb < 0 else int(c.disk_reserve_mb * mb)
         self.writer = BagWriter(c.output, c.compression, int(c.chunk_size_mb * mb),
-                                int(c.split_size_mb * mb), c.split_duration_s, int(c.max_size_mb * mb))
+                                int(c.split_size_mb * mb), c.split_duration_s, int(c.max_size_mb * mb), reserve)
         self.core = RecorderCore(self.writer, c.queue_size)
         self.depth = c.qos_depth
         self.subs: dict[str, Any] = {}

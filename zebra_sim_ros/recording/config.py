@@ -33,6 +33,9 @@ class RecorderConfig(StageConfig):
     split_duration_s: float = param(0.0, "start a new file after this long (0: never)", "s", lo=0.0, hi=1e7)
     max_size_mb: float = param(0.0, "stop recording (with a finalised bag) at this total size (0: no cap)", "MB",
                                lo=0.0, hi=1e7)
+    disk_reserve_mb: float = param(-1.0, "free disk space kept to finish the bag: recording stops (every message "
+                                   "so far kept, the bag finalised) when less would be left (-1: the open chunk + 0.25 "
+                                   "MB + 1% of the bag; 0: none)", "MB", lo=-1.0, hi=1e6)
     queue_size: int = param(2000, "messages waiting for the writer thread before drops are counted", lo=1,
                             hi=1_000_000)
     discovery_period_s: float = param(0.5, "how often new topics are looked for", "s", lo=0.05, hi=60.0)

@@ -3,12 +3,16 @@
 
 A bag may be split by size or duration into ``<stem>_<k>.mcap`` files (k from 0), each complete on its own,
 and may be capped in total size (``max_bytes``): the write that would pass the cap raises
-:class:`BagFullError` and the files written so far stay finalised.
+:class:`BagFullError` and the files written so far stay finalised. The disk is watched the same way: a write that
+would leave less free space than the reserve (``reserve_bytes``; by default what the open chunk holds so far, 256 KB
+and 1% of what is written: room for that chunk, the indexes and the summary) raises :class:`BagFullError` before
+the disk is full, so closing still writes every message accepted so far and the summary.
 """
 
 from __future__ import annotations
 
 import errno
+import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -38,7 +42,7 @@ class BagWriter:
     """An MCAP bag (possibly split); thread-compatible but not thread-safe: one writer thread."""
 
     def __init__(self, path: str | Path, compression: str = "zstd", chunk_size: int = 4 << 20,
-                 split_bytes: int = 0, split_seconds: float = 0.0, max_bytes: int = 0) -> None:
+                 split_bytes: int = 0, split_seconds: float = 0.0, max_bytes: int = 0, reserve_bytes: int = -1) -> None:
         if compression not in COMPRESSIONS:
             raise ParameterError("compression", compression, f"one of {sorted(COMPRESSIONS)}")
         if chunk_size < 1024:
@@ -48,6 +52,8 @@ class BagWriter:
             self.path = self.path.with_suffix(".mcap")
         self.compression, self.chunk_size = compression, chunk_size
         self.split_bytes, self.split_ns, self.max_bytes = split_bytes, int(split_seconds * 1e9), max_bytes
+        self.reserve_bytes = reserve_bytes  # -1: automatic (see the module's docstring); 0: none
+        self._unflushed = 0  # bytes in the open chunk (not on disk yet), with a record's overhead each
         self.files: list[Path] = []
         self.channels: dict[str, _Channel] = {}
         self._schemas: dict[str, int] = {}
@@ -116,6 +122,7 @@ class BagWriter:
             margin = 2 * self.chunk_size + 16384 + written // 25
             if written + len(data) + margin > self.max_bytes:
                 raise BagFullError(f"bag reached its size cap of {self.max_bytes} bytes ({written} written)")
+        self._check_free_space(len(data))
         if self._file_start_ns is not None and (
                 (self.split_bytes and self._stream is not None and self._stream.tell() >= self.split_bytes)
                 or (self.split_ns and log_time_ns - self._file_start_ns >= self.split_ns)):
@@ -124,6 +131,7 @@ class BagWriter:
         if self._file_start_ns is None:
             self._file_start_ns = log_time_ns
         assert self._writer is not None
+        before = self.bytes_written
         try:
             self._writer.add_message(channel_id=self._channel_id(ch), log_time=log_time_ns, data=data,
                                      publish_time=publish_time_ns if publish_time_ns is not None else log_time_ns,
@@ -133,6 +141,19 @@ class BagWriter:
                 raise BagFullError(f"disk full while writing {self.files[-1]}: {exc}") from exc
             raise
         self.messages += 1
+        self._unflushed = 0 if self.bytes_written != before else self._unflushed + len(data) + 64
+
+    def _check_free_space(self, incoming: int) -> None:
+        """BagFullError while there is still room to finish the bag, rather than ENOSPC in the middle of a chunk."""
+        reserve = self.reserve_bytes if self.reserve_bytes >= 0 else \
+            self._unflushed + (256 << 10) + self.bytes_written // 100
+        if reserve == 0:
+            return
+        folder = self.files[-1].parent
+        free = shutil.disk_usage(folder).free
+        if free < incoming + reserve:
+            raise BagFullError(f"disk nearly full at {folder}: {free / 1e6:.2f} MB free, {reserve / 1e6:.2f} MB kept "
+                               f"to finish the bag; stopped after {self.messages} messages, all of them kept")
 
     def close(self) -> list[Path]:
         """Finish the open file (summary, indexes, footer); returns every file of the bag."""
