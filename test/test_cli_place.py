@@ -39,3 +39,21 @@ def test_bad_values_are_named() -> None:
         proc = _run(*args)
         assert proc.returncode == 2, (args, proc.stdout, proc.stderr)
         assert needle in proc.stderr
+
+
+def test_a_closed_pipe_ends_quietly_and_options_are_never_abbreviated() -> None:
+    """``zebra-sim place --steps 20 | head -c 100``: the reader goes away, zebra-sim stops without a traceback;
+    ``--frame`` is not taken for ``--frames`` (nor ``--step`` for ``--steps``)."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "zebra_sim_ros.cli", "place", "--steps", "20", "--seed", "3"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert proc.stdout is not None and proc.stderr is not None
+    assert len(proc.stdout.read(100)) == 100
+    proc.stdout.close()  # 20 scenes are about 700 KB: far more than a pipe holds, so a write meets the closed pipe
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141 and "Traceback" not in err and "BrokenPipe" not in err, err
+    bad = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "place", "--step", "2"], capture_output=True,
+                         text=True, timeout=120)
+    assert bad.returncode == 2 and "unrecognized arguments: --step 2" in bad.stderr, bad.stderr

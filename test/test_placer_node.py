@@ -131,3 +131,14 @@ def test_bad_parameter_stops_the_node_naming_it(domain: int, params: dict, needl
     proc = run_node_once("placer", params, domain)
     assert proc.returncode == 2
     assert needle in proc.stderr + proc.stdout
+
+
+def test_an_unknown_parameter_is_named_in_a_warning() -> None:
+    """rclpy ignores a parameter a node does not declare; ours say so at start, naming it (a typo such as
+    ``rate_hzz`` otherwise looks like a setting that does nothing)."""
+    from ros_helpers import run_node_once
+
+    proc = run_node_once("placer", {"max_steps": 1, "rate_hz": 50.0, "rate_hzz": 2.0, "use_sim_time": False})
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    out = proc.stdout + proc.stderr
+    assert "unknown parameter(s) ignored: ['rate_hzz']" in out and "use_sim_time" not in out.split("ignored:")[1][:40]
