@@ -68,8 +68,10 @@ else
     "${PIP[@]}" "torch==2.13.0"
     log "pip: requirements.txt"
     "${PIP[@]}" -r requirements.txt
-    log "pip: requirements-interfaces.txt (to build the message packages)"
-    "${PIP[@]}" -r requirements-interfaces.txt
+    # --no-deps: their metadata asks for newer ROS runtime libraries (rcutils, rmw, rosidl) than Jazzy's, which
+    # would replace the ones rclpy was built against; the build needs only these CMake and Python helpers.
+    log "pip: requirements-interfaces.txt (to build the message packages; without their dependencies)"
+    "${PIP[@]}" --no-deps -r requirements-interfaces.txt
     log "pip: zebra_sim_ros (editable; console scripts in .venv/bin)"
     "${PIP[@]}" --no-deps -e .
     echo "$want" >"$STAMP"
