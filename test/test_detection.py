@@ -246,10 +246,14 @@ def test_serving_checkpoint_keeps_the_weights_and_sets_the_default_size(tmp_path
     assert not (tmp_path / "x").exists()
     # --frame records the training frames of a checkpoint that predates the record: 320 px at 160 px frames is a
     # scale of 2, so a 320 px frame is served at 640; exporting again keeps the history.
+    (tmp_path / "recipe.txt").write_text("zebra-sim generate --seed 5 ...\nzebra-sim train ...\n")
     assert main(["export", "--weights", str(tmp_path / "s.pt"), "--format", "pt", "--frame", "160",
-                 "--out", str(tmp_path / "f.pt")]) == 0
+                 "--recipe", str(tmp_path / "recipe.txt"), "--out", str(tmp_path / "f.pt")]) == 0
     framed = read_checkpoint(tmp_path / "f.pt")
     assert framed["config"]["frame"] == 160 and framed["exported"]["previous"] == ckpt["exported"]
+    assert framed["recipe"] == (tmp_path / "recipe.txt").read_text()  # kept verbatim
+    assert main(["export", "--weights", str(tmp_path / "s.pt"), "--format", "pt", "--recipe",
+                 str(tmp_path / "missing.txt"), "--out", str(tmp_path / "bad.pt")]) == 2
     assert load_model(tmp_path / "f.pt")[0].cfg.serve_size(320) == 640
     for bad in (["--frame", "0"], ["--frame", "160", "--format", "onnx"]):
         assert main(["export", "--weights", str(tmp_path / "s.pt"), "--format", "pt", *bad,
@@ -403,7 +407,8 @@ def test_mosaic_tiles_are_resized_as_inference_resizes(tmp_path: Path, imgsz: in
                                                 ({"max_train_images": -1}, "'--max-train-images'"),
                                                 ({"close_mosaic": -2}, "'--close-mosaic'"),
                                                 ({"warmup_epochs": -1.0}, "'--warmup-epochs'"),
-                                                ({"amp": "fp8"}, "'--amp'")])
+                                                ({"amp": "fp8"}, "'--amp'"), ({"crop": 640}, "'--crop'"),
+                                                ({"crop": 100}, "'--crop'")])
 def test_train_settings_are_checked_before_training(setting: dict[str, object], named: str) -> None:
     from zebra_sim_ros.detection.train import TrainConfig
 
@@ -559,6 +564,30 @@ def test_zoom_makes_a_large_zebra_from_a_small_one(tmp_path: Path) -> None:
     assert max(sides) <= 96.5 and min(sides) > 24 and np.median(sides) > 40
     plain = YoloDataset(folder, 320, Augment.none())[0][1]
     assert float(plain[0, 3] - plain[0, 1]) == pytest.approx(12.0, abs=0.1)
+
+
+def test_crops_keep_the_zebras_scale_and_frame_it(tmp_path: Path) -> None:
+    from zebra_sim_ros.detection.data import Augment, YoloDataset
+
+    folder = _one_zebra_set(tmp_path, (40, 20))
+    whole = YoloDataset(folder, 640, Augment.none())[0][1]
+    assert float(whole[0, 3] - whole[0, 1]) == pytest.approx(40.0, abs=0.1)
+    offsets = set()
+    for seed in range(10):
+        img, lab, _ = YoloDataset(folder, 640, Augment.none(), seed=seed, crop=128)[0]
+        assert tuple(img.shape) == (3, 128, 128) and len(lab) == 1
+        x0, y0, x1, y1 = lab[0, 1:].numpy()
+        # the same size as in the whole 640 sample (no rescaling) unless the window's edge cuts it
+        for lo, hi, side in ((x0, x1, 40.0), (y0, y1, 20.0)):
+            if 0.5 < lo and hi < 127.5:
+                assert hi - lo == pytest.approx(side, abs=0.1)
+            else:
+                assert side * 0.3 < hi - lo < side and min(lo, 128 - hi) < 0.5
+        inner = img[:, int(y0) + 1:int(y1) - 1, int(x0) + 1:int(x1) - 1]
+        assert float(inner.mean()) > 0.95  # the box frames the white object
+        assert float(img[:, :, :].mean()) < 0.6  # and the window is mostly the grey ground around it
+        offsets.add((round(float(x0)), round(float(y0))))
+    assert len(offsets) >= 5  # the zebra lands in different places of the window
 
 
 def test_photometric_augmentations_do_what_they_say(tmp_path: Path) -> None:

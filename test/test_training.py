@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
-from zebra_sim_ros.detection.checkpoint import load_model
+from zebra_sim_ros.detection.checkpoint import load_model, read_checkpoint
 from zebra_sim_ros.detection.evaluate import evaluate
 from zebra_sim_ros.detection.train import TrainConfig, train
 from zebra_sim_ros.errors import ParameterError
@@ -48,6 +48,14 @@ def test_resume_continues_from_last(tiny: Path, tmp_path: Path) -> None:
     # It records the frames it was trained on beside imgsz: served, a 512 px frame gets 256 (the same scale).
     assert (model.cfg.imgsz, model.cfg.frame, model.cfg.serve_size(512)) == (128, 256, 256)
     rows_before = list(csv.DictReader(open(tmp_path / "run" / "results.csv")))
+    # a second run started from the first's weights, then resumed: every checkpoint still names where it came
+    # from, and the settings of the generate run that made its data
+    second = {**base, "out": str(tmp_path / "run2")}
+    train(TrainConfig(epochs=1, init=str(tmp_path / "run" / "best.pt"), **second), log=io.StringIO())
+    train(TrainConfig(epochs=2, resume=True, **second), log=io.StringIO())
+    resumed = read_checkpoint(tmp_path / "run2" / "last.pt")
+    assert resumed["epoch"] == 1 and resumed["train_args"]["init"] == str(tmp_path / "run" / "best.pt")
+    assert resumed["data_generate"]["seed"] == 11 and resumed["data_generate"]["frames"] == 6
     train(TrainConfig(epochs=3, resume=True, **base), log=io.StringIO())
     rows = list(csv.DictReader(open(tmp_path / "run" / "results.csv")))
     assert [r["epoch"] for r in rows] == ["1", "2", "3"] and rows[:2] == rows_before

@@ -22,6 +22,9 @@ def register(sub: Any) -> None:
     t.add_argument("--data", required=True, help="dataset.yaml (train and val folders)")
     t.add_argument("--model", default="n", help="n (nano, 3.0 M parameters) or s (small, 11.1 M)")
     t.add_argument("--imgsz", type=int, default=640, help="training image size, px (multiple of 32)")
+    t.add_argument("--crop", type=int, default=0, help="train on crop x crop px windows around zebras, cut from "
+                   "the imgsz samples at their scale (multiple of 32, below --imgsz): fewer pixels per step for the "
+                   "same zebra sizes; validation stays on whole frames at --imgsz (0: off)")
     t.add_argument("--epochs", type=int, default=100)
     t.add_argument("--batch", type=int, default=16, help="batch size (per process under torchrun)")
     t.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
@@ -68,6 +71,8 @@ def register(sub: Any) -> None:
     e.add_argument("--frame", type=int, default=None, help="pt: the long side, px, of the frames the source was "
                    "trained on (default: as the checkpoint records it; checkpoints trained before it was recorded "
                    "serve every frame at --imgsz until it is given)")
+    e.add_argument("--recipe", default=None, help="pt: a text file kept verbatim in the checkpoint (key 'recipe'): "
+                   "how the weights were made (commands, seeds, times)")
     e.add_argument("--out", type=Path, required=True, help="output file (.onnx or .pt)")
     add_json_flag(e)
     e.set_defaults(func=cmd_export)
@@ -98,8 +103,8 @@ def cmd_train(args: argparse.Namespace) -> Summary:
     """Train."""
     from zebra_sim_ros.detection.train import TrainConfig, train
 
-    cfg = TrainConfig(data=args.data, out=str(args.out), model=args.model, imgsz=args.imgsz, epochs=args.epochs,
-                      batch=args.batch, device=args.device, workers=args.workers, lr0=args.lr0,
+    cfg = TrainConfig(data=args.data, out=str(args.out), model=args.model, imgsz=args.imgsz, crop=args.crop,
+                      epochs=args.epochs, batch=args.batch, device=args.device, workers=args.workers, lr0=args.lr0,
                       warmup_epochs=args.warmup_epochs, close_mosaic=args.close_mosaic, seed=args.seed,
                       val_every=args.val_every, max_train_images=args.max_train_images, resume=args.resume,
                       init=args.init, amp=args.amp, dont_care=args.dont_care, aug=augment_from_args(args))
@@ -157,10 +162,13 @@ def cmd_export(args: argparse.Namespace) -> Summary:
     check_imgsz("--imgsz", args.imgsz)
     if args.frame is not None and (args.format != "pt" or not 16 <= args.frame <= 8192):
         raise ParameterError("--frame", args.frame, "16..8192 px, with --format pt")
+    if args.recipe is not None and (args.format != "pt" or not Path(args.recipe).is_file()):
+        raise ParameterError("--recipe", args.recipe, "a readable text file, with --format pt")
     if args.format == "onnx":
         path = export_onnx(args.weights, args.out, args.imgsz)
     else:
-        path = export_checkpoint(args.weights, args.out, args.imgsz, args.frame)
+        recipe = Path(args.recipe).read_text() if args.recipe else None
+        path = export_checkpoint(args.weights, args.out, args.imgsz, args.frame, recipe)
     print(f"exported {path}")
     return {"out": str(path), "format": args.format}
 

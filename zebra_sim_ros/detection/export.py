@@ -19,6 +19,7 @@ import torch
 
 from zebra_sim_ros.detection.checkpoint import SHIPPED, load_model, read_checkpoint, save_checkpoint
 from zebra_sim_ros.detection.model import build_model
+from zebra_sim_ros.detection.train import data_recipe
 from zebra_sim_ros.errors import DependencyError
 
 
@@ -40,10 +41,11 @@ def export_onnx(weights: str | Path | None, out: str | Path, imgsz: int | None =
 
 
 def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | None = None,
-                      frame: int | None = None) -> Path:
+                      frame: int | None = None, recipe: str | None = None) -> Path:
     """Write a serving checkpoint of ``weights`` (default: the shipped ones) that serves frames whose long side
     is ``frame`` px (default: the training frames' size it records) at ``imgsz`` (default: unchanged), and
-    other frames at the same scale; returns the path."""
+    other frames at the same scale; returns the path. ``recipe``: text kept verbatim in the checkpoint (how the
+    weights were made: the commands, seeds and times), else the source's own."""
     src = read_checkpoint(weights or SHIPPED)
     cfg = dict(src["config"])
     if imgsz:
@@ -52,7 +54,12 @@ def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | 
         cfg["frame"] = frame
     model = build_model(cfg)
     model.load_state_dict({k: v.float() for k, v in src["model"].items()})
-    extra = {k: src[k] for k in ("epoch", "metrics", "train_args", "best_fitness") if k in src}
+    extra = {k: src[k] for k in ("epoch", "metrics", "train_args", "best_fitness", "data_generate", "recipe")
+             if k in src}
+    if "data_generate" not in extra and "data" in extra.get("train_args", {}):  # checkpoints before it was kept
+        extra["data_generate"] = data_recipe(extra["train_args"]["data"])
+    if recipe:
+        extra["recipe"] = recipe
     save_checkpoint(out, model.half(), **extra, exported={"from_config_imgsz": int(src["config"]["imgsz"]),
                                                           "imgsz": int(cfg["imgsz"]),
                                                           "frame": int(cfg.get("frame", 0)),

@@ -8,6 +8,7 @@ from __future__ import annotations
 import copy
 import csv
 import datetime
+import json
 import math
 import os
 import sys
@@ -64,6 +65,7 @@ class TrainConfig:
     out: str
     model: str = "n"
     imgsz: int = 640
+    crop: int = 0  # train on crop x crop windows around zebras of the imgsz samples (0: whole samples)
     epochs: int = 100
     batch: int = 16
     device: str = "auto"
@@ -91,6 +93,9 @@ class TrainConfig:
         if self.batch < 1:
             raise ParameterError("--batch", self.batch, ">= 1")
         check_imgsz("--imgsz", self.imgsz)
+        if self.crop and not (self.crop % 32 == 0 and 64 <= self.crop < self.imgsz):
+            raise ParameterError("--crop", self.crop, f"0 (off) or a multiple of 32 from 64 to below --imgsz "
+                                                      f"({self.imgsz})")
         for name, value, ok, allowed in (("--workers", self.workers, self.workers >= 0, ">= 0"),
                                          ("--val-every", self.val_every, self.val_every >= 1, ">= 1"),
                                          ("--close-mosaic", self.close_mosaic, self.close_mosaic >= 0, ">= 0"),
@@ -151,6 +156,17 @@ def check_resume(cfg: TrainConfig, recorded: dict[str, Any], last: Path) -> None
                                  f"that run; only {', '.join(RESUME_MAY_CHANGE)} may change)")
 
 
+def data_recipe(data: str) -> dict[str, Any] | None:
+    """The settings ``zebra-sim generate`` recorded for a training set (its ``generate.json`` beside the
+    dataset.yaml, or in the folder), which a checkpoint keeps beside its training arguments; None for other sets."""
+    p = Path(data)
+    path = (p.parent if p.suffix in (".yaml", ".yml") else p) / "generate.json"
+    try:
+        return dict(json.loads(path.read_text()).get("config") or {}) or None
+    except (OSError, ValueError, AttributeError, TypeError):
+        return None
+
+
 def _is_main() -> bool:
     return int(os.environ.get("RANK", "0")) == 0
 
@@ -172,7 +188,7 @@ def _init_device(cfg: TrainConfig) -> tuple[torch.device, bool]:
 def _train_set(cfg: TrainConfig, train_dir: Path) -> YoloDataset:
     """The training images, augmented unless ``cfg.augment`` is off, cut to ``max_train_images``."""
     ds = YoloDataset(train_dir, cfg.imgsz, cfg.aug if cfg.augment else Augment.none(), seed=cfg.seed,
-                     dont_care=cfg.dont_care)
+                     dont_care=cfg.dont_care, crop=cfg.crop)
     if cfg.max_train_images:
         ds.files = ds.files[: cfg.max_train_images]
     return ds
@@ -187,6 +203,7 @@ class _Start:
     ema_updates: int = 0
     optimizer: dict[str, Any] | None = None
     ema_weights: dict[str, Any] | None = None
+    init: str = ""  # the weights the run started from (a resumed run keeps what its first start recorded)
 
 
 def _load_weights(cfg: TrainConfig, model: Detector, out: Path) -> _Start:
@@ -198,7 +215,7 @@ def _load_weights(cfg: TrainConfig, model: Detector, out: Path) -> _Start:
                                  f"(it holds {init['config'].get('size')!r})")
         model.load_state_dict({k: v.float() for k, v in init["model"].items()})
     if not cfg.resume:
-        return _Start()
+        return _Start(init=cfg.init)
     ckpt = read_checkpoint(out / "last.pt", "--resume")
     check_resume(cfg, ckpt.get("train_args", {}), out / "last.pt")
     model.load_state_dict(ckpt["model_raw"])
@@ -206,7 +223,7 @@ def _load_weights(cfg: TrainConfig, model: Detector, out: Path) -> _Start:
     if start_epoch >= cfg.epochs:
         raise ParameterError("--epochs", cfg.epochs, f"more than the {start_epoch} epochs the run in {out} has done")
     return _Start(start_epoch, ckpt.get("best_fitness", -1.0), ckpt.get("ema_updates", 0), ckpt.get("optimizer"),
-                  ckpt["model"])
+                  ckpt["model"], str(ckpt.get("train_args", {}).get("init", "")))
 
 
 def _optimizer(model: Detector, cfg: TrainConfig, state: dict[str, Any] | None) -> torch.optim.SGD:
@@ -324,7 +341,8 @@ def _end_epoch(run_: _Run, epoch: int, sums: torch.Tensor, nb: int, val_loader: 
         w = csv.DictWriter(f, fieldnames=list(row))
         w.writeheader()
         w.writerows(run_.rows)
-    extra = {"epoch": epoch, "metrics": metrics, "train_args": asdict(cfg), "best_fitness": max(run_.best, fitness)}
+    extra = {"epoch": epoch, "metrics": metrics, "train_args": asdict(cfg), "best_fitness": max(run_.best, fitness),
+             "data_generate": data_recipe(cfg.data)}
     save_checkpoint(out / "last.pt", run_.ema.ema, model_raw=run_.model.state_dict(), optimizer=run_.opt.state_dict(),
                     ema_updates=run_.ema.updates, **extra)
     if metrics and fitness > run_.best:
@@ -373,6 +391,7 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
     # Channels-last (NHWC), as served: 1.24x faster training steps on our 2-core CPU; tensor cores want it too.
     model = serving_layout(build_model(model_cfg).to(device))
     start = _load_weights(cfg, model, out)
+    cfg = replace(cfg, init=start.init)  # recorded in every checkpoint: where the weights came from, resumed or not
     ema = EMA(model, updates=start.ema_updates)
     if start.ema_weights is not None:
         ema.ema.load_state_dict(start.ema_weights)
@@ -389,8 +408,9 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
     # Warm-up: the given epochs, at least 100 iterations on big sets, at most a tenth of a short run.
     warmup = max(round(cfg.warmup_epochs * nb), min(100, cfg.epochs * nb // 10))
     if _is_main():
+        crop = f" (crops of {cfg.crop})" if cfg.crop else ""
         print(f"[train] {count_parameters(model) / 1e6:.2f} M parameters ({cfg.model}), {len(ds)} train images, "
-              f"device {device}, imgsz {cfg.imgsz}, batch {cfg.batch}, epochs {cfg.epochs}, "
+              f"device {device}, imgsz {cfg.imgsz}{crop}, batch {cfg.batch}, epochs {cfg.epochs}, "
               f"autocast {str(autocast).replace('torch.', '') if autocast else 'off'}", file=log)
     run_ = _Run(cfg, out, log, device, model, net, ema, opt, criterion, autocast, scaler, start.best,
                 _previous_rows(cfg, out / "results.csv"))
