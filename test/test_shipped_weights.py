@@ -1,14 +1,15 @@
 """The shipped detector weights on freshly generated, held-out synthetic sets.
 
-The shipped model (stage 8, README "Shipped weights") was fine-tuned from stage 7 on 2,448 photographic frames of
-all twelve worlds and four strategies (``generate --seed 1000 --worlds all --strategy all``; each world and
-strategy its own placer stream); stages 1-7 used seeds 100, 200 and 400 on seven worlds. Here small sets are
-generated with seed 777, whose streams none of those share, with the generator's defaults (the photographic look,
-weather, the camera model, domain randomisation, other species), and scored with our COCO metrics at the shipped
-file's own inference-size rule (640 px frames at 1088, chosen on the val split of the training set; 1280x720 at
-2176), zebras seen but below the label filters as don't-care regions:
+The shipped model (stage 9, README "Shipped weights") was fine-tuned from stage 7 (stage 8 on whole frames,
+stage 9 on crops around zebras) on 2,448 photographic frames of all twelve worlds and four strategies
+(``generate --seed 1000 --worlds all --strategy all``; each world and strategy its own placer stream); stages
+1-7 used seeds 100, 200 and 400 on seven worlds. Here small sets are generated with seed 777, whose streams none
+of those share, with the generator's defaults (the photographic look, weather, the camera model, domain
+randomisation, other species), and scored with our COCO metrics at the shipped file's own inference-size rule
+(640 px frames at 1088, chosen on the val split of the training set; 1280x720 at 2176), zebras seen but below
+the label filters as don't-care regions:
 
-- 640x360 frames of six worlds (three of them new in stage 8), far, close-by, low and nadir: a regression floor
+- 640x360 frames of six worlds (four of them new in stage 8), far, close-by, low and nadir: a regression floor
   under what the weights measured when they were shipped;
 - a default ``generate`` (1280x720, savanna, far and close-by): what ``val`` on a default set gives, a floor under
   the measured figure (the issue's goal, 0.85, is not reached: see README "Shipped weights").
@@ -46,7 +47,8 @@ def test_shipped_weights_are_ours_and_say_how_they_were_trained() -> None:
     assert SHIPPED.stat().st_size < 20 << 20
     args = ckpt["train_args"]
     assert args["model"] == "n" and args["imgsz"] == 640  # trained at 640, served at 1088 (zebra-sim export)
-    assert args["aug"]["zoom"] == 0.5 and args["epochs"] == 14
+    assert args["crop"] == 320 and args["aug"]["zoom"] == 0.5 and args["epochs"] == 24
+    assert args["init"].endswith("s2r_n640/best.pt")  # stage 8
     # served at 1088 on its 640x360 training frames, and at the same scale (1.7) on frames of any other size
     assert ckpt["config"]["imgsz"] == 1088 and ckpt["config"]["frame"] == 640
     assert ckpt["exported"]["from_config_imgsz"] == 640 and ckpt["exported"]["imgsz"] == 1088
@@ -64,13 +66,13 @@ def test_shipped_weights_on_new_seeds_of_six_worlds_and_four_views(tmp_path: Pat
     data = _held_out_set(tmp_path / "six_worlds", 24, worlds=SIX_WORLDS, strategy="all", width=640, height=360)
     m, facts = evaluate(None, data, split="train")
     assert facts["imgsz"] == 1088 and m.images == 72 and m.instances > 1500
-    assert m.map50 >= 0.52, m.to_dict()  # measured when shipped: 0.571 (README "Shipped weights")
-    assert m.map50_95 >= 0.23, m.to_dict()  # measured: 0.267
+    assert m.map50 >= 0.52, m.to_dict()  # measured when shipped: 0.581 (README "Shipped weights"; stage 7: 0.362)
+    assert m.map50_95 >= 0.23, m.to_dict()  # measured: 0.277 (stage 7: 0.163)
 
 
 def test_shipped_weights_on_a_default_generate(tmp_path: Path) -> None:
     data = _held_out_set(tmp_path / "default", 12)
     m, facts = evaluate(None, data, split="train")
     assert facts["imgsz"] == 2176 and m.images == 12 and m.instances > 500
-    assert m.map50 >= 0.58, m.to_dict()  # measured when shipped: 0.642 (README "Shipped weights"; stage 7: 0.598
-    assert m.map50_95 >= 0.29, m.to_dict()  # measured: 0.335                 on 36 frames of seed 4242)
+    assert m.map50 >= 0.58, m.to_dict()  # measured when shipped: 0.651 (README "Shipped weights"; stage 7: 0.465)
+    assert m.map50_95 >= 0.29, m.to_dict()  # measured: 0.345 (stage 7: 0.221)
