@@ -17,6 +17,7 @@ to a multiple of 32), with the scale and padding kept to map boxes back to the o
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -82,6 +83,17 @@ class Augment:
             hi = 10.0 if f.name in ("scale", "hsv_s", "hsv_v") else 1.0
             if not 0.0 <= v <= hi:
                 raise ParameterError(f"--aug-{f.name.replace('_', '-')}", v, f"0..{hi:g}")
+
+
+def generate_settings(data: str | Path) -> dict[str, Any] | None:
+    """The settings ``zebra-sim generate`` recorded for a set (its ``generate.json`` beside the dataset.yaml, or in
+    the folder), which a checkpoint keeps beside its training arguments; None for other sets."""
+    p = Path(data)
+    path = (p.parent if p.suffix in (".yaml", ".yml") else p) / "generate.json"
+    try:
+        return dict(json.loads(path.read_text()).get("config") or {}) or None
+    except (OSError, ValueError, AttributeError, TypeError):
+        return None
 
 
 def resolve_split(data: str | Path, split: str) -> Path:
@@ -307,10 +319,9 @@ class YoloDataset(Dataset[Any]):
         centre anywhere in the middle 80% of the crop so edges may cut it. Without a labelled zebra: as
         :meth:`_single`."""
         img, lab = self.load(i, self.dont_care)
-        real = lab[lab[:, 0] != DONT_CARE] if len(lab) else lab
-        if not len(real):
+        b = _random_zebra(lab, rng)
+        if b is None:
             return self._single(i, rng)
-        b = real[int(rng.integers(len(real)))]
         side = max(float(b[3] - b[1]), float(b[4] - b[2]), 1.0)
         share = float(np.exp(rng.uniform(np.log(0.15), np.log(0.8))))
         s = min(share * self.imgsz / side, 4.0)
@@ -353,6 +364,12 @@ class YoloDataset(Dataset[Any]):
         return _affine(canvas, lab, rng, self.augment or Augment(), s)
 
 
+def _random_zebra(lab: NDArray[np.float32], rng: np.random.Generator) -> NDArray[np.float32] | None:
+    """One labelled zebra's row [class, x0, y0, x1, y1], drawn at random (a don't-care box never is); None if none."""
+    real = lab[lab[:, 0] != DONT_CARE] if len(lab) else lab
+    return real[int(rng.integers(len(real)))] if len(real) else None
+
+
 def crop_window(img: NDArray[np.uint8], lab: NDArray[np.float32], size: int,
                 rng: np.random.Generator) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
     """A ``size`` square of ``img`` at its own scale around a random labelled zebra (its centre anywhere in the
@@ -360,9 +377,8 @@ def crop_window(img: NDArray[np.uint8], lab: NDArray[np.float32], size: int,
     the step on the zebras and not the empty ground around them. Boxes are clipped; one under 3 px or with less
     than 10% of its area left is dropped (as :func:`_warp_labels`)."""
     h, w = img.shape[:2]
-    real = lab[lab[:, 0] != DONT_CARE] if len(lab) else lab
-    if len(real):
-        b = real[int(rng.integers(len(real)))]
+    b = _random_zebra(lab, rng)
+    if b is not None:
         ox, oy = rng.uniform(0.1, 0.9, 2) * size
         x0, y0 = (b[1] + b[3]) / 2 - ox, (b[2] + b[4]) / 2 - oy
     else:

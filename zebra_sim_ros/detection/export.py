@@ -18,8 +18,8 @@ from pathlib import Path
 import torch
 
 from zebra_sim_ros.detection.checkpoint import SHIPPED, load_model, read_checkpoint, save_checkpoint
+from zebra_sim_ros.detection.data import generate_settings
 from zebra_sim_ros.detection.model import build_model
-from zebra_sim_ros.detection.train import data_recipe
 from zebra_sim_ros.errors import DependencyError
 
 
@@ -57,7 +57,7 @@ def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | 
     extra = {k: src[k] for k in ("epoch", "metrics", "train_args", "best_fitness", "data_generate", "recipe")
              if k in src}
     if "data_generate" not in extra and "data" in extra.get("train_args", {}):  # checkpoints before it was kept
-        extra["data_generate"] = data_recipe(extra["train_args"]["data"])
+        extra["data_generate"] = generate_settings(extra["train_args"]["data"])
     if recipe:
         extra["recipe"] = recipe
     save_checkpoint(out, model.half(), **extra, exported={"from_config_imgsz": int(src["config"]["imgsz"]),

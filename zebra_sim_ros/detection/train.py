@@ -8,7 +8,6 @@ from __future__ import annotations
 import copy
 import csv
 import datetime
-import json
 import math
 import os
 import sys
@@ -29,7 +28,7 @@ from zebra_sim_ros.detection.checkpoint import (
     select_device,
     serving_layout,
 )
-from zebra_sim_ros.detection.data import Augment, YoloDataset, collate, resolve_split
+from zebra_sim_ros.detection.data import Augment, YoloDataset, collate, generate_settings, resolve_split
 from zebra_sim_ros.detection.evaluate import make_loader, predictions, score, write_plots
 from zebra_sim_ros.detection.loss import DetectionLoss
 from zebra_sim_ros.detection.model import Detector, ModelConfig, build_model, count_parameters
@@ -156,17 +155,6 @@ def check_resume(cfg: TrainConfig, recorded: dict[str, Any], last: Path) -> None
                                  f"that run; only {', '.join(RESUME_MAY_CHANGE)} may change)")
 
 
-def data_recipe(data: str) -> dict[str, Any] | None:
-    """The settings ``zebra-sim generate`` recorded for a training set (its ``generate.json`` beside the
-    dataset.yaml, or in the folder), which a checkpoint keeps beside its training arguments; None for other sets."""
-    p = Path(data)
-    path = (p.parent if p.suffix in (".yaml", ".yml") else p) / "generate.json"
-    try:
-        return dict(json.loads(path.read_text()).get("config") or {}) or None
-    except (OSError, ValueError, AttributeError, TypeError):
-        return None
-
-
 def _is_main() -> bool:
     return int(os.environ.get("RANK", "0")) == 0
 
@@ -267,6 +255,7 @@ class _Run:
     scaler: torch.amp.GradScaler
     best: float
     rows: list[dict[str, Any]]
+    data_generate: dict[str, Any] | None  # the training set's generate settings (read once, kept in checkpoints)
 
     def step(self, imgs: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
         """One optimisation step on a batch (imgs (B, 3, H, W)); the loss components [box, cls, dfl] on the CPU."""
@@ -342,7 +331,7 @@ def _end_epoch(run_: _Run, epoch: int, sums: torch.Tensor, nb: int, val_loader: 
         w.writeheader()
         w.writerows(run_.rows)
     extra = {"epoch": epoch, "metrics": metrics, "train_args": asdict(cfg), "best_fitness": max(run_.best, fitness),
-             "data_generate": data_recipe(cfg.data)}
+             "data_generate": run_.data_generate}
     save_checkpoint(out / "last.pt", run_.ema.ema, model_raw=run_.model.state_dict(), optimizer=run_.opt.state_dict(),
                     ema_updates=run_.ema.updates, **extra)
     if metrics and fitness > run_.best:
@@ -413,7 +402,7 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
               f"device {device}, imgsz {cfg.imgsz}{crop}, batch {cfg.batch}, epochs {cfg.epochs}, "
               f"autocast {str(autocast).replace('torch.', '') if autocast else 'off'}", file=log)
     run_ = _Run(cfg, out, log, device, model, net, ema, opt, criterion, autocast, scaler, start.best,
-                _previous_rows(cfg, out / "results.csv"))
+                _previous_rows(cfg, out / "results.csv"), generate_settings(cfg.data))
     t_start = time.perf_counter()
     images_seen = 0
     for epoch in range(start.epoch, cfg.epochs):
