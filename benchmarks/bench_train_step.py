@@ -31,6 +31,7 @@ def main() -> None:
     ap.add_argument("--batch", type=int, default=16)
     ap.add_argument("--repeats", type=int, default=8)
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--compile", action="store_true", help="also time bfloat16 steps of torch.compile(model)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
@@ -43,24 +44,33 @@ def main() -> None:
     targets = torch.tensor([[i, 0, s * 0.2 + 7 * k, s * 0.3, s * 0.2 + 7 * k + 24, s * 0.3 + 18]
                             for i in range(args.batch) for k in range(6)], dtype=torch.float32)
 
-    def step(dtype: torch.dtype | None) -> float:
+    def step(dtype: torch.dtype | None, net: torch.nn.Module = model) -> float:
         t0 = time.perf_counter()
         with torch.autocast("cpu", dtype=dtype or torch.bfloat16, enabled=dtype is not None):
-            feats = model(x)
+            feats = net(x)
         loss, _ = criterion([f.float() for f in feats], targets)
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
         return time.perf_counter() - t0
 
-    modes: dict[str, torch.dtype | None] = {"float32": None, "bfloat16": torch.bfloat16}
+    modes: dict[str, tuple[torch.dtype | None, torch.nn.Module]] = {"float32": (None, model),
+                                                                    "bfloat16": (torch.bfloat16, model)}
+    compile_s = None
+    if args.compile:  # the same parameters through inductor; its first steps compile (timed apart)
+        compiled = torch.compile(model)
+        t0 = time.perf_counter()
+        for _ in range(2):
+            step(torch.bfloat16, compiled)
+        compile_s = time.perf_counter() - t0
+        modes["bfloat16+compile"] = (torch.bfloat16, compiled)
     times: dict[str, list[float]] = {k: [] for k in modes}
     for _ in range(2):  # warm-up: oneDNN picks and caches its kernels per shape and dtype
-        for d in modes.values():
-            step(d)
+        for d, net in modes.values():
+            step(d, net)
     for _ in range(args.repeats):
-        for name, d in modes.items():
-            times[name].append(step(d))
+        for name, (d, net) in modes.items():
+            times[name].append(step(d, net))
     med = {k: statistics.median(v) for k, v in times.items()}
     result = {
         "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, torch {torch.__version__}",
@@ -70,12 +80,18 @@ def main() -> None:
         "images_per_s": {k: round(args.batch / v, 2) for k, v in med.items()},
         "speedup_bf16": round(med["float32"] / med["bfloat16"], 2),
     }
+    if compile_s is not None:
+        result["compile_s"] = round(compile_s, 1)
+        result["speedup_compile_over_bf16"] = round(med["bfloat16"] / med["bfloat16+compile"], 2)
     if args.json:
         print(json.dumps(result, indent=1))
     else:
         for k, v in med.items():
             print(f"{k:9s} {v * 1000:8.0f} ms per step, {args.batch / v:6.2f} images/s")
         print(f"bfloat16 autocast: {result['speedup_bf16']}x float32")
+        if compile_s is not None:
+            print(f"torch.compile: {result['speedup_compile_over_bf16']}x eager bfloat16, after {compile_s:.0f} s "
+                  "of compilation")
 
 
 if __name__ == "__main__":

@@ -430,6 +430,36 @@ def test_autocast_dtype_follows_the_device(monkeypatch: pytest.MonkeyPatch) -> N
         assert amp_dtype("auto", cpu) == want  # emulated bfloat16 is slower than float32: not chosen
 
 
+def test_a_dataset_yaml_may_list_several_training_sets(tmp_path: Path) -> None:
+    from zebra_sim_ros.detection.data import YoloDataset, generate_settings, resolve_split, resolve_splits
+
+    for name, n in (("far", 3), ("low", 2)):  # two generated sets: images, labels and their generate.json
+        for split in ("train", "val"):
+            (tmp_path / name / "images" / split).mkdir(parents=True)
+        for k in range(n):
+            (tmp_path / name / "images" / "train" / f"{name}{k}.jpg").write_bytes(b"")
+        (tmp_path / name / "images" / "val" / f"{name}v.jpg").write_bytes(b"")
+        (tmp_path / name / "generate.json").write_text(json.dumps({"config": {"strategy": name, "seed": n}}))
+    y = tmp_path / "both.yaml"
+    y.write_text("path: .\ntrain: [far/images/train, low/images/train]\nval: far/images/val\nnc: 1\n")
+    folders = resolve_splits(y, "train")
+    assert folders == [tmp_path / "far/images/train", tmp_path / "low/images/train"]
+    ds = YoloDataset(folders, 64)
+    assert [f.name for f in ds.files] == ["far0.jpg", "far1.jpg", "far2.jpg", "low0.jpg", "low1.jpg"]
+    assert resolve_split(y, "val") == tmp_path / "far/images/val"  # a single folder reads as before
+    with pytest.raises(ParameterError, match="one 'train' folder here \\(2 listed\\)"):
+        resolve_split(y, "train")  # a command that reads one folder says so
+    g = generate_settings(y)  # a checkpoint records every listed set's settings
+    assert g is not None and sorted(c["strategy"] for c in g["sets"].values()) == ["far", "low"]
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("path: .\ntrain: [far/images/train, nowhere/images/train]\nval: far/images/val\n")
+    with pytest.raises(ParameterError, match="nowhere"):
+        resolve_splits(bad, "train")
+    (tmp_path / "empty" / "images" / "train").mkdir(parents=True)
+    with pytest.raises(ParameterError, match="empty"):
+        YoloDataset([tmp_path / "far/images/train", tmp_path / "empty/images/train"], 64)
+
+
 def test_a_malformed_label_file_is_named_with_its_line(tmp_path: Path) -> None:
     from zebra_sim_ros.detection.data import read_labels
 
@@ -588,6 +618,48 @@ def test_crops_keep_the_zebras_scale_and_frame_it(tmp_path: Path) -> None:
         assert float(img[:, :, :].mean()) < 0.6  # and the window is mostly the grey ground around it
         offsets.add((round(float(x0)), round(float(y0))))
     assert len(offsets) >= 5  # the zebra lands in different places of the window
+
+
+def test_background_zooms_centre_on_other_species_or_ground(tmp_path: Path) -> None:
+    import cv2
+
+    from zebra_sim_ros.detection.data import Augment, YoloDataset, other_species_boxes
+
+    folder = _one_zebra_set(tmp_path)  # a white 24x12 'zebra' at (400, 200)
+    img = cv2.imread(str(folder / "a.png"))
+    img[60:100, 100:160] = (0, 0, 255)  # a red 60x40 'buffalo' far from it, in the frame's record only
+    cv2.imwrite(str(folder / "a.png"), img)
+    (tmp_path / "annotations").mkdir()
+    record = {"labels": {"zebras": [
+        {"species": "zebra", "box_visible": [400, 200, 424, 212], "visible_pixels": 288},
+        {"species": "buffalo", "box_visible": [100, 60, 160, 100], "visible_pixels": 2400},
+        {"species": "impala", "box_visible": [10, 10, 13, 13], "visible_pixels": 9}]}}  # too few pixels to count
+    (tmp_path / "annotations" / "a.json").write_text(json.dumps(record))
+    assert other_species_boxes(folder / "a.png").tolist() == [[100, 60, 160, 100]]
+    assert other_species_boxes(tmp_path / "nowhere" / "b.png").shape == (0, 4)  # no record: none, no error
+
+    def red_share(x: torch.Tensor) -> float:
+        r, g, b = x.numpy()
+        return float(((r > 0.9) & (g < 0.1) & (b < 0.1)).mean())
+
+    on_buffalo = on_zebra = 0
+    for seed in range(24):
+        x, lab, _ = YoloDataset(folder, 320, replace(Augment.none(), zoom=1.0, background=1.0), seed=seed)[0]
+        on_buffalo += red_share(x) > 0.04  # the 60x40 buffalo enlarged to 15-80% of the side fills over 4%
+        for row in lab.numpy():  # a zebra in view keeps its label, on the white object
+            x0, y0, x1, y1 = row[1:]
+            inner = x[:, int(y0) + 2:int(y1) - 2, int(x0) + 2:int(x1) - 2]
+            assert inner.numel() == 0 or float(inner.mean()) > 0.9
+            on_zebra += 1
+    assert 6 <= on_buffalo <= 20  # half the negatives centre on the other animal, the rest on random points
+    assert on_zebra < 12  # and the zebra is rarely in view: it is no longer the centre
+    for seed in range(12):  # zebra-centred zooms (the default) keep the zebra, never the buffalo, in view
+        x, lab, _ = YoloDataset(folder, 320, replace(Augment.none(), zoom=1.0), seed=seed)[0]
+        assert len(lab) == 1 and red_share(x) == 0.0
+    # with crops: the window goes around the negative's centre too, not back to the zebra
+    crops = [YoloDataset(folder, 640, replace(Augment.none(), zoom=1.0, background=1.0), seed=s, crop=128)[0]
+             for s in range(24)]
+    assert sum(red_share(x) > 0.04 for x, _, _ in crops) >= 6 and sum(len(lab) for _, lab, _ in crops) < 12
 
 
 def test_photometric_augmentations_do_what_they_say(tmp_path: Path) -> None:

@@ -18,7 +18,7 @@ to a multiple of 32), with the scale and padding kept to map boxes back to the o
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -64,6 +64,9 @@ class Augment:
     jpeg: float = _aug(0.3, "probability of a JPEG round trip at quality 30-90")
     cutout: float = _aug(0.15, "probability of 1-3 grey rectangles of 5-25%% of the side; a box hidden over 60%% "
                                "is dropped")
+    background: float = _aug(0.0, "probability that a zoom crop (--aug-zoom) is centred on an animal of another "
+                                  "species (from the set's annotations/, as generate writes them) or else on a random "
+                                  "point, not on a zebra, enlarged alike: hard negatives at the size of large zebras")
 
     @classmethod
     def none(cls) -> Augment:
@@ -87,26 +90,48 @@ class Augment:
 
 def generate_settings(data: str | Path) -> dict[str, Any] | None:
     """The settings ``zebra-sim generate`` recorded for a set (its ``generate.json`` beside the dataset.yaml, or in
-    the folder), which a checkpoint keeps beside its training arguments; None for other sets."""
+    the folder), which a checkpoint keeps beside its training arguments; for a dataset.yaml that lists several
+    generated sets' training folders, ``{"sets": {root: settings}}``; None for other sets."""
     p = Path(data)
-    path = (p.parent if p.suffix in (".yaml", ".yml") else p) / "generate.json"
+    own = _generate_json(p.parent if p.suffix in (".yaml", ".yml") else p)
+    if own is not None:
+        return own
     try:
-        return dict(json.loads(path.read_text()).get("config") or {}) or None
+        roots = [f.parent.parent for f in resolve_splits(p, "train")]
+    except ParameterError:
+        return None
+    sets = {str(r): g for r in roots if (g := _generate_json(r)) is not None}
+    return {"sets": sets} if sets else None
+
+
+def _generate_json(folder: Path) -> dict[str, Any] | None:
+    try:
+        return dict(json.loads((folder / "generate.json").read_text()).get("config") or {}) or None
     except (OSError, ValueError, AttributeError, TypeError):
         return None
 
 
 def resolve_split(data: str | Path, split: str) -> Path:
-    """The image folder of ``split`` from a dataset.yaml, or ``data`` itself if it is a folder.
+    """The image folder of ``split`` from a dataset.yaml, or ``data`` itself if it is a folder (one folder: a
+    dataset.yaml that lists several for ``split`` is refused, naming the split).
 
     A folder holding a ``dataset.yaml`` (what ``zebra-sim generate`` writes) is read as that file: taken as a
     plain folder, its instance masks (``masks/*.png``) would count as unlabelled images.
     """
+    folders = resolve_splits(data, split)
+    if len(folders) != 1:
+        raise ParameterError("--data", str(data), f"one '{split}' folder here ({len(folders)} listed)")
+    return folders[0]
+
+
+def resolve_splits(data: str | Path, split: str) -> list[Path]:
+    """The image folders of ``split``: as :func:`resolve_split`, and YOLO's list form, ``train: [a/images/train,
+    b/images/train]`` (each relative to ``path``), which trains on several generated sets at once."""
     p = Path(data)
     if p.is_dir() and (p / "dataset.yaml").is_file():
         p = p / "dataset.yaml"
     if p.is_dir():
-        return p
+        return [p]
     if not p.is_file():
         raise ParameterError("--data", str(p), "a dataset.yaml or an image folder that exists")
     try:
@@ -114,12 +139,40 @@ def resolve_split(data: str | Path, split: str) -> Path:
         root = Path(y.get("path") or p.parent)
         if not root.is_absolute():
             root = p.parent / root
-        folder = root / y[split]
-    except (yaml.YAMLError, KeyError, TypeError) as exc:
+        entry = y[split]
+        folders = [root / str(e) for e in (entry if isinstance(entry, list) else [entry])]
+    except (yaml.YAMLError, KeyError, TypeError, AttributeError) as exc:
         raise ParameterError("--data", str(p), f"a YOLO dataset.yaml with '{split}' ({exc})") from exc
-    if not folder.is_dir():
-        raise ParameterError("--data", str(p), f"a '{split}' folder that exists (not {folder})")
-    return folder
+    if not folders:
+        raise ParameterError("--data", str(p), f"at least one '{split}' folder")
+    for folder in folders:
+        if not folder.is_dir():
+            raise ParameterError("--data", str(p), f"a '{split}' folder that exists (not {folder})")
+    return folders
+
+
+def annotation_path(image: Path) -> Path:
+    """``<set>/images/<x>/a.jpg`` -> ``<set>/annotations/a.json``: the frame's full record as ``zebra-sim
+    generate`` writes it (other sets have none)."""
+    parts = list(image.parts)
+    for i in range(len(parts) - 1, -1, -1):
+        if parts[i] == "images":
+            return Path(*parts[:i], "annotations", image.stem + ".json")
+    return image.with_suffix(".json")
+
+
+def other_species_boxes(image: Path, min_pixels: int = 40) -> NDArray[np.float32]:
+    """(n, 4) visible boxes [x0, y0, x1, y1] (the frame's pixels) of the animals of other species in a generated
+    frame with at least ``min_pixels`` visible pixels, from its annotation; none without one (other sets) or if
+    it is unreadable (a training sample must not fail on a missing record)."""
+    try:
+        rec = json.loads(annotation_path(image).read_text())
+        boxes = [z["box_visible"] for z in rec["labels"]["zebras"]
+                 if z.get("species", "zebra") != "zebra" and z.get("box_visible")
+                 and int(z.get("visible_pixels", 0)) >= min_pixels]
+    except (OSError, ValueError, KeyError, TypeError):
+        return np.zeros((0, 4), np.float32)
+    return np.asarray(boxes, np.float32).reshape(-1, 4)
 
 
 def label_path(image: Path, folder: str = "labels") -> Path:
@@ -228,12 +281,15 @@ class YoloDataset(Dataset[Any]):
     :attr:`ImageMeta.ignore`). ``size_for``: in validation, each image's inference size from its long side (the
     detector's rule, :func:`~zebra_sim_ros.detection.predict.inference_size`) instead of ``imgsz``."""
 
-    def __init__(self, folder: str | Path, imgsz: int = 640, augment: Augment | None = None, seed: int = 0,
-                 dont_care: bool = False, size_for: Callable[[int], int] | None = None, crop: int = 0) -> None:
-        self.folder = Path(folder)
-        self.files = sorted(p for p in self.folder.rglob("*") if p.suffix.lower() in IMAGE_EXTS)
-        if not self.files:
-            raise ParameterError("--data", str(self.folder), "a folder with images (.jpg, .png)")
+    def __init__(self, folder: str | Path | Sequence[str | Path], imgsz: int = 640, augment: Augment | None = None,
+                 seed: int = 0, dont_care: bool = False, size_for: Callable[[int], int] | None = None,
+                 crop: int = 0) -> None:
+        folders = [Path(f) for f in ([folder] if isinstance(folder, (str, Path)) else folder)]
+        self.folder = folders[0]
+        self.files = [p for f in folders for p in sorted(p for p in f.rglob("*") if p.suffix.lower() in IMAGE_EXTS)]
+        for f in folders:
+            if not any(p.is_relative_to(f) for p in self.files):
+                raise ParameterError("--data", str(f), "a folder with images (.jpg, .png)")
         self.imgsz = imgsz
         self.size_for = size_for
         self.augment = augment
@@ -241,6 +297,7 @@ class YoloDataset(Dataset[Any]):
         self.dont_care = dont_care
         self.crop = crop  # with augment: each sample an imgsz sample's crop x crop window around a zebra (0: off)
         self.epoch = 0
+        self._others: dict[int, NDArray[np.float32]] = {}  # other species' boxes per image, read when first needed
 
     def __len__(self) -> int:
         return len(self.files)
@@ -288,15 +345,17 @@ class YoloDataset(Dataset[Any]):
         else:
             rng = self._rng(i)
             u = rng.uniform(size=2)
+            centre: tuple[float, float] | None = None  # a background zoom's centre: where a crop must go too
             if u[0] < a.zoom:
-                img, lab = self._zoom(i, rng)
+                img, lab, centre = self._zoom(i, rng)
             else:
                 img, lab = self._mosaic(i, rng) if u[1] < a.mosaic else self._single(i, rng)
             if rng.uniform() < a.fliplr:
                 img = img[:, ::-1].copy()
                 lab[:, [1, 3]] = self.imgsz - lab[:, [3, 1]]
+                centre = None if centre is None else (self.imgsz - centre[0], centre[1])
             if self.crop:
-                img, lab = crop_window(img, lab, self.crop, rng)
+                img, lab = crop_window(img, lab, self.crop, rng, centre)
             if a.hsv_h or a.hsv_s or a.hsv_v:  # the uint8 HSV round trip is lossy: never apply it for nothing
                 img = _hsv(img, rng, a)
             img, lab = _cutout(img, lab, rng, a.cutout)
@@ -313,24 +372,47 @@ class YoloDataset(Dataset[Any]):
         lab[:, [2, 4]] = lab[:, [2, 4]] * r + top
         return _affine(img, lab, rng, self.augment or Augment(), self.imgsz)
 
-    def _zoom(self, i: int, rng: np.random.Generator) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+    def _zoom(self, i: int, rng: np.random.Generator
+              ) -> tuple[NDArray[np.uint8], NDArray[np.float32], tuple[float, float] | None]:
         """A square crop around one labelled zebra (a random one; don't-care boxes are never the centre), scaled so
         the zebra's long side spans 15-80% of ``imgsz`` (log-uniform; enlarged at most 4x, shrunk freely), its
         centre anywhere in the middle 80% of the crop so edges may cut it. Without a labelled zebra: as
-        :meth:`_single`."""
+        :meth:`_single`. With probability ``background`` (a hard negative) the centre is instead an animal of
+        another species (half the time, where the frame has one), scaled by the same rule, or a random point
+        enlarged 1-4x (log-uniform); any zebras in view keep their labels. Also returns a hard negative's centre
+        in the output (None otherwise)."""
         img, lab = self.load(i, self.dont_care)
-        b = _random_zebra(lab, rng)
-        if b is None:
-            return self._single(i, rng)
-        side = max(float(b[3] - b[1]), float(b[4] - b[2]), 1.0)
-        share = float(np.exp(rng.uniform(np.log(0.15), np.log(0.8))))
-        s = min(share * self.imgsz / side, 4.0)
-        cx, cy = (b[1] + b[3]) / 2, (b[2] + b[4]) / 2
-        ox, oy = rng.uniform(0.1, 0.9, 2) * self.imgsz  # where the zebra's centre lands in the output
+        a = self.augment or Augment()
+        negative = a.background > 0 and rng.uniform() < a.background
+        b: NDArray[np.float32] | None = None
+        if negative:
+            others = self._other_boxes(i)
+            if len(others) and rng.uniform() < 0.5:
+                b = np.concatenate([[0.0], others[int(rng.integers(len(others)))]]).astype(np.float32)
+        else:
+            b = _random_zebra(lab, rng)
+            if b is None:
+                img, lab = self._single(i, rng)
+                return img, lab, None
+        if b is not None:
+            side = max(float(b[3] - b[1]), float(b[4] - b[2]), 1.0)
+            share = float(np.exp(rng.uniform(np.log(0.15), np.log(0.8))))
+            s = min(share * self.imgsz / side, 4.0)
+            cx, cy = (b[1] + b[3]) / 2, (b[2] + b[4]) / 2
+        else:  # a random point of the frame
+            s = float(np.exp(rng.uniform(0.0, np.log(4.0))))
+            cx, cy = rng.uniform(0, img.shape[1]), rng.uniform(0, img.shape[0])
+        ox, oy = rng.uniform(0.1, 0.9, 2) * self.imgsz  # where the centre lands in the output
         m = np.array([[s, 0.0, ox - s * cx], [0.0, s, oy - s * cy]])
         interp = cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR
         out = cv2.warpAffine(img, m, (self.imgsz, self.imgsz), flags=interp, borderValue=(114, 114, 114))
-        return np.asarray(out, dtype=np.uint8), _warp_labels(lab, m, s, self.imgsz)
+        return (np.asarray(out, dtype=np.uint8), _warp_labels(lab, m, s, self.imgsz),
+                (float(ox), float(oy)) if negative else None)
+
+    def _other_boxes(self, i: int) -> NDArray[np.float32]:
+        if i not in self._others:
+            self._others[i] = other_species_boxes(self.files[i])
+        return self._others[i]
 
     def _mosaic(self, i: int, rng: np.random.Generator) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
         s = self.imgsz
@@ -370,17 +452,19 @@ def _random_zebra(lab: NDArray[np.float32], rng: np.random.Generator) -> NDArray
     return real[int(rng.integers(len(real)))] if len(real) else None
 
 
-def crop_window(img: NDArray[np.uint8], lab: NDArray[np.float32], size: int,
-                rng: np.random.Generator) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
-    """A ``size`` square of ``img`` at its own scale around a random labelled zebra (its centre anywhere in the
-    middle 80% of the window; without one, anywhere): the object-centred crops of ``train --crop``, which spend
-    the step on the zebras and not the empty ground around them. Boxes are clipped; one under 3 px or with less
-    than 10% of its area left is dropped (as :func:`_warp_labels`)."""
+def crop_window(img: NDArray[np.uint8], lab: NDArray[np.float32], size: int, rng: np.random.Generator,
+                centre: tuple[float, float] | None = None) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+    """A ``size`` square of ``img`` at its own scale around a random labelled zebra, or around ``centre`` if given
+    (a hard negative's), that point anywhere in the middle 80% of the window (without either, anywhere): the
+    object-centred crops of ``train --crop``, which spend the step on the zebras and not the empty ground around
+    them. Boxes are clipped; one under 3 px or with less than 10% of its area left is dropped (as
+    :func:`_warp_labels`)."""
     h, w = img.shape[:2]
-    b = _random_zebra(lab, rng)
-    if b is not None:
+    b = _random_zebra(lab, rng) if centre is None else None
+    if centre is not None or b is not None:
+        cx, cy = centre if centre is not None else ((b[1] + b[3]) / 2, (b[2] + b[4]) / 2)  # type: ignore[index]
         ox, oy = rng.uniform(0.1, 0.9, 2) * size
-        x0, y0 = (b[1] + b[3]) / 2 - ox, (b[2] + b[4]) / 2 - oy
+        x0, y0 = cx - ox, cy - oy
     else:
         x0, y0 = rng.uniform(0, max(w - size, 0)), rng.uniform(0, max(h - size, 0))
     x0, y0 = int(np.clip(round(float(x0)), 0, max(w - size, 0))), int(np.clip(round(float(y0)), 0, max(h - size, 0)))

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -25,7 +25,7 @@ from zebra_sim_ros.detection.model import Detector
 from zebra_sim_ros.detection.predict import describe_size, inference_size, unletterbox
 
 
-def make_loader(folder: str | Path, imgsz: int | Callable[[int], int], batch: int = 8,
+def make_loader(folder: str | Path | Sequence[str | Path], imgsz: int | Callable[[int], int], batch: int = 8,
                 workers: int = 0) -> DataLoader[Any]:
     """A validation loader (letterbox only, in file order) at ``imgsz``, or at ``imgsz(long side)`` per image."""
     ds = (YoloDataset(folder, imgsz) if isinstance(imgsz, int) else YoloDataset(folder, size_for=imgsz))

@@ -28,7 +28,7 @@ from zebra_sim_ros.detection.checkpoint import (
     select_device,
     serving_layout,
 )
-from zebra_sim_ros.detection.data import Augment, YoloDataset, collate, generate_settings, resolve_split
+from zebra_sim_ros.detection.data import Augment, YoloDataset, collate, generate_settings, resolve_splits
 from zebra_sim_ros.detection.evaluate import make_loader, predictions, score, write_plots
 from zebra_sim_ros.detection.loss import DetectionLoss
 from zebra_sim_ros.detection.model import Detector, ModelConfig, build_model, count_parameters
@@ -173,7 +173,7 @@ def _init_device(cfg: TrainConfig) -> tuple[torch.device, bool]:
     return device, True
 
 
-def _train_set(cfg: TrainConfig, train_dir: Path) -> YoloDataset:
+def _train_set(cfg: TrainConfig, train_dir: list[Path]) -> YoloDataset:
     """The training images, augmented unless ``cfg.augment`` is off, cut to ``max_train_images``."""
     ds = YoloDataset(train_dir, cfg.imgsz, cfg.aug if cfg.augment else Augment.none(), seed=cfg.seed,
                      dont_care=cfg.dont_care, crop=cfg.crop)
@@ -372,7 +372,7 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
     torch.manual_seed(cfg.seed)
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
-    train_dir, val_dir = resolve_split(cfg.data, "train"), resolve_split(cfg.data, "val")
+    train_dir, val_dir = resolve_splits(cfg.data, "train"), resolve_splits(cfg.data, "val")
     ds = _train_set(cfg, train_dir)
     # The checkpoint records its training frames' size beside imgsz: served, a frame of another size is scaled
     # as these were (ModelConfig.serve_size).
