@@ -16,6 +16,8 @@ import os
 import platform
 import statistics
 import time
+from collections.abc import Callable
+from typing import Any
 
 import torch
 
@@ -44,7 +46,7 @@ def main() -> None:
     targets = torch.tensor([[i, 0, s * 0.2 + 7 * k, s * 0.3, s * 0.2 + 7 * k + 24, s * 0.3 + 18]
                             for i in range(args.batch) for k in range(6)], dtype=torch.float32)
 
-    def step(dtype: torch.dtype | None, net: torch.nn.Module = model) -> float:
+    def step(dtype: torch.dtype | None, net: Callable[[torch.Tensor], Any] = model) -> float:
         t0 = time.perf_counter()
         with torch.autocast("cpu", dtype=dtype or torch.bfloat16, enabled=dtype is not None):
             feats = net(x)
@@ -54,7 +56,7 @@ def main() -> None:
         opt.step()
         return time.perf_counter() - t0
 
-    modes: dict[str, tuple[torch.dtype | None, torch.nn.Module]] = {"float32": (None, model),
+    modes: dict[str, tuple[torch.dtype | None, Callable[[torch.Tensor], Any]]] = {"float32": (None, model),
                                                                     "bfloat16": (torch.bfloat16, model)}
     compile_s = None
     if args.compile:  # the same parameters through inductor; its first steps compile (timed apart)

@@ -36,7 +36,8 @@ def zebras(p: ImagePredictions) -> tuple[np.ndarray, np.ndarray]:
     return boxes, np.asarray([int(z["visible_pixels"]) for z in kept], np.int64)
 
 
-def split(per: list[ImagePredictions], keep: list[np.ndarray], lo: int, hi: int | None) -> list[ImagePredictions]:
+def split(per: list[ImagePredictions], keep: list[tuple[np.ndarray, np.ndarray]], lo: int,
+          hi: int | None) -> list[ImagePredictions]:
     """The same detections, with the zebras of ``lo`` <= visible pixels < ``hi`` labelled, the rest don't-care."""
     out = []
     for p, (boxes, vis) in zip(per, keep, strict=True):

@@ -460,9 +460,11 @@ def crop_window(img: NDArray[np.uint8], lab: NDArray[np.float32], size: int, rng
     them. Boxes are clipped; one under 3 px or with less than 10% of its area left is dropped (as
     :func:`_warp_labels`)."""
     h, w = img.shape[:2]
-    b = _random_zebra(lab, rng) if centre is None else None
-    if centre is not None or b is not None:
-        cx, cy = centre if centre is not None else ((b[1] + b[3]) / 2, (b[2] + b[4]) / 2)  # type: ignore[index]
+    if centre is None:
+        b = _random_zebra(lab, rng)
+        centre = None if b is None else (float(b[1] + b[3]) / 2, float(b[2] + b[4]) / 2)
+    if centre is not None:
+        cx, cy = centre
         ox, oy = rng.uniform(0.1, 0.9, 2) * size
         x0, y0 = cx - ox, cy - oy
     else:
