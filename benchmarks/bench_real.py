@@ -35,7 +35,7 @@ import numpy as np
 import torch
 
 from zebra_sim_ros.detection.checkpoint import SHIPPED, load_model
-from zebra_sim_ros.detection.data import read_labels
+from zebra_sim_ros.detection.data import label_path, read_labels
 from zebra_sim_ros.detection.evaluate import ImagePredictions, make_loader, predictions
 from zebra_sim_ros.detection.metrics import ap_by_size, evaluate_detections, iou_matrix, precision_recall_at
 from zebra_sim_ros.detection.predict import inference_size
@@ -63,13 +63,11 @@ def sha256_12(path: Path) -> str:
 def other_boxes(p: ImagePredictions) -> np.ndarray:
     """The other species' boxes of an image (xyxy, its own pixels), from ``other_species/``."""
     f = Path(p.file)
-    parts = list(f.parts)
-    parts[len(parts) - 1 - parts[::-1].index("images")] = "other_species"
     img = cv2.imread(str(f), cv2.IMREAD_UNCHANGED)
     if img is None:
         raise SystemExit(f"not a readable image: {f}")
     h, w = img.shape[:2]
-    return read_labels(Path(*parts).with_suffix(".txt"), w, h)[:, 1:].astype(np.float64)
+    return read_labels(label_path(f, "other_species"), w, h)[:, 1:].astype(np.float64)
 
 
 def score_set(weights: str, folder: Path, imgsz: int) -> dict[str, Any]:

@@ -655,7 +655,7 @@ def test_background_zooms_centre_on_other_species_or_ground(tmp_path: Path) -> N
     assert on_zebra < 12  # and the zebra is rarely in view: it is no longer the centre
     for seed in range(12):  # zebra-centred zooms (the default) keep the zebra, never the buffalo, in view
         x, lab, _ = YoloDataset(folder, 320, replace(Augment.none(), zoom=1.0), seed=seed)[0]
-        assert len(lab) == 1 and red_share(x) == 0.0
+        assert len(lab) == 1 and red_share(x) < 1e-9  # no red pixel at all
     # with crops: the window goes around the negative's centre too, not back to the zebra
     crops = [YoloDataset(folder, 640, replace(Augment.none(), zoom=1.0, background=1.0), seed=s, crop=128)[0]
              for s in range(24)]

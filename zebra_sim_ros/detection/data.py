@@ -151,14 +151,16 @@ def resolve_splits(data: str | Path, split: str) -> list[Path]:
     return folders
 
 
+def _images_index(parts: tuple[str, ...]) -> int | None:
+    """The index of the last ``images`` component of a path's parts (None if there is none)."""
+    return next((i for i in range(len(parts) - 1, -1, -1) if parts[i] == "images"), None)
+
+
 def annotation_path(image: Path) -> Path:
     """``<set>/images/<x>/a.jpg`` -> ``<set>/annotations/a.json``: the frame's full record as ``zebra-sim
     generate`` writes it (other sets have none)."""
-    parts = list(image.parts)
-    for i in range(len(parts) - 1, -1, -1):
-        if parts[i] == "images":
-            return Path(*parts[:i], "annotations", image.stem + ".json")
-    return image.with_suffix(".json")
+    i = _images_index(image.parts)
+    return image.with_suffix(".json") if i is None else Path(*image.parts[:i], "annotations", image.stem + ".json")
 
 
 def other_species_boxes(image: Path, min_pixels: int = 40) -> NDArray[np.float32]:
@@ -179,10 +181,9 @@ def label_path(image: Path, folder: str = "labels") -> Path:
     """``.../images/<x>/a.jpg`` -> ``.../labels/<x>/a.txt`` (YOLO's convention); ``folder`` "ignore" gives the
     image's don't-care boxes (same format; a missing file means none)."""
     parts = list(image.parts)
-    for i in range(len(parts) - 1, -1, -1):
-        if parts[i] == "images":
-            parts[i] = folder
-            break
+    i = _images_index(image.parts)
+    if i is not None:
+        parts[i] = folder
     return Path(*parts).with_suffix(".txt")
 
 
@@ -286,10 +287,12 @@ class YoloDataset(Dataset[Any]):
                  crop: int = 0) -> None:
         folders = [Path(f) for f in ([folder] if isinstance(folder, (str, Path)) else folder)]
         self.folder = folders[0]
-        self.files = [p for f in folders for p in sorted(p for p in f.rglob("*") if p.suffix.lower() in IMAGE_EXTS)]
+        self.files: list[Path] = []
         for f in folders:
-            if not any(p.is_relative_to(f) for p in self.files):
+            found = sorted(p for p in f.rglob("*") if p.suffix.lower() in IMAGE_EXTS)
+            if not found:
                 raise ParameterError("--data", str(f), "a folder with images (.jpg, .png)")
+            self.files += found
         self.imgsz = imgsz
         self.size_for = size_for
         self.augment = augment
@@ -384,21 +387,22 @@ class YoloDataset(Dataset[Any]):
         img, lab = self.load(i, self.dont_care)
         a = self.augment or Augment()
         negative = a.background > 0 and rng.uniform() < a.background
-        b: NDArray[np.float32] | None = None
+        box: NDArray[np.float32] | None = None  # [x0, y0, x1, y1] of the animal to centre on
         if negative:
             others = self._other_boxes(i)
             if len(others) and rng.uniform() < 0.5:
-                b = np.concatenate([[0.0], others[int(rng.integers(len(others)))]]).astype(np.float32)
+                box = others[int(rng.integers(len(others)))]
         else:
-            b = _random_zebra(lab, rng)
-            if b is None:
+            zebra = _random_zebra(lab, rng)
+            if zebra is None:
                 img, lab = self._single(i, rng)
                 return img, lab, None
-        if b is not None:
-            side = max(float(b[3] - b[1]), float(b[4] - b[2]), 1.0)
+            box = zebra[1:]
+        if box is not None:
+            side = max(float(box[2] - box[0]), float(box[3] - box[1]), 1.0)
             share = float(np.exp(rng.uniform(np.log(0.15), np.log(0.8))))
             s = min(share * self.imgsz / side, 4.0)
-            cx, cy = (b[1] + b[3]) / 2, (b[2] + b[4]) / 2
+            cx, cy = (box[0] + box[2]) / 2, (box[1] + box[3]) / 2
         else:  # a random point of the frame
             s = float(np.exp(rng.uniform(0.0, np.log(4.0))))
             cx, cy = rng.uniform(0, img.shape[1]), rng.uniform(0, img.shape[0])
