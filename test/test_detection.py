@@ -726,3 +726,98 @@ def test_augment_options_are_checked_recorded_and_held_on_resume(tmp_path: Path)
     with pytest.raises(ParameterError, match="'--aug-zoom'"):
         check_resume(replace(cfg, aug=replace(aug, zoom=0.2)), asdict(cfg), tmp_path / "last.pt")
     assert Augment.from_dict(asdict(aug)) == aug and Augment.from_dict(None) == Augment()
+
+
+# -- a second class: other animals ------------------------------------------------------------------------------
+
+def test_other_animals_join_the_labels_and_zooms_stay_on_zebras(tmp_path: Path) -> None:
+    """``train --other-animals``: a generated frame's animal of another species (from its annotation) is a label of
+    class 1, moved with the image; zooms and crops still centre on zebras, never on it."""
+    import cv2
+
+    from zebra_sim_ros.detection.data import Augment, YoloDataset
+
+    folder = _one_zebra_set(tmp_path)  # a white 24x12 'zebra' at (400, 200)
+    img = cv2.imread(str(folder / "a.png"))
+    img[60:100, 100:160] = (0, 0, 255)  # a red 60x40 'buffalo'
+    cv2.imwrite(str(folder / "a.png"), img)
+    (tmp_path / "annotations").mkdir()
+    (tmp_path / "annotations" / "a.json").write_text(json.dumps({"labels": {"zebras": [
+        {"species": "zebra", "box_visible": [400, 200, 424, 212], "visible_pixels": 288},
+        {"species": "buffalo", "box_visible": [100, 60, 160, 100], "visible_pixels": 2400}]}}))
+    plain = YoloDataset(folder, 640, Augment.none(), other_class=1)[0][1].numpy()
+    # letterboxed 640x360 -> 640x640: y moves down by 140 px
+    np.testing.assert_allclose(plain[np.argsort(plain[:, 0])], [[0, 400, 340, 424, 352], [1, 100, 200, 160, 240]],
+                               atol=0.01)
+    assert len(YoloDataset(folder, 640, Augment.none())[0][1]) == 1  # without it: the zebra alone
+    val = YoloDataset(folder, 640, other_class=1)[0][2]  # validation
+    assert val.labels[:, 0].tolist() == [0, 1]
+    for seed in range(12):  # a zoom centres on the zebra, never on the other animal
+        x, lab, _ = YoloDataset(folder, 320, replace(Augment.none(), zoom=1.0), seed=seed, other_class=1)[0]
+        zebra = lab[lab[:, 0] == 0]
+        assert len(zebra) == 1
+        x0, y0, x1, y1 = zebra[0, 1:].numpy()
+        assert float(x[:, int(y0) + 2:int(y1) - 2, int(x0) + 2:int(x1) - 2].mean()) > 0.9
+    for seed in range(12):  # and so does a crop
+        _, lab, _ = YoloDataset(folder, 640, Augment.none(), seed=seed, crop=128, other_class=1)[0]
+        assert (lab[:, 0] == 0).sum() == 1
+
+
+def test_postprocess_lets_an_other_animal_box_suppress_a_zebra_box() -> None:
+    pred = torch.zeros(1, 3, 6)  # [x0, y0, x1, y1, p(zebra), p(other_animal)]
+    pred[0, 0] = torch.tensor([10.0, 10, 50, 50, 0.5, 0.1])  # 'zebra' on a buffalo, weaker
+    pred[0, 1] = torch.tensor([11.0, 10, 51, 50, 0.2, 0.8])  # 'other animal' on the same buffalo
+    pred[0, 2] = torch.tensor([100.0, 10, 140, 50, 0.7, 0.1])  # a zebra elsewhere
+    agnostic = postprocess(pred, conf=0.25, iou=0.5)[0]
+    assert sorted(agnostic[:, 5].tolist()) == [0, 1] and agnostic[agnostic[:, 5] == 0][0, 0] == pytest.approx(100)
+    per_class = postprocess(pred, conf=0.25, iou=0.5, agnostic=False)[0]
+    assert sorted(per_class[:, 5].tolist()) == [0, 0, 1]  # each class on its own: the zebra box stays
+
+
+def test_validation_scores_zebras_only() -> None:
+    """A model's other_animal detections are neither true nor false zebras in ``val``."""
+    from torch import nn
+
+    from zebra_sim_ros.detection.data import ImageMeta
+    from zebra_sim_ros.detection.evaluate import predictions, score
+
+    class Fixed(nn.Module):
+        def __init__(self) -> None:
+            super().__init__()
+            self.w = nn.Parameter(torch.zeros(1))
+
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            out = torch.zeros(len(x), 2, 6)
+            out[:, 0] = torch.tensor([10.0, 10, 50, 50, 0.9, 0.0])  # the labelled zebra
+            out[:, 1] = torch.tensor([100.0, 10, 140, 50, 0.0, 0.95])  # another animal
+            return out
+
+    meta = ImageMeta("a.png", (64, 160), 1.0, (0, 0), 160, (64, 160), np.array([[0, 10, 10, 50, 50]], np.float32),
+                     np.zeros((0, 5), np.float32))
+    loader = [(torch.zeros(1, 3, 64, 160), torch.zeros(0, 6), [meta])]
+    per = predictions(Fixed(), loader)  # type: ignore[arg-type]
+    assert len(per[0].detections) == 1
+    m = score(per)
+    assert (m.map50, m.precision) == (pytest.approx(1.0), pytest.approx(1.0))
+
+
+def test_init_grows_a_zebra_checkpoint_into_two_classes() -> None:
+    from zebra_sim_ros.detection.train import load_init_weights
+
+    one = build_model(ModelConfig(size="n"))
+    two = build_model(ModelConfig(size="n", nc=2, names=("zebra", "other_animal")))
+    fresh = {k: v.clone() for k, v in two.state_dict().items()}
+    with torch.no_grad():
+        for p in one.parameters():
+            p.add_(0.01)  # so that copied and fresh values differ
+    grown = load_init_weights(two, one.state_dict())
+    assert sorted(grown) == sorted(f"cls_head.{i}.2.{k}" for i in range(3) for k in ("weight", "bias"))
+    state = two.state_dict()
+    for k, v in one.state_dict().items():
+        if k in grown:
+            torch.testing.assert_close(state[k][:1], v)
+            torch.testing.assert_close(state[k][1:], fresh[k][1:])  # other_animal: the fresh prior
+        else:
+            torch.testing.assert_close(state[k], v)
+    with pytest.raises(ParameterError, match="'names'.*'zebra' as class 0"):
+        ModelConfig(nc=2, names=("other_animal", "zebra"))

@@ -123,3 +123,25 @@ def test_overfits_four_images(four: Path, tmp_path: Path) -> None:
     metrics, _ = evaluate(tmp_path / "run" / "best.pt", four / "images", imgsz=256, device="cpu")
     assert metrics.map50 > 0.9, (metrics.map50, summary["final"])
     assert metrics.recall > 0.9
+
+
+def test_other_animals_class_trains_from_a_zebra_checkpoint(tiny: Path, tmp_path: Path) -> None:
+    """``--other-animals`` from a zebra-only checkpoint: a two-class run whose checkpoint names both classes and
+    validates on zebras; a zebra-only run cannot start from it (the classes would not line up)."""
+    frames = [json.loads(p.read_text()) for p in (tiny / "annotations").glob("*.json")]
+    others = sum(z.get("species", "zebra") != "zebra" for f in frames for z in f["labels"]["zebras"])
+    assert others > 0, "the fixture should hold animals of other species"
+    base = dict(data=str(tiny / "overfit.yaml"), model="n", imgsz=128, batch=4, device="cpu", workers=0,
+                max_train_images=4, val_every=1, close_mosaic=1, epochs=1)
+    train(TrainConfig(out=str(tmp_path / "one"), **base), log=io.StringIO())
+    log = io.StringIO()
+    train(TrainConfig(out=str(tmp_path / "two"), init=str(tmp_path / "one" / "best.pt"), other_animals=True, **base),
+          log=log)
+    assert "other_animal" in log.getvalue() and "start fresh" in log.getvalue()
+    model, ckpt = load_model(tmp_path / "two" / "best.pt")
+    assert model.cfg.names == ("zebra", "other_animal") and ckpt["train_args"]["other_animals"] is True
+    metrics, _ = evaluate(tmp_path / "two" / "best.pt", tiny / "images" / "train", imgsz=128, device="cpu")
+    assert metrics.instances > 0
+    with pytest.raises(ParameterError, match="'--init'.*other_animal"):
+        train(TrainConfig(out=str(tmp_path / "back"), init=str(tmp_path / "two" / "best.pt"), **base),
+              log=io.StringIO())

@@ -41,6 +41,10 @@ def register(sub: Any) -> None:
     t.add_argument("--dont-care", action=argparse.BooleanOptionalAction, default=True,
                    help="the sets' ignore/ boxes (zebras dropped by the label filters) are neither zebra nor "
                    "background in the loss; --no-dont-care trains them as background")
+    t.add_argument("--other-animals", action="store_true",
+                   help="a second class, other_animal: the animals of other species in generated frames (read from "
+                   "each frame's annotations/); detected and published as other_animal, never scored as zebras. "
+                   "With --init from a zebra-only checkpoint the new class starts fresh")
     add_augment_options(t)
     t.add_argument("--out", type=Path, required=True, help="run folder: best.pt, last.pt, results.csv, results.png")
     t.add_argument("--resume", action="store_true", help="continue the run in --out from last.pt")
@@ -107,7 +111,8 @@ def cmd_train(args: argparse.Namespace) -> Summary:
                       epochs=args.epochs, batch=args.batch, device=args.device, workers=args.workers, lr0=args.lr0,
                       warmup_epochs=args.warmup_epochs, close_mosaic=args.close_mosaic, seed=args.seed,
                       val_every=args.val_every, max_train_images=args.max_train_images, resume=args.resume,
-                      init=args.init, amp=args.amp, dont_care=args.dont_care, aug=augment_from_args(args))
+                      init=args.init, amp=args.amp, dont_care=args.dont_care, aug=augment_from_args(args),
+                      other_animals=args.other_animals)
     summary = train(cfg)
     if int(os.environ.get("RANK", "0")) != 0:  # under torchrun: only the first process reports
         args.json = False

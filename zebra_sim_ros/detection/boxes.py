@@ -79,11 +79,14 @@ def batched_nms(boxes: Tensor, scores: Tensor, groups: Tensor, iou_threshold: fl
 
 
 def postprocess(pred: Tensor, conf: float = 0.25, iou: float = 0.7, max_det: int = 300,
-                max_nms: int = 1000) -> list[Tensor]:
+                max_nms: int = 1000, agnostic: bool = True) -> list[Tensor]:
     """Per image (n, 6) [x0, y0, x1, y1, score, class] from decoded predictions (B, N, 4 + nc).
 
-    Image by image: candidates above ``conf``, at most ``max_nms`` of them by score (so a barely trained model's
-    flood of low scores cannot make the IoU matrix huge), NMS per class, at most ``max_det`` kept.
+    Image by image: each point's best class and its score, candidates above ``conf``, at most ``max_nms`` of them by
+    score (so a barely trained model's flood of low scores cannot make the IoU matrix huge), NMS, at most
+    ``max_det`` kept. NMS is class-agnostic by default: an animal is of one species, so where a model with an
+    ``other_animal`` class finds a buffalo, its stronger "other animal" box suppresses a weaker "zebra" box on the
+    same animal (with one class, as the same thing); ``agnostic=False`` suppresses within each class only.
     """
     out = []
     for p in pred:
@@ -93,6 +96,7 @@ def postprocess(pred: Tensor, conf: float = 0.25, iou: float = 0.7, max_det: int
         if len(s) > max_nms:
             top = s.topk(max_nms).indices
             boxes, s, c = boxes[top], s[top], c[top]
-        k = batched_nms(boxes, s, c, iou)[:max_det]
+        k = (nms(boxes, s, iou) if agnostic else batched_nms(boxes, s, c, iou))[:max_det]
         out.append(torch.cat([boxes[k], s[k, None], c[k, None].to(boxes.dtype)], dim=1))
     return out
+

@@ -5,6 +5,8 @@ A set is a folder of images with a sibling ``labels`` folder (``images/x/a.jpg``
 ``ignore`` folder in the same format holds don't-care boxes (objects present but not labelled), which validation
 scores as COCO scores crowd regions. Training with ``dont_care`` adds them to the targets with class
 :data:`DONT_CARE` (-1), augmented as the labels are, so the loss neither rewards nor punishes detecting them.
+Training with ``other_class`` adds each generated frame's animals of other species (from its annotation) with that
+class, so a model learns an "other animal" class beside zebras (``train --other-animals``).
 Batches are ``(images (B, 3, H, W) float in [0, 1], targets (T, 6) [image index, class, x0, y0, x1, y1] pixels)``;
 training batches are square (H = W = imgsz).
 
@@ -31,6 +33,7 @@ from numpy.typing import NDArray
 from torch.utils.data import Dataset
 
 from zebra_sim_ros.detection.config import STRIDE
+from zebra_sim_ros.detection.model import ZEBRA
 from zebra_sim_ros.errors import AssetError, ParameterError
 
 IMAGE_EXTS = (".jpg", ".jpeg", ".png", ".bmp")
@@ -279,12 +282,14 @@ class ImageMeta:
 class YoloDataset(Dataset[Any]):
     """Images and YOLO labels; ``augment`` None for validation. ``dont_care``: with ``augment``, the don't-care
     boxes of ``ignore/`` join each image's targets as class :data:`DONT_CARE` (validation keeps them apart, in
-    :attr:`ImageMeta.ignore`). ``size_for``: in validation, each image's inference size from its long side (the
-    detector's rule, :func:`~zebra_sim_ros.detection.predict.inference_size`) instead of ``imgsz``."""
+    :attr:`ImageMeta.ignore`). ``other_class``: the animals of other species of a generated frame (its
+    annotation; at least 40 visible pixels) join its labels as that class (frames without one have none).
+    ``size_for``: in validation, each image's inference size from its long side (the detector's rule,
+    :func:`~zebra_sim_ros.detection.predict.inference_size`) instead of ``imgsz``."""
 
     def __init__(self, folder: str | Path | Sequence[str | Path], imgsz: int = 640, augment: Augment | None = None,
                  seed: int = 0, dont_care: bool = False, size_for: Callable[[int], int] | None = None,
-                 crop: int = 0) -> None:
+                 crop: int = 0, other_class: int | None = None) -> None:
         folders = [Path(f) for f in ([folder] if isinstance(folder, (str, Path)) else folder)]
         self.folder = folders[0]
         self.files: list[Path] = []
@@ -299,6 +304,7 @@ class YoloDataset(Dataset[Any]):
         self.seed = seed
         self.dont_care = dont_care
         self.crop = crop  # with augment: each sample an imgsz sample's crop x crop window around a zebra (0: off)
+        self.other_class = other_class  # the class of other species' animals among the labels (None: not labelled)
         self.epoch = 0
         self._others: dict[int, NDArray[np.float32]] = {}  # other species' boxes per image, read when first needed
 
@@ -312,6 +318,10 @@ class YoloDataset(Dataset[Any]):
             raise ParameterError("image", str(self.files[i]), "a readable image file")
         h, w = img.shape[:2]
         lab = read_labels(label_path(self.files[i]), w, h)
+        if self.other_class is not None:
+            others = self._other_boxes(i)
+            lab = np.concatenate([lab, np.concatenate([np.full((len(others), 1), self.other_class, np.float32),
+                                                       others], 1)])
         if dont_care:
             ign = read_labels(label_path(self.files[i], "ignore"), w, h)
             ign[:, 0] = DONT_CARE
@@ -451,8 +461,9 @@ class YoloDataset(Dataset[Any]):
 
 
 def _random_zebra(lab: NDArray[np.float32], rng: np.random.Generator) -> NDArray[np.float32] | None:
-    """One labelled zebra's row [class, x0, y0, x1, y1], drawn at random (a don't-care box never is); None if none."""
-    real = lab[lab[:, 0] != DONT_CARE] if len(lab) else lab
+    """One labelled zebra's row [class, x0, y0, x1, y1], drawn at random (a don't-care box or an animal of another
+    class never is); None if none."""
+    real = lab[lab[:, 0] == ZEBRA] if len(lab) else lab
     return real[int(rng.integers(len(real)))] if len(real) else None
 
 

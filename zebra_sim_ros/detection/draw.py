@@ -8,17 +8,22 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+OTHER_COLOUR = (0, 170, 255)  # RGB: detections of a class other than zebra (class 0), e.g. other_animal
+
 
 def draw_boxes(rgb: NDArray[np.uint8], dets: NDArray[np.floating[Any]], colour: tuple[int, int, int] = (255, 60, 0),
                label: bool = True) -> NDArray[np.uint8]:
-    """A copy of ``rgb`` with boxes (n, >=5: x0, y0, x1, y1, score, ...) drawn, scores written above them."""
+    """A copy of ``rgb`` with boxes (n, >=5: x0, y0, x1, y1, score, [class]) drawn, scores written above them;
+    a box of a class other than 0 (zebra) in :data:`OTHER_COLOUR`, its score marked with the class."""
     out = np.ascontiguousarray(rgb).copy()
     for d in dets:
         x0, y0, x1, y1 = (int(round(float(v))) for v in d[:4])
-        cv2.rectangle(out, (x0, y0), (max(x1 - 1, x0), max(y1 - 1, y0)), colour, 1, cv2.LINE_AA)
+        other = len(d) > 5 and int(d[5]) != 0
+        col = OTHER_COLOUR if other else colour
+        cv2.rectangle(out, (x0, y0), (max(x1 - 1, x0), max(y1 - 1, y0)), col, 1, cv2.LINE_AA)
         if label and len(d) > 4:
-            cv2.putText(out, f"{float(d[4]):.2f}", (x0, max(y0 - 2, 8)), cv2.FONT_HERSHEY_SIMPLEX, 0.35, colour, 1,
-                        cv2.LINE_AA)
+            text = f"{float(d[4]):.2f}" + (f" c{int(d[5])}" if other else "")
+            cv2.putText(out, text, (x0, max(y0 - 2, 8)), cv2.FONT_HERSHEY_SIMPLEX, 0.35, col, 1, cv2.LINE_AA)
     return out
 
 

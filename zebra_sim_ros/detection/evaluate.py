@@ -21,7 +21,7 @@ from zebra_sim_ros.detection.boxes import postprocess
 from zebra_sim_ros.detection.checkpoint import load_model, select_device
 from zebra_sim_ros.detection.data import ImageMeta, YoloDataset, collate, resolve_split
 from zebra_sim_ros.detection.metrics import DetectionMetrics, ap_by_size, evaluate_detections
-from zebra_sim_ros.detection.model import Detector
+from zebra_sim_ros.detection.model import ZEBRA, Detector
 from zebra_sim_ros.detection.predict import describe_size, inference_size, unletterbox
 
 
@@ -44,8 +44,9 @@ class ImagePredictions(NamedTuple):
 
 @torch.no_grad()
 def predictions(model: Detector, loader: DataLoader[Any], conf: float = 0.001, iou: float = 0.7,
-                max_det: int = 100) -> list[ImagePredictions]:
-    """Per image of ``loader``: its detections, labels and don't-care boxes."""
+                max_det: int = 100, cls: int = ZEBRA) -> list[ImagePredictions]:
+    """Per image of ``loader``: its detections of class ``cls`` (zebras; a model's other classes are left out),
+    labels and don't-care boxes."""
     was_training = model.training
     model.eval()
     out: list[ImagePredictions] = []
@@ -53,7 +54,7 @@ def predictions(model: Detector, loader: DataLoader[Any], conf: float = 0.001, i
         for det, meta in zip(_forward(model, imgs, metas, conf, iou, max_det), metas, strict=True):
             h, w = meta.shape
             left, top = meta.pad
-            d = unletterbox(det, meta.scale, left, top, w, h).cpu().numpy()
+            d = unletterbox(det[det[:, 5] == cls], meta.scale, left, top, w, h).cpu().numpy()
             out.append(ImagePredictions(meta.file, d[:, :5].astype(np.float64),  # labels read once, by the loader
                                         meta.labels[:, 1:].astype(np.float64), meta.ignore[:, 1:].astype(np.float64),
                                         meta.imgsz))

@@ -20,6 +20,9 @@ from zebra_sim_ros.detection.boxes import decode_ltrb
 from zebra_sim_ros.detection.config import STRIDE, clamp_size
 from zebra_sim_ros.errors import ParameterError
 
+ZEBRA = 0  # the class index of zebras in every checkpoint: the class every score (val, bag eval, up) counts
+OTHER_ANIMAL = "other_animal"  # the name of the class ``train --other-animals`` adds: any animal that is not a zebra
+
 # (width multiple, depth multiple, maximum channels), as in the YOLO family.
 SIZES: dict[str, tuple[float, float, int]] = {"n": (0.25, 0.34, 1024), "s": (0.50, 0.34, 1024),
                                               "m": (0.75, 0.67, 768)}
@@ -41,6 +44,8 @@ class ModelConfig:
             raise ParameterError("model", self.size, f"one of {sorted(SIZES)}")
         if self.nc != len(self.names):
             raise ParameterError("names", list(self.names), f"{self.nc} class names")
+        if self.names[ZEBRA] != "zebra":
+            raise ParameterError("names", list(self.names), f"'zebra' as class {ZEBRA}")
         if self.imgsz % 32:
             raise ParameterError("imgsz", self.imgsz, "a multiple of 32")
         if not isinstance(self.frame, int) or self.frame < 0:

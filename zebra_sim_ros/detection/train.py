@@ -31,7 +31,7 @@ from zebra_sim_ros.detection.checkpoint import (
 from zebra_sim_ros.detection.data import Augment, YoloDataset, collate, generate_settings, resolve_splits
 from zebra_sim_ros.detection.evaluate import make_loader, predictions, score, write_plots
 from zebra_sim_ros.detection.loss import DetectionLoss
-from zebra_sim_ros.detection.model import Detector, ModelConfig, build_model, count_parameters
+from zebra_sim_ros.detection.model import OTHER_ANIMAL, Detector, ModelConfig, build_model, count_parameters
 from zebra_sim_ros.errors import ParameterError
 
 AMP_MODES = ("auto", "fp16", "bf16", "off")
@@ -84,6 +84,11 @@ class TrainConfig:
     init: str = ""  # start from this checkpoint's (EMA) weights with a fresh schedule; "" = random init
     amp: str = "auto"  # mixed precision of the forward pass: auto, fp16 (CUDA), bf16, off (see amp_dtype)
     dont_care: bool = True  # the sets' ignore/ boxes are neither zebra nor background in the loss (see loss.py)
+    other_animals: bool = False  # a second class, other_animal: generated frames' animals of other species
+
+    def classes(self) -> tuple[str, ...]:
+        """The model's class names: zebra, and other_animal with ``other_animals``."""
+        return ("zebra", OTHER_ANIMAL) if self.other_animals else ("zebra",)
 
     def check(self) -> None:
         """Raise :class:`ParameterError` naming the first bad setting."""
@@ -176,7 +181,7 @@ def _init_device(cfg: TrainConfig) -> tuple[torch.device, bool]:
 def _train_set(cfg: TrainConfig, train_dir: list[Path]) -> YoloDataset:
     """The training images, augmented unless ``cfg.augment`` is off, cut to ``max_train_images``."""
     ds = YoloDataset(train_dir, cfg.imgsz, cfg.aug if cfg.augment else Augment.none(), seed=cfg.seed,
-                     dont_care=cfg.dont_care, crop=cfg.crop)
+                     dont_care=cfg.dont_care, crop=cfg.crop, other_class=1 if cfg.other_animals else None)
     if cfg.max_train_images:
         ds.files = ds.files[: cfg.max_train_images]
     return ds
@@ -194,14 +199,22 @@ class _Start:
     init: str = ""  # the weights the run started from (a resumed run keeps what its first start recorded)
 
 
-def _load_weights(cfg: TrainConfig, model: Detector, out: Path) -> _Start:
+def _load_weights(cfg: TrainConfig, model: Detector, out: Path, log: Any) -> _Start:
     """Load ``--init`` weights, or the resumed run's raw weights, into ``model``; where the run starts."""
     if cfg.init:
         init = read_checkpoint(cfg.init, "--init")
         if init["config"].get("size") != cfg.model:
             raise ParameterError("--init", cfg.init, f"a checkpoint of model size {cfg.model!r} "
                                  f"(it holds {init['config'].get('size')!r})")
-        model.load_state_dict({k: v.float() for k, v in init["model"].items()})
+        if list(init["config"].get("names", ["zebra"])) != list(model.cfg.names[: init["config"].get("nc", 1)]):
+            raise ParameterError("--init", cfg.init, f"a checkpoint whose classes begin {list(model.cfg.names)} "
+                                 f"(it holds {init['config'].get('names')}; --other-animals adds other_animal)")
+        grown = load_init_weights(model, init["model"])
+        if grown and _is_main():
+            kept = init["config"].get("nc", 1)
+            print(f"[train] --init {cfg.init}: {', '.join(model.cfg.names[:kept])} from it, "
+                  f"{', '.join(model.cfg.names[kept:])} start fresh (the class outputs: {len(grown)} tensors)",
+                  file=log)
     if not cfg.resume:
         return _Start(init=cfg.init)
     ckpt = read_checkpoint(out / "last.pt", "--resume")
@@ -212,6 +225,22 @@ def _load_weights(cfg: TrainConfig, model: Detector, out: Path) -> _Start:
         raise ParameterError("--epochs", cfg.epochs, f"more than the {start_epoch} epochs the run in {out} has done")
     return _Start(start_epoch, ckpt.get("best_fitness", -1.0), ckpt.get("ema_updates", 0), ckpt.get("optimizer"),
                   ckpt["model"], str(ckpt.get("train_args", {}).get("init", "")))
+
+
+def load_init_weights(model: Detector, state: dict[str, Any]) -> list[str]:
+    """Load ``--init`` weights into ``model``. A checkpoint with fewer classes (a zebra-only one into a model with
+    other_animal) fills the first rows of the class outputs, whose other rows keep their fresh initialisation (the
+    prior bias); every other tensor must match. Returns the names of the tensors filled in part."""
+    own = model.state_dict()
+    grown = []
+    for k, v in state.items():
+        if k in own and v.shape != own[k].shape and v.shape[1:] == own[k].shape[1:] and v.shape[0] < own[k].shape[0] \
+                and k.startswith("cls_head."):
+            own[k][: v.shape[0]] = v.float()
+            grown.append(k)
+    model.load_state_dict({**{k: v.float() for k, v in state.items() if k not in grown},
+                           **{k: own[k] for k in grown}})
+    return grown
 
 
 def _optimizer(model: Detector, cfg: TrainConfig, state: dict[str, Any] | None) -> torch.optim.SGD:
@@ -376,10 +405,11 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
     ds = _train_set(cfg, train_dir)
     # The checkpoint records its training frames' size beside imgsz: served, a frame of another size is scaled
     # as these were (ModelConfig.serve_size).
-    model_cfg = ModelConfig(size=cfg.model, imgsz=cfg.imgsz, frame=ds.frame_size())
+    names = cfg.classes()
+    model_cfg = ModelConfig(size=cfg.model, nc=len(names), names=names, imgsz=cfg.imgsz, frame=ds.frame_size())
     # Channels-last (NHWC), as served: 1.24x faster training steps on our 2-core CPU; tensor cores want it too.
     model = serving_layout(build_model(model_cfg).to(device))
-    start = _load_weights(cfg, model, out)
+    start = _load_weights(cfg, model, out, log)
     cfg = replace(cfg, init=start.init)  # recorded in every checkpoint: where the weights came from, resumed or not
     ema = EMA(model, updates=start.ema_updates)
     if start.ema_weights is not None:

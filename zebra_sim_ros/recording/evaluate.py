@@ -70,8 +70,9 @@ def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "dete
             else:  # typed (Detection2DArray), or the JSON of bags recorded before it
                 kind, dets = "detections", cdr_detections(m.data) if typed else Detections.from_json(cdr_string(m.data))
                 t = dets.stamp.ns
-                out.drones[drone].detections[t] = np.array(
-                    [[*x.box_xyxy, x.score] for x in dets.detections], np.float64).reshape(-1, 5)
+                out.drones[drone].detections[t] = np.array(  # zebras only: a model may also find other animals
+                    [[*x.box_xyxy, x.score] for x in dets.detections if x.class_name == "zebra"],
+                    np.float64).reshape(-1, 5)
             out.arrivals[drone][kind].setdefault(t, m.publish_time)
         except (*MALFORMED, ZebraSimError) as exc:
             out.skipped.append(skip_note(m, exc))
@@ -113,6 +114,7 @@ class ImageDetector:
             self._flush()
 
     def _flush(self) -> None:
+        from zebra_sim_ros.detection.model import ZEBRA
         from zebra_sim_ros.detection.predict import detect
 
         if not self._pending:
@@ -120,7 +122,7 @@ class ImageDetector:
         dets = detect(self.model, [p[2] for p in self._pending], self.imgsz, conf=self.conf, max_det=100,
                       scale=self.scale)
         for (drone, t, _), det in zip(self._pending, dets, strict=True):
-            self.detections[drone][t] = det[:, :5].astype(np.float64)
+            self.detections[drone][t] = det[det[:, 5] == ZEBRA, :5].astype(np.float64)
         self._pending.clear()
 
     def apply(self, collected: Collected) -> Collected:
