@@ -13,7 +13,10 @@ serve a frame; a number: the long side every photo is letterboxed to) it prints 
   COCO's small < 32, medium 32-96, large >= 96);
 - precision and recall at IoU 0.5 at the detector's default threshold (conf 0.25);
 - on the photos that show only other species: detections per image at conf 0.25, and the share of those
-  detections that sit on another animal (IoU >= 0.5 with one of its boxes): zebras seen in a buffalo.
+  detections that sit on another animal (IoU >= 0.5 with one of its boxes: zebras seen in a buffalo), and the
+  share whose centre lies inside an animal's box (a box on part of an animal, or on a herd, counts here too);
+- for weights with an ``other_animal`` class (``train --other-animals``): the share of those photos' animals it
+  finds as other_animal (conf 0.25, IoU >= 0.5).
 
 The table's header names the date, the machine and each weights' sha256 (first 12 hex digits).
 """
@@ -85,13 +88,25 @@ def score_set(weights: str, folder: Path, imgsz: int) -> dict[str, Any]:
     m = evaluate_detections(dets, gts)
     prec, rec = precision_recall_at(dets, gts, CONF)
     sizes = ap_by_size(dets, gts)
-    on_other = n_other = 0
+    on_other = centre_on = n_other = 0
+    found_other = n_animals = 0
+    if model.cfg.nc > 1 and (folder / "other_species").is_dir():
+        for p in predictions(model, make_loader(folder / "images", rule, batch=4), cls=1):
+            if len(p.labels):
+                continue  # photos of other species only, as below
+            d, ob = p.detections[p.detections[:, 4] >= CONF], other_boxes(p)
+            n_animals += len(ob)
+            if len(d) and len(ob):
+                found_other += int((iou_matrix(ob, d[:, :4]).max(1) >= 0.5).sum())
     for p in others:
         d = p.detections[p.detections[:, 4] >= CONF]
         n_other += len(d)
         ob = other_boxes(p) if (folder / "other_species").is_dir() else np.zeros((0, 4))
         if len(d) and len(ob):
             on_other += int((iou_matrix(d[:, :4], ob).max(1) >= 0.5).sum())
+            cx, cy = (d[:, 0] + d[:, 2]) / 2, (d[:, 1] + d[:, 3]) / 2
+            centre_on += int(((cx[:, None] >= ob[None, :, 0]) & (cx[:, None] <= ob[None, :, 2])
+                              & (cy[:, None] >= ob[None, :, 1]) & (cy[:, None] <= ob[None, :, 3])).any(1).sum())
     return {"weights": weights, "set": folder.name, "imgsz": imgsz or "rule",
             "served": sorted({p.imgsz for p in per}), "zebra_images": len(zebra), "zebras": m.instances,
             "mAP50": round(m.map50, 4), "mAP50-95": round(m.map50_95, 4), "P@0.25": round(prec, 4),
@@ -100,13 +115,16 @@ def score_set(weights: str, folder: Path, imgsz: int) -> dict[str, Any]:
             "n_small/medium/large": [sizes[k]["instances"] for k in ("small", "medium", "large")],
             "other_images": len(others), "other_det_per_image": round(n_other / max(len(others), 1), 4),
             "other_on_animal_share": round(on_other / max(n_other, 1), 4),
+            "other_centre_on_animal_share": round(centre_on / max(n_other, 1), 4),
+            "other_animal_recall": round(found_other / n_animals, 4) if n_animals else None,
             "ms_per_image": round(1000 * seconds / max(len(per), 1), 1)}
 
 
 def table(rows: list[dict[str, Any]]) -> list[str]:
     out = ["| weights | set | imgsz | zebra images / boxes | mAP50 | mAP50-95 | P / R at 0.25 | AP50 small / medium / "
-           "large (boxes) | other-species photos: det/img (on an animal) | ms/img |",
-           "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+           "large (boxes) | other-species photos: det/img (on an animal: IoU >= 0.5 / centre inside) | found as "
+           "other_animal | ms/img |",
+           "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in rows:
         n = r["n_small/medium/large"]
         sv = r["served"]
@@ -115,7 +133,9 @@ def table(rows: list[dict[str, Any]]) -> list[str]:
                    f"{r['zebra_images']} / {r['zebras']} | {r['mAP50']:.3f} | {r['mAP50-95']:.3f} | "
                    f"{r['P@0.25']:.3f} / {r['R@0.25']:.3f} | {r['AP50_small']:.3f} / {r['AP50_medium']:.3f} / "
                    f"{r['AP50_large']:.3f} ({n[0]}/{n[1]}/{n[2]}) | {r['other_det_per_image']:.3f} "
-                   f"({100 * r['other_on_animal_share']:.0f}%) | {r['ms_per_image']} |")
+                   f"({100 * r['other_on_animal_share']:.0f}% / {100 * r['other_centre_on_animal_share']:.0f}%) | "
+                   f"{'-' if r['other_animal_recall'] is None else format(r['other_animal_recall'], '.3f')} | "
+                   f"{r['ms_per_image']} |")
     return out
 
 
