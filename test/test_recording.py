@@ -319,3 +319,28 @@ def test_typed_detections_decode_as_rosbags_reads_them_and_score(tmp_path: Path)
             assert d.results[0].hypothesis.class_id == b.class_name == "zebra"
     s = score(collect(tmp_path / "t.mcap"))
     assert s["drone_0"]["frames"] == 3 and s["drone_0"]["mAP50"] == pytest.approx(1.0)
+
+
+def test_bag_eval_scores_zebras_only(tmp_path: Path) -> None:
+    """Detections of another class (a model with other_animal) in a bag are neither true nor false zebras."""
+    from zebra_sim_ros.messages import Detection, Detections, Stamp
+    from zebra_sim_ros.nodes.ros_adapter import detection_array_msg, detection_array_type
+
+    type_name = detection_array_type()
+    w = BagWriter(tmp_path / "o.mcap")
+    w.add_channel("/drone_0/labels", "std_msgs/msg/String", [profile_dict()])
+    w.add_channel("/drone_0/detections", type_name, [profile_dict()])
+    for k in range(2):
+        z = [{"box_visible": [10.0, 10, 50, 40], "kept": True, "visible_pixels": 1100}]
+        dets = Detections(Stamp(k, 0), "drone_0/camera_optical", 320, 180, (
+            Detection((10.0, 10.0, 50.0, 40.0), 0.6),
+            Detection((200.0, 20.0, 260.0, 60.0), 0.95, 1, "other_animal")))  # outscores the zebra
+        header = Header(frame_id="drone_0/camera_optical")
+        header.stamp.sec = k
+        w.write("/drone_0/labels", serialize_message(String(data=json.dumps(_labels({"sec": k, "nanosec": 0}, z)))),
+                k * 10**9)
+        w.write("/drone_0/detections", serialize_message(detection_array_msg(type_name, header, dets)), k * 10**9)
+    w.close()
+    s = score(collect(tmp_path / "o.mcap"))
+    assert s["drone_0"]["frames"] == 2
+    assert s["drone_0"]["mAP50"] == pytest.approx(1.0) and s["drone_0"]["precision"] == pytest.approx(1.0)
