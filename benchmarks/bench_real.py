@@ -41,6 +41,7 @@ from zebra_sim_ros.detection.checkpoint import SHIPPED, load_model
 from zebra_sim_ros.detection.data import label_path, read_labels
 from zebra_sim_ros.detection.evaluate import ImagePredictions, make_loader, predictions
 from zebra_sim_ros.detection.metrics import ap_by_size, evaluate_detections, iou_matrix, precision_recall_at
+from zebra_sim_ros.detection.model import OTHER_ANIMAL
 from zebra_sim_ros.detection.predict import inference_size
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -90,8 +91,9 @@ def score_set(weights: str, folder: Path, imgsz: int) -> dict[str, Any]:
     sizes = ap_by_size(dets, gts)
     on_other = centre_on = n_other = 0
     found_other = n_animals = 0
-    if model.cfg.nc > 1 and (folder / "other_species").is_dir():
-        for p in predictions(model, make_loader(folder / "images", rule, batch=4), cls=1):
+    if OTHER_ANIMAL in model.cfg.names and (folder / "other_species").is_dir():
+        other_class = model.cfg.names.index(OTHER_ANIMAL)
+        for p in predictions(model, make_loader(folder / "images", rule, batch=4), cls=other_class):
             if len(p.labels):
                 continue  # photos of other species only, as below
             d, ob = p.detections[p.detections[:, 4] >= CONF], other_boxes(p)

@@ -99,4 +99,3 @@ def postprocess(pred: Tensor, conf: float = 0.25, iou: float = 0.7, max_det: int
         k = (nms(boxes, s, iou) if agnostic else batched_nms(boxes, s, c, iou))[:max_det]
         out.append(torch.cat([boxes[k], s[k, None], c[k, None].to(boxes.dtype)], dim=1))
     return out
-
