@@ -105,3 +105,15 @@ def test_bad_weights_stop_the_node(tmp_path: Path, kind: str) -> None:
     proc = run_node_once("detector", {"weights": str(path)}, timeout=90)
     assert proc.returncode == 2
     assert "weights" in proc.stderr + proc.stdout and str(path) in proc.stderr + proc.stdout
+
+
+def test_marker_colours_follow_the_class() -> None:
+    from zebra_sim_ros.detection.draw import OTHER_COLOUR
+    from zebra_sim_ros.nodes.detector import ZEBRA_COLOUR, _marker_colour
+
+    zebra = _marker_colour(np.array([0, 0, 10, 10, 0.9, 0.0]))
+    other = _marker_colour(np.array([0, 0, 10, 10, 0.9, 1.0]))
+    legacy = _marker_colour(np.array([0, 0, 10, 10, 0.9]))  # a one-class model's rows have no class column
+    assert zebra == ZEBRA_COLOUR and legacy == ZEBRA_COLOUR
+    assert (other.r, other.g, other.b) == pytest.approx(tuple(c / 255 for c in OTHER_COLOUR))
+    assert other != ZEBRA_COLOUR

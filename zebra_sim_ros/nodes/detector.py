@@ -28,7 +28,7 @@ from visualization_msgs.msg import ImageMarker
 
 from zebra_sim_ros.detection.checkpoint import load_model, select_device
 from zebra_sim_ros.detection.config import DETECTOR_PARAMS, DetectorConfig, output_base
-from zebra_sim_ros.detection.draw import draw_boxes
+from zebra_sim_ros.detection.draw import OTHER_COLOUR, draw_boxes
 from zebra_sim_ros.detection.predict import describe_size, detect, detections_message
 from zebra_sim_ros.messages import Stamp
 from zebra_sim_ros.nodes.ros_adapter import (
@@ -145,10 +145,18 @@ class DetectorNode(ZebraNode[DetectorConfig]):
         det_pub.publish(detection_array_msg(self.det_type, header, payload))
         if self.cfg.publish_image:
             img_pub.publish(image_msg(header, draw_boxes(img, dets), "rgb8"))
-        col = ColorRGBA(r=1.0, g=0.25, b=0.0, a=1.0)
-        mark_pub.publish(box_marker(header, "zebra_detections", ((d, col) for d in dets)))
+        mark_pub.publish(box_marker(header, "zebra_detections", ((d, _marker_colour(d)) for d in dets)))
         self.stats["images"] += 1
         self.acks.part_done(header.stamp, topic)
+
+
+ZEBRA_COLOUR = ColorRGBA(r=1.0, g=0.25, b=0.0, a=1.0)
+OTHER_MARKER_COLOUR = ColorRGBA(r=OTHER_COLOUR[0] / 255, g=OTHER_COLOUR[1] / 255, b=OTHER_COLOUR[2] / 255, a=1.0)
+
+
+def _marker_colour(det: np.ndarray) -> ColorRGBA:
+    """A detection's marker colour: zebras (class 0) as before, any other class as the image overlay draws it."""
+    return OTHER_MARKER_COLOUR if len(det) > 5 and int(det[5]) != 0 else ZEBRA_COLOUR
 
 
 def main(argv: list[str] | None = None) -> int:
