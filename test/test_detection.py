@@ -637,6 +637,12 @@ def test_background_zooms_centre_on_other_species_or_ground(tmp_path: Path) -> N
     (tmp_path / "annotations" / "a.json").write_text(json.dumps(record))
     assert other_species_boxes(folder / "a.png").tolist() == [[100, 60, 160, 100]]
     assert other_species_boxes(tmp_path / "nowhere" / "b.png").shape == (0, 4)  # no record: none, no error
+    kept = YoloDataset(folder, 320, Augment.none(), other_class=1)
+    assert kept.read_other_boxes() == 1  # read once, up front (train does this before its loader starts)
+    (tmp_path / "annotations" / "a.json").rename(tmp_path / "a.json.moved")
+    assert kept.load(0)[1][:, 0].tolist() == [0.0, 1.0]  # the kept boxes, not a second read of the record
+    assert YoloDataset(folder, 320, Augment.none(), other_class=1).load(0)[1][:, 0].tolist() == [0.0]
+    (tmp_path / "a.json.moved").rename(tmp_path / "annotations" / "a.json")
 
     def red_share(x: torch.Tensor) -> float:
         r, g, b = x.numpy()

@@ -423,6 +423,14 @@ class YoloDataset(Dataset[Any]):
         return (np.asarray(out, dtype=np.uint8), _warp_labels(lab, m, s, self.imgsz),
                 (float(ox), float(oy)) if negative else None)
 
+    def read_other_boxes(self) -> int:
+        """Read every image's other-species boxes now (from its annotation; none for other sets) and keep them,
+        so that data-loading processes started later share them instead of reading the records again each
+        epoch. Returns how many boxes were found."""
+        for i in range(len(self.files)):
+            self._other_boxes(i)
+        return sum(len(b) for b in self._others.values())
+
     def _other_boxes(self, i: int) -> NDArray[np.float32]:
         if i not in self._others:
             self._others[i] = other_species_boxes(self.files[i])

@@ -184,6 +184,8 @@ def _train_set(cfg: TrainConfig, train_dir: list[Path]) -> YoloDataset:
                      dont_care=cfg.dont_care, crop=cfg.crop, other_class=1 if cfg.other_animals else None)
     if cfg.max_train_images:
         ds.files = ds.files[: cfg.max_train_images]
+    if cfg.other_animals or (cfg.augment and cfg.aug.background > 0):
+        ds.read_other_boxes()  # once, here: the loader's workers restart each epoch and would read them again
     return ds
 
 
