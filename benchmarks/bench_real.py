@@ -39,9 +39,9 @@ import torch
 
 from zebra_sim_ros.detection.checkpoint import SHIPPED, load_model
 from zebra_sim_ros.detection.data import label_path, read_labels
-from zebra_sim_ros.detection.evaluate import ImagePredictions, make_loader, predictions
+from zebra_sim_ros.detection.evaluate import ImagePredictions, make_loader, predictions_by_class
 from zebra_sim_ros.detection.metrics import ap_by_size, evaluate_detections, iou_matrix, precision_recall_at
-from zebra_sim_ros.detection.model import OTHER_ANIMAL
+from zebra_sim_ros.detection.model import OTHER_ANIMAL, ZEBRA
 from zebra_sim_ros.detection.predict import inference_size
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -80,9 +80,12 @@ def score_set(weights: str, folder: Path, imgsz: int) -> dict[str, Any]:
     def rule(long_side: int) -> int:
         return inference_size(model.cfg, long_side, imgsz or None)
 
+    other_class = model.cfg.names.index(OTHER_ANIMAL) if OTHER_ANIMAL in model.cfg.names else None
+    classes = (ZEBRA,) if other_class is None else (ZEBRA, other_class)
     t0 = time.perf_counter()
-    per = predictions(model, make_loader(folder / "images", rule, batch=4))
+    by_class = predictions_by_class(model, make_loader(folder / "images", rule, batch=4), classes)
     seconds = time.perf_counter() - t0
+    per = by_class[ZEBRA]
     zebra = [p for p in per if len(p.labels)]
     others = [p for p in per if not len(p.labels)]
     dets, gts = [p.detections for p in zebra], [p.labels for p in zebra]
@@ -91,9 +94,8 @@ def score_set(weights: str, folder: Path, imgsz: int) -> dict[str, Any]:
     sizes = ap_by_size(dets, gts)
     on_other = centre_on = n_other = 0
     found_other = n_animals = 0
-    if OTHER_ANIMAL in model.cfg.names and (folder / "other_species").is_dir():
-        other_class = model.cfg.names.index(OTHER_ANIMAL)
-        for p in predictions(model, make_loader(folder / "images", rule, batch=4), cls=other_class):
+    if other_class is not None and (folder / "other_species").is_dir():
+        for p in by_class[other_class]:
             if len(p.labels):
                 continue  # photos of other species only, as below
             d, ob = p.detections[p.detections[:, 4] >= CONF], other_boxes(p)

@@ -785,7 +785,7 @@ def test_validation_scores_zebras_only() -> None:
     from torch import nn
 
     from zebra_sim_ros.detection.data import ImageMeta
-    from zebra_sim_ros.detection.evaluate import predictions, score
+    from zebra_sim_ros.detection.evaluate import predictions, predictions_by_class, score
 
     class Fixed(nn.Module):
         def __init__(self) -> None:
@@ -805,6 +805,10 @@ def test_validation_scores_zebras_only() -> None:
     assert len(per[0].detections) == 1
     m = score(per)
     assert (m.map50, m.precision) == (pytest.approx(1.0), pytest.approx(1.0))
+    both = predictions_by_class(Fixed(), loader, (0, 1))  # type: ignore[arg-type]  # one pass, split by class
+    assert both[0][0].detections.tolist() == per[0].detections.tolist()
+    assert both[1][0].detections[:, :4].tolist() == [[100.0, 10.0, 140.0, 50.0]]
+    assert both[1][0].labels.tolist() == per[0].labels.tolist()  # labels travel with every class's list
 
 
 def test_init_grows_a_zebra_checkpoint_into_two_classes() -> None:

@@ -47,17 +47,25 @@ def predictions(model: Detector, loader: DataLoader[Any], conf: float = 0.001, i
                 max_det: int = 100, cls: int = ZEBRA) -> list[ImagePredictions]:
     """Per image of ``loader``: its detections of class ``cls`` (zebras; a model's other classes are left out),
     labels and don't-care boxes."""
+    return predictions_by_class(model, loader, (cls,), conf, iou, max_det)[cls]
+
+
+def predictions_by_class(model: Detector, loader: DataLoader[Any], classes: tuple[int, ...], conf: float = 0.001,
+                         iou: float = 0.7, max_det: int = 100) -> dict[int, list[ImagePredictions]]:
+    """:func:`predictions` for each of ``classes`` from one pass over ``loader`` (the same detections as one call
+    per class: NMS runs before the split)."""
     was_training = model.training
     model.eval()
-    out: list[ImagePredictions] = []
+    out: dict[int, list[ImagePredictions]] = {c: [] for c in classes}
     for imgs, _, metas in loader:
         for det, meta in zip(_forward(model, imgs, metas, conf, iou, max_det), metas, strict=True):
             h, w = meta.shape
             left, top = meta.pad
-            d = unletterbox(det[det[:, 5] == cls], meta.scale, left, top, w, h).cpu().numpy()
-            out.append(ImagePredictions(meta.file, d[:, :5].astype(np.float64),  # labels read once, by the loader
-                                        meta.labels[:, 1:].astype(np.float64), meta.ignore[:, 1:].astype(np.float64),
-                                        meta.imgsz))
+            labels, ignore = meta.labels[:, 1:].astype(np.float64), meta.ignore[:, 1:].astype(np.float64)
+            for c in classes:
+                d = unletterbox(det[det[:, 5] == c], meta.scale, left, top, w, h).cpu().numpy()
+                out[c].append(ImagePredictions(meta.file, d[:, :5].astype(np.float64),  # labels read once, by the
+                                               labels, ignore, meta.imgsz))  # loader
     if was_training:
         model.train()
     return out
