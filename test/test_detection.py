@@ -172,6 +172,22 @@ def test_perfect_and_empty_predictions() -> None:
     assert evaluate_detections([np.zeros((0, 5))], gts).map50 == pytest.approx(0.0, abs=1e-6)
 
 
+def test_a_herd_of_over_100_zebras_is_scored_whole() -> None:
+    """A frame may show 180 labelled zebras: every detection the detector publishes (its max_det, 300) counts,
+    not COCO's 100 per image, which capped recall at 100 / n on crowded frames."""
+    from zebra_sim_ros.detection.config import DetectorConfig
+    from zebra_sim_ros.detection.metrics import MAX_DETECTIONS
+
+    xs = np.arange(180, dtype=np.float64) * 12.0
+    gts = [np.stack([xs, np.zeros(180), xs + 10, np.full(180, 10.0)], 1)]
+    found = [np.concatenate([gts[0], np.linspace(0.9, 0.3, 180)[:, None]], 1)]
+    assert MAX_DETECTIONS == DetectorConfig().max_det >= 250  # a placement holds up to 250 zebras
+    m = evaluate_detections(found, gts)
+    assert m.recall == pytest.approx(1.0) and m.map50 == pytest.approx(1.0)
+    capped = evaluate_detections(found, gts, max_det=100)
+    assert capped.recall == pytest.approx(100 / 180, abs=0.01) and capped.map50 < 0.6
+
+
 def test_model_sizes_and_shapes() -> None:
     n, s = build_model(ModelConfig(size="n")), build_model(ModelConfig(size="s"))
     assert 2.5e6 < count_parameters(n) < 3.5e6 and 10e6 < count_parameters(s) < 12.5e6

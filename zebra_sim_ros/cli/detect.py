@@ -61,6 +61,7 @@ def register(sub: Any) -> None:
     v.add_argument("--batch", type=int, default=8)
     add_option(v, spec_of(DetectorConfig, "conf"), default=0.001, note="val counts every detection above it into AP")
     add_option(v, spec_of(DetectorConfig, "iou"))
+    add_option(v, spec_of(DetectorConfig, "max_det"), note="detections per image that count into AP, by score")
     v.add_argument("--plot", type=Path, default=None, help="also write the PR curve (IoU 0.5) to this PNG")
     v.add_argument("--plots", type=Path, default=Path("runs/val"), help="folder for pr_curve.png and "
                    "predictions.jpg (16 images: ground truth green, detections at conf 0.25 red); '' for none")
@@ -137,7 +138,7 @@ def cmd_val(args: argparse.Namespace) -> Summary:
             raise ParameterError(name, value, "0..1")
 
     m, facts = evaluate(args.weights, args.data, args.split, args.imgsz, args.batch, args.device, args.conf, args.iou,
-                        scale=args.scale)
+                        scale=args.scale, max_det=args.max_det)
     per_image = facts.pop("per_image")
     print(f"inference size: {facts['imgsz']} ({facts['imgsz_rule']})")
     d = m.to_dict()

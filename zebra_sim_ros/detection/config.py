@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from zebra_sim_ros.detection.metrics import MAX_DETECTIONS
 from zebra_sim_ros.params import (
     ParamSpec,
     StageConfig,
@@ -64,7 +65,7 @@ class DetectorConfig(StageConfig):
         runtime=True)
     device: str = param("auto", "auto, cpu, cuda or cuda:N", allowed="auto, cpu, cuda, cuda:N",
                         check=lambda v: v in ("auto", "cpu") or v.startswith("cuda"))
-    max_det: int = param(300, "most detections per image", lo=1, hi=10000)
+    max_det: int = param(MAX_DETECTIONS, "most detections per image", lo=1, hi=10000)
     batch_window_s: float = param(0.05, "frames arriving within this of each other are detected as one batch",
                                   "s", lo=0.001, hi=10.0)
     publish_image: bool = param(True, "publish the annotated image on …/detections/image")

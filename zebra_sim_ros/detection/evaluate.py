@@ -20,7 +20,7 @@ from torch.utils.data import DataLoader
 from zebra_sim_ros.detection.boxes import postprocess
 from zebra_sim_ros.detection.checkpoint import load_model, select_device
 from zebra_sim_ros.detection.data import ImageMeta, YoloDataset, collate, resolve_split
-from zebra_sim_ros.detection.metrics import DetectionMetrics, ap_by_size, evaluate_detections
+from zebra_sim_ros.detection.metrics import MAX_DETECTIONS, DetectionMetrics, ap_by_size, evaluate_detections
 from zebra_sim_ros.detection.model import ZEBRA, Detector
 from zebra_sim_ros.detection.predict import describe_size, inference_size, unletterbox
 
@@ -44,14 +44,14 @@ class ImagePredictions(NamedTuple):
 
 @torch.no_grad()
 def predictions(model: Detector, loader: DataLoader[Any], conf: float = 0.001, iou: float = 0.7,
-                max_det: int = 100, cls: int = ZEBRA) -> list[ImagePredictions]:
+                max_det: int = MAX_DETECTIONS, cls: int = ZEBRA) -> list[ImagePredictions]:
     """Per image of ``loader``: its detections of class ``cls`` (zebras; a model's other classes are left out),
     labels and don't-care boxes."""
     return predictions_by_class(model, loader, (cls,), conf, iou, max_det)[cls]
 
 
 def predictions_by_class(model: Detector, loader: DataLoader[Any], classes: tuple[int, ...], conf: float = 0.001,
-                         iou: float = 0.7, max_det: int = 100) -> dict[int, list[ImagePredictions]]:
+                         iou: float = 0.7, max_det: int = MAX_DETECTIONS) -> dict[int, list[ImagePredictions]]:
     """:func:`predictions` for each of ``classes`` from one pass over ``loader`` (the same detections as one call
     per class: NMS runs before the split)."""
     was_training = model.training
@@ -90,12 +90,12 @@ def _forward(model: Detector, imgs: torch.Tensor, metas: list[ImageMeta], conf: 
 
 
 def run(model: Detector, loader: DataLoader[Any], conf: float = 0.001, iou: float = 0.7,
-        max_det: int = 100) -> DetectionMetrics:
+        max_det: int = MAX_DETECTIONS) -> DetectionMetrics:
     """Metrics of ``model`` on ``loader`` (boxes compared in each image's original pixels)."""
     return score(predictions(model, loader, conf, iou, max_det), max_det)
 
 
-def score(per_image: list[ImagePredictions], max_det: int = 100) -> DetectionMetrics:
+def score(per_image: list[ImagePredictions], max_det: int = MAX_DETECTIONS) -> DetectionMetrics:
     """COCO metrics of :func:`predictions` (or a subset of them), don't-care boxes honoured."""
     return evaluate_detections([p.detections for p in per_image], [p.labels for p in per_image], max_det,
                                [p.ignore for p in per_image])
@@ -103,7 +103,8 @@ def score(per_image: list[ImagePredictions], max_det: int = 100) -> DetectionMet
 
 def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", imgsz: int | None = None,
              batch: int = 8, device: str = "auto", conf: float = 0.001, iou: float = 0.7,
-             workers: int = 0, scale: float = 0.0) -> tuple[DetectionMetrics, dict[str, Any]]:
+             workers: int = 0, scale: float = 0.0, max_det: int = MAX_DETECTIONS
+             ) -> tuple[DetectionMetrics, dict[str, Any]]:
     """Open the checkpoint and the set, validate; returns the metrics and facts about the run. Each image is
     served at :func:`~zebra_sim_ros.detection.predict.inference_size` under ``imgsz`` and ``scale`` (default:
     the checkpoint's rule), as the detector node and ``bag eval`` serve it."""
@@ -112,10 +113,10 @@ def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", i
     folder = resolve_split(data, split)
     loader = make_loader(folder, lambda long_side: inference_size(model.cfg, long_side, imgsz, scale), batch, workers)
     t0 = time.perf_counter()
-    per_image = predictions(model, loader, conf, iou)
-    m = score(per_image)
+    per_image = predictions(model, loader, conf, iou, max_det)
+    m = score(per_image, max_det)
     sizes = sorted({p.imgsz for p in per_image})
-    by_size = ap_by_size([p.detections for p in per_image], [p.labels for p in per_image],
+    by_size = ap_by_size([p.detections for p in per_image], [p.labels for p in per_image], max_det,
                          ignores=[p.ignore for p in per_image])
     return m, {"weights": str(weights or "shipped"), "data": str(folder), "ap_by_size": by_size,
                "per_image": per_image,

@@ -19,6 +19,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 IOU_THRESHOLDS = np.linspace(0.5, 0.95, 10)
+# Detections per image that count, by score (pycocotools' maxDets). COCO's 100 fits its photos (at most a few
+# dozen objects) but not ours: a placement holds up to 250 zebras and a frame may show over 180 of them, so 100
+# would cap recall below what the detector finds. 300 is also the detector's own default (``max_det``): a frame is
+# scored on every detection the node publishes for it.
+MAX_DETECTIONS = 300
 RECALL_POINTS = np.linspace(0.0, 1.0, 101)
 
 
@@ -124,7 +129,7 @@ def _match_image(pred: NDArray[np.float64], gt: NDArray[np.float64], ign: NDArra
 
 
 def evaluate_detections(preds: list[NDArray[np.float64]], gts: list[NDArray[np.float64]],
-                        max_det: int = 100, ignores: list[NDArray[np.float64]] | None = None,
+                        max_det: int = MAX_DETECTIONS, ignores: list[NDArray[np.float64]] | None = None,
                         size_range: tuple[float, float] | None = None) -> DetectionMetrics:
     """Metrics of per-image predictions (n, 5) [x0, y0, x1, y1, score] against ground truths (m, 4) xyxy.
 
@@ -184,7 +189,7 @@ SIZE_BINS: dict[str, tuple[float, float]] = {
     "small": (0.0, 32.0), "medium": (32.0, 96.0), "large": (96.0, 1e9)}
 
 
-def ap_by_size(preds: list[NDArray[np.float64]], gts: list[NDArray[np.float64]], max_det: int = 100,
+def ap_by_size(preds: list[NDArray[np.float64]], gts: list[NDArray[np.float64]], max_det: int = MAX_DETECTIONS,
                ignores: list[NDArray[np.float64]] | None = None) -> dict[str, dict[str, float | int]]:
     """AP50, AP50-95 and the instance count in each of :data:`SIZE_BINS` (COCO's small/medium/large are sqrt
     areas under 32, 32-96 and over 96 px, i.e. areas of 32² and 96²); a bin with no instances has AP 0."""

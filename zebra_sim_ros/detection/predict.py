@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from zebra_sim_ros.detection.boxes import postprocess
 from zebra_sim_ros.detection.config import NATIVE, scaled_size
 from zebra_sim_ros.detection.data import letterbox, rect_shape
+from zebra_sim_ros.detection.metrics import MAX_DETECTIONS
 from zebra_sim_ros.detection.model import Detector, ModelConfig
 from zebra_sim_ros.messages import Detection, Detections, Stamp
 
@@ -71,7 +72,8 @@ def unletterbox(det: torch.Tensor, scale: float, left: int, top: int, width: int
 
 @torch.no_grad()
 def detect(model: Detector, images: Sequence[NDArray[np.uint8]], imgsz: int | None = None, conf: float = 0.25,
-           iou: float = 0.7, max_det: int = 300, rect: bool = True, scale: float = 0.0) -> list[NDArray[np.float32]]:
+           iou: float = 0.7, max_det: int = MAX_DETECTIONS, rect: bool = True,
+           scale: float = 0.0) -> list[NDArray[np.float32]]:
     """Per image (n, 6) [x0, y0, x1, y1, score, class] in its own pixels (pixel-edge coordinates). The batch's
     long side is resized to :func:`inference_size` of the batch's longest side under ``imgsz`` and ``scale``
     (default: the checkpoint's rule) and padded as :func:`preprocess` says."""

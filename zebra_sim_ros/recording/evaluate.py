@@ -114,12 +114,13 @@ class ImageDetector:
             self._flush()
 
     def _flush(self) -> None:
+        from zebra_sim_ros.detection.metrics import MAX_DETECTIONS
         from zebra_sim_ros.detection.model import ZEBRA
         from zebra_sim_ros.detection.predict import detect
 
         if not self._pending:
             return
-        dets = detect(self.model, [p[2] for p in self._pending], self.imgsz, conf=self.conf, max_det=100,
+        dets = detect(self.model, [p[2] for p in self._pending], self.imgsz, conf=self.conf, max_det=MAX_DETECTIONS,
                       scale=self.scale)
         for (drone, t, _), det in zip(self._pending, dets, strict=True):
             self.detections[drone][t] = det[det[:, 5] == ZEBRA, :5].astype(np.float64)
