@@ -365,7 +365,7 @@ def test_validation_serves_each_image_as_detect_does(tmp_path: Path, capsys: pyt
     assert tuple(imgs.shape) == (2, 3, 160, 256)  # one batch: the smaller image padded at the bottom and right
     got = predictions(model, loader, conf=0.0)
     for p, name in zip(got, sorted(frames), strict=True):
-        want = detect(model, [frames[name]], conf=0.0, max_det=100)[0]
+        want = detect(model, [frames[name]], conf=0.0)[0]  # the same default max_det as predictions
         assert p.imgsz == inference_size(model.cfg, max(frames[name].shape[:2]))
         assert p.detections.shape == (len(want), 5)
         np.testing.assert_allclose(p.detections, want[:, :5], atol=1e-2)
@@ -634,6 +634,31 @@ def test_crops_keep_the_zebras_scale_and_frame_it(tmp_path: Path) -> None:
         assert float(img[:, :, :].mean()) < 0.6  # and the window is mostly the grey ground around it
         offsets.add((round(float(x0)), round(float(y0))))
     assert len(offsets) >= 5  # the zebra lands in different places of the window
+
+
+def test_a_crop_draws_only_its_window_with_the_same_pixels() -> None:
+    """``train --crop`` warps only the window of the augmented sample; it must be the window of the whole
+    sample (up to OpenCV's fixed-point rounding: a few grey levels on a few pixels), flipped samples included."""
+    import cv2
+
+    from zebra_sim_ros.detection.data import _Sample
+
+    rng = np.random.default_rng(5)
+    src = (rng.uniform(0, 255, (90, 160, 3))).astype(np.uint8)
+    src = cv2.resize(src, (1280, 720), interpolation=cv2.INTER_CUBIC)  # smooth, like a photograph
+    m = np.array([[1.63, 0.0, -210.7], [0.0, 1.63, 301.2]])
+    sample = _Sample(src, m, 2176)
+    full = sample.full()
+    for x0, y0 in ((0, 0), (1003, 517), (2176 - 320, 2176 - 320), (40, 1856)):
+        win = sample.window(x0, y0, 320).astype(int)
+        ref = full[y0:y0 + 320, x0:x0 + 320].astype(int)
+        assert np.abs(win - ref).max() <= 3 and (win != ref).mean() < 0.01
+        mirror = cv2.flip(sample.window(2176 - x0 - 320, y0, 320), 1).astype(int)
+        assert np.abs(mirror - cv2.flip(full, 1)[y0:y0 + 320, x0:x0 + 320].astype(int)).max() <= 3
+    beyond = sample.window(0, 2000, 320)  # past the sample's edge: grey padding, as a whole sample's crop pads
+    assert (beyond[176:] == 114).all() and np.abs(beyond[:176].astype(int) - full[2000:, :320]).max() <= 3
+    plain = _Sample(full, None, 2176)  # no affine: a slice
+    assert np.array_equal(plain.window(100, 200, 320), full[200:520, 100:420])
 
 
 def test_background_zooms_centre_on_other_species_or_ground(tmp_path: Path) -> None:
