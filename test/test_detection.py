@@ -837,7 +837,7 @@ def test_validation_scores_zebras_only() -> None:
             out = torch.zeros(len(x), 2, 6)
             out[:, 0] = torch.tensor([10.0, 10, 50, 50, 0.9, 0.0])  # the labelled zebra
             out[:, 1] = torch.tensor([100.0, 10, 140, 50, 0.0, 0.95])  # another animal
-            return out
+            return out + 0.0 * self.w  # an output that needs no_grad to become numpy, as a real model's
 
     meta = ImageMeta("a.png", (64, 160), 1.0, (0, 0), 160, (64, 160), np.array([[0, 10, 10, 50, 50]], np.float32),
                      np.zeros((0, 5), np.float32))

@@ -42,7 +42,6 @@ class ImagePredictions(NamedTuple):
     imgsz: int  # the inference size it was letterboxed to (long side), px
 
 
-@torch.no_grad()
 def predictions(model: Detector, loader: DataLoader[Any], conf: float = 0.001, iou: float = 0.7,
                 max_det: int = MAX_DETECTIONS, cls: int = ZEBRA) -> list[ImagePredictions]:
     """Per image of ``loader``: its detections of class ``cls`` (zebras; a model's other classes are left out),
@@ -50,6 +49,7 @@ def predictions(model: Detector, loader: DataLoader[Any], conf: float = 0.001, i
     return predictions_by_class(model, loader, (cls,), conf, iou, max_det)[cls]
 
 
+@torch.no_grad()
 def predictions_by_class(model: Detector, loader: DataLoader[Any], classes: tuple[int, ...], conf: float = 0.001,
                          iou: float = 0.7, max_det: int = MAX_DETECTIONS) -> dict[int, list[ImagePredictions]]:
     """:func:`predictions` for each of ``classes`` from one pass over ``loader`` (the same detections as one call
