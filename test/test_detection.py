@@ -218,6 +218,40 @@ def test_checkpoint_round_trip_and_bad_files(tmp_path: Path) -> None:
         read_checkpoint(tmp_path / "other.pt")
 
 
+def test_export_blends_a_fine_tuned_checkpoint_with_its_base(tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """``export --blend-base B --blend a``: every float tensor is (1 - a) B + a W, through the CLI; the record
+    says so; a base of another architecture and a share outside 0..1 are refused by name."""
+    from zebra_sim_ros.cli import main as cli_main
+
+    torch.manual_seed(0)
+    base, tuned = build_model(ModelConfig(size="n", imgsz=256)), build_model(ModelConfig(size="n", imgsz=256))
+    for m in (base, tuned):
+        for p in m.parameters():
+            p.data.normal_()
+    save_checkpoint(tmp_path / "base.pt", base)
+    save_checkpoint(tmp_path / "tuned.pt", tuned, epoch=7)
+    out = tmp_path / "blend.pt"
+    assert cli_main(["export", "--weights", str(tmp_path / "tuned.pt"), "--format", "pt", "--blend-base",
+                     str(tmp_path / "base.pt"), "--blend", "0.25", "--out", str(out)]) == 0
+    ck = read_checkpoint(out)
+    assert ck["blended"]["alpha"] == pytest.approx(0.25) and ck["epoch"] == 7
+    b, t = base.state_dict(), tuned.state_dict()
+    for k, v in ck["model"].items():
+        if v.dtype.is_floating_point:  # stored as fp16, like every serving checkpoint
+            torch.testing.assert_close(v.float(), (0.75 * b[k] + 0.25 * t[k]).half().float(), atol=0, rtol=0)
+        else:
+            assert torch.equal(v, t[k])
+    save_checkpoint(tmp_path / "small.pt", build_model(ModelConfig(size="s", imgsz=256)))
+    capsys.readouterr()
+    assert cli_main(["export", "--weights", str(tmp_path / "tuned.pt"), "--format", "pt", "--blend-base",
+                     str(tmp_path / "small.pt"), "--blend", "0.5", "--out", str(out)]) == 2
+    assert "'--blend-base'" in capsys.readouterr().err
+    assert cli_main(["export", "--weights", str(tmp_path / "tuned.pt"), "--format", "pt", "--blend-base",
+                     str(tmp_path / "base.pt"), "--blend", "1.5", "--out", str(out)]) == 2
+    assert "'--blend'" in capsys.readouterr().err
+
+
 def test_onnx_export_gives_the_same_boxes(tmp_path: Path) -> None:
     ort = pytest.importorskip("onnxruntime")
     from zebra_sim_ros.detection.export import export_onnx

@@ -78,6 +78,10 @@ def register(sub: Any) -> None:
                    "serve every frame at --imgsz until it is given)")
     e.add_argument("--recipe", default=None, help="pt: a text file kept verbatim in the checkpoint (key 'recipe'): "
                    "how the weights were made (commands, seeds, times)")
+    e.add_argument("--blend-base", default=None, help="pt: the checkpoint --weights was fine-tuned from; the output "
+                   "is a weight-space ensemble of the two (WiSE-FT): (1 - --blend) x base + --blend x weights")
+    e.add_argument("--blend", type=float, default=1.0, help="pt, with --blend-base: the fine-tuned weights' share, "
+                   "0..1 (default 1: no blend)")
     e.add_argument("--out", type=Path, required=True, help="output file (.onnx or .pt)")
     add_json_flag(e)
     e.set_defaults(func=cmd_export)
@@ -170,11 +174,15 @@ def cmd_export(args: argparse.Namespace) -> Summary:
         raise ParameterError("--frame", args.frame, "16..8192 px, with --format pt")
     if args.recipe is not None and (args.format != "pt" or not Path(args.recipe).is_file()):
         raise ParameterError("--recipe", args.recipe, "a readable text file, with --format pt")
+    if args.blend_base is not None and args.format != "pt":
+        raise ParameterError("--blend-base", args.blend_base, "a checkpoint, with --format pt")
+    if not 0.0 <= args.blend <= 1.0:
+        raise ParameterError("--blend", args.blend, "0..1 (the fine-tuned weights' share)")
     if args.format == "onnx":
         path = export_onnx(args.weights, args.out, args.imgsz)
     else:
         recipe = Path(args.recipe).read_text() if args.recipe else None
-        path = export_checkpoint(args.weights, args.out, args.imgsz, args.frame, recipe)
+        path = export_checkpoint(args.weights, args.out, args.imgsz, args.frame, recipe, args.blend_base, args.blend)
     print(f"exported {path}")
     return {"out": str(path), "format": args.format}
 

@@ -14,13 +14,15 @@ source are kept, so ``train_args.imgsz`` still says the size it was trained at.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import torch
+from torch import Tensor
 
 from zebra_sim_ros.detection.checkpoint import SHIPPED, load_model, read_checkpoint, save_checkpoint
 from zebra_sim_ros.detection.data import generate_settings
 from zebra_sim_ros.detection.model import build_model
-from zebra_sim_ros.errors import DependencyError
+from zebra_sim_ros.errors import DependencyError, ParameterError
 
 
 def export_onnx(weights: str | Path | None, out: str | Path, imgsz: int | None = None, opset: int = 17) -> Path:
@@ -40,12 +42,30 @@ def export_onnx(weights: str | Path | None, out: str | Path, imgsz: int | None =
     return path
 
 
+def blend_weights(weights: dict[str, Tensor], base: dict[str, Tensor], alpha: float) -> dict[str, Tensor]:
+    """``(1 - alpha) * base + alpha * weights``, tensor by tensor (float32), for two state dicts of the same
+    architecture: a weight-space ensemble of a model and the model it was fine-tuned from (WiSE-FT, Wortsman et
+    al. 2022), which keeps much of what the fine-tuning gained and of what it forgot. Integer tensors (batch
+    norms' counters) are taken from ``weights``."""
+    if not 0.0 <= alpha <= 1.0:
+        raise ParameterError("--blend", alpha, "0..1 (the fine-tuned weights' share)")
+    if set(weights) != set(base) or any(weights[k].shape != base[k].shape for k in weights):
+        bad = sorted(set(weights) ^ set(base)) or [k for k in weights if weights[k].shape != base[k].shape]
+        raise ParameterError("--blend-base", f"{len(bad)} tensor(s) of another name or shape, first {bad[0]}",
+                             "weights of the same architecture and classes")
+    return {k: ((1.0 - alpha) * base[k].float() + alpha * v.float()) if v.dtype.is_floating_point else v
+            for k, v in weights.items()}
+
+
 def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | None = None,
-                      frame: int | None = None, recipe: str | None = None) -> Path:
+                      frame: int | None = None, recipe: str | None = None, blend_base: str | Path | None = None,
+                      blend: float = 1.0) -> Path:
     """Write a serving checkpoint of ``weights`` (default: the shipped ones) that serves frames whose long side
     is ``frame`` px (default: the training frames' size it records) at ``imgsz`` (default: unchanged), and
     other frames at the same scale; returns the path. ``recipe``: text kept verbatim in the checkpoint (how the
-    weights were made: the commands, seeds and times), else the source's own."""
+    weights were made: the commands, seeds and times), else the source's own. ``blend_base``: a checkpoint
+    ``weights`` was fine-tuned from; the output's tensors are then :func:`blend_weights` of the two with
+    ``blend`` the fine-tuned share (the rest of the record is ``weights``')."""
     src = read_checkpoint(weights or SHIPPED)
     cfg = dict(src["config"])
     if imgsz:
@@ -53,13 +73,21 @@ def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | 
     if frame:
         cfg["frame"] = frame
     model = build_model(cfg)
-    model.load_state_dict({k: v.float() for k, v in src["model"].items()})
-    extra = {k: src[k] for k in ("epoch", "metrics", "train_args", "best_fitness", "data_generate", "recipe")
-             if k in src}
+    state = {k: v.float() for k, v in src["model"].items()}
+    blended = None
+    if blend_base is not None:
+        base = read_checkpoint(blend_base, "--blend-base")
+        state = blend_weights(state, base["model"], blend)
+        blended = {"base": str(blend_base), "base_config": base["config"], "alpha": blend}
+    model.load_state_dict(state)
+    extra: dict[str, Any] = {k: src[k] for k in ("epoch", "metrics", "train_args", "best_fitness", "data_generate",
+                                                 "recipe") if k in src}
     if "data_generate" not in extra and "data" in extra.get("train_args", {}):  # checkpoints before it was kept
         extra["data_generate"] = generate_settings(extra["train_args"]["data"])
     if recipe:
         extra["recipe"] = recipe
+    if blended:
+        extra["blended"] = blended
     save_checkpoint(out, model.half(), **extra, exported={"from_config_imgsz": int(src["config"]["imgsz"]),
                                                           "imgsz": int(cfg["imgsz"]),
                                                           "frame": int(cfg.get("frame", 0)),
