@@ -1,19 +1,23 @@
 """The shipped detector weights on freshly generated, held-out synthetic sets.
 
-The shipped model (stage 10, README "Shipped weights") was fine-tuned from stage 7 (stage 8 on whole frames,
-stages 9 and 10 on crops around zebras) on 2,448 photographic frames of all twelve worlds and four strategies
-(``generate --seed 1000 --worlds all --strategy all``; each world and strategy its own placer stream) and, in
-stage 10, 900 ground-level frames (``--seed 2000 --strategy low``); stages 1-7 used seeds 100, 200 and 400 on
-seven worlds. Here small sets are generated with seed 777, whose streams none
-of those share, with the generator's defaults (the photographic look, weather, the camera model, domain
+The shipped model (stage 11, README "Shipped weights") is a weight-space blend (0.3 stage 10 + 0.7 its
+fine-tuning) of stage 10 and stage 10 trained on 320 px crops of 2176 px samples of 1280x720 frames (seeds 5000
+and 5001, all worlds, far and close-by) and 640x360 frames (seed 3000, all strategies). Stage 10 was fine-tuned
+from stage 7 (stage 8 on whole frames, stages 9 and 10 on crops around zebras) on 2,448 photographic frames of all
+twelve worlds and four strategies (``generate --seed 1000 --worlds all --strategy all``; each world and strategy its
+own placer stream) and 900 ground-level frames (``--seed 2000 --strategy low``); stages 1-7 used seeds 100, 200 and
+400 on seven worlds. Here small sets are generated with seed 777, whose streams none of those share, with
+the generator's defaults (the photographic look, weather, the camera model, domain
 randomisation, other species), and scored with our COCO metrics at the shipped file's own inference-size rule
-(640 px frames at 1088, chosen on the val split of the training set; 1280x720 at 2176), zebras seen but below
+(1280x720 frames at 2176 and 640 px frames at 1088: a scale of 1.7), zebras seen but below
 the label filters as don't-care regions:
 
 - 640x360 frames of six worlds (four of them new in stage 8), far, close-by, low and nadir: a regression floor
   under what the weights measured when they were shipped;
 - a default ``generate`` (1280x720, savanna, far and close-by): what ``val`` on a default set gives, a floor under
   the measured figure (the issue's goal, 0.85, is not reached: see README "Shipped weights").
+
+Figures count up to 300 detections per image (the detector's ``max_det``), as ``val`` does.
 """
 
 from __future__ import annotations
@@ -32,7 +36,8 @@ SEVEN_WORLDS = ("savanna", "grassland", "meadow", "woodland", "moorland", "scrub
 HELD_OUT_SEED = 777  # never used for training data
 SIX_WORLDS = ("savanna", "woodland", "snowy_highland", "zoo", "waterhole", "dusty_plain")
 TRAINING_STREAMS = ({100, 1_000_103} | {stream_seed(s, w, k) for s in (200, 400) for w in SEVEN_WORLDS for k in (0, 1)}
-                    | {stream_seed(s, w, k) for s in (1000, 2000) for w in PRESETS for k in range(4)})
+                    | {stream_seed(s, w, k) for s in (1000, 2000, 3000, 5000, 5001) for w in PRESETS
+                       for k in range(4)})
 
 
 def _held_out_set(root: Path, frames: int, **kw: object) -> Path:
@@ -48,18 +53,20 @@ def test_shipped_weights_are_ours_and_say_how_they_were_trained() -> None:
     ckpt = read_checkpoint(SHIPPED)
     assert SHIPPED.stat().st_size < 20 << 20
     args = ckpt["train_args"]
-    assert args["model"] == "n" and args["imgsz"] == 640  # trained at 640, served at 1088 (zebra-sim export)
-    assert args["crop"] == 320 and args["aug"]["zoom"] == pytest.approx(0.5) and args["epochs"] == 20
-    assert args["init"].endswith("s2r_n640_crop/best.pt")  # stage 9
-    # served at 1088 on its 640x360 training frames, and at the same scale (1.7) on frames of any other size
-    assert ckpt["config"]["imgsz"] == 1088 and ckpt["config"]["frame"] == 640
-    assert ckpt["exported"]["from_config_imgsz"] == 640 and ckpt["exported"]["imgsz"] == 1088
-    # the data's generate settings (two sets) and the whole recipe travel with the weights
+    assert args["model"] == "n" and args["imgsz"] == 2176  # 1280x720 frames at the scale they are served at
+    assert args["crop"] == 320 and args["aug"]["zoom"] == pytest.approx(0.5) and args["epochs"] == 36
+    assert args["init"].endswith("stage10.pt")
+    assert ckpt["blended"]["alpha"] == pytest.approx(0.7) and ckpt["blended"]["base"].endswith("stage10.pt")
+    assert ckpt["blended"]["base_config"]["imgsz"] == 1088  # stage 10: 640 px frames served at 1088
+    # served at 2176 on 1280x720 frames, and at the same scale (1.7) on frames of any other size (1088 for 640)
+    assert ckpt["config"]["imgsz"] == 2176 and ckpt["config"]["frame"] == 1280
+    assert ckpt["exported"]["imgsz"] == 2176
+    # the data's generate settings (three sets) and the whole recipe travel with the weights
     gen = sorted(ckpt["data_generate"]["sets"].values(), key=lambda g: g["seed"])
-    assert [g["seed"] for g in gen] == [1000, 2000] and [g["strategy"] for g in gen] == ["all", "low"]
-    assert all(sorted(g["worlds"]) == sorted(PRESETS) and g["look"] == "photo" and g["width"] == 640 for g in gen)
-    assert gen[1]["placer"]["low_distance_max"] == pytest.approx(15.0)
-    assert "zebra-sim generate" in ckpt["recipe"] and "zebra-sim train" in ckpt["recipe"]
+    assert [g["seed"] for g in gen] == [3000, 5000, 5001] and [g["strategy"] for g in gen] == ["all", "both", "both"]
+    assert all(sorted(g["worlds"]) == sorted(PRESETS) and g["look"] == "photo" for g in gen)
+    assert [g["width"] for g in gen] == [640, 1280, 1280]
+    assert "zebra-sim generate" in ckpt["recipe"] and "--blend-base" in ckpt["recipe"]
     assert set(STRATEGY_SETS["all"]) == {"far", "closeby", "low", "nadir"}
     floats = [v for v in ckpt["model"].values() if v.dtype.is_floating_point]
     assert floats and all(v.dtype == torch.float16 for v in floats)  # fp16 on disk
@@ -69,13 +76,13 @@ def test_shipped_weights_on_new_seeds_of_six_worlds_and_four_views(tmp_path: Pat
     data = _held_out_set(tmp_path / "six_worlds", 24, worlds=SIX_WORLDS, strategy="all", width=640, height=360)
     m, facts = evaluate(None, data, split="train")
     assert facts["imgsz"] == 1088 and m.images == 72 and m.instances > 1500
-    assert m.map50 >= 0.54, m.to_dict()  # measured when shipped: 0.599 (README "Shipped weights"; stage 7: 0.362)
-    assert m.map50_95 >= 0.24, m.to_dict()  # measured: 0.289 (stage 7: 0.163)
+    assert m.map50 >= 0.60, m.to_dict()  # measured when shipped: 0.660 (README "Shipped weights"; stage 10: 0.640)
+    assert m.map50_95 >= 0.27, m.to_dict()  # measured: 0.319 (stage 10: 0.303)
 
 
 def test_shipped_weights_on_a_default_generate(tmp_path: Path) -> None:
     data = _held_out_set(tmp_path / "default", 12)
     m, facts = evaluate(None, data, split="train")
     assert facts["imgsz"] == 2176 and m.images == 12 and m.instances > 500
-    assert m.map50 >= 0.60, m.to_dict()  # measured when shipped: 0.674 (README "Shipped weights"; stage 7: 0.465)
-    assert m.map50_95 >= 0.31, m.to_dict()  # measured: 0.367 (stage 7: 0.221)
+    assert m.map50 >= 0.69, m.to_dict()  # measured when shipped: 0.753 (README "Shipped weights"; stage 10: 0.712)
+    assert m.map50_95 >= 0.37, m.to_dict()  # measured: 0.422 (stage 10: 0.383)
