@@ -60,6 +60,23 @@ def test_postprocess_keeps_images_apart() -> None:
     assert out[0][0, 4] == pytest.approx(0.9) and out[1][0, 4] == pytest.approx(0.95)
 
 
+def test_postprocess_keeps_every_animal_of_a_crowded_frame() -> None:
+    # 250 zebras on a grid, each found by 8 overlapping anchor points whose scores fall zebra by zebra (the first
+    # zebra's 8 candidates score highest): NMS must see all 2,000 candidates to keep all 250; a fixed cap of 1,000
+    # would keep the first 125 zebras only.
+    k = torch.arange(250)
+    corner = torch.stack([(k % 25) * 40.0, (k // 25) * 40.0], 1)
+    jitter = torch.linspace(0.0, 1.4, 8)
+    pred = torch.zeros(1, 250 * 8, 5)
+    for j in range(8):
+        pred[0, j::8, :2] = corner + jitter[j]
+        pred[0, j::8, 2:4] = corner + 20 + jitter[j]
+        pred[0, j::8, 4] = 0.99 - k * 0.003 - j * 0.0001
+    kept = postprocess(pred, conf=0.001, iou=0.7, max_det=300)[0]
+    assert len(kept) == 250
+    assert len(postprocess(pred, conf=0.001, iou=0.7, max_det=300, max_nms=1000)[0]) == 125
+
+
 def _random_eval_set(seed: int) -> tuple[list[np.ndarray], list[np.ndarray]]:
     rng = np.random.default_rng(seed)
     gts, preds = [], []

@@ -78,16 +78,24 @@ def batched_nms(boxes: Tensor, scores: Tensor, groups: Tensor, iou_threshold: fl
     return nms(boxes + offset, scores, iou_threshold)
 
 
+NMS_CANDIDATES_PER_DETECTION = 10
+"""Candidates NMS considers per detection it may keep: :func:`postprocess` caps them at this times ``max_det``."""
+
+
 def postprocess(pred: Tensor, conf: float = 0.25, iou: float = 0.7, max_det: int = 300,
-                max_nms: int = 1000, agnostic: bool = True) -> list[Tensor]:
+                max_nms: int | None = None, agnostic: bool = True) -> list[Tensor]:
     """Per image (n, 6) [x0, y0, x1, y1, score, class] from decoded predictions (B, N, 4 + nc).
 
     Image by image: each point's best class and its score, candidates above ``conf``, at most ``max_nms`` of them by
-    score (so a barely trained model's flood of low scores cannot make the IoU matrix huge), NMS, at most
-    ``max_det`` kept. NMS is class-agnostic by default: an animal is of one species, so where a model with an
-    ``other_animal`` class finds a buffalo, its stronger "other animal" box suppresses a weaker "zebra" box on the
-    same animal (with one class, as the same thing); ``agnostic=False`` suppresses within each class only.
+    score (so a barely trained model's flood of low scores cannot make the IoU matrix huge; default
+    :data:`NMS_CANDIDATES_PER_DETECTION` times ``max_det``: a frame of 250 zebras, each found by several anchor
+    points, keeps them all), NMS, at most ``max_det`` kept. NMS is class-agnostic by default: an animal is of one
+    species, so where a model with an ``other_animal`` class finds a buffalo, its stronger "other animal" box
+    suppresses a weaker "zebra" box on the same animal (with one class, as the same thing); ``agnostic=False``
+    suppresses within each class only.
     """
+    if max_nms is None:
+        max_nms = NMS_CANDIDATES_PER_DETECTION * max_det
     out = []
     for p in pred:
         scores, cls = p[:, 4:].max(dim=-1)
