@@ -493,11 +493,8 @@ def crop_window(img: NDArray[np.uint8], lab: NDArray[np.float32], size: int, rng
     :func:`_warp_labels`)."""
     h, w = img.shape[:2]
     x0, y0 = crop_origin(lab, w, h, size, rng, centre)
-    out = np.full((size, size, 3), 114, np.uint8)
-    part = img[y0:y0 + size, x0:x0 + size]
-    out[:part.shape[0], :part.shape[1]] = part
     m = np.array([[1.0, 0.0, -x0], [0.0, 1.0, -y0]])
-    return out, _warp_labels(lab, m, 1.0, size)
+    return _Sample(img, None, max(h, w)).window(x0, y0, size), _warp_labels(lab, m, 1.0, size)
 
 
 def crop_origin(lab: NDArray[np.float32], w: int, h: int, size: int, rng: np.random.Generator,
@@ -530,7 +527,8 @@ class _Sample:
                                          borderValue=(114, 114, 114)), dtype=np.uint8)
 
     def window(self, x0: int, y0: int, side: int) -> NDArray[np.uint8]:
-        """The ``side`` square of :meth:`full` at (x0, y0), padded grey where it leaves the sample."""
+        """The ``side`` square of :meth:`full` at (x0, y0), padded grey where it leaves the sample (or, unwarped,
+        where it leaves ``src``, of any shape)."""
         if self.m is None:
             out = np.full((side, side, 3), 114, np.uint8)
             part = self.src[y0:y0 + side, x0:x0 + side]
