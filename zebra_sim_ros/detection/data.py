@@ -494,7 +494,7 @@ def crop_window(img: NDArray[np.uint8], lab: NDArray[np.float32], size: int, rng
     h, w = img.shape[:2]
     x0, y0 = crop_origin(lab, w, h, size, rng, centre)
     m = np.array([[1.0, 0.0, -x0], [0.0, 1.0, -y0]])
-    return _Sample(img, None, max(h, w)).window(x0, y0, size), _warp_labels(lab, m, 1.0, size)
+    return _padded_window(img, x0, y0, size), _warp_labels(lab, m, 1.0, size)
 
 
 def crop_origin(lab: NDArray[np.float32], w: int, h: int, size: int, rng: np.random.Generator,
@@ -512,6 +512,14 @@ def crop_origin(lab: NDArray[np.float32], w: int, h: int, size: int, rng: np.ran
     return int(np.clip(round(float(x0)), 0, max(w - size, 0))), int(np.clip(round(float(y0)), 0, max(h - size, 0)))
 
 
+def _padded_window(img: NDArray[np.uint8], x0: int, y0: int, side: int) -> NDArray[np.uint8]:
+    """The ``side`` square of ``img`` (any shape) at (x0, y0), padded grey where it leaves the image."""
+    out = np.full((side, side, 3), 114, np.uint8)
+    part = img[y0:y0 + side, x0:x0 + side]
+    out[:part.shape[0], :part.shape[1]] = part
+    return out
+
+
 class _Sample:
     """A ``size`` square training sample not drawn yet: ``src`` through the affine ``m`` (None: ``src`` is the
     sample). With ``train --crop`` only the window is drawn, which on a 2176 px sample is 15x fewer pixels."""
@@ -527,13 +535,9 @@ class _Sample:
                                          borderValue=(114, 114, 114)), dtype=np.uint8)
 
     def window(self, x0: int, y0: int, side: int) -> NDArray[np.uint8]:
-        """The ``side`` square of :meth:`full` at (x0, y0), padded grey where it leaves the sample (or, unwarped,
-        where it leaves ``src``, of any shape)."""
+        """The ``side`` square of :meth:`full` at (x0, y0), padded grey where it leaves the sample."""
         if self.m is None:
-            out = np.full((side, side, 3), 114, np.uint8)
-            part = self.src[y0:y0 + side, x0:x0 + side]
-            out[:part.shape[0], :part.shape[1]] = part
-            return out
+            return _padded_window(self.src, x0, y0, side)
         m = self.m.copy()
         m[:, 2] -= (x0, y0)
         out = np.asarray(cv2.warpAffine(self.src, m, (side, side), flags=self.interp, borderValue=(114, 114, 114)),
