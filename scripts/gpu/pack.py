@@ -1,0 +1,95 @@
+"""Pack generated frames into ``gpu_data/`` (git-ignored), small enough to travel to a lent GPU machine with the
+repository (its working tree may hold 64 MiB in all): each training frame re-encoded as JPEG at ``--quality``,
+with its labels and don't-care boxes, a few validation frames for the run's last-epoch check, and a copy of the
+first set's ``generate.json`` so that checkpoints record the generator's settings. ``scripts/gpu/train.sh`` then
+trains on it there.
+
+Stage 12 (README, "Shipped weights")::
+
+    python scripts/gpu/pack.py --train datasets/sav_6001/images/train datasets/sav_6001/images/val \\
+        datasets/sav_6000/images/train --drop-every datasets/sav_6000/images/train=4 \\
+        --val datasets/sav_6000/images/val --val-frames 8      # 504 frames, 50.0 MiB (run a)
+    python scripts/gpu/pack.py ... --thin 8                    # the same less every 8th: 441 frames (run b)
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+from pathlib import Path
+
+import cv2
+
+
+def _label_file(image: Path, folder: str) -> Path:
+    parts = list(image.parts)
+    i = len(parts) - 1 - parts[::-1].index("images")
+    parts[i] = folder
+    return Path(*parts).with_suffix(".txt")
+
+
+def _copy_frame(image: Path, out: Path, split: str, quality: int) -> int:
+    """Re-encode one frame into ``out/images/<split>/`` with its label files; returns the JPEG's bytes."""
+    img = cv2.imread(str(image), cv2.IMREAD_COLOR)
+    if img is None:
+        raise SystemExit(f"pack: {image} is not a readable image")
+    ok, data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, quality])
+    if not ok:
+        raise SystemExit(f"pack: {image} could not be encoded as JPEG at quality {quality}")
+    dst = out / "images" / split / (image.stem + ".jpg")
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    dst.write_bytes(data.tobytes())
+    for folder in ("labels", "ignore"):
+        src = _label_file(image, folder)
+        if src.exists():
+            d = out / folder / split / src.name
+            d.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy(src, d)
+    return len(data)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--train", type=Path, nargs="+", required=True, help="image folders of generated sets")
+    ap.add_argument("--drop-every", action="append", default=[], metavar="FOLDER=N",
+                    help="leave out every N-th frame (the 1st, N+1-th, ...) of this --train folder, sorted by name")
+    ap.add_argument("--thin", type=int, default=0, help="then leave out every N-th of all training frames (0: none)")
+    ap.add_argument("--val", type=Path, required=True, help="image folder of the validation frames")
+    ap.add_argument("--val-frames", type=int, default=8, help="the first N of --val, by name")
+    ap.add_argument("--quality", type=int, default=77, help="JPEG quality of the training frames")
+    ap.add_argument("--val-quality", type=int, default=80, help="JPEG quality of the validation frames")
+    ap.add_argument("--out", type=Path, default=Path("gpu_data"))
+    ap.add_argument("--max-mib", type=float, default=52.0, help="refuse to write more than this")
+    a = ap.parse_args()
+    drop = {}
+    for item in a.drop_every:
+        folder, _, n = item.partition("=")
+        if not n.isdigit() or int(n) < 2:
+            raise SystemExit(f"pack: --drop-every {item!r}: want FOLDER=N with N >= 2")
+        drop[Path(folder)] = int(n)
+    frames: list[Path] = []
+    for folder in a.train:
+        found = sorted(folder.glob("*.jpg")) + sorted(folder.glob("*.png"))
+        if not found:
+            raise SystemExit(f"pack: --train {folder} holds no .jpg or .png frames")
+        n = drop.get(folder, 0)
+        frames += [f for k, f in enumerate(found) if not n or k % n]
+    frames.sort(key=lambda p: p.name)
+    if a.thin:
+        frames = [f for k, f in enumerate(frames) if k % a.thin]
+    val = sorted(a.val.glob("*.jpg"))[: a.val_frames]
+    for sub in ("train", "val"):
+        shutil.rmtree(a.out / sub, ignore_errors=True)
+    total = sum(_copy_frame(f, a.out / "train", "train", a.quality) for f in frames)
+    total += sum(_copy_frame(f, a.out / "val", "val", a.val_quality) for f in val)
+    gen = a.train[0].parent.parent / "generate.json"
+    if gen.exists():
+        shutil.copy(gen, a.out / "train" / "generate.json")
+    mib = total / 2**20
+    print(f"pack: {len(frames)} training and {len(val)} validation frames, {mib:.1f} MiB in {a.out}")
+    if mib > a.max_mib:
+        raise SystemExit(f"pack: {mib:.1f} MiB is over --max-mib {a.max_mib}: the tree would not travel")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,106 @@
+#!/usr/bin/env bash
+# Fine-tune on a lent GPU machine, inside one call of at most 10 minutes: `gpu_data/` (made by scripts/gpu/pack.py,
+# carried with the tree) trained as 320 px crops of 2176 px samples for as many epochs as fit in BUDGET seconds. The
+# run starts with E0 epochs; the second epoch is timed and the run resumes with the epoch count that fits. After
+# every epoch an fp16 copy of last.pt (EMA weights, no optimizer) is kept; $OUT receives best.pt (the last epoch,
+# validated on gpu_data/val), results.csv, train.log, the latest snapshot and up to four snapshots (the last three and
+# one from the middle). Each epoch is K passes over the frames (one crop per frame per pass), so that the data
+# loader's workers, which restart each epoch, are not started every few seconds.
+#
+# Stage 12 (README, "Shipped weights"): run a `BUDGET=480 bash scripts/gpu/train.sh` (stage 11 init, lr0 0.004,
+# seed 16), run b `BUDGET=280 E0=4 LR=0.002 SEED=17 INIT=gpu_data/init.pt bash scripts/gpu/train.sh` (init: run a's
+# last snapshot).
+set -u
+cd "$(dirname "$0")/../.."
+export PYTHONPATH=$PWD PYTHONUNBUFFERED=1 OPENCV_FOR_THREADS_NUM=1
+T0=$(date +%s)
+BUDGET=${BUDGET:-470}; K=${K:-24}; E0=${E0:-12}; IMGSZ=${IMGSZ:-2176}; CROP=${CROP:-320}; BATCH=${BATCH:-32}
+WORKERS=${WORKERS:-15}; DEVICE=${DEVICE:-cuda}; OUTD=${OUT:-/tmp/gpu_out}; LR=${LR:-0.004}; SEED=${SEED:-16}
+INIT=${INIT:-zebra_sim_ros/detection/weights/zebra_yolo_n.pt}
+RUN=gpu_data/run_out; rm -rf $RUN; mkdir -p $RUN/snap "$OUTD/snap"
+LOG=$OUTD/train.log
+elapsed() { echo $(( $(date +%s) - T0 )); }
+{ nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv 2>/dev/null; nproc
+  python3 -c "import torch,cv2,numpy,yaml;print('torch',torch.__version__,'cuda',torch.cuda.is_available(),'cv2',cv2.__version__,'numpy',numpy.__version__)"
+} >"$LOG" 2>&1
+python3 - "$K" <<'EOF'
+import sys
+k = int(sys.argv[1])
+open('gpu_data/mix.yaml', 'w').write('path: .\ntrain: [' + ', '.join(['train/images/train'] * k)
+                                     + ']\nval: val/images/val\nnc: 1\nnames:\n  0: zebra\n')
+EOF
+train() {  # $1 epochs, $2 seconds allowed, $3 --init WEIGHTS or --resume
+  timeout --signal=TERM --kill-after=10 "$2" python3 -m zebra_sim_ros.cli train --data gpu_data/mix.yaml --model n \
+    --imgsz "$IMGSZ" --crop "$CROP" --epochs "$1" --batch "$BATCH" --device "$DEVICE" --workers "$WORKERS" \
+    --amp "$AMP" --lr0 "$LR" --warmup-epochs 0.5 --close-mosaic 1 --val-every 1000 --seed "$SEED" \
+    --aug-zoom 0.5 --out $RUN $3 >>"$LOG" 2>&1
+}
+strip() {  # last.pt -> an fp16 checkpoint without optimizer state
+  python3 - "$1" "$2" <<'EOF'
+import sys, torch
+c = torch.load(sys.argv[1], map_location='cpu', weights_only=True)
+for k in ('optimizer', 'model_raw'):
+    c.pop(k, None)
+c['model'] = {k: (v.half() if v.is_floating_point() else v) for k, v in c['model'].items()}
+torch.save(c, sys.argv[2])
+EOF
+}
+rows() { [ -f $RUN/results.csv ] && echo $(( $(wc -l < $RUN/results.csv) - 1 )) || echo 0; }
+snapper() {  # an fp16 copy of last.pt after every epoch
+  local done=0
+  while sleep 2; do
+    n=$(rows)
+    if [ "$n" -gt "$done" ] && [ -f $RUN/last.pt ] && [ $RUN/last.pt -nt $RUN/results.csv ]; then
+      sleep 1; strip $RUN/last.pt $RUN/snap/ep_$n.pt && cp $RUN/snap/ep_$n.pt "$OUTD/last_snap.pt" && echo "[run] snapshot epoch $n at $(elapsed) s" >>"$LOG"
+      done=$n
+    fi
+  done
+}
+snapper & SNAP=$!
+AMP=auto
+train "$E0" $((BUDGET - $(elapsed))) "--init $INIT" & TR=$!
+sleep 5
+while kill -0 $TR 2>/dev/null && [ "$(rows)" -lt 1 ]; do sleep 1; done
+if [ "$(rows)" -lt 1 ]; then  # the first start failed: once more in float32
+  echo "[run] the first start failed at $(elapsed) s; again with --amp off" >>"$LOG"
+  AMP=off; rm -rf $RUN/last.pt $RUN/results.csv
+  train "$E0" $((BUDGET - $(elapsed))) "--init $INIT" & TR=$!
+fi
+wait_rows() {  # until the trainer has written epoch $1's results and last.pt, or has stopped
+  while kill -0 $TR 2>/dev/null; do
+    [ "$(rows)" -ge "$1" ] && [ -f $RUN/last.pt ] && [ $RUN/last.pt -nt $RUN/results.csv ] && return 0
+    sleep 1
+  done
+  return 1
+}
+if wait_rows 1; then
+  T1=$(date +%s)
+  if wait_rows 2; then
+    D=$(( $(date +%s) - T1 ))
+    E=$(python3 -c "print(max(3, min(80, 2 + int(0.92 * ($BUDGET - $(elapsed) - 30) / max($D, 1)))))")
+    echo "[run] epoch 2 took ${D} s; $(elapsed) s gone; $E epochs fit" >>"$LOG"
+    if [ "$E" != "$E0" ]; then
+      pkill -TERM -f "zebra_sim_ros.cli train"; wait $TR
+      train "$E" $((BUDGET - $(elapsed))) --resume
+    else
+      wait $TR
+    fi
+  fi
+fi
+echo "[run] training ended at $(elapsed) s, rows $(rows)" >>"$LOG"
+sleep 4; kill $SNAP 2>/dev/null
+n=$(rows); [ -f $RUN/last.pt ] && [ ! -f $RUN/snap/ep_$n.pt ] && strip $RUN/last.pt $RUN/snap/ep_$n.pt
+ls $RUN/snap >>"$LOG"
+[ -f $RUN/best.pt ] && cp $RUN/best.pt "$OUTD/best.pt"
+cp $RUN/results.csv "$OUTD/" 2>/dev/null
+# the last three snapshots and one from the middle of the run (with best.pt, results.csv and the log: 7 files)
+python3 - "$RUN/snap" "$OUTD/snap" <<'EOF'
+import shutil, sys
+from pathlib import Path
+snaps = sorted(Path(sys.argv[1]).glob('ep_*.pt'), key=lambda p: int(p.stem[3:]))
+keep = snaps[-3:] + ([snaps[:-3][len(snaps[:-3]) // 2]] if len(snaps) > 3 else [])
+for p in dict.fromkeys(keep):
+    shutil.copy(p, Path(sys.argv[2]) / p.name)
+EOF
+echo "[run] done at $(elapsed) s" >>"$LOG"
+tail -40 "$LOG"
