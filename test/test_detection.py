@@ -267,6 +267,11 @@ def test_export_blends_a_fine_tuned_checkpoint_with_its_base(tmp_path: Path,
     assert cli_main(["export", "--weights", str(tmp_path / "tuned.pt"), "--format", "pt", "--blend-base",
                      str(tmp_path / "base.pt"), "--blend", "1.5", "--out", str(out)]) == 2
     assert "'--blend'" in capsys.readouterr().err
+    # a share without a base would be dropped without a word: refused, naming both options
+    assert cli_main(["export", "--weights", str(tmp_path / "tuned.pt"), "--format", "pt", "--blend", "0.5",
+                     "--out", str(tmp_path / "alone.pt")]) == 2
+    err = capsys.readouterr().err
+    assert "'--blend'" in err and "--blend-base" in err and not (tmp_path / "alone.pt").exists()
 
 
 def test_onnx_export_gives_the_same_boxes(tmp_path: Path) -> None:

@@ -178,6 +178,8 @@ def cmd_export(args: argparse.Namespace) -> Summary:
         raise ParameterError("--blend-base", args.blend_base, "a checkpoint, with --format pt")
     if not 0.0 <= args.blend <= 1.0:
         raise ParameterError("--blend", args.blend, "0..1 (the fine-tuned weights' share)")
+    if args.blend != 1.0 and args.blend_base is None:
+        raise ParameterError("--blend", args.blend, "1 (no blend) unless --blend-base names the checkpoint to blend")
     if args.format == "onnx":
         path = export_onnx(args.weights, args.out, args.imgsz)
     else:
