@@ -58,6 +58,10 @@ def main() -> None:
     args = ap.parse_args()
     if args.frames < 1:
         raise SystemExit(f"--frames must be 1 or more, got {args.frames}")
+    if args.workers < 1:
+        raise SystemExit(f"--workers must be 1 or more, got {args.workers}")
+    if any(s < 0 for s in args.seeds) or len(set(args.seeds)) != len(args.seeds):
+        raise SystemExit(f"--seeds must be distinct and 0 or more, got {args.seeds}")
     folders = {s: default_set(args.cache, s, args.frames, args.workers) for s in args.seeds}
     rows: list[dict[str, Any]] = []
     for w in args.weights:
