@@ -44,7 +44,9 @@ def test_predict_a_folder_writes_one_drawn_image_label_and_json_each(tmp_path: P
     for k in range(20):
         cv2.imwrite(str(src / ("sub" if k % 5 == 0 else ".") / f"f{k:02d}.png"), _zebra_like(k)[..., ::-1])
     out = tmp_path / "out"
-    s = _predict(str(src), "--out", str(out), "--conf", "0.01", "--quiet")
+    # conf 0.001: a striped blob is no zebra to weights trained on rendered ones (stage 12 scores none of them
+    # over 0.01); this test needs detections to check the files, not good ones
+    s = _predict(str(src), "--out", str(out), "--conf", "0.001", "--quiet")
     assert s["images"] == 20
     drawn = sorted((out / "images").glob("*.jpg"))
     labels = sorted((out / "labels").glob("*.txt"))
@@ -62,7 +64,7 @@ def test_predict_a_folder_writes_one_drawn_image_label_and_json_each(tmp_path: P
             assert [float(v) for v in ln[1:]] == pytest.approx([(x0 + x1) / 320, (y0 + y1) / 192, (x1 - x0) / 160,
                                                                 (y1 - y0) / 96], abs=2e-4)
         total += len(lines)
-    assert total == s["detections"] > 0  # conf 0.01: the weights find something in 20 frames
+    assert total == s["detections"] > 0  # conf 0.001: the weights find something in 20 frames
     assert cv2.imread(str(drawn[0])).shape == (96, 160, 3)
 
 
