@@ -20,12 +20,7 @@ from pathlib import Path
 
 import cv2
 
-
-def _label_file(image: Path, folder: str) -> Path:
-    parts = list(image.parts)
-    i = len(parts) - 1 - parts[::-1].index("images")
-    parts[i] = folder
-    return Path(*parts).with_suffix(".txt")
+from zebra_sim_ros.detection.data import label_path
 
 
 def _copy_frame(image: Path, out: Path, split: str, quality: int) -> int:
@@ -40,7 +35,7 @@ def _copy_frame(image: Path, out: Path, split: str, quality: int) -> int:
     dst.parent.mkdir(parents=True, exist_ok=True)
     dst.write_bytes(data.tobytes())
     for folder in ("labels", "ignore"):
-        src = _label_file(image, folder)
+        src = label_path(image, folder)
         if src.exists():
             d = out / folder / split / src.name
             d.parent.mkdir(parents=True, exist_ok=True)

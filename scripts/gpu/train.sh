@@ -35,15 +35,8 @@ train() {  # $1 epochs, $2 seconds allowed, $3 --init WEIGHTS or --resume
     --amp "$AMP" --lr0 "$LR" --warmup-epochs 0.5 --close-mosaic 1 --val-every 1000 --seed "$SEED" \
     --aug-zoom 0.5 --out $RUN $3 >>"$LOG" 2>&1
 }
-strip() {  # last.pt -> an fp16 checkpoint without optimizer state
-  python3 - "$1" "$2" <<'EOF'
-import sys, torch
-c = torch.load(sys.argv[1], map_location='cpu', weights_only=True)
-for k in ('optimizer', 'model_raw'):
-    c.pop(k, None)
-c['model'] = {k: (v.half() if v.is_floating_point() else v) for k, v in c['model'].items()}
-torch.save(c, sys.argv[2])
-EOF
+strip() {  # last.pt -> an fp16 checkpoint without optimizer state (export keeps the run's record)
+  python3 -m zebra_sim_ros.cli export --weights "$1" --format pt --out "$2" >/dev/null
 }
 rows() { [ -f $RUN/results.csv ] && echo $(( $(wc -l < $RUN/results.csv) - 1 )) || echo 0; }
 snapper() {  # an fp16 copy of last.pt after every epoch
