@@ -70,5 +70,9 @@ def test_pack_refuses_bad_options_and_oversized_trees(tmp_path: Path) -> None:
     assert r.returncode != 0 and "--drop-every" in r.stderr and "N >= 2" in r.stderr
     r = _pack("--train", tmp_path / "nothing", "--val", a, "--out", tmp_path / "o")
     assert r.returncode != 0 and "holds no .jpg or .png frames" in r.stderr
+    r = _pack("--train", a, "--val", a, "--out", tmp_path / "o", "--thin", "1")
+    assert r.returncode != 0 and "--thin 1" in r.stderr
+    r = _pack("--train", a, "--val", a, "--out", tmp_path / "o", "--quality", "101")
+    assert r.returncode != 0 and "--quality 101" in r.stderr
     r = _pack("--train", a, "--val", a, "--out", tmp_path / "o", "--max-mib", "0.00001")
     assert r.returncode != 0 and "over --max-mib" in r.stderr

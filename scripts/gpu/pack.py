@@ -56,6 +56,11 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("gpu_data"))
     ap.add_argument("--max-mib", type=float, default=52.0, help="refuse to write more than this")
     a = ap.parse_args()
+    if a.thin == 1 or a.thin < 0:
+        raise SystemExit(f"pack: --thin {a.thin}: want 0 (none) or N >= 2")
+    for name, q in (("--quality", a.quality), ("--val-quality", a.val_quality)):
+        if not 1 <= q <= 100:
+            raise SystemExit(f"pack: {name} {q}: want a JPEG quality of 1..100")
     drop = {}
     for item in a.drop_every:
         folder, _, n = item.partition("=")
