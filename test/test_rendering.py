@@ -184,3 +184,24 @@ def test_a_recoloured_ground_changes_the_terrain_only(library: ZebraLibrary, opt
     a, s = authored.rgb[ground].astype(np.float64), snowy.rgb[ground].astype(np.float64)
     assert s.mean() > a.mean() + 40  # brighter ground
     assert np.abs(s - s.mean(axis=1, keepdims=True)).mean() < 0.3 * np.abs(a - a.mean(axis=1, keepdims=True)).mean()
+
+
+def test_the_coat_array_grows_without_changing_a_pixel(library: ZebraLibrary, options: RenderOptions,
+                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Twelve individuals rendered with a coat array that starts at two layers (grown 2 -> 4 -> 8 -> 16, each
+    time copying the coats so far) look exactly as with one of all sixteen layers from the start."""
+    import zebra_sim_ros.rendering.renderer as renderer_module
+
+    zebras = _zebras(library, [(float(x), float(y)) for x in (-3, 0, 3) for y in (-2, 0, 2, 4)], yaw=0.7)
+    view = _view((0.0, -14.0, 10.0), 90.0, -35.0)
+    rgb = {}
+    for first in (2, 16):
+        monkeypatch.setattr(renderer_module, "COAT_LAYERS_FIRST", first)
+        r = Renderer(flat_world(), library, options)
+        try:
+            out = r.render(zebras, NOON, [view])[0]
+            rgb[first] = out.rgb
+            assert r.coats.size[2] == 16 and len(set(np.unique(out.instances)) - {0}) == 12
+        finally:
+            r.release()
+    assert np.array_equal(rgb[2], rgb[16])

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from zebra_sim_ros.errors import ParameterError
-from zebra_sim_ros.zebra.coat import bake_coat, random_coat
+from zebra_sim_ros.zebra.coat import _cells, bake_coat, random_coat
 from zebra_sim_ros.zebra.mesh import build_mesh
-from zebra_sim_ros.zebra.skeleton import FOAL, GREVY, PLAINS
+from zebra_sim_ros.zebra.skeleton import CATTLE, FOAL, GIRAFFE, GREVY, PLAINS
 
 
 def test_same_seed_same_coat_different_seed_different_coat() -> None:
@@ -48,3 +48,33 @@ def test_bad_coat_arguments_name_the_parameter() -> None:
         random_coat(-1, PLAINS)
     with pytest.raises(ParameterError, match="coat size"):
         bake_coat(PLAINS, random_coat(0, PLAINS), 8)
+
+
+def test_cell_search_near_the_points_equals_a_search_of_all_cells() -> None:
+    """The giraffe's and cattle's cells: searching only the seeds near a part first (and all of them again for
+    points whose second-nearest lies beyond the reach) gives the same pattern as searching every seed."""
+    rng = np.random.default_rng(5)
+    seeds = rng.uniform(-1.0, 1.0, (400, 3))
+    picks = rng.uniform(0.0, 1.0, 400)
+    points = rng.uniform(-0.3, 0.3, (3000, 3)) * np.array([1.0, 0.2, 0.2])  # a thin part, like a leg
+    full = _cells(points, seeds, 0.02, picks)
+    for reach in (0.05, 0.2, 0.5):  # 0.05: most points need the second search; 0.5: none do
+        near = _cells(points, seeds, 0.02, picks, reach=reach)
+        assert np.array_equal(near[0], full[0]) and np.array_equal(near[1], full[1])
+    # and both against brute force: the nearest seed's pick, the gap between the two nearest distances
+    d = np.linalg.norm(points[:, None] - seeds[None], axis=-1)
+    order = np.argsort(d, axis=1)[:, :2]
+    assert np.array_equal(full[1], picks[order[:, 0]])
+    gap = np.take_along_axis(d, order, axis=1) @ np.array([-1.0, 1.0])
+    assert np.allclose(full[0], np.clip((gap - 0.01) / 0.02, 0, 1) ** 2 * (3 - 2 * np.clip((gap - 0.01) / 0.02, 0, 1)))
+
+
+@pytest.mark.parametrize("morph", [PLAINS, GIRAFFE, CATTLE], ids=["plains", "giraffe", "cattle"])
+def test_a_coat_is_the_same_with_the_kept_geometry_or_a_given_mesh(morph: object) -> None:
+    """bake_coat keeps each morph's mesh and texel geometry between coats; a mesh given by the caller, built
+    afresh, gives the same texels, and a later coat does not see an earlier one's arrays."""
+    first = bake_coat(morph, random_coat(11, morph), 128)  # type: ignore[arg-type]
+    bake_coat(morph, random_coat(12, morph), 128)  # type: ignore[arg-type]
+    again = bake_coat(morph, random_coat(11, morph), 128)  # type: ignore[arg-type]
+    given = bake_coat(morph, random_coat(11, morph), 128, build_mesh(morph, 0))  # type: ignore[arg-type]
+    assert np.array_equal(first, again) and np.array_equal(first, given)

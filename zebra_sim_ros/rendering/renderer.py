@@ -32,6 +32,9 @@ from zebra_sim_ros.zebra.skeleton import MORPHS
 
 FloatArray = NDArray[np.float64]
 TILE_M = 64
+COAT_LAYERS_FIRST = 64
+"""Coat layers a renderer starts with: mipmaps are built over every layer of the array each frame that brings new
+coats, so an array sized to the coats in use (doubled as it fills) costs a fraction of one of ``max_coats``."""
 
 
 @dataclass(frozen=True)
@@ -53,7 +56,7 @@ class RenderOptions:
     terrain_detail_distance_m: float = 180.0
     zebra_detail_distance_m: float = 35.0
     coat_size: int = 256
-    max_coats: int = 1024
+    max_coats: int = 1024  # coat layers at most (the array starts at COAT_LAYERS_FIRST and doubles as it fills)
     detail: bool = True  # procedural ground detail (grass tufts, soil, stones, micro-relief) and the photographic coat
     # shading (contrast, belly, dust, sheen); False: flat ground colours and the coat texture as it is
     contact_shadows: bool = True  # soft occlusion on the ground under every animal
@@ -67,6 +70,8 @@ class RenderOptions:
             raise ParameterError("near_m", self.near_m, f"0.001..far_m ({self.far_m})")
         if self.coat_size not in (64, 128, 256, 512, 1024):
             raise ParameterError("coat_size", self.coat_size, "64, 128, 256, 512 or 1024 texels")
+        if not 1 <= self.max_coats <= 4096:
+            raise ParameterError("max_coats", self.max_coats, "1..4096 layers")
 
 
 @dataclass(frozen=True)
@@ -212,9 +217,7 @@ class Renderer:
         self._upload_terrain()
         self._upload_vegetation()
         self._upload_zebra_templates()
-        self.coats = ctx.texture_array((o.coat_size, o.coat_size, o.max_coats), 3)
-        self.coats.build_mipmaps()
-        self.coats.filter = (ctx.LINEAR_MIPMAP_LINEAR, ctx.LINEAR)
+        self.coats = self._coat_array(min(COAT_LAYERS_FIRST, o.max_coats))
         self._coat_layer: dict[tuple[int, int], int] = {}
         self.setup_seconds = time.perf_counter() - t0
 
@@ -336,6 +339,14 @@ class Renderer:
             self.zebra_lod[lod] = {"src": src, "vao": vao, "dvao": dvao, "inst": inst, "verts": len(src),
                                    "ssbo": ctx.buffer(reserve=4, dynamic=True)}
 
+    def _coat_array(self, layers: int) -> Any:
+        """A texture array of ``layers`` coats, mipmapped and filtered as every coat is sampled."""
+        s = self.options.coat_size
+        arr = self.ctx.texture_array((s, s, layers), 3)
+        arr.build_mipmaps()
+        arr.filter = (self.ctx.LINEAR_MIPMAP_LINEAR, self.ctx.LINEAR)
+        return arr
+
     def _layer(self, morph: int, seed: int) -> int:
         key = (morph, seed)
         layer = self._coat_layer.get(key)
@@ -343,6 +354,11 @@ class Renderer:
             if len(self._coat_layer) >= self.options.max_coats:
                 self._coat_layer.clear()  # rare: more individuals than layers; start over
             layer = len(self._coat_layer)
+            if layer >= self.coats.size[2]:  # full: twice the layers, the coats so far copied over
+                grown = self._coat_array(min(2 * self.coats.size[2], self.options.max_coats))
+                grown.write(self.coats.read(), viewport=(0, 0, 0, *self.coats.size))
+                self.coats.release()
+                self.coats = grown
             name = self.library.morphs[morph]
             tex = bake_coat(MORPHS[name], random_coat(int(seed), MORPHS[name]), self.options.coat_size)
             s = self.options.coat_size

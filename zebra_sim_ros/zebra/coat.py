@@ -14,6 +14,7 @@ cells of one colour or the other, or a solid coat).
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -100,20 +101,53 @@ def _species_coat(seed: int, morph: Morph, rng: np.random.Generator) -> CoatPara
         shadow_stripes=False, pattern=pattern, cell_seed=int(rng.integers(0, 2**31 - 1)))
 
 
-def _cells(p: FloatArray, seeds: FloatArray, line: float, rng_pick: FloatArray) -> tuple[FloatArray, FloatArray]:
+def _cells(p: FloatArray, seeds: FloatArray, line: float, rng_pick: FloatArray,
+           reach: float = 0.0) -> tuple[FloatArray, FloatArray]:
     """Cellular pattern at bind positions ``p`` (N, 3): how far inside its cell each point is (0 on the border line
-    of width ``line`` m, 1 beyond it) and that cell's random pick 0..1."""
+    of width ``line`` m, 1 beyond it) and that cell's random pick 0..1.
+
+    The two nearest cell seeds are found on squared distances from one matrix product (|q|^2 - 2 q.s + |s|^2),
+    then their distances are taken exactly, as the difference's norm. With ``reach`` > 0 only the seeds within
+    ``reach`` of the points' bounding box are searched first; a point whose second-nearest seed among them lies
+    farther than ``reach`` is searched again among all seeds, so the result is the same as a search of all. A
+    giraffe's coat (about 1,000 cells) bakes in tens of milliseconds instead of seconds."""
+    if reach > 0 and len(p):
+        near_box = np.all((seeds >= p.min(axis=0) - reach) & (seeds <= p.max(axis=0) + reach), axis=1)
+        if near_box.sum() >= 2:
+            idx = np.flatnonzero(near_box)
+            inside, pick, d1 = _nearest_two(p, seeds[idx], line, rng_pick[idx])
+            again = d1 > reach
+            if again.any():
+                inside[again], pick[again], _ = _nearest_two(p[again], seeds, line, rng_pick)
+            return inside, pick
+    inside, pick, _ = _nearest_two(p, seeds, line, rng_pick)
+    return inside, pick
+
+
+def _nearest_two(p: FloatArray, seeds: FloatArray, line: float,
+                 rng_pick: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """:func:`_cells` over all of ``seeds`` (at least two), and each point's distance to its second-nearest."""
     inside = np.empty(len(p))
     pick = np.empty(len(p))
-    for a in range(0, len(p), 8192):
-        q = p[a:a + 8192]
-        d = np.linalg.norm(q[:, None, :] - seeds[None], axis=-1)
-        two = np.argpartition(d, 1, axis=1)[:, :2]
-        d0, d1 = np.take_along_axis(d, two, axis=1).T
-        near = np.where(d0 <= d1, two[:, 0], two[:, 1])
-        inside[a:a + 8192] = _smoothstep(0.5 * line, 1.5 * line, np.abs(d1 - d0))
-        pick[a:a + 8192] = rng_pick[near]
-    return inside, pick
+    second = np.empty(len(p))
+    s2 = np.einsum("ij,ij->i", seeds, seeds)
+    for a in range(0, len(p), _CELL_CHUNK):
+        q = p[a:a + _CELL_CHUNK]
+        rows = np.arange(len(q))
+        d2 = s2[None, :] - 2.0 * (q @ seeds.T)  # |q - s|^2 less |q|^2, the same for every seed of a row
+        i0 = np.argmin(d2, axis=1)
+        d2[rows, i0] = np.inf
+        i1 = np.argmin(d2, axis=1)
+        d0 = np.linalg.norm(q - seeds[i0], axis=-1)
+        d1 = np.linalg.norm(q - seeds[i1], axis=-1)
+        near = np.where(d0 <= d1, i0, i1)
+        inside[a:a + _CELL_CHUNK] = _smoothstep(0.5 * line, 1.5 * line, np.abs(d1 - d0))
+        pick[a:a + _CELL_CHUNK] = rng_pick[near]
+        second[a:a + _CELL_CHUNK] = np.maximum(d0, d1)
+    return inside, pick, second
+
+
+_CELL_CHUNK = 4096  # points per matrix product in :func:`_cells` (4096 x 1,000 cells: 33 MB)
 
 
 def _smoothstep(e0: float, e1: float, x: FloatArray) -> FloatArray:
@@ -189,11 +223,47 @@ def _part_pattern(name: str, p: FloatArray, along: FloatArray, around: FloatArra
     return phase, dark_extra, white_extra
 
 
+_Samples = tuple[NDArray[np.int64], NDArray[np.int64], FloatArray, FloatArray, FloatArray]
+_GEOMETRY: OrderedDict[tuple[str, int], list[tuple[str, _Samples]]] = OrderedDict()
+_MESHES: dict[str, ZebraMesh] = {}
+_GEOMETRY_KEEP = 12  # (morph, size) entries kept: nine morphs at 256 texels take about 30 MB
+
+
+def _geometry_mesh(morph: Morph) -> ZebraMesh:
+    """The full-detail mesh of ``morph``, built once per process (a morph is keyed by all its fields)."""
+    key = repr(morph)
+    if key not in _MESHES:
+        _MESHES[key] = build_mesh(morph, 0)
+    return _MESHES[key]
+
+
+def _geometry(morph: Morph, size: int) -> list[tuple[str, _Samples]]:
+    """Each part's texels and what lies under them (:func:`_part_samples`) for ``morph`` at ``size`` texels: the
+    same for every individual of a morph, so computed once and kept (the :data:`_GEOMETRY_KEEP` latest)."""
+    key = (repr(morph), size)
+    got = _GEOMETRY.get(key)
+    if got is None:
+        mesh = _geometry_mesh(morph)
+        got = [(pg.name, _part_samples(mesh, pg.name, size)) for pg in mesh.parts]
+        for _, arrays in got:
+            for a in arrays:
+                a.flags.writeable = False  # shared by every later coat: a stray write would change them all
+        _GEOMETRY[key] = got
+        while len(_GEOMETRY) > _GEOMETRY_KEEP:
+            _GEOMETRY.popitem(last=False)
+    else:
+        _GEOMETRY.move_to_end(key)
+    return got
+
+
 def bake_coat(morph: Morph, params: CoatParams, size: int = 512, mesh: ZebraMesh | None = None) -> NDArray[np.uint8]:
     """The coat atlas (size, size, 3) uint8 RGB for one individual; row 0 is the top (v = 1)."""
     if not 32 <= size <= 4096:
         raise ParameterError("coat size", size, "32..4096 texels")
-    mesh = mesh or build_mesh(morph, 0)
+    if mesh is None:
+        mesh, samples = _geometry_mesh(morph), _geometry(morph, size)
+    else:
+        samples = [(pg.name, _part_samples(mesh, pg.name, size)) for pg in mesh.parts]
     pel_x = bind_positions(morph)[JOINT_INDEX["pelvis"], 0]
     period = morph.stripe_period * params.period_scale
     img = np.zeros((size, size, 3))
@@ -209,17 +279,16 @@ def bake_coat(morph: Morph, params: CoatParams, size: int = 512, mesh: ZebraMesh
         lo, hi = mesh.vertices.min(axis=0) - 0.1, mesh.vertices.max(axis=0) + 0.1
         n_cells = int(np.clip(np.prod(hi - lo) / period ** 3, 8, 4000))
         seeds, picks = crng.uniform(lo, hi, (n_cells, 3)), crng.uniform(0, 1, n_cells)
-    for pg in mesh.parts:
-        rows, cols, p, along, around = _part_samples(mesh, pg.name, size)
+    for name, (rows, cols, p, along, around) in samples:
         warp = params.warp_amplitude * np.mean(np.sin(p @ k.T + ph), axis=-1) * 2.0
-        phase, dark_extra, white_extra = _part_pattern(pg.name, p, along, around, morph, period)
+        phase, dark_extra, white_extra = _part_pattern(name, p, along, around, morph, period)
         f = (phase + warp) % 1.0
         # Black where f < black_fraction, with soft edges at both ends of the band.
         b = _smoothstep(-edge, edge, f) * _smoothstep(params.black_fraction + edge, params.black_fraction - edge, f)
         b = b + _smoothstep(1 - edge, 1 + edge, f)
         if params.pattern in ("network", "patches"):
             flat = p.reshape(-1, 3) + 0.05 * warp.reshape(-1, 1)
-            inside, pick = _cells(flat, seeds, 0.12 * period, picks)
+            inside, pick = _cells(flat, seeds, 0.12 * period, picks, reach=2.0 * period)
             b = (inside if params.pattern == "network" else (pick < 0.45) * (0.3 + 0.7 * inside)).reshape(f.shape)
         elif params.pattern == "solid":
             b = np.zeros_like(f)
@@ -227,7 +296,7 @@ def bake_coat(morph: Morph, params: CoatParams, size: int = 512, mesh: ZebraMesh
             b = 0.6 * b  # faint bands
         b = np.clip(np.maximum(b, dark_extra) * (1 - white_extra), 0, 1)
         col = base * (1 - b[..., None]) + black * b[..., None]
-        if params.shadow_stripes and pg.name == "barrel":
+        if params.shadow_stripes and name == "barrel":
             mid = params.black_fraction + (1 - params.black_fraction) / 2
             sh = _smoothstep(0.12, 0.0, np.abs(f - mid)) * _smoothstep(pel_x + 0.4, pel_x, p[..., 0]) * 0.45
             col = col * (1 - sh[..., None]) + np.array([0.55, 0.45, 0.36]) * sh[..., None]
