@@ -7,6 +7,7 @@ import io
 import json
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -928,3 +929,92 @@ def test_init_grows_a_zebra_checkpoint_into_two_classes() -> None:
             torch.testing.assert_close(state[k], v)
     with pytest.raises(ParameterError, match="'names'.*'zebra' as class 0"):
         ModelConfig(nc=2, names=("other_animal", "zebra"))
+
+
+def test_image_size_reads_png_and_jpeg_headers(tmp_path: Path) -> None:
+    import cv2
+
+    from zebra_sim_ros.detection.data import image_size
+
+    img = np.random.default_rng(0).integers(0, 255, (37, 61, 3), dtype=np.uint8)
+    for name in ("a.png", "a.jpg", "p.jpg"):
+        params = [cv2.IMWRITE_JPEG_PROGRESSIVE, 1] if name == "p.jpg" else []
+        cv2.imwrite(str(tmp_path / name), img, params)
+        assert image_size(tmp_path / name) == (61, 37), name
+    jpg = (tmp_path / "a.jpg").read_bytes()
+    exif = b"\xff\xe1" + (8).to_bytes(2, "big") + b"Exif\x00\x00"  # an Exif segment: the decoder may rotate
+    (tmp_path / "exif.jpg").write_bytes(jpg[:2] + exif + jpg[2:])
+    (tmp_path / "cut.jpg").write_bytes(jpg[:40])  # truncated before its frame header
+    (tmp_path / "x.bmp").write_bytes(b"BM" + bytes(60))
+    for name in ("exif.jpg", "cut.jpg", "x.bmp", "missing.png"):
+        assert image_size(tmp_path / name) is None, name
+
+
+def _count_decodes(ds: Any) -> list[int]:
+    """Make ``ds`` note the index of every image it decodes in the returned list."""
+    decoded: list[int] = []
+    image = ds.image
+
+    def counted(i: int) -> Any:
+        decoded.append(i)
+        return image(i)
+
+    ds.image = counted
+    return decoded
+
+
+def test_a_mosaic_crop_draws_its_window_from_the_frames_it_shows(tmp_path: Path) -> None:
+    """A mosaic's window, drawn tile by tile from the four frames, is the window of the whole mosaic canvas up to
+    interpolation (one bilinear warp instead of a resize and a warp) and the pixel row at a tile's edge; the
+    labels are the canvas's; and a frame the window does not show is never decoded."""
+    import cv2
+
+    from zebra_sim_ros.detection.data import Augment, YoloDataset
+
+    rng = np.random.default_rng(3)
+    (tmp_path / "images").mkdir()
+    (tmp_path / "labels").mkdir()
+    for k, (w, h, ext) in enumerate(((1280, 720, "jpg"), (640, 360, "png"), (1280, 720, "png"), (480, 640, "jpg"))):
+        small = rng.uniform(0, 255, (h // 16, w // 16, 3)).astype(np.uint8)
+        cv2.imwrite(str(tmp_path / "images" / f"f{k}.{ext}"), cv2.resize(small, (w, h), interpolation=cv2.INTER_CUBIC),
+                    [cv2.IMWRITE_JPEG_QUALITY, 98] if ext == "jpg" else [])
+        (tmp_path / "labels" / f"f{k}.txt").write_text("".join(f"0 {0.1 + 0.2 * j} 0.5 0.04 0.05\n" for j in range(5)))
+    for imgsz in (1088, 512):  # frames enlarged, and shrunk (by area, then warped)
+        ds = YoloDataset(tmp_path / "images", imgsz, Augment(), seed=0, crop=256)
+        decoded = _count_decodes(ds)
+        diffs = []
+        for seed in range(16):
+            sample, lab = ds._mosaic(seed % 4, np.random.default_rng(seed))
+            full = sample.full()
+            assert len(decoded) == 4  # the whole canvas decodes all four frames
+            canvas_lab = lab
+            for x0, y0 in rng.integers(0, imgsz - 64, (3, 2)):
+                x0, y0 = int(x0), int(y0)
+                for t in sample.tiles:
+                    t.img = None  # drawn afresh: count what this window decodes
+                decoded.clear()
+                win = sample.window(x0, y0, 256).astype(int)
+                ref = np.full((256, 256, 3), 114)
+                part = full[y0:y0 + 256, x0:x0 + 256]
+                ref[:part.shape[0], :part.shape[1]] = part
+                d = np.abs(win - ref)
+                diffs.append(d.mean())
+                assert (d > 24).mean() < 0.02, (imgsz, seed, x0, y0)  # only along a tile's edge
+                assert len(decoded) <= 4 and set(decoded) <= {t.index for t in sample.tiles}
+            for t in sample.tiles:
+                t.img = None
+            decoded.clear()
+            beyond = sample.window(imgsz, imgsz, 256)  # wholly past the sample: grey, and nothing decoded
+            assert (beyond == 114).all() and decoded == []
+            assert lab is canvas_lab
+        assert np.median(diffs) < 1.5, (imgsz, np.median(diffs))
+    # the window of a 512 px mosaic, 256 px across, shows one to four of the frames: some decode fewer than four
+    ds = YoloDataset(tmp_path / "images", 2176, Augment(), seed=0, crop=256)
+    decoded = _count_decodes(ds)
+    counts = []
+    for seed in range(20):
+        sample, _ = ds._mosaic(0, np.random.default_rng(seed))
+        decoded.clear()
+        sample.window(900, 900, 256)
+        counts.append(len(decoded))
+    assert min(counts) >= 1 and np.mean(counts) < 3

@@ -20,6 +20,7 @@ to a multiple of 32), with the scale and padding kept to map boxes back to the o
 from __future__ import annotations
 
 import json
+import struct
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -218,6 +219,50 @@ def read_labels(path: Path, width: int, height: int) -> NDArray[np.float32]:
     return out
 
 
+def image_size(path: Path) -> tuple[int, int] | None:
+    """(width, height) of a PNG or JPEG from its header, without decoding the pixels; None for any other file,
+    a header not understood, or a JPEG with Exif (whose orientation the decoder may apply, swapping the sides).
+    Mosaic crops use it to place four frames and decode only those the crop's window shows."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(24)
+            if head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR":
+                w, h = struct.unpack(">II", head[16:24])
+                return int(w), int(h)
+            if head[:2] != b"\xff\xd8":
+                return None
+            f.seek(2)
+            while True:
+                b = f.read(1)
+                if b != b"\xff":
+                    return None  # a segment must start at a marker
+                while b == b"\xff":  # fill bytes
+                    b = f.read(1)
+                if not b:
+                    return None
+                marker = b[0]
+                if marker == 0x01 or 0xD0 <= marker <= 0xD7:
+                    continue  # markers without a length
+                if marker in (0xD9, 0xDA):
+                    return None  # the image's end or its scan before any frame header
+                seg = f.read(2)
+                if len(seg) < 2:
+                    return None
+                length, start = struct.unpack(">H", seg)[0], f.tell()
+                if marker == 0xE1 and f.read(4) == b"Exif":
+                    return None
+                if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):  # a start-of-frame header
+                    f.seek(start)
+                    data = f.read(5)
+                    if len(data) < 5:
+                        return None
+                    h, w = struct.unpack(">xHH", data)
+                    return (int(w), int(h)) if w and h else None
+                f.seek(start + length - 2)
+    except OSError:
+        return None
+
+
 def letterbox_size(h: int, w: int, size: int) -> tuple[int, int]:
     """(height, width) of an h x w image resized so its long side is ``size`` (what :func:`letterbox` does)."""
     r = size / max(h, w)
@@ -313,10 +358,18 @@ class YoloDataset(Dataset[Any]):
 
     def load(self, i: int, dont_care: bool = False) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
         """Image (RGB) and labels in its own pixels; ``dont_care``: the don't-care boxes too, as class -1."""
+        img = self.image(i)
+        return img, self.labels(i, img.shape[1], img.shape[0], dont_care)
+
+    def image(self, i: int) -> NDArray[np.uint8]:
+        """Image ``i``, decoded, RGB."""
         img = cv2.imread(str(self.files[i]), cv2.IMREAD_COLOR)
         if img is None:
             raise ParameterError("image", str(self.files[i]), "a readable image file")
-        h, w = img.shape[:2]
+        return np.asarray(cv2.cvtColor(img, cv2.COLOR_BGR2RGB), dtype=np.uint8)  # BGR -> RGB, a new array
+
+    def labels(self, i: int, w: int, h: int, dont_care: bool = False) -> NDArray[np.float32]:
+        """Labels of image ``i`` (``w`` x ``h`` px) in its pixels, as :meth:`load` gives them."""
         lab = read_labels(label_path(self.files[i]), w, h)
         if self.other_class is not None:
             others = self._other_boxes(i)
@@ -326,7 +379,7 @@ class YoloDataset(Dataset[Any]):
             ign = read_labels(label_path(self.files[i], "ignore"), w, h)
             ign[:, 0] = DONT_CARE
             lab = np.concatenate([lab, ign])
-        return np.asarray(cv2.cvtColor(img, cv2.COLOR_BGR2RGB), dtype=np.uint8), lab  # BGR -> RGB, a new array
+        return lab
 
     def frame_size(self, samples: int = 32) -> int:
         """The median long side, px, of up to ``samples`` images spread over the set: the training frame size a
@@ -446,15 +499,25 @@ class YoloDataset(Dataset[Any]):
         return self._others[i]
 
     def _mosaic(self, i: int, rng: np.random.Generator) -> tuple[_Sample, NDArray[np.float32]]:
+        """Four images (``i`` and three drawn) around a random centre of a 2 x imgsz canvas, each resized so its
+        long side is imgsz, then :func:`_affine`. Images are placed by their header's size (:func:`image_size`)
+        and decoded only when drawn: a crop's window (:meth:`_Sample.window`) decodes just those it shows."""
         s = self.imgsz
         cx, cy = (int(rng.uniform(s * 0.5, s * 1.5)) for _ in range(2))
-        canvas = np.full((2 * s, 2 * s, 3), 114, np.uint8)
+        tiles: list[_Tile] = []
         labels = []
         idx = [i] + list(rng.integers(0, len(self), 3))
         for k, j in enumerate(idx):
-            img, lab = self.load(int(j), self.dont_care)
-            img, r = resize_long_side(img, s)
-            h, w = img.shape[:2]
+            j = int(j)
+            img: NDArray[np.uint8] | None = None
+            size = image_size(self.files[j])
+            if size is None:
+                img, lab = self.load(j, self.dont_care)
+                size = (img.shape[1], img.shape[0])
+            else:
+                lab = self.labels(j, *size, self.dont_care)
+            h, w = letterbox_size(size[1], size[0], s)
+            r = s / max(size)
             if k == 0:
                 x0, y0, x1, y1 = max(cx - w, 0), max(cy - h, 0), cx, cy
                 sx0, sy0 = w - (x1 - x0), h - (y1 - y0)
@@ -467,14 +530,15 @@ class YoloDataset(Dataset[Any]):
             else:
                 x0, y0, x1, y1 = cx, cy, min(cx + w, 2 * s), min(2 * s, cy + h)
                 sx0, sy0 = 0, 0
-            canvas[y0:y1, x0:x1] = img[sy0:sy0 + (y1 - y0), sx0:sx0 + (x1 - x0)]
+            tiles.append(_Tile(j, img, size, (w, h), (x0, y0, x1, y1), (sx0, sy0)))
             lab = lab.copy()
             lab[:, [1, 3]] = lab[:, [1, 3]] * r + (x0 - sx0)
             lab[:, [2, 4]] = lab[:, [2, 4]] * r + (y0 - sy0)
             labels.append(lab)
         lab = np.concatenate(labels) if labels else np.zeros((0, 5), np.float32)
         lab[:, 1:] = np.clip(lab[:, 1:], 0, 2 * s)
-        return _affine(canvas, lab, rng, self.augment or Augment(), s)
+        affine, lab = _affine_params(2 * s, 2 * s, lab, rng, self.augment or Augment(), s)
+        return _MosaicSample(self, tiles, affine, s), lab
 
 
 def _random_zebra(lab: NDArray[np.float32], rng: np.random.Generator) -> NDArray[np.float32] | None:
@@ -548,10 +612,91 @@ class _Sample:
         return out
 
 
+@dataclass
+class _Tile:
+    """One image of a mosaic: dataset index, pixels (None until drawn), its (width, height) and resized (width,
+    height), the canvas rectangle (x0, y0, x1, y1) it fills and the resized image's pixel at that corner."""
+
+    index: int
+    img: NDArray[np.uint8] | None
+    size: tuple[int, int]
+    resized: tuple[int, int]
+    rect: tuple[int, int, int, int]
+    origin: tuple[int, int]
+
+
+class _MosaicSample(_Sample):
+    """A mosaic not drawn yet: four :class:`_Tile` on a 2 x ``size`` canvas through the affine ``m``.
+
+    :meth:`full` draws the canvas and warps it, as a whole sample always was. :meth:`window` draws only the
+    window, tile by tile: each tile's image is warped straight into the window (its resize and the sample's
+    affine as one bilinear warp; a tile shrunk below its own size is resized first, by area, as in
+    :meth:`full`), and a tile outside the window is never decoded. The two agree but for rounding and the last
+    pixel row at a tile's edge (a mosaic crop of 1280x720 frames at 2176 px: a fifth of the time)."""
+
+    def __init__(self, data: YoloDataset, tiles: list[_Tile], m: NDArray[np.float64] | None, size: int) -> None:
+        super().__init__(np.zeros((0, 0, 3), np.uint8), m, size)
+        self.data, self.tiles = data, tiles
+
+    def _pixels(self, t: _Tile) -> NDArray[np.uint8]:
+        if t.img is None:
+            t.img = self.data.image(t.index)
+            if (t.img.shape[1], t.img.shape[0]) != t.size:
+                raise AssetError(f"image {self.data.files[t.index]} is {t.img.shape[1]}x{t.img.shape[0]} px but its "
+                                 f"header says {t.size[0]}x{t.size[1]}")
+        return t.img
+
+    def full(self) -> NDArray[np.uint8]:
+        s = self.size
+        canvas = np.full((2 * s, 2 * s, 3), 114, np.uint8)
+        for t in self.tiles:
+            img, _ = resize_long_side(self._pixels(t), s)
+            x0, y0, x1, y1 = t.rect
+            sx0, sy0 = t.origin
+            canvas[y0:y1, x0:x1] = img[sy0:sy0 + (y1 - y0), sx0:sx0 + (x1 - x0)]
+        self.src = canvas
+        return super().full()
+
+    def window(self, x0: int, y0: int, side: int) -> NDArray[np.uint8]:
+        m = np.eye(3)[:2] if self.m is None else self.m
+        a, tx, ty = float(m[0, 0]), float(m[0, 2]) - x0, float(m[1, 2]) - y0  # canvas -> window (no rotation)
+        out = np.full((side, side, 3), 114, np.uint8)
+        umax, vmax = min(max(self.size - x0, 0), side), min(max(self.size - y0, 0), side)  # beyond: padding
+        for t in self.tiles:
+            cx0, cy0, cx1, cy1 = t.rect
+            # window pixels whose centre falls on the tile's canvas pixels [cx0, cx1) x [cy0, cy1)
+            u0, u1 = (int(np.clip(np.ceil(a * (c - 0.5) + tx), 0, umax)) for c in (cx0, cx1))
+            v0, v1 = (int(np.clip(np.ceil(a * (c - 0.5) + ty), 0, vmax)) for c in (cy0, cy1))
+            if u1 <= u0 or v1 <= v0:
+                continue
+            img = self._pixels(t)
+            (w0, h0), (w, h) = t.size, t.resized
+            if w < w0:  # shrunk: by area, as full() does, then warped at the canvas's scale
+                img, _ = resize_long_side(img, self.size)
+                rx = ry = 1.0
+                bx = by = 0.0
+            else:  # enlarged (or kept): cv2.resize's pixel mapping, x_resized = (x + 0.5) * w / w0 - 0.5
+                rx, ry = w / w0, h / h0
+                bx, by = 0.5 * rx - 0.5, 0.5 * ry - 0.5
+            ox, oy = cx0 - t.origin[0], cy0 - t.origin[1]  # canvas position of the resized image's pixel 0
+            mt = np.array([[a * rx, 0.0, a * (bx + ox) + tx - u0], [0.0, a * ry, a * (by + oy) + ty - v0]])
+            out[v0:v1, u0:u1] = cv2.warpAffine(img, mt, (u1 - u0, v1 - v0), flags=cv2.INTER_LINEAR,
+                                               borderMode=cv2.BORDER_REPLICATE)
+        return out
+
+
 def _affine(img: NDArray[np.uint8], lab: NDArray[np.float32], rng: np.random.Generator, a: Augment,
             size: int) -> tuple[_Sample, NDArray[np.float32]]:
     """Random scale and translation into a ``size`` square; boxes follow, tiny or mostly cut ones are dropped."""
     h, w = img.shape[:2]
+    m, lab = _affine_params(w, h, lab, rng, a, size)
+    return _Sample(img, m, size), lab
+
+
+def _affine_params(w: int, h: int, lab: NDArray[np.float32], rng: np.random.Generator, a: Augment,
+                   size: int) -> tuple[NDArray[np.float64] | None, NDArray[np.float32]]:
+    """:func:`_affine`'s draw for a ``w`` x ``h`` image: the affine (None where it is the identity) and the
+    boxes through it."""
     c = np.eye(3)
     c[0, 2], c[1, 2] = -w / 2, -h / 2
     s = rng.uniform(1 - a.scale, 1 + a.scale)
@@ -561,7 +706,7 @@ def _affine(img: NDArray[np.uint8], lab: NDArray[np.float32], rng: np.random.Gen
     t[1, 2] = rng.uniform(0.5 - a.translate, 0.5 + a.translate) * size
     m = (t @ sc @ c)[:2]
     identity = (h, w) == (size, size) and np.allclose(m, np.eye(3)[:2])  # letterbox only: nothing to warp
-    return _Sample(img, None if identity else m, size), _warp_labels(lab, m, s, size)
+    return None if identity else m, _warp_labels(lab, m, s, size)
 
 
 def _warp_labels(lab: NDArray[np.float32], m: NDArray[np.float64], s: float, size: int) -> NDArray[np.float32]:
