@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -9,11 +10,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from zebra_sim_ros.detection.data import generate_settings
+
 ROOT = Path(__file__).resolve().parents[1]
 PACK = ROOT / "scripts" / "gpu" / "pack.py"
 
 
-def _set(root: Path, split: str, n: int, prefix: str) -> Path:
+def _set(root: Path, split: str, n: int, prefix: str, seed: int = 6001) -> Path:
     """A generated-set layout: ``n`` noisy 160x90 frames in images/<split>, labels for all, don't-care for odd."""
     rng = np.random.default_rng(n)
     for k in range(n):
@@ -25,7 +28,7 @@ def _set(root: Path, split: str, n: int, prefix: str) -> Path:
         (root / "labels" / split / f"{name}.txt").write_text(f"0 0.5 0.5 0.{k % 9 + 1} 0.1\n")
         if k % 2:
             (root / "ignore" / split / f"{name}.txt").write_text("0 0.2 0.2 0.01 0.01\n")
-    (root / "generate.json").write_text('{"config": {"seed": 6001}}')
+    (root / "generate.json").write_text(json.dumps({"config": {"seed": seed}}))
     return root / "images" / split
 
 
@@ -35,8 +38,8 @@ def _pack(*args: str | Path) -> subprocess.CompletedProcess[str]:
 
 def test_pack_selects_reencodes_and_keeps_labels(tmp_path: Path) -> None:
     a = _set(tmp_path / "a", "train", 12, "a")
-    b = _set(tmp_path / "b", "train", 8, "b")
-    val = _set(tmp_path / "b", "val", 5, "v")
+    b = _set(tmp_path / "b", "train", 8, "b", seed=6000)
+    val = _set(tmp_path / "b", "val", 5, "v", seed=6000)
     out = tmp_path / "gpu_data"
     r = _pack("--train", a, b, "--drop-every", f"{b}=4", "--val", val, "--val-frames", "3", "--quality", "60",
               "--out", out)
@@ -56,7 +59,14 @@ def test_pack_selects_reencodes_and_keeps_labels(tmp_path: Path) -> None:
     diff = np.abs(cv2.imread(str(packed)).astype(int) - cv2.imread(str(original)).astype(int)).mean()
     assert 1.0 < diff < 60.0  # the same picture, re-encoded
     assert sorted(p.stem for p in (out / "val" / "images" / "val").glob("*.jpg")) == ["v_000", "v_001", "v_002"]
-    assert (out / "train" / "generate.json").exists()  # checkpoints record the generator's settings
+    # checkpoints record both sets' generator settings, as for a dataset.yaml listing both
+    (out / "mix.yaml").write_text("path: .\ntrain: [train/images/train]\nval: val/images/val\n")
+    assert generate_settings(out / "mix.yaml") == {"sets": {str(tmp_path / "a"): {"seed": 6001},
+                                                            str(tmp_path / "b"): {"seed": 6000}}}
+    one = tmp_path / "one"
+    assert _pack("--train", a, "--val", val, "--val-frames", "1", "--out", one).returncode == 0
+    assert json.loads((one / "train" / "generate.json").read_text()) == {"config": {"seed": 6001}}  # one: a copy
+    assert generate_settings(one / "train" / "images" / "train") == {"sets": {str(one / "train"): {"seed": 6001}}}
 
     r = _pack("--train", a, b, "--drop-every", f"{b}=4", "--val", val, "--thin", "3", "--out", out)
     assert r.returncode == 0, r.stderr

@@ -1,8 +1,8 @@
 """Pack generated frames into ``gpu_data/`` (git-ignored), small enough to travel to a lent GPU machine with the
 repository (its working tree may hold 64 MiB in all): each training frame re-encoded as JPEG at ``--quality``,
-with its labels and don't-care boxes, a few validation frames for the run's last-epoch check, and a copy of the
-first set's ``generate.json`` so that checkpoints record the generator's settings. ``scripts/gpu/train.sh`` then
-trains on it there.
+with its labels and don't-care boxes, a few validation frames for the run's last-epoch check, and the generated
+sets' settings (``generate.json``: one set's copied, several sets' gathered) so that checkpoints record them.
+``scripts/gpu/train.sh`` then trains on it there.
 
 Stage 12 (README, "Shipped weights")::
 
@@ -15,6 +15,7 @@ Stage 12 (README, "Shipped weights")::
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 from pathlib import Path
 
@@ -82,13 +83,30 @@ def main() -> None:
         shutil.rmtree(a.out / sub, ignore_errors=True)
     total = sum(_copy_frame(f, a.out / "train", "train", a.quality) for f in frames)
     total += sum(_copy_frame(f, a.out / "val", "val", a.val_quality) for f in val)
-    gen = a.train[0].parent.parent / "generate.json"
-    if gen.exists():
-        shutil.copy(gen, a.out / "train" / "generate.json")
+    _record_generators(a.train, a.out / "train" / "generate.json")
     mib = total / 2**20
     print(f"pack: {len(frames)} training and {len(val)} validation frames, {mib:.1f} MiB in {a.out}")
     if mib > a.max_mib:
         raise SystemExit(f"pack: {mib:.1f} MiB is over --max-mib {a.max_mib}: the tree would not travel")
+
+
+def _record_generators(folders: list[Path], out: Path) -> None:
+    """What the packed frames were generated with, for the checkpoints trained on them: one set's
+    ``generate.json`` as it is; several sets' settings as ``{"config": {"sets": {root: settings}}}``, the shape a
+    checkpoint records for a dataset.yaml listing several sets. Folders without a ``generate.json`` add nothing."""
+    found: dict[str, dict[str, object]] = {}
+    for folder in folders:
+        root = folder.parent.parent
+        try:
+            cfg = json.loads((root / "generate.json").read_text()).get("config")
+        except (OSError, ValueError, AttributeError):
+            continue
+        if cfg:
+            found.setdefault(str(root), cfg)
+    if len(found) == 1:
+        shutil.copy(Path(next(iter(found))) / "generate.json", out)
+    elif found:
+        out.write_text(json.dumps({"config": {"sets": found}, "packed_by": "scripts/gpu/pack.py"}, indent=1))
 
 
 if __name__ == "__main__":

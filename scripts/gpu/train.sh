@@ -17,6 +17,12 @@ T0=$(date +%s)
 BUDGET=${BUDGET:-470}; K=${K:-24}; E0=${E0:-12}; IMGSZ=${IMGSZ:-2176}; CROP=${CROP:-320}; BATCH=${BATCH:-32}
 WORKERS=${WORKERS:-15}; DEVICE=${DEVICE:-cuda}; OUTD=${OUT:-/tmp/gpu_out}; LR=${LR:-0.004}; SEED=${SEED:-16}
 INIT=${INIT:-zebra_sim_ros/detection/weights/zebra_yolo_n.pt}
+for v in BUDGET K E0 IMGSZ CROP BATCH WORKERS SEED; do  # whole numbers, at least 1
+  [[ ${!v} =~ ^[1-9][0-9]*$ ]] || { echo "train.sh: $v=${!v}: want a whole number >= 1" >&2; exit 2; }
+done
+((BUDGET <= 590)) || { echo "train.sh: BUDGET=$BUDGET: want at most 590 s (one call runs 600 s at most)" >&2; exit 2; }
+[ -f "$INIT" ] || { echo "train.sh: INIT=$INIT: no such checkpoint" >&2; exit 2; }
+[ -d gpu_data/train/images/train ] || { echo "train.sh: no gpu_data/train/images/train: run scripts/gpu/pack.py" >&2; exit 2; }
 RUN=gpu_data/run_out; rm -rf $RUN; mkdir -p $RUN/snap "$OUTD/snap"
 LOG=$OUTD/train.log
 elapsed() { echo $(( $(date +%s) - T0 )); }
@@ -41,7 +47,7 @@ strip() {  # last.pt -> an fp16 checkpoint without optimizer state (export keeps
 rows() { [ -f $RUN/results.csv ] && echo $(( $(wc -l < $RUN/results.csv) - 1 )) || echo 0; }
 snapper() {  # an fp16 copy of last.pt after every epoch
   local done=0
-  while sleep 2; do
+  while sleep 1; do
     n=$(rows)
     if [ "$n" -gt "$done" ] && [ -f $RUN/last.pt ] && [ $RUN/last.pt -nt $RUN/results.csv ]; then
       sleep 1; strip $RUN/last.pt $RUN/snap/ep_$n.pt && cp $RUN/snap/ep_$n.pt "$OUTD/last_snap.pt" && echo "[run] snapshot epoch $n at $(elapsed) s" >>"$LOG"
@@ -51,21 +57,22 @@ snapper() {  # an fp16 copy of last.pt after every epoch
 }
 snapper & SNAP=$!
 AMP=auto
-train "$E0" $((BUDGET - $(elapsed))) "--init $INIT" & TR=$!
-sleep 5
-while kill -0 $TR 2>/dev/null && [ "$(rows)" -lt 1 ]; do sleep 1; done
-if [ "$(rows)" -lt 1 ]; then  # the first start failed: once more in float32
-  echo "[run] the first start failed at $(elapsed) s; again with --amp off" >>"$LOG"
-  AMP=off; rm -rf $RUN/last.pt $RUN/results.csv
-  train "$E0" $((BUDGET - $(elapsed))) "--init $INIT" & TR=$!
-fi
 wait_rows() {  # until the trainer has written epoch $1's results and last.pt, or has stopped
   while kill -0 $TR 2>/dev/null; do
     [ "$(rows)" -ge "$1" ] && [ -f $RUN/last.pt ] && [ $RUN/last.pt -nt $RUN/results.csv ] && return 0
     sleep 1
   done
-  return 1
+  [ "$(rows)" -ge "$1" ]
 }
+stop_train() {  # TERM to this run's trainer only (the timeout under the background job passes it on), then wait
+  pkill -TERM -P "$TR" timeout || kill -TERM "$TR"; wait "$TR"
+}
+train "$E0" $((BUDGET - $(elapsed))) "--init $INIT" & TR=$!
+if ! wait_rows 1; then  # the first start failed: once more in float32
+  echo "[run] the first start failed at $(elapsed) s; again with --amp off" >>"$LOG"
+  AMP=off; rm -rf $RUN/last.pt $RUN/results.csv
+  train "$E0" $((BUDGET - $(elapsed))) "--init $INIT" & TR=$!
+fi
 if wait_rows 1; then
   T1=$(date +%s)
   if wait_rows 2; then
@@ -73,7 +80,7 @@ if wait_rows 1; then
     E=$(python3 -c "print(max(3, min(80, 2 + int(0.92 * ($BUDGET - $(elapsed) - 30) / max($D, 1)))))")
     echo "[run] epoch 2 took ${D} s; $(elapsed) s gone; $E epochs fit" >>"$LOG"
     if [ "$E" != "$E0" ]; then
-      pkill -TERM -f "zebra_sim_ros.cli train"; wait $TR
+      stop_train
       train "$E" $((BUDGET - $(elapsed))) --resume
     else
       wait $TR

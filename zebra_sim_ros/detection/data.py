@@ -104,7 +104,13 @@ def generate_settings(data: str | Path) -> dict[str, Any] | None:
         roots = [f.parent.parent for f in resolve_splits(p, "train")]
     except ParameterError:
         return None
-    sets = {str(r): g for r in roots if (g := _generate_json(r)) is not None}
+    sets: dict[str, Any] = {}
+    for r in roots:
+        g = _generate_json(r)
+        if g is not None and isinstance(g.get("sets"), dict):  # a folder gathered from several sets (gpu/pack.py)
+            sets.update(g["sets"])
+        elif g is not None:
+            sets[str(r)] = g
     return {"sets": sets} if sets else None
 
 
