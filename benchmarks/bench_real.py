@@ -15,6 +15,8 @@ serve a frame; a number: the long side every photo is letterboxed to) it prints 
 - on the photos that show only other species: detections per image at conf 0.25, and the share of those
   detections that sit on another animal (IoU >= 0.5 with one of its boxes: zebras seen in a buffalo), and the
   share whose centre lies inside an animal's box (a box on part of an animal, or on a herd, counts here too);
+  and the same by the species a photo shows (its ``other_species/`` classes; african_wildlife_dev: 0 buffalo,
+  1 elephant, 2 rhino): photos, detections per photo, and those centred on an animal of that species;
 - for weights with an ``other_animal`` class (``train --other-animals``): the share of those photos' animals it
   finds as other_animal (conf 0.25, IoU >= 0.5).
 
@@ -64,14 +66,27 @@ def sha256_12(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()[:12]
 
 
-def other_boxes(p: ImagePredictions) -> np.ndarray:
-    """The other species' boxes of an image (xyxy, its own pixels), from ``other_species/``."""
+def other_labels(p: ImagePredictions) -> np.ndarray:
+    """The other species' boxes of an image (n, 5) [class, x0, y0, x1, y1] (its own pixels), from
+    ``other_species/``."""
     f = Path(p.file)
     img = cv2.imread(str(f), cv2.IMREAD_UNCHANGED)
     if img is None:
         raise SystemExit(f"not a readable image: {f}")
     h, w = img.shape[:2]
-    return read_labels(label_path(f, "other_species"), w, h)[:, 1:].astype(np.float64)
+    return read_labels(label_path(f, "other_species"), w, h).astype(np.float64)
+
+
+def other_boxes(p: ImagePredictions) -> np.ndarray:
+    """The other species' boxes of an image (xyxy, its own pixels), from ``other_species/``."""
+    return other_labels(p)[:, 1:]
+
+
+def _centred(d: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """(detections, boxes) bool: each detection's centre inside each box."""
+    cx, cy = (d[:, 0] + d[:, 2]) / 2, (d[:, 1] + d[:, 3]) / 2
+    return np.asarray((cx[:, None] >= boxes[None, :, 0]) & (cx[:, None] <= boxes[None, :, 2])
+                      & (cy[:, None] >= boxes[None, :, 1]) & (cy[:, None] <= boxes[None, :, 3]))
 
 
 def score_set(weights: str, folder: Path, imgsz: int) -> dict[str, Any]:
@@ -102,15 +117,20 @@ def score_set(weights: str, folder: Path, imgsz: int) -> dict[str, Any]:
             n_animals += len(ob)
             if len(d) and len(ob):
                 found_other += int((iou_matrix(ob, d[:, :4]).max(1) >= 0.5).sum())
+    species: dict[int, list[int]] = {}  # other_species class: [photos showing it, detections on them, centred on it]
     for p in others:
         d = p.detections[p.detections[:, 4] >= CONF]
         n_other += len(d)
-        ob = other_boxes(p) if (folder / "other_species").is_dir() else np.zeros((0, 4))
+        lab = other_labels(p) if (folder / "other_species").is_dir() else np.zeros((0, 5))
+        ob = lab[:, 1:]
         if len(d) and len(ob):
             on_other += int((iou_matrix(d[:, :4], ob).max(1) >= 0.5).sum())
-            cx, cy = (d[:, 0] + d[:, 2]) / 2, (d[:, 1] + d[:, 3]) / 2
-            centre_on += int(((cx[:, None] >= ob[None, :, 0]) & (cx[:, None] <= ob[None, :, 2])
-                              & (cy[:, None] >= ob[None, :, 1]) & (cy[:, None] <= ob[None, :, 3])).any(1).sum())
+            centre_on += int(_centred(d, ob).any(1).sum())
+        for k in sorted(set(lab[:, 0].astype(int).tolist())):
+            row = species.setdefault(k, [0, 0, 0])
+            row[0] += 1
+            row[1] += len(d)
+            row[2] += int(_centred(d, lab[lab[:, 0] == k, 1:]).any(1).sum()) if len(d) else 0
     return {"weights": weights, "set": folder.name, "imgsz": imgsz or "rule",
             "served": sorted({p.imgsz for p in per}), "zebra_images": len(zebra), "zebras": m.instances,
             "mAP50": round(m.map50, 4), "mAP50-95": round(m.map50_95, 4), "P@0.25": round(prec, 4),
@@ -121,14 +141,17 @@ def score_set(weights: str, folder: Path, imgsz: int) -> dict[str, Any]:
             "other_on_animal_share": round(on_other / max(n_other, 1), 4),
             "other_centre_on_animal_share": round(centre_on / max(n_other, 1), 4),
             "other_animal_recall": round(found_other / n_animals, 4) if n_animals else None,
+            "other_by_class": {k: {"photos": n, "det_per_image": round(dn / n, 3), "centred_per_image": round(c / n, 3)}
+                               for k, (n, dn, c) in sorted(species.items())},
             "ms_per_image": round(1000 * seconds / max(len(per), 1), 1)}
 
 
 def table(rows: list[dict[str, Any]]) -> list[str]:
     out = ["| weights | set | imgsz | zebra images / boxes | mAP50 | mAP50-95 | P / R at 0.25 | AP50 small / medium / "
            "large (boxes) | other-species photos: det/img (on an animal: IoU >= 0.5 / centre inside) | found as "
-           "other_animal | ms/img |",
-           "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+           "other_animal | other-species photos by the species they show (other_species class: photos, det/img, "
+           "of them centred on that species) | ms/img |",
+           "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in rows:
         n = r["n_small/medium/large"]
         sv = r["served"]
@@ -139,8 +162,13 @@ def table(rows: list[dict[str, Any]]) -> list[str]:
                    f"{r['AP50_large']:.3f} ({n[0]}/{n[1]}/{n[2]}) | {r['other_det_per_image']:.3f} "
                    f"({100 * r['other_on_animal_share']:.0f}% / {100 * r['other_centre_on_animal_share']:.0f}%) | "
                    f"{'-' if r['other_animal_recall'] is None else format(r['other_animal_recall'], '.3f')} | "
-                   f"{r['ms_per_image']} |")
+                   f"{_by_class(r['other_by_class'])} | {r['ms_per_image']} |")
     return out
+
+
+def _by_class(by: dict[int, dict[str, float]]) -> str:
+    return "; ".join(f"{k}: {v['photos']}, {v['det_per_image']:.2f} ({v['centred_per_image']:.2f})"
+                     for k, v in by.items()) or "-"
 
 
 def main() -> None:
