@@ -44,7 +44,7 @@ def test_predict_a_folder_writes_one_drawn_image_label_and_json_each(tmp_path: P
     for k in range(20):
         cv2.imwrite(str(src / ("sub" if k % 5 == 0 else ".") / f"f{k:02d}.png"), _zebra_like(k)[..., ::-1])
     out = tmp_path / "out"
-    # conf 0.001: a striped blob is no zebra to weights trained on rendered ones (stage 12 scores none of them
+    # conf 0.001: a striped blob is no zebra to weights trained on rendered ones (stages 12 and 13 score none of them
     # over 0.01); this test needs detections to check the files, not good ones
     s = _predict(str(src), "--out", str(out), "--conf", "0.001", "--quiet")
     assert s["images"] == 20
