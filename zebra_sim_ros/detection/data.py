@@ -645,6 +645,8 @@ class _MosaicSample(_Sample):
         self.data, self.tiles = data, tiles
 
     def _pixels(self, t: _Tile) -> NDArray[np.uint8]:
+        if t.img is None:  # decoded once per mosaic, even where it draws the same frame twice
+            t.img = next((o.img for o in self.tiles if o.index == t.index and o.img is not None), None)
         if t.img is None:
             t.img = self.data.image(t.index)
             if (t.img.shape[1], t.img.shape[0]) != t.size:
