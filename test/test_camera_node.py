@@ -44,6 +44,12 @@ def test_placer_and_three_cameras_in_lockstep(tmp_path: Path) -> None:
             cams = [stack.enter_context(node_process(
                 "camera", {"drone_index": i, "width": 256, "height": 144, "shadow_size": 512},
                 domain, tmp_path / f"camera_{i}.log", name=f"drone_{i}_camera")) for i in range(3)]
+            # The images are volatile and the placer's lockstep waits for the cameras only: start it once this
+            # test has discovered every camera's publishers, else a camera's first frame may go out before this
+            # test's subscription is matched (seen in CI once cameras rendered their first frame in 0.6 s).
+            topics = [f"/drone_{i}/{t}" for i in range(3) for t in ("image_raw", "depth", "instances", "camera_info")]
+            assert spin_until(node, ex, lambda: all(node.count_publishers(t) for t in topics), 60), "cameras not up"
+            spin_until(node, ex, lambda: False, 0.5)
             placer = stack.enter_context(node_process(
                 "placer", {"mode": "lockstep", "max_steps": STEPS, "count_max": 40, "seed": 2, "rate_hz": 2.0,
                            "camera_width": 256, "camera_height": 144}, domain, tmp_path / "placer.log"))
