@@ -44,6 +44,11 @@ def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
                 stack.enter_context(node_process("camera", params, domain, tmp_path / f"{d}.log", name=f"{d}_camera"))
             stack.enter_context(node_process("labeller", {"ack_name": "labeller", "image_reliability": "reliable"},
                                              domain, tmp_path / "labeller.log"))
+            # volatile topics: start the placer once this test has discovered the cameras' and labeller's
+            # publishers, so that no first frame goes out before this test's subscriptions are matched
+            topics = [f"/{d}/{t}" for d in DRONES for t in ("image_raw", "labels", "labels/markers", "labels/boxes3d")]
+            assert spin_until(node, ex, lambda: all(node.count_publishers(t) for t in topics), 60), "nodes not up"
+            spin_until(node, ex, lambda: False, 0.5)
             placer = stack.enter_context(node_process(
                 "placer", {"mode": "lockstep", "max_steps": STEPS, "count_max": 60, "seed": 8,
                            "lockstep_ack_from": ["drone_0", "drone_1", "drone_2", "labeller"],
