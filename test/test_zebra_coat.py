@@ -60,7 +60,7 @@ def test_cell_search_near_the_points_equals_a_search_of_all_cells() -> None:
     full = _cells(points, seeds, 0.02, picks)
     for reach in (0.05, 0.2, 0.5):  # 0.05: most points need the second search; 0.5: none do
         near = _cells(points, seeds, 0.02, picks, reach=reach)
-        assert np.array_equal(near[0], full[0]) and np.array_equal(near[1], full[1])
+        assert np.allclose(near[0], full[0], rtol=0, atol=1e-9) and np.array_equal(near[1], full[1])  # picks: ids
     # and both against brute force: the nearest seed's pick, the gap between the two nearest distances
     d = np.linalg.norm(points[:, None] - seeds[None], axis=-1)
     order = np.argsort(d, axis=1)[:, :2]

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import cv2
 
-from zebra_sim_ros.detection.data import label_path
+from zebra_sim_ros.detection.data import generate_config, label_path
 
 
 def _copy_frame(image: Path, out: Path, split: str, quality: int) -> int:
@@ -97,10 +97,7 @@ def _record_generators(folders: list[Path], out: Path) -> None:
     found: dict[str, dict[str, object]] = {}
     for folder in folders:
         root = folder.parent.parent
-        try:
-            cfg = json.loads((root / "generate.json").read_text()).get("config")
-        except (OSError, ValueError, AttributeError):
-            continue
+        cfg = generate_config(root)
         if cfg:
             found.setdefault(str(root), cfg)
     if len(found) == 1:

@@ -97,7 +97,7 @@ def generate_settings(data: str | Path) -> dict[str, Any] | None:
     the folder), which a checkpoint keeps beside its training arguments; for a dataset.yaml that lists several
     generated sets' training folders, ``{"sets": {root: settings}}``; None for other sets."""
     p = Path(data)
-    own = _generate_json(p.parent if p.suffix in (".yaml", ".yml") else p)
+    own = generate_config(p.parent if p.suffix in (".yaml", ".yml") else p)
     if own is not None:
         return own
     try:
@@ -106,7 +106,7 @@ def generate_settings(data: str | Path) -> dict[str, Any] | None:
         return None
     sets: dict[str, Any] = {}
     for r in roots:
-        g = _generate_json(r)
+        g = generate_config(r)
         if g is not None and isinstance(g.get("sets"), dict):  # a folder gathered from several sets (gpu/pack.py)
             sets.update(g["sets"])
         elif g is not None:
@@ -114,7 +114,8 @@ def generate_settings(data: str | Path) -> dict[str, Any] | None:
     return {"sets": sets} if sets else None
 
 
-def _generate_json(folder: Path) -> dict[str, Any] | None:
+def generate_config(folder: Path) -> dict[str, Any] | None:
+    """The ``config`` a ``generate.json`` in ``folder`` records (None: no file, or none readable)."""
     try:
         return dict(json.loads((folder / "generate.json").read_text()).get("config") or {}) or None
     except (OSError, ValueError, AttributeError, TypeError):
