@@ -641,7 +641,7 @@ def _one_zebra_set(tmp_path: Path, box_px: tuple[int, int] = (24, 12)) -> Path:
     import cv2
 
     for sub in ("images", "labels"):
-        (tmp_path / sub).mkdir(exist_ok=True)
+        (tmp_path / sub).mkdir(parents=True, exist_ok=True)
     img = np.full((360, 640, 3), 90, np.uint8)
     w, h = box_px
     img[200:200 + h, 400:400 + w] = 255
@@ -667,6 +667,42 @@ def test_zoom_makes_a_large_zebra_from_a_small_one(tmp_path: Path) -> None:
     assert max(sides) <= 96.5 and min(sides) > 24 and np.median(sides) > 40
     plain = YoloDataset(folder, 320, Augment.none())[0][1]
     assert float(plain[0, 3] - plain[0, 1]) == pytest.approx(12.0, abs=0.1)
+
+
+def test_zoom_sized_to_the_crop_window_fits_small_and_large_zebras_to_it(tmp_path: Path) -> None:
+    """``--aug-zoom-crop``: with ``--crop`` a zoomed zebra spans 15-80% of the window the model sees (a small one
+    enlarged up to ``--aug-zoom-max``, a large one shrunk), the window around it; the sample-sized rule enlarges a
+    small zebra by the cap and leaves a large one larger than the window."""
+    from zebra_sim_ros.detection.data import Augment, YoloDataset
+
+    def sides(folder: Path, **aug: float) -> list[float]:
+        out = []
+        for seed in range(16):
+            img, lab, _ = YoloDataset(folder, 640, replace(Augment.none(), zoom=1.0, **aug), seed=seed, crop=128)[0]
+            assert tuple(img.shape) == (3, 128, 128) and len(lab) == 1  # the zoomed zebra is in the window
+            x0, y0, x1, y1 = lab[0, 1:].numpy()
+            inner = img[:, int(y0) + 2:int(y1) - 2, int(x0) + 2:int(x1) - 2]
+            assert inner.numel() == 0 or float(inner.mean()) > 0.9  # and the box frames it
+            out.append(float(max(x1 - x0, y1 - y0)))
+        return out
+
+    small = _one_zebra_set(tmp_path / "s", (24, 12))
+    to_window = sides(small, zoom_crop=1.0, zoom_max=16.0)
+    # 15-80% of 128 px (19-102), often cut by the window's edge; spread over the range, not one size
+    assert max(to_window) <= 0.8 * 128 + 0.5 and min(to_window) < 40 and np.ptp(to_window) > 30
+    capped = sides(small, zoom_crop=1.0, zoom_max=2.0)
+    assert max(capped) <= 48.5  # the cap still holds
+    by_sample = sides(small)  # the sample's rule: 15-80% of 640 px is beyond the 4x cap, so always 96 px (or cut)
+    assert max(by_sample) == pytest.approx(96.0, abs=0.5) and np.median(by_sample) > 75
+    large = _one_zebra_set(tmp_path / "l", (200, 100))
+    shrunk = sides(large, zoom_crop=1.0, zoom_max=16.0)
+    assert max(shrunk) <= 102.9 and np.median(shrunk) < 80  # whole large zebras in the window
+    assert np.median(sides(large)) > 120  # before: most of them cut by the window, larger than it
+    with pytest.raises(ParameterError, match="'--aug-zoom-max'"):
+        replace(Augment(), zoom_max=0.5).check()
+    with pytest.raises(ParameterError, match="'--aug-zoom-max'"):
+        replace(Augment(), zoom_max=17.0).check()
+    Augment.none().check()
 
 
 def test_crops_keep_the_zebras_scale_and_frame_it(tmp_path: Path) -> None:

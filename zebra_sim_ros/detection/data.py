@@ -58,7 +58,7 @@ class Augment:
     hsv_h: float = _aug(0.015, "hue jitter, share of the hue circle")
     hsv_s: float = _aug(0.7, "saturation gain 1 +- this")
     hsv_v: float = _aug(0.4, "brightness gain 1 +- this")
-    zoom: float = _aug(0.3, "probability that a sample is a crop around one labelled zebra, enlarged (at most 4x) "
+    zoom: float = _aug(0.3, "probability that a sample is a crop around one labelled zebra, enlarged (--aug-zoom-max) "
                             "until it spans 15-80%% of the side, often cut by the edges: large zebras from far ones")
     grayscale: float = _aug(0.05, "probability of a grey image")
     gamma: float = _aug(0.25, "gamma exp(U(-this, this)) on the whole image")
@@ -71,11 +71,16 @@ class Augment:
     background: float = _aug(0.0, "probability that a zoom crop (--aug-zoom) is centred on an animal of another "
                                   "species (from the set's annotations/, as generate writes them) or else on a random "
                                   "point, not on a zebra, enlarged alike: hard negatives at the size of large zebras")
+    zoom_max: float = _aug(4.0, "largest enlargement of a zoom crop (--aug-zoom), 1-16: more makes larger, "
+                                "blurrier animals from far ones")
+    zoom_crop: float = _aug(0.0, "with --crop: probability that a zoom crop sizes its animal to 15-80%% of the "
+                                 "--crop window the model sees (and centres the window on it) rather than of the "
+                                 "--imgsz sample, where the enlargement cap keeps far animals small in the window")
 
     @classmethod
     def none(cls) -> Augment:
         """Letterbox only: every augmentation off."""
-        return cls(**{f.name: 0.0 for f in fields(cls)})
+        return cls(**{f.name: 0.0 for f in fields(cls) if f.name != "zoom_max"})
 
     @classmethod
     def from_dict(cls, d: dict[str, Any] | None) -> Augment:
@@ -87,9 +92,11 @@ class Augment:
         """Raise :class:`ParameterError` naming the first value out of range."""
         for f in fields(self):
             v = getattr(self, f.name)
-            hi = 10.0 if f.name in ("scale", "hsv_s", "hsv_v") else 1.0
-            if not 0.0 <= v <= hi:
-                raise ParameterError(f"--aug-{f.name.replace('_', '-')}", v, f"0..{hi:g}")
+            lo, hi = 0.0, 10.0 if f.name in ("scale", "hsv_s", "hsv_v") else 1.0
+            if f.name == "zoom_max":
+                lo, hi = 1.0, 16.0
+            if not lo <= v <= hi:
+                raise ParameterError(f"--aug-{f.name.replace('_', '-')}", v, f"{lo:g}..{hi:g}")
 
 
 def generate_settings(data: str | Path) -> dict[str, Any] | None:
@@ -418,7 +425,7 @@ class YoloDataset(Dataset[Any]):
         else:
             rng = self._rng(i)
             u = rng.uniform(size=2)
-            centre: tuple[float, float] | None = None  # a background zoom's centre: where a crop must go too
+            centre: tuple[float, float] | None = None  # a zoom's animal (or hard negative): where a crop must go
             if u[0] < a.zoom:
                 sample, lab, centre = self._zoom(i, rng)
             else:
@@ -458,15 +465,19 @@ class YoloDataset(Dataset[Any]):
     def _zoom(self, i: int, rng: np.random.Generator
               ) -> tuple[_Sample, NDArray[np.float32], tuple[float, float] | None]:
         """A square crop around one labelled zebra (a random one; don't-care boxes are never the centre), scaled so
-        the zebra's long side spans 15-80% of ``imgsz`` (log-uniform; enlarged at most 4x, shrunk freely), its
-        centre anywhere in the middle 80% of the crop so edges may cut it. Without a labelled zebra: as
-        :meth:`_single`. With probability ``background`` (a hard negative) the centre is instead an animal of
-        another species (half the time, where the frame has one), scaled by the same rule, or a random point
-        enlarged 1-4x (log-uniform); any zebras in view keep their labels. Also returns a hard negative's centre
-        in the output (None otherwise)."""
+        the zebra's long side spans 15-80% of ``imgsz`` (log-uniform; enlarged at most ``zoom_max`` times, shrunk
+        freely), its centre anywhere in the middle 80% of the crop so edges may cut it. With ``train --crop``, with
+        probability ``zoom_crop`` the 15-80% are of the crop window instead, and the window goes around the zebra.
+        Without a labelled zebra: as :meth:`_single`. With probability ``background`` (a hard negative) the centre
+        is instead an animal of another species (half the time, where the frame has one), scaled by the same rule,
+        or a random point enlarged 1-4x (log-uniform); any zebras in view keep their labels. Also returns where
+        the crop window must go: a hard negative's centre, or the zebra's when sized to the window (else None)."""
         img, lab = self.load(i, self.dont_care)
         a = self.augment or Augment()
         negative = a.background > 0 and rng.uniform() < a.background
+        # drawn only when asked, so that recipes without it keep their random streams
+        to_window = 0 < self.crop <= self.imgsz and a.zoom_crop > 0 and rng.uniform() < a.zoom_crop
+        ref = self.crop if to_window else self.imgsz  # the side the animal's 15-80% are of
         box: NDArray[np.float32] | None = None  # [x0, y0, x1, y1] of the animal to centre on
         if negative:
             others = self._other_boxes(i)
@@ -481,7 +492,7 @@ class YoloDataset(Dataset[Any]):
         if box is not None:
             side = max(float(box[2] - box[0]), float(box[3] - box[1]), 1.0)
             share = float(np.exp(rng.uniform(np.log(0.15), np.log(0.8))))
-            s = min(share * self.imgsz / side, 4.0)
+            s = min(share * ref / side, a.zoom_max)
             cx, cy = (box[0] + box[2]) / 2, (box[1] + box[3]) / 2
         else:  # a random point of the frame
             s = float(np.exp(rng.uniform(0.0, np.log(4.0))))
@@ -490,7 +501,7 @@ class YoloDataset(Dataset[Any]):
         m = np.array([[s, 0.0, ox - s * cx], [0.0, s, oy - s * cy]])
         interp = cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR
         return (_Sample(img, m, self.imgsz, interp), _warp_labels(lab, m, s, self.imgsz),
-                (float(ox), float(oy)) if negative else None)
+                (float(ox), float(oy)) if negative or (to_window and box is not None) else None)
 
     def read_other_boxes(self) -> int:
         """Read every image's other-species boxes now (from its annotation; none for other sets) and keep them,
