@@ -40,7 +40,7 @@ import numpy as np
 import torch
 
 from zebra_sim_ros.detection.checkpoint import SHIPPED, load_model
-from zebra_sim_ros.detection.data import label_path, read_labels
+from zebra_sim_ros.detection.data import image_size, label_path, read_labels
 from zebra_sim_ros.detection.evaluate import ImagePredictions, make_loader, predictions_by_class
 from zebra_sim_ros.detection.metrics import ap_by_size, evaluate_detections, iou_matrix, precision_recall_at
 from zebra_sim_ros.detection.model import OTHER_ANIMAL, ZEBRA
@@ -70,10 +70,13 @@ def other_labels(p: ImagePredictions) -> np.ndarray:
     """The other species' boxes of an image (n, 5) [class, x0, y0, x1, y1] (its own pixels), from
     ``other_species/``."""
     f = Path(p.file)
-    img = cv2.imread(str(f), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise SystemExit(f"not a readable image: {f}")
-    h, w = img.shape[:2]
+    size = image_size(f)  # from the header; else decoded as the loader decodes it (Exif orientation applied)
+    if size is None:
+        img = cv2.imread(str(f), cv2.IMREAD_COLOR)
+        if img is None:
+            raise SystemExit(f"not a readable image: {f}")
+        size = (img.shape[1], img.shape[0])
+    w, h = size
     return read_labels(label_path(f, "other_species"), w, h).astype(np.float64)
 
 
