@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -208,6 +210,41 @@ def test_low_cameras_stand_on_the_ground_near_a_zebra_and_look_at_it(savanna: Wo
     d = np.array(dists)
     assert d.min() < 5.0 and np.median(d) < 15.0  # log-uniform 4..40: half the targets nearer than 12.6 m
     assert max(fills) > 0.5  # some frames are filled by a zebra
+
+
+def test_low_cameras_aim_at_other_species_when_asked_and_keep_their_stream_otherwise(savanna: World) -> None:
+    """``low_other_target``: that share of low cameras stands near an animal of another species and sees it; 0 (the
+    default) draws exactly the poses it drew before the option existed, other animals or not."""
+    cam = PinholeCamera(1280, 720, 80.0)
+    near_other = []
+    for seed in range(120):
+        rng = np.random.default_rng(seed)
+        zebras = _herd(rng, savanna)
+        xy = zebras[:1, :2] + np.array([[150.0, 0.0]])  # one other animal, far from every zebra
+        other = np.column_stack([xy, savanna.terrain.height_at(xy[:, 0], xy[:, 1])])
+        env = _surroundings(savanna, zebras)
+        env_o = replace(env, others_xy=other[:, :2], others_centres=other + np.array([0.0, 0.0, 0.7]))
+        for share in (0.0, 0.5, 1.0):
+            r = replace(CameraRanges(), low_other_target=share)
+            poses = sample_cameras(np.random.default_rng([seed, 1]), env_o, "low", ["drone_0"], r, cam)
+            pos = np.array(poses[0].position)
+            d_other = float(np.hypot(*(other[0, :2] - pos[:2])))
+            if share == 0.0:  # the zebras only, the same pose as with no other animals at all
+                plain = sample_cameras(np.random.default_rng([seed, 1]), env, "low", ["drone_0"], CameraRanges(),
+                                       cam)[0]
+                assert plain.position == poses[0].position and plain.yaw_deg == poses[0].yaw_deg
+                assert d_other > 60
+            elif share == 1.0:  # beside the other animal, 4-40 m away, and it is in view
+                assert 4.0 - 1e-6 <= d_other <= 40.0 + 1e-6
+                assert cam.in_image(map_to_optical(env_o.others_centres, pos, poses[0].r_optical))[0]
+            else:
+                near_other.append(d_other <= 40.0 + 1e-6)
+    assert 0.35 < np.mean(near_other) < 0.65  # about half
+    # without other animals in the placement the option falls back to the zebras
+    r = replace(CameraRanges(), low_other_target=1.0)
+    zebras = _herd(np.random.default_rng(1), savanna)
+    pose = sample_cameras(np.random.default_rng(2), _surroundings(savanna, zebras), "low", ["drone_0"], r, cam)[0]
+    assert np.hypot(*(zebras[:, :2] - np.array(pose.position[:2])).T).min() <= 40.0 + 1e-6
 
 
 def test_nadir_cameras_look_straight_down_from_survey_height(savanna: World) -> None:

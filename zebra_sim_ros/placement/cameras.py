@@ -15,7 +15,9 @@ drawn as:
 a target zebra is drawn; the camera stands at a horizontal distance log-U(low_distance_min, low_distance_max)
 from it on a uniform bearing, ``U(low_height_min, low_height_max)`` above the ground below it, not inside a zebra
 or a tree; yaw = bearing to the target + U(-low_yaw_jitter, low_yaw_jitter), pitch = elevation of the target's
-centre + U(-5, 5) deg, roll U(-low_roll_max, low_roll_max).
+centre + U(-5, 5) deg, roll U(-low_roll_max, low_roll_max). With probability ``low_other_target`` the target is
+instead an animal of another species (where the placement has one): close views of the animals a detector must
+not call zebras, which drones see only from afar.
 
 ``nadir`` (a survey flight): ``U(nadir_height_min, nadir_height_max)`` above the pivot's ground, x, y within
 0.3 x height of the pivot, yaw uniform, pitch -90 + U(0, nadir_tilt_max) deg (the tilt's direction is uniform
@@ -68,6 +70,7 @@ class CameraRanges:
     low_distance_max: float = 40.0
     low_yaw_jitter_deg: float = 20.0
     low_roll_max_deg: float = 3.0
+    low_other_target: float = 0.0
     nadir_height_min: float = 20.0
     nadir_height_max: float = 120.0
     nadir_tilt_max_deg: float = 10.0
@@ -83,7 +86,8 @@ LOW_ZEBRA_CLEARANCE_M = 2.0
 @dataclass(frozen=True)
 class Surroundings:
     """What a camera must keep out of and look at: the terrain, the zebras' ground positions and box centres
-    (N, 3), the trees and rocks (centres (M, 2) and radii (M,)) and the other animals (K, 2)."""
+    (N, 3), the trees and rocks (centres (M, 2) and radii (M,)) and the other animals (ground positions (K, 2)
+    and box centres (K, 3))."""
 
     terrain: Heightfield
     zebra_xyz: FloatArray
@@ -91,6 +95,7 @@ class Surroundings:
     obstacle_xy: FloatArray
     obstacle_radii: FloatArray
     others_xy: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))  # other species (K, 2)
+    others_centres: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))  # their box centres (K, 3)
 
 
 @dataclass(frozen=True)
@@ -144,7 +149,10 @@ def _draw_drone(rng: np.random.Generator, strategy: str, r: CameraRanges, env: S
 
 
 def _draw_low(rng: np.random.Generator, r: CameraRanges, env: Surroundings) -> _Draw | None:
-    target = env.zebra_centres[rng.integers(len(env.zebra_centres))]
+    # drawn only when asked, so that the default keeps its random stream
+    other = r.low_other_target > 0 and rng.uniform() < r.low_other_target and len(env.others_centres) > 0
+    pool = env.others_centres if other else env.zebra_centres
+    target = pool[rng.integers(len(pool))]
     dist = float(np.exp(rng.uniform(np.log(r.low_distance_min), np.log(r.low_distance_max))))
     bearing = rng.uniform(-np.pi, np.pi)
     xy = target[:2] + dist * np.array([np.cos(bearing), np.sin(bearing)])

@@ -90,6 +90,9 @@ class PlacerConfig(StageConfig):
                                     hi=500.0, allowed="low_distance_min..500 m")
     low_yaw_jitter_deg: float = param(20.0, "low: yaw = bearing to the target + U(-j, j)", "deg", lo=0.0, hi=60.0)
     low_roll_max_deg: float = param(3.0, "low: camera roll U(-r, r)", "deg", lo=0.0, hi=45.0)
+    low_other_target: float = param(0.0, "low: probability that a camera aims at an animal of another species "
+                                    "(where the placement has one; see other_animals_max) instead of a zebra: close "
+                                    "views of animals that are not zebras", lo=0.0, hi=1.0)
     nadir_height_min: float = param(20.0, "nadir: camera height above the zebras' ground, minimum", "m", lo=2.0,
                                     hi=1000.0)
     nadir_height_max: float = param(120.0, "nadir: camera height above the zebras' ground, maximum", "m", lo=2.0,

@@ -62,8 +62,9 @@ class Placer:
             min_clearance=cfg.min_camera_clearance, low_height_min=cfg.low_height_min,
             low_height_max=cfg.low_height_max, low_distance_min=cfg.low_distance_min,
             low_distance_max=cfg.low_distance_max, low_yaw_jitter_deg=cfg.low_yaw_jitter_deg,
-            low_roll_max_deg=cfg.low_roll_max_deg, nadir_height_min=cfg.nadir_height_min,
-            nadir_height_max=cfg.nadir_height_max, nadir_tilt_max_deg=cfg.nadir_tilt_max_deg)
+            low_roll_max_deg=cfg.low_roll_max_deg, low_other_target=cfg.low_other_target,
+            nadir_height_min=cfg.nadir_height_min, nadir_height_max=cfg.nadir_height_max,
+            nadir_tilt_max_deg=cfg.nadir_tilt_max_deg)
         self.camera_names = [f"drone_{i}" for i in range(cfg.num_cameras)]
         self._cache: tuple[int, Herd] | None = None
         self._world_info = WorldRef(world.name, world.source, world.seed, cfg.terrain_prim)
@@ -116,7 +117,7 @@ class Placer:
         obstacles = self.world.obstacles
         zeb = herd.ids < self.pool.zebras  # the cameras look at the zebras and keep out of every animal
         env = Surroundings(self.world.terrain, herd.position[zeb], box_center[zeb], obstacles.positions[:, :2],
-                           obstacles.radii, herd.position[~zeb, :2])
+                           obstacles.radii, herd.position[~zeb, :2], box_center[~zeb])
         cams = sample_cameras(rng, env, strategy, self.camera_names, self.ranges, self.camera)
         ground = sample_ground_look(rng, c.ground_recolor)  # drawn last: the draws above do not depend on it
         weather, veg_tint, sun_turn = sample_weather(np.random.default_rng([c.seed, placement, reroll + 1,
