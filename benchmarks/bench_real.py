@@ -92,7 +92,7 @@ def _centred(d: np.ndarray, boxes: np.ndarray) -> np.ndarray:
                       & (cy[:, None] >= boxes[None, :, 1]) & (cy[:, None] <= boxes[None, :, 3]))
 
 
-def score_set(weights: str, folder: Path, imgsz: int) -> dict[str, Any]:
+def score_set(weights: str, folder: Path, imgsz: int, sweep: tuple[float, ...] = ()) -> dict[str, Any]:
     model, _ = load_model(None if weights == "shipped" else weights, torch.device("cpu"))
 
     def rule(long_side: int) -> int:
@@ -146,7 +146,29 @@ def score_set(weights: str, folder: Path, imgsz: int) -> dict[str, Any]:
             "other_animal_recall": round(found_other / n_animals, 4) if n_animals else None,
             "other_by_class": {k: {"photos": n, "det_per_image": round(dn / n, 3), "centred_per_image": round(c / n, 3)}
                                for k, (n, dn, c) in sorted(species.items())},
-            "ms_per_image": round(1000 * seconds / max(len(per), 1), 1)}
+            "ms_per_image": round(1000 * seconds / max(len(per), 1), 1),
+            "sweep": [_operating_point(dets, gts, others, t) for t in sweep]}
+
+
+def _operating_point(dets: list[np.ndarray], gts: list[np.ndarray], others: list[ImagePredictions],
+                     conf: float) -> dict[str, float]:
+    """Precision and recall on the zebra photos and detections per photo of other species, at threshold ``conf``."""
+    prec, rec = precision_recall_at(dets, gts, conf)
+    n = sum(int((p.detections[:, 4] >= conf).sum()) for p in others)
+    return {"conf": conf, "P": round(prec, 4), "R": round(rec, 4),
+            "other_det_per_image": round(n / max(len(others), 1), 4)}
+
+
+def sweep_table(rows: list[dict[str, Any]]) -> list[str]:
+    """Operating points (``--conf-sweep``): per weights and set, P / R on zebra photos and other-species detections
+    per photo at each threshold."""
+    confs = [pt["conf"] for pt in rows[0]["sweep"]]
+    out = ["| weights | set | imgsz | " + " | ".join(f"conf {c:g}: P / R / other det per photo" for c in confs) + " |",
+           "| --- | --- | --- | " + " | ".join("---" for _ in confs) + " |"]
+    for r in rows:
+        cells = " | ".join(f"{pt['P']:.3f} / {pt['R']:.3f} / {pt['other_det_per_image']:.3f}" for pt in r["sweep"])
+        out.append(f"| {r['weights']} | {r['set']} | {r['imgsz']} | {cells} |")
+    return out
 
 
 def table(rows: list[dict[str, Any]]) -> list[str]:
@@ -180,6 +202,9 @@ def main() -> None:
     ap.add_argument("--sets", nargs="*", type=Path, default=None, help="real set folders (default: all found)")
     ap.add_argument("--imgsz", nargs="+", type=int, default=[0], help="inference long sides (0: the checkpoint's "
                     "rule)")
+    ap.add_argument("--conf-sweep", nargs="*", type=float, default=[], metavar="CONF",
+                    help="also a table of operating points: P / R on the zebra photos and other-species detections "
+                    "per photo at each of these thresholds")
     ap.add_argument("--no-append", action="store_true", help="do not append the table to BENCHMARKS.md")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
@@ -190,11 +215,14 @@ def main() -> None:
     for s in sets:
         if not (s / "images").is_dir() or not (s / "labels").is_dir():
             raise SystemExit(f"--sets {s}: want a folder with images/ and labels/")
-    rows = [score_set(w, s, n) for w in args.weights for s in sets for n in args.imgsz]
+    bad = [c for c in args.conf_sweep if not 0.0 < c < 1.0]
+    if bad:
+        raise SystemExit(f"--conf-sweep {bad[0]}: want thresholds between 0 and 1")
+    rows = [score_set(w, s, n, tuple(args.conf_sweep)) for w in args.weights for s in sets for n in args.imgsz]
     machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores"
     digests = ", ".join(f"{w} {sha256_12(SHIPPED if w == 'shipped' else Path(w))}" for w in args.weights)
     head = f"`bench_real.py` {dt.date.today().isoformat()}, {machine}; weights sha256: {digests}"
-    lines = [head, "", *table(rows)]
+    lines = [head, "", *table(rows)] + (["", *sweep_table(rows)] if args.conf_sweep else [])
     print("\n".join(lines))
     if args.json:
         print(json.dumps(rows))
