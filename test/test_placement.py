@@ -232,7 +232,8 @@ def test_low_cameras_aim_at_other_species_when_asked_and_keep_their_stream_other
             if share == 0.0:  # the zebras only, the same pose as with no other animals at all
                 plain = sample_cameras(np.random.default_rng([seed, 1]), env, "low", ["drone_0"], CameraRanges(),
                                        cam)[0]
-                assert plain.position == poses[0].position and plain.yaw_deg == poses[0].yaw_deg
+                assert np.allclose(plain.position, poses[0].position, rtol=0, atol=1e-9)
+                assert plain.yaw_deg == pytest.approx(poses[0].yaw_deg, abs=1e-9)
                 assert d_other > 60
             elif share == 1.0:  # beside the other animal, 4-40 m away, and it is in view
                 assert 4.0 - 1e-6 <= d_other <= 40.0 + 1e-6

@@ -41,8 +41,10 @@ IMAGE_EXTS = (".jpg", ".jpeg", ".png", ".bmp")
 DONT_CARE = -1  # the class of a don't-care box among training targets
 
 
-def _aug(default: float, text: str) -> Any:
-    return field(default=default, metadata={"help": text})
+def _aug(default: float, text: str, lo: float = 0.0, hi: float = 1.0, off: float | None = 0.0) -> Any:
+    """An :class:`Augment` field: its default, help, allowed range and the value that switches it off (None: a
+    setting that switches nothing off, kept at its default by :meth:`Augment.none`)."""
+    return field(default=default, metadata={"help": text, "lo": lo, "hi": hi, "off": off})
 
 
 @dataclass(frozen=True)
@@ -52,12 +54,12 @@ class Augment:
     is a ``zebra-sim train`` option (``--aug-<name>``); :meth:`none` switches all off."""
 
     mosaic: float = _aug(1.0, "probability of a mosaic of four images")
-    scale: float = _aug(0.5, "random scale 1 +- this")
+    scale: float = _aug(0.5, "random scale 1 +- this", hi=10.0)
     translate: float = _aug(0.1, "random translation, share of the image side")
     fliplr: float = _aug(0.5, "probability of a horizontal flip")
     hsv_h: float = _aug(0.015, "hue jitter, share of the hue circle")
-    hsv_s: float = _aug(0.7, "saturation gain 1 +- this")
-    hsv_v: float = _aug(0.4, "brightness gain 1 +- this")
+    hsv_s: float = _aug(0.7, "saturation gain 1 +- this", hi=10.0)
+    hsv_v: float = _aug(0.4, "brightness gain 1 +- this", hi=10.0)
     zoom: float = _aug(0.3, "probability that a sample is a crop around one labelled zebra, enlarged (--aug-zoom-max) "
                             "until it spans 15-80%% of the side, often cut by the edges: large zebras from far ones")
     grayscale: float = _aug(0.05, "probability of a grey image")
@@ -72,7 +74,7 @@ class Augment:
                                   "species (from the set's annotations/, as generate writes them) or else on a random "
                                   "point, not on a zebra, enlarged alike: hard negatives at the size of large zebras")
     zoom_max: float = _aug(4.0, "largest enlargement of a zoom crop (--aug-zoom), 1-16: more makes larger, "
-                                "blurrier animals from far ones")
+                                "blurrier animals from far ones", lo=1.0, hi=16.0, off=None)
     zoom_crop: float = _aug(0.0, "with --crop: probability that a zoom crop sizes its animal to 15-80%% of the "
                                  "--crop window the model sees (and centres the window on it) rather than of the "
                                  "--imgsz sample, where the enlargement cap keeps far animals small in the window")
@@ -80,7 +82,7 @@ class Augment:
     @classmethod
     def none(cls) -> Augment:
         """Letterbox only: every augmentation off."""
-        return cls(**{f.name: 0.0 for f in fields(cls) if f.name != "zoom_max"})
+        return cls(**{f.name: f.metadata["off"] for f in fields(cls) if f.metadata["off"] is not None})
 
     @classmethod
     def from_dict(cls, d: dict[str, Any] | None) -> Augment:
@@ -92,9 +94,7 @@ class Augment:
         """Raise :class:`ParameterError` naming the first value out of range."""
         for f in fields(self):
             v = getattr(self, f.name)
-            lo, hi = 0.0, 10.0 if f.name in ("scale", "hsv_s", "hsv_v") else 1.0
-            if f.name == "zoom_max":
-                lo, hi = 1.0, 16.0
+            lo, hi = f.metadata["lo"], f.metadata["hi"]
             if not lo <= v <= hi:
                 raise ParameterError(f"--aug-{f.name.replace('_', '-')}", v, f"{lo:g}..{hi:g}")
 
