@@ -8,7 +8,7 @@ import pytest
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.zebra.coat import _cells, bake_coat, random_coat
 from zebra_sim_ros.zebra.mesh import build_mesh
-from zebra_sim_ros.zebra.skeleton import CATTLE, FOAL, GIRAFFE, GREVY, PLAINS
+from zebra_sim_ros.zebra.skeleton import BUFFALO, CATTLE, ELEPHANT, FOAL, GIRAFFE, GREVY, PLAINS, RHINO
 
 
 def test_same_seed_same_coat_different_seed_different_coat() -> None:
@@ -78,3 +78,27 @@ def test_a_coat_is_the_same_with_the_kept_geometry_or_a_given_mesh(morph: object
     again = bake_coat(morph, random_coat(11, morph), 128)  # type: ignore[arg-type]
     given = bake_coat(morph, random_coat(11, morph), 128, build_mesh(morph, 0))  # type: ignore[arg-type]
     assert np.array_equal(first, again) and np.array_equal(first, given)
+
+
+@pytest.mark.parametrize("morph", [ELEPHANT, BUFFALO, RHINO], ids=["elephant", "buffalo", "rhino"])
+def test_horns_and_tusks_take_their_own_colour(morph: object) -> None:
+    """A tusk is ivory on a grey elephant, a buffalo's horn near-black; a rhino's front horn (its snout part) is horn,
+    an elephant's trunk (its snout part) is skin."""
+    size = 256
+    tex = bake_coat(morph, random_coat(5, morph), size).astype(float) / 255  # type: ignore[arg-type]
+    mesh = build_mesh(morph, 0)  # type: ignore[arg-type]
+
+    def mean_rgb(part: str) -> np.ndarray:
+        u0, v0, u1, v1 = mesh.part(part).rect
+        block = tex[int((1 - v1) * size) + 2:int((1 - v0) * size) - 2, int(u0 * size) + 2:int(u1 * size) - 2]
+        return block.reshape(-1, 3).mean(axis=0)
+
+    horn = np.asarray(morph.horn_rgb)  # type: ignore[attr-defined]
+    for part in ("horn_l", "horn_r"):
+        got = mean_rgb(part)
+        assert np.all(np.abs(got - horn) < 0.15 * horn + 0.02), (part, got, horn)
+    snout, skin = mean_rgb("snout"), mean_rgb("barrel")
+    if morph.snout == "horn":  # type: ignore[attr-defined]
+        assert np.all(np.abs(snout - horn) < 0.15 * horn + 0.02)
+    elif morph.snout == "trunk":  # type: ignore[attr-defined]
+        assert np.abs(snout - skin).max() < 0.1 and np.abs(snout - horn).max() > 0.2

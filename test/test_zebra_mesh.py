@@ -10,11 +10,15 @@ from zebra_sim_ros.geometry.rotations import rigid
 from zebra_sim_ros.geometry.winding import winding_numbers
 from zebra_sim_ros.zebra.mesh import PART_NAMES, build_mesh
 from zebra_sim_ros.zebra.skeleton import (
+    BUFFALO,
+    ELEPHANT,
     FOAL,
     GREVY,
     JOINT_NAMES,
     MORPHS,
     PLAINS,
+    RHINO,
+    ZEBRA_MORPHS,
     Morph,
     bind_positions,
     forward_kinematics,
@@ -101,3 +105,63 @@ def test_winding_numbers_tell_inside_from_outside() -> None:
     w = winding_numbers(np.concatenate([inside, outside]), m.vertices, barrel)
     assert w[0] == pytest.approx(1.0, abs=1e-6)
     np.testing.assert_allclose(w[1:], 0.0, atol=1e-6)
+
+
+def _part_vertices(m: Morph, name: str) -> np.ndarray:
+    msh = build_mesh(m, 0)
+    return msh.vertices[np.unique(msh.faces[msh.face_part == PART_NAMES.index(name)])]
+
+
+@pytest.mark.parametrize("name", ZEBRA_MORPHS)
+def test_a_zebras_horns_and_snout_are_hidden_inside_its_head(name: str) -> None:
+    m = MORPHS[name]
+    msh = build_mesh(m, 0)
+    head = msh.faces[msh.face_part == PART_NAMES.index("head")]
+    for part in ("horn_l", "horn_r", "snout"):
+        v = _part_vertices(m, part)
+        assert np.ptp(v, axis=0).max() < 0.03, part  # a sliver, not a shape
+        w = winding_numbers(v, msh.vertices, head)
+        np.testing.assert_allclose(w, 1.0, atol=1e-3, err_msg=part)  # wholly inside the head
+
+
+def test_other_species_carry_their_horns_trunk_and_tusks() -> None:
+    head_top = {n: _part_vertices(MORPHS[n], "head")[:, 2].max() for n in ("buffalo", "elephant", "rhino")}
+    # A buffalo's horns sweep out far beyond its head on both sides.
+    head_w = np.ptp(_part_vertices(BUFFALO, "head")[:, 1])
+    left, right = _part_vertices(BUFFALO, "horn_l"), _part_vertices(BUFFALO, "horn_r")
+    assert left[:, 1].max() > 0.45 and right[:, 1].min() < -0.45 and left[:, 1].max() > 2 * head_w / 2
+    # An elephant's trunk hangs from its face most of the way to the ground, in front of its forelegs.
+    trunk = _part_vertices(ELEPHANT, "snout")
+    assert np.ptp(trunk[:, 2]) > 1.2
+    assert 0.3 < trunk[:, 2].min() < 1.2 and trunk[:, 2].max() < head_top["elephant"]
+    legs = _part_vertices(ELEPHANT, "leg_fl")
+    assert trunk[:, 0].mean() > legs[:, 0].max()
+    # Its tusks reach forward of the trunk's root and its legs are columns: a zebra's lower leg is 4-5 cm across
+    # at the cannon, an elephant's over 20 cm.
+    assert _part_vertices(ELEPHANT, "horn_l")[:, 0].max() > trunk[:, 0].min()
+    def cannon(m: Morph) -> float:  # the leg's width across, 15-25 cm above the ground
+        leg = _part_vertices(m, "leg_fl")
+        return float(np.ptp(leg[np.abs(leg[:, 2] - 0.2) < 0.05, 1]))
+
+    assert cannon(ELEPHANT) > 0.2 > 0.08 > cannon(PLAINS)
+    # A rhino's front horn stands on its nose, its tip above the nose and forward of the head's back.
+    horn = _part_vertices(RHINO, "snout")
+    nose = _part_vertices(RHINO, "head")
+    assert horn[:, 2].max() > nose[nose[:, 0].argmax(), 2] + 0.3
+    assert np.ptp(horn, axis=0).max() > 0.4
+
+
+@pytest.mark.parametrize(("field", "value", "match"), [
+    ("horn", "antlers", "morph.plains.horn"),
+    ("snout", "beak", "morph.plains.snout"),
+    ("horn_length", 0.3, "morph.plains.horn_length"),
+    ("ear_droop", 1.5, "morph.plains.ear_droop"),
+])
+def test_a_bad_shape_is_named(field: str, value: object, match: str) -> None:
+    from dataclasses import replace
+
+    with pytest.raises(ParameterError, match=match):
+        replace(PLAINS, **{field: value}).validate()
+    with pytest.raises(ParameterError, match="morph.plains.horn"):  # zebras carry no horns
+        replace(PLAINS, horn="curved", horn_length=0.3).validate()
+    replace(BUFFALO, horn="lyre").validate()  # any style fits another species

@@ -8,8 +8,9 @@ spacing and colours from a ``numpy.random.Generator``; the same seed gives the s
 
 Other species (:data:`~zebra_sim_ros.zebra.skeleton.OTHER_SPECIES`) use the same machinery with their morph's
 ``coat``: brindle (faint bands, a wildebeest), solid (an impala, buffalo or donkey: one colour with dark points
-and a white belly where the morph has one), network (a giraffe: dark cells parted by pale lines) or patches (cattle:
-cells of one colour or the other, or a solid coat).
+and a white belly where the morph has one; an elephant's or a rhino's grey skin), network (a giraffe: dark cells
+parted by pale lines) or patches (cattle: cells of one colour or the other, or a solid coat). Horns and tusks take
+the morph's ``horn_rgb``.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zebra_sim_ros.errors import ParameterError
-from zebra_sim_ros.zebra.mesh import ZebraMesh, build_mesh
+from zebra_sim_ros.zebra.mesh import ZebraMesh, build_mesh, head_direction
 from zebra_sim_ros.zebra.skeleton import JOINT_INDEX, Morph, bind_positions
 
 FloatArray = NDArray[np.float64]
@@ -205,7 +206,7 @@ def _part_pattern(name: str, p: FloatArray, along: FloatArray, around: FloatArra
         nd = (hd - n1) / np.linalg.norm(hd - n1)
         phase = (p @ nd) / (0.9 * period)
     elif name == "head":
-        hdir = np.array([np.cos(np.radians(-52)), 0.0, np.sin(np.radians(-52))])
+        hdir = head_direction(morph)
         phase = (p @ hdir) / (0.35 * period)
         dark_extra = _smoothstep(0.80, 0.88, along)  # the dark muzzle
     elif name.startswith("leg"):
@@ -217,6 +218,10 @@ def _part_pattern(name: str, p: FloatArray, along: FloatArray, around: FloatArra
         phase = z / (0.5 * period)
         dark_extra = _smoothstep(0.72, 0.8, along)
         white_extra = 0.6 * _smoothstep(0.5, 0.3, around % 1.0)
+    elif name == "snout":  # a trunk: the skin of the body, ringed; a nasal horn is coloured in bake_coat
+        phase = z / (0.5 * period)
+    elif name.startswith("horn"):  # coloured in bake_coat
+        phase = np.zeros_like(x)
     else:  # tail: striped at the root, black tuft
         phase = z / (0.5 * period)
         dark_extra = _smoothstep(0.62, 0.7, along)
@@ -226,7 +231,7 @@ def _part_pattern(name: str, p: FloatArray, along: FloatArray, around: FloatArra
 _Samples = tuple[NDArray[np.int64], NDArray[np.int64], FloatArray, FloatArray, FloatArray]
 _GEOMETRY: OrderedDict[tuple[str, int], list[tuple[str, _Samples]]] = OrderedDict()
 _MESHES: dict[str, ZebraMesh] = {}
-_GEOMETRY_KEEP = 12  # (morph, size) entries kept: nine morphs at 256 texels take about 30 MB
+_GEOMETRY_KEEP = 16  # (morph, size) entries kept: eleven morphs at 256 texels take about 40 MB
 
 
 def _geometry_mesh(morph: Morph) -> ZebraMesh:
@@ -300,5 +305,8 @@ def bake_coat(morph: Morph, params: CoatParams, size: int = 512, mesh: ZebraMesh
             mid = params.black_fraction + (1 - params.black_fraction) / 2
             sh = _smoothstep(0.12, 0.0, np.abs(f - mid)) * _smoothstep(pel_x + 0.4, pel_x, p[..., 0]) * 0.45
             col = col * (1 - sh[..., None]) + np.array([0.55, 0.45, 0.36]) * sh[..., None]
+        if name.startswith("horn") or (name == "snout" and morph.snout == "horn"):
+            # Horn or tusk: its own colour, a little darker at the base and lighter towards the tip.
+            col = np.clip(np.asarray(morph.horn_rgb) * (0.8 + 0.35 * along[..., None]), 0, 1) * np.ones_like(col)
         img[rows, cols] = col
     return np.clip(np.round(img * 255), 0, 255).astype(np.uint8)

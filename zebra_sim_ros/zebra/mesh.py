@@ -1,9 +1,9 @@
 """The zebra's skin: closed tubes swept along the bones, with UVs and skinning weights.
 
-Each body part (barrel, neck, head, mane, tail, ears, legs) is a tube of elliptical rings around a
-smooth centre curve, closed at both ends by a fan, so every part is a watertight, consistently wound
-(outward) surface; parts overlap where they join, as in most game-ready animal models. Rings are
-skinned as a whole (weights from the ring centre's distance to the part's bones), which keeps the
+Each body part (barrel, neck, head, mane, tail, ears, legs, and the horns and snout of other species) is a
+tube of elliptical rings around a smooth centre curve, closed at both ends by a fan, so every part is a
+watertight, consistently wound (outward) surface; parts overlap where they join, as in most game-ready animal
+models. Rings are skinned as a whole (weights from the ring centre's distance to the part's bones), which keeps the
 cross-sections from collapsing when joints bend.
 
 UVs are face-varying (one per triangle corner), so the mesh's vertices stay welded across the
@@ -25,13 +25,16 @@ IntArray = NDArray[np.int64]
 
 PART_NAMES: tuple[str, ...] = (
     "barrel", "neck", "head", "mane", "tail", "ear_l", "ear_r", "leg_fl", "leg_fr", "leg_hl", "leg_hr",
+    "horn_l", "horn_r", "snout",
 )
+"""Every morph has every part. A zebra's horns and snout are slivers a few millimetres across tucked inside its
+head: never seen, but the topology (and so the texture atlas and the baked cache's face arrays) is one for all."""
 # (rings, around) per part for each level of detail. LOD 0 is ~5k triangles, LOD 1 ~1.3k.
 _RESOLUTION: dict[int, dict[str, tuple[int, int]]] = {
     0: {"barrel": (33, 24), "neck": (15, 16), "head": (17, 16), "mane": (13, 6), "tail": (13, 8),
-        "ear": (7, 8), "leg": (23, 12)},
+        "ear": (7, 8), "leg": (23, 12), "horn": (11, 8), "snout": (15, 10)},
     1: {"barrel": (17, 12), "neck": (8, 8), "head": (9, 8), "mane": (7, 4), "tail": (7, 4),
-        "ear": (4, 4), "leg": (12, 6)},
+        "ear": (4, 4), "leg": (12, 6), "horn": (6, 4), "snout": (8, 5)},
 }
 LODS: tuple[int, ...] = tuple(_RESOLUTION)
 # Atlas rectangles (u0, v0, u1, v1) and whether the part's length runs along u (else along v).
@@ -47,6 +50,9 @@ _ATLAS: dict[str, tuple[tuple[float, float, float, float], bool]] = {
     "leg_hr": ((0.375, 0.0, 0.5, 0.30), False),
     "ear_l": ((0.5, 0.0, 0.625, 0.30), False),
     "ear_r": ((0.625, 0.0, 0.75, 0.30), False),
+    "horn_l": ((0.75, 0.0, 0.8125, 0.30), False),
+    "horn_r": ((0.8125, 0.0, 0.875, 0.30), False),
+    "snout": ((0.875, 0.0, 1.0, 0.30), False),
 }
 _ATLAS_PAD = 0.004  # keep texels of neighbouring parts from bleeding in under filtering
 
@@ -182,7 +188,8 @@ def _offset(base: FloatArray, dx: float = 0.0, dy: float = 0.0, dz: float = 0.0)
     return np.asarray(base + np.array([dx, dy, dz]))
 
 
-_X, _Z = np.array([1.0, 0, 0]), np.array([0, 0, 1.0])  # rings' 'up' references: along the body, straight up
+# rings' 'up' references: along the body, to the left, straight up
+_X, _Y, _Z = np.array([1.0, 0, 0]), np.array([0, 1.0, 0]), np.array([0, 0, 1.0])
 
 
 def _barrel(m: Morph, P: dict[str, FloatArray], s: float) -> PartSpec:  # noqa: N803 - P for 'position'
@@ -235,8 +242,8 @@ def _mane(m: Morph, P: dict[str, FloatArray], s: float, neck: PartSpec) -> PartS
 
 
 def _head(m: Morph, P: dict[str, FloatArray], s: float) -> PartSpec:  # noqa: N803
-    """Head: behind the poll to the nose, hanging ~50 degrees below horizontal."""
-    hdir = np.array([np.cos(np.radians(-52)), 0.0, np.sin(np.radians(-52))])
+    """Head: behind the poll to the nose, hanging ``head_pitch_deg`` (a zebra's ~50) below horizontal."""
+    hdir = head_direction(m)
     L = m.head_length  # noqa: N806
     u = np.array([0.0, 0.12, 0.32, 0.55, 0.78, 0.93, 1.0])
     pts = (P["head"] - hdir * 0.08 * L)[None, :] + (u * L)[:, None] * hdir[None, :]
@@ -247,17 +254,107 @@ def _head(m: Morph, P: dict[str, FloatArray], s: float) -> PartSpec:  # noqa: N8
 
 
 def _ears(m: Morph, P: dict[str, FloatArray], s: float) -> list[PartSpec]:  # noqa: N803
-    """Ears: leaf-shaped, up and a little outwards and back; left first."""
+    """Ears: leaf-shaped, up and a little outwards and back; left first. With ``ear_droop`` they turn down and
+    back into flaps that lie flat against the side of the head (an elephant's at 1)."""
     specs = []
+    d = m.ear_droop
     for side, sy in (("l", 1.0), ("r", -1.0)):
-        base = P[f"ear_{side}"]
-        edir = _unit(np.array([-0.15, 0.38 * sy, 1.0]))
+        base = P[f"ear_{side}"] + d * m.head_length * np.array([-0.10, 0.22 * sy, 0.0])
+        edir = _unit(np.array([-0.15 - 0.25 * d, (0.38 + 0.12 * d) * sy, 1.0 - 2.0 * d]))
         u = np.array([0.0, 0.25, 0.55, 0.85, 1.0])
         pts = base[None, :] + (u * m.ear_length)[:, None] * edir[None, :]
         rb = m.ear_width * np.array([0.55, 1.0, 0.92, 0.50, 0.12])
         ra = 0.022 * s * np.array([1.0, 0.9, 0.7, 0.45, 0.2])
-        specs.append(PartSpec(f"ear_{side}", pts, ra, rb, _X, ((f"ear_{side}", pts[0], pts[-1]),), 0.05 * s))
+        up = _X if d < 0.5 else _Y  # the flat of a drooping flap faces sideways
+        specs.append(PartSpec(f"ear_{side}", pts, ra, rb, up, ((f"ear_{side}", pts[0], pts[-1]),), 0.05 * s))
     return specs
+
+
+def head_direction(m: Morph) -> FloatArray:
+    """Unit vector along the face line, from the poll to the nose (asset frame)."""
+    a = np.radians(-m.head_pitch_deg)
+    return np.array([np.cos(a), 0.0, np.sin(a)])
+
+
+# Horn curves: control points as multiples of ``horn_length`` from the horn's base, in (forward, out, up) axes of
+# the asset frame ("out" is +y for the left horn, -y for the right), or of the face ("face": along the face line,
+# out, and the face's outward normal); and radii at those points, as multiples of ``horn_length``.
+_HORN_CURVES: dict[str, tuple[str, tuple[tuple[float, float, float], ...], tuple[float, ...]]] = {
+    "boss": ("body", ((0.0, -0.05, 0.0), (0.03, 0.28, 0.03), (0.07, 0.52, -0.10), (0.10, 0.72, -0.06),
+                      (0.10, 0.84, 0.12), (0.03, 0.80, 0.30)), (0.13, 0.12, 0.08, 0.06, 0.04, 0.015)),
+    "curved": ("body", ((0.0, 0.0, 0.0), (0.02, 0.35, 0.06), (0.06, 0.58, 0.24), (0.04, 0.64, 0.50),
+                        (-0.04, 0.55, 0.75)), (0.10, 0.08, 0.065, 0.045, 0.015)),
+    "lyre": ("body", ((0.0, 0.0, 0.0), (-0.10, 0.08, 0.30), (-0.22, 0.18, 0.55), (-0.20, 0.16, 0.80),
+                      (-0.28, 0.20, 1.0)), (0.07, 0.055, 0.045, 0.035, 0.012)),
+    "ossicone": ("body", ((0.0, 0.0, 0.0), (-0.10, 0.12, 0.55), (-0.15, 0.18, 1.0)), (0.25, 0.20, 0.28)),
+    "tusk": ("body", ((0.0, 0.0, 0.0), (0.30, 0.10, -0.40), (0.62, 0.16, -0.50), (0.92, 0.14, -0.32),
+                      (1.05, 0.10, -0.12)), (0.085, 0.080, 0.070, 0.055, 0.02)),
+    "nasal": ("face", ((0.0, 0.0, 0.0), (0.05, 0.0, 0.50), (-0.05, 0.0, 1.0)), (0.40, 0.30, 0.06)),
+}
+
+
+def _hidden(name: str, P: dict[str, FloatArray], hdir: FloatArray, m: Morph, at: float) -> PartSpec:  # noqa: N803
+    """A sliver a few millimetres across, deep inside the head at ``at`` of the head's length: an absent part."""
+    c = P["head"] + hdir * at * m.head_length
+    pts = np.array([c, c + hdir * 0.02 * m.head_length])
+    r = np.full(2, 0.004)
+    return PartSpec(name, pts, r, r, _Z, (("head", pts[0], pts[-1]),), 0.05)
+
+
+def _face_frame(hdir: FloatArray) -> FloatArray:
+    """The face's outward normal: the face line turned 90 degrees up."""
+    return np.array([-hdir[2], 0.0, hdir[0]])
+
+
+def _horns(m: Morph, P: dict[str, FloatArray], s: float) -> list[PartSpec]:  # noqa: N803
+    """A pair of horns (or tusks) of style ``m.horn``, left first; hidden slivers when it is 'none'."""
+    hdir = head_direction(m)
+    if m.horn == "none":
+        return [_hidden("horn_l", P, hdir, m, 0.15), _hidden("horn_r", P, hdir, m, 0.20)]
+    frame, ctrl, radii = _HORN_CURVES[m.horn]
+    L, H = m.horn_length, m.head_length  # noqa: N806
+    normal = _face_frame(hdir)
+    specs = []
+    for side, sy in (("l", 1.0), ("r", -1.0)):
+        if m.horn == "tusk":  # from the upper jaw, either side of the trunk's root
+            base = P["head"] + hdir * 0.62 * H + np.array([0.0, 0.12 * H * sy, 0.0]) - normal * 0.10 * H
+        elif m.horn == "nasal":  # the rear horn, on the midline of the face (both sides coincide)
+            base = P["head"] + hdir * 0.45 * H + normal * 0.10 * H
+        else:  # on the poll, either side of it
+            base = P["head"] + np.array([0.02 * s, 0.07 * H * sy, 0.06 * s])
+        c = np.asarray(ctrl)
+        if frame == "face":
+            off = c[:, 0:1] * hdir + c[:, 1:2] * np.array([0.0, sy, 0.0]) + c[:, 2:3] * normal
+        else:
+            off = c * np.array([1.0, sy, 1.0])
+        pts = base[None, :] + L * off
+        r = L * np.asarray(radii)
+        specs.append(PartSpec(f"horn_{side}", pts, r, r, _X if frame == "body" else _Y,
+                              (("head", pts[0], pts[-1]),), 0.05 * s))
+    return specs
+
+
+def _snout(m: Morph, P: dict[str, FloatArray], s: float) -> PartSpec:  # noqa: N803
+    """What grows from the muzzle: an elephant's trunk (down to near the ground, the tip curled forward) or a
+    rhino's front horn; a hidden sliver when ``m.snout`` is 'none'."""
+    hdir = head_direction(m)
+    H, L = m.head_length, m.snout_length  # noqa: N806
+    if m.snout == "none":
+        return _hidden("snout", P, hdir, m, 0.25)
+    normal = _face_frame(hdir)
+    if m.snout == "trunk":  # skinned to the jaw so grazing lowers it with the head
+        base = P["head"] + hdir * 0.78 * H
+        u = np.array([0.0, 0.2, 0.45, 0.7, 0.88, 1.0])
+        down = np.array([0.0, 0.0, -1.0])
+        pts = base[None, :] + L * (u[:, None] * (0.85 * down + 0.15 * hdir)[None, :])
+        pts[-2:] += L * np.array([[0.05, 0.0, 0.02], [0.12, 0.0, 0.06]])  # the tip curls forward
+        r = H * np.array([0.20, 0.16, 0.12, 0.09, 0.075, 0.06])
+        return PartSpec("snout", pts, r, r * 0.9, _X, (("head", base, pts[2]), ("jaw", pts[2], pts[-1])), 0.1 * s)
+    base = P["head"] + hdir * 0.86 * H + normal * 0.06 * H  # a rhino's front horn, on the nose
+    pts = base[None, :] + L * (np.array([0.0, 0.45, 0.8, 1.0])[:, None] * normal[None, :]
+                               + np.array([0.0, 0.05, -0.02, -0.14])[:, None] * hdir[None, :])
+    r = L * np.array([0.30, 0.20, 0.11, 0.03])
+    return PartSpec("snout", pts, r, r, _Y, (("head", pts[0], pts[-1]),), 0.05 * s)
 
 
 def _tail(m: Morph, P: dict[str, FloatArray], s: float) -> PartSpec:  # noqa: N803
@@ -272,8 +369,10 @@ def _tail(m: Morph, P: dict[str, FloatArray], s: float) -> PartSpec:  # noqa: N8
     ), 0.05 * s)
 
 
-def _legs(P: dict[str, FloatArray], s: float) -> list[PartSpec]:  # noqa: N803
-    """Legs, down to flat hoof soles on z = 0, in :data:`LEG_CHAINS` order."""
+def _legs(P: dict[str, FloatArray], s: float, girth: float = 1.0) -> list[PartSpec]:  # noqa: N803
+    """Legs, down to flat hoof soles on z = 0, in :data:`LEG_CHAINS` order; ``girth`` thickens them (fully from the
+    knee down, by its square root at the top)."""
+    taper = np.sqrt(girth) + (girth - np.sqrt(girth)) * np.clip(np.arange(10) / 5.0, 0.0, 1.0)
     specs = []
     for leg, chain in LEG_CHAINS.items():
         fore = leg.startswith("f")
@@ -291,6 +390,8 @@ def _legs(P: dict[str, FloatArray], s: float) -> list[PartSpec]:  # noqa: N803
                             (low + fet) / 2, fet, _offset(hoof, 0, 0, 0.035 * s), sole])
             ra = s * np.array([0.17, 0.17, 0.16, 0.115, 0.07, 0.052, 0.036, 0.042, 0.036, 0.047])
             rb = s * np.array([0.11, 0.105, 0.095, 0.075, 0.05, 0.042, 0.030, 0.036, 0.034, 0.043])
+        if girth != 1.0:
+            ra, rb = ra * taper, rb * taper
         bones = ((body_joint, start, top), (chain[0], top, mid), (chain[1], mid, low), (chain[2], low, fet),
                  (chain[3], fet, hoof), (chain[4], hoof, sole))
         specs.append(PartSpec(f"leg_{leg}", pts, ra, rb, _X, bones, 0.05 * s))
@@ -305,7 +406,7 @@ def part_specs(m: Morph) -> list[PartSpec]:
     s = m.withers_height / 1.3
     neck = _neck(m, P, s)
     return [_barrel(m, P, s), neck, _mane(m, P, s, neck), _head(m, P, s), *_ears(m, P, s), _tail(m, P, s),
-            *_legs(P, s)]
+            *_legs(P, s, m.leg_girth), *_horns(m, P, s), _snout(m, P, s)]
 
 
 def build_mesh(m: Morph, lod: int = 0) -> ZebraMesh:
@@ -322,7 +423,7 @@ def build_mesh(m: Morph, lod: int = 0) -> ZebraMesh:
     grids: list[PartGrid] = []
     base = 0
     for spec in part_specs(m):
-        key = spec.name.split("_")[0] if spec.name.startswith(("ear", "leg")) else spec.name
+        key = spec.name.split("_")[0] if spec.name.startswith(("ear", "leg", "horn")) else spec.name
         n_rings, n_around = res[key]
         ring_verts, centres, caps = _sweep(spec, n_rings, n_around)
         rj, rw = _ring_weights(spec, centres)

@@ -92,16 +92,44 @@ class Morph:
     coat: str = "stripes"  # stripes, brindle (faint bands), solid, network (giraffe) or patches (cattle)
     coat_rgb: tuple[float, float, float] = (0.9, 0.88, 0.82)  # base hair colour (other species)
     coat_alt_rgb: tuple[float, float, float] = (0.1, 0.1, 0.1)  # bands, patches, points (other species)
+    # The shapes that tell other species from a zebra at a glance (a zebra has none of them: its horn and snout
+    # parts are tucked inside its head, so every morph shares one mesh topology).
+    neck_pitch_deg: float | None = None  # neck rise above horizontal; None = the zebra's (about 57 degrees)
+    head_pitch_deg: float = 52.0  # face line below horizontal
+    leg_girth: float = 1.0  # thickness of the legs against a zebra's, most below the elbow (elephant: columns)
+    ear_droop: float = 0.0  # 0 = ears up, 1 = flaps hanging down the side of the head (elephant)
+    horn: str = "none"  # a pair of horns or tusks, one of HORNS
+    horn_length: float = 0.0  # along each horn's curve, metres
+    horn_rgb: tuple[float, float, float] = (0.11, 0.10, 0.09)  # horns (dark keratin), tusks (ivory)
+    snout: str = "none"  # a trunk or a nasal horn, one of SNOUTS
+    snout_length: float = 0.0  # metres
 
     def validate(self) -> None:
         """Raise :class:`ParameterError` for proportions no animal of its species has."""
         if self.coat not in COATS:
             raise ParameterError(f"morph.{self.name}.coat", self.coat, f"one of {COATS}")
+        if self.horn not in HORNS:
+            raise ParameterError(f"morph.{self.name}.horn", self.horn, f"one of {HORNS}")
+        if self.snout not in SNOUTS:
+            raise ParameterError(f"morph.{self.name}.snout", self.snout, f"one of {SNOUTS}")
+        shape = {"head_pitch_deg": (0.0, 90.0), "leg_girth": (0.5, 4.0), "ear_droop": (0.0, 1.0),
+                 "horn_length": (0.0, 2.0), "snout_length": (0.0, 2.5)}
+        if self.neck_pitch_deg is not None:
+            shape["neck_pitch_deg"] = (0.0, 90.0)
+        for name, (lo, hi) in shape.items():
+            if not lo <= getattr(self, name) <= hi:
+                raise ParameterError(f"morph.{self.name}.{name}", getattr(self, name), f"[{lo}, {hi}]")
+        for name, style in (("horn", self.horn), ("snout", self.snout)):
+            if (style == "none") != (getattr(self, f"{name}_length") == 0.0):
+                raise ParameterError(f"morph.{self.name}.{name}_length", getattr(self, f"{name}_length"),
+                                     f"0 exactly when {name} is 'none' (it is {style!r})")
         if self.species != "zebra":  # other species: any quadruped the skeleton can carry
             for name in ("withers_height", "body_length", "girth_radius", "neck_length", "head_length"):
                 if not 0.1 <= getattr(self, name) <= 3.5:
                     raise ParameterError(f"morph.{self.name}.{name}", getattr(self, name), "[0.1, 3.5] m")
             return
+        if self.horn != "none" or self.snout != "none":
+            raise ParameterError(f"morph.{self.name}.horn", self.horn, "'none' with snout 'none' on a zebra")
         checks = {
             "withers_height": (0.5, 1.7),
             "body_length": (0.6, 2.0),
@@ -154,36 +182,59 @@ FOAL = Morph(
 ZEBRA_MORPHS: tuple[str, ...] = ("plains", "grevy", "foal")
 """The zebra morphs, first in the asset: their indices are the pool's ``morph_weights``."""
 COATS = ("stripes", "brindle", "solid", "network", "patches")
+HORNS = ("none", "boss", "curved", "lyre", "ossicone", "tusk", "nasal")
+"""Horn pairs: none, boss (a buffalo's: out, down and up from a heavy base), curved (out and up: wildebeest,
+cattle), lyre (up and back: impala), ossicone (a giraffe's short knobs), tusk (an elephant's, from the mouth),
+nasal (a rhino's rear horn, on the face's midline)."""
+SNOUTS = ("none", "trunk", "horn")
+"""What grows from the muzzle: none, trunk (an elephant's, hanging down) or horn (a rhino's front horn)."""
 
 # Other species of the savanna and farmland, on the same skeleton and clips: never labelled as zebra. Sizes from
 # field guides (shoulder height, body length); coats as they read from a distance.
 WILDEBEEST = Morph(name="wildebeest", species="wildebeest", withers_height=1.35, body_length=1.55, leg_fraction=0.55,
                    girth_radius=0.32, neck_length=0.55, head_length=0.62, ear_length=0.13, ear_width=0.05,
                    tail_length=0.75, mane_height=0.14, stripe_period=0.22, coat="brindle",
-                   coat_rgb=(0.36, 0.34, 0.32), coat_alt_rgb=(0.20, 0.19, 0.18))
+                   coat_rgb=(0.36, 0.34, 0.32), coat_alt_rgb=(0.20, 0.19, 0.18), neck_pitch_deg=45.0,
+                   horn="curved", horn_length=0.45)
 IMPALA = Morph(name="impala", species="impala", withers_height=0.90, body_length=1.05, leg_fraction=0.62,
                girth_radius=0.19, neck_length=0.48, head_length=0.36, ear_length=0.15, ear_width=0.05,
                tail_length=0.30, mane_height=0.02, white_belly=True, coat="solid", coat_rgb=(0.64, 0.40, 0.22),
-               coat_alt_rgb=(0.12, 0.09, 0.07))
+               coat_alt_rgb=(0.12, 0.09, 0.07), horn="lyre", horn_length=0.50)
 GIRAFFE = Morph(name="giraffe", species="giraffe", withers_height=2.9, body_length=1.9, leg_fraction=0.62,
                 girth_radius=0.42, neck_length=1.9, head_length=0.62, ear_length=0.18, ear_width=0.06,
                 tail_length=1.0, mane_height=0.05, stripe_period=0.30, coat="network", coat_rgb=(0.86, 0.80, 0.64),
-                coat_alt_rgb=(0.52, 0.29, 0.13))
+                coat_alt_rgb=(0.52, 0.29, 0.13), horn="ossicone", horn_length=0.15, horn_rgb=(0.30, 0.22, 0.14))
 BUFFALO = Morph(name="buffalo", species="buffalo", withers_height=1.5, body_length=1.95, leg_fraction=0.46,
                 girth_radius=0.48, neck_length=0.42, head_length=0.60, ear_length=0.20, ear_width=0.10,
                 tail_length=0.75, mane_height=0.02, coat="solid", coat_rgb=(0.10, 0.09, 0.085),
-                coat_alt_rgb=(0.05, 0.045, 0.04))
+                coat_alt_rgb=(0.05, 0.045, 0.04), neck_pitch_deg=30.0, head_pitch_deg=60.0, leg_girth=1.4,
+                horn="boss", horn_length=0.75, horn_rgb=(0.13, 0.12, 0.11))
 CATTLE = Morph(name="cattle", species="cattle", withers_height=1.4, body_length=1.75, leg_fraction=0.50,
                girth_radius=0.42, neck_length=0.50, head_length=0.55, ear_length=0.18, ear_width=0.08,
                tail_length=0.85, mane_height=0.02, stripe_period=0.45, coat="patches", coat_rgb=(0.88, 0.86, 0.82),
-               coat_alt_rgb=(0.08, 0.07, 0.07))
+               coat_alt_rgb=(0.08, 0.07, 0.07), neck_pitch_deg=40.0, leg_girth=1.2, horn="curved", horn_length=0.30,
+               horn_rgb=(0.70, 0.66, 0.58))
 DONKEY = Morph(name="donkey", species="donkey", withers_height=1.15, body_length=1.25, leg_fraction=0.55,
                girth_radius=0.26, neck_length=0.55, head_length=0.56, ear_length=0.28, ear_width=0.07,
                tail_length=0.50, mane_height=0.07, white_belly=True, coat="solid", coat_rgb=(0.46, 0.43, 0.41),
                coat_alt_rgb=(0.16, 0.14, 0.13))
-OTHER_SPECIES: tuple[str, ...] = ("wildebeest", "impala", "giraffe", "buffalo", "cattle", "donkey")
+# African elephant (Loxodonta africana) and white rhino (Ceratotherium simum): the two big grey animals a survey
+# drone sees most next to zebras. Sizes of a cow elephant and an adult rhino; their grey skins often read as red or
+# brown from the dust they wallow in, which the per-individual colour variation covers only in part.
+ELEPHANT = Morph(name="elephant", species="elephant", withers_height=2.8, body_length=3.1, leg_fraction=0.50,
+                 girth_radius=0.80, neck_length=0.45, head_length=0.95, ear_length=1.05, ear_width=0.42,
+                 tail_length=1.1, mane_height=0.0, coat="solid", coat_rgb=(0.40, 0.38, 0.36),
+                 coat_alt_rgb=(0.26, 0.25, 0.24), neck_pitch_deg=20.0, head_pitch_deg=75.0, leg_girth=2.4,
+                 ear_droop=1.0, horn="tusk", horn_length=0.8, horn_rgb=(0.82, 0.77, 0.64), snout="trunk",
+                 snout_length=1.6)
+RHINO = Morph(name="rhino", species="rhino", withers_height=1.65, body_length=2.4, leg_fraction=0.40,
+              girth_radius=0.60, neck_length=0.50, head_length=0.80, ear_length=0.20, ear_width=0.07,
+              tail_length=0.60, mane_height=0.0, coat="solid", coat_rgb=(0.46, 0.43, 0.39),
+              coat_alt_rgb=(0.30, 0.28, 0.26), neck_pitch_deg=22.0, head_pitch_deg=45.0, leg_girth=2.1,
+              horn="nasal", horn_length=0.25, horn_rgb=(0.36, 0.33, 0.29), snout="horn", snout_length=0.55)
+OTHER_SPECIES: tuple[str, ...] = ("wildebeest", "impala", "giraffe", "buffalo", "cattle", "donkey", "elephant", "rhino")
 MORPHS: dict[str, Morph] = {m.name: m for m in (PLAINS, GREVY, FOAL, WILDEBEEST, IMPALA, GIRAFFE, BUFFALO, CATTLE,
-                                                DONKEY)}
+                                                DONKEY, ELEPHANT, RHINO)}
 """Every body the asset bakes: the zebra morphs, then one per other species (in :data:`OTHER_SPECIES` order)."""
 
 
@@ -207,7 +258,10 @@ def bind_positions(m: Morph) -> FloatArray:
     hoof = 0.025 * h / 1.3 + 0.012
     leg_y = 0.55 * m.girth_radius
     s = h / 1.3  # generic scale for small offsets
-    neck_dir = np.array([0.55, 0.0, 0.835])  # neck rises ~57 degrees from horizontal
+    if m.neck_pitch_deg is None:
+        neck_dir = np.array([0.55, 0.0, 0.835])  # a zebra's neck rises ~57 degrees from horizontal
+    else:
+        neck_dir = np.array([np.cos(np.radians(m.neck_pitch_deg)), 0.0, np.sin(np.radians(m.neck_pitch_deg))])
     p: dict[str, tuple[float, float, float]] = {
         "root": (0.0, 0.0, 0.0),
         "pelvis": (-half * 0.70, 0.0, back + 0.02 * s),
