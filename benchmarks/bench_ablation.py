@@ -15,8 +15,9 @@ Rows (cumulative):
 5. + low and nadir views (``--strategy all``);
 6. + the transfer augmentations (zoom crops, cut-out, grey, gamma, white balance, blur, noise, JPEG).
 
-Data and runs are cached under ``--cache`` (default ``out/ablation``), so an interrupted benchmark continues; the
-table goes to stdout (and BENCHMARKS.md unless ``--no-append``).
+Data and runs are cached under ``--cache`` (default ``out/ablation``) in a folder named after the animal asset's
+digest, so an interrupted benchmark continues and a changed asset starts afresh; the table goes to stdout (and
+BENCHMARKS.md unless ``--no-append``).
 """
 
 from __future__ import annotations
@@ -36,6 +37,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from bench_real import find_sets, score_set  # noqa: E402
+
+from zebra_sim_ros.zebra.asset import asset_digest  # noqa: E402
 
 ZS = [sys.executable, "-m", "zebra_sim_ros.cli"]
 TODAY_GEN = ["--look", "plain", "--sensor-strength", "0", "--randomise", "0", "--other-animals", "0",
@@ -111,6 +114,7 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, default=ROOT / "out" / "ablation")
     ap.add_argument("--no-append", action="store_true")
     args = ap.parse_args()
+    args.cache = args.cache / f"asset_{asset_digest()[:8]}"  # data and runs of another animal asset are not reused
     args.cache.mkdir(parents=True, exist_ok=True)
     log = args.cache / "log.txt"
     init = "" if args.init == "none" else str(ROOT / "zebra_sim_ros/detection/weights/zebra_yolo_n.pt") \

@@ -1,13 +1,13 @@
 """Benchmark: detector quality on freshly generated held-out sets, with a breakdown by world and light.
 
-Generates (once, cached under --cache) a YOLO set of ``--frames`` frames (``--size``, default 640x360, the size
-of the training sets; the cameras' own default is 1280x720) over ``--worlds`` with a seed never used for
-training data (``--seed``, default 777), then scores every ``--weights`` on it with our COCO
-metrics (mAP50, mAP50-95 at each ``--imgsz``, by default each checkpoint's own; conf 0.001), overall, per world and by
-light (day: sun above 15 degrees; low sun: 0..15; night: below the horizon). Zebras seen but below the label
+Generates (once, cached under --cache, keyed by the animal asset's digest) a YOLO set of ``--frames`` frames
+(``--size``, default 640x360, the size of the training sets; the cameras' own default is 1280x720) over ``--worlds``
+with a seed never used for training data (``--seed``, default 777), then scores every ``--weights`` on it with our
+COCO metrics (mAP50, mAP50-95 at each ``--imgsz``, by default each checkpoint's own; conf 0.001), overall, per world
+and by light (day: sun above 15 degrees; low sun: 0..15; night: below the horizon). Zebras seen but below the label
 filters are don't-care regions; the score with them counted as false positives is given too. Several weights are
-scored on the same frames in the same run, so they can be compared directly. The issue's goal on a larger
-held-out set: mAP50 0.95, mAP50-95 0.7.
+scored on the same frames in the same run, so they can be compared directly. The issue's goal on a larger held-out
+set: mAP50 0.95, mAP50-95 0.7.
 
     python benchmarks/bench_heldout.py --worlds snowy_highland --frames 120 --weights shipped runs/x/best.pt
     python benchmarks/bench_heldout.py --worlds training --frames 210 --json
@@ -35,6 +35,7 @@ from zebra_sim_ros.detection.evaluate import make_loader, predictions
 from zebra_sim_ros.detection.evaluate import score as score_images
 from zebra_sim_ros.detection.predict import inference_size
 from zebra_sim_ros.labels.config import LabelFilters
+from zebra_sim_ros.zebra.asset import asset_digest
 
 TRAINING_WORLDS = ("savanna", "grassland", "meadow", "woodland", "moorland", "scrubland", "farmland")
 
@@ -92,7 +93,7 @@ def main() -> None:
     worlds = TRAINING_WORLDS if args.worlds == "training" else tuple(args.worlds.split(","))
     size: tuple[int, int] = args.size
     root = args.cache / (f"{args.worlds.replace(',', '+')}_{args.frames}_{args.seed}"
-                         + ("" if size == (640, 360) else f"_{size[0]}x{size[1]}"))
+                         + ("" if size == (640, 360) else f"_{size[0]}x{size[1]}") + f"_{asset_digest()[:8]}")
     data = held_out_set(root, worlds, args.frames, args.seed, size)
     results: dict[str, Any] = {"machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
                "set": {"worlds": list(worlds), "frames": args.frames, "seed": args.seed, "size": list(size),

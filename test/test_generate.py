@@ -16,6 +16,7 @@ import yaml
 from pycocotools.coco import COCO
 
 from zebra_sim_ros.dataset.generate import GenerateConfig, Job, frame_name, generate, plan, stream_seed
+from zebra_sim_ros.errors import ParameterError
 
 SMALL = {"frames": 12, "strategy": "both", "worlds": ("savanna",), "seed": 5, "width": 320, "height": 180,
          "placer": {"count_max": 60}}
@@ -129,6 +130,24 @@ def test_same_seed_same_bytes_and_resume(dataset: Path, tmp_path: Path) -> None:
     step = victim.name.rsplit("_drone_", 1)[0]
     untouched = [n for n in before if not n.startswith(step)]
     assert all(before[n] == after[n] for n in untouched)
+
+
+def test_a_folder_of_another_asset_is_not_continued(dataset: Path, tmp_path: Path) -> None:
+    """Frames rendered with another version of the animals are never mixed with this one's: continuing such a
+    folder stops with an error naming --out and both digests, and leaves every file as it was."""
+    import shutil
+
+    out = tmp_path / "old"
+    shutil.copytree(dataset, out)
+    first = sorted((out / "annotations").glob("*.json"))[0]
+    (out / "annotations" / sorted((out / "annotations").glob("*.json"))[-1].name).unlink()  # an unfinished run
+    ann = json.loads(first.read_text())
+    ann["asset_digest"] = "0123456789abcdef"
+    first.write_text(json.dumps(ann))
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    with pytest.raises(ParameterError, match=r"--out.*0123456789abcdef"):
+        generate(GenerateConfig(out=str(out), **SMALL), progress=lambda *a: None)
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
 
 
 def test_shards_partition_the_steps() -> None:

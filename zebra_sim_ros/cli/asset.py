@@ -34,7 +34,8 @@ def register(sub: Any) -> None:
 
     v = asub.add_parser("preview", help="contact sheet of clips and frames, side and top views (PNG)")
     v.add_argument("out", type=Path, help="PNG file to write")
-    v.add_argument("--morph", default="plains", help="plains, grevy or foal")
+    v.add_argument("--morph", default="plains", help="plains, grevy, foal, or another species' morph "
+                   "(wildebeest, impala, giraffe, buffalo, cattle, donkey, elephant, rhino)")
     v.add_argument("--clips", default="all", help="comma-separated clip names, or 'all'")
     v.add_argument("--frames-per-clip", type=int, default=4, help="frames shown per clip (1..12)")
     v.add_argument("--coat-seed", type=int, default=0, help="seed of the first individual's coat")

@@ -342,6 +342,22 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], show: Callable[[int], Non
     return done, times
 
 
+def _check_same_asset(out: Path, have: list[str]) -> None:
+    """Refuse to continue a folder whose frames show another version of the animals: a resumed run would mix two
+    assets (another body, other species' shapes) in one dataset. The first and last frames written are checked."""
+    from zebra_sim_ros.zebra.asset import asset_digest
+
+    now = asset_digest()
+    for name in {*have[:1], *have[-1:]}:
+        try:
+            then = json.loads((out / "annotations" / f"{name}.json").read_text()).get("asset_digest")
+        except (OSError, ValueError):
+            continue  # a frame cut off mid-write is written again
+        if then is not None and then != now:
+            raise ParameterError("--out", str(out), f"a new folder, or this one emptied: its frames (e.g. {name}) "
+                                 f"were rendered with animal asset {then}, this code renders asset {now}")
+
+
 def generate(cfg: GenerateConfig, progress: Callable[[int, int, float], None] | None = None) -> dict[str, Any]:
     """Run (or continue) a generation; returns statistics. Rebuilds COCO and the YAML at the end."""
     from zebra_sim_ros.placement.config import PlacerConfig
@@ -355,6 +371,7 @@ def generate(cfg: GenerateConfig, progress: Callable[[int, int, float], None] | 
     cameras = [f"drone_{i}" for i in range(pc.num_cameras)]
     jobs = plan(cfg, len(cameras))
     have = {p.stem for p in (out / "annotations").glob("*.json")}
+    _check_same_asset(out, sorted(have))
     todo = [j for j in jobs if not all(frame_name(j, c) in have for c in cameras)]
     total = len(todo) * len(cameras)
     t0 = time.perf_counter()
