@@ -59,8 +59,9 @@ class PlacerConfig(StageConfig):
                                    allowed="clip names of the asset, or [all]",
                                    check=lambda v: len(v) > 0 and all(isinstance(x, str) for x in v))
     other_animals_max: int = param(0, "animals of other species per placement, U{0..this} (wildebeest, impala, "
-                                   "giraffe, buffalo, cattle, donkey, elephant, rhino), placed around the zebras by the same rules; "
-                                   "never labelled as zebra (0 = zebras only, the paper's setting)", lo=0, hi=500)
+                                   "giraffe, buffalo, cattle, donkey, elephant, rhino), placed around the zebras by "
+                                   "the same rules; never labelled as zebra (0 = zebras only, the paper's setting)",
+                                   lo=0, hi=500)
     other_species: tuple[str, ...] = param(("all",), "species the other animals are drawn from, or [all]",
                                            allowed=f"names among {list(OTHER_SPECIES)}, or [all]",
                                            check=lambda v: len(v) > 0 and all(
