@@ -218,10 +218,8 @@ def _part_pattern(name: str, p: FloatArray, along: FloatArray, around: FloatArra
         phase = z / (0.5 * period)
         dark_extra = _smoothstep(0.72, 0.8, along)
         white_extra = 0.6 * _smoothstep(0.5, 0.3, around % 1.0)
-    elif name == "snout":  # a trunk: the skin of the body, ringed; a nasal horn is coloured in bake_coat
+    elif name == "snout":  # a trunk: the skin of the body, ringed (horns and a nasal horn are coloured in bake_coat)
         phase = z / (0.5 * period)
-    elif name.startswith("horn"):  # coloured in bake_coat
-        phase = np.zeros_like(x)
     else:  # tail: striped at the root, black tuft
         phase = z / (0.5 * period)
         dark_extra = _smoothstep(0.62, 0.7, along)
@@ -285,6 +283,10 @@ def bake_coat(morph: Morph, params: CoatParams, size: int = 512, mesh: ZebraMesh
         n_cells = int(np.clip(np.prod(hi - lo) / period ** 3, 8, 4000))
         seeds, picks = crng.uniform(lo, hi, (n_cells, 3)), crng.uniform(0, 1, n_cells)
     for name, (rows, cols, p, along, around) in samples:
+        if name.startswith("horn") or (name == "snout" and morph.snout == "horn"):
+            # Horn or tusk: its own colour, a little darker at the base and lighter towards the tip; no coat pattern.
+            img[rows, cols] = np.clip(np.asarray(morph.horn_rgb) * (0.8 + 0.35 * along[..., None]), 0, 1)
+            continue
         warp = params.warp_amplitude * np.mean(np.sin(p @ k.T + ph), axis=-1) * 2.0
         phase, dark_extra, white_extra = _part_pattern(name, p, along, around, morph, period)
         f = (phase + warp) % 1.0
@@ -305,8 +307,5 @@ def bake_coat(morph: Morph, params: CoatParams, size: int = 512, mesh: ZebraMesh
             mid = params.black_fraction + (1 - params.black_fraction) / 2
             sh = _smoothstep(0.12, 0.0, np.abs(f - mid)) * _smoothstep(pel_x + 0.4, pel_x, p[..., 0]) * 0.45
             col = col * (1 - sh[..., None]) + np.array([0.55, 0.45, 0.36]) * sh[..., None]
-        if name.startswith("horn") or (name == "snout" and morph.snout == "horn"):
-            # Horn or tusk: its own colour, a little darker at the base and lighter towards the tip.
-            col = np.clip(np.asarray(morph.horn_rgb) * (0.8 + 0.35 * along[..., None]), 0, 1) * np.ones_like(col)
         img[rows, cols] = col
     return np.clip(np.round(img * 255), 0, 255).astype(np.uint8)

@@ -301,7 +301,7 @@ def _hidden(name: str, P: dict[str, FloatArray], hdir: FloatArray, m: Morph, at:
     return PartSpec(name, pts, r, r, _Z, (("head", pts[0], pts[-1]),), 0.05)
 
 
-def _face_frame(hdir: FloatArray) -> FloatArray:
+def _face_normal(hdir: FloatArray) -> FloatArray:
     """The face's outward normal: the face line turned 90 degrees up."""
     return np.array([-hdir[2], 0.0, hdir[0]])
 
@@ -313,7 +313,7 @@ def _horns(m: Morph, P: dict[str, FloatArray], s: float) -> list[PartSpec]:  # n
         return [_hidden("horn_l", P, hdir, m, 0.15), _hidden("horn_r", P, hdir, m, 0.20)]
     frame, ctrl, radii = _HORN_CURVES[m.horn]
     L, H = m.horn_length, m.head_length  # noqa: N806
-    normal = _face_frame(hdir)
+    normal = _face_normal(hdir)
     specs = []
     for side, sy in (("l", 1.0), ("r", -1.0)):
         if m.horn == "tusk":  # from the upper jaw, either side of the trunk's root
@@ -341,7 +341,7 @@ def _snout(m: Morph, P: dict[str, FloatArray], s: float) -> PartSpec:  # noqa: N
     H, L = m.head_length, m.snout_length  # noqa: N806
     if m.snout == "none":
         return _hidden("snout", P, hdir, m, 0.25)
-    normal = _face_frame(hdir)
+    normal = _face_normal(hdir)
     if m.snout == "trunk":  # skinned to the jaw so grazing lowers it with the head
         base = P["head"] + hdir * 0.78 * H
         u = np.array([0.0, 0.2, 0.45, 0.7, 0.88, 1.0])
