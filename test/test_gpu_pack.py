@@ -73,11 +73,20 @@ def test_pack_selects_reencodes_and_keeps_labels(tmp_path: Path) -> None:
     thinned = sorted(p.stem for p in (out / "train" / "images" / "train").glob("*.jpg"))
     assert thinned == [s for k, s in enumerate(got) if k % 3]  # every 3rd of the sorted list left out, old files gone
 
+    r = _pack("--train", a, b, "--keep-every", f"{a}=5", "--val", val, "--out", out)
+    assert r.returncode == 0, r.stderr
+    kept = sorted(p.stem for p in (out / "train" / "images" / "train").glob("*.jpg"))
+    assert kept == ["a_000", "a_005", "a_010"] + [f"b_{k:03d}" for k in range(8)]  # a's 1st, 6th, 11th; all of b
+
 
 def test_pack_refuses_bad_options_and_oversized_trees(tmp_path: Path) -> None:
     a = _set(tmp_path / "a", "train", 4, "a")
     r = _pack("--train", a, "--drop-every", f"{a}=1", "--val", a)
     assert r.returncode != 0 and "--drop-every" in r.stderr and "N >= 2" in r.stderr
+    r = _pack("--train", a, "--keep-every", f"{a}=x", "--val", a)
+    assert r.returncode != 0 and "--keep-every" in r.stderr and "N >= 2" in r.stderr
+    r = _pack("--train", a, "--keep-every", f"{a}=2", "--drop-every", f"{a}=3", "--val", a)
+    assert r.returncode != 0 and "both --drop-every and --keep-every" in r.stderr
     r = _pack("--train", tmp_path / "nothing", "--val", a, "--out", tmp_path / "o")
     assert r.returncode != 0 and "holds no .jpg or .png frames" in r.stderr
     r = _pack("--train", a, "--val", a, "--out", tmp_path / "o", "--thin", "1")

@@ -49,6 +49,8 @@ def main() -> None:
     ap.add_argument("--train", type=Path, nargs="+", required=True, help="image folders of generated sets")
     ap.add_argument("--drop-every", action="append", default=[], metavar="FOLDER=N",
                     help="leave out every N-th frame (the 1st, N+1-th, ...) of this --train folder, sorted by name")
+    ap.add_argument("--keep-every", action="append", default=[], metavar="FOLDER=N",
+                    help="keep only every N-th frame (the 1st, N+1-th, ...) of this --train folder, sorted by name")
     ap.add_argument("--thin", type=int, default=0, help="then leave out every N-th of all training frames (0: none)")
     ap.add_argument("--val", type=Path, required=True, help="image folder of the validation frames")
     ap.add_argument("--val-frames", type=int, default=8, help="the first N of --val, by name")
@@ -62,19 +64,18 @@ def main() -> None:
     for name, q in (("--quality", a.quality), ("--val-quality", a.val_quality)):
         if not 1 <= q <= 100:
             raise SystemExit(f"pack: {name} {q}: want a JPEG quality of 1..100")
-    drop = {}
-    for item in a.drop_every:
-        folder, _, n = item.partition("=")
-        if not n.isdigit() or int(n) < 2:
-            raise SystemExit(f"pack: --drop-every {item!r}: want FOLDER=N with N >= 2")
-        drop[Path(folder)] = int(n)
+    drop = _every("--drop-every", a.drop_every)
+    keep = _every("--keep-every", a.keep_every)
+    for folder in set(drop) & set(keep):
+        raise SystemExit(f"pack: {folder}: given both --drop-every and --keep-every; want one")
     frames: list[Path] = []
     for folder in a.train:
         found = sorted(folder.glob("*.jpg")) + sorted(folder.glob("*.png"))
         if not found:
             raise SystemExit(f"pack: --train {folder} holds no .jpg or .png frames")
         n = drop.get(folder, 0)
-        frames += [f for k, f in enumerate(found) if not n or k % n]
+        m = keep.get(folder, 1)
+        frames += [f for k, f in enumerate(found) if (not n or k % n) and k % m == 0]
     frames.sort(key=lambda p: p.name)
     if a.thin:
         frames = [f for k, f in enumerate(frames) if k % a.thin]
@@ -88,6 +89,17 @@ def main() -> None:
     print(f"pack: {len(frames)} training and {len(val)} validation frames, {mib:.1f} MiB in {a.out}")
     if mib > a.max_mib:
         raise SystemExit(f"pack: {mib:.1f} MiB is over --max-mib {a.max_mib}: the tree would not travel")
+
+
+def _every(option: str, items: list[str]) -> dict[Path, int]:
+    """``FOLDER=N`` items of a per-folder option as {folder: N}, N a whole number >= 2."""
+    out = {}
+    for item in items:
+        folder, _, n = item.partition("=")
+        if not n.isdigit() or int(n) < 2:
+            raise SystemExit(f"pack: {option} {item!r}: want FOLDER=N with N >= 2")
+        out[Path(folder)] = int(n)
+    return out
 
 
 def _record_generators(folders: list[Path], out: Path) -> None:
