@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from zebra_sim_ros.errors import ParameterError
-from zebra_sim_ros.zebra.coat import _cells, bake_coat, random_coat
+from zebra_sim_ros.zebra.coat import _cells, _part_samples, bake_coat, random_coat
 from zebra_sim_ros.zebra.mesh import build_mesh
 from zebra_sim_ros.zebra.skeleton import BUFFALO, CATTLE, ELEPHANT, FOAL, GIRAFFE, GREVY, PLAINS, RHINO
 
@@ -102,3 +104,46 @@ def test_horns_and_tusks_take_their_own_colour(morph: object) -> None:
         assert np.all(np.abs(snout - horn) < 0.15 * horn + 0.02)
     elif morph.snout == "trunk":  # type: ignore[attr-defined]
         assert np.abs(snout - skin).max() < 0.1 and np.abs(snout - horn).max() > 0.2
+
+
+def _bare(params: object) -> object:
+    """The same coat without its hide: no noise, creases, mud or dust."""
+    return dataclasses.replace(params, hide_amp=0.0, wrinkle=0.0, mud_amount=0.0, dust=0.0)  # type: ignore
+
+
+def test_a_zebra_coat_has_no_hide() -> None:
+    """Zebras draw no hide, and hide settings forced onto a striped coat change nothing: zebra frames render as
+    before the other species got one."""
+    params = random_coat(4, PLAINS)
+    assert (params.hide_amp, params.wrinkle, params.mud_amount, params.dust) == (0.0, 0.0, 0.0, 0.0)
+    forced = dataclasses.replace(params, hide_amp=0.2, wrinkle=0.4, mud_amount=1.0, dust=0.5, mud_height=0.5,
+                                 mud_rgb=(0.5, 0.3, 0.1))
+    assert np.array_equal(bake_coat(PLAINS, params, 128), bake_coat(PLAINS, forced, 128))
+
+
+@pytest.mark.parametrize("morph", [ELEPHANT, BUFFALO, RHINO], ids=["elephant", "buffalo", "rhino"])
+def test_a_solid_hide_is_textured_and_muddy_up_to_its_mud_line(morph: object) -> None:
+    """A solid coat is no flat colour: the hide's noise and creases spread the barrel's brightness; mud covers what
+    lies below the mud line, in the mud's colour, and leaves what lies well above it alone."""
+    size = 256
+    params = dataclasses.replace(random_coat(9, morph), dust=0.0, mud_amount=1.0, mud_height=0.3,  # type: ignore
+                                 mud_rgb=(0.45, 0.28, 0.17))
+    mesh = build_mesh(morph, 0)  # type: ignore[arg-type]
+    hide = bake_coat(morph, params, size, mesh).astype(float)  # type: ignore[arg-type]
+    bare = bake_coat(morph, _bare(params), size, mesh).astype(float)  # type: ignore[arg-type]
+    rows, cols, p, _, _ = _part_samples(mesh, "barrel", size)
+    lum_hide, lum_bare = hide[rows, cols].mean(axis=-1), bare[rows, cols].mean(axis=-1)
+    assert lum_hide.std() > 1.5 * lum_bare.std() + 2.0, (lum_hide.std(), lum_bare.std())
+    height = mesh.vertices[:, 2].max()
+    for leg in ("leg_fl", "leg_hl"):
+        rows, cols, p, _, _ = _part_samples(mesh, leg, size)
+        low = p[..., 2] < 0.3 * height - 0.2 * height  # well under the line, even where the noise lifts it
+        assert low.sum() > 20
+        got = hide[rows[low], cols[low]].reshape(-1, 3).mean(axis=0) / 255
+        assert np.all(np.abs(got - np.array(params.mud_rgb)) < 0.5 * np.array(params.mud_rgb)), (leg, got)
+    rows, cols, p, _, _ = _part_samples(mesh, "neck", size)
+    high = p[..., 2] > 0.3 * height + 0.2 * height
+    no_mud = dataclasses.replace(params, mud_amount=0.0)  # type: ignore[arg-type]
+    clean = bake_coat(morph, no_mud, size, mesh).astype(float)  # type: ignore[arg-type]
+    changed = np.abs(hide[rows[high], cols[high]] - clean[rows[high], cols[high]]).max(axis=-1) > 1.0
+    assert high.sum() > 20 and changed.mean() < 0.01, changed.mean()  # (texels shared with a neighbouring part aside)

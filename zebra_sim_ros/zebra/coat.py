@@ -10,7 +10,9 @@ Other species (:data:`~zebra_sim_ros.zebra.skeleton.OTHER_SPECIES`) use the same
 ``coat``: brindle (faint bands, a wildebeest), solid (an impala, buffalo or donkey: one colour with dark points
 and a white belly where the morph has one; an elephant's or a rhino's grey skin), network (a giraffe: dark cells
 parted by pale lines) or patches (cattle: cells of one colour or the other, or a solid coat). Horns and tusks take
-the morph's ``horn_rgb``.
+the morph's ``horn_rgb``. Their hide is not flat: a few octaves of brightness noise (hair and skin), creases
+(an elephant's and a rhino's wrinkles, fainter on a buffalo), mud up the legs to a height drawn per individual, and
+a dusting of the same earth over the whole body. Zebras' coats have none of these and are unchanged.
 """
 
 from __future__ import annotations
@@ -43,6 +45,14 @@ class CoatParams:
     shadow_stripes: bool
     pattern: str = "stripes"  # the morph's coat (skeleton.COATS)
     cell_seed: int = 0  # cells of network and patches coats
+    # the hide of other species (zebras: all zero, no effect)
+    hide_amp: float = 0.0  # relative brightness noise (its standard deviation, roughly)
+    wrinkle: float = 0.0  # how much the creases darken
+    mud_rgb: tuple[float, float, float] = (0.0, 0.0, 0.0)  # the earth on the legs and, thinly, all over
+    mud_height: float = 0.0  # share of the animal's height that the mud reaches
+    mud_amount: float = 0.0  # opacity of the mud on the legs (0: none)
+    dust: float = 0.0  # opacity of the earth over the whole body
+    hide_seed: int = 0  # the noise waves of the hide
 
 
 def random_coat(seed: int, morph: Morph) -> CoatParams:
@@ -92,14 +102,53 @@ def _species_coat(seed: int, morph: Morph, rng: np.random.Generator) -> CoatPara
     direction = rng.normal(size=(6, 3))
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
     k = direction * rng.uniform(3.0, 8.0, size=(6, 1))
+    period_scale, warp_amplitude = float(rng.uniform(0.85, 1.15)), float(rng.uniform(0.1, 0.25))
+    wave_phase = tuple(float(v) for v in rng.uniform(0, 2 * np.pi, size=6))
+    cell_seed = int(rng.integers(0, 2**31 - 1))
+    # the hide, drawn after everything above so that those draws are what they were before it existed
+    thick = morph.name in ("elephant", "rhino")
+    earth = _EARTH[int(rng.integers(len(_EARTH)))] * rng.uniform(0.85, 1.15) * rng.uniform(0.95, 1.05, 3)
+    hide_amp = float(rng.uniform(0.05, 0.14))
+    wrinkle = float(rng.uniform(0.25, 0.45) if thick else rng.uniform(0.05, 0.15) if morph.name == "buffalo"
+                    else rng.uniform(0.0, 0.05))
+    mud_height = float(rng.uniform(0.12, 0.45))
+    mud_amount = float(rng.uniform(0.4, 0.9)) if rng.uniform() < 0.5 else 0.0
+    dust = float(rng.uniform(0.0, 0.5 if thick or morph.name == "buffalo" else 0.2))
     return CoatParams(
-        seed=seed, period_scale=float(rng.uniform(0.85, 1.15)), black_fraction=0.35,
-        warp_amplitude=float(rng.uniform(0.1, 0.25)),
-        wave_k=tuple((float(row[0]), float(row[1]), float(row[2])) for row in k),
-        wave_phase=tuple(float(v) for v in rng.uniform(0, 2 * np.pi, size=6)),
+        seed=seed, period_scale=period_scale, black_fraction=0.35, warp_amplitude=warp_amplitude,
+        wave_k=tuple((float(row[0]), float(row[1]), float(row[2])) for row in k), wave_phase=wave_phase,
         base_rgb=tuple(float(v) for v in np.clip(base, 0, 1)),  # type: ignore[arg-type]
         stripe_rgb=tuple(float(v) for v in np.clip(alt, 0, 1)),  # type: ignore[arg-type]
-        shadow_stripes=False, pattern=pattern, cell_seed=int(rng.integers(0, 2**31 - 1)))
+        shadow_stripes=False, pattern=pattern, cell_seed=cell_seed,
+        hide_amp=hide_amp, wrinkle=wrinkle, mud_rgb=tuple(float(v) for v in np.clip(earth, 0, 1)),  # type: ignore
+        mud_height=mud_height, mud_amount=mud_amount, dust=dust, hide_seed=int(rng.integers(0, 2**31 - 1)))
+
+
+# Earth that sticks to a hide: wet dark mud, red laterite, grey dust, ochre (linear-ish sRGB)
+_EARTH = (np.array([0.20, 0.16, 0.12]), np.array([0.45, 0.28, 0.17]), np.array([0.55, 0.50, 0.44]),
+          np.array([0.50, 0.40, 0.26]))
+
+
+def _hide(p: FloatArray, params: CoatParams, height: float) -> tuple[FloatArray, FloatArray]:
+    """The hide at bind-pose points ``p`` (..., 3), metres, z up from the ground: a brightness factor (...) and the
+    opacity (...) of the earth on it (mud up the legs, dust all over)."""
+    rng = np.random.default_rng([params.hide_seed, 0x41DE])
+    fbm, amp, norm = np.zeros(p.shape[:-1]), 1.0, 0.0
+    for octave in range(4):  # wavelengths of about 45, 20, 9 and 4 cm
+        d = rng.normal(size=(4, 3))
+        k = d / np.linalg.norm(d, axis=1, keepdims=True) * 14.0 * 2.2 ** octave
+        fbm += amp * np.mean(np.sin(p @ k.T + rng.uniform(0, 2 * np.pi, 4)), axis=-1)
+        norm, amp = norm + amp, amp * 0.55
+    fbm /= norm  # standard deviation about 0.25
+    d = rng.normal(size=(3, 3))
+    k = d / np.linalg.norm(d, axis=1, keepdims=True) * rng.uniform(70.0, 110.0, size=(3, 1))
+    s = np.abs(np.sin(p @ k.T + rng.uniform(0, 2 * np.pi, 3) + 4.0 * fbm[..., None]))  # creases at the zero lines
+    crease = np.max(_smoothstep(0.3, 0.0, s), axis=-1)
+    shade = np.clip(1.0 + params.hide_amp * 4.0 * fbm, 0.5, 1.5) * (1.0 - params.wrinkle * crease)
+    h = params.mud_height * height
+    mud = _smoothstep(h + 0.06, h - 0.06, p[..., 2] + 0.15 * height * fbm) * params.mud_amount
+    earth = 1.0 - (1.0 - mud) * (1.0 - params.dust * np.clip(0.6 + 2.0 * fbm, 0, 1))
+    return shade, earth
 
 
 def _cells(p: FloatArray, seeds: FloatArray, line: float, rng_pick: FloatArray,
@@ -276,6 +325,8 @@ def bake_coat(morph: Morph, params: CoatParams, size: int = 512, mesh: ZebraMesh
     ph = np.array(params.wave_phase)
     edge = 0.06  # soft edge, in stripe periods, so the texture is anti-aliased already
 
+    height = float(mesh.vertices[:, 2].max())
+    mud_rgb = np.array(params.mud_rgb)
     seeds = picks = np.zeros((0, 3))
     if params.pattern in ("network", "patches"):
         crng = np.random.default_rng([params.cell_seed, 0xCE11])
@@ -303,6 +354,9 @@ def bake_coat(morph: Morph, params: CoatParams, size: int = 512, mesh: ZebraMesh
             b = 0.6 * b  # faint bands
         b = np.clip(np.maximum(b, dark_extra) * (1 - white_extra), 0, 1)
         col = base * (1 - b[..., None]) + black * b[..., None]
+        if params.pattern != "stripes":  # other species: hide noise, creases, mud and dust
+            shade, earth = _hide(p, params, height)
+            col = col * shade[..., None] * (1 - earth[..., None]) + mud_rgb * earth[..., None] * shade[..., None]
         if params.shadow_stripes and name == "barrel":
             mid = params.black_fraction + (1 - params.black_fraction) / 2
             sh = _smoothstep(0.12, 0.0, np.abs(f - mid)) * _smoothstep(pel_x + 0.4, pel_x, p[..., 0]) * 0.45
