@@ -38,7 +38,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from bench_real import find_sets, score_set  # noqa: E402
 
-from zebra_sim_ros.zebra.asset import asset_digest  # noqa: E402
+from zebra_sim_ros.zebra.asset import appearance_digest  # noqa: E402
 
 ZS = [sys.executable, "-m", "zebra_sim_ros.cli"]
 TODAY_GEN = ["--look", "plain", "--sensor-strength", "0", "--randomise", "0", "--other-animals", "0",
@@ -114,7 +114,7 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, default=ROOT / "out" / "ablation")
     ap.add_argument("--no-append", action="store_true")
     args = ap.parse_args()
-    args.cache = args.cache / f"asset_{asset_digest()[:8]}"  # data and runs of another animal asset are not reused
+    args.cache = args.cache / f"asset_{appearance_digest()[:8]}"  # data and runs of other animals are not reused
     args.cache.mkdir(parents=True, exist_ok=True)
     log = args.cache / "log.txt"
     init = "" if args.init == "none" else str(ROOT / "zebra_sim_ros/detection/weights/zebra_yolo_n.pt") \

@@ -3,7 +3,7 @@
 One default set (``generate --frames 36``: 1280x720, savanna, far and close-by, the photographic look, other
 species, domain randomisation) holds 12 placements; its mAP50 moves by 0.13 from one seed to the next, more than a
 training stage moves it. This scores every ``--weights`` on the default set of each ``--seeds`` (generated once
-with every frame in one split and no depth, cached under ``--cache`` as ``def_<seed>_<asset digest>``; seeds used
+with every frame in one split and no depth, cached under ``--cache`` as ``def_<seed>_<appearance digest>``; seeds used
 to train or choose weights say nothing about new ones) exactly as default ``zebra-sim val`` does (the checkpoint's own
 inference-size rule, conf 0.001, up to 300 detections per image, don't-care boxes honoured), and prints per seed,
 their median, and all seeds' frames pooled into one COCO evaluation (the steadiest single figure).
@@ -29,15 +29,16 @@ from zebra_sim_ros.dataset.generate import GenerateConfig, generate
 from zebra_sim_ros.detection.checkpoint import load_model
 from zebra_sim_ros.detection.evaluate import ImagePredictions, make_loader, predictions, score
 from zebra_sim_ros.detection.predict import inference_size
-from zebra_sim_ros.zebra.asset import asset_digest
+from zebra_sim_ros.zebra.asset import appearance_digest
 
 DEFAULT_FRAMES = 36  # README's default generate
 
 
 def default_set(cache: Path, seed: int, frames: int, workers: int) -> Path:
     """The image folder of the default ``generate`` of ``seed`` (made once; a rerun reuses it). The folder is named
-    after the seed and the animal asset's digest: a set rendered with other animals' shapes is never reused."""
-    root = cache / f"def_{seed}_{asset_digest()[:8]}"
+    after the seed and the appearance digest (asset and coats): a set rendered with other animals' shapes or hides is
+    never reused."""
+    root = cache / f"def_{seed}_{appearance_digest()[:8]}"
     if not (root / "dataset.yaml").exists():
         generate(GenerateConfig(out=str(root), frames=frames, seed=seed, val_fraction=0.0, depth="none",
                                 workers=workers), progress=lambda *a: None)

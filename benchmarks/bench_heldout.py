@@ -35,7 +35,7 @@ from zebra_sim_ros.detection.evaluate import make_loader, predictions
 from zebra_sim_ros.detection.evaluate import score as score_images
 from zebra_sim_ros.detection.predict import inference_size
 from zebra_sim_ros.labels.config import LabelFilters
-from zebra_sim_ros.zebra.asset import asset_digest
+from zebra_sim_ros.zebra.asset import appearance_digest
 
 TRAINING_WORLDS = ("savanna", "grassland", "meadow", "woodland", "moorland", "scrubland", "farmland")
 
@@ -93,7 +93,7 @@ def main() -> None:
     worlds = TRAINING_WORLDS if args.worlds == "training" else tuple(args.worlds.split(","))
     size: tuple[int, int] = args.size
     root = args.cache / (f"{args.worlds.replace(',', '+')}_{args.frames}_{args.seed}"
-                         + ("" if size == (640, 360) else f"_{size[0]}x{size[1]}") + f"_{asset_digest()[:8]}")
+                         + ("" if size == (640, 360) else f"_{size[0]}x{size[1]}") + f"_{appearance_digest()[:8]}")
     data = held_out_set(root, worlds, args.frames, args.seed, size)
     results: dict[str, Any] = {"machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
                "set": {"worlds": list(worlds), "frames": args.frames, "seed": args.seed, "size": list(size),

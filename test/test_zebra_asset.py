@@ -10,7 +10,8 @@ import pytest
 
 from zebra_sim_ros.errors import AssetError, ParameterError
 from zebra_sim_ros.geometry.rotations import rot_z
-from zebra_sim_ros.zebra.asset import ZebraLibrary, asset_digest, build_library, load_library
+from zebra_sim_ros.zebra import coat
+from zebra_sim_ros.zebra.asset import ZebraLibrary, appearance_digest, asset_digest, build_library, load_library
 
 
 def test_manifest_and_frame_table(library: ZebraLibrary) -> None:
@@ -69,3 +70,17 @@ def test_pose_places_scales_and_rotates(library: ZebraLibrary) -> None:
     corners = posed.box_corners()
     assert corners.shape == (n, 8, 3)
     assert posed.keypoints.shape == (n, 26, 3) and posed.joints.shape[2] == 3
+
+
+def test_appearance_digest_follows_the_coats_source_as_well_as_the_asset(tmp_path: Path,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """Benchmarks key cached renders on the appearance digest: a coat source that differs by one byte gives another
+    digest, the same source the same one, and the asset digest does not move with the coats."""
+    today, asset = appearance_digest(), asset_digest()
+    assert len(today) == 16 and today != asset
+    copy = tmp_path / "coat.py"
+    copy.write_bytes(Path(str(coat.__file__)).read_bytes())
+    monkeypatch.setattr(coat, "__file__", str(copy))
+    assert appearance_digest() == today
+    copy.write_bytes(copy.read_bytes() + b"\n")
+    assert appearance_digest() != today and asset_digest() == asset

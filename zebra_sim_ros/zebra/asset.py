@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from zebra_sim_ros.errors import AssetError, ParameterError
 from zebra_sim_ros.geometry.rotations import euler_zyx, rigid, rot_y
-from zebra_sim_ros.zebra import animation, keypoints, mesh, skeleton, skinning
+from zebra_sim_ros.zebra import animation, coat, keypoints, mesh, skeleton, skinning
 from zebra_sim_ros.zebra.animation import CLIPS
 from zebra_sim_ros.zebra.keypoints import keypoint_weights, pose_keypoints
 from zebra_sim_ros.zebra.mesh import LODS, ZebraMesh, build_mesh
@@ -43,6 +43,15 @@ def asset_digest() -> str:
     h = hashlib.sha256(f"v{ASSET_VERSION}".encode())
     for mod in _SOURCES:
         h.update(Path(str(mod.__file__)).read_bytes())
+    return h.hexdigest()[:16]
+
+
+def appearance_digest() -> str:
+    """Digest of what an animal looks like in a render: the asset (:func:`asset_digest`) and the coats' source. Sets
+    rendered with another appearance (the other species' hides, say) must not be reused as if they were today's;
+    the asset cache itself does not hold coats and keys on :func:`asset_digest` alone."""
+    h = hashlib.sha256(asset_digest().encode())
+    h.update(Path(str(coat.__file__)).read_bytes())
     return h.hexdigest()[:16]
 
 
