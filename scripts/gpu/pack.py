@@ -66,8 +66,8 @@ def main() -> None:
             raise SystemExit(f"pack: {name} {q}: want a JPEG quality of 1..100")
     drop = _every("--drop-every", a.drop_every)
     keep = _every("--keep-every", a.keep_every)
-    for folder in set(drop) & set(keep):
-        raise SystemExit(f"pack: {folder}: given both --drop-every and --keep-every; want one")
+    if both := sorted(map(str, set(drop) & set(keep))):
+        raise SystemExit(f"pack: {', '.join(both)}: given both --drop-every and --keep-every; want one")
     frames: list[Path] = []
     for folder in a.train:
         found = sorted(folder.glob("*.jpg")) + sorted(folder.glob("*.png"))
