@@ -132,22 +132,50 @@ def test_same_seed_same_bytes_and_resume(dataset: Path, tmp_path: Path) -> None:
     assert all(before[n] == after[n] for n in untouched)
 
 
-def test_a_folder_of_another_asset_is_not_continued(dataset: Path, tmp_path: Path) -> None:
-    """Frames rendered with another version of the animals are never mixed with this one's: continuing such a
-    folder stops with an error naming --out and both digests, and leaves every file as it was."""
+@pytest.mark.parametrize(("key", "what"), [("asset_digest", "animal asset"),
+                                           ("appearance_digest", r"animal appearance \(asset and coats\)")])
+def test_a_folder_of_other_animals_is_not_continued(dataset: Path, tmp_path: Path, key: str, what: str) -> None:
+    """Frames rendered with another version of the animals (their asset, or only their coats) are never mixed with
+    this one's: continuing such a folder stops with an error naming --out and both digests, and leaves every file as
+    it was."""
     import shutil
+
+    from zebra_sim_ros.zebra.asset import appearance_digest
 
     out = tmp_path / "old"
     shutil.copytree(dataset, out)
     first = sorted((out / "annotations").glob("*.json"))[0]
     (out / "annotations" / sorted((out / "annotations").glob("*.json"))[-1].name).unlink()  # an unfinished run
     ann = json.loads(first.read_text())
-    ann["asset_digest"] = "0123456789abcdef"
+    assert ann["appearance_digest"] == appearance_digest()  # recorded with every frame
+    ann[key] = "0123456789abcdef"
     first.write_text(json.dumps(ann))
     before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
-    with pytest.raises(ParameterError, match=r"--out.*0123456789abcdef"):
+    bad = rf"--out.*{what} 0123456789abcdef, this code renders {what} [0-9a-f]{{16}}"
+    with pytest.raises(ParameterError, match=bad):
         generate(GenerateConfig(out=str(out), **SMALL), progress=lambda *a: None)
     assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+
+
+def test_a_folder_written_before_the_appearance_was_recorded_is_continued(dataset: Path, tmp_path: Path) -> None:
+    """Annotations from before the appearance digest was recorded carry only the asset's: such a folder of today's
+    asset is continued, and the frames written now record the appearance."""
+    import shutil
+
+    from zebra_sim_ros.zebra.asset import appearance_digest
+
+    out = tmp_path / "older"
+    shutil.copytree(dataset, out)
+    files = sorted((out / "annotations").glob("*.json"))
+    for f in files:
+        ann = json.loads(f.read_text())
+        del ann["appearance_digest"]
+        f.write_text(json.dumps(ann))
+    files[-1].unlink()
+    stats = generate(GenerateConfig(out=str(out), **SMALL), progress=lambda *a: None)
+    assert stats["frames_written"] == 3
+    assert json.loads(files[-1].read_text())["appearance_digest"] == appearance_digest()
+    assert "appearance_digest" not in json.loads(files[0].read_text())
 
 
 def test_shards_partition_the_steps() -> None:

@@ -671,9 +671,11 @@ class FrameAnnotation(_Message):
     sensor: SensorDraw | None = None  # the camera drawn for this frame; None: a perfect camera
     weather: Weather = field(default_factory=Weather)  # the step's sky and its randomised colours
     ground: GroundLook = field(default_factory=GroundLook)  # the step's landscape colours
+    appearance_digest: str = ""  # the animals' look (asset and coats); "" in files written before it was recorded
 
     def to_dict(self) -> dict[str, Any]:
         return {"weather": self.weather.to_dict(), "ground": self.ground.to_dict(),
+                "appearance_digest": self.appearance_digest,
                 "frame": self.frame, "split": self.split, "image": self.image, "mask": self.mask, "depth": self.depth,
                 "world": self.world.to_dict(), "seed": self.seed, "step": self.step, "placement": self.placement,
                 "reroll": self.reroll, "strategy": self.strategy, "asset_digest": self.asset_digest,
@@ -692,4 +694,4 @@ class FrameAnnotation(_Message):
             str(d["strategy"]), str(d["asset_digest"]), Lighting.from_dict(d["lighting"]),
             SceneCamera.from_dict(d["camera"]), str(d["regenerate"]), Labels.from_dict(d["labels"]),
             SensorDraw.from_dict(d.get("sensor")), Weather.from_dict(d.get("weather")),
-            GroundLook.from_dict(d.get("ground"))), d)
+            GroundLook.from_dict(d.get("ground")), str(d.get("appearance_digest", ""))), d)

@@ -185,10 +185,11 @@ class _Pipeline:
     """Per-process state: zebra library, a simulator per world, placers."""
 
     def __init__(self, cfg: GenerateConfig) -> None:
-        from zebra_sim_ros.zebra.asset import load_library
+        from zebra_sim_ros.zebra.asset import appearance_digest, load_library
 
         self.cfg = cfg
         self.library = load_library()
+        self.appearance = appearance_digest()
         self.world_name: str | None = None
         self.sim: Any = None
         self.placers: dict[tuple[str, int], Any] = {}
@@ -289,7 +290,7 @@ class _Pipeline:
             f"zebra-sim render --seed {job.seed} --step {job.step} --world {job.world} --strategy {job.strategy} "
             f"--width {c.width} --height {c.height} --hfov {c.hfov_deg} --sensor-strength {c.sensor_strength} "
             f"--look {c.look}"
-            f"{self.set_args}", labels, v.sensor, scene.weather, scene.ground)
+            f"{self.set_args}", labels, v.sensor, scene.weather, scene.ground, self.appearance)
         _write_atomic(self.out / "annotations" / f"{name}.json", meta.to_json().encode())
         return name
 
@@ -343,19 +344,24 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], show: Callable[[int], Non
 
 
 def _check_same_asset(out: Path, have: list[str]) -> None:
-    """Refuse to continue a folder whose frames show another version of the animals: a resumed run would mix two
-    assets (another body, other species' shapes) in one dataset. The first and last frames written are checked."""
-    from zebra_sim_ros.zebra.asset import asset_digest
+    """Refuse to continue a folder whose frames show the animals otherwise: a resumed run would mix two assets
+    (another body, other species' shapes) or two sets of coats (the other species' hides, say) in one dataset. The
+    first and last frames written are checked; frames written before the appearance was recorded are checked on
+    their asset alone."""
+    from zebra_sim_ros.zebra.asset import appearance_digest, asset_digest
 
-    now = asset_digest()
+    now = (("asset_digest", "animal asset", asset_digest()),
+           ("appearance_digest", "animal appearance (asset and coats)", appearance_digest()))
     for name in {*have[:1], *have[-1:]}:
         try:
-            then = json.loads((out / "annotations" / f"{name}.json").read_text()).get("asset_digest")
+            ann = json.loads((out / "annotations" / f"{name}.json").read_text())
         except (OSError, ValueError):
             continue  # a frame cut off mid-write is written again
-        if then is not None and then != now:
-            raise ParameterError("--out", str(out), f"a new folder, or this one emptied: its frames (e.g. {name}) "
-                                 f"were rendered with animal asset {then}, this code renders asset {now}")
+        for key, what, ours in now:
+            then = ann.get(key) or None
+            if then is not None and then != ours:
+                raise ParameterError("--out", str(out), f"a new folder, or this one emptied: its frames (e.g. {name}) "
+                                     f"were rendered with {what} {then}, this code renders {what} {ours}")
 
 
 def generate(cfg: GenerateConfig, progress: Callable[[int, int, float], None] | None = None) -> dict[str, Any]:
