@@ -269,6 +269,22 @@ def test_readme_parameter_tables_equal_the_specs() -> None:
         assert markdown_table(specs) + "\n" in readme, f"README's {executable} table differs from its ParamSpecs"
 
 
+def test_readme_names_the_other_species_the_asset_bakes_wherever_it_lists_them() -> None:
+    """The README lists the other species in prose, a parameter table and the dataset layout: every list that starts
+    with the asset's first one (a run of species names, wrapped or not; shorter runs such as the real photos'
+    "buffalo, elephant, rhino" are not the generator's list) names them all, in the asset's order, so a species
+    added or dropped in code shows up here as a failing list."""
+    from zebra_sim_ros.zebra.skeleton import OTHER_SPECIES
+
+    readme = " ".join((REPO / "README.md").read_text().split())  # lines unwrapped, code-block margins gone
+    name = "|".join(OTHER_SPECIES)
+    lists = [re.findall(r"[a-z]+", m.group(0))
+             for m in re.finditer(rf"'?\b{OTHER_SPECIES[0]}\b'?(?:(?:,\s*)'?\b(?:{name})\b'?)+", readme)]
+    assert len(lists) >= 6, lists
+    for found in lists:
+        assert found == list(OTHER_SPECIES), found
+
+
 def test_readme_starts_with_the_two_commands_and_lists_every_topic_of_the_graph() -> None:
     readme = (REPO / "README.md").read_text()
     first_block = readme.split("```bash\n", 1)[1].split("```", 1)[0].splitlines()
