@@ -407,6 +407,12 @@ class YoloDataset(Dataset[Any]):
             sides.append(max(img.shape[:2]))
         return int(np.median(sides))
 
+    @property
+    def windowed(self) -> bool:
+        """Whether training samples are a ``crop`` window of an ``imgsz`` sample (only the window is drawn). A
+        ``crop`` larger than ``imgsz`` pads the whole sample instead; 0 is off."""
+        return 0 < self.crop <= self.imgsz
+
     def _rng(self, i: int) -> np.random.Generator:
         return np.random.default_rng([self.seed, self.epoch, i])
 
@@ -434,7 +440,7 @@ class YoloDataset(Dataset[Any]):
             if flip:
                 lab[:, [1, 3]] = self.imgsz - lab[:, [3, 1]]
                 centre = None if centre is None else (self.imgsz - centre[0], centre[1])
-            if 0 < self.crop <= self.imgsz:  # only the window is drawn (of a flipped sample: its mirror, flipped)
+            if self.windowed:  # only the window is drawn (of a flipped sample: its mirror, flipped)
                 x0, y0 = crop_origin(lab, self.imgsz, self.imgsz, self.crop, rng, centre)
                 img = sample.window(self.imgsz - x0 - self.crop if flip else x0, y0, self.crop)
                 lab = _warp_labels(lab, np.array([[1.0, 0.0, -x0], [0.0, 1.0, -y0]]), 1.0, self.crop)
@@ -476,7 +482,7 @@ class YoloDataset(Dataset[Any]):
         a = self.augment or Augment()
         negative = a.background > 0 and rng.uniform() < a.background
         # drawn only when asked, so that recipes without it keep their random streams
-        to_window = 0 < self.crop <= self.imgsz and a.zoom_crop > 0 and rng.uniform() < a.zoom_crop
+        to_window = self.windowed and a.zoom_crop > 0 and rng.uniform() < a.zoom_crop
         ref = self.crop if to_window else self.imgsz  # the side the animal's 15-80% are of
         box: NDArray[np.float32] | None = None  # [x0, y0, x1, y1] of the animal to centre on
         if negative:
