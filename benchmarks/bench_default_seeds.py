@@ -29,6 +29,7 @@ from zebra_sim_ros.dataset.generate import GenerateConfig, generate
 from zebra_sim_ros.detection.checkpoint import load_model
 from zebra_sim_ros.detection.evaluate import ImagePredictions, make_loader, predictions, score
 from zebra_sim_ros.detection.predict import inference_size
+from zebra_sim_ros.detection.verify import load_verifier
 from zebra_sim_ros.zebra.asset import appearance_digest
 
 DEFAULT_FRAMES = 36  # README's default generate
@@ -57,6 +58,8 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=DEFAULT_FRAMES)
     ap.add_argument("--workers", type=int, default=2, help="generation workers (the frames do not depend on it)")
     ap.add_argument("--cache", type=Path, default=Path("datasets"))
+    ap.add_argument("--verifier", default="", help="also score each weights with this verifier ('shipped': the "
+                    "package's) rescoring its zebra boxes, as the detector node's verifier parameter does")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     if args.frames < 1:
@@ -67,16 +70,18 @@ def main() -> None:
         raise SystemExit(f"--seeds must be distinct and 0 or more, got {args.seeds}")
     folders = {s: default_set(args.cache, s, args.frames, args.workers) for s in args.seeds}
     rows: list[dict[str, Any]] = []
+    net = load_verifier(args.verifier, "cpu", "--verifier")[0] if args.verifier else None
     for w in args.weights:
         model, _ = load_model(None if w == "shipped" else w, torch.device("cpu"))
         rule = partial(inference_size, model.cfg)  # each frame at the checkpoint's own scale, as val serves it
-        t0 = time.perf_counter()
-        per_seed = {s: predictions(model, make_loader(f, rule)) for s, f in folders.items()}
-        seeds = {s: scored(p) for s, p in per_seed.items()}
-        rows.append({"weights": w, "seeds": seeds,
-                     "median mAP50": round(statistics.median(v["mAP50"] for v in seeds.values()), 4),
-                     "pooled": scored([x for p in per_seed.values() for x in p]),
-                     "seconds": round(time.perf_counter() - t0, 1)})
+        for v in (None, net) if net is not None else (None,):
+            t0 = time.perf_counter()
+            per_seed = {s: predictions(model, make_loader(f, rule), verifier=v) for s, f in folders.items()}
+            seeds = {s: scored(p) for s, p in per_seed.items()}
+            rows.append({"weights": w + (" + verifier" if v is not None else ""), "seeds": seeds,
+                         "median mAP50": round(statistics.median(x["mAP50"] for x in seeds.values()), 4),
+                         "pooled": scored([x for p in per_seed.values() for x in p]),
+                         "seconds": round(time.perf_counter() - t0, 1)})
     if args.json:
         print(json.dumps({"machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
                           "frames": args.frames, "rows": rows}, indent=1))

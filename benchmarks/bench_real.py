@@ -20,7 +20,11 @@ serve a frame; a number: the long side every photo is letterboxed to) it prints 
 - for weights with an ``other_animal`` class (``train --other-animals``): the share of those photos' animals it
   finds as other_animal (conf 0.25, IoU >= 0.5).
 
-The table's header names the date, the machine and each weights' sha256 (first 12 hex digits).
+``--verifier`` (``shipped`` or a verifier checkpoint) rescores every weights' zebra boxes as the detector node's
+``verifier`` parameter does; its rows name the weights "+ verifier".
+
+The table's header names the date, the machine and each weights' sha256 (first 12 hex digits), and the
+verifier's.
 """
 
 from __future__ import annotations
@@ -45,6 +49,7 @@ from zebra_sim_ros.detection.evaluate import ImagePredictions, make_loader, pred
 from zebra_sim_ros.detection.metrics import ap_by_size, evaluate_detections, iou_matrix, precision_recall_at
 from zebra_sim_ros.detection.model import OTHER_ANIMAL, ZEBRA
 from zebra_sim_ros.detection.predict import inference_size
+from zebra_sim_ros.detection.verify import SHIPPED_VERIFIER, load_verifier
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_ROOTS = (ROOT / "real", ROOT.parent / "shared" / "real")
@@ -92,8 +97,10 @@ def _centred(d: np.ndarray, boxes: np.ndarray) -> np.ndarray:
                       & (cy[:, None] >= boxes[None, :, 1]) & (cy[:, None] <= boxes[None, :, 3]))
 
 
-def score_set(weights: str, folder: Path, imgsz: int, sweep: tuple[float, ...] = ()) -> dict[str, Any]:
+def score_set(weights: str, folder: Path, imgsz: int, sweep: tuple[float, ...] = (), verifier: str = ""
+              ) -> dict[str, Any]:
     model, _ = load_model(None if weights == "shipped" else weights, torch.device("cpu"))
+    net = load_verifier(verifier, "cpu", "--verifier")[0] if verifier else None
 
     def rule(long_side: int) -> int:
         return inference_size(model.cfg, long_side, imgsz or None)
@@ -101,7 +108,7 @@ def score_set(weights: str, folder: Path, imgsz: int, sweep: tuple[float, ...] =
     other_class = model.cfg.names.index(OTHER_ANIMAL) if OTHER_ANIMAL in model.cfg.names else None
     classes = (ZEBRA,) if other_class is None else (ZEBRA, other_class)
     t0 = time.perf_counter()
-    by_class = predictions_by_class(model, make_loader(folder / "images", rule, batch=4), classes)
+    by_class = predictions_by_class(model, make_loader(folder / "images", rule, batch=4), classes, verifier=net)
     seconds = time.perf_counter() - t0
     per = by_class[ZEBRA]
     zebra = [p for p in per if len(p.labels)]
@@ -134,7 +141,7 @@ def score_set(weights: str, folder: Path, imgsz: int, sweep: tuple[float, ...] =
             row[0] += 1
             row[1] += len(d)
             row[2] += int(_centred(d, lab[lab[:, 0] == k, 1:]).any(1).sum()) if len(d) else 0
-    return {"weights": weights, "set": folder.name, "imgsz": imgsz or "rule",
+    return {"weights": weights + (" + verifier" if verifier else ""), "set": folder.name, "imgsz": imgsz or "rule",
             "served": sorted({p.imgsz for p in per}), "zebra_images": len(zebra), "zebras": m.instances,
             "mAP50": round(m.map50, 4), "mAP50-95": round(m.map50_95, 4), "P@0.25": round(prec, 4),
             "R@0.25": round(rec, 4), "AP50_small": sizes["small"]["mAP50"], "AP50_medium": sizes["medium"]["mAP50"],
@@ -205,6 +212,8 @@ def main() -> None:
     ap.add_argument("--conf-sweep", nargs="*", type=float, default=[], metavar="CONF",
                     help="also a table of operating points: P / R on the zebra photos and other-species detections "
                     "per photo at each of these thresholds")
+    ap.add_argument("--verifier", default="", help="rescore the zebra boxes with this verifier ('shipped': the "
+                    "package's), as the detector node's verifier parameter does")
     ap.add_argument("--no-append", action="store_true", help="do not append the table to BENCHMARKS.md")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
@@ -218,9 +227,13 @@ def main() -> None:
     bad = [c for c in args.conf_sweep if not 0.0 < c < 1.0]
     if bad:
         raise SystemExit(f"--conf-sweep {bad[0]}: want thresholds between 0 and 1")
-    rows = [score_set(w, s, n, tuple(args.conf_sweep)) for w in args.weights for s in sets for n in args.imgsz]
+    rows = [score_set(w, s, n, tuple(args.conf_sweep), args.verifier) for w in args.weights for s in sets
+            for n in args.imgsz]
     machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores"
     digests = ", ".join(f"{w} {sha256_12(SHIPPED if w == 'shipped' else Path(w))}" for w in args.weights)
+    if args.verifier:
+        v = SHIPPED_VERIFIER if args.verifier == "shipped" else Path(args.verifier)
+        digests += f"; verifier {args.verifier} {sha256_12(v)}"
     head = f"`bench_real.py` {dt.date.today().isoformat()}, {machine}; weights sha256: {digests}"
     lines = [head, "", *table(rows)] + (["", *sweep_table(rows)] if args.conf_sweep else [])
     print("\n".join(lines))

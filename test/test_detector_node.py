@@ -107,6 +107,16 @@ def test_bad_weights_stop_the_node(tmp_path: Path, kind: str) -> None:
     assert "weights" in proc.stderr + proc.stdout and str(path) in proc.stderr + proc.stdout
 
 
+@pytest.mark.parametrize("kind", ["missing", "a detector's weights"])
+def test_a_bad_verifier_stops_the_node(tmp_path: Path, kind: str) -> None:
+    from zebra_sim_ros.detection.checkpoint import SHIPPED
+
+    path = tmp_path / "v.pt" if kind == "missing" else SHIPPED
+    proc = run_node_once("detector", {"verifier": str(path)}, timeout=90)
+    assert proc.returncode == 2
+    assert "verifier" in proc.stderr + proc.stdout and str(path) in proc.stderr + proc.stdout
+
+
 def test_marker_colours_follow_the_class() -> None:
     from zebra_sim_ros.detection.draw import OTHER_COLOUR
     from zebra_sim_ros.nodes.detector import ZEBRA_COLOUR, _marker_colour

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from zebra_sim_ros.cli.common import Summary, add_json_flag, detector_options
+from zebra_sim_ros.errors import ParameterError
 
 
 def register(sub: Any) -> None:
@@ -74,8 +75,11 @@ def cmd_eval(args: argparse.Namespace) -> Summary:
 
         check_imgsz("--imgsz", args.imgsz or None, native=True)  # 0: the checkpoint's rule
         check_scale("--scale", args.scale)
-    detector = (ImageDetector(args.weights, args.device, imgsz=args.imgsz or None, scale=args.scale) if args.weights
-                else None)
+    if args.verifier and not args.weights:
+        raise ParameterError("--verifier", args.verifier, "given with --weights (recorded detections are scored as "
+                             "they were recorded)")
+    detector = (ImageDetector(args.weights, args.device, imgsz=args.imgsz or None, scale=args.scale,
+                              verifier=args.verifier) if args.weights else None)
     collected = collect(args.bag, args.detections, each=detector)  # one pass, with or without a detector
     if detector is not None:
         collected = detector.apply(collected)

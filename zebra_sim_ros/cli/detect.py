@@ -53,6 +53,21 @@ def register(sub: Any) -> None:
     add_json_flag(t)
     t.set_defaults(func=cmd_train)
 
+    tv = sub.add_parser("train-verifier", help="train the zebra-or-not crop verifier (the detector's --verifier) from "
+                        "scratch on generated datasets",
+                        description="Crops of every animal (zebras, other species) and of background in the frames "
+                        "of generated datasets (their annotations/ say which animal is a zebra), a small network "
+                        "trained on them under photometric augmentations; see zebra_sim_ros/detection/verify.py.")
+    tv.add_argument("--data", nargs="+", required=True, help="folders written by zebra-sim generate")
+    tv.add_argument("--epochs", type=int, default=10)
+    tv.add_argument("--batch", type=int, default=128)
+    tv.add_argument("--lr", type=float, default=2e-3, help="peak learning rate (one cycle)")
+    tv.add_argument("--seed", type=int, default=25, help="seeds the crops' jitter, the split and the training")
+    tv.add_argument("--val-fraction", type=float, default=0.1, help="crops held out to report on")
+    tv.add_argument("--out", type=Path, required=True, help="verifier checkpoint to write (.pt)")
+    add_json_flag(tv)
+    tv.set_defaults(func=cmd_train_verifier)
+
     v = sub.add_parser("val", help="precision, recall, mAP50 and mAP50-95 (COCO definition) of a checkpoint")
     v.add_argument("--weights", default=None, help="checkpoint (default: the shipped weights)")
     v.add_argument("--data", required=True, help="dataset.yaml, or a folder of images with a sibling labels/ folder")
@@ -126,6 +141,17 @@ def cmd_train(args: argparse.Namespace) -> Summary:
     return summary
 
 
+def cmd_train_verifier(args: argparse.Namespace) -> Summary:
+    """Train the crop verifier."""
+    from zebra_sim_ros.detection.verify import TrainVerifierConfig, train_verifier
+
+    cfg = TrainVerifierConfig(data=tuple(str(d) for d in args.data), out=str(args.out), epochs=args.epochs,
+                              batch=args.batch, lr=args.lr, seed=args.seed, val_fraction=args.val_fraction)
+    record = train_verifier(cfg)
+    print(f"verifier: {args.out} ({record['seconds']} s; held-out crops called zebra: {record['val']})")
+    return {"out": str(args.out), **{k: v for k, v in record.items() if k != "history"}}
+
+
 def cmd_val(args: argparse.Namespace) -> Summary:
     """Validate."""
     from zebra_sim_ros.detection.checkpoint import check_imgsz, check_scale
@@ -142,7 +168,7 @@ def cmd_val(args: argparse.Namespace) -> Summary:
             raise ParameterError(name, value, "0..1")
 
     m, facts = evaluate(args.weights, args.data, args.split, args.imgsz, args.batch, args.device, args.conf, args.iou,
-                        scale=args.scale, max_det=args.max_det)
+                        scale=args.scale, max_det=args.max_det, verifier=args.verifier or None)
     per_image = facts.pop("per_image")
     print(f"inference size: {facts['imgsz']} ({facts['imgsz_rule']})")
     d = m.to_dict()

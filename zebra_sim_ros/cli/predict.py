@@ -102,6 +102,11 @@ def cmd_predict(args: argparse.Namespace) -> Summary:
     frames, total, fps = _frames(args.source, tuple(args.topics), skipped)
     device = select_device(args.device)
     model, _ = load_model(args.weights, device)
+    verifier = None
+    if args.verifier:
+        from zebra_sim_ros.detection.verify import load_verifier
+
+        verifier, _ = load_verifier(args.verifier, device, "--verifier")
     for sub in ("labels", "json") + (() if args.no_draw else ("images",)):
         (args.out / sub).mkdir(parents=True, exist_ok=True)
     video = _VideoOut(args.out, args.source, fps) if fps and not args.no_draw else None
@@ -113,7 +118,7 @@ def cmd_predict(args: argparse.Namespace) -> Summary:
     def flush() -> None:
         nonlocal n, boxes
         dets = detect(model, [f.rgb for f in batch], args.imgsz or None, args.conf, args.iou, args.max_det,
-                      scale=args.scale)
+                      scale=args.scale, verifier=verifier)
         for f, d in zip(batch, dets, strict=True):
             _write(args.out, f, d, model.cfg.names, None if args.no_draw or video else "images")
             if video is not None:

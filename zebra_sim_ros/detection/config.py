@@ -63,6 +63,10 @@ class DetectorConfig(StageConfig):
         f"{STRIDE}; overrides imgsz; 0: off, the checkpoint's rule)", lo=0.0, hi=SCALE_RANGE[1],
         allowed="0 (off) or {:g}..{:g}".format(*SCALE_RANGE), check=lambda v: v == 0 or v >= SCALE_RANGE[0],
         runtime=True)
+    verifier: str = param(
+        "", "a second look at the zebra boxes of at least the verifier's min_side (24 px): each scores conf x "
+        "p(zebra) of a crop around it, and those now under conf are dropped (empty: off; shipped: the package's "
+        "verifier, trained on generated crops only; or a verifier checkpoint)", allowed="empty, shipped or a path")
     device: str = param("auto", "auto, cpu, cuda or cuda:N", allowed="auto, cpu, cuda, cuda:N",
                         check=lambda v: v in ("auto", "cpu") or v.startswith("cuda"))
     max_det: int = param(MAX_DETECTIONS, "most detections per image", lo=1, hi=10000)

@@ -10,7 +10,7 @@ import time
 from collections import defaultdict
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import torch
@@ -23,6 +23,9 @@ from zebra_sim_ros.detection.data import ImageMeta, YoloDataset, collate, resolv
 from zebra_sim_ros.detection.metrics import MAX_DETECTIONS, DetectionMetrics, ap_by_size, evaluate_detections
 from zebra_sim_ros.detection.model import ZEBRA, Detector
 from zebra_sim_ros.detection.predict import describe_size, inference_size, unletterbox
+
+if TYPE_CHECKING:
+    from zebra_sim_ros.detection.verify import Verifier
 
 
 def make_loader(folder: str | Path | Sequence[str | Path], imgsz: int | Callable[[int], int], batch: int = 8,
@@ -43,17 +46,22 @@ class ImagePredictions(NamedTuple):
 
 
 def predictions(model: Detector, loader: DataLoader[Any], conf: float = 0.001, iou: float = 0.7,
-                max_det: int = MAX_DETECTIONS, cls: int = ZEBRA) -> list[ImagePredictions]:
+                max_det: int = MAX_DETECTIONS, cls: int = ZEBRA, verifier: Verifier | None = None
+                ) -> list[ImagePredictions]:
     """Per image of ``loader``: its detections of class ``cls`` (zebras; a model's other classes are left out),
     labels and don't-care boxes."""
-    return predictions_by_class(model, loader, (cls,), conf, iou, max_det)[cls]
+    return predictions_by_class(model, loader, (cls,), conf, iou, max_det, verifier)[cls]
 
 
 @torch.no_grad()
 def predictions_by_class(model: Detector, loader: DataLoader[Any], classes: tuple[int, ...], conf: float = 0.001,
-                         iou: float = 0.7, max_det: int = MAX_DETECTIONS) -> dict[int, list[ImagePredictions]]:
+                         iou: float = 0.7, max_det: int = MAX_DETECTIONS, verifier: Verifier | None = None
+                         ) -> dict[int, list[ImagePredictions]]:
     """:func:`predictions` for each of ``classes`` from one pass over ``loader`` (the same detections as one call
-    per class: NMS runs before the split)."""
+    per class: NMS runs before the split). With a ``verifier`` the zebra detections are rescored as
+    :func:`~zebra_sim_ros.detection.predict.detect` rescores them, on crops of the image file itself."""
+    from zebra_sim_ros.detection.verify import read_rgb, rescore
+
     was_training = model.training
     model.eval()
     out: dict[int, list[ImagePredictions]] = {c: [] for c in classes}
@@ -64,6 +72,8 @@ def predictions_by_class(model: Detector, loader: DataLoader[Any], classes: tupl
             labels, ignore = meta.labels[:, 1:].astype(np.float64), meta.ignore[:, 1:].astype(np.float64)
             for c in classes:
                 d = unletterbox(det[det[:, 5] == c], meta.scale, left, top, w, h).cpu().numpy()
+                if verifier is not None and c == ZEBRA and len(d):
+                    d = rescore(verifier, read_rgb(meta.file), d, conf)
                 out[c].append(ImagePredictions(meta.file, d[:, :5].astype(np.float64),  # labels read once, by the
                                                labels, ignore, meta.imgsz))  # loader
     if was_training:
@@ -103,22 +113,29 @@ def score(per_image: list[ImagePredictions], max_det: int = MAX_DETECTIONS) -> D
 
 def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", imgsz: int | None = None,
              batch: int = 8, device: str = "auto", conf: float = 0.001, iou: float = 0.7,
-             workers: int = 0, scale: float = 0.0, max_det: int = MAX_DETECTIONS
+             workers: int = 0, scale: float = 0.0, max_det: int = MAX_DETECTIONS, verifier: str | None = None
              ) -> tuple[DetectionMetrics, dict[str, Any]]:
     """Open the checkpoint and the set, validate; returns the metrics and facts about the run. Each image is
     served at :func:`~zebra_sim_ros.detection.predict.inference_size` under ``imgsz`` and ``scale`` (default:
-    the checkpoint's rule), as the detector node and ``bag eval`` serve it."""
+    the checkpoint's rule), as the detector node and ``bag eval`` serve it; ``verifier`` ('shipped' or a path)
+    rescores the zebra boxes as the node's ``verifier`` parameter does."""
     dev = select_device(device)
     model, ckpt = load_model(weights, dev)
+    net = None
+    if verifier:
+        from zebra_sim_ros.detection.verify import load_verifier
+
+        net, _ = load_verifier(verifier, dev, "--verifier")
     folder = resolve_split(data, split)
     loader = make_loader(folder, lambda long_side: inference_size(model.cfg, long_side, imgsz, scale), batch, workers)
     t0 = time.perf_counter()
-    per_image = predictions(model, loader, conf, iou, max_det)
+    per_image = predictions(model, loader, conf, iou, max_det, verifier=net)
     m = score(per_image, max_det)
     sizes = sorted({p.imgsz for p in per_image})
     by_size = ap_by_size([p.detections for p in per_image], [p.labels for p in per_image], max_det,
                          ignores=[p.ignore for p in per_image])
-    return m, {"weights": str(weights or "shipped"), "data": str(folder), "ap_by_size": by_size,
+    return m, {"weights": str(weights or "shipped"), "verifier": verifier or None, "data": str(folder),
+               "ap_by_size": by_size,
                "per_image": per_image,
                "imgsz": sizes[0] if len(sizes) == 1 else sizes, "imgsz_rule": describe_size(model.cfg, imgsz, scale),
                "device": str(dev), "seconds": round(time.perf_counter() - t0, 2), "epoch": ckpt.get("epoch")}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -14,6 +15,9 @@ from zebra_sim_ros.detection.data import letterbox, rect_shape
 from zebra_sim_ros.detection.metrics import MAX_DETECTIONS
 from zebra_sim_ros.detection.model import Detector, ModelConfig
 from zebra_sim_ros.messages import Detection, Detections, Stamp
+
+if TYPE_CHECKING:
+    from zebra_sim_ros.detection.verify import Verifier
 
 
 def inference_size(cfg: ModelConfig, long_side: int, imgsz: int | None = None, scale: float = 0.0) -> int:
@@ -73,10 +77,12 @@ def unletterbox(det: torch.Tensor, scale: float, left: int, top: int, width: int
 @torch.no_grad()
 def detect(model: Detector, images: Sequence[NDArray[np.uint8]], imgsz: int | None = None, conf: float = 0.25,
            iou: float = 0.7, max_det: int = MAX_DETECTIONS, rect: bool = True,
-           scale: float = 0.0) -> list[NDArray[np.float32]]:
+           scale: float = 0.0, verifier: Verifier | None = None) -> list[NDArray[np.float32]]:
     """Per image (n, 6) [x0, y0, x1, y1, score, class] in its own pixels (pixel-edge coordinates). The batch's
     long side is resized to :func:`inference_size` of the batch's longest side under ``imgsz`` and ``scale``
-    (default: the checkpoint's rule) and padded as :func:`preprocess` says."""
+    (default: the checkpoint's rule) and padded as :func:`preprocess` says. With a ``verifier``, the zebra boxes
+    it looks at score conf x p(zebra) and those now under ``conf`` are dropped
+    (:func:`zebra_sim_ros.detection.verify.rescore`)."""
     if not images:
         return []
     size = inference_size(model.cfg, max(max(i.shape[:2]) for i in images), imgsz, scale)
@@ -86,6 +92,11 @@ def detect(model: Detector, images: Sequence[NDArray[np.uint8]], imgsz: int | No
     out = []
     for det, img, (r, left, top) in zip(postprocess(pred, conf, iou, max_det), images, meta, strict=True):
         out.append(unletterbox(det, r, left, top, img.shape[1], img.shape[0]).cpu().numpy().astype(np.float32))
+    if verifier is not None:
+        from zebra_sim_ros.detection.model import ZEBRA
+        from zebra_sim_ros.detection.verify import rescore
+
+        out = [rescore(verifier, img, d, conf, ZEBRA) for img, d in zip(images, out, strict=True)]
     return out
 
 

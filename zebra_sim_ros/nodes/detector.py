@@ -30,6 +30,7 @@ from zebra_sim_ros.detection.checkpoint import load_model, select_device
 from zebra_sim_ros.detection.config import DETECTOR_PARAMS, DetectorConfig, output_base
 from zebra_sim_ros.detection.draw import OTHER_COLOUR, draw_boxes
 from zebra_sim_ros.detection.predict import describe_size, detect, detections_message
+from zebra_sim_ros.detection.verify import load_verifier
 from zebra_sim_ros.messages import Stamp
 from zebra_sim_ros.nodes.ros_adapter import (
     StepAcks,
@@ -76,6 +77,7 @@ class DetectorNode(ZebraNode[DetectorConfig]):
         torch.set_num_threads(max(1, torch.get_num_threads()))
         self.device = select_device(c.device)
         self.model, ckpt = load_model(c.weights or None, self.device)
+        self.verifier = load_verifier(c.verifier, self.device, "verifier")[0] if c.verifier else None
         q = qos(c.qos_reliability, c.qos_depth)
         image_q = qos(c.image_reliability, c.qos_depth)
         self.pending: dict[str, Image] = {}
@@ -95,7 +97,7 @@ class DetectorNode(ZebraNode[DetectorConfig]):
         self.get_logger().info(
             f"weights {c.weights or 'shipped'} ({self.model.cfg.size}, epoch {ckpt.get('epoch')}), device "
             f"{self.device}, inference size {describe_size(self.model.cfg, c.imgsz, c.scale)}, conf {c.conf}, "
-            f"iou {c.iou}; topics {list(c.image_topics)} -> {self.det_type}; "
+            f"iou {c.iou}, verifier {c.verifier or 'off'}; topics {list(c.image_topics)} -> {self.det_type}; "
             f"QoS images: {describe_qos(image_q)}, outputs: {describe_qos(q)}")
 
     def on_config(self, cfg: DetectorConfig) -> None:
@@ -129,7 +131,7 @@ class DetectorNode(ZebraNode[DetectorConfig]):
             return
         t0 = time.perf_counter()
         dets = detect(self.model, images, self.cfg.imgsz, self.cfg.conf, self.cfg.iou, self.cfg.max_det,
-                      scale=self.cfg.scale)
+                      scale=self.cfg.scale, verifier=self.verifier)
         self.seconds += time.perf_counter() - t0
         self.stats["batches"] += 1
         for topic, msg, img, d in zip(topics, msgs, images, dets, strict=True):

@@ -87,10 +87,12 @@ class ImageDetector:
     TOPIC = re.compile(r"^(?:/[^/]+)*/(?P<drone>[^/]+)/image_raw$")
 
     def __init__(self, weights: str | Path | None, device: str = "auto", batch: int = 8, conf: float = 0.001,
-                 imgsz: int | None = None, scale: float = 0.0) -> None:
+                 imgsz: int | None = None, scale: float = 0.0, verifier: str = "") -> None:
         from zebra_sim_ros.detection.checkpoint import load_model, select_device
+        from zebra_sim_ros.detection.verify import load_verifier
 
         self.model, _ = load_model(weights, select_device(device))
+        self.verifier = load_verifier(verifier, select_device(device), "--verifier")[0] if verifier else None
         # as detect() takes them: imgsz None and scale 0 = the checkpoint's rule, imgsz -1 = native
         self.batch, self.conf, self.imgsz, self.scale = batch, conf, imgsz, scale
         self.detections: dict[str, dict[int, np.ndarray]] = defaultdict(dict)
@@ -121,7 +123,7 @@ class ImageDetector:
         if not self._pending:
             return
         dets = detect(self.model, [p[2] for p in self._pending], self.imgsz, conf=self.conf, max_det=MAX_DETECTIONS,
-                      scale=self.scale)
+                      scale=self.scale, verifier=self.verifier)
         for (drone, t, _), det in zip(self._pending, dets, strict=True):
             self.detections[drone][t] = det[det[:, 5] == ZEBRA, :5].astype(np.float64)
         self._pending.clear()

@@ -1,0 +1,189 @@
+"""The crop verifier: crops, rescoring, checkpoints, training on generated frames, and its place in detect/val."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from zebra_sim_ros.dataset.generate import GenerateConfig, generate
+from zebra_sim_ros.detection.verify import (
+    SHIPPED_VERIFIER,
+    TrainVerifierConfig,
+    Verifier,
+    VerifierConfig,
+    collect_crops,
+    load_verifier,
+    rescore,
+    save_verifier,
+    square_crop,
+    train_verifier,
+    verify,
+)
+from zebra_sim_ros.errors import AssetError, ParameterError
+
+
+def constant(p: float, cfg: VerifierConfig | None = None) -> Verifier:
+    """A verifier that says p(zebra) = p of every crop (zero weights into the head, its bias the logit of p)."""
+    net = Verifier(cfg or VerifierConfig(widths=(8, 16)))
+    with torch.no_grad():
+        net.head.weight.zero_()
+        net.head.bias.fill_(math.log(p / (1 - p)))
+    return net.eval()
+
+
+def test_a_square_crop_is_the_box_and_its_context_and_repeats_the_edge() -> None:
+    img = np.zeros((200, 300, 3), np.uint8)
+    img[50:90, 100:180] = 255  # an 80 x 40 white box
+    whole = square_crop(img, (100, 50, 180, 90), 1.0, 32)  # an 80 px square: the box, plus 20 px above and below
+    assert whole.shape == (32, 32, 3) and whole.dtype == np.uint8
+    assert whole[12:20].min() == 255 and whole[:6].max() == 0 and whole[-6:].max() == 0
+    wide = square_crop(img, (100, 50, 180, 90), 2.0, 32)  # 160 px: the box is the middle half across
+    assert wide[14:18, 10:22].min() == 255 and wide[14:18, :6].max() == 0
+    edge = square_crop(img, (280, 180, 300, 200), 1.5, 16)  # past the corner: the edge pixels, repeated
+    assert edge.shape == (16, 16, 3) and edge.max() == 0
+    moved = square_crop(img, (100, 50, 180, 90), 1.0, 32, shift=(0.5, 0.0))  # centre moved 40 px right
+    assert moved[12:20, :12].min() == 255 and moved[12:20, -6:].max() == 0
+
+
+def test_rescore_multiplies_the_large_zebra_boxes_drops_those_now_under_conf_and_reorders() -> None:
+    net = constant(0.25)
+    img = np.full((400, 600, 3), 90, np.uint8)
+    dets = np.array([[10, 10, 110, 60, 0.90, 0],  # large zebra: 0.225
+                     [200, 200, 210, 215, 0.50, 0],  # 15 px: under min_side, keeps 0.50
+                     [300, 100, 400, 200, 0.80, 1],  # another class: untouched
+                     [400, 300, 480, 380, 0.30, 0]], np.float32)  # large zebra: 0.075, under conf 0.1
+    out = rescore(net, img, dets, conf=0.1, cls=0)
+    assert out.shape == (3, 6)
+    np.testing.assert_allclose(out[:, 4], [0.80, 0.50, 0.225], rtol=1e-5)
+    assert list(out[:, 5]) == [1, 0, 0]
+    np.testing.assert_array_equal(out[:, :4], dets[[2, 1, 0], :4])
+    assert rescore(net, img, dets[:0], 0.1).shape == (0, 6)
+    five = verify(net, img, dets[:, :5])  # five columns, every row looked at: the order and length kept
+    np.testing.assert_allclose(five[:, 4], [0.225, 0.50, 0.20, 0.075], rtol=1e-5)
+
+
+def test_detect_with_a_verifier_is_detect_rescored(tmp_path: Path) -> None:
+    """The shipped detector on a rendered frame: with a verifier of p = 0.5 every zebra box of 24 px or more scores
+    half, smaller ones the same, and those now under conf are gone."""
+    from zebra_sim_ros.detection.checkpoint import load_model
+    from zebra_sim_ros.detection.predict import detect
+
+    out = tmp_path / "ds"
+    generate(GenerateConfig(out=str(out), frames=3, strategy="low", worlds=("savanna",), seed=11, width=640,
+                            height=360, depth="none"), progress=lambda *a: None)
+    from zebra_sim_ros.detection.verify import read_rgb
+
+    img = read_rgb(next((out / "images").rglob("*.jpg")))
+    model, _ = load_model(None)
+    plain = detect(model, [img], conf=0.05)[0]
+    half = detect(model, [img], conf=0.05, verifier=constant(0.5))[0]
+    side = np.maximum(plain[:, 2] - plain[:, 0], plain[:, 3] - plain[:, 1])
+    want = plain[:, 4] * np.where(side >= 24, 0.5, 1.0)
+    assert len(plain) > 0 and (side >= 24).any()
+    np.testing.assert_allclose(np.sort(half[:, 4])[::-1], np.sort(want[want >= 0.05])[::-1], rtol=1e-4)
+
+
+def test_checkpoints_round_trip_and_bad_files_name_themselves(tmp_path: Path) -> None:
+    net = constant(0.7, VerifierConfig(crop=48, context=1.5, min_side=30, widths=(8, 16, 24)))
+    save_verifier(tmp_path / "v.pt", net, seed=3)
+    back, ckpt = load_verifier(tmp_path / "v.pt")
+    assert back.cfg == net.cfg and ckpt["seed"] == 3 and "model" not in ckpt
+    x = torch.rand(2, 3, 48, 48)
+    torch.testing.assert_close(torch.sigmoid(back(x)), torch.full((2,), 0.7), rtol=1e-4, atol=1e-4)
+    with pytest.raises(ParameterError, match=r"'verifier'.*nope\.pt"):
+        load_verifier(tmp_path / "nope.pt")
+    (tmp_path / "junk.pt").write_bytes(b"not a checkpoint")
+    with pytest.raises(AssetError, match="junk.pt"):
+        load_verifier(tmp_path / "junk.pt")
+    from zebra_sim_ros.detection.checkpoint import SHIPPED
+
+    with pytest.raises(AssetError, match="not a zebra_sim_ros/verifier"):
+        load_verifier(SHIPPED)  # the detector's weights are not a verifier
+    with pytest.raises(ParameterError, match="verifier crop"):
+        Verifier(VerifierConfig(crop=8))
+
+
+@pytest.fixture(scope="module")
+def frames(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("verify") / "low"
+    generate(GenerateConfig(out=str(out), frames=6, strategy="low", worlds=("savanna",), seed=21, width=640,
+                            height=360, depth="none", other_animals=8,
+                            placer={"low_other_target": 0.5, "low_distance_max": 12.0}), progress=lambda *a: None)
+    return out
+
+
+def test_crops_follow_the_annotations_and_the_seed(frames: Path, tmp_path: Path) -> None:
+    cfg = TrainVerifierConfig(data=(str(frames),), out=str(tmp_path / "v.pt"), min_visible_pixels=100, seed=4)
+    a, b = collect_crops(cfg), collect_crops(cfg)
+    np.testing.assert_array_equal(a.x, b.x)
+    other = collect_crops(TrainVerifierConfig(data=(str(frames),), out="x", min_visible_pixels=100, seed=5))
+    assert other.x.shape != a.x.shape or not np.array_equal(a.x, other.x)  # another seed, other jitter
+    n_zebra = n_other = 0
+    for f in (frames / "annotations").glob("*.json"):
+        for z in json.loads(f.read_text())["labels"]["zebras"]:
+            box = z.get("box_visible")
+            if (box and max(box[2] - box[0], box[3] - box[1]) >= 24 and z["visible_pixels"] >= 100
+                    and z["visible_fraction"] >= 0.3):
+                n_zebra += z.get("species", "zebra") == "zebra"
+                n_other += z.get("species", "zebra") != "zebra"
+    counts = a.counts()
+    assert (counts["zebra"], counts["other species"]) == (2 * n_zebra, 2 * n_other)  # two jittered crops each
+    assert counts["zebra"] > 0 and counts["background"] > 0
+    assert a.x.shape[1:] == (112, 112, 3) and set(np.unique(a.y)) <= {0.0, 1.0}
+    np.testing.assert_array_equal(a.y, (a.kind == 2).astype(np.float32))
+
+
+def test_train_verifier_writes_a_checkpoint_that_records_its_recipe(frames: Path, tmp_path: Path) -> None:
+    cfg = TrainVerifierConfig(data=(str(frames),), out=str(tmp_path / "v.pt"), epochs=2, batch=16,
+                              min_visible_pixels=100, seed=7, model=VerifierConfig(widths=(8, 16, 24)))
+    record = train_verifier(cfg, log=lambda s: None)
+    net, ckpt = load_verifier(tmp_path / "v.pt")
+    assert ckpt["train"]["seed"] == 7 and ckpt["train"]["data"] == [str(frames)] and ckpt["crops"] == record["crops"]
+    assert len(ckpt["history"]) == 2 and set(ckpt["val"]) == {"background", "other species", "zebra"}
+    img = np.full((100, 100, 3), 128, np.uint8)
+    p = verify(net, img, np.array([[10, 10, 90, 90, 1.0]]))[0, 4]
+    assert 0.0 < p < 1.0
+
+
+@pytest.mark.parametrize(("field", "value", "named"), [("data", (), "--data"), ("epochs", 0, "--epochs"),
+                                                       ("lr", 0.0, "--lr"), ("val_fraction", 0.7, "--val-fraction")])
+def test_bad_training_settings_name_themselves(frames: Path, field: str, value: object, named: str) -> None:
+    kw: dict[str, object] = {"data": (str(frames),), "out": "x.pt", field: value}
+    with pytest.raises(ParameterError, match=named):
+        TrainVerifierConfig(**kw).check()  # type: ignore[arg-type]
+    with pytest.raises(ParameterError, match="--data"):
+        TrainVerifierConfig(data=(str(frames / "annotations"),), out="x.pt").check()
+
+
+@pytest.mark.skipif(not SHIPPED_VERIFIER.is_file(), reason="no shipped verifier in this checkout")
+def test_the_shipped_verifier_records_its_recipe() -> None:
+    net, ckpt = load_verifier("shipped")
+    assert ckpt["train"]["seed"] == 25 and ckpt["train"]["epochs"] == 10
+    assert [Path(d).name for d in ckpt["train"]["data"]] == ["cls_3400", "cls_3500"]
+    assert net.cfg == VerifierConfig()
+
+
+def test_the_command_line_takes_a_verifier_where_the_detector_runs(frames: Path, tmp_path: Path,
+                                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """``val --verifier`` scores the rescored boxes (a verifier of p = 0.01 leaves only the small ones above conf
+    0.25, so recall at 0.25 can only fall); ``predict`` and ``bag eval`` refuse a missing or misplaced one by name."""
+    from zebra_sim_ros.cli import main
+
+    save_verifier(tmp_path / "low.pt", constant(0.01))
+    runs = {}
+    for name, extra in (("plain", []), ("verified", ["--verifier", str(tmp_path / "low.pt")])):
+        assert main(["val", "--data", str(frames), "--split", "train", "--device", "cpu", "--conf", "0.25",
+                     "--plots", "", "--json", *extra]) == 0
+        runs[name] = json.loads(capsys.readouterr().out.splitlines()[-1])
+    assert runs["verified"]["verifier"] == str(tmp_path / "low.pt") and runs["plain"]["verifier"] is None
+    assert runs["plain"]["recall"] > 0 and runs["verified"]["recall"] < runs["plain"]["recall"]
+    assert main(["predict", str(frames / "images"), "--out", str(tmp_path / "p"), "--verifier",
+                 str(tmp_path / "none.pt")]) == 2
+    assert "'--verifier'" in capsys.readouterr().err
+    assert main(["bag", "eval", str(tmp_path / "x.mcap"), "--verifier", "shipped"]) == 2
+    assert "given with --weights" in capsys.readouterr().err
