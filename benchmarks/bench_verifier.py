@@ -1,0 +1,68 @@
+"""Benchmark: what the crop verifier costs the detector per image, as the node runs it (conf 0.25).
+
+    python benchmarks/bench_verifier.py FOLDER [FOLDER ...] [--imgsz 256] [--images 60] [--verifier shipped]
+
+For the first ``--images`` images of each folder (sorted), ``detect`` runs one image at a time, alternately
+without and with the verifier, three times each; it prints per folder the median milliseconds per image of both,
+their ratio (measured in the same run, so machines' speeds cancel) and how many boxes per image the verifier
+looked at. ``--imgsz 0``: the checkpoint's rule (drone frames), 256: how photographs are served.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import time
+from pathlib import Path
+
+import torch
+
+from zebra_sim_ros.detection.checkpoint import load_model
+from zebra_sim_ros.detection.data import IMAGE_EXTS
+from zebra_sim_ros.detection.predict import detect
+from zebra_sim_ros.detection.verify import load_verifier, read_rgb
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("folders", nargs="+", type=Path)
+    ap.add_argument("--imgsz", type=int, default=256, help="inference long side (0: the checkpoint's rule)")
+    ap.add_argument("--images", type=int, default=60, help="images per folder")
+    ap.add_argument("--verifier", default="shipped")
+    ap.add_argument("--conf", type=float, default=0.25)
+    args = ap.parse_args()
+    if args.images < 1:
+        raise SystemExit(f"--images must be 1 or more, got {args.images}")
+    model, _ = load_model(None)
+    net, _ = load_verifier(args.verifier, "cpu", "--verifier")
+    print(f"bench_verifier.py {time.strftime('%Y-%m-%d')}, {platform.processor() or platform.machine()}, "
+          f"{os.cpu_count()} cores, torch threads {torch.get_num_threads()}; conf {args.conf}, imgsz "
+          f"{args.imgsz or 'rule'}")
+    print("| folder | images | detector alone, ms/img (median) | with the verifier, ms/img | ratio | boxes looked at "
+          "per image |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for folder in args.folders:
+        files = sorted(p for p in folder.rglob("*") if p.suffix.lower() in IMAGE_EXTS)[: args.images]
+        if not files:
+            raise SystemExit(f"{folder}: no images")
+        images = [read_rgb(f) for f in files]
+        plain: list[float] = []
+        verified: list[float] = []
+        looked = 0
+        detect(model, images[:1], args.imgsz or None, args.conf, verifier=net)  # warm-up
+        for rep in range(3):
+            for img in images:
+                for v, times in ((None, plain), (net, verified)):
+                    t0 = time.perf_counter()
+                    d = detect(model, [img], args.imgsz or None, args.conf, verifier=v)[0]
+                    times.append(1000 * (time.perf_counter() - t0))
+                    if v is None and rep == 0 and len(d):
+                        looked += int(((d[:, 2:4] - d[:, 0:2]).max(1) >= net.cfg.min_side).sum())
+        a, b = statistics.median(plain), statistics.median(verified)
+        print(f"| {folder} | {len(images)} | {a:.1f} | {b:.1f} | {b / a:.2f} | {looked / len(images):.2f} |")
+
+
+if __name__ == "__main__":
+    main()
