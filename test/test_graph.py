@@ -316,12 +316,24 @@ def test_fast_dds_accepts_our_profile(tmp_path: Path) -> None:
                                                 ({"frames": 0}, "'--frames'"), ({"strategy": "up"}, "'--strategy'"),
                                                 ({"width": 8, "height": 20}, "'--size'"),
                                                 ({"detect_scale": 0.1}, "'--detect-scale'"),
-                                                ({"detect_scale": -1.3}, "'--detect-scale'")])
+                                                ({"detect_scale": -1.3}, "'--detect-scale'"),
+                                                ({"verifier": "/no/such/verifier.pt"}, "'--verifier'")])
 def test_up_rejects_a_bad_setting_before_starting_any_node(setting: dict[str, Any], named: str) -> None:
     from zebra_sim_ros.errors import ParameterError
 
     with pytest.raises(ParameterError, match=named):
         UpConfig(**setting).check()
+
+
+def test_up_passes_the_verifier_to_the_detector(tmp_path: Path) -> None:
+    def detector(cfg: UpConfig) -> dict[str, Any]:
+        return next(s for s in graph_spec(cfg) if s.executable == "detector").overrides
+
+    assert detector(UpConfig())["verifier"] == "" and detector(UpConfig(verifier="shipped"))["verifier"] == "shipped"
+    (tmp_path / "v.pt").write_bytes(b"")
+    cfg = UpConfig(verifier=str(tmp_path / "v.pt"))
+    cfg.check()
+    assert detector(cfg)["verifier"] == str((tmp_path / "v.pt").resolve())
 
 
 def test_up_detector_size_follows_the_cameras() -> None:

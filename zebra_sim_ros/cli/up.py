@@ -44,6 +44,7 @@ def register(sub: Any) -> None:
     add_option(p, spec_of(DetectorConfig, "device"))
     add_option(p, spec_of(DetectorConfig, "scale"), "--detect-scale", note="the checkpoint's rule serves the shipped "
                "weights at 1.7 x the cameras' long side; 1.0: native resolution")
+    add_option(p, spec_of(DetectorConfig, "verifier"))
     p.add_argument("--out", default="out/up", help="folder for the bag, logs, summary.json and preview.jpg")
     p.add_argument("--config", default="", help="folder of the parameter files (default: the installed config/)")
     p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID for the graph (default: inherited)")
@@ -134,7 +135,7 @@ def _up_config(args: argparse.Namespace) -> UpConfig:
     cfg = UpConfig(frames=args.frames, world=args.world, seed=args.seed, out=args.out, width=w, height=h,
                    weights=args.weights, device=args.device, detect_scale=args.scale, strategy=args.strategy,
                    config_dir=args.config, ready_timeout_s=args.ready_timeout, step_timeout_s=args.step_timeout,
-                   record=not args.no_record, namespace=args.namespace)
+                   record=not args.no_record, namespace=args.namespace, verifier=args.verifier)
     cfg.check()
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         raise ParameterError("--domain-id", args.domain_id, "0..232 (ROS_DOMAIN_ID)")
