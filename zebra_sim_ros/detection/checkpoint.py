@@ -31,20 +31,21 @@ def save_checkpoint(path: str | Path, model: Detector, **extra: Any) -> None:
     tmp.replace(p)
 
 
-def read_checkpoint(path: str | Path, name: str = "weights") -> dict[str, Any]:
-    """The checkpoint dict; raises :class:`ParameterError` (naming the parameter ``name``) for a missing file,
-    :class:`AssetError` for a bad one."""
+def read_checkpoint(path: str | Path, name: str = "weights", fmt: str = FORMAT, version: int = VERSION
+                    ) -> dict[str, Any]:
+    """The checkpoint dict of format ``fmt`` and ``version``; raises :class:`ParameterError` (naming the parameter
+    ``name``) for a missing file, :class:`AssetError` for a bad one."""
     p = Path(path)
     if not p.is_file():
         raise ParameterError(name, str(p), "an existing checkpoint file")
     try:
         ckpt = torch.load(p, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises many types for truncated or foreign files
-        raise AssetError(f"weights {p} cannot be read as a checkpoint ({type(exc).__name__}: {exc})") from exc
-    if not isinstance(ckpt, dict) or ckpt.get("format") != FORMAT:
-        raise AssetError(f"weights {p} are not a {FORMAT} checkpoint")
-    if ckpt.get("version") != VERSION:
-        raise AssetError(f"weights {p} have checkpoint version {ckpt.get('version')}; this build reads {VERSION}")
+        raise AssetError(f"{name} {p} cannot be read as a checkpoint ({type(exc).__name__}: {exc})") from exc
+    if not isinstance(ckpt, dict) or ckpt.get("format") != fmt:
+        raise AssetError(f"{name} {p}: not a {fmt} checkpoint")
+    if ckpt.get("version") != version:
+        raise AssetError(f"{name} {p}: checkpoint version {ckpt.get('version')}; this build reads {version}")
     return ckpt
 
 

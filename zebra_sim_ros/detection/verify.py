@@ -28,7 +28,7 @@ import torch
 from numpy.typing import NDArray
 from torch import nn
 
-from zebra_sim_ros.errors import AssetError, ParameterError
+from zebra_sim_ros.errors import ParameterError
 
 FORMAT = "zebra_sim_ros/verifier"
 VERSION = 1
@@ -167,17 +167,12 @@ def load_verifier(path: str | Path | None = None, device: str | torch.device = "
     """The verifier of a checkpoint (None or "shipped": the package's), in eval mode, and its checkpoint dict
     (without the weights). A missing file is a :class:`ParameterError` naming ``name``; a bad one an
     :class:`AssetError`."""
+    from zebra_sim_ros.detection.checkpoint import read_checkpoint
+
     p = SHIPPED_VERIFIER if path in (None, "", "shipped") else Path(path)
     if not p.is_file():
         raise ParameterError(name, str(p), "an existing verifier checkpoint ('shipped': the package's)")
-    try:
-        ckpt = torch.load(p, map_location="cpu", weights_only=True)
-    except Exception as exc:  # torch raises many types for truncated or foreign files
-        raise AssetError(f"verifier {p} cannot be read as a checkpoint ({type(exc).__name__}: {exc})") from exc
-    if not isinstance(ckpt, dict) or ckpt.get("format") != FORMAT:
-        raise AssetError(f"verifier {p} is not a {FORMAT} checkpoint")
-    if ckpt.get("version") != VERSION:
-        raise AssetError(f"verifier {p} has checkpoint version {ckpt.get('version')}; this build reads {VERSION}")
+    ckpt = read_checkpoint(p, name, FORMAT, VERSION)
     net = Verifier(VerifierConfig.from_dict(ckpt["config"]))
     net.load_state_dict({k: v.float() for k, v in ckpt["model"].items()})
     return net.to(device).eval(), {k: v for k, v in ckpt.items() if k != "model"}
