@@ -12,6 +12,7 @@ import torch
 
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
 from zebra_sim_ros.detection.verify import (
+    KINDS,
     SHIPPED_VERIFIER,
     TrainVerifierConfig,
     Verifier,
@@ -144,7 +145,7 @@ def test_train_verifier_writes_a_checkpoint_that_records_its_recipe(frames: Path
     record = train_verifier(cfg, log=lambda s: None)
     net, ckpt = load_verifier(tmp_path / "v.pt")
     assert ckpt["train"]["seed"] == 7 and ckpt["train"]["data"] == [str(frames)] and ckpt["crops"] == record["crops"]
-    assert len(ckpt["history"]) == 2 and set(ckpt["val"]) == {"background", "other species", "zebra"}
+    assert len(ckpt["history"]) == 2 and set(ckpt["val"]) == set(KINDS)
     img = np.full((100, 100, 3), 128, np.uint8)
     p = verify(net, img, np.array([[10, 10, 90, 90, 1.0]]))[0, 4]
     assert 0.0 < p < 1.0
@@ -211,3 +212,30 @@ def test_the_shipped_verifier_tells_zebras_from_other_animals_in_new_frames(fram
                 p[is_zebra].append(float(q))
     assert len(p[True]) >= 5 and len(p[False]) >= 3, {k: len(v) for k, v in p.items()}
     assert np.mean(p[True]) > 0.6 and np.mean(p[False]) < 0.4, {k: np.round(v, 2).tolist() for k, v in p.items()}
+
+
+def test_hard_negatives_are_the_detectors_boxes_on_no_zebra(frames: Path, tmp_path: Path) -> None:
+    """``--detector``: its boxes off every zebra become crops of their own kind, drawn from their own stream (the
+    other crops are exactly those without it); a box on a zebra, or centred in one's box, never does."""
+    from zebra_sim_ros.detection.metrics import iou_matrix
+    from zebra_sim_ros.detection.verify import _false_boxes
+
+    zebras = np.array([[100, 100, 200, 160]], np.float64)
+    det = np.array([[110, 105, 190, 150, 0.9, 0],  # on the zebra
+                    [180, 150, 260, 200, 0.8, 0],  # touching it (IoU 0.02), centre outside: a false box
+                    [0, 0, 300, 260, 0.75, 0],  # IoU 0.08 but centred in the zebra's box: not false
+                    [300, 300, 400, 380, 0.7, 0],  # on nothing
+                    [300, 10, 310, 20, 0.7, 0],  # on nothing but 10 px: under min_side
+                    [500, 300, 600, 380, 0.6, 1]], np.float32)  # another class
+    out = _false_boxes(det, zebras, 24, 0, iou_matrix)
+    assert [tuple(r[:2]) for r in out] == [(180, 150), (300, 300)]
+    base = TrainVerifierConfig(data=(str(frames),), out="x.pt", min_visible_pixels=100, seed=4)
+    plain = collect_crops(base)
+    mined = collect_crops(TrainVerifierConfig(data=(str(frames),), out="x.pt", min_visible_pixels=100, seed=4,
+                                              detector="shipped", mine_conf=0.01))
+    keep = mined.kind != 3
+    np.testing.assert_array_equal(mined.x[keep], plain.x)
+    assert mined.counts()["detector's false boxes"] > 0 and plain.counts()["detector's false boxes"] == 0
+    assert not mined.y[~keep].any()
+    with pytest.raises(ParameterError, match="--detector"):
+        TrainVerifierConfig(data=(str(frames),), out="x.pt", detector=str(tmp_path / "none.pt")).check()

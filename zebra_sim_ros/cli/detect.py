@@ -64,6 +64,10 @@ def register(sub: Any) -> None:
     tv.add_argument("--lr", type=float, default=2e-3, help="peak learning rate (one cycle)")
     tv.add_argument("--seed", type=int, default=25, help="seeds the crops' jitter, the split and the training")
     tv.add_argument("--val-fraction", type=float, default=0.1, help="crops held out to report on")
+    tv.add_argument("--detector", default="", help="hard negatives: this detector's ('shipped' or a checkpoint) "
+                    "boxes on the frames that lie on no zebra become crops the verifier must reject (default: none)")
+    tv.add_argument("--mine-imgsz", type=int, default=640, help="with --detector: its inference size, px")
+    tv.add_argument("--mine-conf", type=float, default=0.1, help="with --detector: its threshold")
     tv.add_argument("--out", type=Path, required=True, help="verifier checkpoint to write (.pt)")
     add_json_flag(tv)
     tv.set_defaults(func=cmd_train_verifier)
@@ -146,7 +150,8 @@ def cmd_train_verifier(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.detection.verify import TrainVerifierConfig, train_verifier
 
     cfg = TrainVerifierConfig(data=tuple(str(d) for d in args.data), out=str(args.out), epochs=args.epochs,
-                              batch=args.batch, lr=args.lr, seed=args.seed, val_fraction=args.val_fraction)
+                              batch=args.batch, lr=args.lr, seed=args.seed, val_fraction=args.val_fraction,
+                              detector=args.detector, mine_imgsz=args.mine_imgsz, mine_conf=args.mine_conf)
     record = train_verifier(cfg)
     print(f"verifier: {args.out} ({record['seconds']} s; held-out crops called zebra: {record['val']})")
     return {"out": str(args.out), **{k: v for k, v in record.items() if k != "history"}}

@@ -33,7 +33,7 @@ from zebra_sim_ros.errors import ParameterError
 FORMAT = "zebra_sim_ros/verifier"
 VERSION = 1
 SHIPPED_VERIFIER = Path(__file__).resolve().parent / "weights" / "zebra_verifier.pt"
-KINDS = ("background", "other species", "zebra")  # crop kinds: index = the ``kind`` of a crop
+KINDS = ("background", "other species", "zebra", "detector's false boxes")  # crop kinds: index = a crop's ``kind``
 _STORE_MARGIN = 16  # crops are stored this much larger than the net's input: training draws a random window
 
 
@@ -193,6 +193,11 @@ class TrainVerifierConfig:
     min_visible_pixels: int = 300  # animals with fewer visible pixels are not cropped
     min_visible_fraction: float = 0.3
     background_per_frame: int = 2
+    # hard negatives: a detector's boxes on the frames ('shipped' or a checkpoint; '' = none) at mine_imgsz and
+    # mine_conf that overlap no zebra become crops of kind "detector's false boxes"
+    detector: str = ""
+    mine_imgsz: int = 640
+    mine_conf: float = 0.1
     model: VerifierConfig = field(default_factory=VerifierConfig)
 
     def check(self) -> None:
@@ -209,6 +214,14 @@ class TrainVerifierConfig:
             raise ParameterError("--lr", self.lr, "in (0, 1]")
         if not 0 < self.val_fraction < 0.5:
             raise ParameterError("--val-fraction", self.val_fraction, "in (0, 0.5)")
+        from zebra_sim_ros.detection.config import imgsz_ok
+
+        if not imgsz_ok(self.mine_imgsz):
+            raise ParameterError("--mine-imgsz", self.mine_imgsz, "a multiple of 32 in 64..4096")
+        if not 0 < self.mine_conf < 1:
+            raise ParameterError("--mine-conf", self.mine_conf, "in (0, 1)")
+        if self.detector not in ("", "shipped") and not Path(self.detector).is_file():
+            raise ParameterError("--detector", self.detector, "empty, shipped or an existing detector checkpoint")
         self.model.check()
 
     def to_dict(self) -> dict[str, Any]:
@@ -231,10 +244,22 @@ class CropSet:
 def collect_crops(cfg: TrainVerifierConfig) -> CropSet:
     """Two jittered crops (context 1.0-1.5x, centre moved up to 12% of the box, JPEG quality 35-95) of every animal
     with enough visible pixels in the datasets' annotated frames, and ``background_per_frame`` squares per frame
-    (24 px to 60% of the short side, log-uniform) that hold no animal's centre; seeded by ``cfg.seed``."""
+    (24 px to 60% of the short side, log-uniform) that hold no animal's centre; with ``cfg.detector``, also one
+    crop (context 1.1-1.3x, centre moved up to 8%) of each of its zebra boxes of ``min_side`` or more whose centre
+    lies in no zebra's box (visible or full, don't-care zebras included) and that overlaps none (IoU < 0.1). Seeded
+    by ``cfg.seed``; the detector's crops draw from a stream of their own, so the others are the same without it."""
+    from zebra_sim_ros.detection.metrics import iou_matrix
+    from zebra_sim_ros.detection.model import ZEBRA
+    from zebra_sim_ros.detection.predict import detect
     from zebra_sim_ros.messages import FrameAnnotation
 
     rng = np.random.default_rng([cfg.seed, 0x5E7])
+    mine = np.random.default_rng([cfg.seed, 0x4E6])
+    detector = None
+    if cfg.detector:
+        from zebra_sim_ros.detection.checkpoint import load_model
+
+        detector, _ = load_model(None if cfg.detector == "shipped" else cfg.detector)
     store = cfg.model.crop + _STORE_MARGIN
     xs: list[NDArray[np.uint8]] = []
     kinds: list[int] = []
@@ -267,11 +292,33 @@ def collect_crops(cfg: TrainVerifierConfig) -> CropSet:
                     continue
                 xs.append(square_crop(img, (cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2), 1.0, store))
                 kinds.append(0)
+            if detector is not None:
+                zebras = np.array([b for z in ann.labels.zebras if z.is_zebra
+                                   for b in (z.box_visible, z.box_full) if b is not None], np.float64).reshape(-1, 4)
+                for b in _false_boxes(detect(detector, [img], cfg.mine_imgsz, cfg.mine_conf)[0], zebras,
+                                      cfg.model.min_side, ZEBRA, iou_matrix):
+                    shift = mine.uniform(-0.08, 0.08, 2)
+                    xs.append(square_crop(img, b, float(mine.uniform(1.1, 1.3)), store,
+                                          (float(shift[0]), float(shift[1]))))
+                    kinds.append(3)
     if not xs:
         raise ParameterError("--data", list(cfg.data), "frames with animals of at least "
                              f"{cfg.min_visible_pixels} visible pixels")
     kind = np.asarray(kinds, np.int64)
     return CropSet(np.stack(xs), (kind == 2).astype(np.float32), kind)
+
+
+def _false_boxes(det: NDArray[Any], zebras: NDArray[np.float64], min_side: float, zebra_class: int,
+                 iou: Callable[[NDArray[np.float64], NDArray[np.float64]], NDArray[np.float64]]) -> NDArray[Any]:
+    """The rows of ``det`` of class ``zebra_class`` and ``min_side`` or more that are on no zebra: centre in none of
+    the ``zebras`` boxes and IoU < 0.1 with each."""
+    d = det[(det[:, 5] == zebra_class) & (np.maximum(det[:, 2] - det[:, 0], det[:, 3] - det[:, 1]) >= min_side)]
+    if not len(d) or not len(zebras):
+        return d
+    cx, cy = (d[:, 0] + d[:, 2]) / 2, (d[:, 1] + d[:, 3]) / 2
+    inside = ((cx[:, None] >= zebras[None, :, 0]) & (cx[:, None] <= zebras[None, :, 2])
+              & (cy[:, None] >= zebras[None, :, 1]) & (cy[:, None] <= zebras[None, :, 3])).any(1)
+    return d[~inside & (iou(d[:, :4].astype(np.float64), zebras).max(1) < 0.1)]
 
 
 def augment(x: torch.Tensor, g: torch.Generator, out: int) -> torch.Tensor:
