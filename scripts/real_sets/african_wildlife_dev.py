@@ -32,6 +32,19 @@ def git(git_dir: Path, *args: str) -> bytes:
     return subprocess.run(["git", "-C", str(git_dir), *args], check=True, capture_output=True).stdout
 
 
+def copy_photo(git_dir: Path, src: str, out: Path, name: str) -> int:
+    """Copy the photo ``src`` (a path in the repository at COMMIT) to ``out/images/<name>``, its zebra boxes to
+    ``labels/`` (class 0) and the other animals' to ``other_species/``; returns its number of zebras."""
+    (out / "images" / f"{name}{Path(src).suffix.lower()}").write_bytes(git(git_dir, "show", f"{COMMIT}:{src}"))
+    label = src.replace("/images/", "/labels/").rsplit(".", 1)[0] + ".txt"
+    rows = [ln.split() for ln in git(git_dir, "show", f"{COMMIT}:{label}").decode().splitlines() if ln.strip()]
+    zebra = [" ".join(["0", *r[1:5]]) for r in rows if r[0] == ZEBRA]
+    other = [" ".join(r[:5]) for r in rows if r[0] != ZEBRA]
+    (out / "labels" / f"{name}.txt").write_text("".join(z + "\n" for z in zebra))
+    (out / "other_species" / f"{name}.txt").write_text("".join(o + "\n" for o in other))
+    return len(zebra)
+
+
 def local_name(source: str) -> str:
     return "train_" + re.sub(r"[^A-Za-z0-9]", "_", Path(source).stem)
 
@@ -48,18 +61,9 @@ def main() -> None:
         (args.out / sub).mkdir(parents=True)
     zebra_images = zebra_boxes = 0
     for src in sources:
-        name = local_name(src)
-        (args.out / "images" / f"{name}{Path(src).suffix.lower()}").write_bytes(git(args.git_dir, "show",
-                                                                                    f"{COMMIT}:{src}"))
-        label = src.replace("/images/", "/labels/").rsplit(".", 1)[0] + ".txt"
-        rows = [ln.split() for ln in git(args.git_dir, "show", f"{COMMIT}:{label}").decode().splitlines()
-                if ln.strip()]
-        zebra = [" ".join(["0", *r[1:5]]) for r in rows if r[0] == ZEBRA]
-        other = [" ".join(r[:5]) for r in rows if r[0] != ZEBRA]
-        (args.out / "labels" / f"{name}.txt").write_text("".join(z + "\n" for z in zebra))
-        (args.out / "other_species" / f"{name}.txt").write_text("".join(o + "\n" for o in other))
-        zebra_images += bool(zebra)
-        zebra_boxes += len(zebra)
+        n = copy_photo(args.git_dir, src, args.out, local_name(src))
+        zebra_images += bool(n)
+        zebra_boxes += n
     (args.out / "data.yaml").write_text("# real photographs for measuring only (never training)\npath: .\n"
                                         "train: images\nval: images\nnames:\n  0: zebra\n")
     (args.out / "SOURCE.txt").write_text(f"github:EricJakovac/Animals@{COMMIT} datasets/african-wildlife/train "
