@@ -12,19 +12,16 @@ import torch
 
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
 from zebra_sim_ros.detection.verify import (
-    KINDS,
     SHIPPED_VERIFIER,
-    TrainVerifierConfig,
     Verifier,
     VerifierConfig,
-    collect_crops,
     load_verifier,
     rescore,
     save_verifier,
     square_crop,
-    train_verifier,
     verify,
 )
+from zebra_sim_ros.detection.verify_train import KINDS, TrainVerifierConfig, collect_crops, train_verifier
 from zebra_sim_ros.errors import AssetError, ParameterError
 
 
@@ -218,7 +215,7 @@ def test_hard_negatives_are_the_detectors_boxes_on_no_zebra(frames: Path, tmp_pa
     """``--detector``: its boxes off every zebra become crops of their own kind, drawn from their own stream (the
     other crops are exactly those without it); a box on a zebra, or centred in one's box, never does."""
     from zebra_sim_ros.detection.metrics import iou_matrix
-    from zebra_sim_ros.detection.verify import _false_boxes
+    from zebra_sim_ros.detection.verify_train import _false_boxes
 
     zebras = np.array([[100, 100, 200, 160]], np.float64)
     det = np.array([[110, 105, 190, 150, 0.9, 0],  # on the zebra

@@ -147,7 +147,7 @@ def cmd_train(args: argparse.Namespace) -> Summary:
 
 def cmd_train_verifier(args: argparse.Namespace) -> Summary:
     """Train the crop verifier."""
-    from zebra_sim_ros.detection.verify import TrainVerifierConfig, train_verifier
+    from zebra_sim_ros.detection.verify_train import TrainVerifierConfig, train_verifier
 
     cfg = TrainVerifierConfig(data=tuple(str(d) for d in args.data), out=str(args.out), epochs=args.epochs,
                               batch=args.batch, lr=args.lr, seed=args.seed, val_fraction=args.val_fraction,
