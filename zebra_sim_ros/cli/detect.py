@@ -57,7 +57,7 @@ def register(sub: Any) -> None:
                         "scratch on generated datasets",
                         description="Crops of every animal (zebras, other species) and of background in the frames "
                         "of generated datasets (their annotations/ say which animal is a zebra), a small network "
-                        "trained on them under photometric augmentations; see zebra_sim_ros/detection/verify.py.")
+                        "trained on them under photometric augmentations; see zebra_sim_ros/detection/verify_train.py.")
     tv.add_argument("--data", nargs="+", required=True, help="folders written by zebra-sim generate")
     tv.add_argument("--epochs", type=int, default=10)
     tv.add_argument("--batch", type=int, default=128)
