@@ -55,21 +55,26 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=HERE.parents[1] / "real" / "african_wildlife_dev")
     args = ap.parse_args()
     sources = [s for s in (HERE / "african_wildlife_dev.txt").read_text().splitlines() if s.strip()]
-    if args.out.exists():
-        shutil.rmtree(args.out)
+    write_set(args.git_dir, [(src, local_name(src)) for src in sources], args.out,
+              "# real photographs for measuring only (never training)",
+              "datasets/african-wildlife/train (AGPL-3.0); see scripts/real_sets/african_wildlife_dev.py")
+
+
+def write_set(git_dir: Path, photos: list[tuple[str, str]], out: Path, yaml_comment: str, source: str) -> None:
+    """``out`` written anew: each (repository path, local name) of ``photos`` by :func:`copy_photo`, a data.yaml
+    headed by ``yaml_comment`` and a SOURCE.txt naming the repository, the commit and ``source``."""
+    if out.exists():
+        shutil.rmtree(out)
     for sub in ("images", "labels", "other_species"):
-        (args.out / sub).mkdir(parents=True)
+        (out / sub).mkdir(parents=True)
     zebra_images = zebra_boxes = 0
-    for src in sources:
-        n = copy_photo(args.git_dir, src, args.out, local_name(src))
+    for src, name in photos:
+        n = copy_photo(git_dir, src, out, name)
         zebra_images += bool(n)
         zebra_boxes += n
-    (args.out / "data.yaml").write_text("# real photographs for measuring only (never training)\npath: .\n"
-                                        "train: images\nval: images\nnames:\n  0: zebra\n")
-    (args.out / "SOURCE.txt").write_text(f"github:EricJakovac/Animals@{COMMIT} datasets/african-wildlife/train "
-                                         "(AGPL-3.0); see scripts/real_sets/african_wildlife_dev.py\n")
-    print(f"wrote {args.out}: {len(sources)} images, {zebra_images} with zebras, {zebra_boxes} zebra boxes")
-
+    (out / "data.yaml").write_text(f"{yaml_comment}\npath: .\ntrain: images\nval: images\nnames:\n  0: zebra\n")
+    (out / "SOURCE.txt").write_text(f"github:EricJakovac/Animals@{COMMIT} {source}\n")
+    print(f"wrote {out}: {len(photos)} images, {zebra_images} with zebras, {zebra_boxes} zebra boxes")
 
 if __name__ == "__main__":
     main()

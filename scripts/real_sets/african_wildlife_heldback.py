@@ -20,13 +20,12 @@ from __future__ import annotations
 
 import argparse
 import re
-import shutil
 import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from african_wildlife_dev import COMMIT, copy_photo, git  # noqa: E402  (the same source, pinned to the same commit)
+from african_wildlife_dev import COMMIT, git, write_set  # noqa: E402  (the same source, pinned to the same commit)
 
 ROOT = "datasets/african-wildlife"
 SPLITS = ("test", "valid")
@@ -41,22 +40,10 @@ def main() -> None:
     sources = sorted(f for f in files if f.split("/")[2] in SPLITS and f.split("/")[3] == "images")
     if not sources:
         raise SystemExit(f"{args.git_dir}: no images under {ROOT}/{{{','.join(SPLITS)}}} at {COMMIT}")
-    if args.out.exists():
-        shutil.rmtree(args.out)
-    for sub in ("images", "labels", "other_species"):
-        (args.out / sub).mkdir(parents=True)
-    zebra_images = zebra_boxes = 0
-    for src in sources:
-        name = src.split("/")[2] + "_" + re.sub(r"[^A-Za-z0-9]", "_", Path(src).stem)
-        n = copy_photo(args.git_dir, src, args.out, name)
-        zebra_images += bool(n)
-        zebra_boxes += n
-    (args.out / "data.yaml").write_text("# real photographs, HELD BACK: for measuring only, seldom\npath: .\n"
-                                        "train: images\nval: images\nnames:\n  0: zebra\n")
-    (args.out / "SOURCE.txt").write_text(f"github:EricJakovac/Animals@{COMMIT} {ROOT}/{{test,valid}} (AGPL-3.0); see "
-                                         "scripts/real_sets/african_wildlife_heldback.py\n")
-    print(f"wrote {args.out}: {len(sources)} images, {zebra_images} with zebras, {zebra_boxes} zebra boxes")
-
+    write_set(args.git_dir, [(src, src.split("/")[2] + "_" + re.sub(r"[^A-Za-z0-9]", "_", Path(src).stem))
+                             for src in sources], args.out,
+              "# real photographs, HELD BACK: for measuring only, seldom",
+              f"{ROOT}/{{test,valid}} (AGPL-3.0); see scripts/real_sets/african_wildlife_heldback.py")
 
 if __name__ == "__main__":
     main()

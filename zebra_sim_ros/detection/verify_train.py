@@ -223,7 +223,7 @@ def train_verifier(cfg: TrainVerifierConfig, log: Callable[[str], None] = print)
     from zebra_sim_ros.detection.train import amp_dtype  # the trainer's rule: bfloat16 where the CPU has it
 
     dtype = amp_dtype("auto", torch.device("cpu"))
-    m = (cfg.model.crop + _STORE_MARGIN - cfg.model.crop) // 2
+    m = _STORE_MARGIN // 2  # the centre window of each stored crop
     xv = x[val].float()[:, :, m:m + cfg.model.crop, m:m + cfg.model.crop] / 255
     history = []
     for ep in range(cfg.epochs):
