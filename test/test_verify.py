@@ -21,7 +21,13 @@ from zebra_sim_ros.detection.verify import (
     square_crop,
     verify,
 )
-from zebra_sim_ros.detection.verify_train import KINDS, TrainVerifierConfig, collect_crops, train_verifier
+from zebra_sim_ros.detection.verify_train import (
+    KINDS,
+    TrainVerifierConfig,
+    collect_crops,
+    draw_clutter,
+    train_verifier,
+)
 from zebra_sim_ros.errors import AssetError, ParameterError
 
 
@@ -133,7 +139,7 @@ def test_crops_follow_the_annotations_and_the_seed(frames: Path, tmp_path: Path)
     assert (counts["zebra"], counts["other species"]) == (2 * n_zebra, 2 * n_other)  # two jittered crops each
     assert counts["zebra"] > 0 and counts["background"] > 0
     assert a.x.shape[1:] == (112, 112, 3) and set(np.unique(a.y)) <= {0.0, 1.0}
-    np.testing.assert_array_equal(a.y, (a.kind == 2).astype(np.float32))
+    np.testing.assert_array_equal(a.y, (a.kind == 2).astype(np.float32))  # no parts by default
 
 
 def test_train_verifier_writes_a_checkpoint_that_records_its_recipe(frames: Path, tmp_path: Path) -> None:
@@ -148,8 +154,38 @@ def test_train_verifier_writes_a_checkpoint_that_records_its_recipe(frames: Path
     assert 0.0 < p < 1.0
 
 
+def test_parts_and_clutter_are_added_crops_of_their_own_streams(frames: Path) -> None:
+    """``parts_per_animal`` adds that many squares per cropped animal, labelled as the animal is;
+    ``clutter_per_frame`` adds drawn squares, never a zebra; the crops of the plain recipe stay exactly the same."""
+    base = dict(data=(str(frames),), out="x.pt", min_visible_pixels=100, seed=4)
+    plain = collect_crops(TrainVerifierConfig(**base))  # type: ignore[arg-type]
+    more = collect_crops(TrainVerifierConfig(**base, parts_per_animal=3, clutter_per_frame=2))  # type: ignore[arg-type]
+    n_frames = len(list((frames / "annotations").glob("*.json")))
+    counts, before = more.counts(), plain.counts()
+    assert counts["drawn clutter"] == 2 * n_frames and before["drawn clutter"] == 0
+    assert (counts["parts of zebras"], counts["parts of other species"]) == (
+        before["zebra"] // 2 * 3, before["other species"] // 2 * 3)  # two crops per animal, three parts
+    assert counts["parts of zebras"] > 0
+    np.testing.assert_array_equal(more.y, np.isin(more.kind, (2, 5)).astype(np.float32))
+    np.testing.assert_array_equal(more.x[more.kind <= 3], plain.x)
+    np.testing.assert_array_equal(more.kind[more.kind <= 3], plain.kind)
+
+
+def test_drawn_clutter_is_seeded_textured_and_sized() -> None:
+    a = draw_clutter(np.random.default_rng(3), 112)
+    b = draw_clutter(np.random.default_rng(3), 112)
+    c = draw_clutter(np.random.default_rng(4), 112)
+    assert a.shape == (112, 112, 3) and a.dtype == np.uint8
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+    stds = [float(draw_clutter(np.random.default_rng(s), 64).std()) for s in range(20)]
+    assert np.median(stds) > 3.0, stds  # texture, not flat squares
+
+
 @pytest.mark.parametrize(("field", "value", "named"), [("data", (), "--data"), ("epochs", 0, "--epochs"),
-                                                       ("lr", 0.0, "--lr"), ("val_fraction", 0.7, "--val-fraction")])
+                                                       ("lr", 0.0, "--lr"), ("val_fraction", 0.7, "--val-fraction"),
+                                                       ("parts_per_animal", -1, "--parts-per-animal"),
+                                                       ("clutter_per_frame", -1, "--clutter-per-frame")])
 def test_bad_training_settings_name_themselves(frames: Path, field: str, value: object, named: str) -> None:
     kw: dict[str, object] = {"data": (str(frames),), "out": "x.pt", field: value}
     with pytest.raises(ParameterError, match=named):

@@ -64,6 +64,15 @@ def register(sub: Any) -> None:
     tv.add_argument("--lr", type=float, default=2e-3, help="peak learning rate (one cycle)")
     tv.add_argument("--seed", type=int, default=25, help="seeds the crops' jitter, the split and the training")
     tv.add_argument("--val-fraction", type=float, default=0.1, help="crops held out to report on")
+    tv.add_argument("--background-per-frame", type=int, default=None, help="background squares cut from each "
+                    "frame, those holding an animal's centre skipped (default: TrainVerifierConfig's, 2)")
+    tv.add_argument("--min-visible-pixels", type=int, default=None, help="animals with fewer visible pixels are "
+                    "not cropped (default: TrainVerifierConfig's, 300)")
+    tv.add_argument("--parts-per-animal", type=int, default=None, help="squares of part of each cropped animal "
+                    "(40-75%% of its long side, centred in its middle): a zebra's part is a zebra, another species' "
+                    "is not (default: TrainVerifierConfig's, 0)")
+    tv.add_argument("--clutter-per-frame", type=int, default=None, help="drawn squares of foliage, branches, sky "
+                    "and defocus per frame, never a zebra (default: TrainVerifierConfig's, 0)")
     tv.add_argument("--detector", default="", help="hard negatives: this detector's ('shipped' or a checkpoint) "
                     "boxes on the frames that lie on no zebra become crops the verifier must reject (default: none)")
     tv.add_argument("--mine-imgsz", type=int, default=640, help="with --detector: its inference size, px")
@@ -151,7 +160,10 @@ def cmd_train_verifier(args: argparse.Namespace) -> Summary:
 
     cfg = TrainVerifierConfig(data=tuple(str(d) for d in args.data), out=str(args.out), epochs=args.epochs,
                               batch=args.batch, lr=args.lr, seed=args.seed, val_fraction=args.val_fraction,
-                              detector=args.detector, mine_imgsz=args.mine_imgsz, mine_conf=args.mine_conf)
+                              detector=args.detector, mine_imgsz=args.mine_imgsz, mine_conf=args.mine_conf,
+                              **{k: getattr(args, k) for k in ("background_per_frame", "min_visible_pixels",
+                                                                "parts_per_animal", "clutter_per_frame")
+                                 if getattr(args, k) is not None})
     record = train_verifier(cfg)
     print(f"verifier: {args.out} ({record['seconds']} s; held-out crops called zebra: {record['val']})")
     return {"out": str(args.out), **{k: v for k, v in record.items() if k != "history"}}

@@ -1,7 +1,9 @@
 """Training the crop verifier (:mod:`zebra_sim_ros.detection.verify`) from scratch on generated frames only.
 
 Crops of every animal the frames' annotations list (zebras and other species) and of background, optionally the
-boxes a detector puts on no zebra (hard negatives), under photometric augmentations; ``zebra-sim train-verifier``.
+boxes a detector puts on no zebra (hard negatives), parts of the animals and drawn clutter (foliage, branches,
+sky, defocus: what photographs hold and the generator's frames lack), under photometric augmentations;
+``zebra-sim train-verifier``.
 """
 
 from __future__ import annotations
@@ -22,7 +24,10 @@ from torch import nn
 from zebra_sim_ros.detection.verify import Verifier, VerifierConfig, read_rgb, save_verifier, square_crop
 from zebra_sim_ros.errors import ParameterError
 
-KINDS = ("background", "other species", "zebra", "detector's false boxes")  # crop kinds: index = a crop's ``kind``
+# crop kinds (index = a crop's ``kind``); ZEBRA_KINDS are the ones labelled zebra
+KINDS = ("background", "other species", "zebra", "detector's false boxes", "drawn clutter", "parts of zebras",
+         "parts of other species")
+ZEBRA_KINDS = (2, 5)
 _STORE_MARGIN = 16  # crops are stored this much larger than the net's input: training draws a random window
 
 
@@ -45,6 +50,11 @@ class TrainVerifierConfig:
     detector: str = ""
     mine_imgsz: int = 640
     mine_conf: float = 0.1
+    # parts: this many squares per cropped animal of 40-75% of its box's long side, centred in the middle half of
+    # the box (a zebra's part is a zebra, another species' part is not); clutter: this many drawn squares per
+    # frame (draw_clutter), never a zebra. Both drawn from streams of their own: the other crops stay the same.
+    parts_per_animal: int = 0
+    clutter_per_frame: int = 0
     model: VerifierConfig = field(default_factory=VerifierConfig)
 
     def check(self) -> None:
@@ -54,7 +64,9 @@ class TrainVerifierConfig:
             if not (Path(d) / "annotations").is_dir():
                 raise ParameterError("--data", d, "a folder written by zebra-sim generate (with annotations/)")
         for name, value, lo in (("--epochs", self.epochs, 1), ("--batch", self.batch, 2), ("--seed", self.seed, 0),
-                                ("--background-per-frame", self.background_per_frame, 0)):
+                                ("--background-per-frame", self.background_per_frame, 0),
+                                ("--parts-per-animal", self.parts_per_animal, 0),
+                                ("--clutter-per-frame", self.clutter_per_frame, 0)):
             if value < lo:
                 raise ParameterError(name, value, f">= {lo}")
         if not 0 < self.lr <= 1:
@@ -78,7 +90,8 @@ class TrainVerifierConfig:
 
 @dataclass(frozen=True)
 class CropSet:
-    """Training crops: ``x`` (N, s, s, 3) RGB uint8, ``y`` 1 for zebras, ``kind`` an index into :data:`KINDS`."""
+    """Training crops: ``x`` (N, s, s, 3) RGB uint8, ``y`` 1 for zebras (a kind in :data:`ZEBRA_KINDS`),
+    ``kind`` an index into :data:`KINDS`."""
 
     x: NDArray[np.uint8]
     y: NDArray[np.float32]
@@ -93,8 +106,10 @@ def collect_crops(cfg: TrainVerifierConfig) -> CropSet:
     with enough visible pixels in the datasets' annotated frames, and ``background_per_frame`` squares per frame
     (24 px to 60% of the short side, log-uniform) that hold no animal's centre; with ``cfg.detector``, also one
     crop (context 1.1-1.3x, centre moved up to 8%) of each of its zebra boxes of ``min_side`` or more whose centre
-    lies in no zebra's box (visible or full, don't-care zebras included) and that overlaps none (IoU < 0.1). Seeded
-    by ``cfg.seed``; the detector's crops draw from a stream of their own, so the others are the same without it."""
+    lies in no zebra's box (visible or full, don't-care zebras included) and that overlaps none (IoU < 0.1); with
+    ``cfg.parts_per_animal``, squares of part of each cropped animal; with ``cfg.clutter_per_frame``, drawn clutter
+    (:func:`draw_clutter`). Seeded by ``cfg.seed``; the detector's crops, the parts and the clutter each draw from
+    a stream of their own, so the other crops are the same without them."""
     from zebra_sim_ros.detection.metrics import iou_matrix
     from zebra_sim_ros.detection.model import ZEBRA
     from zebra_sim_ros.detection.predict import detect
@@ -102,6 +117,8 @@ def collect_crops(cfg: TrainVerifierConfig) -> CropSet:
 
     rng = np.random.default_rng([cfg.seed, 0x5E7])
     mine = np.random.default_rng([cfg.seed, 0x4E6])
+    parts = np.random.default_rng([cfg.seed, 0x9A7])
+    clutter = np.random.default_rng([cfg.seed, 0xC17])
     detector = None
     if cfg.detector:
         from zebra_sim_ros.detection.checkpoint import load_model
@@ -131,6 +148,14 @@ def collect_crops(cfg: TrainVerifierConfig) -> CropSet:
                     ok, buf = cv2.imencode(".jpg", c, [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(35, 96))])
                     xs.append(np.asarray(cv2.imdecode(buf, cv2.IMREAD_UNCHANGED), dtype=np.uint8) if ok else c)
                     kinds.append(2 if z.is_zebra else 1)
+                long_side = max(b[2] - b[0], b[3] - b[1])
+                for _ in range(cfg.parts_per_animal):
+                    side = long_side * parts.uniform(0.4, 0.75)
+                    cx, cy = b[0] + (b[2] - b[0]) * parts.uniform(0.25, 0.75), b[1] + (b[3] - b[1]) * parts.uniform(
+                        0.25, 0.75)
+                    xs.append(square_crop(img, (cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2), 1.0,
+                                          store))
+                    kinds.append(5 if z.is_zebra else 6)
             for _ in range(cfg.background_per_frame):
                 side = float(np.exp(rng.uniform(np.log(24), np.log(max(25.0, min(h, w) * 0.6)))))
                 cx, cy = rng.uniform(side / 2, max(side / 2 + 1, w - side / 2)), rng.uniform(
@@ -139,6 +164,9 @@ def collect_crops(cfg: TrainVerifierConfig) -> CropSet:
                     continue
                 xs.append(square_crop(img, (cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2), 1.0, store))
                 kinds.append(0)
+            for _ in range(cfg.clutter_per_frame):
+                xs.append(draw_clutter(clutter, store))
+                kinds.append(4)
             if detector is not None:
                 zebras = np.array([b for z in ann.labels.zebras if z.is_zebra
                                    for b in (z.box_visible, z.box_full) if b is not None], np.float64).reshape(-1, 4)
@@ -152,7 +180,60 @@ def collect_crops(cfg: TrainVerifierConfig) -> CropSet:
         raise ParameterError("--data", list(cfg.data), "frames with animals of at least "
                              f"{cfg.min_visible_pixels} visible pixels")
     kind = np.asarray(kinds, np.int64)
-    return CropSet(np.stack(xs), (kind == 2).astype(np.float32), kind)
+    return CropSet(np.stack(xs), np.isin(kind, ZEBRA_KINDS).astype(np.float32), kind)
+
+
+# natural colours (RGB) for drawn clutter: foliage, bark and soil, rock, shade, and the sky behind them
+_FOLIAGE = np.array([[40, 60, 30], [60, 90, 40], [90, 120, 50], [120, 140, 70], [150, 160, 90], [80, 60, 40],
+                     [110, 90, 60], [150, 120, 80], [190, 170, 120], [60, 55, 50], [90, 90, 90], [140, 135, 130],
+                     [25, 25, 25], [200, 200, 190]], np.float32)
+_SKY = np.array([[170, 200, 230], [220, 225, 235], [140, 170, 210], [240, 240, 240], [190, 190, 200]], np.float32)
+
+
+def draw_clutter(rng: np.random.Generator, side: int) -> NDArray[np.uint8]:
+    """A ``side`` px RGB square of what photographs hold around animals and the generator's frames lack: fractal
+    texture (4-7 octaves of smooth noise, down to a few px) between two natural colours, one time in three cut by
+    a sky, up to five strokes (branches, grass blades, horns) three times in five, light discs (out-of-focus
+    highlights) one time in four, then defocus (Gaussian, sigma 0.5-6 px) seven times in ten and JPEG. No regular
+    stripes are drawn."""
+    def fractal() -> NDArray[np.float32]:
+        acc = np.zeros((side, side), np.float32)
+        amp, persistence = 1.0, float(rng.uniform(0.4, 0.9))
+        for octave in range(int(rng.integers(4, 8))):
+            n = 2 + 2 ** octave
+            acc += amp * cv2.resize(rng.standard_normal((n, n)).astype(np.float32), (side, side),
+                                    interpolation=cv2.INTER_CUBIC)
+            amp *= persistence
+        acc -= acc.min()
+        return np.asarray(acc / max(float(acc.max()), 1e-6), np.float32)
+
+    def colour(table: NDArray[np.float32]) -> NDArray[np.float32]:
+        return np.asarray(np.clip(table[rng.integers(len(table))] + rng.uniform(-20, 20, 3), 0, 255), np.float32)
+
+    t = fractal()[..., None]
+    img = colour(_FOLIAGE) * (1 - t) + colour(_FOLIAGE) * t
+    if rng.random() < 1 / 3:
+        img[fractal() > rng.uniform(0.4, 0.7)] = colour(_SKY)
+    if rng.random() < 0.6:
+        for _ in range(int(rng.integers(1, 6))):
+            p0, p1, p2 = rng.uniform(-0.2, 1.2, (3, 2)) * side
+            u = np.linspace(0, 1, 24)[:, None]
+            pts = ((1 - u) ** 2 * p0 + 2 * u * (1 - u) * p1 + u ** 2 * p2).round().astype(np.int32)
+            width = int(np.exp(rng.uniform(0, np.log(max(2.0, side / 8)))))
+            cv2.polylines(img, [pts], False, colour(_FOLIAGE).tolist(), width, cv2.LINE_AA)
+    if rng.random() < 0.25:
+        glow = np.zeros((side, side), np.float32)
+        for _ in range(int(rng.integers(3, 16))):
+            cx, cy = (int(v) for v in rng.integers(0, side, 2))
+            cv2.circle(glow, (cx, cy), int(rng.integers(2, max(3, side // 8))), 1.0, -1, cv2.LINE_AA)
+        light = colour(_SKY)
+        a = 0.6 * glow[..., None]
+        img = img * (1 - a) + light * a
+    if rng.random() < 0.7:
+        img = cv2.GaussianBlur(img, (0, 0), float(np.exp(rng.uniform(np.log(0.5), np.log(6.0)))))
+    out = np.asarray(np.clip(img, 0, 255).round(), np.uint8)
+    ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(35, 96))])
+    return np.asarray(cv2.imdecode(buf, cv2.IMREAD_UNCHANGED), dtype=np.uint8) if ok else out
 
 
 def _false_boxes(det: NDArray[Any], zebras: NDArray[np.float64], min_side: float, zebra_class: int,
