@@ -77,6 +77,9 @@ def register(sub: Any) -> None:
                     "boxes on the frames that lie on no zebra become crops the verifier must reject (default: none)")
     tv.add_argument("--mine-imgsz", type=int, default=640, help="with --detector: its inference size, px")
     tv.add_argument("--mine-conf", type=float, default=0.1, help="with --detector: its threshold")
+    tv.add_argument("--mine-on-animals", action=argparse.BooleanOptionalAction, default=None, help="with --detector: "
+                    "its boxes on animals of other species are hard negatives too (default); --no-mine-on-animals "
+                    "keeps only its boxes on background")
     tv.add_argument("--out", type=Path, required=True, help="verifier checkpoint to write (.pt)")
     add_json_flag(tv)
     tv.set_defaults(func=cmd_train_verifier)
@@ -162,7 +165,8 @@ def cmd_train_verifier(args: argparse.Namespace) -> Summary:
                               batch=args.batch, lr=args.lr, seed=args.seed, val_fraction=args.val_fraction,
                               detector=args.detector, mine_imgsz=args.mine_imgsz, mine_conf=args.mine_conf,
                               **{k: getattr(args, k) for k in ("background_per_frame", "min_visible_pixels",
-                                                                "parts_per_animal", "clutter_per_frame")
+                                                                "parts_per_animal", "clutter_per_frame",
+                                                                "mine_on_animals")
                                  if getattr(args, k) is not None})
     record = train_verifier(cfg)
     print(f"verifier: {args.out} ({record['seconds']} s; held-out crops called zebra: {record['val']})")

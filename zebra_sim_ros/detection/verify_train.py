@@ -50,6 +50,8 @@ class TrainVerifierConfig:
     detector: str = ""
     mine_imgsz: int = 640
     mine_conf: float = 0.1
+    mine_on_animals: bool = True  # False: a box on an animal of another species (centre in it or IoU >= 0.1) is
+    # not a hard negative either, only boxes on background are (those animals have their own crops)
     # parts: this many squares per cropped animal of 40-75% of its box's long side, centred in the middle half of
     # the box (a zebra's part is a zebra, another species' part is not); clutter: this many drawn squares per
     # frame (draw_clutter), never a zebra. Both drawn from streams of their own: the other crops stay the same.
@@ -106,7 +108,8 @@ def collect_crops(cfg: TrainVerifierConfig) -> CropSet:
     with enough visible pixels in the datasets' annotated frames, and ``background_per_frame`` squares per frame
     (24 px to 60% of the short side, log-uniform) that hold no animal's centre; with ``cfg.detector``, also one
     crop (context 1.1-1.3x, centre moved up to 8%) of each of its zebra boxes of ``min_side`` or more whose centre
-    lies in no zebra's box (visible or full, don't-care zebras included) and that overlaps none (IoU < 0.1); with
+    lies in no zebra's box (visible or full, don't-care zebras included) and that overlaps none (IoU < 0.1), nor,
+    with ``cfg.mine_on_animals`` off, any other animal's; with
     ``cfg.parts_per_animal``, squares of part of each cropped animal; with ``cfg.clutter_per_frame``, drawn clutter
     (:func:`draw_clutter`). Seeded by ``cfg.seed``; the detector's crops, the parts and the clutter each draw from
     a stream of their own, so the other crops are the same without them."""
@@ -168,9 +171,9 @@ def collect_crops(cfg: TrainVerifierConfig) -> CropSet:
                 xs.append(draw_clutter(clutter, store))
                 kinds.append(4)
             if detector is not None:
-                zebras = np.array([b for z in ann.labels.zebras if z.is_zebra
-                                   for b in (z.box_visible, z.box_full) if b is not None], np.float64).reshape(-1, 4)
-                for b in _false_boxes(detect(detector, [img], cfg.mine_imgsz, cfg.mine_conf)[0], zebras,
+                keep_off = np.array([b for z in ann.labels.zebras if z.is_zebra or not cfg.mine_on_animals
+                                     for b in (z.box_visible, z.box_full) if b is not None], np.float64).reshape(-1, 4)
+                for b in _false_boxes(detect(detector, [img], cfg.mine_imgsz, cfg.mine_conf)[0], keep_off,
                                       cfg.model.min_side, ZEBRA, iou_matrix):
                     shift = mine.uniform(-0.08, 0.08, 2)
                     xs.append(square_crop(img, b, float(mine.uniform(1.1, 1.3)), store,
