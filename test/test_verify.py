@@ -205,6 +205,28 @@ def test_the_shipped_verifier_records_its_recipe() -> None:
     assert net.cfg == VerifierConfig()
 
 
+def test_train_verifier_on_the_command_line_records_its_options(frames: Path, tmp_path: Path,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """The crop options reach the checkpoint; ``--min-side`` is the size the verifier judges from, and animals
+    smaller than it are not cropped."""
+    from zebra_sim_ros.cli import main
+
+    out = tmp_path / "v.pt"
+    assert main(["train-verifier", "--data", str(frames), "--epochs", "1", "--batch", "16", "--seed", "3",
+                 "--min-side", "40", "--min-visible-pixels", "100", "--clutter-per-frame", "1", "--out", str(out),
+                 "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out.splitlines()[-1])
+    net, ckpt = load_verifier(out)
+    assert net.cfg.min_side == 40 and ckpt["train"]["model"]["min_side"] == 40
+    assert ckpt["train"]["min_visible_pixels"] == 100 and ckpt["train"]["clutter_per_frame"] == 1
+    n_frames = len(list((frames / "annotations").glob("*.json")))
+    assert summary["crops"]["drawn clutter"] == n_frames
+    wide = collect_crops(TrainVerifierConfig(data=(str(frames),), out="x", min_visible_pixels=100, seed=3))
+    assert summary["crops"]["zebra"] <= wide.counts()["zebra"]  # 24 px boxes are cropped, 40 px ones only here
+    assert main(["train-verifier", "--data", str(frames), "--min-side", "0", "--out", str(out)]) == 2
+    assert "min_side" in capsys.readouterr().err
+
+
 def test_the_command_line_takes_a_verifier_where_the_detector_runs(frames: Path, tmp_path: Path,
                                                                      capsys: pytest.CaptureFixture[str]) -> None:
     """``val --verifier`` scores the rescored boxes (a verifier of p = 0.01 leaves only the small ones above conf

@@ -68,6 +68,9 @@ def register(sub: Any) -> None:
                     "frame, those holding an animal's centre skipped (default: TrainVerifierConfig's, 2)")
     tv.add_argument("--min-visible-pixels", type=int, default=None, help="animals with fewer visible pixels are "
                     "not cropped (default: TrainVerifierConfig's, 300)")
+    tv.add_argument("--min-side", type=float, default=None, help="the verifier judges boxes whose long side is at "
+                    "least this many px, and is trained on animals of that size or more; smaller boxes keep the "
+                    "detector's score (default: VerifierConfig's, 24)")
     tv.add_argument("--parts-per-animal", type=int, default=None, help="squares of part of each cropped animal "
                     "(40-75%% of its long side, centred in its middle): a zebra's part is a zebra, another species' "
                     "is not (default: TrainVerifierConfig's, 0)")
@@ -159,9 +162,11 @@ def cmd_train(args: argparse.Namespace) -> Summary:
 
 def cmd_train_verifier(args: argparse.Namespace) -> Summary:
     """Train the crop verifier."""
+    from zebra_sim_ros.detection.verify import VerifierConfig
     from zebra_sim_ros.detection.verify_train import TrainVerifierConfig, train_verifier
 
-    cfg = TrainVerifierConfig(data=tuple(str(d) for d in args.data), out=str(args.out), epochs=args.epochs,
+    model = VerifierConfig() if args.min_side is None else VerifierConfig(min_side=args.min_side)
+    cfg = TrainVerifierConfig(data=tuple(str(d) for d in args.data), out=str(args.out), epochs=args.epochs, model=model,
                               batch=args.batch, lr=args.lr, seed=args.seed, val_fraction=args.val_fraction,
                               detector=args.detector, mine_imgsz=args.mine_imgsz, mine_conf=args.mine_conf,
                               **{k: getattr(args, k) for k in ("background_per_frame", "min_visible_pixels",
