@@ -50,8 +50,9 @@ class TrainVerifierConfig:
     detector: str = ""
     mine_imgsz: int = 640
     mine_conf: float = 0.1
-    mine_on_animals: bool = True  # False: a box on an animal of another species (centre in it or IoU >= 0.1) is
-    # not a hard negative either, only boxes on background are (those animals have their own crops)
+    # off: the detector's boxes on animals of other species (centre in one or IoU >= 0.1) are not hard negatives
+    # either, only those on background are (the animals have crops of their own)
+    mine_on_animals: bool = True
     # parts: this many squares per cropped animal of 40-75% of its box's long side, centred in the middle half of
     # the box (a zebra's part is a zebra, another species' part is not); clutter: this many drawn squares per
     # frame (draw_clutter), never a zebra. Both drawn from streams of their own: the other crops stay the same.
@@ -109,10 +110,10 @@ def collect_crops(cfg: TrainVerifierConfig) -> CropSet:
     (24 px to 60% of the short side, log-uniform) that hold no animal's centre; with ``cfg.detector``, also one
     crop (context 1.1-1.3x, centre moved up to 8%) of each of its zebra boxes of ``min_side`` or more whose centre
     lies in no zebra's box (visible or full, don't-care zebras included) and that overlaps none (IoU < 0.1), nor,
-    with ``cfg.mine_on_animals`` off, any other animal's; with
-    ``cfg.parts_per_animal``, squares of part of each cropped animal; with ``cfg.clutter_per_frame``, drawn clutter
-    (:func:`draw_clutter`). Seeded by ``cfg.seed``; the detector's crops, the parts and the clutter each draw from
-    a stream of their own, so the other crops are the same without them."""
+    with ``cfg.mine_on_animals`` off, any other animal's; with ``cfg.parts_per_animal``, squares of part of each
+    cropped animal; with ``cfg.clutter_per_frame``, drawn clutter (:func:`draw_clutter`). Seeded by ``cfg.seed``;
+    the detector's crops, the parts and the clutter each draw from a stream of their own, so the other crops are the
+    same without them."""
     from zebra_sim_ros.detection.metrics import iou_matrix
     from zebra_sim_ros.detection.model import ZEBRA
     from zebra_sim_ros.detection.predict import detect
