@@ -76,5 +76,6 @@ def write_set(git_dir: Path, photos: list[tuple[str, str]], out: Path, yaml_comm
     (out / "SOURCE.txt").write_text(f"github:EricJakovac/Animals@{COMMIT} {source}\n")
     print(f"wrote {out}: {len(photos)} images, {zebra_images} with zebras, {zebra_boxes} zebra boxes")
 
+
 if __name__ == "__main__":
     main()

@@ -45,5 +45,6 @@ def main() -> None:
               "# real photographs, HELD BACK: for measuring only, seldom",
               f"{ROOT}/{{test,valid}} (AGPL-3.0); see scripts/real_sets/african_wildlife_heldback.py")
 
+
 if __name__ == "__main__":
     main()
