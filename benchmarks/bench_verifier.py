@@ -22,7 +22,7 @@ import torch
 from zebra_sim_ros.detection.checkpoint import load_model
 from zebra_sim_ros.detection.data import IMAGE_EXTS
 from zebra_sim_ros.detection.predict import detect
-from zebra_sim_ros.detection.verify import load_verifier, read_rgb
+from zebra_sim_ros.detection.verify import judged_side, load_verifier, read_rgb
 
 
 def main() -> None:
@@ -59,7 +59,7 @@ def main() -> None:
                     d = detect(model, [img], args.imgsz or None, args.conf, verifier=v)[0]
                     times.append(1000 * (time.perf_counter() - t0))
                     if v is None and rep == 0 and len(d):
-                        looked += int(((d[:, 2:4] - d[:, 0:2]).max(1) >= net.cfg.min_side).sum())
+                        looked += int(((d[:, 2:4] - d[:, 0:2]).max(1) >= judged_side(net.cfg, img.shape)).sum())
         a, b = statistics.median(plain), statistics.median(verified)
         print(f"| {folder} | {len(images)} | {a:.1f} | {b:.1f} | {b / a:.2f} | {looked / len(images):.2f} |")
 

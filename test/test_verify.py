@@ -15,6 +15,7 @@ from zebra_sim_ros.detection.verify import (
     SHIPPED_VERIFIER,
     Verifier,
     VerifierConfig,
+    judged_side,
     load_verifier,
     rescore,
     save_verifier,
@@ -69,6 +70,27 @@ def test_rescore_multiplies_the_large_zebra_boxes_drops_those_now_under_conf_and
     assert rescore(net, img, dets[:0], 0.1).shape == (0, 6)
     five = verify(net, img, dets[:, :5])  # five columns, every row looked at: the order and length kept
     np.testing.assert_allclose(five[:, 4], [0.225, 0.50, 0.20, 0.075], rtol=1e-5)
+
+
+def test_a_size_share_judges_boxes_from_a_side_that_grows_with_the_image() -> None:
+    """min_side_fraction 0.0375: 24 px on a 640 px photo, 48 px on a 1280x720 frame, never under min_side; a box
+    between the two is judged on the photo and keeps its score on the frame."""
+    cfg = VerifierConfig(widths=(8, 16), min_side_fraction=0.0375)
+    assert judged_side(cfg, (480, 640, 3)) == pytest.approx(24.0)
+    assert judged_side(cfg, (720, 1280, 3)) == pytest.approx(48.0)
+    assert judged_side(cfg, (200, 320, 3)) == pytest.approx(24.0)  # the share is 12 px: min_side holds
+    assert judged_side(VerifierConfig(), (720, 1280, 3)) == pytest.approx(24.0)  # off: min_side alone
+    net = constant(0.5, cfg)
+    dets = np.array([[10, 10, 46, 40, 0.8, 0],  # 36 px
+                     [100, 100, 160, 150, 0.8, 0]], np.float32)  # 60 px
+    photo = verify(net, np.full((480, 640, 3), 90, np.uint8), dets)
+    frame = verify(net, np.full((720, 1280, 3), 90, np.uint8), dets)
+    np.testing.assert_allclose(photo[:, 4], [0.4, 0.4], rtol=1e-5)
+    np.testing.assert_allclose(frame[:, 4], [0.8, 0.4], rtol=1e-5)
+    with pytest.raises(ParameterError, match="min_side_fraction.*0.6"):
+        VerifierConfig(min_side_fraction=0.6).check()
+    old = {"crop": 96, "context": 1.2, "min_side": 24.0, "widths": [8, 16]}  # a checkpoint from before the share
+    assert VerifierConfig.from_dict(old).min_side_fraction == 0.0
 
 
 def test_detect_with_a_verifier_is_detect_rescored(tmp_path: Path) -> None:
@@ -213,11 +235,12 @@ def test_train_verifier_on_the_command_line_records_its_options(frames: Path, tm
 
     out = tmp_path / "v.pt"
     assert main(["train-verifier", "--data", str(frames), "--epochs", "1", "--batch", "16", "--seed", "3",
-                 "--min-side", "40", "--min-visible-pixels", "100", "--clutter-per-frame", "1", "--out", str(out),
-                 "--json"]) == 0
+                 "--min-side", "40", "--min-side-fraction", "0.05", "--min-visible-pixels", "100",
+                 "--clutter-per-frame", "1", "--out", str(out), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out.splitlines()[-1])
     net, ckpt = load_verifier(out)
     assert net.cfg.min_side == 40 and ckpt["train"]["model"]["min_side"] == 40
+    assert net.cfg.min_side_fraction == 0.05 and ckpt["train"]["model"]["min_side_fraction"] == 0.05
     assert ckpt["train"]["min_visible_pixels"] == 100 and ckpt["train"]["clutter_per_frame"] == 1
     n_frames = len(list((frames / "annotations").glob("*.json")))
     assert summary["crops"]["drawn clutter"] == n_frames

@@ -1,12 +1,13 @@
 """A second look at the detector's larger boxes: a small network that tells a zebra from anything else in a crop.
 
-The detector keeps its boxes. Each box whose long side is at least ``min_side`` pixels of the image has its score
-multiplied by the verifier's p(zebra) for a square crop around it (the box's long side times ``context``, area-
-resized to ``crop`` px); smaller boxes keep their score, so a far zebra of a few pixels is left to the detector
-alone. The verifier is trained from scratch on crops of generated frames only (their annotations say which
-animal is a zebra): zebras, animals of other species and background squares, under photometric augmentations
-(white balance, exposure, contrast, saturation and grey, gamma, lost resolution, blur, noise; JPEG at a random
-quality when the crops are cut). Images are RGB, as :func:`zebra_sim_ros.detection.predict.detect` takes them.
+The detector keeps its boxes. Each box whose long side is at least ``min_side`` pixels of the image, and at least
+``min_side_fraction`` of the image's long side, has its score multiplied by the verifier's p(zebra) for a square
+crop around it (the box's long side times ``context``, area-resized to ``crop`` px); smaller boxes keep their score,
+so a far zebra of a few pixels is left to the detector alone. The verifier is trained from scratch on crops of
+generated frames only (their annotations say which animal is a zebra): zebras, animals of other species and
+background squares, under photometric augmentations (white balance, exposure, contrast, saturation and grey, gamma,
+lost resolution, blur, noise; JPEG at a random quality when the crops are cut). Images are RGB, as
+:func:`zebra_sim_ros.detection.predict.detect` takes them.
 
 Training (``zebra-sim train-verifier``) is :mod:`zebra_sim_ros.detection.verify_train`. A verifier checkpoint is a
 dict: ``format`` ("zebra_sim_ros/verifier"), ``version``, ``config``
@@ -37,12 +38,17 @@ SHIPPED_VERIFIER = Path(__file__).resolve().parent / "weights" / "zebra_verifier
 @dataclass(frozen=True)
 class VerifierConfig:
     """What the verifier sees: ``crop`` px squares around boxes of at least ``min_side`` px, ``context`` times the
-    box's long side."""
+    box's long side.
+
+    ``min_side_fraction`` is for serving only: a box is judged when its long side is also at least that share of the
+    image's long side (0.0375: 24 px on a 640 px photo, 48 px on a 1280x720 frame). Training crops animals by
+    ``min_side`` alone."""
 
     crop: int = 96
     context: float = 1.2
     min_side: float = 24.0
     widths: tuple[int, ...] = (32, 64, 96, 128, 192)
+    min_side_fraction: float = 0.0
 
     def check(self) -> None:
         if not 32 <= self.crop <= 256:
@@ -51,12 +57,16 @@ class VerifierConfig:
             raise ParameterError("verifier context", self.context, "1.0..3.0 (times the box's long side)")
         if not self.min_side >= 1.0:
             raise ParameterError("verifier min_side", self.min_side, ">= 1 px")
+        if not 0.0 <= self.min_side_fraction <= 0.5:
+            raise ParameterError("verifier min_side_fraction", self.min_side_fraction,
+                                 "0..0.5 (of the image's long side; 0: min_side alone)")
         if not self.widths or any(w < 1 for w in self.widths):
             raise ParameterError("verifier widths", self.widths, "a non-empty list of channel counts >= 1")
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> VerifierConfig:
-        cfg = cls(int(d["crop"]), float(d["context"]), float(d["min_side"]), tuple(int(w) for w in d["widths"]))
+        cfg = cls(int(d["crop"]), float(d["context"]), float(d["min_side"]), tuple(int(w) for w in d["widths"]),
+                  float(d.get("min_side_fraction", 0.0)))  # checkpoints before the fraction judged by min_side alone
         cfg.check()
         return cfg
 
@@ -115,13 +125,19 @@ def zebra_probability(net: Verifier, image: NDArray[np.uint8], boxes: NDArray[An
     return p.numpy().astype(np.float32)
 
 
+def judged_side(cfg: VerifierConfig, image_shape: tuple[int, ...]) -> float:
+    """The long side from which a box of an image of ``image_shape`` (h, w, ...) is judged: ``min_side`` px, or
+    ``min_side_fraction`` of the image's long side if that is more."""
+    return max(cfg.min_side, cfg.min_side_fraction * max(image_shape[:2]))
+
+
 def verify(net: Verifier, image: NDArray[np.uint8], dets: NDArray[Any]) -> NDArray[Any]:
     """``dets`` (n, >= 5) [x0, y0, x1, y1, score, ...] of an RGB ``image`` with the score of every box whose long
-    side is at least ``min_side`` px multiplied by its p(zebra); a copy, in the same order."""
+    side is at least :func:`judged_side` multiplied by its p(zebra); a copy, in the same order."""
     out = np.array(dets, copy=True)
     if not len(out):
         return out
-    big = np.maximum(out[:, 2] - out[:, 0], out[:, 3] - out[:, 1]) >= net.cfg.min_side
+    big = np.maximum(out[:, 2] - out[:, 0], out[:, 3] - out[:, 1]) >= judged_side(net.cfg, image.shape)
     if big.any():
         out[big, 4] *= zebra_probability(net, image, out[big])
     return out
