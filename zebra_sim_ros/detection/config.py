@@ -64,7 +64,8 @@ class DetectorConfig(StageConfig):
         allowed="0 (off) or {:g}..{:g}".format(*SCALE_RANGE), check=lambda v: v == 0 or v >= SCALE_RANGE[0],
         runtime=True)
     verifier: str = param(
-        "", "a second look at the zebra boxes of at least the verifier's min_side (24 px): each scores conf x "
+        "", "a second look at the larger zebra boxes (the shipped verifier's: 24 px and 3.75% of the image's long "
+        "side or more, 48 px on a 1280x720 frame): each scores conf x "
         "p(zebra) of a crop around it, and those now under conf are dropped (empty: off; shipped: the package's "
         "verifier, trained on generated crops only; or a verifier checkpoint)", allowed="empty, shipped or a path")
     device: str = param("auto", "auto, cpu, cuda or cuda:N", allowed="auto, cpu, cuda, cuda:N",
