@@ -249,7 +249,9 @@ def test_train_verifier_on_the_command_line_records_its_options(frames: Path, tm
     wide = collect_crops(TrainVerifierConfig(data=(str(frames),), out="x", min_visible_pixels=100, seed=3))
     assert summary["crops"]["zebra"] <= wide.counts()["zebra"]  # 24 px boxes are cropped, 40 px ones only here
     assert main(["train-verifier", "--data", str(frames), "--min-side", "0", "--out", str(out)]) == 2
-    assert "min_side" in capsys.readouterr().err
+    assert "'--min-side' = 0.0" in capsys.readouterr().err
+    assert main(["train-verifier", "--data", str(frames), "--min-side-fraction", "0.9", "--out", str(out)]) == 2
+    assert "'--min-side-fraction' = 0.9" in capsys.readouterr().err
 
 
 def test_the_command_line_takes_a_verifier_where_the_detector_runs(frames: Path, tmp_path: Path,

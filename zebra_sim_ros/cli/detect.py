@@ -170,6 +170,11 @@ def cmd_train_verifier(args: argparse.Namespace) -> Summary:
 
     model = VerifierConfig(**{k: getattr(args, k) for k in ("min_side", "min_side_fraction")
                               if getattr(args, k) is not None})
+    try:
+        model.check()
+    except ParameterError as exc:  # named by the flag that set it, not by the config field
+        flag = {"verifier min_side": "--min-side", "verifier min_side_fraction": "--min-side-fraction"}
+        raise ParameterError(flag.get(exc.name, exc.name), exc.value, exc.allowed) from None
     cfg = TrainVerifierConfig(data=tuple(str(d) for d in args.data), out=str(args.out), epochs=args.epochs, model=model,
                               batch=args.batch, lr=args.lr, seed=args.seed, val_fraction=args.val_fraction,
                               detector=args.detector, mine_imgsz=args.mine_imgsz, mine_conf=args.mine_conf,
