@@ -12,7 +12,8 @@ lost resolution, blur, noise; JPEG at a random quality when the crops are cut). 
 Training (``zebra-sim train-verifier``) is :mod:`zebra_sim_ros.detection.verify_train`. A verifier checkpoint is a
 dict: ``format`` ("zebra_sim_ros/verifier"), ``version``, ``config``
 (:class:`VerifierConfig`), ``model`` (state dict), ``train`` (the :class:`TrainVerifierConfig` it was trained with,
-seed included), ``crops`` (how many of each kind) and ``val`` (share called zebra per kind on the held-out crops).
+seed included), ``crops`` (how many of each kind), ``val`` (share called zebra per kind on the held-out crops) and,
+where hard negatives were mined, ``detector_sha256`` (the mining detector's file).
 """
 
 from __future__ import annotations

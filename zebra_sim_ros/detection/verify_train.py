@@ -8,6 +8,7 @@ sky, defocus: what photographs hold and the generator's frames lack), under phot
 
 from __future__ import annotations
 
+import hashlib
 import json
 import time
 from collections.abc import Callable
@@ -336,5 +337,10 @@ def train_verifier(cfg: TrainVerifierConfig, log: Callable[[str], None] = print)
             f"crops: {json.dumps(called)} ({time.perf_counter() - t0:.0f} s)")
     record = {"train": cfg.to_dict(), "crops": crops.counts(), "val": history[-1]["called_zebra"],
               "history": history, "seconds": round(time.perf_counter() - t0, 1)}
+    if cfg.detector:  # which weights mined the hard negatives: "shipped" names different weights as they change
+        from zebra_sim_ros.detection.checkpoint import SHIPPED
+
+        mined = SHIPPED if cfg.detector == "shipped" else Path(cfg.detector)
+        record["detector_sha256"] = hashlib.sha256(mined.read_bytes()).hexdigest()
     save_verifier(cfg.out, net, **record)
     return record
