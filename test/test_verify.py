@@ -223,6 +223,9 @@ def test_the_shipped_verifier_records_its_recipe() -> None:
     recipe = SHIPPED_VERIFIER.with_name("zebra_verifier.recipe.txt").read_text()
     assert "train-verifier --data datasets/cls_3400 datasets/cls_3500 --epochs 10 --seed 25 \\\n" \
         "    --min-visible-pixels 1500 --min-side-fraction 0.0375 --detector shipped --mine-conf 0.3" in recipe
+    readme = " ".join((Path(__file__).resolve().parents[1] / "README.md").read_text().replace("\\\n", " ").split())
+    assert ("zebra-sim train-verifier --data datasets/cls_3400 datasets/cls_3500 --epochs 10 --seed 25 "
+            "--min-visible-pixels 1500 --min-side-fraction 0.0375 --detector shipped --mine-conf 0.3") in readme
     net, ckpt = load_verifier("shipped")
     assert ckpt["train"]["seed"] == 25 and ckpt["train"]["epochs"] == 10
     assert ckpt["train"]["min_visible_pixels"] == 1500
