@@ -23,7 +23,6 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
@@ -56,8 +55,8 @@ def scored(per_image: list[ImagePredictions]) -> dict[str, float | int]:
 def verified(net: Verifier, p: ImagePredictions) -> ImagePredictions:
     """``p`` with its detections rescored by ``net`` on crops of its image file (those now under val's conf
     dropped), as the detector node's verifier rescores them."""
-    d = np.column_stack([p.detections, np.zeros(len(p.detections))])  # a class column: every row is a zebra
-    return p._replace(detections=rescore(net, read_rgb(p.file), d, VAL_CONF)[:, :5]) if len(d) else p
+    d = p.detections  # zebras only: every row is rescored
+    return p._replace(detections=rescore(net, read_rgb(p.file), d, VAL_CONF)) if len(d) else p
 
 
 def row(weights: str, per_seed: dict[int, list[ImagePredictions]], seconds: float) -> dict[str, Any]:

@@ -91,7 +91,7 @@ def test_a_size_share_judges_boxes_from_a_side_that_grows_with_the_image() -> No
     with pytest.raises(ParameterError, match="min_side_fraction.*0.6"):
         VerifierConfig(min_side_fraction=0.6).check()
     old = {"crop": 96, "context": 1.2, "min_side": 24.0, "widths": [8, 16]}  # a checkpoint from before the share
-    assert VerifierConfig.from_dict(old).min_side_fraction == 0.0
+    assert VerifierConfig.from_dict(old).min_side_fraction == pytest.approx(0.0)
 
 
 def test_detect_with_a_verifier_is_detect_rescored(tmp_path: Path) -> None:
@@ -234,7 +234,7 @@ def test_the_shipped_verifier_records_its_recipe() -> None:
     # hard negatives mined by the shipped detector at conf 0.3: a new detector means running the recipe again
     from zebra_sim_ros.detection.checkpoint import SHIPPED
 
-    assert ckpt["train"]["detector"] == "shipped" and ckpt["train"]["mine_conf"] == 0.3
+    assert ckpt["train"]["detector"] == "shipped" and ckpt["train"]["mine_conf"] == pytest.approx(0.3)
     assert ckpt["detector_sha256"] == hashlib.sha256(SHIPPED.read_bytes()).hexdigest()
 
 
@@ -252,11 +252,12 @@ def test_train_verifier_on_the_command_line_records_its_options(frames: Path, tm
     summary = json.loads(capsys.readouterr().out.splitlines()[-1])
     net, ckpt = load_verifier(out)
     assert net.cfg.min_side == 40 and ckpt["train"]["model"]["min_side"] == 40
-    assert net.cfg.min_side_fraction == 0.05 and ckpt["train"]["model"]["min_side_fraction"] == 0.05
+    assert net.cfg.min_side_fraction == pytest.approx(0.05)
+    assert ckpt["train"]["model"]["min_side_fraction"] == pytest.approx(0.05)
     assert ckpt["train"]["min_visible_pixels"] == 100 and ckpt["train"]["clutter_per_frame"] == 1
     from zebra_sim_ros.detection.checkpoint import SHIPPED  # the mining weights, by content: "shipped" changes
 
-    assert ckpt["train"]["detector"] == "shipped" and ckpt["train"]["mine_conf"] == 0.05
+    assert ckpt["train"]["detector"] == "shipped" and ckpt["train"]["mine_conf"] == pytest.approx(0.05)
     assert ckpt["detector_sha256"] == hashlib.sha256(SHIPPED.read_bytes()).hexdigest()
     n_frames = len(list((frames / "annotations").glob("*.json")))
     assert summary["crops"]["drawn clutter"] == n_frames

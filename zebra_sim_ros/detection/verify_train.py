@@ -128,7 +128,7 @@ def collect_crops(cfg: TrainVerifierConfig) -> CropSet:
     if cfg.detector:
         from zebra_sim_ros.detection.checkpoint import load_model
 
-        detector, _ = load_model(None if cfg.detector == "shipped" else cfg.detector)
+        detector, _ = load_model(_detector_file(cfg))
     store = cfg.model.crop + _STORE_MARGIN
     xs: list[NDArray[np.uint8]] = []
     kinds: list[int] = []
@@ -284,6 +284,13 @@ def augment(x: torch.Tensor, g: torch.Generator, out: int) -> torch.Tensor:
     return x.clamp(0, 1)
 
 
+def _detector_file(cfg: TrainVerifierConfig) -> Path:
+    """The checkpoint file that mines ``cfg``'s hard negatives ("shipped": the package's weights)."""
+    from zebra_sim_ros.detection.checkpoint import SHIPPED
+
+    return SHIPPED if cfg.detector == "shipped" else Path(cfg.detector)
+
+
 def train_verifier(cfg: TrainVerifierConfig, log: Callable[[str], None] = print) -> dict[str, Any]:
     """Train a verifier on ``cfg``'s crops (AdamW, one-cycle learning rate, the zebra class weighted to balance
     the rest, bfloat16 autocast where the CPU has it) and save it to ``cfg.out``; returns what the checkpoint
@@ -338,9 +345,6 @@ def train_verifier(cfg: TrainVerifierConfig, log: Callable[[str], None] = print)
     record = {"train": cfg.to_dict(), "crops": crops.counts(), "val": history[-1]["called_zebra"],
               "history": history, "seconds": round(time.perf_counter() - t0, 1)}
     if cfg.detector:  # which weights mined the hard negatives: "shipped" names different weights as they change
-        from zebra_sim_ros.detection.checkpoint import SHIPPED
-
-        mined = SHIPPED if cfg.detector == "shipped" else Path(cfg.detector)
-        record["detector_sha256"] = hashlib.sha256(mined.read_bytes()).hexdigest()
+        record["detector_sha256"] = hashlib.sha256(_detector_file(cfg).read_bytes()).hexdigest()
     save_verifier(cfg.out, net, **record)
     return record
