@@ -15,6 +15,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from ros_helpers import fresh_domain_id, node_process, run_node_once, spin_until
 from std_msgs.msg import Header, String
+from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
 pytestmark = pytest.mark.integration
@@ -36,11 +37,13 @@ class Listener:
         self.scene_times: list[float] = []
         self.poses: dict[str, list[PoseStamped]] = {f"drone_{i}": [] for i in range(3)}
         self.markers: list[MarkerArray] = []
+        self.tf: list[TFMessage] = []
         self.node.create_subscription(String, "/zebra_sim/scene", self._on_scene, latched)
         for name in self.poses:
             self.node.create_subscription(PoseStamped, f"/{name}/camera/pose",
                                           lambda m, n=name: self.poses[n].append(m), 10)
         self.node.create_subscription(MarkerArray, "/zebra_sim/zebras/markers", self.markers.append, 10)
+        self.node.create_subscription(TFMessage, "/tf", self.tf.append, 100)
         self.ack_pub = self.node.create_publisher(Header, "/zebra_sim/frame_done", 100)
 
     def _on_scene(self, msg: String) -> None:
@@ -64,11 +67,11 @@ def domain() -> int:
 def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path) -> None:
     listener = Listener(domain)
     try:
-        # Poses and markers are volatile: the placer waits until this listener is matched, else the first
-        # steps may go out before discovery (CI: 5 steps published, fewer received).
+        # Poses, markers and /tf are volatile: the placer waits until this listener is matched on each, else the
+        # first steps may go out before discovery (CI: 5 steps published, fewer received).
         params = dict(SMALL, mode="rate", rate_hz=4.0, max_steps=5, seed=9, wait_for_subscribers=1)
         with node_process("placer", params, domain, tmp_path / "placer.log") as proc:
-            assert listener.spin_until(lambda: len(listener.scenes) >= 5 and
+            assert listener.spin_until(lambda: len(listener.scenes) >= 5 and len(listener.tf) >= 5 and
                                        all(len(p) >= 5 for p in listener.poses.values()), 60), \
                 (tmp_path / "placer.log").read_text()
             assert proc.wait(timeout=20) == 0  # stops by itself after max_steps
@@ -83,6 +86,11 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path) 
                 assert pose.pose.position.x == pytest.approx(cam["position"][0])
                 assert pose.pose.orientation.w == pytest.approx(cam["orientation_xyzw"][3])
         assert listener.markers and len(listener.markers[-1].markers) == listener.scenes[-1]["placed"] + 1
+        # /tf from the first step on: one map -> drone_i/base_link per drone, stamped as the scene.
+        tf_stamps = [(m.transforms[0].header.stamp.sec, m.transforms[0].header.stamp.nanosec) for m in listener.tf]
+        assert tf_stamps == [(s["stamp"]["sec"], s["stamp"]["nanosec"]) for s in listener.scenes]
+        assert all(sorted(t.child_frame_id for t in m.transforms) == [f"drone_{i}/base_link" for i in range(3)]
+                   for m in listener.tf)
         # The node's scenes are exactly the command line's (same parameters, no ROS).
         cli = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "place", "--steps", "2",
                               "--set", "count_max=40", "--set", "rate_hz=4.0", "--seed", "9"],

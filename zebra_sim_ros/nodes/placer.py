@@ -82,7 +82,9 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         self.tf_static_pub.publish(TFMessage(transforms=[
             _transform(Header(frame_id=base_frame(n)), optical_frame(n), (0.0, 0.0, 0.0), OPTICAL_IN_BASE_XYZW)
             for n in self.placer.camera_names]))
-        self.outputs = [self.scene_pub, self.marker_pub, *self.pose_pubs]  # what wait_for_subscribers waits for
+        # What wait_for_subscribers waits for. /tf too: a recorder that matched the markers but not yet /tf would
+        # miss the first step's transforms. /clock is not waited on: every use_sim_time node subscribes to it.
+        self.outputs = [self.scene_pub, self.marker_pub, *self.pose_pubs, self.tf_pub]
         self.step = c.start_step
         self.published = 0
         self.pending: Scene | None = None
@@ -118,7 +120,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         if not self._subscribed():
             return
         if self._finished():
-            flush(self, [*self.outputs, self.clock_pub, self.tf_pub])
+            flush(self, [*self.outputs, self.clock_pub])
             self.get_logger().info(f"published {self.published} steps; stopping")
             self.done = True
             return
@@ -159,7 +161,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         c = self.cfg
         if self.pending is None:
             if self._finished():
-                flush(self, [*self.outputs, self.clock_pub, self.tf_pub])
+                flush(self, [*self.outputs, self.clock_pub])
                 self.get_logger().info(f"all {self.published} steps acknowledged; stopping")
                 self.done = True
                 return

@@ -133,8 +133,8 @@ class PlacerConfig(StageConfig):
     lockstep_timeout_s: float = param(30.0, "warn and re-publish when a step is not acknowledged within this", "s",
                                       lo=0.1, hi=3600.0)
     wait_for_subscribers: int = param(0, "publish the first step only when each output topic (scene, markers, "
-                                      "camera poses) has at least this many subscribers, e.g. 1 so a recorder misses "
-                                      "nothing (0: start at once)", lo=0, hi=1000)
+                                      "camera poses, /tf) has at least this many subscribers, e.g. 1 so a recorder "
+                                      "misses nothing (0: start at once)", lo=0, hi=1000)
     max_steps: int = param(0, "stop after this many steps (0: never)", lo=0, hi=2**31)
     start_step: int = param(0, "first step index (to resume or reproduce a step alone)", lo=0, hi=2**31)
     qos_depth: int = param(10, "history depth of the published topics", lo=1, hi=1000)
