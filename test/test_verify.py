@@ -28,6 +28,7 @@ from zebra_sim_ros.detection.verify_train import (
     TrainVerifierConfig,
     collect_crops,
     draw_clutter,
+    held_out,
     train_verifier,
 )
 from zebra_sim_ros.errors import AssetError, ParameterError
@@ -165,6 +166,33 @@ def test_crops_follow_the_annotations_and_the_seed(frames: Path, tmp_path: Path)
     np.testing.assert_array_equal(a.y, (a.kind == 2).astype(np.float32))  # no parts by default
 
 
+def test_crops_know_their_frame_and_a_frame_split_keeps_each_frame_on_one_side(frames: Path) -> None:
+    """Every crop names the frame it was cut from (frames in the datasets' order); ``split="frame"`` holds out every
+    crop of a share of the frames, ``"crop"`` a share of the crops drawn as the shipped verifier's were."""
+    crops = collect_crops(TrainVerifierConfig(data=(str(frames),), out="x", min_visible_pixels=100, seed=4,
+                                              clutter_per_frame=1))  # a crop from every frame
+    files = sorted((frames / "annotations").glob("*.json"))
+    np.testing.assert_array_equal(np.unique(crops.frame), np.arange(len(files)))
+    assert (np.diff(crops.frame) >= 0).all()
+    for i, f in enumerate(files):  # the frame's own zebras: two jittered crops of each one big enough
+        zebras = [z for z in json.loads(f.read_text())["labels"]["zebras"] if z.get("species", "zebra") == "zebra"
+                  and z.get("box_visible") and max(z["box_visible"][2] - z["box_visible"][0],
+                                                   z["box_visible"][3] - z["box_visible"][1]) >= 24
+                  and z["visible_pixels"] >= 100 and z["visible_fraction"] >= 0.3]
+        assert int(((crops.frame == i) & (crops.kind == KINDS.index("zebra"))).sum()) == 2 * len(zebras)
+    val, tr = held_out(crops, "frame", 0.34, torch.Generator().manual_seed(1))
+    assert len(val) + len(tr) == len(crops.x) and not set(val.tolist()) & set(tr.tolist())
+    val_frames, tr_frames = set(crops.frame[val.numpy()].tolist()), set(crops.frame[tr.numpy()].tolist())
+    assert len(val_frames) == round(len(files) * 0.34) and not val_frames & tr_frames
+    val, tr = held_out(crops, "crop", 0.1, torch.Generator().manual_seed(25))
+    perm = torch.randperm(len(crops.x), generator=torch.Generator().manual_seed(25))
+    n_val = int(len(crops.x) * 0.1)
+    assert torch.equal(val, perm[:n_val]) and torch.equal(tr, perm[n_val:])
+    one = type(crops)(crops.x, crops.y, crops.kind, np.zeros_like(crops.frame))
+    with pytest.raises(ParameterError, match="'--split'.*two frames"):
+        held_out(one, "frame", 0.1, torch.Generator())
+
+
 def test_train_verifier_writes_a_checkpoint_that_records_its_recipe(frames: Path, tmp_path: Path) -> None:
     cfg = TrainVerifierConfig(data=(str(frames),), out=str(tmp_path / "v.pt"), epochs=2, batch=16,
                               min_visible_pixels=100, seed=7, model=VerifierConfig(widths=(8, 16, 24)))
@@ -208,7 +236,8 @@ def test_drawn_clutter_is_seeded_textured_and_sized() -> None:
 @pytest.mark.parametrize(("field", "value", "named"), [("data", (), "--data"), ("epochs", 0, "--epochs"),
                                                        ("lr", 0.0, "--lr"), ("val_fraction", 0.7, "--val-fraction"),
                                                        ("parts_per_animal", -1, "--parts-per-animal"),
-                                                       ("clutter_per_frame", -1, "--clutter-per-frame")])
+                                                       ("clutter_per_frame", -1, "--clutter-per-frame"),
+                                                       ("split", "animal", "--split")])
 def test_bad_training_settings_name_themselves(frames: Path, field: str, value: object, named: str) -> None:
     kw: dict[str, object] = {"data": (str(frames),), "out": "x.pt", field: value}
     with pytest.raises(ParameterError, match=named):
@@ -229,6 +258,7 @@ def test_the_shipped_verifier_records_its_recipe() -> None:
     net, ckpt = load_verifier("shipped")
     assert ckpt["train"]["seed"] == 25 and ckpt["train"]["epochs"] == 10
     assert ckpt["train"]["min_visible_pixels"] == 1500
+    assert ckpt["train"].get("split", "crop") == "crop"  # trained before the option: its held-out share is of crops
     assert [Path(d).name for d in ckpt["train"]["data"]] == ["cls_3400", "cls_3500"]
     assert net.cfg == VerifierConfig(min_side_fraction=0.0375)
     # hard negatives mined by the shipped detector at conf 0.3: a new detector means running the recipe again
@@ -247,14 +277,18 @@ def test_train_verifier_on_the_command_line_records_its_options(frames: Path, tm
     out = tmp_path / "v.pt"
     assert main(["train-verifier", "--data", str(frames), "--epochs", "1", "--batch", "16", "--seed", "3",
                  "--min-side", "40", "--min-side-fraction", "0.05", "--min-visible-pixels", "100",
-                 "--clutter-per-frame", "1", "--detector", "shipped", "--mine-conf", "0.05", "--out", str(out),
-                 "--json"]) == 0
+                 "--clutter-per-frame", "1", "--detector", "shipped", "--mine-conf", "0.05", "--split", "frame",
+                 "--out", str(out), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out.splitlines()[-1])
     net, ckpt = load_verifier(out)
     assert net.cfg.min_side == 40 and ckpt["train"]["model"]["min_side"] == 40
     assert net.cfg.min_side_fraction == pytest.approx(0.05)
     assert ckpt["train"]["model"]["min_side_fraction"] == pytest.approx(0.05)
     assert ckpt["train"]["min_visible_pixels"] == 100 and ckpt["train"]["clutter_per_frame"] == 1
+    assert ckpt["train"]["split"] == "frame" and ckpt["train"]["batch"] == 16 and ckpt["train"]["seed"] == 3
+    default = TrainVerifierConfig(data=(), out="").to_dict()  # flags left out take the config's own defaults
+    for key in ("lr", "val_fraction", "background_per_frame", "parts_per_animal", "mine_imgsz", "mine_on_animals"):
+        assert ckpt["train"][key] == pytest.approx(default[key]), key
     from zebra_sim_ros.detection.checkpoint import SHIPPED  # the mining weights, by content: "shipped" changes
 
     assert ckpt["train"]["detector"] == "shipped" and ckpt["train"]["mine_conf"] == pytest.approx(0.05)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
@@ -58,34 +59,47 @@ def register(sub: Any) -> None:
                         description="Crops of every animal (zebras, other species) and of background in the frames "
                         "of generated datasets (their annotations/ say which animal is a zebra), a small network "
                         "trained on them under photometric augmentations; see zebra_sim_ros/detection/verify_train.py.")
+    from zebra_sim_ros.detection.verify import VerifierConfig
+    from zebra_sim_ros.detection.verify_train import SPLITS, TrainVerifierConfig
+
+    d = {f.name: f.default for c in (VerifierConfig, TrainVerifierConfig) for f in fields(c)}  # declared once, there
     tv.add_argument("--data", nargs="+", required=True, help="folders written by zebra-sim generate")
-    tv.add_argument("--epochs", type=int, default=10)
-    tv.add_argument("--batch", type=int, default=128)
-    tv.add_argument("--lr", type=float, default=2e-3, help="peak learning rate (one cycle)")
-    tv.add_argument("--seed", type=int, default=25, help="seeds the crops' jitter, the split and the training")
-    tv.add_argument("--val-fraction", type=float, default=0.1, help="crops held out to report on")
-    tv.add_argument("--background-per-frame", type=int, default=None, help="background squares cut from each "
-                    "frame, those holding an animal's centre skipped (default: TrainVerifierConfig's, 2)")
-    tv.add_argument("--min-visible-pixels", type=int, default=None, help="animals with fewer visible pixels are "
-                    "not cropped (default: TrainVerifierConfig's, 300)")
-    tv.add_argument("--min-side", type=float, default=None, help="the verifier judges boxes whose long side is at "
-                    "least this many px, and is trained on animals of that size or more; smaller boxes keep the "
-                    "detector's score (default: VerifierConfig's, 24)")
-    tv.add_argument("--min-side-fraction", type=float, default=None, help="when serving, a box is judged only if its "
-                    "long side is also at least this share of the image's long side (0.0375: 24 px on a 640 px "
-                    "photo, 48 px on a 1280x720 frame); training is unchanged (default: VerifierConfig's, 0: off)")
-    tv.add_argument("--parts-per-animal", type=int, default=None, help="squares of part of each cropped animal "
-                    "(40-75%% of its long side, centred in its middle): a zebra's part is a zebra, another species' "
-                    "is not (default: TrainVerifierConfig's, 0)")
-    tv.add_argument("--clutter-per-frame", type=int, default=None, help="drawn squares of foliage, branches, sky "
-                    "and defocus per frame, never a zebra (default: TrainVerifierConfig's, 0)")
-    tv.add_argument("--detector", default="", help="hard negatives: this detector's ('shipped' or a checkpoint) "
-                    "boxes on the frames that lie on no zebra become crops the verifier must reject (default: none)")
-    tv.add_argument("--mine-imgsz", type=int, default=640, help="with --detector: its inference size, px")
-    tv.add_argument("--mine-conf", type=float, default=0.1, help="with --detector: its threshold")
-    tv.add_argument("--mine-on-animals", action=argparse.BooleanOptionalAction, default=None, help="with --detector: "
-                    "its boxes on animals of other species are hard negatives too (default); --no-mine-on-animals "
-                    "keeps only its boxes on background")
+    tv.add_argument("--epochs", type=int, default=d["epochs"], help="passes over the crops (default: %(default)s)")
+    tv.add_argument("--batch", type=int, default=d["batch"], help="crops per step (default: %(default)s)")
+    tv.add_argument("--lr", type=float, default=d["lr"], help="peak learning rate, one cycle (default: %(default)s)")
+    tv.add_argument("--seed", type=int, default=d["seed"], help="seeds the crops' jitter, the split and the "
+                    "training (default: %(default)s)")
+    tv.add_argument("--val-fraction", type=float, default=d["val_fraction"], help="share held out to report on "
+                    "(default: %(default)s)")
+    tv.add_argument("--split", choices=SPLITS, default=d["split"], help="hold out a share of the crops (an "
+                    "animal's two jittered crops may fall on both sides: optimistic figures) or every crop of a share "
+                    "of the frames (default: %(default)s)")
+    tv.add_argument("--background-per-frame", type=int, default=d["background_per_frame"], help="background "
+                    "squares cut from each frame, those holding an animal's centre skipped (default: %(default)s)")
+    tv.add_argument("--min-visible-pixels", type=int, default=d["min_visible_pixels"], help="animals with fewer "
+                    "visible pixels are not cropped (default: %(default)s)")
+    tv.add_argument("--min-side", type=float, default=d["min_side"], help="the verifier judges boxes whose long "
+                    "side is at least this many px, and is trained on animals of that size or more; smaller boxes "
+                    "keep the detector's score (default: %(default)s)")
+    tv.add_argument("--min-side-fraction", type=float, default=d["min_side_fraction"], help="when serving, a box is "
+                    "judged only if its long side is also at least this share of the image's long side (0.0375: 24 "
+                    "px on a 640 px photo, 48 px on a 1280x720 frame); training is unchanged (default: %(default)s, "
+                    "off)")
+    tv.add_argument("--parts-per-animal", type=int, default=d["parts_per_animal"], help="squares of part of each "
+                    "cropped animal (40-75%% of its long side, centred in its middle): a zebra's part is a zebra, "
+                    "another species' is not (default: %(default)s)")
+    tv.add_argument("--clutter-per-frame", type=int, default=d["clutter_per_frame"], help="drawn squares of "
+                    "foliage, branches, sky and defocus per frame, never a zebra (default: %(default)s)")
+    tv.add_argument("--detector", default=d["detector"], help="hard negatives: this detector's ('shipped' or a "
+                    "checkpoint) boxes on the frames that lie on no zebra become crops the verifier must reject "
+                    "(default: none)")
+    tv.add_argument("--mine-imgsz", type=int, default=d["mine_imgsz"], help="with --detector: its inference size, "
+                    "px (default: %(default)s)")
+    tv.add_argument("--mine-conf", type=float, default=d["mine_conf"], help="with --detector: its threshold "
+                    "(default: %(default)s)")
+    tv.add_argument("--mine-on-animals", action=argparse.BooleanOptionalAction, default=d["mine_on_animals"],
+                    help="with --detector: its boxes on animals of other species are hard negatives too "
+                    "(default); --no-mine-on-animals keeps only its boxes on background")
     tv.add_argument("--out", type=Path, required=True, help="verifier checkpoint to write (.pt)")
     add_json_flag(tv)
     tv.set_defaults(func=cmd_train_verifier)
@@ -168,20 +182,15 @@ def cmd_train_verifier(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.detection.verify import VerifierConfig
     from zebra_sim_ros.detection.verify_train import TrainVerifierConfig, train_verifier
 
-    model = VerifierConfig(**{k: getattr(args, k) for k in ("min_side", "min_side_fraction")
-                              if getattr(args, k) is not None})
+    model = VerifierConfig(min_side=args.min_side, min_side_fraction=args.min_side_fraction)
     try:
         model.check()
     except ParameterError as exc:  # named by the flag that set it, not by the config field
         flag = {"verifier min_side": "--min-side", "verifier min_side_fraction": "--min-side-fraction"}
         raise ParameterError(flag.get(exc.name, exc.name), exc.value, exc.allowed) from None
-    cfg = TrainVerifierConfig(data=tuple(str(d) for d in args.data), out=str(args.out), epochs=args.epochs, model=model,
-                              batch=args.batch, lr=args.lr, seed=args.seed, val_fraction=args.val_fraction,
-                              detector=args.detector, mine_imgsz=args.mine_imgsz, mine_conf=args.mine_conf,
-                              **{k: getattr(args, k) for k in ("background_per_frame", "min_visible_pixels",
-                                                                "parts_per_animal", "clutter_per_frame",
-                                                                "mine_on_animals")
-                                 if getattr(args, k) is not None})
+    cfg = TrainVerifierConfig(data=tuple(str(d) for d in args.data), out=str(args.out), model=model,
+                              **{f.name: getattr(args, f.name) for f in fields(TrainVerifierConfig)
+                                 if f.name not in ("data", "out", "model", "min_visible_fraction")})
     record = train_verifier(cfg)
     print(f"verifier: {args.out} ({record['seconds']} s; held-out crops called zebra: {record['val']})")
     return {"out": str(args.out), **{k: v for k, v in record.items() if k != "history"}}

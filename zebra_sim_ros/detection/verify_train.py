@@ -25,10 +25,12 @@ from torch import nn
 from zebra_sim_ros.detection.verify import Verifier, VerifierConfig, read_rgb, save_verifier, square_crop
 from zebra_sim_ros.errors import ParameterError
 
-# crop kinds (index = a crop's ``kind``); ZEBRA_KINDS are the ones labelled zebra
+# crop kinds (a crop's ``kind`` indexes KINDS); ZEBRA_KINDS are the ones labelled zebra
+BACKGROUND, OTHER_SPECIES, ZEBRA_CROP, FALSE_BOX, CLUTTER, ZEBRA_PART, OTHER_PART = range(7)
 KINDS = ("background", "other species", "zebra", "detector's false boxes", "drawn clutter", "parts of zebras",
          "parts of other species")
-ZEBRA_KINDS = (2, 5)
+ZEBRA_KINDS = (ZEBRA_CROP, ZEBRA_PART)
+SPLITS = ("crop", "frame")
 _STORE_MARGIN = 16  # crops are stored this much larger than the net's input: training draws a random window
 
 
@@ -43,6 +45,9 @@ class TrainVerifierConfig:
     lr: float = 2e-3
     seed: int = 25
     val_fraction: float = 0.1
+    # how the held-out crops are drawn: "crop" (a random share of the crops: an animal's two jittered crops can fall
+    # on both sides, so the held-out figures are optimistic) or "frame" (every crop of a random share of the frames)
+    split: str = "crop"
     min_visible_pixels: int = 300  # animals with fewer visible pixels are not cropped
     min_visible_fraction: float = 0.3
     background_per_frame: int = 2
@@ -77,6 +82,8 @@ class TrainVerifierConfig:
             raise ParameterError("--lr", self.lr, "in (0, 1]")
         if not 0 < self.val_fraction < 0.5:
             raise ParameterError("--val-fraction", self.val_fraction, "in (0, 0.5)")
+        if self.split not in SPLITS:
+            raise ParameterError("--split", self.split, " or ".join(SPLITS))
         from zebra_sim_ros.detection.config import imgsz_ok
 
         if not imgsz_ok(self.mine_imgsz):
@@ -95,11 +102,13 @@ class TrainVerifierConfig:
 @dataclass(frozen=True)
 class CropSet:
     """Training crops: ``x`` (N, s, s, 3) RGB uint8, ``y`` 1 for zebras (a kind in :data:`ZEBRA_KINDS`),
-    ``kind`` an index into :data:`KINDS`."""
+    ``kind`` an index into :data:`KINDS`, ``frame`` the frame each was cut from (frames numbered through the
+    datasets in order; drawn clutter counts as its frame's)."""
 
     x: NDArray[np.uint8]
     y: NDArray[np.float32]
     kind: NDArray[np.int64]
+    frame: NDArray[np.int64]
 
     def counts(self) -> dict[str, int]:
         return {k: int((self.kind == i).sum()) for i, k in enumerate(KINDS)}
@@ -132,9 +141,13 @@ def collect_crops(cfg: TrainVerifierConfig) -> CropSet:
     store = cfg.model.crop + _STORE_MARGIN
     xs: list[NDArray[np.uint8]] = []
     kinds: list[int] = []
+    frames: list[int] = []
+    n_frames = 0
     for d in cfg.data:
         root = Path(d)
         for f in sorted((root / "annotations").glob("*.json")):
+            frames += [n_frames - 1] * (len(xs) - len(frames))  # the crops of the frame before
+            n_frames += 1
             ann = FrameAnnotation.from_json(f.read_text())
             img = read_rgb(root / ann.image)
             h, w = img.shape[:2]
@@ -152,7 +165,7 @@ def collect_crops(cfg: TrainVerifierConfig) -> CropSet:
                     c = square_crop(img, b, float(rng.uniform(1.0, 1.5)), store, (float(shift[0]), float(shift[1])))
                     ok, buf = cv2.imencode(".jpg", c, [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(35, 96))])
                     xs.append(np.asarray(cv2.imdecode(buf, cv2.IMREAD_UNCHANGED), dtype=np.uint8) if ok else c)
-                    kinds.append(2 if z.is_zebra else 1)
+                    kinds.append(ZEBRA_CROP if z.is_zebra else OTHER_SPECIES)
                 long_side = max(b[2] - b[0], b[3] - b[1])
                 for _ in range(cfg.parts_per_animal):
                     side = long_side * parts.uniform(0.4, 0.75)
@@ -160,7 +173,7 @@ def collect_crops(cfg: TrainVerifierConfig) -> CropSet:
                         0.25, 0.75)
                     xs.append(square_crop(img, (cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2), 1.0,
                                           store))
-                    kinds.append(5 if z.is_zebra else 6)
+                    kinds.append(ZEBRA_PART if z.is_zebra else OTHER_PART)
             for _ in range(cfg.background_per_frame):
                 side = float(np.exp(rng.uniform(np.log(24), np.log(max(25.0, min(h, w) * 0.6)))))
                 cx, cy = rng.uniform(side / 2, max(side / 2 + 1, w - side / 2)), rng.uniform(
@@ -168,10 +181,10 @@ def collect_crops(cfg: TrainVerifierConfig) -> CropSet:
                 if any(abs(px - cx) < side / 2 and abs(py - cy) < side / 2 for px, py in centres):
                     continue
                 xs.append(square_crop(img, (cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2), 1.0, store))
-                kinds.append(0)
+                kinds.append(BACKGROUND)
             for _ in range(cfg.clutter_per_frame):
                 xs.append(draw_clutter(clutter, store))
-                kinds.append(4)
+                kinds.append(CLUTTER)
             if detector is not None:
                 keep_off = np.array([b for z in ann.labels.zebras if z.is_zebra or not cfg.mine_on_animals
                                      for b in (z.box_visible, z.box_full) if b is not None], np.float64).reshape(-1, 4)
@@ -180,12 +193,29 @@ def collect_crops(cfg: TrainVerifierConfig) -> CropSet:
                     shift = mine.uniform(-0.08, 0.08, 2)
                     xs.append(square_crop(img, b, float(mine.uniform(1.1, 1.3)), store,
                                           (float(shift[0]), float(shift[1]))))
-                    kinds.append(3)
+                    kinds.append(FALSE_BOX)
     if not xs:
         raise ParameterError("--data", list(cfg.data), "frames with animals of at least "
                              f"{cfg.min_visible_pixels} visible pixels")
+    frames += [n_frames - 1] * (len(xs) - len(frames))
     kind = np.asarray(kinds, np.int64)
-    return CropSet(np.stack(xs), np.isin(kind, ZEBRA_KINDS).astype(np.float32), kind)
+    return CropSet(np.stack(xs), np.isin(kind, ZEBRA_KINDS).astype(np.float32), kind, np.asarray(frames, np.int64))
+
+
+def held_out(crops: CropSet, split: str, fraction: float, g: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+    """Indices of the held-out and the training crops: a random ``fraction`` of the crops (``split`` "crop"), or
+    every crop of a random ``fraction`` of the frames that gave crops ("frame"; at least one frame each side)."""
+    if split == "crop":
+        perm = torch.randperm(len(crops.x), generator=g)
+        n_val = max(1, int(len(crops.x) * fraction))
+        return perm[:n_val], perm[n_val:]
+    frames = np.unique(crops.frame)
+    if len(frames) < 2:
+        raise ParameterError("--split", split, "crops from two frames or more (these gave crops from one)")
+    n_val = min(len(frames) - 1, max(1, round(len(frames) * fraction)))
+    chosen = frames[torch.randperm(len(frames), generator=g)[:n_val].numpy()]
+    val = np.isin(crops.frame, chosen)
+    return torch.from_numpy(np.flatnonzero(val)), torch.from_numpy(np.flatnonzero(~val))
 
 
 # natural colours (RGB) for drawn clutter: foliage, bark and soil, rock, shade, and the sky behind them
@@ -304,9 +334,7 @@ def train_verifier(cfg: TrainVerifierConfig, log: Callable[[str], None] = print)
     x = torch.from_numpy(crops.x).permute(0, 3, 1, 2).contiguous()
     y = torch.from_numpy(crops.y)
     kind = torch.from_numpy(crops.kind)
-    perm = torch.randperm(len(x), generator=g)
-    n_val = max(1, int(len(x) * cfg.val_fraction))
-    val, tr = perm[:n_val], perm[n_val:]
+    val, tr = held_out(crops, cfg.split, cfg.val_fraction, g)
     net = Verifier(cfg.model).to(memory_format=torch.channels_last)  # type: ignore[call-overload]
     opt = torch.optim.AdamW(net.parameters(), cfg.lr, weight_decay=5e-4)
     per_epoch = max(1, len(tr) // cfg.batch)
