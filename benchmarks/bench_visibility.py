@@ -1,13 +1,15 @@
 """Benchmark: where a generated set's mAP is lost, by how many pixels of each zebra are visible.
 
-    python benchmarks/bench_visibility.py SET [--weights shipped] [--floors 0 20 40 100] [--scale 0] [--json]
+    python benchmarks/bench_visibility.py SET [SET ...] [--weights shipped] [--floors 0 20 40 100] [--scale 0] [--json]
 
-``SET``: a ``zebra-sim generate`` folder (its ``annotations/`` hold each zebra's ``visible_pixels``). The weights
-run once over its images (served as ``zebra-sim val`` serves them: the checkpoint's rule, or ``--scale``); then,
-for each floor, the labelled zebras with fewer visible pixels than the floor become don't-care boxes (neither
-found nor missed, as COCO scores crowd regions, and as the label filters' drops already are) and the same
-detections are scored again. Floor 0 is the set as labelled: its mAP is ``zebra-sim val``'s. The table gives
-each floor's labelled zebras and mAP50 / mAP50-95, and the AP50 of each band of visible pixels on its own.
+``SET``: a ``zebra-sim generate`` folder (its ``annotations/`` hold each zebra's ``visible_pixels``); several are
+pooled into one evaluation. The weights run once over its images (served as ``zebra-sim val`` serves them: the
+checkpoint's rule, or ``--scale``); then, for each floor, the labelled zebras with fewer visible pixels than the
+floor become don't-care boxes (neither found nor missed, as COCO scores crowd regions, and as the label filters'
+drops already are) and the same detections are scored again. Floor 0 is the set as labelled: its mAP is ``zebra-sim
+val``'s. The table gives each floor's labelled zebras and mAP50 / mAP50-95, and the AP50 of each band of visible
+pixels on its own. A last line counts the detections on animals of other species (IoU >= 0.3 with one's visible box,
+< 0.5 with every labelled zebra) and gives the mAP50 with them left out: what confusing the other species costs.
 A floor here is a question asked of the data, not a change to the labels: the sets keep every zebra of 10
 visible pixels or more (the labeller's default ``min_visible_pixels``).
 """
@@ -25,22 +27,38 @@ import torch
 from zebra_sim_ros.detection.checkpoint import load_model
 from zebra_sim_ros.detection.data import annotation_path, resolve_split
 from zebra_sim_ros.detection.evaluate import ImagePredictions, make_loader, predictions, score
+from zebra_sim_ros.detection.metrics import iou_matrix
 from zebra_sim_ros.detection.predict import inference_size
 
 
-def zebras(p: ImagePredictions) -> tuple[np.ndarray, np.ndarray]:
-    """The labelled zebras of an image from its annotation: visible boxes (n, 4) and visible pixels (n,)."""
+def zebras(p: ImagePredictions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """From an image's annotation: its labelled zebras' visible boxes (n, 4) and visible pixels (n,), and the
+    visible boxes (m, 4) of the animals of other species in it."""
     rec = json.loads(annotation_path(Path(p.file)).read_text())
     kept = [z for z in rec["labels"]["zebras"] if z.get("kept") and z.get("species", "zebra") == "zebra"]
     boxes = np.asarray([z["box_visible"] for z in kept], np.float64).reshape(-1, 4)
-    return boxes, np.asarray([int(z["visible_pixels"]) for z in kept], np.int64)
+    others = np.asarray([z["box_visible"] for z in rec["labels"]["zebras"]
+                         if z.get("species", "zebra") != "zebra" and z.get("box_visible")], np.float64).reshape(-1, 4)
+    return boxes, np.asarray([int(z["visible_pixels"]) for z in kept], np.int64), others
 
 
-def split(per: list[ImagePredictions], keep: list[tuple[np.ndarray, np.ndarray]], lo: int,
+def on_other_species(p: ImagePredictions, others: np.ndarray) -> np.ndarray:
+    """Which detections of ``p`` lie on an animal of another species: IoU >= 0.3 with one of ``others``, < 0.5 with
+    every labelled zebra."""
+    d = p.detections[:, :4]
+    if not len(d) or not len(others):
+        return np.zeros(len(d), bool)
+    on = iou_matrix(d, others).max(1) >= 0.3
+    if len(p.labels):
+        on &= iou_matrix(d, p.labels.astype(np.float64)).max(1) < 0.5
+    return np.asarray(on, bool)
+
+
+def split(per: list[ImagePredictions], keep: list[tuple[np.ndarray, np.ndarray, np.ndarray]], lo: int,
           hi: int | None) -> list[ImagePredictions]:
     """The same detections, with the zebras of ``lo`` <= visible pixels < ``hi`` labelled, the rest don't-care."""
     out = []
-    for p, (boxes, vis) in zip(per, keep, strict=True):
+    for p, (boxes, vis, _) in zip(per, keep, strict=True):
         inside = (vis >= lo) & (vis < hi if hi is not None else True)
         out.append(p._replace(labels=boxes[inside], ignore=np.concatenate([p.ignore, boxes[~inside]])))
     return out
@@ -48,8 +66,8 @@ def split(per: list[ImagePredictions], keep: list[tuple[np.ndarray, np.ndarray]]
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("set", type=Path, help="a zebra-sim generate folder")
-    ap.add_argument("--split", default="train", help="its split to score (generate's held-out sets: train)")
+    ap.add_argument("set", type=Path, nargs="+", help="zebra-sim generate folders (several: pooled)")
+    ap.add_argument("--split", default="train", help="their split to score (generate's held-out sets: train)")
     ap.add_argument("--weights", default="shipped")
     ap.add_argument("--floors", type=int, nargs="+", default=[0, 20, 40, 100])
     ap.add_argument("--scale", type=float, default=0.0, help="inference size as a multiple of the long side "
@@ -57,14 +75,17 @@ def main() -> None:
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     model, _ = load_model(None if args.weights == "shipped" else args.weights, torch.device("cpu"))
-    folder = resolve_split(args.set, args.split)
-    per = predictions(model, make_loader(folder, lambda s: inference_size(model.cfg, s, None, args.scale), 4))
+    per: list[ImagePredictions] = []
+    for root in args.set:
+        folder = resolve_split(root, args.split)
+        per += predictions(model, make_loader(folder, lambda side: inference_size(model.cfg, side, None, args.scale),
+                                              4))
     keep = [zebras(p) for p in per]
     n_files = sum(len(p.labels) for p in per)
-    n_ann = sum(len(b) for b, _ in keep)
+    n_ann = sum(len(b) for b, _, _ in keep)
     if n_files != n_ann:
-        raise SystemExit(f"bench_visibility: {folder} has {n_files} labelled zebras in labels/ but {n_ann} in "
-                         "annotations/: not the same set")
+        raise SystemExit(f"bench_visibility: {args.set} hold {n_files} labelled zebras in labels/ but {n_ann} in "
+                         "annotations/: not the same sets")
     floors = sorted(set(args.floors))
     rows = []
     for k, lo in enumerate(floors):
@@ -74,7 +95,14 @@ def main() -> None:
         rows.append({"floor": lo, "zebras": m_all.instances, "mAP50": round(m_all.map50, 4),
                      "mAP50-95": round(m_all.map50_95, 4), "band": f"{lo}-{hi - 1 if hi else ''}",
                      "band_zebras": m_band.instances, "band_AP50": round(m_band.map50, 4)})
-    print(f"{args.weights} on {folder} ({len(per)} images, served at {sorted({p.imgsz for p in per})}), "
+    on = [on_other_species(p, o) for p, (_, _, o) in zip(per, keep, strict=True)]
+    others = {"detections": int(sum(x.sum() for x in on)),
+              "at_0.25": int(sum((x & (p.detections[:, 4] >= 0.25)).sum() for x, p in zip(on, per, strict=True))),
+              "animals": int(sum(len(o) for _, _, o in keep)),
+              "mAP50_without": round(score([p._replace(detections=p.detections[~x])
+                                            for p, x in zip(per, on, strict=True)]).map50, 4)}
+    names = ", ".join(str(s) for s in args.set)
+    print(f"{args.weights} on {names} ({len(per)} images, served at {sorted({p.imgsz for p in per})}), "
           f"{platform.processor() or platform.machine()}")
     print("| zebras scored | labelled zebras | mAP50 | mAP50-95 | band of visible px | its zebras | its AP50 |")
     print("| --- | --- | --- | --- | --- | --- | --- |")
@@ -82,8 +110,12 @@ def main() -> None:
         band_ap = f"{r['band_AP50']:.3f}" if r["band_zebras"] else "-"
         print(f"| >= {r['floor']} visible px | {r['zebras']} | {r['mAP50']:.3f} | {r['mAP50-95']:.3f} | "
               f"{r['band']} | {r['band_zebras']} | {band_ap} |")
+    print(f"Detections on the {others['animals']} animals of other species: {others['detections']} "
+          f"({others['at_0.25']} at conf 0.25 or more); mAP50 without them {others['mAP50_without']:.3f} "
+          f"(with them {rows[0]['mAP50'] if floors[0] == 0 else '-'})")
     if args.json:
-        print(json.dumps({"weights": args.weights, "set": str(folder), "rows": rows}))
+        print(json.dumps({"weights": args.weights, "sets": [str(s) for s in args.set], "rows": rows,
+                          "other_species": others}))
 
 
 if __name__ == "__main__":
