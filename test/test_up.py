@@ -140,6 +140,13 @@ def _check_time_base_tf_and_typed_detections(bag: Path, steps: int) -> None:
                 stamped += 1
     assert len(clocks) == steps and clocks == sorted(clocks)
     assert [t for t, _ in tf] == clocks
+    from mcap.reader import make_reader
+
+    with open(bag, "rb") as f:  # /clock latched (depth 1): a recorder whose reader matched late still has step 0
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    offered = {c.topic: c.metadata["offered_qos_profiles"] for c in summary.channels.values()}
+    assert "transient_local" in offered["/clock"] and "transient_local" not in offered["/tf"]
     assert all(sorted(x.child_frame_id for x in m.transforms) == [f"{d}/base_link" for d in DRONES] and
                all(x.header.frame_id == "map" for x in m.transforms) for _, m in tf)
     links = {(x.header.frame_id, x.child_frame_id) for _, m in static for x in m.transforms}

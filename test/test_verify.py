@@ -191,6 +191,8 @@ def test_crops_know_their_frame_and_a_frame_split_keeps_each_frame_on_one_side(f
     one = type(crops)(crops.x, crops.y, crops.kind, np.zeros_like(crops.frame))
     with pytest.raises(ParameterError, match="'--split'.*two frames"):
         held_out(one, "frame", 0.1, torch.Generator())
+    with pytest.raises(ParameterError, match="'--split' = 'animal'"):
+        held_out(crops, "animal", 0.1, torch.Generator())
 
 
 def test_train_verifier_writes_a_checkpoint_that_records_its_recipe(frames: Path, tmp_path: Path) -> None:

@@ -209,6 +209,8 @@ def held_out(crops: CropSet, split: str, fraction: float, g: torch.Generator) ->
         perm = torch.randperm(len(crops.x), generator=g)
         n_val = max(1, int(len(crops.x) * fraction))
         return perm[:n_val], perm[n_val:]
+    if split != "frame":
+        raise ParameterError("--split", split, " or ".join(SPLITS))
     frames = np.unique(crops.frame)
     if len(frames) < 2:
         raise ParameterError("--split", split, "crops from two frames or more (these gave crops from one)")

@@ -10,9 +10,10 @@ the whole graph, except the conventional ``/tf``, ``/tf_static`` and ``/clock``,
 - ``/tf`` (tf2_msgs/TFMessage): ``map -> drone_{i}/base_link`` of every drone, each step (REP 105);
   ``/tf_static``: ``drone_{i}/base_link -> drone_{i}/camera_optical`` once (transient local), so RViz, Foxglove
   and tf2 place each camera's images in 3D.
-- ``/clock`` (rosgraph_msgs/Clock): the simulated time of each step, published first; every other node stamps
-  with that time (their header stamps are the scene's), ``up`` runs them with ``use_sim_time``, and bags are
-  written with log times equal to the stamps.
+- ``/clock`` (rosgraph_msgs/Clock): the simulated time of each step, published first (reliable, transient local,
+  depth 1: a late reader gets the current step's time); every other node stamps with that time (their header
+  stamps are the scene's), ``up`` runs them with ``use_sim_time``, and bags are written with log times equal to
+  the stamps.
 
 Modes: ``rate`` publishes a step every 1/rate_hz s; ``lockstep`` publishes step k+1 only after every name
 in ``lockstep_ack_from`` has acknowledged step k on ``zebra_sim/frame_done`` (std_msgs/Header: stamp = the
@@ -75,7 +76,10 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         self.marker_pub = self.create_publisher(MarkerArray, MARKER_TOPIC, stream)
         self.pose_pubs = [self.create_publisher(PoseStamped, f"{n}/camera/pose", stream)
                           for n in self.placer.camera_names]
-        self.clock_pub = self.create_publisher(Clock, CLOCK_TOPIC, qos("reliable", 10))
+        # Transient local, depth 1: a reader that matches late (a recorder whose /clock reader matched after its /tf
+        # one) still gets the current step's time. /clock cannot be waited on by count: every use_sim_time node
+        # subscribes to it.
+        self.clock_pub = self.create_publisher(Clock, CLOCK_TOPIC, qos("reliable", 1, transient_local=True))
         self.tf_pub = self.create_publisher(TFMessage, TF_TOPIC, qos("reliable", 100))
         latched_tf = qos("reliable", 1, transient_local=True)
         self.tf_static_pub = self.create_publisher(TFMessage, TF_STATIC_TOPIC, latched_tf)
@@ -83,7 +87,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             _transform(Header(frame_id=base_frame(n)), optical_frame(n), (0.0, 0.0, 0.0), OPTICAL_IN_BASE_XYZW)
             for n in self.placer.camera_names]))
         # What wait_for_subscribers waits for. /tf too: a recorder that matched the markers but not yet /tf would
-        # miss the first step's transforms. /clock is not waited on: every use_sim_time node subscribes to it.
+        # miss the first step's transforms. /clock is latched instead (above).
         self.outputs = [self.scene_pub, self.marker_pub, *self.pose_pubs, self.tf_pub]
         self.step = c.start_step
         self.published = 0
