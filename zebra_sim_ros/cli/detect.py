@@ -64,39 +64,32 @@ def register(sub: Any) -> None:
 
     d = {f.name: f.default for c in (VerifierConfig, TrainVerifierConfig) for f in fields(c)}  # declared once, there
     tv.add_argument("--data", nargs="+", required=True, help="folders written by zebra-sim generate")
-    tv.add_argument("--epochs", type=int, default=d["epochs"], help="passes over the crops (default: %(default)s)")
-    tv.add_argument("--batch", type=int, default=d["batch"], help="crops per step (default: %(default)s)")
-    tv.add_argument("--lr", type=float, default=d["lr"], help="peak learning rate, one cycle (default: %(default)s)")
-    tv.add_argument("--seed", type=int, default=d["seed"], help="seeds the crops' jitter, the split and the "
-                    "training (default: %(default)s)")
-    tv.add_argument("--val-fraction", type=float, default=d["val_fraction"], help="share held out to report on "
-                    "(default: %(default)s)")
-    tv.add_argument("--split", choices=SPLITS, default=d["split"], help="hold out a share of the crops (an "
-                    "animal's two jittered crops may fall on both sides: optimistic figures) or every crop of a share "
-                    "of the frames (default: %(default)s)")
-    tv.add_argument("--background-per-frame", type=int, default=d["background_per_frame"], help="background "
-                    "squares cut from each frame, those holding an animal's centre skipped (default: %(default)s)")
-    tv.add_argument("--min-visible-pixels", type=int, default=d["min_visible_pixels"], help="animals with fewer "
-                    "visible pixels are not cropped (default: %(default)s)")
-    tv.add_argument("--min-side", type=float, default=d["min_side"], help="the verifier judges boxes whose long "
-                    "side is at least this many px, and is trained on animals of that size or more; smaller boxes "
-                    "keep the detector's score (default: %(default)s)")
-    tv.add_argument("--min-side-fraction", type=float, default=d["min_side_fraction"], help="when serving, a box is "
-                    "judged only if its long side is also at least this share of the image's long side (0.0375: 24 "
-                    "px on a 640 px photo, 48 px on a 1280x720 frame); training is unchanged (default: %(default)s, "
-                    "off)")
-    tv.add_argument("--parts-per-animal", type=int, default=d["parts_per_animal"], help="squares of part of each "
-                    "cropped animal (40-75%% of its long side, centred in its middle): a zebra's part is a zebra, "
-                    "another species' is not (default: %(default)s)")
-    tv.add_argument("--clutter-per-frame", type=int, default=d["clutter_per_frame"], help="drawn squares of "
-                    "foliage, branches, sky and defocus per frame, never a zebra (default: %(default)s)")
-    tv.add_argument("--detector", default=d["detector"], help="hard negatives: this detector's ('shipped' or a "
-                    "checkpoint) boxes on the frames that lie on no zebra become crops the verifier must reject "
-                    "(default: none)")
-    tv.add_argument("--mine-imgsz", type=int, default=d["mine_imgsz"], help="with --detector: its inference size, "
-                    "px (default: %(default)s)")
-    tv.add_argument("--mine-conf", type=float, default=d["mine_conf"], help="with --detector: its threshold "
-                    "(default: %(default)s)")
+    for flag, kind, text in (
+            ("--epochs", int, "passes over the crops"),
+            ("--batch", int, "crops per step"),
+            ("--lr", float, "peak learning rate, one cycle"),
+            ("--seed", int, "seeds the crops' jitter, the split and the training"),
+            ("--val-fraction", float, "share held out to report on"),
+            ("--split", str, "hold out a share of the crops (an animal's two jittered crops may fall on both sides: "
+                             "optimistic figures) or every crop of a share of the frames"),
+            ("--background-per-frame", int, "background squares cut from each frame, those holding an animal's "
+                                            "centre skipped"),
+            ("--min-visible-pixels", int, "animals with fewer visible pixels are not cropped"),
+            ("--min-side", float, "the verifier judges boxes whose long side is at least this many px, and is "
+                                  "trained on animals of that size or more; smaller boxes keep the detector's score"),
+            ("--min-side-fraction", float, "when serving, a box is judged only if its long side is also at least "
+                                           "this share of the image's long side (0.0375: 24 px on a 640 px photo, "
+                                           "48 px on a 1280x720 frame; 0: off); training is unchanged"),
+            ("--parts-per-animal", int, "squares of part of each cropped animal (40-75%% of its long side, centred "
+                                        "in its middle): a zebra's part is a zebra, another species' is not"),
+            ("--clutter-per-frame", int, "drawn squares of foliage, branches, sky and defocus per frame, never a "
+                                         "zebra"),
+            ("--detector", str, "hard negatives: this detector's ('shipped' or a checkpoint; empty: none) boxes on "
+                                "the frames that lie on no zebra become crops the verifier must reject"),
+            ("--mine-imgsz", int, "with --detector: its inference size, px"),
+            ("--mine-conf", float, "with --detector: its threshold")):
+        tv.add_argument(flag, type=kind, default=d[flag[2:].replace("-", "_")],
+                        choices=SPLITS if flag == "--split" else None, help=f"{text} (default: %(default)r)")
     tv.add_argument("--mine-on-animals", action=argparse.BooleanOptionalAction, default=d["mine_on_animals"],
                     help="with --detector: its boxes on animals of other species are hard negatives too "
                     "(default); --no-mine-on-animals keeps only its boxes on background")
