@@ -141,63 +141,59 @@ def collect_crops(cfg: TrainVerifierConfig) -> CropSet:
     store = cfg.model.crop + _STORE_MARGIN
     xs: list[NDArray[np.uint8]] = []
     kinds: list[int] = []
-    frames: list[int] = []
-    n_frames = 0
-    for d in cfg.data:
-        root = Path(d)
-        for f in sorted((root / "annotations").glob("*.json")):
-            frames += [n_frames - 1] * (len(xs) - len(frames))  # the crops of the frame before
-            n_frames += 1
-            ann = FrameAnnotation.from_json(f.read_text())
-            img = read_rgb(root / ann.image)
-            h, w = img.shape[:2]
-            centres = []
-            for z in ann.labels.zebras:
-                if z.box_visible is None:
-                    continue
-                b = np.asarray(z.box_visible, np.float64)
-                centres.append(((b[0] + b[2]) / 2, (b[1] + b[3]) / 2))
-                if (max(b[2] - b[0], b[3] - b[1]) < cfg.model.min_side or z.visible_pixels < cfg.min_visible_pixels
-                        or z.visible_fraction < cfg.min_visible_fraction):
-                    continue
-                for _ in range(2):
-                    shift = rng.uniform(-0.12, 0.12, 2)
-                    c = square_crop(img, b, float(rng.uniform(1.0, 1.5)), store, (float(shift[0]), float(shift[1])))
-                    ok, buf = cv2.imencode(".jpg", c, [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(35, 96))])
-                    xs.append(np.asarray(cv2.imdecode(buf, cv2.IMREAD_UNCHANGED), dtype=np.uint8) if ok else c)
-                    kinds.append(ZEBRA_CROP if z.is_zebra else OTHER_SPECIES)
-                long_side = max(b[2] - b[0], b[3] - b[1])
-                for _ in range(cfg.parts_per_animal):
-                    side = long_side * parts.uniform(0.4, 0.75)
-                    cx, cy = b[0] + (b[2] - b[0]) * parts.uniform(0.25, 0.75), b[1] + (b[3] - b[1]) * parts.uniform(
-                        0.25, 0.75)
-                    xs.append(square_crop(img, (cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2), 1.0,
-                                          store))
-                    kinds.append(ZEBRA_PART if z.is_zebra else OTHER_PART)
-            for _ in range(cfg.background_per_frame):
-                side = float(np.exp(rng.uniform(np.log(24), np.log(max(25.0, min(h, w) * 0.6)))))
-                cx, cy = rng.uniform(side / 2, max(side / 2 + 1, w - side / 2)), rng.uniform(
-                    side / 2, max(side / 2 + 1, h - side / 2))
-                if any(abs(px - cx) < side / 2 and abs(py - cy) < side / 2 for px, py in centres):
-                    continue
-                xs.append(square_crop(img, (cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2), 1.0, store))
-                kinds.append(BACKGROUND)
-            for _ in range(cfg.clutter_per_frame):
-                xs.append(draw_clutter(clutter, store))
-                kinds.append(CLUTTER)
-            if detector is not None:
-                keep_off = np.array([b for z in ann.labels.zebras if z.is_zebra or not cfg.mine_on_animals
-                                     for b in (z.box_visible, z.box_full) if b is not None], np.float64).reshape(-1, 4)
-                for b in _false_boxes(detect(detector, [img], cfg.mine_imgsz, cfg.mine_conf)[0], keep_off,
-                                      cfg.model.min_side, ZEBRA, iou_matrix):
-                    shift = mine.uniform(-0.08, 0.08, 2)
-                    xs.append(square_crop(img, b, float(mine.uniform(1.1, 1.3)), store,
-                                          (float(shift[0]), float(shift[1]))))
-                    kinds.append(FALSE_BOX)
+    frames: list[int] = []  # per crop, the number of the frame it was cut from
+    files = [(Path(d), f) for d in cfg.data for f in sorted((Path(d) / "annotations").glob("*.json"))]
+    for frame, (root, f) in enumerate(files):
+        ann = FrameAnnotation.from_json(f.read_text())
+        img = read_rgb(root / ann.image)
+        h, w = img.shape[:2]
+        centres = []
+        for z in ann.labels.zebras:
+            if z.box_visible is None:
+                continue
+            b = np.asarray(z.box_visible, np.float64)
+            centres.append(((b[0] + b[2]) / 2, (b[1] + b[3]) / 2))
+            if (max(b[2] - b[0], b[3] - b[1]) < cfg.model.min_side or z.visible_pixels < cfg.min_visible_pixels
+                    or z.visible_fraction < cfg.min_visible_fraction):
+                continue
+            for _ in range(2):
+                shift = rng.uniform(-0.12, 0.12, 2)
+                c = square_crop(img, b, float(rng.uniform(1.0, 1.5)), store, (float(shift[0]), float(shift[1])))
+                ok, buf = cv2.imencode(".jpg", c, [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(35, 96))])
+                xs.append(np.asarray(cv2.imdecode(buf, cv2.IMREAD_UNCHANGED), dtype=np.uint8) if ok else c)
+                kinds.append(ZEBRA_CROP if z.is_zebra else OTHER_SPECIES)
+            long_side = max(b[2] - b[0], b[3] - b[1])
+            for _ in range(cfg.parts_per_animal):
+                side = long_side * parts.uniform(0.4, 0.75)
+                cx, cy = b[0] + (b[2] - b[0]) * parts.uniform(0.25, 0.75), b[1] + (b[3] - b[1]) * parts.uniform(
+                    0.25, 0.75)
+                xs.append(square_crop(img, (cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2), 1.0,
+                                      store))
+                kinds.append(ZEBRA_PART if z.is_zebra else OTHER_PART)
+        for _ in range(cfg.background_per_frame):
+            side = float(np.exp(rng.uniform(np.log(24), np.log(max(25.0, min(h, w) * 0.6)))))
+            cx, cy = rng.uniform(side / 2, max(side / 2 + 1, w - side / 2)), rng.uniform(
+                side / 2, max(side / 2 + 1, h - side / 2))
+            if any(abs(px - cx) < side / 2 and abs(py - cy) < side / 2 for px, py in centres):
+                continue
+            xs.append(square_crop(img, (cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2), 1.0, store))
+            kinds.append(BACKGROUND)
+        for _ in range(cfg.clutter_per_frame):
+            xs.append(draw_clutter(clutter, store))
+            kinds.append(CLUTTER)
+        if detector is not None:
+            keep_off = np.array([b for z in ann.labels.zebras if z.is_zebra or not cfg.mine_on_animals
+                                 for b in (z.box_visible, z.box_full) if b is not None], np.float64).reshape(-1, 4)
+            for b in _false_boxes(detect(detector, [img], cfg.mine_imgsz, cfg.mine_conf)[0], keep_off,
+                                  cfg.model.min_side, ZEBRA, iou_matrix):
+                shift = mine.uniform(-0.08, 0.08, 2)
+                xs.append(square_crop(img, b, float(mine.uniform(1.1, 1.3)), store,
+                                      (float(shift[0]), float(shift[1]))))
+                kinds.append(FALSE_BOX)
+        frames += [frame] * (len(xs) - len(frames))
     if not xs:
         raise ParameterError("--data", list(cfg.data), "frames with animals of at least "
                              f"{cfg.min_visible_pixels} visible pixels")
-    frames += [n_frames - 1] * (len(xs) - len(frames))
     kind = np.asarray(kinds, np.int64)
     return CropSet(np.stack(xs), np.isin(kind, ZEBRA_KINDS).astype(np.float32), kind, np.asarray(frames, np.int64))
 
