@@ -275,6 +275,31 @@ def test_export_blends_a_fine_tuned_checkpoint_with_its_base(tmp_path: Path,
     assert "'--blend'" in err and "--blend-base" in err and not (tmp_path / "alone.pt").exists()
 
 
+def test_a_p2_run_blends_with_its_three_level_base_on_the_shared_tensors() -> None:
+    """``--blend-base`` of a four-level (``--p2``) fine-tune and the three-level checkpoint it started from: the
+    shared tensors are blended, the stride-4 level is the fine-tune's; the other way round is refused by name."""
+    from zebra_sim_ros.detection.export import blend_weights
+
+    torch.manual_seed(1)
+    base, tuned = build_model(ModelConfig(size="n")), build_model(ModelConfig(size="n", p2=True))
+    for m in (base, tuned):
+        for p in m.parameters():
+            p.data.normal_()
+    b, t = base.state_dict(), tuned.state_dict()
+    out = blend_weights(t, b, 0.25)
+    assert set(out) == set(t)
+    level = [k for k in t if k not in b]
+    assert level and all(k.startswith(tuned.P2_MODULES) for k in level)
+    for k, v in out.items():
+        if k in level or not v.dtype.is_floating_point:
+            assert torch.equal(v, t[k])
+        else:
+            torch.testing.assert_close(v, 0.75 * b[k] + 0.25 * t[k])
+    with pytest.raises(ParameterError, match="'--blend-base'.*box_head_p2|'--blend-base'.*cls_head_p2|"
+                                             "'--blend-base'.*td2"):
+        blend_weights(b, t, 0.5)
+
+
 def test_onnx_export_gives_the_same_boxes(tmp_path: Path) -> None:
     ort = pytest.importorskip("onnxruntime")
     from zebra_sim_ros.detection.export import export_onnx
@@ -965,6 +990,45 @@ def test_init_grows_a_zebra_checkpoint_into_two_classes() -> None:
             torch.testing.assert_close(state[k], v)
     with pytest.raises(ParameterError, match="'names'.*'zebra' as class 0"):
         ModelConfig(nc=2, names=("other_animal", "zebra"))
+
+
+def test_p2_adds_a_stride_4_level_and_starts_from_a_three_level_checkpoint() -> None:
+    """``p2``: four output levels, the finest at stride 4; a three-level checkpoint loads into it with every other
+    output unchanged and the new level left as freshly initialised."""
+    from zebra_sim_ros.detection.train import load_init_weights
+
+    base = build_model(ModelConfig(size="n"))
+    with torch.no_grad():
+        for p in base.parameters():
+            p.add_(0.01 * torch.randn_like(p))  # trained-looking weights, unlike a fresh model's
+    p2 = build_model(ModelConfig(size="n", p2=True))
+    fresh = {k: v.clone() for k, v in p2.state_dict().items()}
+    assert p2.strides == (4, 8, 16, 32) and base.strides == (8, 16, 32)
+    assert 0 < count_parameters(p2) - count_parameters(base) < 0.05 * count_parameters(base)
+    assert load_init_weights(p2, base.state_dict()) == []
+    state = p2.state_dict()
+    new = [k for k in state if k.startswith(tuple(f"{m}." for m in p2.P2_MODULES))]
+    assert new and len(state) == len(base.state_dict()) + len(new)
+    for k in new:
+        torch.testing.assert_close(state[k], fresh[k])
+    base.eval(), p2.eval()
+    x = torch.rand(2, 3, 256, 320)
+    with torch.no_grad():
+        fb, fp = base.features(x), p2.features(x)
+        out = p2(x)
+    assert [tuple(f.shape[2:]) for f in fp] == [(64, 80), (32, 40), (16, 20), (8, 10)]
+    for a, b in zip(fb, fp[1:], strict=True):
+        torch.testing.assert_close(a, b)
+    assert out.shape == (2, 64 * 80 + 32 * 40 + 16 * 20 + 8 * 10, 5)
+    first = out[0, : 64 * 80, :4]  # the stride-4 boxes lie around their cells' centres, 4 px apart
+    centres = (first[:, :2] + first[:, 2:]) / 2
+    assert centres[1, 0] - centres[0, 0] == pytest.approx(4.0, abs=2.0)
+    assert ModelConfig.from_dict({**ModelConfig().to_dict()} | {"p2": True}).p2
+    old = ModelConfig().to_dict()
+    del old["p2"]  # checkpoints written before the option
+    assert ModelConfig.from_dict(old).p2 is False
+    with pytest.raises(ParameterError, match="'p2'"):
+        ModelConfig(p2="yes")  # type: ignore[arg-type]
 
 
 def test_image_size_reads_png_and_jpeg_headers(tmp_path: Path) -> None:

@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 import pytest
+import torch
 
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
 from zebra_sim_ros.detection.checkpoint import load_model, read_checkpoint, save_checkpoint
@@ -146,4 +147,30 @@ def test_other_animals_class_trains_from_a_zebra_checkpoint(tiny: Path, tmp_path
     assert metrics.instances > 0
     with pytest.raises(ParameterError, match="'--init'.*other_animal"):
         train(TrainConfig(out=str(tmp_path / "back"), init=str(tmp_path / "two" / "best.pt"), **base),
+              log=io.StringIO())
+
+
+def test_p2_trains_from_a_three_level_checkpoint_and_is_kept_on_resume(tiny: Path, tmp_path: Path) -> None:
+    """``--p2 --init`` from a three-level checkpoint: a four-level run whose checkpoint rebuilds a four-level model
+    that serves and scores; its strides 8-32 moved from the init (they were trained too); the level cannot be
+    dropped on resume, and a three-level run cannot start from the four-level checkpoint."""
+    base = dict(data=str(tiny / "overfit.yaml"), model="n", imgsz=128, batch=4, device="cpu", workers=0,
+                max_train_images=4, val_every=1, close_mosaic=1, epochs=1)
+    three = build_model(ModelConfig(size="n", imgsz=128))
+    save_checkpoint(tmp_path / "three" / "best.pt", three)
+    log = io.StringIO()
+    train(TrainConfig(out=str(tmp_path / "four"), init=str(tmp_path / "three" / "best.pt"), p2=True, **base), log=log)
+    assert "P2" in log.getvalue() and "stride-4 level" in log.getvalue()
+    model, ckpt = load_model(tmp_path / "four" / "best.pt")
+    assert model.cfg.p2 and model.strides == (4, 8, 16, 32) and ckpt["train_args"]["p2"] is True
+    raw = read_checkpoint(tmp_path / "four" / "last.pt")["model_raw"]
+    start = three.state_dict()
+    moved = [k for k, v in start.items() if v.is_floating_point() and not torch.equal(raw[k].float(), v)]
+    assert any(k.startswith("stem.") for k in moved) and any(k.startswith("cls_head.") for k in moved)  # not frozen
+    metrics, _ = evaluate(tmp_path / "four" / "best.pt", tiny / "images" / "train", imgsz=128, device="cpu")
+    assert metrics.instances > 0
+    with pytest.raises(ParameterError, match="'--p2' = False"):
+        train(TrainConfig(out=str(tmp_path / "four"), resume=True, **{**base, "epochs": 2}), log=io.StringIO())
+    with pytest.raises(ParameterError, match="'--init'.*add --p2"):
+        train(TrainConfig(out=str(tmp_path / "back"), init=str(tmp_path / "four" / "best.pt"), **base),
               log=io.StringIO())

@@ -10,7 +10,8 @@
 # Stage 12 (README, "Shipped weights"): run a `BUDGET=480 bash scripts/gpu/train.sh` (stage 11 init, lr0 0.004,
 # seed 16), run b `BUDGET=280 E0=4 LR=0.002 SEED=17 INIT=gpu_data/init.pt bash scripts/gpu/train.sh` (init: run a's
 # last snapshot). AUG holds the augmentation options passed to train, e.g. stage 14's
-# AUG='--aug-zoom 0.5 --aug-background 0.3 --aug-zoom-crop 1 --aug-zoom-max 16'.
+# AUG='--aug-zoom 0.5 --aug-background 0.3 --aug-zoom-crop 1 --aug-zoom-max 16'. P2=1 trains with a stride-4 level
+# (`train --p2`); from a three-level INIT (the shipped weights) the other levels start from it and the new one fresh.
 set -u
 cd "$(dirname "$0")/../.."
 export PYTHONPATH=$PWD PYTHONUNBUFFERED=1 OPENCV_FOR_THREADS_NUM=1
@@ -19,6 +20,8 @@ BUDGET=${BUDGET:-470}; K=${K:-24}; E0=${E0:-12}; IMGSZ=${IMGSZ:-2176}; CROP=${CR
 WORKERS=${WORKERS:-15}; DEVICE=${DEVICE:-cuda}; OUTD=${OUT:-/tmp/gpu_out}; LR=${LR:-0.004}; SEED=${SEED:-16}
 INIT=${INIT:-zebra_sim_ros/detection/weights/zebra_yolo_n.pt}
 AUG=${AUG:---aug-zoom 0.5}  # the train options of augmentation, as words (stage 12's by default)
+P2=${P2:-0}
+case $P2 in 0) ARCH= ;; 1) ARCH=--p2 ;; *) echo "train.sh: P2=$P2: want 0 or 1" >&2; exit 2 ;; esac
 for v in BUDGET K E0 IMGSZ CROP BATCH WORKERS SEED; do  # whole numbers, at least 1
   [[ ${!v} =~ ^[1-9][0-9]*$ ]] || { echo "train.sh: $v=${!v}: want a whole number >= 1" >&2; exit 2; }
 done
@@ -41,7 +44,7 @@ train() {  # $1 epochs, $2 seconds allowed, $3 --init WEIGHTS or --resume
   timeout --signal=TERM --kill-after=10 "$2" python3 -m zebra_sim_ros.cli train --data gpu_data/mix.yaml --model n \
     --imgsz "$IMGSZ" --crop "$CROP" --epochs "$1" --batch "$BATCH" --device "$DEVICE" --workers "$WORKERS" \
     --amp "$AMP" --lr0 "$LR" --warmup-epochs 0.5 --close-mosaic 1 --val-every 1000 --seed "$SEED" \
-    $AUG --out $RUN $3 >>"$LOG" 2>&1
+    $AUG $ARCH --out $RUN $3 >>"$LOG" 2>&1
 }
 strip() {  # last.pt -> an fp16 checkpoint without optimizer state (export keeps the run's record)
   python3 -m zebra_sim_ros.cli export --weights "$1" --format pt --out "$2" >/dev/null

@@ -21,7 +21,7 @@ from torch import Tensor
 
 from zebra_sim_ros.detection.checkpoint import SHIPPED, load_model, read_checkpoint, save_checkpoint
 from zebra_sim_ros.detection.data import generate_settings
-from zebra_sim_ros.detection.model import build_model
+from zebra_sim_ros.detection.model import Detector, build_model
 from zebra_sim_ros.errors import DependencyError, ParameterError
 
 
@@ -46,15 +46,19 @@ def blend_weights(weights: dict[str, Tensor], base: dict[str, Tensor], alpha: fl
     """``(1 - alpha) * base + alpha * weights``, tensor by tensor (float32), for two state dicts of the same
     architecture: a weight-space ensemble of a model and the model it was fine-tuned from (WiSE-FT, Wortsman et
     al. 2022), which keeps much of what the fine-tuning gained and of what it forgot. Integer tensors (batch
-    norms' counters) are taken from ``weights``."""
+    norms' counters) are taken from ``weights``, and so is a stride-4 level (``train --p2``) that ``base`` lacks:
+    a P2 run started from a three-level checkpoint blends with it on every other tensor."""
     if not 0.0 <= alpha <= 1.0:
         raise ParameterError("--blend", alpha, "0..1 (the fine-tuned weights' share)")
-    if set(weights) != set(base) or any(weights[k].shape != base[k].shape for k in weights):
-        bad = sorted(set(weights) ^ set(base)) or [k for k in weights if weights[k].shape != base[k].shape]
+    p2 = tuple(f"{m}." for m in Detector.P2_MODULES)
+    own = {k for k in weights if k.startswith(p2)} if not any(k.startswith(p2) for k in base) else set()
+    shared = set(weights) - own
+    if shared != set(base) or any(weights[k].shape != base[k].shape for k in shared):
+        bad = sorted(shared ^ set(base)) or sorted(k for k in shared if weights[k].shape != base[k].shape)
         raise ParameterError("--blend-base", f"{len(bad)} tensor(s) of another name or shape, first {bad[0]}",
                              "weights of the same architecture and classes")
-    return {k: ((1.0 - alpha) * base[k].float() + alpha * v.float()) if v.dtype.is_floating_point else v
-            for k, v in weights.items()}
+    return {k: ((1.0 - alpha) * base[k].float() + alpha * v.float()) if v.dtype.is_floating_point and k in shared
+            else v for k, v in weights.items()}
 
 
 def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | None = None,

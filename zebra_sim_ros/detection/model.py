@@ -1,8 +1,14 @@
 """The detector: CSP backbone (C2f blocks), PAN neck and an anchor-free decoupled head, in plain torch.
 
 Shapes: input (B, 3, H, W), RGB in [0, 1], H and W multiples of 32. Training output: a list of three maps
-(B, 4 * reg_max + nc, H/s, W/s) for strides s = 8, 16, 32. Inference output: (B, N, 4 + nc) with xyxy boxes
-in input pixels and class probabilities, N = sum over strides of (H/s) * (W/s).
+(B, 4 * reg_max + nc, H/s, W/s) for strides s = 8, 16, 32, four with ``ModelConfig.p2`` (s = 4, 8, 16, 32).
+Inference output: (B, N, 4 + nc) with xyxy boxes in input pixels and class probabilities, N = sum over strides of
+(H/s) * (W/s).
+
+``p2`` adds a stride-4 level for the smallest zebras: the stride-8 output upsampled and joined with the stem's
+stride-4 features (a C2f), with box and class heads of its own. It is a leaf of the neck (nothing else reads
+it), so every other tensor has the same name and shape as without it: a three-level checkpoint initialises a
+P2 model (``train --p2 --init``) with its stride-8..32 outputs unchanged and only the new level fresh.
 
 The checkpoint holds :class:`ModelConfig` as a plain dict beside the weights, so a checkpoint alone rebuilds
 its model (:func:`build_model`).
@@ -38,10 +44,13 @@ class ModelConfig:
     reg_max: int = 16
     imgsz: int = 640  # inference size, px, for frames whose long side is ``frame``
     frame: int = 0  # long side of the frames it was trained on, px (0: unknown, serve every frame at ``imgsz``)
+    p2: bool = False  # a fourth, stride-4 level (P2) for small objects (see the module docstring)
 
     def __post_init__(self) -> None:
         if self.size not in SIZES:
             raise ParameterError("model", self.size, f"one of {sorted(SIZES)}")
+        if not isinstance(self.p2, bool):
+            raise ParameterError("p2", self.p2, "true or false")
         if self.nc != len(self.names):
             raise ParameterError("names", list(self.names), f"{self.nc} class names")
         if self.names[ZEBRA] != "zebra":
@@ -167,11 +176,12 @@ class DFL(nn.Module):
 class Detector(nn.Module):
     """The whole detector (see the module docstring for shapes)."""
 
-    strides = (8, 16, 32)
+    P2_MODULES = ("td2", "box_head_p2", "cls_head_p2")  # the stride-4 level's modules (``ModelConfig.p2``)
 
     def __init__(self, cfg: ModelConfig) -> None:
         super().__init__()
         self.cfg = cfg
+        self.strides: tuple[int, ...] = (4, 8, 16, 32) if cfg.p2 else (8, 16, 32)
         wm, dm, cmax = SIZES[cfg.size]
 
         def ch(c: int) -> int:
@@ -201,18 +211,32 @@ class Detector(nn.Module):
                                       for c in chans)
         self.cls_head = nn.ModuleList(nn.Sequential(Conv(c, c3, 3), Conv(c3, c3, 3), nn.Conv2d(c3, cfg.nc, 1))
                                       for c in chans)
+        if cfg.p2:
+            c = ch(128)
+            self.td2 = C2f(ch(256) + c, c, depth(3))
+            c2p, c3p = max(16, c // 4, 4 * r), max(c, min(cfg.nc, 100))
+            self.box_head_p2 = nn.Sequential(Conv(c, c2p, 3), Conv(c2p, c2p, 3), nn.Conv2d(c2p, 4 * r, 1))
+            self.cls_head_p2 = nn.Sequential(Conv(c, c3p, 3), Conv(c3p, c3p, 3), nn.Conv2d(c3p, cfg.nc, 1))
         self.dfl = DFL(r)
         self._init_biases()
 
     def _init_biases(self) -> None:
         import math
 
-        for box, cls, s in zip(self.box_head, self.cls_head, self.strides, strict=True):
+        for box, cls, s in zip(self.box_heads(), self.cls_heads(), self.strides, strict=True):
             box_out, cls_out = box[-1], cls[-1]  # type: ignore[index]
             assert isinstance(box_out, nn.Conv2d) and isinstance(cls_out, nn.Conv2d)
             nn.init.constant_(box_out.bias, 1.0)  # type: ignore[arg-type]
             # Prior: about 5 objects per 640 px image, spread over the cells of this stride.
             nn.init.constant_(cls_out.bias, math.log(5 / self.cfg.nc / (640 / s) ** 2))  # type: ignore[arg-type]
+
+    def box_heads(self) -> list[nn.Module]:
+        """The box heads, one per stride, finest first."""
+        return ([self.box_head_p2] if self.cfg.p2 else []) + list(self.box_head)
+
+    def cls_heads(self) -> list[nn.Module]:
+        """The class heads, one per stride, finest first."""
+        return ([self.cls_head_p2] if self.cfg.p2 else []) + list(self.cls_head)
 
     def fuse(self) -> Detector:
         """Fold every batch norm into its convolution for faster inference (the model must be in eval mode)."""
@@ -233,7 +257,10 @@ class Detector(nn.Module):
         n3 = self.td3(torch.cat([self.up(t4), p3], 1))
         n4 = self.bu4(torch.cat([self.down3(n3), t4], 1))
         n5 = self.bu5(torch.cat([self.down4(n4), p5], 1))
-        return [torch.cat([b(f), c(f)], 1) for f, b, c in zip((n3, n4, n5), self.box_head, self.cls_head,
+        levels = [n3, n4, n5]
+        if self.cfg.p2:
+            levels.insert(0, self.td2(torch.cat([self.up(n3), x2], 1)))
+        return [torch.cat([b(f), c(f)], 1) for f, b, c in zip(levels, self.box_heads(), self.cls_heads(),
                                                                strict=True)]
 
     def forward(self, x: Tensor) -> Tensor | list[Tensor]:

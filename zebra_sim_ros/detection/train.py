@@ -85,6 +85,7 @@ class TrainConfig:
     amp: str = "auto"  # mixed precision of the forward pass: auto, fp16 (CUDA), bf16, off (see amp_dtype)
     dont_care: bool = True  # the sets' ignore/ boxes are neither zebra nor background in the loss (see loss.py)
     other_animals: bool = False  # a second class, other_animal: generated frames' animals of other species
+    p2: bool = False  # a fourth, stride-4 output level for small zebras (ModelConfig.p2)
 
     def classes(self) -> tuple[str, ...]:
         """The model's class names: zebra, and other_animal with ``other_animals``."""
@@ -211,12 +212,18 @@ def _load_weights(cfg: TrainConfig, model: Detector, out: Path, log: Any) -> _St
         if list(init["config"].get("names", ["zebra"])) != list(model.cfg.names[: init["config"].get("nc", 1)]):
             raise ParameterError("--init", cfg.init, f"a checkpoint whose classes begin {list(model.cfg.names)} "
                                  f"(it holds {init['config'].get('names')}; --other-animals adds other_animal)")
+        if init["config"].get("p2", False) and not cfg.p2:
+            raise ParameterError("--init", cfg.init, "a checkpoint without the stride-4 level (it has one: "
+                                 "add --p2 to train it)")
         grown = load_init_weights(model, init["model"])
         if grown and _is_main():
             kept = init["config"].get("nc", 1)
             print(f"[train] --init {cfg.init}: {', '.join(model.cfg.names[:kept])} from it, "
                   f"{', '.join(model.cfg.names[kept:])} start fresh (the class outputs: {len(grown)} tensors)",
                   file=log)
+        if cfg.p2 and not init["config"].get("p2", False) and _is_main():
+            print(f"[train] --init {cfg.init}: strides 8-32 from it, the stride-4 level "
+                  f"({', '.join(Detector.P2_MODULES)}) starts fresh", file=log)
     if not cfg.resume:
         return _Start(init=cfg.init)
     ckpt = read_checkpoint(out / "last.pt", "--resume")
@@ -232,8 +239,12 @@ def _load_weights(cfg: TrainConfig, model: Detector, out: Path, log: Any) -> _St
 def load_init_weights(model: Detector, state: dict[str, Any]) -> list[str]:
     """Load ``--init`` weights into ``model``. A checkpoint with fewer classes (a zebra-only one into a model with
     other_animal) fills the first rows of the class outputs, whose other rows keep their fresh initialisation (the
-    prior bias); every other tensor must match. Returns the names of the tensors filled in part."""
+    prior bias); a checkpoint without the stride-4 level into a model with one (``p2``) leaves that level's
+    modules fresh; every other tensor must match. Returns the names of the tensors filled in part."""
     own = model.state_dict()
+    p2 = tuple(f"{m}." for m in Detector.P2_MODULES)
+    if model.cfg.p2 and not any(k.startswith(p2) for k in state):
+        state = {**state, **{k: v for k, v in own.items() if k.startswith(p2)}}
     grown = []
     for k, v in state.items():
         if k in own and v.shape != own[k].shape and v.shape[1:] == own[k].shape[1:] and v.shape[0] < own[k].shape[0] \
@@ -408,7 +419,8 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
     # The checkpoint records its training frames' size beside imgsz: served, a frame of another size is scaled
     # as these were (ModelConfig.serve_size).
     names = cfg.classes()
-    model_cfg = ModelConfig(size=cfg.model, nc=len(names), names=names, imgsz=cfg.imgsz, frame=ds.frame_size())
+    model_cfg = ModelConfig(size=cfg.model, nc=len(names), names=names, imgsz=cfg.imgsz, frame=ds.frame_size(),
+                            p2=cfg.p2)
     # Channels-last (NHWC), as served: 1.24x faster training steps on our 2-core CPU; tensor cores want it too.
     model = serving_layout(build_model(model_cfg).to(device))
     start = _load_weights(cfg, model, out, log)
@@ -430,8 +442,9 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
     warmup = max(round(cfg.warmup_epochs * nb), min(100, cfg.epochs * nb // 10))
     if _is_main():
         crop = f" (crops of {cfg.crop})" if cfg.crop else ""
-        print(f"[train] {count_parameters(model) / 1e6:.2f} M parameters ({cfg.model}), {len(ds)} train images, "
-              f"device {device}, imgsz {cfg.imgsz}{crop}, batch {cfg.batch}, epochs {cfg.epochs}, "
+        print(f"[train] {count_parameters(model) / 1e6:.2f} M parameters ({cfg.model}{', P2' if cfg.p2 else ''}), "
+              f"{len(ds)} train images, device {device}, imgsz {cfg.imgsz}{crop}, batch {cfg.batch}, "
+              f"epochs {cfg.epochs}, "
               f"autocast {str(autocast).replace('torch.', '') if autocast else 'off'}", file=log)
     run_ = _Run(cfg, out, log, device, model, net, ema, opt, criterion, autocast, scaler, start.best,
                 _previous_rows(cfg, out / "results.csv"), generate_settings(cfg.data))
