@@ -6,7 +6,8 @@ The same processes as ``zebra-sim up`` (three cameras, labeller, detector, recor
 names, namespaces, parameter files (share/zebra_sim_ros/config) and overrides; a test compares the two.
 ``zebra-sim up`` adds what launch does not: it waits until every node is ready before the placer's first step,
 stops the graph after the last step and scores the run. Here the placer waits for the recorder through
-``wait_for_subscribers`` and exits after ``frames`` steps; stop the rest with Ctrl-C.
+``wait_for_nodes`` (the recorder by name: another subscriber such as RViz does not count) and exits after ``frames``
+steps; stop the rest with Ctrl-C.
 
 Topic names are relative: wrap this launch file in a group with ``PushRosNamespace`` to move the whole graph (and
 remap ``/tf``, ``/tf_static`` and ``/clock`` into it, as ``zebra-sim up --namespace`` does). The placer is the
@@ -72,7 +73,7 @@ def generate_launch_description():
                  "world": arg("world"), "seed": arg("seed", int), "strategy": arg("strategy"), "mode": "lockstep",
                  "max_steps": arg("frames", int), "lockstep_ack_from": ["labeller", "detector"],
                  "lockstep_timeout_s": 120.0, "camera_width": arg("width", int),
-                 "camera_height": arg("height", int), "wait_for_subscribers": 1}]),
+                 "camera_height": arg("height", int), "wait_for_subscribers": 1, "wait_for_nodes": ["recorder"]}]),
     ]
     # Our Fast DDS profile (100 ms heartbeat: large images that lost a fragment arrive in 0.1 s, not 3 s),
     # as zebra-sim up sets it, unless a profile file is already chosen.

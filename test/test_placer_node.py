@@ -25,10 +25,10 @@ SMALL = {"count_max": 40, "world": "savanna"}
 class Listener:
     """A test-side node collecting what the placer publishes."""
 
-    def __init__(self, domain: int) -> None:
+    def __init__(self, domain: int, name: str = "test_listener") -> None:
         self.context = rclpy.Context()
         rclpy.init(context=self.context, domain_id=domain)
-        self.node = rclpy.create_node("test_listener", context=self.context)
+        self.node = rclpy.create_node(name, context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         latched = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
@@ -99,6 +99,42 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path) 
         assert [json.loads(line) for line in cli.stdout.splitlines()[:2]] == listener.scenes[:2]
     finally:
         listener.close()
+
+
+def test_the_first_step_waits_for_the_named_node_not_for_any_subscriber(domain: int, tmp_path: Path) -> None:
+    """``wait_for_nodes``: a bystander subscribed to every output (RViz, say) does not start the run; the named
+    node does, and it receives every step from step 0 on."""
+    bystander = Listener(domain, "bystander")
+    recorder: Listener | None = None
+    try:
+        params = dict(SMALL, mode="rate", rate_hz=4.0, max_steps=3, seed=9, wait_for_subscribers=1,
+                      wait_for_nodes=["late_recorder"])
+        with node_process("placer", params, domain, tmp_path / "placer.log") as proc:
+            assert not bystander.spin_until(lambda: bool(bystander.scenes or bystander.tf), 8.0), \
+                "the placer started with only a bystander subscribed"
+            assert "late_recorder" in (tmp_path / "placer.log").read_text()  # it says what it waits for
+            recorder = Listener(domain, "late_recorder")
+            assert recorder.spin_until(lambda: len(recorder.scenes) >= 3 and len(recorder.tf) >= 3 and
+                                       len(recorder.markers) >= 3 and
+                                       all(len(p) >= 3 for p in recorder.poses.values()), 60), \
+                (tmp_path / "placer.log").read_text()
+            assert proc.wait(timeout=20) == 0
+        assert [s["step"] for s in recorder.scenes] == [0, 1, 2]
+        assert len(recorder.tf) == 3 and len(recorder.markers) == 3
+        assert all(len(p) == 3 for p in recorder.poses.values())
+    finally:
+        bystander.close()
+        if recorder is not None:
+            recorder.close()
+
+
+@pytest.mark.parametrize("names", [["/bad name"], ["9recorder"], []])
+def test_a_bad_node_name_to_wait_for_is_named(names: list[str]) -> None:
+    from zebra_sim_ros.errors import ParameterError
+    from zebra_sim_ros.placement.config import PlacerConfig
+
+    with pytest.raises(ParameterError, match="wait_for_nodes"):
+        PlacerConfig.from_params({"wait_for_nodes": names})
 
 
 def test_lockstep_waits_for_every_camera(domain: int, tmp_path: Path) -> None:

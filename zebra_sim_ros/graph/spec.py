@@ -188,7 +188,8 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
     nodes.append(NodeSpec("placer", "placer", ns, "placer.yaml", {
         "world": cfg.world, "seed": cfg.seed, "strategy": cfg.strategy, "mode": "lockstep", "max_steps": cfg.frames,
         "lockstep_ack_from": ["labeller", "detector"], "lockstep_timeout_s": cfg.step_timeout_s,
-        "camera_width": cfg.width, "camera_height": cfg.height, "wait_for_subscribers": 1 if cfg.record else 0},
+        "camera_width": cfg.width, "camera_height": cfg.height, "wait_for_subscribers": 1 if cfg.record else 0,
+        "wait_for_nodes": ["recorder"] if cfg.record else [""]},
         tuple(f"{ns}/{t}" for t in PLACER_TOPICS) + tuple(f"{ns}{t}" for t in GLOBAL_TOPICS), remaps))
     return nodes
 

@@ -22,6 +22,7 @@ scene's stamp, frame_id = the acknowledging node's name, e.g. ``drone_0``).
 
 from __future__ import annotations
 
+import math
 import time
 
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3
@@ -94,8 +95,10 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         self.pending: Scene | None = None
         self.acked: set[str] = set()
         self.sent_at = 0.0
-        self.started = c.wait_for_subscribers == 0
-        self.waiting_since = time.monotonic()
+        ns = self.get_namespace().rstrip("/")
+        self.wait_nodes = [n if n.startswith("/") else f"{ns}/{n}" for n in c.wait_for_nodes if n]
+        self.started = c.wait_for_subscribers == 0 and not self.wait_nodes
+        self.waiting_since = -math.inf  # says what it waits for at once, then every 5 s
         if c.mode == "rate":
             self.timer = self.wall_timer(1.0 / c.rate_hz, self._publish_next)
         else:
@@ -108,16 +111,26 @@ class PlacerNode(ZebraNode[PlacerConfig]):
     def _finished(self) -> bool:
         return self.cfg.max_steps > 0 and self.published >= self.cfg.max_steps
 
+    def _subscribers(self, topic: str) -> set[str]:
+        """The fully qualified names of the nodes subscribed to ``topic``."""
+        return {f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in self.get_subscriptions_info_by_topic(topic)}
+
     def _subscribed(self) -> bool:
-        """True once every output topic has ``wait_for_subscribers`` subscribers (logs what it waits for)."""
+        """True once every output topic has ``wait_for_subscribers`` subscribers and a subscription of each of
+        ``wait_for_nodes`` (logs what it waits for)."""
         if not self.started:
             short = [p.topic_name for p in self.outputs if p.get_subscription_count() < self.cfg.wait_for_subscribers]
-            if not short:
+            absent = sorted({n for p in self.outputs if self.wait_nodes
+                             for n in set(self.wait_nodes) - self._subscribers(p.topic_name)})
+            if not short and not absent:
                 self.started = True
-                self.get_logger().info(f"every output has {self.cfg.wait_for_subscribers}+ subscribers: starting")
+                self.get_logger().info(f"every output has {self.cfg.wait_for_subscribers}+ subscribers"
+                                       f"{', ' + ', '.join(self.wait_nodes) + ' among them' if self.wait_nodes else ''}"
+                                       ": starting")
             elif time.monotonic() - self.waiting_since > 5.0:
                 self.waiting_since = time.monotonic()
-                self.get_logger().info(f"waiting for {self.cfg.wait_for_subscribers} subscribers on {short}")
+                self.get_logger().info(f"waiting for {self.cfg.wait_for_subscribers} subscribers on {short}"
+                                       + (f" and for {absent} to subscribe to every output" if absent else ""))
         return self.started
 
     def _publish_next(self) -> None:

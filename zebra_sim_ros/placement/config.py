@@ -9,6 +9,7 @@ three cameras re-randomised three times per placement, 5..20 m above the zebras,
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,6 +27,14 @@ STRATEGY_CHOICES = (*STRATEGIES, "mixed", "any")
 
 def _nonneg_list(n: int) -> Any:
     return lambda v: len(v) == n and all(isinstance(x, int | float) and x >= 0 for x in v) and sum(v) > 0
+
+
+_NODE_NAME = re.compile(r"/?([A-Za-z_][A-Za-z0-9_]*/)*[A-Za-z_][A-Za-z0-9_]*")
+
+
+def _node_names(v: Any) -> bool:
+    """Check: [''] (none) or a list of ROS node names, each relative or absolute (``recorder``, ``/g1/recorder``)."""
+    return tuple(v) == ("",) or (len(v) > 0 and all(isinstance(x, str) and _NODE_NAME.fullmatch(x) for x in v))
 
 
 @dataclass(frozen=True)
@@ -135,6 +144,11 @@ class PlacerConfig(StageConfig):
     wait_for_subscribers: int = param(0, "publish the first step only when each output topic (scene, markers, "
                                       "camera poses, /tf) has at least this many subscribers, e.g. 1 so a recorder "
                                       "misses nothing (0: start at once)", lo=0, hi=1000)
+    wait_for_nodes: tuple[str, ...] = param(
+        ("",), "publish the first step only when each of these nodes subscribes to every output topic (scene, "
+        "markers, camera poses, /tf), e.g. [recorder], so that another subscriber (RViz) cannot start the run "
+        "early; a name without a leading / is in the placer's namespace ([''] (empty): none)",
+        allowed="[''] or a list of node names", check=_node_names)
     max_steps: int = param(0, "stop after this many steps (0: never)", lo=0, hi=2**31)
     start_step: int = param(0, "first step index (to resume or reproduce a step alone)", lo=0, hi=2**31)
     qos_depth: int = param(10, "history depth of the published topics", lo=1, hi=1000)
