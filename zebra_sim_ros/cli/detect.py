@@ -47,7 +47,7 @@ def register(sub: Any) -> None:
                    "each frame's annotations/); detected and published as other_animal, never scored as zebras. "
                    "With --init from a zebra-only checkpoint the new class starts fresh")
     t.add_argument("--p2", action="store_true",
-                   help="a fourth output level at stride 4 for the smallest zebras (about 1.6x the serving time at "
+                   help="a fourth output level at stride 4 for the smallest zebras (1.6-2.1x the serving time at "
                    "the same size). With --init from a three-level checkpoint the other levels keep its weights and "
                    "the new one starts fresh")
     add_augment_options(t)
