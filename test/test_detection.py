@@ -18,7 +18,7 @@ from pycocotools.cocoeval import COCOeval
 from zebra_sim_ros.detection.boxes import box_iou, decode_ltrb, encode_ltrb, nms, postprocess
 from zebra_sim_ros.detection.checkpoint import load_model, read_checkpoint, save_checkpoint
 from zebra_sim_ros.detection.metrics import ap_by_size, evaluate_detections, precision_recall_at
-from zebra_sim_ros.detection.model import ModelConfig, build_model, count_parameters
+from zebra_sim_ros.detection.model import ModelConfig, build_model, count_parameters, p2_tensors
 from zebra_sim_ros.errors import AssetError, ParameterError
 
 
@@ -289,7 +289,7 @@ def test_a_p2_run_blends_with_its_three_level_base_on_the_shared_tensors() -> No
     out = blend_weights(t, b, 0.25)
     assert set(out) == set(t)
     level = [k for k in t if k not in b]
-    assert level and all(k.startswith(tuned.P2_MODULES) for k in level)
+    assert level and level == p2_tensors(t)
     for k, v in out.items():
         if k in level or not v.dtype.is_floating_point:
             assert torch.equal(v, t[k])
@@ -1007,8 +1007,8 @@ def test_p2_adds_a_stride_4_level_and_starts_from_a_three_level_checkpoint() -> 
     assert 0 < count_parameters(p2) - count_parameters(base) < 0.05 * count_parameters(base)
     assert load_init_weights(p2, base.state_dict()) == []
     state = p2.state_dict()
-    new = [k for k in state if k.startswith(tuple(f"{m}." for m in p2.P2_MODULES))]
-    assert new and len(state) == len(base.state_dict()) + len(new)
+    new = p2_tensors(state)
+    assert new and len(state) == len(base.state_dict()) + len(new) and not p2_tensors(base.state_dict())
     for k in new:
         torch.testing.assert_close(state[k], fresh[k])
     base.eval(), p2.eval()

@@ -21,7 +21,7 @@ from torch import Tensor
 
 from zebra_sim_ros.detection.checkpoint import SHIPPED, load_model, read_checkpoint, save_checkpoint
 from zebra_sim_ros.detection.data import generate_settings
-from zebra_sim_ros.detection.model import Detector, build_model
+from zebra_sim_ros.detection.model import build_model, p2_tensors
 from zebra_sim_ros.errors import DependencyError, ParameterError
 
 
@@ -50,9 +50,7 @@ def blend_weights(weights: dict[str, Tensor], base: dict[str, Tensor], alpha: fl
     a P2 run started from a three-level checkpoint blends with it on every other tensor."""
     if not 0.0 <= alpha <= 1.0:
         raise ParameterError("--blend", alpha, "0..1 (the fine-tuned weights' share)")
-    p2 = tuple(f"{m}." for m in Detector.P2_MODULES)
-    own = {k for k in weights if k.startswith(p2)} if not any(k.startswith(p2) for k in base) else set()
-    shared = set(weights) - own
+    shared = set(weights) - (set() if p2_tensors(base) else set(p2_tensors(weights)))
     if shared != set(base) or any(weights[k].shape != base[k].shape for k in shared):
         bad = sorted(shared ^ set(base)) or sorted(k for k in shared if weights[k].shape != base[k].shape)
         raise ParameterError("--blend-base", f"{len(bad)} tensor(s) of another name or shape, first {bad[0]}",

@@ -291,6 +291,13 @@ def make_anchors(feats: list[Tensor], strides: tuple[int, ...]) -> tuple[Tensor,
     return torch.cat(points), torch.cat(out_strides)
 
 
+def p2_tensors(state: dict[str, Any]) -> list[str]:
+    """The names of a state dict's tensors that belong to the stride-4 level (``ModelConfig.p2``); none for a
+    three-level model's."""
+    prefixes = tuple(f"{m}." for m in Detector.P2_MODULES)
+    return [k for k in state if k.startswith(prefixes)]
+
+
 def build_model(cfg: ModelConfig | dict[str, Any]) -> Detector:
     """A detector from a config (or its dict, as stored in checkpoints)."""
     return Detector(cfg if isinstance(cfg, ModelConfig) else ModelConfig.from_dict(cfg))

@@ -31,7 +31,7 @@ from zebra_sim_ros.detection.checkpoint import (
 from zebra_sim_ros.detection.data import Augment, YoloDataset, collate, generate_settings, resolve_splits
 from zebra_sim_ros.detection.evaluate import make_loader, predictions, score, write_plots
 from zebra_sim_ros.detection.loss import DetectionLoss
-from zebra_sim_ros.detection.model import OTHER_ANIMAL, Detector, ModelConfig, build_model, count_parameters
+from zebra_sim_ros.detection.model import OTHER_ANIMAL, Detector, ModelConfig, build_model, count_parameters, p2_tensors
 from zebra_sim_ros.errors import ParameterError
 
 AMP_MODES = ("auto", "fp16", "bf16", "off")
@@ -242,9 +242,8 @@ def load_init_weights(model: Detector, state: dict[str, Any]) -> list[str]:
     prior bias); a checkpoint without the stride-4 level into a model with one (``p2``) leaves that level's
     modules fresh; every other tensor must match. Returns the names of the tensors filled in part."""
     own = model.state_dict()
-    p2 = tuple(f"{m}." for m in Detector.P2_MODULES)
-    if model.cfg.p2 and not any(k.startswith(p2) for k in state):
-        state = {**state, **{k: v for k, v in own.items() if k.startswith(p2)}}
+    if model.cfg.p2 and not p2_tensors(state):
+        state = {**state, **{k: own[k] for k in p2_tensors(own)}}
     grown = []
     for k, v in state.items():
         if k in own and v.shape != own[k].shape and v.shape[1:] == own[k].shape[1:] and v.shape[0] < own[k].shape[0] \
@@ -444,8 +443,7 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
         crop = f" (crops of {cfg.crop})" if cfg.crop else ""
         print(f"[train] {count_parameters(model) / 1e6:.2f} M parameters ({cfg.model}{', P2' if cfg.p2 else ''}), "
               f"{len(ds)} train images, device {device}, imgsz {cfg.imgsz}{crop}, batch {cfg.batch}, "
-              f"epochs {cfg.epochs}, "
-              f"autocast {str(autocast).replace('torch.', '') if autocast else 'off'}", file=log)
+              f"epochs {cfg.epochs}, autocast {str(autocast).replace('torch.', '') if autocast else 'off'}", file=log)
     run_ = _Run(cfg, out, log, device, model, net, ema, opt, criterion, autocast, scaler, start.best,
                 _previous_rows(cfg, out / "results.csv"), generate_settings(cfg.data))
     t_start = time.perf_counter()

@@ -120,13 +120,14 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         ``wait_for_nodes`` (logs what it waits for)."""
         if not self.started:
             short = [p.topic_name for p in self.outputs if p.get_subscription_count() < self.cfg.wait_for_subscribers]
-            absent = sorted({n for p in self.outputs if self.wait_nodes
-                             for n in set(self.wait_nodes) - self._subscribers(p.topic_name)})
+            wanted = set(self.wait_nodes)
+            absent = sorted(set().union(*(wanted - self._subscribers(p.topic_name) for p in self.outputs))
+                            if wanted else ())
             if not short and not absent:
                 self.started = True
-                self.get_logger().info(f"every output has {self.cfg.wait_for_subscribers}+ subscribers"
-                                       f"{', ' + ', '.join(self.wait_nodes) + ' among them' if self.wait_nodes else ''}"
-                                       ": starting")
+                named = f", {', '.join(self.wait_nodes)} among them" if self.wait_nodes else ""
+                self.get_logger().info(f"every output has {self.cfg.wait_for_subscribers}+ subscribers{named}: "
+                                       "starting")
             elif time.monotonic() - self.waiting_since > 5.0:
                 self.waiting_since = time.monotonic()
                 self.get_logger().info(f"waiting for {self.cfg.wait_for_subscribers} subscribers on {short}"
