@@ -48,8 +48,10 @@ TRAINING_STREAMS = ({100, 1_000_103} | {stream_seed(s, w, k) for s in (200, 400)
 
 
 def _held_out_set(root: Path, frames: int, **kw: object) -> Path:
+    # two workers: the frames are the same as one worker's (each job has its own seeded streams), in about half
+    # the time on two cores (24 frames of six worlds: 103 s against 188 s, the same mAP to the last digit)
     cfg = GenerateConfig(out=str(root), frames=frames, seed=HELD_OUT_SEED, val_fraction=0.0, depth="none",
-                         **kw)  # type: ignore[arg-type]
+                         workers=2, **kw)  # type: ignore[arg-type]
     generate(cfg, progress=lambda *a: None)
     return root / "dataset.yaml"
 
