@@ -458,8 +458,10 @@ def test_validation_serves_each_image_as_detect_does(tmp_path: Path, capsys: pyt
     for extra, sizes in (([], [96, 256]), (["--imgsz", "128"], 128), (["--scale", "0.5"], [64, 160])):
         assert main(["val", "--weights", str(tmp_path / "m.pt"), "--data", str(tmp_path / "images"), "--device", "cpu",
                      "--json", "--plots", str(tmp_path / "plots"), *extra]) == 0
-        out = json.loads(capsys.readouterr().out.splitlines()[-1])
+        text = capsys.readouterr().out
+        out = json.loads(text.splitlines()[-1])
         assert out["imgsz"] == sizes, extra
+        assert out["ms_per_image"] > 0 and f"{out['ms_per_image']} ms per image on cpu" in text  # the serving cost
         assert set(out["ap_by_size"]) == {"<8", "8-16", "16-32", "32-96", ">=96", "small", "medium", "large"}
         assert all(cv2.imread(out["plots"][k]) is not None for k in ("pr_curve", "predictions"))
     for bad in ("9", "-0.5", "0.2"):

@@ -130,6 +130,7 @@ def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", i
     loader = make_loader(folder, lambda long_side: inference_size(model.cfg, long_side, imgsz, scale), batch, workers)
     t0 = time.perf_counter()
     per_image = predictions(model, loader, conf, iou, max_det, verifier=net)
+    served_s = time.perf_counter() - t0
     m = score(per_image, max_det)
     sizes = sorted({p.imgsz for p in per_image})
     by_size = ap_by_size([p.detections for p in per_image], [p.labels for p in per_image], max_det,
@@ -138,7 +139,8 @@ def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", i
                "ap_by_size": by_size,
                "per_image": per_image,
                "imgsz": sizes[0] if len(sizes) == 1 else sizes, "imgsz_rule": describe_size(model.cfg, imgsz, scale),
-               "device": str(dev), "seconds": round(time.perf_counter() - t0, 2), "epoch": ckpt.get("epoch")}
+               "device": str(dev), "seconds": round(time.perf_counter() - t0, 2),
+               "ms_per_image": round(1000 * served_s / max(1, len(per_image)), 1), "epoch": ckpt.get("epoch")}
 
 
 def write_plots(per_image: list[ImagePredictions], folder: Path, prefix: str = "", conf: float = 0.25,
