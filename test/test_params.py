@@ -397,3 +397,39 @@ def test_recorder_records_topics_added_while_it_runs(tmp_path: Path) -> None:
         assert [d for t, d in msgs if t == "/b"] == [f"b {k}" for k in range(4)]
     finally:
         peer.close()
+
+
+_SHUTDOWN_BEFORE_THE_WAIT = """
+import sys
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from zebra_sim_ros.nodes import recorder
+real, calls = SingleThreadedExecutor.spin_once, []
+def spin_once(self, timeout_sec=None):
+    calls.append(1)
+    if len(calls) == 5:  # as rclpy's SIGINT handler can: after the loop's rclpy.ok(), before the wait set is built
+        rclpy.shutdown()
+    real(self, timeout_sec=timeout_sec)
+SingleThreadedExecutor.spin_once = spin_once
+sys.exit(recorder.main(["recorder", "--ros-args", "-p", f"output:={sys.argv[1]}", "-p", "topics:=['/a']"]))
+"""
+
+
+@pytest.mark.integration
+def test_a_shutdown_between_the_check_and_the_wait_ends_the_node_cleanly(tmp_path: Path) -> None:
+    """The race a Ctrl-C can hit: rclpy's signal handler shuts the context down after the spin loop's
+    ``rclpy.ok()`` and before ``spin_once`` builds its wait set, which then raises. The node stops as on any
+    Ctrl-C: exit status 0 and a finalised bag (read back by rosbags), not a traceback."""
+    import subprocess
+    import sys
+
+    from ros_helpers import fresh_domain_id, ros_env
+    from rosbags.highlevel import AnyReader
+
+    bag = tmp_path / "rec.mcap"
+    proc = subprocess.run([sys.executable, "-c", _SHUTDOWN_BEFORE_THE_WAIT, str(bag)], env=ros_env(fresh_domain_id()),
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "Traceback" not in proc.stderr and "finalised in" in proc.stdout, proc.stdout + proc.stderr
+    with AnyReader([bag]) as reader:  # a complete MCAP file: summary and footer written
+        assert [c.topic for c in reader.connections] in ([], ["/a"])

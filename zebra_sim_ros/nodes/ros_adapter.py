@@ -18,7 +18,7 @@ from geometry_msgs.msg import Point
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -263,8 +263,18 @@ def run_node(name: str, factory: Callable[[], ZebraNode[Any]], argv: list[str] |
         except ZebraSimError as exc:
             rclpy.logging.get_logger(name).fatal(f"cannot start: {exc}")
             return 2
+        # An executor of our own, built while the context is valid: rclpy's global one is rebuilt after a shutdown.
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
         while rclpy.ok() and not node.done:
-            rclpy.spin_once(node, timeout_sec=0.1)
+            try:
+                executor.spin_once(timeout_sec=0.1)
+            except Exception:
+                if rclpy.ok():
+                    raise
+                # rclpy's SIGINT handler shut the context down after the loop's rclpy.ok() and before the wait set
+                # was built, which then fails (RCLError): a Ctrl-C like any other.
+                break
         return node.exit_code
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
