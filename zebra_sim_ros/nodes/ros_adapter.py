@@ -257,6 +257,7 @@ def run_node(name: str, factory: Callable[[], ZebraNode[Any]], argv: list[str] |
         return 0
     rclpy.init(args=args)
     node: ZebraNode[Any] | None = None
+    executor: SingleThreadedExecutor | None = None
     try:
         try:
             node = factory()
@@ -281,6 +282,8 @@ def run_node(name: str, factory: Callable[[], ZebraNode[Any]], argv: list[str] |
     finally:
         if node is not None:
             node.stop()
+            if executor is not None:  # emptied before the node goes: it holds the node's waitables
+                executor.shutdown()
             node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()
