@@ -1,6 +1,7 @@
 """Benchmark: where a generated set's mAP is lost, by how many pixels of each zebra are visible.
 
-    python benchmarks/bench_visibility.py SET [SET ...] [--weights shipped] [--floors 0 20 40 100] [--scale 0] [--json]
+    python benchmarks/bench_visibility.py SET [SET ...] [--weights shipped] [--floors 0 20 40 100] [--scale 0]
+        [--by lighting strategy camera] [--json]
 
 ``SET``: a ``zebra-sim generate`` folder (its ``annotations/`` hold each zebra's ``visible_pixels``); several are
 pooled into one evaluation. The weights run once over its images (served as ``zebra-sim val`` serves them: the
@@ -11,6 +12,8 @@ val``'s. The table gives each floor's labelled zebras and mAP50 / mAP50-95, and 
 pixels on its own. A last line counts the detections on animals of other species (IoU >= 0.3 with one's visible box,
 < 0.5 with every zebra, don't-care ones included) and gives the mAP50 with them left out: what confusing the other
 species costs.
+``--by``: the same detections scored again per group of frames, by what each frame's annotation records: its light
+(``lighting``: night, sun under 15 degrees, day), its camera ``strategy`` (far, closeby, ...) or its ``camera``.
 A floor here is a question asked of the data, not a change to the labels: the sets keep every zebra of 10
 visible pixels or more (the labeller's default ``min_visible_pixels``).
 """
@@ -56,6 +59,20 @@ def on_other_species(p: ImagePredictions, others: np.ndarray) -> np.ndarray:
     return np.asarray(on, bool)
 
 
+LOW_SUN_DEG = 15.0  # --by lighting: a sun this low or lower (and above the horizon) is "low sun"
+
+
+def condition(p: ImagePredictions, by: str) -> str:
+    """The group of ``p``'s frame under ``by`` (see the module's docstring), from its annotation."""
+    rec = json.loads(annotation_path(Path(p.file)).read_text())
+    if by == "lighting":
+        light = rec["lighting"]
+        return "night" if light["is_night"] else ("low sun" if light["sun_elevation_deg"] < LOW_SUN_DEG else "day")
+    if by == "strategy":
+        return str(rec["strategy"])
+    return str(rec["camera"]["name"])
+
+
 def split(per: list[ImagePredictions], keep: list[tuple[np.ndarray, np.ndarray, np.ndarray]], lo: int,
           hi: int | None) -> list[ImagePredictions]:
     """The same detections, with the zebras of ``lo`` <= visible pixels < ``hi`` labelled, the rest don't-care."""
@@ -74,6 +91,8 @@ def main() -> None:
     ap.add_argument("--floors", type=int, nargs="+", default=[0, 20, 40, 100])
     ap.add_argument("--scale", type=float, default=0.0, help="inference size as a multiple of the long side "
                                                              "(0: the checkpoint's rule)")
+    ap.add_argument("--by", nargs="+", default=[], choices=["lighting", "strategy", "camera"],
+                    help="also score the frames in groups: by light, camera strategy or camera")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     model, _ = load_model(None if args.weights == "shipped" else args.weights, torch.device("cpu"))
@@ -103,6 +122,18 @@ def main() -> None:
               "animals": int(sum(len(o) for _, _, o in keep)),
               "mAP50_without": round(score([p._replace(detections=p.detections[~x])
                                             for p, x in zip(per, on, strict=True)]).map50, 4)}
+    groups = []
+    for by in args.by:
+        members: dict[str, list[int]] = {}
+        for i, p in enumerate(per):
+            members.setdefault(condition(p, by), []).append(i)
+        for name, idx in sorted(members.items()):
+            sub, sub_keep = [per[i] for i in idx], [keep[i] for i in idx]
+            m = score(sub)
+            bands = [round(score(split(sub, sub_keep, lo, floors[k + 1] if k + 1 < len(floors) else None)).map50, 4)
+                     for k, lo in enumerate(floors)]
+            groups.append({"by": by, "group": name, "frames": len(idx), "zebras": m.instances,
+                           "mAP50": round(m.map50, 4), "mAP50-95": round(m.map50_95, 4), "band_AP50": bands})
     names = ", ".join(str(s) for s in args.set)
     print(f"{args.weights} on {names} ({len(per)} images, served at {sorted({p.imgsz for p in per})}), "
           f"{platform.processor() or platform.machine()}")
@@ -115,9 +146,16 @@ def main() -> None:
     print(f"Detections on the {others['animals']} animals of other species: {others['detections']} "
           f"({others['at_0.25']} at conf 0.25 or more); mAP50 without them {others['mAP50_without']:.3f} "
           f"(with them {rows[0]['mAP50'] if floors[0] == 0 else '-'})")
+    if groups:
+        heads = " | ".join(f"{r['band']} px AP50" for r in rows)
+        print(f"| by | group | frames | labelled zebras | mAP50 | mAP50-95 | {heads} |")
+        print("| --- " * (6 + len(rows)) + "|")
+        for g in groups:
+            print(f"| {g['by']} | {g['group']} | {g['frames']} | {g['zebras']} | {g['mAP50']:.3f} | "
+                  f"{g['mAP50-95']:.3f} | " + " | ".join(f"{b:.3f}" for b in g["band_AP50"]) + " |")
     if args.json:
         print(json.dumps({"weights": args.weights, "sets": [str(s) for s in args.set], "rows": rows,
-                          "other_species": others}))
+                          "other_species": others, "groups": groups}))
 
 
 if __name__ == "__main__":
