@@ -13,7 +13,8 @@ pixels on its own. A last line counts the detections on animals of other species
 < 0.5 with every zebra, don't-care ones included) and gives the mAP50 with them left out: what confusing the other
 species costs.
 ``--by``: the same detections scored again per group of frames, by what each frame's annotation records: its light
-(``lighting``: night, sun under 15 degrees, day), its camera ``strategy`` (far, closeby, ...) or its ``camera``.
+(``lighting``: day, low sun and night as ``bench_heldout.py`` groups them), its camera ``strategy`` (far,
+closeby, ...) or its ``camera``.
 A floor here is a question asked of the data, not a change to the labels: the sets keep every zebra of 10
 visible pixels or more (the labeller's default ``min_visible_pixels``).
 """
@@ -27,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from bench_heldout import light_of
 
 from zebra_sim_ros.detection.checkpoint import load_model
 from zebra_sim_ros.detection.data import annotation_path, resolve_split
@@ -59,15 +61,11 @@ def on_other_species(p: ImagePredictions, others: np.ndarray) -> np.ndarray:
     return np.asarray(on, bool)
 
 
-LOW_SUN_DEG = 15.0  # --by lighting: a sun this low or lower (and above the horizon) is "low sun"
-
-
 def condition(p: ImagePredictions, by: str) -> str:
     """The group of ``p``'s frame under ``by`` (see the module's docstring), from its annotation."""
     rec = json.loads(annotation_path(Path(p.file)).read_text())
     if by == "lighting":
-        light = rec["lighting"]
-        return "night" if light["is_night"] else ("low sun" if light["sun_elevation_deg"] < LOW_SUN_DEG else "day")
+        return light_of(rec["lighting"]["sun_elevation_deg"])
     if by == "strategy":
         return str(rec["strategy"])
     return str(rec["camera"]["name"])
