@@ -1,7 +1,7 @@
 """Benchmark: where a generated set's mAP is lost, by how many pixels of each zebra are visible.
 
     python benchmarks/bench_visibility.py SET [SET ...] [--weights shipped] [--floors 0 20 40 100] [--scale 0]
-        [--by lighting strategy camera] [--json]
+        [--amp off] [--by lighting strategy camera] [--json]
 
 ``SET``: a ``zebra-sim generate`` folder (its ``annotations/`` hold each zebra's ``visible_pixels``); several are
 pooled into one evaluation. The weights run once over its images (served as ``zebra-sim val`` serves them: the
@@ -89,11 +89,13 @@ def main() -> None:
     ap.add_argument("--floors", type=int, nargs="+", default=[0, 20, 40, 100])
     ap.add_argument("--scale", type=float, default=0.0, help="inference size as a multiple of the long side "
                                                              "(0: the checkpoint's rule)")
+    ap.add_argument("--amp", default="off", help="the detector's amp: its features in mixed precision (off, auto, "
+                                                 "bf16)")
     ap.add_argument("--by", nargs="+", default=[], choices=["lighting", "strategy", "camera"],
                     help="also score the frames in groups: by light, camera strategy or camera")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    model, _ = load_model(None if args.weights == "shipped" else args.weights, torch.device("cpu"))
+    model, _ = load_model(None if args.weights == "shipped" else args.weights, torch.device("cpu"), amp=args.amp)
     per: list[ImagePredictions] = []
     for root in args.set:
         folder = resolve_split(root, args.split)
@@ -133,7 +135,8 @@ def main() -> None:
             groups.append({"by": by, "group": name, "frames": len(idx), "zebras": m.instances,
                            "mAP50": round(m.map50, 4), "mAP50-95": round(m.map50_95, 4), "band_AP50": bands})
     names = ", ".join(str(s) for s in args.set)
-    print(f"{args.weights} on {names} ({len(per)} images, served at {sorted({p.imgsz for p in per})}), "
+    print(f"{args.weights} on {names} ({len(per)} images, served at {sorted({p.imgsz for p in per})}, features in "
+          f"{model.serve_dtype or 'float32'}), "
           f"{platform.processor() or platform.machine()}")
     print("| zebras scored | labelled zebras | mAP50 | mAP50-95 | band of visible px | its zebras | its AP50 |")
     print("| --- | --- | --- | --- | --- | --- | --- |")

@@ -40,6 +40,8 @@ def generate_launch_description():
         DeclareLaunchArgument("device", default_value="auto", description="detector device"),
         DeclareLaunchArgument("detect_scale", default_value="0.0", description="detector inference size over "
                               "the cameras' long side (0: the checkpoint's rule; as zebra-sim up --detect-scale)"),
+        DeclareLaunchArgument("detect_amp", default_value="off", description="detector features in mixed precision "
+                              "(off, auto, bf16, fp16; as zebra-sim up --detect-amp)"),
         DeclareLaunchArgument("verifier", default_value="", description="detector crop verifier ('' = off, "
                               "shipped, or a path; as zebra-sim up --verifier)"),
         DeclareLaunchArgument("bag", default_value="out/up/zebra_sim.mcap", description="bag to record"),
@@ -64,7 +66,7 @@ def generate_launch_description():
         Node(package=PACKAGE, executable="detector", name="detector", namespace="", output="screen",
              parameters=[file("detector.yaml"), {"ack_name": "detector", "weights": arg("weights"),
                                                  "device": arg("device"), "scale": arg("detect_scale", float),
-                                                 "verifier": arg("verifier"),
+                                                 "amp": arg("detect_amp"), "verifier": arg("verifier"),
                                                  "image_reliability": "reliable", "use_sim_time": True}]),
         Node(package=PACKAGE, executable="recorder", name="recorder", namespace="", output="screen",
              parameters=[file("recorder.yaml"), {"output": arg("bag"), "use_sim_time": True}]),

@@ -519,7 +519,7 @@ def test_train_settings_are_checked_before_training(setting: dict[str, object], 
 
 
 def test_autocast_dtype_follows_the_device(monkeypatch: pytest.MonkeyPatch) -> None:
-    from zebra_sim_ros.detection.train import amp_dtype
+    from zebra_sim_ros.detection.checkpoint import amp_dtype
 
     cpu, cuda = torch.device("cpu"), torch.device("cuda")
     assert amp_dtype("auto", cuda) == torch.float16 and amp_dtype("off", cuda) is None
@@ -530,6 +530,32 @@ def test_autocast_dtype_follows_the_device(monkeypatch: pytest.MonkeyPatch) -> N
         monkeypatch.setattr(torch.cpu, "_is_avx512_bf16_supported", lambda v=bf16: v)
         monkeypatch.setattr(torch.cpu, "_is_amx_tile_supported", lambda v=amx: v)
         assert amp_dtype("auto", cpu) == want  # emulated bfloat16 is slower than float32: not chosen
+
+
+def test_serving_in_bfloat16_decodes_boxes_in_float32(tmp_path: Path) -> None:
+    """``amp``: the features in bfloat16, the anchors, strides and boxes in float32. On a 2176 px wide input the
+    stride-8 cell centres reach 272.5, which bfloat16 rounds by up to a cell: boxes decoded under autocast are off
+    by pixels, ours by a hair. A bad mode is refused naming the option that set it."""
+    from zebra_sim_ros.detection.checkpoint import load_model
+
+    torch.manual_seed(0)
+    model = build_model(ModelConfig(size="n", imgsz=640)).eval().fuse()
+    x = torch.rand(1, 3, 64, 2176)
+    with torch.no_grad():
+        ref = model(x)
+        with torch.autocast("cpu", dtype=torch.bfloat16):  # the whole forward in bfloat16: what must not happen
+            naive = model(x)
+        model.serve_dtype = torch.bfloat16
+        served = model(x)
+    assert isinstance(served, torch.Tensor) and served.dtype == torch.float32
+    assert float((naive[..., :4].float() - ref[..., :4]).abs().max()) > 4.0  # the rounding this guards against
+    assert float((served[..., :4] - ref[..., :4]).abs().max()) < 0.5
+    torch.testing.assert_close(served[..., 4:], ref[..., 4:], atol=0.02, rtol=0.0)  # probabilities
+    save_checkpoint(tmp_path / "w.pt", build_model(ModelConfig(size="n", imgsz=128)))
+    assert load_model(tmp_path / "w.pt", amp="bf16")[0].serve_dtype == torch.bfloat16
+    assert load_model(tmp_path / "w.pt")[0].serve_dtype is None  # float32 unless asked
+    with pytest.raises(ParameterError, match="'amp'.*auto"):
+        load_model(tmp_path / "w.pt", amp="half", amp_name="amp")
 
 
 def test_a_dataset_yaml_may_list_several_training_sets(tmp_path: Path) -> None:
@@ -638,8 +664,8 @@ def test_training_targets_carry_the_dont_care_boxes(tmp_path: Path) -> None:
 def test_bf16_autocast_trains_where_the_cpu_has_bf16_instructions() -> None:
     """``--amp auto`` picks bf16 only on CPUs with AVX512-BF16 or AMX; there, one training step in bf16 must give
     the float32 loss within bf16's precision and finite gradients. Elsewhere the path is not taken: skipped."""
+    from zebra_sim_ros.detection.checkpoint import amp_dtype
     from zebra_sim_ros.detection.loss import DetectionLoss
-    from zebra_sim_ros.detection.train import amp_dtype
 
     if amp_dtype("auto", torch.device("cpu")) is None:
         pytest.skip("no AVX512-BF16 or AMX on this CPU: --amp auto trains in float32 here, bf16 is not used")

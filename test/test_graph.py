@@ -317,7 +317,8 @@ def test_fast_dds_accepts_our_profile(tmp_path: Path) -> None:
                                                 ({"width": 8, "height": 20}, "'--size'"),
                                                 ({"detect_scale": 0.1}, "'--detect-scale'"),
                                                 ({"detect_scale": -1.3}, "'--detect-scale'"),
-                                                ({"verifier": "/no/such/verifier.pt"}, "'--verifier'")])
+                                                ({"verifier": "/no/such/verifier.pt"}, "'--verifier'"),
+                                                ({"detect_amp": "half"}, "'amp'")])
 def test_up_rejects_a_bad_setting_before_starting_any_node(setting: dict[str, Any], named: str) -> None:
     from zebra_sim_ros.errors import ParameterError
 
@@ -330,6 +331,7 @@ def test_up_passes_the_verifier_to_the_detector(tmp_path: Path) -> None:
         return next(s for s in graph_spec(cfg) if s.executable == "detector").overrides
 
     assert detector(UpConfig())["verifier"] == "" and detector(UpConfig(verifier="shipped"))["verifier"] == "shipped"
+    assert detector(UpConfig())["amp"] == "off" and detector(UpConfig(detect_amp="bf16"))["amp"] == "bf16"
     (tmp_path / "v.pt").write_bytes(b"")
     cfg = UpConfig(verifier=str(tmp_path / "v.pt"))
     cfg.check()

@@ -119,6 +119,8 @@ MIRRORED = [
     ("up", "--seed", "placer", "seed"),
     ("val", "--imgsz", "detector", "imgsz"),
     ("val", "--iou", "detector", "iou"),
+    ("val", "--amp", "detector", "amp"),
+    ("up", "--detect-amp", "detector", "amp"),
 ]
 
 

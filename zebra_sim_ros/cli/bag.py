@@ -79,7 +79,7 @@ def cmd_eval(args: argparse.Namespace) -> Summary:
         raise ParameterError("--verifier", args.verifier, "given with --weights (recorded detections are scored as "
                              "they were recorded)")
     detector = (ImageDetector(args.weights, args.device, imgsz=args.imgsz or None, scale=args.scale,
-                              verifier=args.verifier) if args.weights else None)
+                              verifier=args.verifier, amp=args.amp) if args.weights else None)
     collected = collect(args.bag, args.detections, each=detector)  # one pass, with or without a detector
     if detector is not None:
         collected = detector.apply(collected)

@@ -41,11 +41,11 @@ def size_arg(text: str) -> tuple[int, int]:
 
 
 def detector_options(p: argparse.ArgumentParser) -> None:
-    """``--device``, ``--imgsz``, ``--scale`` and ``--verifier``, mirroring the detector node's parameters (``val``,
-    ``predict``, ``bag eval``): the same names, ranges and defaults, so a figure from the command line is the node's
-    figure."""
+    """``--device``, ``--imgsz``, ``--scale``, ``--verifier`` and ``--amp``, mirroring the detector node's
+    parameters (``val``, ``predict``, ``bag eval``): the same names, ranges and defaults, so a figure from the
+    command line is the node's figure."""
     from zebra_sim_ros.detection.config import DetectorConfig
     from zebra_sim_ros.params import add_option, spec_of
 
-    for name in ("device", "imgsz", "scale", "verifier"):
+    for name in ("device", "imgsz", "scale", "verifier", "amp"):
         add_option(p, spec_of(DetectorConfig, name))

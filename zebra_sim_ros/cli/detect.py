@@ -209,10 +209,11 @@ def cmd_val(args: argparse.Namespace) -> Summary:
             raise ParameterError(name, value, "0..1")
 
     m, facts = evaluate(args.weights, args.data, args.split, args.imgsz, args.batch, args.device, args.conf, args.iou,
-                        scale=args.scale, max_det=args.max_det, verifier=args.verifier or None)
+                        scale=args.scale, max_det=args.max_det, verifier=args.verifier or None, amp=args.amp)
     per_image = facts.pop("per_image")
     print(f"inference size: {facts['imgsz']} ({facts['imgsz_rule']}); {facts['ms_per_image']} ms per image on "
-          f"{facts['device']} (reading, letterbox, network, NMS{', verifier' if facts['verifier'] else ''})")
+          f"{facts['device']}, features in {facts['amp']} (reading, letterbox, network, NMS"
+          f"{', verifier' if facts['verifier'] else ''})")
     d = m.to_dict()
     print(f"{'images':>8}{'instances':>11}{'P':>8}{'R':>8}{'mAP50':>8}{'mAP50-95':>10}")
     print(f"{d['images']:>8}{d['instances']:>11}{d['precision']:>8.3f}{d['recall']:>8.3f}{d['mAP50']:>8.3f}"

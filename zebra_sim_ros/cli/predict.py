@@ -101,7 +101,7 @@ def cmd_predict(args: argparse.Namespace) -> Summary:
     skipped: list[str] = []
     frames, total, fps = _frames(args.source, tuple(args.topics), skipped)
     device = select_device(args.device)
-    model, _ = load_model(args.weights, device)
+    model, _ = load_model(args.weights, device, amp=args.amp)
     verifier = None
     if args.verifier:
         from zebra_sim_ros.detection.verify import load_verifier

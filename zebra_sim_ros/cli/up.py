@@ -44,6 +44,7 @@ def register(sub: Any) -> None:
     add_option(p, spec_of(DetectorConfig, "device"))
     add_option(p, spec_of(DetectorConfig, "scale"), "--detect-scale", note="the checkpoint's rule serves the shipped "
                "weights at 1.7 x the cameras' long side; 1.0: native resolution")
+    add_option(p, spec_of(DetectorConfig, "amp"), "--detect-amp")
     add_option(p, spec_of(DetectorConfig, "verifier"))
     p.add_argument("--out", default="out/up", help="folder for the bag, logs, summary.json and preview.jpg")
     p.add_argument("--config", default="", help="folder of the parameter files (default: the installed config/)")
@@ -133,7 +134,8 @@ def _up_config(args: argparse.Namespace) -> UpConfig:
 
     w, h = parse_size(args.size)
     cfg = UpConfig(frames=args.frames, world=args.world, seed=args.seed, out=args.out, width=w, height=h,
-                   weights=args.weights, device=args.device, detect_scale=args.scale, strategy=args.strategy,
+                   weights=args.weights, device=args.device, detect_scale=args.scale, detect_amp=args.amp,
+                   strategy=args.strategy,
                    config_dir=args.config, ready_timeout_s=args.ready_timeout, step_timeout_s=args.step_timeout,
                    record=not args.no_record, namespace=args.namespace, verifier=args.verifier)
     cfg.check()

@@ -21,6 +21,32 @@ VERSION = 1
 SHIPPED = Path(__file__).resolve().parent / "weights" / "zebra_yolo_n.pt"
 
 
+AMP_MODES = ("auto", "fp16", "bf16", "off")
+
+
+def amp_dtype(mode: str, device: torch.device, name: str = "--amp") -> torch.dtype | None:
+    """The autocast dtype of the forward pass, or None for float32.
+
+    auto: float16 on CUDA (with a gradient scaler); on a CPU with bfloat16 instructions (AVX512-BF16 or AMX),
+    bfloat16, which trained 2x faster than float32 on a 2-core EPYC with AVX512-BF16; elsewhere float32 (emulated
+    bfloat16 measured 8.5x slower: BENCHMARKS.md). The loss is always computed in float32, and a served model's
+    boxes too (:attr:`~zebra_sim_ros.detection.model.Detector.serve_dtype`). ``name``: the option or parameter
+    that set ``mode``, for the error.
+    """
+    if mode not in AMP_MODES:
+        raise ParameterError(name, mode, " or ".join(AMP_MODES))
+    if mode == "off":
+        return None
+    if mode == "auto":
+        if device.type == "cuda":
+            return torch.float16
+        fast_bf16 = torch.cpu._is_avx512_bf16_supported() or torch.cpu._is_amx_tile_supported()
+        return torch.bfloat16 if device.type == "cpu" and fast_bf16 else None
+    if mode == "fp16" and device.type != "cuda":
+        raise ParameterError(name, mode, "bf16 or off on a CPU (float16 autocast wants CUDA)")
+    return torch.float16 if mode == "fp16" else torch.bfloat16
+
+
 def save_checkpoint(path: str | Path, model: Detector, **extra: Any) -> None:
     """Write ``model`` (its state dict, as is) with its config and ``extra`` fields."""
     ckpt = {"format": FORMAT, "version": VERSION, "config": model.cfg.to_dict(), "model": model.state_dict(), **extra}
@@ -50,9 +76,11 @@ def read_checkpoint(path: str | Path, name: str = "weights", fmt: str = FORMAT, 
 
 
 def load_model(path: str | Path | None = None, device: str | torch.device = "cpu",
-               fuse: bool = True) -> tuple[Detector, dict[str, Any]]:
+               fuse: bool = True, amp: str = "off", amp_name: str = "--amp") -> tuple[Detector, dict[str, Any]]:
     """Rebuild the model of a checkpoint (default: the shipped weights) in eval mode, float32, on ``device``, in
-    the serving layout; batch norms are folded into the convolutions unless ``fuse`` is False."""
+    the serving layout; batch norms are folded into the convolutions unless ``fuse`` is False. ``amp`` (a mode of
+    :func:`amp_dtype`; ``amp_name`` names its option in errors) sets the dtype its features are served in."""
+    serve_dtype = amp_dtype(amp, torch.device(device), amp_name)
     ckpt = read_checkpoint(path or SHIPPED)
     model = build_model(ckpt["config"])
     try:
@@ -65,6 +93,7 @@ def load_model(path: str | Path | None = None, device: str | torch.device = "cpu
     model = model.to(device).eval()
     if fuse:
         model = model.fuse()
+    model.serve_dtype = serve_dtype
     return serving_layout(model), ckpt
 
 

@@ -70,6 +70,11 @@ class DetectorConfig(StageConfig):
         "verifier, trained on generated crops only; or a verifier checkpoint)", allowed="empty, shipped or a path")
     device: str = param("auto", "auto, cpu, cuda or cuda:N", allowed="auto, cpu, cuda, cuda:N",
                         check=lambda v: v in ("auto", "cpu") or v.startswith("cuda"))
+    amp: str = param(
+        "off", "the network's features in mixed precision, the boxes in float32 (off: float32; bf16: bfloat16; "
+        "fp16: float16, CUDA only; auto: float16 on CUDA, bfloat16 on a CPU with AVX512-BF16 or AMX, else "
+        "float32). On such a CPU bf16 served the shipped nano 1.5x faster at the same mAP50 (BENCHMARKS.md)",
+        allowed="off, auto, bf16 or fp16", check=lambda v: v in ("off", "auto", "bf16", "fp16"))
     max_det: int = param(MAX_DETECTIONS, "most detections per image", lo=1, hi=10000)
     batch_window_s: float = param(0.05, "frames arriving within this of each other are detected as one batch",
                                   "s", lo=0.001, hi=10.0)

@@ -113,14 +113,15 @@ def score(per_image: list[ImagePredictions], max_det: int = MAX_DETECTIONS) -> D
 
 def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", imgsz: int | None = None,
              batch: int = 8, device: str = "auto", conf: float = 0.001, iou: float = 0.7,
-             workers: int = 0, scale: float = 0.0, max_det: int = MAX_DETECTIONS, verifier: str | None = None
-             ) -> tuple[DetectionMetrics, dict[str, Any]]:
+             workers: int = 0, scale: float = 0.0, max_det: int = MAX_DETECTIONS, verifier: str | None = None,
+             amp: str = "off") -> tuple[DetectionMetrics, dict[str, Any]]:
     """Open the checkpoint and the set, validate; returns the metrics and facts about the run. Each image is
     served at :func:`~zebra_sim_ros.detection.predict.inference_size` under ``imgsz`` and ``scale`` (default:
     the checkpoint's rule), as the detector node and ``bag eval`` serve it; ``verifier`` ('shipped' or a path)
-    rescores the zebra boxes as the node's ``verifier`` parameter does."""
+    rescores the zebra boxes as the node's ``verifier`` parameter does; ``amp`` serves the features in mixed
+    precision as its ``amp`` parameter does."""
     dev = select_device(device)
-    model, ckpt = load_model(weights, dev)
+    model, ckpt = load_model(weights, dev, amp=amp)
     net = None
     if verifier:
         from zebra_sim_ros.detection.verify import load_verifier
@@ -139,7 +140,8 @@ def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", i
                "ap_by_size": by_size,
                "per_image": per_image,
                "imgsz": sizes[0] if len(sizes) == 1 else sizes, "imgsz_rule": describe_size(model.cfg, imgsz, scale),
-               "device": str(dev), "seconds": round(time.perf_counter() - t0, 2),
+               "device": str(dev), "amp": str(model.serve_dtype or "float32").replace("torch.", ""),
+               "seconds": round(time.perf_counter() - t0, 2),
                "ms_per_image": round(1000 * served_s / max(1, len(per_image)), 1), "epoch": ckpt.get("epoch")}
 
 

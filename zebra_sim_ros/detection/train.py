@@ -22,6 +22,8 @@ from torch import nn
 from torch.utils.data import DataLoader, DistributedSampler
 
 from zebra_sim_ros.detection.checkpoint import (
+    AMP_MODES,
+    amp_dtype,
     check_imgsz,
     read_checkpoint,
     save_checkpoint,
@@ -33,27 +35,6 @@ from zebra_sim_ros.detection.evaluate import make_loader, predictions, score, wr
 from zebra_sim_ros.detection.loss import DetectionLoss
 from zebra_sim_ros.detection.model import OTHER_ANIMAL, Detector, ModelConfig, build_model, count_parameters, p2_tensors
 from zebra_sim_ros.errors import ParameterError
-
-AMP_MODES = ("auto", "fp16", "bf16", "off")
-
-
-def amp_dtype(mode: str, device: torch.device) -> torch.dtype | None:
-    """The autocast dtype of the forward pass, or None for float32.
-
-    auto: float16 on CUDA (with a gradient scaler); on a CPU with bfloat16 instructions (AVX512-BF16 or AMX),
-    bfloat16, which trained 2x faster than float32 on a 2-core EPYC with AVX512-BF16; elsewhere float32 (emulated
-    bfloat16 measured 8.5x slower: BENCHMARKS.md). The loss is always computed in float32.
-    """
-    if mode == "off":
-        return None
-    if mode == "auto":
-        if device.type == "cuda":
-            return torch.float16
-        fast_bf16 = torch.cpu._is_avx512_bf16_supported() or torch.cpu._is_amx_tile_supported()
-        return torch.bfloat16 if device.type == "cpu" and fast_bf16 else None
-    if mode == "fp16" and device.type != "cuda":
-        raise ParameterError("--amp", mode, "bf16 or off on a CPU (float16 autocast wants CUDA)")
-    return torch.float16 if mode == "fp16" else torch.bfloat16
 
 
 @dataclass(frozen=True)

@@ -339,7 +339,7 @@ def train_verifier(cfg: TrainVerifierConfig, log: Callable[[str], None] = print)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, cfg.lr, total_steps=cfg.epochs * per_epoch, pct_start=0.1)
     pos = float(y[tr].mean())
     lossf = nn.BCEWithLogitsLoss(pos_weight=torch.tensor((1 - pos) / pos if 0 < pos < 1 else 1.0))
-    from zebra_sim_ros.detection.train import amp_dtype  # the trainer's rule: bfloat16 where the CPU has it
+    from zebra_sim_ros.detection.checkpoint import amp_dtype  # the trainer's rule: bfloat16 where the CPU has it
 
     dtype = amp_dtype("auto", torch.device("cpu"))
     m = _STORE_MARGIN // 2  # the centre window of each stored crop

@@ -79,6 +79,7 @@ class UpConfig:
     # frames at 1280x720 of the training worlds (seed 777): 1.0 (1280) mAP50 0.797 / mAP50-95 0.533, 1.3 (1664)
     # 0.833 / 0.578, 1.7 (2176) 0.843 / 0.581 at twice 1.3's cost.
     detect_scale: float = 0.0
+    detect_amp: str = "off"  # the detector's ``amp``: its features in mixed precision (bf16: 1.5x on AVX512-BF16)
     verifier: str = ""  # the detector's crop verifier ("" off, "shipped" or a path): for photographs, off by default
     namespace: str = ""  # the graph's namespace ("" = the root): every topic moves under it
 
@@ -176,7 +177,7 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
                           tuple(f"{ns}/{d}/{t}" for d in DRONES for t in LABELLER_TOPICS), remaps))
     # scale 0: the detector sizes the cameras' frames by the checkpoint's rule (far zebras are a few pixels tall).
     det = {"ack_name": "detector", "weights": str(Path(cfg.weights).resolve()) if cfg.weights else "",
-           "device": cfg.device, "scale": cfg.detect_scale, "image_reliability": "reliable",
+           "device": cfg.device, "scale": cfg.detect_scale, "amp": cfg.detect_amp, "image_reliability": "reliable",
            "verifier": cfg.verifier if cfg.verifier in ("", "shipped") else str(Path(cfg.verifier).resolve()), **sim}
     nodes.append(NodeSpec("detector", "detector", ns, "detector.yaml", det,
                           tuple(f"{ns}/{d}/{t}" for d in DRONES for t in DETECTOR_TOPICS), remaps))

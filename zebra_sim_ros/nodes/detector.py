@@ -76,7 +76,7 @@ class DetectorNode(ZebraNode[DetectorConfig]):
         c = self.cfg
         torch.set_num_threads(max(1, torch.get_num_threads()))
         self.device = select_device(c.device)
-        self.model, ckpt = load_model(c.weights or None, self.device)
+        self.model, ckpt = load_model(c.weights or None, self.device, amp=c.amp, amp_name="amp")
         self.verifier = load_verifier(c.verifier, self.device, "verifier")[0] if c.verifier else None
         q = qos(c.qos_reliability, c.qos_depth)
         image_q = qos(c.image_reliability, c.qos_depth)
@@ -97,7 +97,8 @@ class DetectorNode(ZebraNode[DetectorConfig]):
         self.get_logger().info(
             f"weights {c.weights or 'shipped'} ({self.model.cfg.size}, epoch {ckpt.get('epoch')}), device "
             f"{self.device}, inference size {describe_size(self.model.cfg, c.imgsz, c.scale)}, conf {c.conf}, "
-            f"iou {c.iou}, verifier {c.verifier or 'off'}; topics {list(c.image_topics)} -> {self.det_type}; "
+            f"iou {c.iou}, verifier {c.verifier or 'off'}, features in {self.model.serve_dtype or 'float32'}; "
+            f"topics {list(c.image_topics)} -> {self.det_type}; "
             f"QoS images: {describe_qos(image_q)}, outputs: {describe_qos(q)}")
 
     def on_config(self, cfg: DetectorConfig) -> None:

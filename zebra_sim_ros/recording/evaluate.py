@@ -87,11 +87,11 @@ class ImageDetector:
     TOPIC = re.compile(r"^(?:/[^/]+)*/(?P<drone>[^/]+)/image_raw$")
 
     def __init__(self, weights: str | Path | None, device: str = "auto", batch: int = 8, conf: float = 0.001,
-                 imgsz: int | None = None, scale: float = 0.0, verifier: str = "") -> None:
+                 imgsz: int | None = None, scale: float = 0.0, verifier: str = "", amp: str = "off") -> None:
         from zebra_sim_ros.detection.checkpoint import load_model, select_device
         from zebra_sim_ros.detection.verify import load_verifier
 
-        self.model, _ = load_model(weights, select_device(device))
+        self.model, _ = load_model(weights, select_device(device), amp=amp)
         self.verifier = load_verifier(verifier, select_device(device), "--verifier")[0] if verifier else None
         # as detect() takes them: imgsz None and scale 0 = the checkpoint's rule, imgsz -1 = native
         self.batch, self.conf, self.imgsz, self.scale = batch, conf, imgsz, scale
