@@ -12,16 +12,13 @@ from typing import Any
 
 import torch
 
-from zebra_sim_ros.detection.config import SCALE_RANGE, imgsz_ok
+from zebra_sim_ros.detection.config import AMP_MODES, SCALE_RANGE, imgsz_ok
 from zebra_sim_ros.detection.model import Detector, ModelConfig, build_model
 from zebra_sim_ros.errors import AssetError, ParameterError
 
 FORMAT = "zebra_sim_ros/detector"
 VERSION = 1
 SHIPPED = Path(__file__).resolve().parent / "weights" / "zebra_yolo_n.pt"
-
-
-AMP_MODES = ("auto", "fp16", "bf16", "off")
 
 
 def amp_dtype(mode: str, device: torch.device, name: str = "--amp") -> torch.dtype | None:

@@ -18,6 +18,7 @@ from zebra_sim_ros.params import (
 NATIVE = -1  # as imgsz: each batch at its frames' own resolution (predict.native_size)
 STRIDE = 32  # the largest stride of the model: input sides must be multiples of it
 MIN_IMGSZ, MAX_IMGSZ = 64, 4096
+AMP_MODES = ("auto", "fp16", "bf16", "off")  # the detector's ``amp`` and train's ``--amp`` (checkpoint.amp_dtype)
 SCALE_RANGE = (0.25, 4.0)  # of the detector's ``scale`` (and up's --detect-scale)
 
 
@@ -73,8 +74,8 @@ class DetectorConfig(StageConfig):
     amp: str = param(
         "off", "the network's features in mixed precision, the boxes in float32 (off: float32; bf16: bfloat16; "
         "fp16: float16, CUDA only; auto: float16 on CUDA, bfloat16 on a CPU with AVX512-BF16 or AMX, else "
-        "float32). On such a CPU bf16 served the shipped nano 1.5x faster at the same mAP50 (BENCHMARKS.md)",
-        allowed="off, auto, bf16 or fp16", check=lambda v: v in ("off", "auto", "bf16", "fp16"))
+        "float32). On such a CPU bf16 served the shipped nano 1.7x faster at the same mAP50 (BENCHMARKS.md)",
+        allowed=", ".join(AMP_MODES), check=lambda v: v in AMP_MODES)
     max_det: int = param(MAX_DETECTIONS, "most detections per image", lo=1, hi=10000)
     batch_window_s: float = param(0.05, "frames arriving within this of each other are detected as one batch",
                                   "s", lo=0.001, hi=10.0)

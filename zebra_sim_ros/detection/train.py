@@ -22,7 +22,6 @@ from torch import nn
 from torch.utils.data import DataLoader, DistributedSampler
 
 from zebra_sim_ros.detection.checkpoint import (
-    AMP_MODES,
     amp_dtype,
     check_imgsz,
     read_checkpoint,
@@ -30,6 +29,7 @@ from zebra_sim_ros.detection.checkpoint import (
     select_device,
     serving_layout,
 )
+from zebra_sim_ros.detection.config import AMP_MODES
 from zebra_sim_ros.detection.data import Augment, YoloDataset, collate, generate_settings, resolve_splits
 from zebra_sim_ros.detection.evaluate import make_loader, predictions, score, write_plots
 from zebra_sim_ros.detection.loss import DetectionLoss
