@@ -136,7 +136,7 @@ def main() -> None:
                            "mAP50": round(m.map50, 4), "mAP50-95": round(m.map50_95, 4), "band_AP50": bands})
     names = ", ".join(str(s) for s in args.set)
     print(f"{args.weights} on {names} ({len(per)} images, served at {sorted({p.imgsz for p in per})}, features in "
-          f"{model.serve_dtype or 'float32'}), "
+          f"{model.serve_precision}), "
           f"{platform.processor() or platform.machine()}")
     print("| zebras scored | labelled zebras | mAP50 | mAP50-95 | band of visible px | its zebras | its AP50 |")
     print("| --- | --- | --- | --- | --- | --- | --- |")

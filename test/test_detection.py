@@ -552,8 +552,8 @@ def test_serving_in_bfloat16_decodes_boxes_in_float32(tmp_path: Path) -> None:
     assert float((served[..., :4] - ref[..., :4]).abs().max()) < 0.5
     torch.testing.assert_close(served[..., 4:], ref[..., 4:], atol=0.02, rtol=0.0)  # probabilities
     save_checkpoint(tmp_path / "w.pt", build_model(ModelConfig(size="n", imgsz=128)))
-    assert load_model(tmp_path / "w.pt", amp="bf16")[0].serve_dtype == torch.bfloat16
-    assert load_model(tmp_path / "w.pt")[0].serve_dtype is None  # float32 unless asked
+    assert load_model(tmp_path / "w.pt", amp="bf16")[0].serve_precision == "bfloat16"
+    assert load_model(tmp_path / "w.pt")[0].serve_precision == "float32"  # unless asked
     with pytest.raises(ParameterError, match="'amp'.*auto"):
         load_model(tmp_path / "w.pt", amp="half", amp_name="amp")
 

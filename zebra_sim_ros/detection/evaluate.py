@@ -140,7 +140,7 @@ def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", i
                "ap_by_size": by_size,
                "per_image": per_image,
                "imgsz": sizes[0] if len(sizes) == 1 else sizes, "imgsz_rule": describe_size(model.cfg, imgsz, scale),
-               "device": str(dev), "amp": str(model.serve_dtype or "float32").replace("torch.", ""),
+               "device": str(dev), "amp": model.serve_precision,
                "seconds": round(time.perf_counter() - t0, 2),
                "ms_per_image": round(1000 * served_s / max(1, len(per_image)), 1), "epoch": ckpt.get("epoch")}
 

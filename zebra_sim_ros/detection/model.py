@@ -265,6 +265,11 @@ class Detector(nn.Module):
         return [torch.cat([b(f), c(f)], 1) for f, b, c in zip(levels, self.box_heads(), self.cls_heads(),
                                                                strict=True)]
 
+    @property
+    def serve_precision(self) -> str:
+        """The dtype its features are served in, as logs name it: float32, bfloat16 or float16."""
+        return str(self.serve_dtype or torch.float32).removeprefix("torch.")
+
     def forward(self, x: Tensor) -> Tensor | list[Tensor]:
         if self.training or self.serve_dtype is None:
             feats = self.features(x)

@@ -79,7 +79,7 @@ class UpConfig:
     # frames at 1280x720 of the training worlds (seed 777): 1.0 (1280) mAP50 0.797 / mAP50-95 0.533, 1.3 (1664)
     # 0.833 / 0.578, 1.7 (2176) 0.843 / 0.581 at twice 1.3's cost.
     detect_scale: float = 0.0
-    detect_amp: str = "off"  # the detector's ``amp``: its features in mixed precision (bf16: 1.5x on AVX512-BF16)
+    detect_amp: str = "off"  # the detector's ``amp``: its features in mixed precision (bf16: 1.7x on AVX512-BF16)
     verifier: str = ""  # the detector's crop verifier ("" off, "shipped" or a path): for photographs, off by default
     namespace: str = ""  # the graph's namespace ("" = the root): every topic moves under it
 

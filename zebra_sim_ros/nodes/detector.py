@@ -97,8 +97,7 @@ class DetectorNode(ZebraNode[DetectorConfig]):
         self.get_logger().info(
             f"weights {c.weights or 'shipped'} ({self.model.cfg.size}, epoch {ckpt.get('epoch')}), device "
             f"{self.device}, inference size {describe_size(self.model.cfg, c.imgsz, c.scale)}, conf {c.conf}, "
-            f"iou {c.iou}, verifier {c.verifier or 'off'}, features in "
-            f"{str(self.model.serve_dtype or 'float32').replace('torch.', '')}; "
+            f"iou {c.iou}, verifier {c.verifier or 'off'}, features in {self.model.serve_precision}; "
             f"topics {list(c.image_topics)} -> {self.det_type}; "
             f"QoS images: {describe_qos(image_q)}, outputs: {describe_qos(q)}")
 
