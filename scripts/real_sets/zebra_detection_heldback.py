@@ -1,0 +1,79 @@
+"""Rebuild the HELD-BACK real set ``real_heldback/zebra_detection/`` (measuring only, and rarely).
+
+Source: github:Insohamdas/Zebra_detection, commit 435de4fad6eb16a260d19f1038d63df5d269c067 (2025), folder
+``datasets/{train,valid,test}``: the Roboflow Universe export "Zebra v1" (sushanth-raj/zebra-3cn5k, 2024-10-05;
+one class, 0 = zebra; every image fitted within 640x640, no augmentation). License: CC BY 4.0, as its
+``Zebra.v1i.yolov8/README.dataset.txt`` states; credit: the Roboflow user sushanth-raj.
+Why held back: the issue keeps this repository out of everything that chooses weights or rules, to check that the
+figures generalise to images nobody tuned on. It lives outside ``real/`` so that ``bench_real.py`` never scores it
+unless named with ``--sets``; score it seldom and say so when you do. It holds zebras only: no photo of another
+species, so it measures finding zebras, not false detections on other animals (``other_species/`` is empty).
+Every image of the three splits is written, files byte for byte.
+
+Layout written: ``images/<split>_<name>.jpg`` (the source name with every character but letters and digits turned
+into ``_``), ``labels/*.txt`` (class 0 = zebra), ``other_species/`` (empty), ``data.yaml``, ``SOURCE.txt``.
+
+    python scripts/real_sets/zebra_detection_heldback.py GIT_DIR [--out real_heldback/zebra_detection]
+
+``GIT_DIR``: a clone or bare mirror of the repository holding that commit.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+COMMIT = "435de4fad6eb16a260d19f1038d63df5d269c067"
+ROOT = "datasets"
+SPLITS = ("train", "valid", "test")
+ZEBRA = "0"
+
+
+def git(git_dir: Path, *args: str) -> bytes:
+    return subprocess.run(["git", "-C", str(git_dir), *args], check=True, capture_output=True).stdout
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
+    ap.add_argument("git_dir", type=Path)
+    ap.add_argument("--out", type=Path,
+                    default=Path(__file__).resolve().parents[2] / "real_heldback" / "zebra_detection")
+    args = ap.parse_args()
+    files = git(args.git_dir, "ls-tree", "-r", "--name-only", COMMIT, ROOT).decode().splitlines()
+    sources = sorted(f for f in files if len(f.split("/")) == 4 and f.split("/")[1] in SPLITS
+                     and f.split("/")[2] == "images" and f.lower().endswith((".jpg", ".jpeg", ".png")))
+    if not sources:
+        raise SystemExit(f"{args.git_dir}: no images under {ROOT}/{{{','.join(SPLITS)}}}/images at {COMMIT}")
+    if args.out.exists():
+        shutil.rmtree(args.out)
+    for sub in ("images", "labels", "other_species"):
+        (args.out / sub).mkdir(parents=True)
+    zebra_images = boxes = 0
+    for src in sources:
+        split = src.split("/")[1]
+        name = f"{split}_{re.sub(r'[^A-Za-z0-9]', '_', Path(src).stem)}"
+        label = src.replace("/images/", "/labels/").rsplit(".", 1)[0] + ".txt"
+        rows = [ln.split() for ln in git(args.git_dir, "show", f"{COMMIT}:{label}").decode().splitlines()
+                if ln.strip()]
+        bad = [r for r in rows if len(r) != 5 or r[0] != ZEBRA]
+        if bad:  # the export holds one class and boxes only: anything else means the source is not what we pinned
+            raise SystemExit(f"{label} at {COMMIT}: row {' '.join(bad[0])!r} is not a class-0 box (5 fields)")
+        (args.out / "images" / f"{name}{Path(src).suffix.lower()}").write_bytes(
+            git(args.git_dir, "show", f"{COMMIT}:{src}"))
+        (args.out / "labels" / f"{name}.txt").write_text("".join(" ".join(r) + "\n" for r in rows))
+        (args.out / "other_species" / f"{name}.txt").write_text("")
+        zebra_images += bool(rows)
+        boxes += len(rows)
+    (args.out / "data.yaml").write_text("# real photographs, HELD BACK: for measuring only, seldom\n"
+                                        "path: .\ntrain: images\nval: images\nnames:\n  0: zebra\n")
+    (args.out / "SOURCE.txt").write_text(f"github:Insohamdas/Zebra_detection@{COMMIT} {ROOT}/{{train,valid,test}} "
+                                         "(Roboflow sushanth-raj/zebra-3cn5k v1, CC BY 4.0); see "
+                                         "scripts/real_sets/zebra_detection_heldback.py\n")
+    print(f"wrote {args.out}: {len(sources)} images, {zebra_images} with zebras, {boxes} zebra boxes")
+
+
+if __name__ == "__main__":
+    main()
