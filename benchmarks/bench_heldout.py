@@ -35,6 +35,7 @@ from zebra_sim_ros.detection.evaluate import make_loader, predictions
 from zebra_sim_ros.detection.evaluate import score as score_images
 from zebra_sim_ros.detection.predict import inference_size
 from zebra_sim_ros.labels.config import LabelFilters
+from zebra_sim_ros.placement.sun import light_band
 from zebra_sim_ros.zebra.asset import appearance_digest
 
 TRAINING_WORLDS = ("savanna", "grassland", "meadow", "woodland", "moorland", "scrubland", "farmland")
@@ -50,10 +51,6 @@ def held_out_set(root: Path, worlds: tuple[str, ...], frames: int, seed: int, si
     return root / "dataset.yaml"
 
 
-def light_of(sun_elevation_deg: float) -> str:
-    return "day" if sun_elevation_deg > 15 else ("low sun" if sun_elevation_deg > 0 else "night")
-
-
 def score(weights: str, data: Path, imgsz: int) -> dict[str, Any]:
     model, _ = load_model(None if weights == "shipped" else weights, torch.device("cpu"))
     t0 = time.perf_counter()
@@ -65,7 +62,7 @@ def score(weights: str, data: Path, imgsz: int) -> dict[str, Any]:
         meta = json.loads((data.parent / "annotations" / f"{Path(p.file).stem}.json").read_text())
         groups["all"].append(i)
         groups[f"world {meta['world']['name']}"].append(i)
-        groups[f"light {light_of(meta['lighting']['sun_elevation_deg'])}"].append(i)
+        groups[f"light {light_band(meta['lighting']['sun_elevation_deg'])}"].append(i)
     out: dict[str, Any] = {"weights": weights, "imgsz": size, "seconds": round(time.perf_counter() - t0, 1)}
     for name, idx in sorted(groups.items(), key=lambda kv: (kv[0] != "all", kv[0])):
         subset = [per_image[i] for i in idx]

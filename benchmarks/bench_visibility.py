@@ -13,7 +13,7 @@ pixels on its own. A last line counts the detections on animals of other species
 < 0.5 with every zebra, don't-care ones included) and gives the mAP50 with them left out: what confusing the other
 species costs.
 ``--by``: the same detections scored again per group of frames, by what each frame's annotation records: its light
-(``lighting``: day, low sun and night as ``bench_heldout.py`` groups them), its camera ``strategy`` (far,
+(``lighting``: day, low sun and night, :func:`zebra_sim_ros.placement.sun.light_band`), its camera ``strategy`` (far,
 closeby, ...) or its ``camera``.
 A floor here is a question asked of the data, not a change to the labels: the sets keep every zebra of 10
 visible pixels or more (the labeller's default ``min_visible_pixels``).
@@ -28,13 +28,13 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from bench_heldout import light_of
 
 from zebra_sim_ros.detection.checkpoint import load_model
 from zebra_sim_ros.detection.data import annotation_path, resolve_split
 from zebra_sim_ros.detection.evaluate import ImagePredictions, make_loader, predictions, score
 from zebra_sim_ros.detection.metrics import iou_matrix
 from zebra_sim_ros.detection.predict import inference_size
+from zebra_sim_ros.placement.sun import light_band
 
 
 def zebras(p: ImagePredictions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -65,7 +65,7 @@ def condition(p: ImagePredictions, by: str) -> str:
     """The group of ``p``'s frame under ``by`` (see the module's docstring), from its annotation."""
     rec = json.loads(annotation_path(Path(p.file)).read_text())
     if by == "lighting":
-        return light_of(rec["lighting"]["sun_elevation_deg"])
+        return light_band(rec["lighting"]["sun_elevation_deg"])
     if by == "strategy":
         return str(rec["strategy"])
     return str(rec["camera"]["name"])

@@ -12,10 +12,22 @@ import numpy as np
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.messages import Lighting
 
-__all__ = ["DAY_WINDOWS", "Lighting", "daylight_h", "lighting_for", "sample_time_and_day"]
+__all__ = ["DAY_WINDOWS", "LIGHT_BANDS", "LOW_SUN_DEG", "Lighting", "daylight_h", "light_band", "lighting_for",
+           "sample_time_and_day"]
 
 
 DAY_WINDOWS = ("sun", "clock")
+LOW_SUN_DEG = 15.0  # the sun at or under this elevation, but above the horizon, is "low sun"
+LIGHT_BANDS = ("day", "low sun", "night")
+
+
+def light_band(sun_elevation_deg: float) -> str:
+    """The light a frame was rendered in, as the benchmarks group frames: "day" (sun above
+    :data:`LOW_SUN_DEG`), "low sun" (0 to that, the warm light of :func:`lighting_for`) or "night" (the sun at
+    or below the horizon: twilight and moonlight)."""
+    if not np.isfinite(sun_elevation_deg) or not -90.0 <= sun_elevation_deg <= 90.0:
+        raise ParameterError("sun_elevation_deg", sun_elevation_deg, "-90..90 degrees")
+    return "day" if sun_elevation_deg > LOW_SUN_DEG else ("low sun" if sun_elevation_deg > 0.0 else "night")
 
 
 def sample_time_and_day(rng: np.random.Generator, night_fraction: float = 0.1, day_window: str = "sun",
