@@ -12,6 +12,8 @@
 # last snapshot). AUG holds the augmentation options passed to train, e.g. stage 14's
 # AUG='--aug-zoom 0.5 --aug-background 0.3 --aug-zoom-crop 1 --aug-zoom-max 16'. P2=1 trains with a stride-4 level
 # (`train --p2`); from a three-level INIT (the shipped weights) the other levels start from it and the new one fresh.
+# MODEL=s trains the small model; it cannot start from the nano's weights: give it INIT=none (from scratch) or an
+# s checkpoint (a snapshot an earlier call sent back, to go on from it in the next call).
 set -u
 cd "$(dirname "$0")/../.."
 export PYTHONPATH=$PWD PYTHONUNBUFFERED=1 OPENCV_FOR_THREADS_NUM=1
@@ -20,13 +22,17 @@ BUDGET=${BUDGET:-470}; K=${K:-24}; E0=${E0:-12}; IMGSZ=${IMGSZ:-2176}; CROP=${CR
 WORKERS=${WORKERS:-15}; DEVICE=${DEVICE:-cuda}; OUTD=${OUT:-/tmp/gpu_out}; LR=${LR:-0.004}; SEED=${SEED:-16}
 INIT=${INIT:-zebra_sim_ros/detection/weights/zebra_yolo_n.pt}
 AUG=${AUG:---aug-zoom 0.5}  # the train options of augmentation, as words (stage 12's by default)
-P2=${P2:-0}
+P2=${P2:-0}; MODEL=${MODEL:-n}
+case $MODEL in n|s) ;; *) echo "train.sh: MODEL=$MODEL: want n or s" >&2; exit 2 ;; esac
 case $P2 in 0) ARCH= ;; 1) ARCH=--p2 ;; *) echo "train.sh: P2=$P2: want 0 or 1" >&2; exit 2 ;; esac
 for v in BUDGET K E0 IMGSZ CROP BATCH WORKERS SEED; do  # whole numbers, at least 1
   [[ ${!v} =~ ^[1-9][0-9]*$ ]] || { echo "train.sh: $v=${!v}: want a whole number >= 1" >&2; exit 2; }
 done
 ((BUDGET <= 590)) || { echo "train.sh: BUDGET=$BUDGET: want at most 590 s (one call runs 600 s at most)" >&2; exit 2; }
-[ -f "$INIT" ] || { echo "train.sh: INIT=$INIT: no such checkpoint" >&2; exit 2; }
+if [ "$INIT" = none ]; then START=; else
+  [ -f "$INIT" ] || { echo "train.sh: INIT=$INIT: no such checkpoint (none: from scratch)" >&2; exit 2; }
+  START="--init $INIT"
+fi
 [ -d gpu_data/train/images/train ] || { echo "train.sh: no gpu_data/train/images/train: run scripts/gpu/pack.py" >&2; exit 2; }
 RUN=gpu_data/run_out; rm -rf $RUN; mkdir -p $RUN/snap "$OUTD/snap"
 LOG=$OUTD/train.log
@@ -40,8 +46,8 @@ k = int(sys.argv[1])
 open('gpu_data/mix.yaml', 'w').write('path: .\ntrain: [' + ', '.join(['train/images/train'] * k)
                                      + ']\nval: val/images/val\nnc: 1\nnames:\n  0: zebra\n')
 EOF
-train() {  # $1 epochs, $2 seconds allowed, $3 --init WEIGHTS or --resume
-  timeout --signal=TERM --kill-after=10 "$2" python3 -m zebra_sim_ros.cli train --data gpu_data/mix.yaml --model n \
+train() {  # $1 epochs, $2 seconds allowed, $3 --init WEIGHTS, --resume or nothing (from scratch)
+  timeout --signal=TERM --kill-after=10 "$2" python3 -m zebra_sim_ros.cli train --data gpu_data/mix.yaml --model "$MODEL" \
     --imgsz "$IMGSZ" --crop "$CROP" --epochs "$1" --batch "$BATCH" --device "$DEVICE" --workers "$WORKERS" \
     --amp "$AMP" --lr0 "$LR" --warmup-epochs 0.5 --close-mosaic 1 --val-every 1000 --seed "$SEED" \
     $AUG $ARCH --out $RUN $3 >>"$LOG" 2>&1
@@ -72,11 +78,11 @@ wait_rows() {  # until the trainer has written epoch $1's results and last.pt, o
 stop_train() {  # TERM to this run's trainer only (the timeout under the background job passes it on), then wait
   pkill -TERM -P "$TR" timeout || kill -TERM "$TR"; wait "$TR"
 }
-train "$E0" $((BUDGET - $(elapsed))) "--init $INIT" & TR=$!
+train "$E0" $((BUDGET - $(elapsed))) "$START" & TR=$!
 if ! wait_rows 1; then  # the first start failed: once more in float32
   echo "[run] the first start failed at $(elapsed) s; again with --amp off" >>"$LOG"
   AMP=off; rm -rf $RUN/last.pt $RUN/results.csv
-  train "$E0" $((BUDGET - $(elapsed))) "--init $INIT" & TR=$!
+  train "$E0" $((BUDGET - $(elapsed))) "$START" & TR=$!
 fi
 if wait_rows 1; then
   T1=$(date +%s)
