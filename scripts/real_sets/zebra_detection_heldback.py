@@ -23,17 +23,16 @@ from __future__ import annotations
 import argparse
 import re
 import shutil
-import subprocess
+import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from african_wildlife_dev import git  # noqa: E402  (the one way these scripts read a pinned file)
 
 COMMIT = "435de4fad6eb16a260d19f1038d63df5d269c067"
 ROOT = "datasets"
 SPLITS = ("train", "valid", "test")
 ZEBRA = "0"
-
-
-def git(git_dir: Path, *args: str) -> bytes:
-    return subprocess.run(["git", "-C", str(git_dir), *args], check=True, capture_output=True).stdout
 
 
 def main() -> None:

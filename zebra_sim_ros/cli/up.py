@@ -135,9 +135,9 @@ def _up_config(args: argparse.Namespace) -> UpConfig:
     w, h = parse_size(args.size)
     cfg = UpConfig(frames=args.frames, world=args.world, seed=args.seed, out=args.out, width=w, height=h,
                    weights=args.weights, device=args.device, detect_scale=args.scale, detect_amp=args.amp,
-                   strategy=args.strategy,
-                   config_dir=args.config, ready_timeout_s=args.ready_timeout, step_timeout_s=args.step_timeout,
-                   record=not args.no_record, namespace=args.namespace, verifier=args.verifier)
+                   strategy=args.strategy, config_dir=args.config, ready_timeout_s=args.ready_timeout,
+                   step_timeout_s=args.step_timeout, record=not args.no_record, namespace=args.namespace,
+                   verifier=args.verifier)
     cfg.check()
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         raise ParameterError("--domain-id", args.domain_id, "0..232 (ROS_DOMAIN_ID)")

@@ -91,8 +91,9 @@ class ImageDetector:
         from zebra_sim_ros.detection.checkpoint import load_model, select_device
         from zebra_sim_ros.detection.verify import load_verifier
 
-        self.model, _ = load_model(weights, select_device(device), amp=amp)
-        self.verifier = load_verifier(verifier, select_device(device), "--verifier")[0] if verifier else None
+        dev = select_device(device)
+        self.model, _ = load_model(weights, dev, amp=amp)
+        self.verifier = load_verifier(verifier, dev, "--verifier")[0] if verifier else None
         # as detect() takes them: imgsz None and scale 0 = the checkpoint's rule, imgsz -1 = native
         self.batch, self.conf, self.imgsz, self.scale = batch, conf, imgsz, scale
         self.detections: dict[str, dict[int, np.ndarray]] = defaultdict(dict)
