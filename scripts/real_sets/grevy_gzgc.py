@@ -24,19 +24,19 @@ from __future__ import annotations
 import argparse
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from african_wildlife_dev import git  # noqa: E402  (the one way these scripts read a pinned file)
+
 COMMIT = "bd0c3f1884a9ed54a89c140f96eb405df7e50e54"
 ZEBRA_CLASSES = {0, 1}
 OTHER = {2: 0}  # giraffe
 LONG_SIDE = 1280
-
-
-def git(git_dir: Path, *args: str) -> bytes:
-    return subprocess.run(["git", "-C", str(git_dir), *args], check=True, capture_output=True).stdout
 
 
 def main() -> None:
