@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +23,7 @@ from zebra_sim_ros.detection.verify import (
     save_verifier,
     square_crop,
     verify,
+    zebra_probability,
 )
 from zebra_sim_ros.detection.verify_train import (
     KINDS,
@@ -95,6 +97,38 @@ def test_a_size_share_judges_boxes_from_a_side_that_grows_with_the_image() -> No
     assert VerifierConfig.from_dict(old).min_side_fraction == pytest.approx(0.0)
 
 
+def test_served_views_average_the_crops_at_each_context_and_their_mirror_images() -> None:
+    """contexts (1.2, 1.45) with mirror: p(zebra) is the mean of four single-crop verifiers' answers with the same
+    weights, the mirrored ones computed independently, on the mirrored image around the mirrored box."""
+    torch.manual_seed(5)
+    rng = np.random.default_rng(5)
+    img = rng.integers(0, 100, (200, 300, 3), dtype=np.uint8)
+    img[:, ::7] = 255  # vertical stripes, brightest in the left half: not the same mirrored
+    img[:, 150:] //= 2
+    boxes = np.array([[100, 50, 180, 90], [20, 100, 60, 180]], np.float32)
+    flipped = np.ascontiguousarray(img[:, ::-1])
+    fboxes = np.stack([300 - boxes[:, 2], boxes[:, 1], 300 - boxes[:, 0], boxes[:, 3]], 1)
+    base = Verifier(VerifierConfig(widths=(8, 16), contexts=(1.2, 1.45), mirror=True)).eval()
+    with torch.no_grad():
+        base.head.weight.mul_(200)  # a random head says about 0.5 to everything: spread its answers
+    assert base.cfg.views() == [(1.2, False), (1.2, True), (1.45, False), (1.45, True)]
+    singles = []
+    for ctx in (1.2, 1.45):
+        one = Verifier(VerifierConfig(widths=(8, 16), context=ctx)).eval()
+        one.load_state_dict(base.state_dict())
+        singles += [zebra_probability(one, img, boxes), zebra_probability(one, flipped, fboxes)]
+    assert np.abs(singles[0] - singles[1]).max() > 1e-4  # the mirror image is another view, not the same crop
+    np.testing.assert_allclose(zebra_probability(base, img, boxes), np.mean(singles, 0), rtol=1e-5, atol=1e-6)
+    assert VerifierConfig().views() == [(1.2, False)]  # the default: one crop at the training context
+    assert VerifierConfig(context=1.5, mirror=True).views() == [(1.5, False), (1.5, True)]
+    with pytest.raises(ParameterError, match="contexts.*0.5"):
+        VerifierConfig(contexts=(1.2, 0.5)).check()
+    with pytest.raises(ParameterError, match="contexts"):
+        VerifierConfig(contexts=(1.2, 1.2)).check()
+    old = {"crop": 96, "context": 1.2, "min_side": 24.0, "widths": [8, 16]}  # a checkpoint from before the views
+    assert VerifierConfig.from_dict(old).views() == [(1.2, False)]
+
+
 def test_detect_with_a_verifier_is_detect_rescored(tmp_path: Path) -> None:
     """The shipped detector on a rendered frame: with a verifier of p = 0.5 every zebra box of 24 px or more scores
     half, smaller ones the same, and those now under conf are gone."""
@@ -117,7 +151,8 @@ def test_detect_with_a_verifier_is_detect_rescored(tmp_path: Path) -> None:
 
 
 def test_checkpoints_round_trip_and_bad_files_name_themselves(tmp_path: Path) -> None:
-    net = constant(0.7, VerifierConfig(crop=48, context=1.5, min_side=30, widths=(8, 16, 24)))
+    net = constant(0.7, VerifierConfig(crop=48, context=1.5, min_side=30, widths=(8, 16, 24), contexts=(1.3, 1.6),
+                                       mirror=True))
     save_verifier(tmp_path / "v.pt", net, seed=3)
     back, ckpt = load_verifier(tmp_path / "v.pt")
     assert back.cfg == net.cfg and ckpt["seed"] == 3 and "model" not in ckpt
@@ -205,6 +240,13 @@ def test_train_verifier_writes_a_checkpoint_that_records_its_recipe(frames: Path
     img = np.full((100, 100, 3), 128, np.uint8)
     p = verify(net, img, np.array([[10, 10, 90, 90, 1.0]]))[0, 4]
     assert 0.0 < p < 1.0
+    # the serving views are recorded, never trained on: the same run with them gives the same weights
+    served = VerifierConfig(widths=(8, 16, 24), contexts=(1.2, 1.45), mirror=True)
+    train_verifier(replace(cfg, out=str(tmp_path / "w.pt"), model=served), log=lambda s: None)
+    net2, ckpt2 = load_verifier(tmp_path / "w.pt")
+    assert net2.cfg == served and ckpt2["train"]["model"]["mirror"]
+    for k, v in net.state_dict().items():
+        assert torch.equal(v, net2.state_dict()[k]), k
 
 
 def test_parts_and_clutter_are_added_crops_of_their_own_streams(frames: Path) -> None:
@@ -280,12 +322,14 @@ def test_train_verifier_on_the_command_line_records_its_options(frames: Path, tm
     assert main(["train-verifier", "--data", str(frames), "--epochs", "1", "--batch", "16", "--seed", "3",
                  "--min-side", "40", "--min-side-fraction", "0.05", "--min-visible-pixels", "100",
                  "--clutter-per-frame", "1", "--detector", "shipped", "--mine-conf", "0.05", "--split", "frame",
-                 "--out", str(out), "--json"]) == 0
+                 "--contexts", "1.2", "1.5", "--mirror", "--out", str(out), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out.splitlines()[-1])
     net, ckpt = load_verifier(out)
     assert net.cfg.min_side == 40 and ckpt["train"]["model"]["min_side"] == 40
     assert net.cfg.min_side_fraction == pytest.approx(0.05)
     assert ckpt["train"]["model"]["min_side_fraction"] == pytest.approx(0.05)
+    assert net.cfg.contexts == pytest.approx((1.2, 1.5)) and net.cfg.mirror  # serving views, recorded
+    assert ckpt["train"]["model"]["contexts"] == pytest.approx([1.2, 1.5]) and ckpt["train"]["model"]["mirror"]
     assert ckpt["train"]["min_visible_pixels"] == 100 and ckpt["train"]["clutter_per_frame"] == 1
     assert ckpt["train"]["split"] == "frame" and ckpt["train"]["batch"] == 16 and ckpt["train"]["seed"] == 3
     default = TrainVerifierConfig(data=(), out="").to_dict()  # flags left out take the config's own defaults
@@ -303,6 +347,8 @@ def test_train_verifier_on_the_command_line_records_its_options(frames: Path, tm
     assert "'--min-side' = 0.0" in capsys.readouterr().err
     assert main(["train-verifier", "--data", str(frames), "--min-side-fraction", "0.9", "--out", str(out)]) == 2
     assert "'--min-side-fraction' = 0.9" in capsys.readouterr().err
+    assert main(["train-verifier", "--data", str(frames), "--contexts", "1.2", "4", "--out", str(out)]) == 2
+    assert "'--contexts' = (1.2, 4.0)" in capsys.readouterr().err
 
 
 def test_the_command_line_takes_a_verifier_where_the_detector_runs(frames: Path, tmp_path: Path,

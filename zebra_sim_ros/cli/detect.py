@@ -97,6 +97,11 @@ def register(sub: Any) -> None:
     tv.add_argument("--mine-on-animals", action=argparse.BooleanOptionalAction, default=d["mine_on_animals"],
                     help="with --detector: its boxes on animals of other species are hard negatives too "
                     "(default); --no-mine-on-animals keeps only its boxes on background")
+    tv.add_argument("--contexts", type=float, nargs="+", default=list(VerifierConfig().contexts),
+                    help="when serving, p(zebra) is the mean over a crop at each of these contexts (times the box's "
+                    "long side; default: the training context, 1.2, alone); training is unchanged")
+    tv.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=d["mirror"],
+                    help="when serving, each crop's mirror image too (default: off); training is unchanged")
     tv.add_argument("--out", type=Path, required=True, help="verifier checkpoint to write (.pt)")
     add_json_flag(tv)
     tv.set_defaults(func=cmd_train_verifier)
@@ -179,11 +184,13 @@ def cmd_train_verifier(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.detection.verify import VerifierConfig
     from zebra_sim_ros.detection.verify_train import TrainVerifierConfig, train_verifier
 
-    model = VerifierConfig(min_side=args.min_side, min_side_fraction=args.min_side_fraction)
+    model = VerifierConfig(min_side=args.min_side, min_side_fraction=args.min_side_fraction,
+                           contexts=tuple(args.contexts), mirror=args.mirror)
     try:
         model.check()
     except ParameterError as exc:  # named by the flag that set it, not by the config field
-        flag = {"verifier min_side": "--min-side", "verifier min_side_fraction": "--min-side-fraction"}
+        flag = {"verifier min_side": "--min-side", "verifier min_side_fraction": "--min-side-fraction",
+                "verifier contexts": "--contexts"}
         raise ParameterError(flag.get(exc.name, exc.name), exc.value, exc.allowed) from None
     cfg = TrainVerifierConfig(data=tuple(str(d) for d in args.data), out=str(args.out), model=model,
                               **{f.name: getattr(args, f.name) for f in fields(TrainVerifierConfig)

@@ -41,15 +41,18 @@ class VerifierConfig:
     """What the verifier sees: ``crop`` px squares around boxes of at least ``min_side`` px, ``context`` times the
     box's long side.
 
-    ``min_side_fraction`` is for serving only: a box is judged when its long side is also at least that share of the
-    image's long side (0.0375: 24 px on a 640 px photo, 48 px on a 1280x720 frame). Training crops animals by
-    ``min_side`` alone."""
+    ``min_side_fraction``, ``contexts`` and ``mirror`` are for serving only. A box is judged when its long side is
+    also at least ``min_side_fraction`` of the image's long side (0.0375: 24 px on a 640 px photo, 48 px on a
+    1280x720 frame); training crops animals by ``min_side`` alone. Its p(zebra) is the mean over one crop at each of
+    ``contexts`` (empty: ``context`` alone) and, with ``mirror``, each crop's mirror image too."""
 
     crop: int = 96
     context: float = 1.2
     min_side: float = 24.0
     widths: tuple[int, ...] = (32, 64, 96, 128, 192)
     min_side_fraction: float = 0.0
+    contexts: tuple[float, ...] = ()
+    mirror: bool = False
 
     def check(self) -> None:
         if not 32 <= self.crop <= 256:
@@ -63,11 +66,19 @@ class VerifierConfig:
                                  "0..0.5 (of the image's long side; 0: min_side alone)")
         if not self.widths or any(w < 1 for w in self.widths):
             raise ParameterError("verifier widths", self.widths, "a non-empty list of channel counts >= 1")
+        if any(not 1.0 <= c <= 3.0 for c in self.contexts) or len(set(self.contexts)) != len(self.contexts):
+            raise ParameterError("verifier contexts", self.contexts,
+                                 "distinct values in 1.0..3.0 (times the box's long side; empty: context alone)")
+
+    def views(self) -> list[tuple[float, bool]]:
+        """The (context, mirrored) crops whose p(zebra) a served box averages."""
+        return [(c, m) for c in self.contexts or (self.context,) for m in ((False, True) if self.mirror else (False,))]
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> VerifierConfig:
         cfg = cls(int(d["crop"]), float(d["context"]), float(d["min_side"]), tuple(int(w) for w in d["widths"]),
-                  float(d.get("min_side_fraction", 0.0)))  # checkpoints before the fraction judged by min_side alone
+                  float(d.get("min_side_fraction", 0.0)),  # checkpoints before the fraction judged by min_side alone
+                  tuple(float(c) for c in d.get("contexts", ())), bool(d.get("mirror", False)))  # and by one crop
         cfg.check()
         return cfg
 
@@ -112,18 +123,21 @@ def square_crop(img: NDArray[np.uint8], box: Sequence[float] | NDArray[Any], con
 @torch.no_grad()
 def zebra_probability(net: Verifier, image: NDArray[np.uint8], boxes: NDArray[Any], batch: int = 64
                       ) -> NDArray[np.float32]:
-    """p(zebra) of each box [x0, y0, x1, y1, ...] of an RGB ``image``."""
+    """p(zebra) of each box [x0, y0, x1, y1, ...] of an RGB ``image``: the mean over the crops of
+    :meth:`VerifierConfig.views`."""
     if not len(boxes):
         return np.zeros(0, np.float32)
     c = net.cfg
-    crops = np.stack([square_crop(image, b, c.context, c.crop) for b in boxes])
+    views = c.views()
+    crops = np.stack([square_crop(image, b, ctx, c.crop)[:, ::-1] if flip else square_crop(image, b, ctx, c.crop)
+                      for ctx, flip in views for b in boxes])  # view-major: crops[v * len(boxes) + k]
     dev = next(net.parameters()).device
     x = torch.from_numpy(crops).permute(0, 3, 1, 2).float().div_(255)
     was = net.training
     net.eval()
     p = torch.cat([torch.sigmoid(net(x[i:i + batch].to(dev))).float().cpu() for i in range(0, len(x), batch)])
     net.train(was)
-    return p.numpy().astype(np.float32)
+    return p.view(len(views), len(boxes)).mean(0).numpy().astype(np.float32)
 
 
 def judged_side(cfg: VerifierConfig, image_shape: tuple[int, ...]) -> float:
@@ -171,7 +185,8 @@ def save_verifier(path: str | Path, net: Verifier, **extra: Any) -> None:
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     tmp = p.with_name(p.name + ".tmp")
-    torch.save({"format": FORMAT, "version": VERSION, "config": {**asdict(net.cfg), "widths": list(net.cfg.widths)},
+    torch.save({"format": FORMAT, "version": VERSION,
+                "config": {**asdict(net.cfg), "widths": list(net.cfg.widths), "contexts": list(net.cfg.contexts)},
                 "model": net.state_dict(), **extra}, tmp)
     tmp.replace(p)
 

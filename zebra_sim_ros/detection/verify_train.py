@@ -96,7 +96,8 @@ class TrainVerifierConfig:
 
     def to_dict(self) -> dict[str, Any]:
         return {**asdict(self), "data": list(self.data),
-                "model": {**asdict(self.model), "widths": list(self.model.widths)}}
+                "model": {**asdict(self.model), "widths": list(self.model.widths),
+                          "contexts": list(self.model.contexts)}}
 
 
 @dataclass(frozen=True)
