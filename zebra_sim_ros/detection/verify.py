@@ -74,6 +74,10 @@ class VerifierConfig:
         """The (context, mirrored) crops whose p(zebra) a served box averages."""
         return [(c, m) for c in self.contexts or (self.context,) for m in ((False, True) if self.mirror else (False,))]
 
+    def to_dict(self) -> dict[str, Any]:
+        """The config as a checkpoint stores it (lists, not tuples); :meth:`from_dict` reads it back."""
+        return {**asdict(self), "widths": list(self.widths), "contexts": list(self.contexts)}
+
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> VerifierConfig:
         cfg = cls(int(d["crop"]), float(d["context"]), float(d["min_side"]), tuple(int(w) for w in d["widths"]),
@@ -129,8 +133,9 @@ def zebra_probability(net: Verifier, image: NDArray[np.uint8], boxes: NDArray[An
         return np.zeros(0, np.float32)
     c = net.cfg
     views = c.views()
-    crops = np.stack([square_crop(image, b, ctx, c.crop)[:, ::-1] if flip else square_crop(image, b, ctx, c.crop)
-                      for ctx, flip in views for b in boxes])  # view-major: crops[v * len(boxes) + k]
+    cut = {ctx: np.stack([square_crop(image, b, ctx, c.crop) for b in boxes])  # each context cut once
+           for ctx in dict.fromkeys(ctx for ctx, _ in views)}
+    crops = np.concatenate([cut[ctx][:, :, ::-1] if flip else cut[ctx] for ctx, flip in views])  # view-major
     dev = next(net.parameters()).device
     x = torch.from_numpy(crops).permute(0, 3, 1, 2).float().div_(255)
     was = net.training
@@ -186,7 +191,7 @@ def save_verifier(path: str | Path, net: Verifier, **extra: Any) -> None:
     p.parent.mkdir(parents=True, exist_ok=True)
     tmp = p.with_name(p.name + ".tmp")
     torch.save({"format": FORMAT, "version": VERSION,
-                "config": {**asdict(net.cfg), "widths": list(net.cfg.widths), "contexts": list(net.cfg.contexts)},
+                "config": net.cfg.to_dict(),
                 "model": net.state_dict(), **extra}, tmp)
     tmp.replace(p)
 

@@ -95,9 +95,7 @@ class TrainVerifierConfig:
         self.model.check()
 
     def to_dict(self) -> dict[str, Any]:
-        return {**asdict(self), "data": list(self.data),
-                "model": {**asdict(self.model), "widths": list(self.model.widths),
-                          "contexts": list(self.model.contexts)}}
+        return {**asdict(self), "data": list(self.data), "model": self.model.to_dict()}
 
 
 @dataclass(frozen=True)
