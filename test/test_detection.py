@@ -426,6 +426,16 @@ def test_detect_sizes_each_batch_by_the_rule() -> None:
     assert not same(scaled, native)
 
 
+def test_served_ms_per_image_leaves_the_first_batch_out() -> None:
+    """val's serving cost is the median batch's ms per image, without the first batch's start-up where others ran."""
+    from zebra_sim_ros.detection.evaluate import steady_ms_per_image
+
+    assert steady_ms_per_image([(5.0, 2), (1.0, 2), (1.2, 2), (0.8, 2)]) == pytest.approx(500.0)  # not 1,000
+    assert steady_ms_per_image([(9.0, 8), (0.5, 1)]) == pytest.approx(500.0)  # a short last batch, per image
+    assert steady_ms_per_image([(3.0, 4)]) == pytest.approx(750.0)  # one batch: all there is
+    assert steady_ms_per_image([]) == 0.0
+
+
 def test_validation_serves_each_image_as_detect_does(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """val sizes each image by the detector's rule and letterboxes it as inference does (sides padded to a multiple
     of 32, not to a square), so val, the node and bag eval see the same pixels; frames of several sizes share a
@@ -447,7 +457,9 @@ def test_validation_serves_each_image_as_detect_does(tmp_path: Path, capsys: pyt
     assert [m.imgsz for m in metas] == [256, 96]  # 300 px x 128/150 -> 256; 100 px -> 85.3, up to 96
     assert [m.input for m in metas] == [(160, 256), (96, 96)]  # 154x256 and 96x67, sides up to multiples of 32
     assert tuple(imgs.shape) == (2, 3, 160, 256)  # one batch: the smaller image padded at the bottom and right
-    got = predictions(model, loader, conf=0.0)
+    batches: list[tuple[float, int]] = []
+    got = predictions(model, loader, conf=0.0, batch_seconds=batches)
+    assert len(batches) == 1 and batches[0][1] == 2 and batches[0][0] > 0  # one batch of both images, timed
     for p, name in zip(got, sorted(frames), strict=True):
         want = detect(model, [frames[name]], conf=0.0)[0]  # the same default max_det as predictions
         assert p.imgsz == inference_size(model.cfg, max(frames[name].shape[:2]))

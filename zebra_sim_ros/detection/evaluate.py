@@ -46,17 +46,17 @@ class ImagePredictions(NamedTuple):
 
 
 def predictions(model: Detector, loader: DataLoader[Any], conf: float = 0.001, iou: float = 0.7,
-                max_det: int = MAX_DETECTIONS, cls: int = ZEBRA, verifier: Verifier | None = None
-                ) -> list[ImagePredictions]:
+                max_det: int = MAX_DETECTIONS, cls: int = ZEBRA, verifier: Verifier | None = None,
+                batch_seconds: list[tuple[float, int]] | None = None) -> list[ImagePredictions]:
     """Per image of ``loader``: its detections of class ``cls`` (zebras; a model's other classes are left out),
-    labels and don't-care boxes."""
-    return predictions_by_class(model, loader, (cls,), conf, iou, max_det, verifier)[cls]
+    labels and don't-care boxes. ``batch_seconds``, if given, gets (seconds, images) per batch, reading included."""
+    return predictions_by_class(model, loader, (cls,), conf, iou, max_det, verifier, batch_seconds)[cls]
 
 
 @torch.no_grad()
 def predictions_by_class(model: Detector, loader: DataLoader[Any], classes: tuple[int, ...], conf: float = 0.001,
-                         iou: float = 0.7, max_det: int = MAX_DETECTIONS, verifier: Verifier | None = None
-                         ) -> dict[int, list[ImagePredictions]]:
+                         iou: float = 0.7, max_det: int = MAX_DETECTIONS, verifier: Verifier | None = None,
+                         batch_seconds: list[tuple[float, int]] | None = None) -> dict[int, list[ImagePredictions]]:
     """:func:`predictions` for each of ``classes`` from one pass over ``loader`` (the same detections as one call
     per class: NMS runs before the split). With a ``verifier`` the zebra detections are rescored as
     :func:`~zebra_sim_ros.detection.predict.detect` rescores them, on crops of the image file itself."""
@@ -65,6 +65,7 @@ def predictions_by_class(model: Detector, loader: DataLoader[Any], classes: tupl
     was_training = model.training
     model.eval()
     out: dict[int, list[ImagePredictions]] = {c: [] for c in classes}
+    t0 = time.perf_counter()
     for imgs, _, metas in loader:
         for det, meta in zip(_forward(model, imgs, metas, conf, iou, max_det), metas, strict=True):
             h, w = meta.shape
@@ -76,6 +77,10 @@ def predictions_by_class(model: Detector, loader: DataLoader[Any], classes: tupl
                     d = rescore(verifier, read_rgb(meta.file), d, conf)
                 out[c].append(ImagePredictions(meta.file, d[:, :5].astype(np.float64),  # labels read once, by the
                                                labels, ignore, meta.imgsz))  # loader
+        if batch_seconds is not None:
+            t1 = time.perf_counter()
+            batch_seconds.append((t1 - t0, len(metas)))
+            t0 = t1
     if was_training:
         model.train()
     return out
@@ -130,8 +135,8 @@ def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", i
     folder = resolve_split(data, split)
     loader = make_loader(folder, lambda long_side: inference_size(model.cfg, long_side, imgsz, scale), batch, workers)
     t0 = time.perf_counter()
-    per_image = predictions(model, loader, conf, iou, max_det, verifier=net)
-    served_s = time.perf_counter() - t0
+    batches: list[tuple[float, int]] = []
+    per_image = predictions(model, loader, conf, iou, max_det, verifier=net, batch_seconds=batches)
     m = score(per_image, max_det)
     sizes = sorted({p.imgsz for p in per_image})
     by_size = ap_by_size([p.detections for p in per_image], [p.labels for p in per_image], max_det,
@@ -142,7 +147,16 @@ def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", i
                "imgsz": sizes[0] if len(sizes) == 1 else sizes, "imgsz_rule": describe_size(model.cfg, imgsz, scale),
                "device": str(dev), "amp": model.serve_precision,
                "seconds": round(time.perf_counter() - t0, 2),
-               "ms_per_image": round(1000 * served_s / max(1, len(per_image)), 1), "epoch": ckpt.get("epoch")}
+               "ms_per_image": round(steady_ms_per_image(batches), 1), "epoch": ckpt.get("epoch")}
+
+
+def steady_ms_per_image(batches: list[tuple[float, int]]) -> float:
+    """Milliseconds per image in the steady state: the median over batches of a batch's seconds per image, the
+    first batch left out when there are others (it pays the network's start-up: oneDNN primes its kernels on the
+    first call of each input shape). 0.0 for no batch."""
+    steady = batches[1:] if len(batches) > 1 else batches
+    per = [1000 * s / n for s, n in steady if n > 0]
+    return float(np.median(per)) if per else 0.0
 
 
 def write_plots(per_image: list[ImagePredictions], folder: Path, prefix: str = "", conf: float = 0.25,
