@@ -8,7 +8,16 @@ import numpy as np
 import pytest
 
 from zebra_sim_ros.errors import ParameterError
-from zebra_sim_ros.zebra.coat import _cells, _part_samples, bake_coat, random_coat
+from zebra_sim_ros.zebra.coat import (
+    _cells,
+    _mean_sin,
+    _part_samples,
+    _smoothstep,
+    _smoothstep_into,
+    _window,
+    bake_coat,
+    random_coat,
+)
 from zebra_sim_ros.zebra.mesh import build_mesh
 from zebra_sim_ros.zebra.skeleton import BUFFALO, CATTLE, ELEPHANT, FOAL, GIRAFFE, GREVY, PLAINS, RHINO
 
@@ -147,3 +156,24 @@ def test_a_solid_hide_is_textured_and_muddy_up_to_its_mud_line(morph: object) ->
     clean = bake_coat(morph, no_mud, size, mesh).astype(float)  # type: ignore[arg-type]
     changed = np.abs(hide[rows[high], cols[high]] - clean[rows[high], cols[high]]).max(axis=-1) > 1.0
     assert high.sum() > 20 and changed.mean() < 0.01, changed.mean()  # (texels shared with a neighbouring part aside)
+
+
+def test_the_in_place_helpers_give_what_their_plain_forms_give() -> None:
+    """bake_coat's helpers that work in their argument's memory: the mean of the waves' sines, the smoothstep and
+    the part's atlas window give what numpy's mean, the plain smoothstep and the index arrays give."""
+    rng = np.random.default_rng(5)
+    for k in (3, 4, 6):
+        waves, phase = rng.normal(size=(40, 30, k)) * 20, rng.uniform(0, 2 * np.pi, k)
+        want = np.mean(np.sin(waves + phase), axis=-1)
+        np.testing.assert_allclose(_mean_sin(waves.copy(), phase), want, rtol=0, atol=1e-15)
+    x = rng.uniform(-0.5, 1.5, (50, 3))
+    for e0, e1 in ((0.3, 0.0), (0.0, 1.0)):
+        np.testing.assert_allclose(_smoothstep_into(e0, e1, x.copy()), _smoothstep(e0, e1, x), rtol=0, atol=1e-15)
+    mesh = build_mesh(PLAINS, 0)
+    img = np.zeros((128, 128))
+    for pg in mesh.parts:
+        rows, cols, _, _, _ = _part_samples(mesh, pg.name, 128)
+        a, b = img.copy(), img.copy()
+        a[rows, cols] = 1 + rows * 1000 + cols
+        b[_window(rows, cols)] = 1 + rows * 1000 + cols
+        assert np.array_equal(a, b), pg.name
