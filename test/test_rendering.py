@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import cv2
@@ -205,3 +206,29 @@ def test_the_coat_array_grows_without_changing_a_pixel(library: ZebraLibrary, op
         finally:
             r.release()
     assert np.array_equal(rgb[2], rgb[16])
+
+
+def test_coats_from_the_store_render_as_baked_ones(library: ZebraLibrary, options: RenderOptions,
+                                                    tmp_path: Path) -> None:
+    """Twelve individuals rendered with coats baked in memory, baked into a fresh coat store, and read back from that
+    store by another renderer: the same pixels each time, and the last renderer baked none. Cameras share the
+    store; the renderer alone (``generate``, whose streams bring new animals) does not."""
+    from zebra_sim_ros.rendering.config import CameraConfig
+    from zebra_sim_ros.zebra.asset import CoatStore
+
+    assert CameraConfig().render_options().coat_store and not RenderOptions().coat_store
+    zebras = _zebras(library, [(float(x), float(y)) for x in (-3, 0, 3) for y in (-2, 0, 2, 4)], yaw=0.7)
+    view = _view((0.0, -14.0, 10.0), 90.0, -35.0)
+    stores = [CoatStore(tmp_path), CoatStore(tmp_path)]
+    rgb = []
+    for store in (None, *stores):
+        r = Renderer(flat_world(), library, options)
+        try:
+            assert not r.coat_store.on  # the options' default: in memory
+            if store is not None:
+                r.coat_store = store
+            rgb.append(r.render(zebras, NOON, [view])[0].rgb)
+        finally:
+            r.release()
+    assert (stores[0].baked, stores[0].read) == (12, 0) and (stores[1].baked, stores[1].read) == (0, 12)
+    assert np.array_equal(rgb[0], rgb[1]) and np.array_equal(rgb[0], rgb[2])

@@ -96,8 +96,12 @@ class CameraNode(ZebraNode[CameraConfig]):
             self.sim = Simulator(world, self.library, self.cfg.render_options(), sensor=self.cfg.sensor_model())
             self.world_key = key
             info = self.sim.renderer.info
+            store = self.sim.renderer.coat_store
             self.get_logger().info(f"world '{world.name}' loaded; OpenGL {info['GL_RENDERER']} ({info['device']}) "
-                                   f"in {time.perf_counter() - t0:.1f} s")
+                                   f"in {time.perf_counter() - t0:.1f} s; coats: "
+                                   f"{store.dir if store.on else 'baked in memory'}")
+            if store.error:
+                self.get_logger().warning(store.error)
         return self.sim
 
     def _on_scene(self, msg: String) -> None:
@@ -133,13 +137,17 @@ class CameraNode(ZebraNode[CameraConfig]):
         if c.ack:
             self.pub_ack.publish(Header(stamp=header.stamp, frame_id=c.name))
         if self.frames % 20 == 1:
+            store = self.sim.renderer.coat_store if self.sim is not None else None
+            coats = f", coats baked {store.baked} / read {store.read}" if store is not None else ""
             self.get_logger().info(f"step {scene.step}: frame {self.frames}, "
                                    f"{self.render_seconds / max(self.frames, 1):.2f} s/frame render, "
-                                   f"{self.skipped} scenes skipped")
+                                   f"{self.skipped} scenes skipped{coats}")
 
     def stop(self) -> None:
-        """Release the GL context."""
+        """Say what the coats cost, release the GL context."""
         if self.sim is not None:
+            store = self.sim.renderer.coat_store
+            self.get_logger().info(f"{self.frames} frames; coats baked {store.baked}, read from the store {store.read}")
             self.sim.release()
             self.sim = None
 

@@ -47,6 +47,9 @@ class CameraConfig(StageConfig):
     qos_reliability: str = reliability_param("QoS reliability of the image topics")
     qos_depth: int = param(5, "history depth of the image topics", lo=1, hi=1000)
     ack: bool = param(True, "acknowledge each published frame on zebra_sim/frame_done (placer lockstep)")
+    coat_store: bool = param(True, "share baked coats with the other cameras through the cache's coat store "
+                             "(each coat baked by one process, read by the rest and by later runs); false: bake "
+                             "every coat in this process")
 
     def check(self) -> None:
         """The renderer's and the effects' own rules."""
@@ -61,7 +64,8 @@ class CameraConfig(StageConfig):
     def render_options(self) -> RenderOptions:
         """Renderer settings from these parameters."""
         return RenderOptions(width=self.width, height=self.height, hfov_deg=self.hfov_deg, shadows=self.shadows,
-                             shadow_size=self.shadow_size, antialias=self.antialias, **look_options(self.look))
+                             shadow_size=self.shadow_size, antialias=self.antialias, coat_store=self.coat_store,
+                             **look_options(self.look))
 
     def sensor_model(self) -> SensorModel | None:
         """The per-frame camera model (None when ``sensor_strength`` is 0)."""

@@ -26,9 +26,7 @@ from zebra_sim_ros.rendering import shaders
 from zebra_sim_ros.rendering.gl import create_context
 from zebra_sim_ros.rendering.ground import contact_map, surface_from_colours, vegetation_occlusion
 from zebra_sim_ros.world.world import World
-from zebra_sim_ros.zebra.asset import ZebraLibrary
-from zebra_sim_ros.zebra.coat import bake_coat, random_coat
-from zebra_sim_ros.zebra.skeleton import MORPHS
+from zebra_sim_ros.zebra.asset import CoatStore, ZebraLibrary
 
 FloatArray = NDArray[np.float64]
 TILE_M = 64
@@ -60,6 +58,8 @@ class RenderOptions:
     detail: bool = True  # procedural ground detail (grass tufts, soil, stones, micro-relief) and the photographic coat
     # shading (contrast, belly, dust, sheen); False: flat ground colours and the coat texture as it is
     contact_shadows: bool = True  # soft occlusion on the ground under every animal
+    coat_store: bool = False  # coats read from and written to the cache root's coat store (asset.CoatStore),
+    # shared by every process (the camera nodes: three render the same animals); False: each coat baked in memory
 
     def check(self) -> None:
         """Raise :class:`ParameterError` for values outside their range."""
@@ -219,6 +219,7 @@ class Renderer:
         self._upload_zebra_templates()
         self.coats = self._coat_array(min(COAT_LAYERS_FIRST, o.max_coats))
         self._coat_layer: dict[tuple[int, int], int] = {}
+        self.coat_store = CoatStore(library.root.parent, enabled=o.coat_store)
         self.setup_seconds = time.perf_counter() - t0
 
     # -- static uploads --------------------------------------------------------------------------
@@ -347,25 +348,30 @@ class Renderer:
         arr.filter = (self.ctx.LINEAR_MIPMAP_LINEAR, self.ctx.LINEAR)
         return arr
 
-    def _layer(self, morph: int, seed: int) -> int:
-        key = (morph, seed)
-        layer = self._coat_layer.get(key)
-        if layer is None:
-            if len(self._coat_layer) >= self.options.max_coats:
-                self._coat_layer.clear()  # rare: more individuals than layers; start over
+    def _layers(self, zebras: ZebraSet) -> NDArray[np.float32]:
+        """Each zebra's coat layer; the coats not yet in the array come from the coat store (read or baked) in one
+        call, so the processes that render the same animals share the baking."""
+        keys = [(int(m), int(s)) for m, s in zip(zebras.morph, zebras.coat_seed, strict=True)]
+        new = [k for k in dict.fromkeys(keys) if k not in self._coat_layer]
+        if len(self._coat_layer) + len(new) > self.options.max_coats:  # rare: more individuals than layers
+            self._coat_layer.clear()
+            new = list(dict.fromkeys(keys))
+            if len(new) > self.options.max_coats:
+                raise ParameterError("max_coats", self.options.max_coats, f">= the {len(new)} individuals of a frame")
+        names = self.library.morphs
+        texs = self.coat_store.coats([(names[m], seed) for m, seed in new], self.options.coat_size)
+        s = self.options.coat_size
+        for key, tex in zip(new, texs, strict=True):
             layer = len(self._coat_layer)
             if layer >= self.coats.size[2]:  # full: twice the layers, the coats so far copied over
                 grown = self._coat_array(min(2 * self.coats.size[2], self.options.max_coats))
                 grown.write(self.coats.read(), viewport=(0, 0, 0, *self.coats.size))
                 self.coats.release()
                 self.coats = grown
-            name = self.library.morphs[morph]
-            tex = bake_coat(MORPHS[name], random_coat(int(seed), MORPHS[name]), self.options.coat_size)
-            s = self.options.coat_size
             self.coats.write(np.ascontiguousarray(tex[::-1]).tobytes(), viewport=(0, 0, layer, s, s, 1))
             self._coat_layer[key] = layer
-            self._coats_dirty = True
-        return layer
+        self._coats_dirty = bool(new)
+        return np.array([self._coat_layer[k] for k in keys], dtype=np.float32)
 
     # -- per frame -------------------------------------------------------------------------------
     def render(self, zebras: ZebraSet, lighting: Lighting, views: list[CameraView],
@@ -378,9 +384,7 @@ class Renderer:
         self.p_terrain["u_ground_desat"].value = g.desaturation
         self.p_veg["u_veg_tint"].value = g.vegetation_tint
         self.p_veg["u_detail"].value = 1.0 if self.options.detail else 0.0
-        self._coats_dirty = False
-        layers = np.array([self._layer(int(m), int(s)) for m, s in zip(zebras.morph, zebras.coat_seed, strict=True)],
-                          dtype=np.float32)
+        layers = self._layers(zebras)
         if self._coats_dirty:
             self.coats.build_mipmaps()
         self._upload_contact(zebras)

@@ -18,6 +18,7 @@ import json
 import os
 import shutil
 import time
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -275,3 +276,119 @@ def load_library(cache_root: Path | None = None, build_if_missing: bool = True) 
     if missing:
         raise AssetError(f"zebra cache at {root} lacks {sorted(missing)}; delete it and rebuild")
     return ZebraLibrary(root, arrays, manifest)
+
+
+class CoatStore:
+    """Baked coats kept on disk for every process on this machine: ``<cache root>/coats-<appearance digest>/``, one
+    zlib-compressed file per individual (morph, coat seed) and texture size, about 45 kB at 256 texels.
+
+    The three cameras of a graph render the same animals at the same moment, and each used to bake every coat
+    itself. Now a process that needs a coat reads it if it is there; otherwise it claims it (a ``.claim`` file made
+    with ``O_EXCL``), bakes it and writes it (atomically: a temporary file, then a rename), and a process that finds
+    it claimed bakes the unclaimed ones first, then waits for the rest. A claim older than ``stale_s`` (its process
+    died) or a wait past ``wait_s`` bakes the coat anyway. The bytes are the baked ones, so a coat read is the coat
+    baked, texel for texel, and the folder is keyed by :func:`appearance_digest`: a change to the coats' code starts
+    a new one. A store that cannot write (a read-only or full disk) turns itself off, says why in ``error`` and bakes
+    in memory.
+    """
+
+    def __init__(self, root: Path | None = None, wait_s: float = 30.0, stale_s: float = 10.0,
+                 enabled: bool = True) -> None:
+        self.dir = (root or default_cache_root()) / f"coats-{appearance_digest()}"
+        self.wait_s, self.stale_s = wait_s, stale_s
+        self.baked = self.read = 0  # coats this store baked and coats it read from disk
+        self.on = enabled  # False: every coat baked in memory (asked for, or the folder cannot be written)
+        self.error: str | None = None
+        if enabled:
+            try:
+                self.dir.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                self._fail(exc)
+
+    def _fail(self, exc: OSError) -> None:
+        self.on = False
+        self.error = f"coat store {self.dir} unusable ({exc}); coats are baked in memory"
+
+    def path(self, morph: str, seed: int, size: int) -> Path:
+        """The file of one individual's coat at ``size`` texels."""
+        return self.dir / f"{morph}-{seed}-{size}.z"
+
+    def coats(self, wanted: list[tuple[str, int]], size: int) -> list[NDArray[np.uint8]]:
+        """The coats (size, size, 3) uint8 RGB of ``wanted`` (morph name, coat seed) individuals, in order."""
+        got: dict[tuple[str, int], NDArray[np.uint8]] = {}
+        waiting = []
+        for key in dict.fromkeys(wanted):
+            tex = self._read(key, size)
+            if tex is None:
+                if not self._claim(key, size):
+                    waiting.append(key)
+                    continue
+                tex = self._read(key, size)  # written between the look and the claim: read, not baked again
+                if tex is None:
+                    tex = self._bake(key, size)
+                else:
+                    self._claim_path(key, size).unlink(missing_ok=True)
+            got[key] = tex
+        deadline = time.monotonic() + self.wait_s
+        for key in waiting:
+            while (tex := self._read(key, size)) is None:
+                if time.monotonic() > deadline or self._stale(key, size):
+                    tex = self._bake(key, size)
+                    break
+                if self._claim(key, size):  # let go without a coat (its writer could not write): ours now
+                    tex = self._read(key, size)
+                    tex = self._bake(key, size) if tex is None else tex
+                    self._claim_path(key, size).unlink(missing_ok=True)
+                    break
+                time.sleep(0.005)
+            got[key] = tex
+        return [got[k] for k in wanted]
+
+    def _read(self, key: tuple[str, int], size: int) -> NDArray[np.uint8] | None:
+        if not self.on:
+            return None
+        try:
+            raw = zlib.decompress(self.path(*key, size).read_bytes())
+        except (OSError, zlib.error):  # not there yet, or cut short: baked again
+            return None
+        if len(raw) != size * size * 3:
+            return None
+        self.read += 1
+        return np.frombuffer(raw, dtype=np.uint8).reshape(size, size, 3).copy()
+
+    def _claim(self, key: tuple[str, int], size: int) -> bool:
+        if not self.on:
+            return True  # no store: every coat is this process's to bake
+        try:
+            os.close(os.open(self._claim_path(key, size), os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+            return True
+        except FileExistsError:
+            return False
+        except OSError as exc:
+            self._fail(exc)
+            return True
+
+    def _claim_path(self, key: tuple[str, int], size: int) -> Path:
+        return self.path(*key, size).with_suffix(".claim")
+
+    def _stale(self, key: tuple[str, int], size: int) -> bool:
+        try:
+            return time.time() - self._claim_path(key, size).stat().st_mtime > self.stale_s
+        except OSError:  # the claim is gone: its coat is written, or the next claim is ours
+            return False
+
+    def _bake(self, key: tuple[str, int], size: int) -> NDArray[np.uint8]:
+        morph = skeleton.MORPHS[key[0]]
+        tex = np.ascontiguousarray(coat.bake_coat(morph, coat.random_coat(key[1], morph), size))
+        self.baked += 1
+        if self.on:
+            dest = self.path(*key, size)
+            tmp = dest.with_suffix(f".{os.getpid()}.tmp")
+            try:
+                tmp.write_bytes(zlib.compress(tex.tobytes(), 1))
+                os.replace(tmp, dest)
+            except OSError as exc:
+                self._fail(exc)
+                tmp.unlink(missing_ok=True)
+            self._claim_path(key, size).unlink(missing_ok=True)
+        return tex
