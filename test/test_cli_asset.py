@@ -11,7 +11,7 @@ from pathlib import Path
 import cv2
 import pytest
 
-from zebra_sim_ros.zebra.asset import ZebraLibrary
+from zebra_sim_ros.zebra.asset import CoatStore, ZebraLibrary
 
 
 def _run(args: list[str], cache: Path, timeout: float = 120) -> subprocess.CompletedProcess[str]:
@@ -40,12 +40,18 @@ def test_build_writes_usd_and_a_json_summary(library: ZebraLibrary, zebra_cache:
 
 
 def test_info_json(library: ZebraLibrary, zebra_cache: Path) -> None:
+    store = CoatStore(zebra_cache)
+    store.coats([("plains", 1), ("rhino", 2)], 64)  # two coats in the cache's store, as a camera leaves them
     proc = _run(["asset", "info", "--json"], zebra_cache)
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout.strip().splitlines()[-1])
     assert summary["keypoints"] >= 20 and summary["joints"] >= 25
     assert summary["triangles"]["lod0"] >= 4000
     assert sum(summary["clips"].values()) == library.n_frames
+    files = list(store.dir.glob("*.z"))
+    assert len(files) >= 2 and summary["coat_store"] == {"dir": str(store.dir), "coats": len(files),
+                                                         "bytes": sum(f.stat().st_size for f in files)}
+    assert f"{store.dir}: {len(files)} coats" in proc.stdout
 
 
 def test_preview_sheet(library: ZebraLibrary, zebra_cache: Path, tmp_path: Path) -> None:

@@ -79,9 +79,11 @@ def cmd_build(args: argparse.Namespace) -> Summary:
 
 def cmd_info(args: argparse.Namespace) -> Summary:
     """Describe the asset."""
-    from zebra_sim_ros.zebra.asset import load_library
+    from zebra_sim_ros.zebra.asset import CoatStore, load_library
 
     lib = load_library(args.cache)
+    store = CoatStore(lib.root.parent, enabled=False)  # looked at, not made
+    coats, size = store.usage()
     tris = {f"lod{lod}": int(len(lib.faces(lod))) for lod in lib.manifest["lods"]}  # type: ignore[attr-defined]
     verts = {f"lod{lod}": int(lib.bind_vertices(0, lod).shape[0]) for lod in lib.manifest["lods"]}  # type: ignore[attr-defined]
     print(f"zebra asset {lib.manifest['digest']} at {lib.root}")
@@ -91,7 +93,9 @@ def cmd_info(args: argparse.Namespace) -> Summary:
     for name, n, loop in zip(lib.clip_names, lib.clip_frames, lib.clip_loop, strict=True):
         print(f"{name:<14}{int(n):>7}{'yes' if loop else 'no':>6}")
     print(f"{'total':<14}{lib.n_frames:>7}")
+    print(f"coat store (the cameras' shared coats; safe to delete): {store.dir}: {coats} coats, {size / 1e6:.1f} MB")
     return {"digest": lib.manifest["digest"], "morphs": list(lib.morphs), "frames": lib.n_frames,
+            "coat_store": {"dir": str(store.dir), "coats": coats, "bytes": size},
             "clips": dict(zip(lib.clip_names, [int(n) for n in lib.clip_frames], strict=True)),
             "joints": len(lib.manifest["joints"]), "keypoints": len(lib.manifest["keypoints"]),  # type: ignore[arg-type]
             "triangles": tris, "vertices": verts}

@@ -313,6 +313,11 @@ class CoatStore:
         """The file of one individual's coat at ``size`` texels."""
         return self.dir / f"{morph}-{seed}-{size}.z"
 
+    def usage(self) -> tuple[int, int]:
+        """Coats in the store's folder and their bytes on disk (0, 0 when there is none)."""
+        sizes = [f.stat().st_size for f in self.dir.glob("*.z")] if self.dir.is_dir() else []
+        return len(sizes), sum(sizes)
+
     def coats(self, wanted: list[tuple[str, int]], size: int) -> list[NDArray[np.uint8]]:
         """The coats (size, size, 3) uint8 RGB of ``wanted`` (morph name, coat seed) individuals, in order."""
         got: dict[tuple[str, int], NDArray[np.uint8]] = {}
