@@ -5,8 +5,11 @@ Three arms, in rounds, each ``zebra-sim up --frames N`` on the same world and se
 coats), its config folder a copy of the repository's with the cameras' ``coat_store`` set:
 
 - ``own``: ``coat_store: false``, every camera bakes every coat it sees (the graph before the store);
-- ``shared, empty``: ``coat_store: true`` and the store's folder for this code emptied first;
+- ``shared, empty``: ``coat_store: true`` and the store's folder emptied first;
 - ``shared, filled``: ``coat_store: true`` right after ``shared, empty``: a second run of the same experiment.
+
+Every run uses a zebra cache of its own in a temporary folder (``ZEBRA_SIM_CACHE``, built before the first round), so
+the user's cache and coat store are neither read nor touched.
 
 Prints per arm the median over rounds of the run's seconds, steps per second, the median render time per step,
 and the coats baked and read by the three cameras (from their logs); and each shared arm's steps/s over ``own``'s.
@@ -29,7 +32,8 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from zebra_sim_ros.zebra.asset import CoatStore
+from zebra_sim_ros.zebra.asset import build_library
+from zebra_sim_ros.zebra.coat_store import CoatStore
 
 ARMS = ("own", "shared, empty", "shared, filled")
 REPO = Path(__file__).resolve().parents[1]
@@ -59,7 +63,7 @@ def _coats(logs: Path) -> tuple[int, int]:
 
 def _up(root: Path, cfg: Path, args: argparse.Namespace, tag: str) -> dict[str, Any]:
     out = root / tag
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ZEBRA_SIM_CACHE=str(root / "cache"))
     run = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "up", "--frames", str(args.frames),
                           "--world", args.world, "--seed", str(args.seed), "--out", str(out), "--config", str(cfg),
                           "--domain-id", str(150 + os.getpid() % 50), "--json"],
@@ -82,7 +86,8 @@ def main() -> None:
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     root = Path(tempfile.mkdtemp(prefix="bench_coat_store_"))
-    store_dir = CoatStore(enabled=False).dir
+    build_library(root / "cache")
+    store_dir = CoatStore(root / "cache", enabled=False).dir
     runs: dict[str, list[dict[str, Any]]] = {a: [] for a in ARMS}
     try:
         own, shared = _config(root, False), _config(root, True)

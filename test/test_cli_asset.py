@@ -11,7 +11,8 @@ from pathlib import Path
 import cv2
 import pytest
 
-from zebra_sim_ros.zebra.asset import CoatStore, ZebraLibrary
+from zebra_sim_ros.zebra.asset import ZebraLibrary
+from zebra_sim_ros.zebra.coat_store import CoatStore
 
 
 def _run(args: list[str], cache: Path, timeout: float = 120) -> subprocess.CompletedProcess[str]:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 import cv2
@@ -208,27 +207,31 @@ def test_the_coat_array_grows_without_changing_a_pixel(library: ZebraLibrary, op
     assert np.array_equal(rgb[2], rgb[16])
 
 
-def test_coats_from_the_store_render_as_baked_ones(library: ZebraLibrary, options: RenderOptions,
-                                                    tmp_path: Path) -> None:
-    """Twelve individuals rendered with coats baked in memory, baked into a fresh coat store, and read back from that
-    store by another renderer: the same pixels each time, and the last renderer baked none. Cameras share the
-    store; the renderer alone (``generate``, whose streams bring new animals) does not."""
-    from zebra_sim_ros.rendering.config import CameraConfig
-    from zebra_sim_ros.zebra.asset import CoatStore
+def test_coats_from_the_store_render_as_baked_ones(library: ZebraLibrary, options: RenderOptions) -> None:
+    """Twelve individuals rendered with coats baked in memory, then by a renderer whose options turn the coat
+    store on (beside the library's cache: baked and written), then by another (read back): the same pixels each
+    time, and the last renderer baked none. Cameras turn the store on; a renderer alone (``generate``, whose
+    streams bring new animals) does not."""
+    import shutil
+    from dataclasses import replace
 
-    assert CameraConfig().render_options().coat_store and not RenderOptions().coat_store
+    from zebra_sim_ros.rendering.config import CameraConfig
+
+    assert CameraConfig().render_options().coat_store and not options.coat_store
     zebras = _zebras(library, [(float(x), float(y)) for x in (-3, 0, 3) for y in (-2, 0, 2, 4)], yaw=0.7)
     view = _view((0.0, -14.0, 10.0), 90.0, -35.0)
-    stores = [CoatStore(tmp_path), CoatStore(tmp_path)]
-    rgb = []
-    for store in (None, *stores):
-        r = Renderer(flat_world(), library, options)
+    rgb, counts = [], []
+    for i, opts in enumerate((options, replace(options, coat_store=True), replace(options, coat_store=True))):
+        r = Renderer(flat_world(), library, opts)
         try:
-            assert not r.coat_store.on  # the options' default: in memory
-            if store is not None:
-                r.coat_store = store
+            store = r.coat_store
+            assert store.on == (i > 0) and store.dir.parent == library.root.parent
+            if i == 1:
+                shutil.rmtree(store.dir)  # empty, whatever other tests left there
+                store.dir.mkdir()
             rgb.append(r.render(zebras, NOON, [view])[0].rgb)
+            counts.append((store.baked, store.read))
         finally:
             r.release()
-    assert (stores[0].baked, stores[0].read) == (12, 0) and (stores[1].baked, stores[1].read) == (0, 12)
+    assert counts == [(12, 0), (12, 0), (0, 12)]
     assert np.array_equal(rgb[0], rgb[1]) and np.array_equal(rgb[0], rgb[2])

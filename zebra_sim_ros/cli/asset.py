@@ -79,7 +79,8 @@ def cmd_build(args: argparse.Namespace) -> Summary:
 
 def cmd_info(args: argparse.Namespace) -> Summary:
     """Describe the asset."""
-    from zebra_sim_ros.zebra.asset import CoatStore, load_library
+    from zebra_sim_ros.zebra.asset import load_library
+    from zebra_sim_ros.zebra.coat_store import CoatStore
 
     lib = load_library(args.cache)
     store = CoatStore(lib.root.parent, enabled=False)  # looked at, not made

@@ -151,12 +151,12 @@ def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", i
 
 
 def steady_ms_per_image(batches: list[tuple[float, int]]) -> float:
-    """Milliseconds per image in the steady state: the median over batches of a batch's seconds per image, the
-    first batch left out when there are others (it pays the network's start-up: oneDNN primes its kernels on the
-    first call of each input shape). 0.0 for no batch."""
+    """Milliseconds per image in the steady state: the batches' seconds over their images, the first batch left
+    out when there are others (it pays the network's start-up: oneDNN primes its kernels on the first call of each
+    input shape). 0.0 for no image."""
     steady = batches[1:] if len(batches) > 1 else batches
-    per = [1000 * s / n for s, n in steady if n > 0]
-    return float(np.median(per)) if per else 0.0
+    images = sum(n for _, n in steady)
+    return 1000 * sum(s for s, _ in steady) / images if images else 0.0
 
 
 def write_plots(per_image: list[ImagePredictions], folder: Path, prefix: str = "", conf: float = 0.25,

@@ -85,6 +85,7 @@ class CameraNode(ZebraNode[CameraConfig]):
         self.frames = 0
         self.skipped = 0
         self.render_seconds = 0.0
+        self.store_error: str | None = None
 
     def _ensure_simulator(self, scene: Scene) -> Simulator:
         key = scene.world.load_args()
@@ -100,8 +101,6 @@ class CameraNode(ZebraNode[CameraConfig]):
             self.get_logger().info(f"world '{world.name}' loaded; OpenGL {info['GL_RENDERER']} ({info['device']}) "
                                    f"in {time.perf_counter() - t0:.1f} s; coats: "
                                    f"{store.dir if store.on else 'baked in memory'}")
-            if store.error:
-                self.get_logger().warning(store.error)
         return self.sim
 
     def _on_scene(self, msg: String) -> None:
@@ -115,6 +114,10 @@ class CameraNode(ZebraNode[CameraConfig]):
             sim = self._ensure_simulator(scene)
             t0 = time.perf_counter()
             view = sim.render(scene, [self.cfg.name])[0]
+            error = sim.renderer.coat_store.error
+            if error and error != self.store_error:  # said once, when the store is found unusable
+                self.store_error = error
+                self.get_logger().warning(error)
             if self.effects.active:
                 rng = np.random.default_rng([scene.seed, scene.step, self.cfg.drone_index])
                 view.rgb = self.effects.apply(view.rgb, rng)

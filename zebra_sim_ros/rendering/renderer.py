@@ -26,7 +26,8 @@ from zebra_sim_ros.rendering import shaders
 from zebra_sim_ros.rendering.gl import create_context
 from zebra_sim_ros.rendering.ground import contact_map, surface_from_colours, vegetation_occlusion
 from zebra_sim_ros.world.world import World
-from zebra_sim_ros.zebra.asset import CoatStore, ZebraLibrary
+from zebra_sim_ros.zebra.asset import ZebraLibrary
+from zebra_sim_ros.zebra.coat_store import CoatStore
 
 FloatArray = NDArray[np.float64]
 TILE_M = 64
@@ -58,7 +59,7 @@ class RenderOptions:
     detail: bool = True  # procedural ground detail (grass tufts, soil, stones, micro-relief) and the photographic coat
     # shading (contrast, belly, dust, sheen); False: flat ground colours and the coat texture as it is
     contact_shadows: bool = True  # soft occlusion on the ground under every animal
-    coat_store: bool = False  # coats read from and written to the cache root's coat store (asset.CoatStore),
+    coat_store: bool = False  # coats read from and written to the cache root's coat store (coat_store.CoatStore),
     # shared by every process (the camera nodes: three render the same animals); False: each coat baked in memory
 
     def check(self) -> None:

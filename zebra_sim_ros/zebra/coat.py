@@ -224,8 +224,8 @@ def _smoothstep_into(e0: float, e1: float, x: FloatArray) -> FloatArray:
 
 def _mean_sin(waves: FloatArray, phase: FloatArray) -> FloatArray:
     """``mean(sin(waves + phase), axis=-1)``, ``waves`` (..., K) overwritten. The K waves are summed one after the
-    other, in order (what ``mean`` does over so short an axis, bit for bit, at a tenth of its time), then divided
-    by K."""
+    other, in order, then divided by K: for K under 8 (the coats use 3, 4 and 6) what numpy's ``mean`` does, bit for
+    bit, at a tenth of its time; from 8 on numpy sums pairwise and the last bit may differ."""
     waves += phase
     np.sin(waves, out=waves)
     total = waves[..., 0].copy()
