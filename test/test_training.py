@@ -115,9 +115,10 @@ def test_overfits_four_images(four: Path, tmp_path: Path) -> None:
     # vary by ~0.01; after 150 steps eval mode still normalised them by 2.4x their variance and scored 0.
     gts = sum(len(p.read_text().splitlines()) for p in (four / "labels").glob("*.txt"))
     assert gts >= 12, "the fixture should hold a dozen zebras or more"
+    # last.pt once a minute, not after each of the 400 one-batch epochs (57 ms a write: a third of the test).
     summary = train(TrainConfig(data=str(four / "four.yaml"), out=str(tmp_path / "run"), model="n", imgsz=256,
                                 batch=4, epochs=400, lr0=0.02, device="cpu", workers=0, val_every=400, close_mosaic=0,
-                                augment=False), log=io.StringIO())
+                                augment=False, save_period_s=60.0), log=io.StringIO())
     rows = list(csv.DictReader(open(tmp_path / "run" / "results.csv")))
     first, last = (sum(float(r[k]) for k in ("box", "cls", "dfl")) for r in (rows[0], rows[-1]))
     assert last < 0.2 * first, (first, last)
@@ -125,6 +126,38 @@ def test_overfits_four_images(four: Path, tmp_path: Path) -> None:
     metrics, _ = evaluate(tmp_path / "run" / "best.pt", four / "images", imgsz=256, device="cpu")
     assert metrics.map50 > 0.9, (metrics.map50, summary["final"])
     assert metrics.recall > 0.9
+
+
+def test_a_save_period_writes_last_pt_less_often_and_resume_trains_the_rest_again(
+        tiny: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """With ``save_period_s`` last.pt is written after the first epoch and the last, not after every epoch; a run
+    resumed from a last.pt older than its results.csv (killed between two writes) trains the later epochs again
+    and keeps one row per epoch. A negative period is refused by name."""
+    import zebra_sim_ros.detection.train as train_module
+
+    base = dict(data=str(tiny / "overfit.yaml"), out=str(tmp_path / "run"), model="n", imgsz=128, batch=4,
+                device="cpu", workers=0, max_train_images=4, val_every=1000, close_mosaic=0, save_period_s=3600.0)
+    written: list[int] = []
+    real_save = train_module.save_checkpoint
+
+    def save(path: Path, *args: object, **kwargs: object) -> None:
+        real_save(path, *args, **kwargs)  # type: ignore[arg-type]
+        if Path(path).name == "last.pt":
+            written.append(int(kwargs["epoch"]))  # type: ignore[call-overload]
+            if len(written) == 1:
+                shutil.copy(path, tmp_path / "first_last.pt")
+
+    monkeypatch.setattr(train_module, "save_checkpoint", save)
+    train(TrainConfig(epochs=4, **base), log=io.StringIO())  # type: ignore[arg-type]
+    assert written == [0, 3]  # after the first epoch and the last
+    assert [r["epoch"] for r in csv.DictReader(open(tmp_path / "run" / "results.csv"))] == ["1", "2", "3", "4"]
+    shutil.copy(tmp_path / "first_last.pt", tmp_path / "run" / "last.pt")  # killed after epoch 4, last written at 1
+    train(TrainConfig(epochs=4, resume=True, **base), log=io.StringIO())  # type: ignore[arg-type]
+    assert written == [0, 3, 1, 3]  # epochs 2-4 trained again: the first of them written, then the last
+    assert [r["epoch"] for r in csv.DictReader(open(tmp_path / "run" / "results.csv"))] == ["1", "2", "3", "4"]
+    assert read_checkpoint(tmp_path / "run" / "last.pt")["epoch"] == 3
+    with pytest.raises(ParameterError, match="'--save-period' = -1"):
+        train(TrainConfig(epochs=1, **{**base, "save_period_s": -1.0}), log=io.StringIO())  # type: ignore[arg-type]
 
 
 def test_other_animals_class_trains_from_a_zebra_checkpoint(tiny: Path, tmp_path: Path) -> None:

@@ -35,6 +35,9 @@ def register(sub: Any) -> None:
                    "momentum warm-up (at least 100 steps, or a tenth of a run shorter than 1,000 steps)")
     t.add_argument("--close-mosaic", type=int, default=10, help="last epochs without mosaic")
     t.add_argument("--val-every", type=int, default=1, help="validate every N epochs (and after the last)")
+    t.add_argument("--save-period", type=float, default=0.0, metavar="S",
+                   help="write last.pt after the first epoch, the last, and any that ends S seconds or more after "
+                        "the last write (0: after every epoch); for runs of many short epochs")
     t.add_argument("--max-train-images", type=int, default=0, help="use only the first N training images (0: all)")
     t.add_argument("--seed", type=int, default=0)
     t.add_argument("--amp", default="auto", help="mixed precision: auto (fp16 on CUDA, bf16 on CPUs with bf16 "
@@ -168,7 +171,8 @@ def cmd_train(args: argparse.Namespace) -> Summary:
     cfg = TrainConfig(data=args.data, out=str(args.out), model=args.model, imgsz=args.imgsz, crop=args.crop,
                       epochs=args.epochs, batch=args.batch, device=args.device, workers=args.workers, lr0=args.lr0,
                       warmup_epochs=args.warmup_epochs, close_mosaic=args.close_mosaic, seed=args.seed,
-                      val_every=args.val_every, max_train_images=args.max_train_images, resume=args.resume,
+                      val_every=args.val_every, save_period_s=args.save_period,
+                      max_train_images=args.max_train_images, resume=args.resume,
                       init=args.init, amp=args.amp, dont_care=args.dont_care, aug=augment_from_args(args),
                       other_animals=args.other_animals, p2=args.p2)
     summary = train(cfg)

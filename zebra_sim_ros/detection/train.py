@@ -58,6 +58,8 @@ class TrainConfig:
     close_mosaic: int = 10
     seed: int = 0
     val_every: int = 1
+    save_period_s: float = 0.0  # last.pt after the first epoch, the last one and any that ends this many seconds
+    # after the last save (0: after every epoch); for runs of many short epochs, where saving is most of an epoch
     max_train_images: int = 0  # 0 = all
     augment: bool = True  # False: letterbox only (for overfitting tests and debugging)
     aug: Augment = field(default_factory=Augment)  # the augmentation strengths (zebra-sim train --aug-<name>)
@@ -84,6 +86,8 @@ class TrainConfig:
                                                       f"({self.imgsz})")
         for name, value, ok, allowed in (("--workers", self.workers, self.workers >= 0, ">= 0"),
                                          ("--val-every", self.val_every, self.val_every >= 1, ">= 1"),
+                                         ("--save-period", self.save_period_s, 0 <= self.save_period_s <= 86400,
+                                          "0..86400 s (0: after every epoch)"),
                                          ("--close-mosaic", self.close_mosaic, self.close_mosaic >= 0, ">= 0"),
                                          ("--warmup-epochs", self.warmup_epochs, 0 <= self.warmup_epochs <= 1000,
                                           "0..1000"),
@@ -122,7 +126,7 @@ class EMA:
 
 # What a resumed run may change: its length, how often it validates and the machine it runs on. Every other
 # setting shapes the run (the schedule, the augmentation, the data) and must be what it was.
-RESUME_MAY_CHANGE = ("epochs", "device", "workers", "amp", "val_every")
+RESUME_MAY_CHANGE = ("epochs", "device", "workers", "amp", "val_every", "save_period_s")
 
 
 def check_resume(cfg: TrainConfig, recorded: dict[str, Any], last: Path) -> None:
@@ -278,6 +282,7 @@ class _Run:
     best: float
     rows: list[dict[str, Any]]
     data_generate: dict[str, Any] | None  # the training set's generate settings (read once, kept in checkpoints)
+    saved_at: float | None = None  # perf_counter time of this process's last save of last.pt (None: not yet)
 
     def step(self, imgs: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
         """One optimisation step on a batch (imgs (B, 3, H, W)); the loss components [box, cls, dfl] on the CPU."""
@@ -332,7 +337,8 @@ def _train_epoch(run_: _Run, loader: DataLoader[Any], epoch: int, warmup: int) -
 
 def _end_epoch(run_: _Run, epoch: int, sums: torch.Tensor, nb: int, val_loader: DataLoader[Any] | None) -> None:
     """Validate the EMA weights (every ``val_every`` epochs and the last), add the epoch's row to results.csv,
-    save last.pt (and best.pt when the fitness improved) and redraw results.png."""
+    save last.pt (every epoch, or as ``save_period_s`` says) and best.pt when the fitness improved, and redraw
+    results.png."""
     cfg, out = run_.cfg, run_.out
     print("", file=run_.log)
     metrics: dict[str, Any] = {}
@@ -354,8 +360,12 @@ def _end_epoch(run_: _Run, epoch: int, sums: torch.Tensor, nb: int, val_loader: 
         w.writerows(run_.rows)
     extra = {"epoch": epoch, "metrics": metrics, "train_args": asdict(cfg), "best_fitness": max(run_.best, fitness),
              "data_generate": run_.data_generate}
-    save_checkpoint(out / "last.pt", run_.ema.ema, model_raw=run_.model.state_dict(), optimizer=run_.opt.state_dict(),
-                    ema_updates=run_.ema.updates, **extra)
+    now = time.perf_counter()
+    if (cfg.save_period_s <= 0 or run_.saved_at is None or epoch == cfg.epochs - 1
+            or now - run_.saved_at >= cfg.save_period_s):
+        save_checkpoint(out / "last.pt", run_.ema.ema, model_raw=run_.model.state_dict(),
+                        optimizer=run_.opt.state_dict(), ema_updates=run_.ema.updates, **extra)
+        run_.saved_at = now
     if metrics and fitness > run_.best:
         run_.best = fitness
         half = copy.deepcopy(run_.ema.ema).half()
@@ -371,11 +381,12 @@ def _hms(seconds: float) -> str:
     return f"{s // 60}m{s % 60:02d}s" if s >= 60 else f"{s}s"
 
 
-def _previous_rows(cfg: TrainConfig, results_path: Path) -> list[dict[str, Any]]:
-    """The results table of the run being resumed (empty for a new run)."""
+def _previous_rows(cfg: TrainConfig, results_path: Path, start_epoch: int) -> list[dict[str, Any]]:
+    """The results table of the run being resumed up to the epoch its last.pt holds (rows of later epochs, written
+    after the last save under ``save_period_s``, are trained again); empty for a new run."""
     if cfg.resume and results_path.exists():
         with open(results_path) as f:
-            return list(csv.DictReader(f))
+            return [r for r in csv.DictReader(f) if int(r["epoch"]) <= start_epoch]
     return []
 
 
@@ -426,7 +437,7 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
               f"{len(ds)} train images, device {device}, imgsz {cfg.imgsz}{crop}, batch {cfg.batch}, "
               f"epochs {cfg.epochs}, autocast {str(autocast).replace('torch.', '') if autocast else 'off'}", file=log)
     run_ = _Run(cfg, out, log, device, model, net, ema, opt, criterion, autocast, scaler, start.best,
-                _previous_rows(cfg, out / "results.csv"), generate_settings(cfg.data))
+                _previous_rows(cfg, out / "results.csv", start.epoch), generate_settings(cfg.data))
     t_start = time.perf_counter()
     images_seen = 0
     for epoch in range(start.epoch, cfg.epochs):
