@@ -124,7 +124,7 @@ class EMA:
             e.mul_(d).add_(m.detach(), alpha=1 - d)
 
 
-# What a resumed run may change: its length, how often it validates and the machine it runs on. Every other
+# What a resumed run may change: its length, how often it validates and saves, the machine it runs on. Every other
 # setting shapes the run (the schedule, the augmentation, the data) and must be what it was.
 RESUME_MAY_CHANGE = ("epochs", "device", "workers", "amp", "val_every", "save_period_s")
 
