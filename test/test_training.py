@@ -130,32 +130,48 @@ def test_overfits_four_images(four: Path, tmp_path: Path) -> None:
 
 def test_a_save_period_writes_last_pt_less_often_and_resume_trains_the_rest_again(
         tiny: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """With ``save_period_s`` last.pt is written after the first epoch and the last, not after every epoch; a run
-    resumed from a last.pt older than its results.csv (killed between two writes) trains the later epochs again
-    and keeps one row per epoch. A negative period is refused by name."""
+    """With ``save_period_s`` last.pt is written after the first epoch, the last and each one with a new best (so
+    best.pt is never newer than the last.pt a resume starts from), not after every epoch; a run resumed from a
+    last.pt older than its results.csv (killed between two writes) trains the later epochs again and keeps one row
+    per epoch. A negative period is refused by name."""
+    import types
+
     import zebra_sim_ros.detection.train as train_module
 
     base = dict(data=str(tiny / "overfit.yaml"), out=str(tmp_path / "run"), model="n", imgsz=128, batch=4,
-                device="cpu", workers=0, max_train_images=4, val_every=1000, close_mosaic=0, save_period_s=3600.0)
-    written: list[int] = []
+                device="cpu", workers=0, max_train_images=4, val_every=1, close_mosaic=0, save_period_s=3600.0)
+    written: list[tuple[str, int]] = []
     real_save = train_module.save_checkpoint
+    # the validations' fitness, epoch by epoch: new bests at epochs 1 and 2; resumed at 2, a new best at 3
+    fitness = iter([0.5, 0.9, 0.3, 0.4, 0.2, 0.95, 0.1])
 
     def save(path: Path, *args: object, **kwargs: object) -> None:
         real_save(path, *args, **kwargs)  # type: ignore[arg-type]
-        if Path(path).name == "last.pt":
-            written.append(int(kwargs["epoch"]))  # type: ignore[call-overload]
-            if len(written) == 1:
-                shutil.copy(path, tmp_path / "first_last.pt")
+        written.append((Path(path).name, int(kwargs["epoch"])))  # type: ignore[call-overload]
+        if len(written) == 1:
+            shutil.copy(path, tmp_path / "first_last.pt")
+
+    def score(per_image: object) -> object:
+        f = next(fitness)
+        return types.SimpleNamespace(precision=0.0, recall=0.0, map50=f, map50_95=f,
+                                     to_dict=lambda: {"precision": 0.0, "recall": 0.0, "mAP50": f, "mAP50-95": f})
 
     monkeypatch.setattr(train_module, "save_checkpoint", save)
+    monkeypatch.setattr(train_module, "score", score)
     train(TrainConfig(epochs=4, **base), log=io.StringIO())  # type: ignore[arg-type]
-    assert written == [0, 3]  # after the first epoch and the last
+    # last.pt after the first epoch, with the new best of the second, and after the last; best.pt with each best
+    assert written == [("last.pt", 0), ("best.pt", 0), ("last.pt", 1), ("best.pt", 1), ("last.pt", 3)], written
     assert [r["epoch"] for r in csv.DictReader(open(tmp_path / "run" / "results.csv"))] == ["1", "2", "3", "4"]
     shutil.copy(tmp_path / "first_last.pt", tmp_path / "run" / "last.pt")  # killed after epoch 4, last written at 1
-    train(TrainConfig(epochs=4, resume=True, **base), log=io.StringIO())  # type: ignore[arg-type]
-    assert written == [0, 3, 1, 3]  # epochs 2-4 trained again: the first of them written, then the last
+    written.clear()
+    log = io.StringIO()
+    train(TrainConfig(epochs=4, resume=True, **base), log=log)  # type: ignore[arg-type]
+    assert "3 rows of results.csv after epoch 1 are trained again" in log.getvalue()
+    assert written == [("last.pt", 1), ("last.pt", 2), ("best.pt", 2), ("last.pt", 3)], written
     assert [r["epoch"] for r in csv.DictReader(open(tmp_path / "run" / "results.csv"))] == ["1", "2", "3", "4"]
-    assert read_checkpoint(tmp_path / "run" / "last.pt")["epoch"] == 3
+    last, best = (read_checkpoint(tmp_path / "run" / n) for n in ("last.pt", "best.pt"))
+    assert last["epoch"] == 3 and best["epoch"] == 2
+    assert last["best_fitness"] == pytest.approx(0.95) and best["best_fitness"] == pytest.approx(0.95)
     with pytest.raises(ParameterError, match="'--save-period' = -1"):
         train(TrainConfig(epochs=1, **{**base, "save_period_s": -1.0}), log=io.StringIO())  # type: ignore[arg-type]
 

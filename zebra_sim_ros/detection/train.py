@@ -141,9 +141,14 @@ def check_resume(cfg: TrainConfig, recorded: dict[str, Any], last: Path) -> None
         was = recorded[name]
         same = (Path(value).resolve() == Path(was).resolve()) if name == "data" else value == was
         if not same:
-            raise ParameterError(f"--{name.replace('_', '-')}", value,
+            raise ParameterError(_flag(name), value,
                                  f"{was!r}, as the run in {last.parent} was started with (--resume continues "
-                                 f"that run; only {', '.join(RESUME_MAY_CHANGE)} may change)")
+                                 f"that run; only {', '.join(_flag(n) for n in RESUME_MAY_CHANGE)} may change)")
+
+
+def _flag(name: str) -> str:
+    """The command-line flag of a :class:`TrainConfig` field."""
+    return "--save-period" if name == "save_period_s" else f"--{name.replace('_', '-')}"
 
 
 def _is_main() -> bool:
@@ -337,8 +342,8 @@ def _train_epoch(run_: _Run, loader: DataLoader[Any], epoch: int, warmup: int) -
 
 def _end_epoch(run_: _Run, epoch: int, sums: torch.Tensor, nb: int, val_loader: DataLoader[Any] | None) -> None:
     """Validate the EMA weights (every ``val_every`` epochs and the last), add the epoch's row to results.csv,
-    save last.pt (every epoch, or as ``save_period_s`` says) and best.pt when the fitness improved, and redraw
-    results.png."""
+    save last.pt (every epoch, or as ``save_period_s`` says, and always with a new best) and best.pt when the
+    fitness improved, and redraw results.png."""
     cfg, out = run_.cfg, run_.out
     print("", file=run_.log)
     metrics: dict[str, Any] = {}
@@ -361,12 +366,14 @@ def _end_epoch(run_: _Run, epoch: int, sums: torch.Tensor, nb: int, val_loader: 
     extra = {"epoch": epoch, "metrics": metrics, "train_args": asdict(cfg), "best_fitness": max(run_.best, fitness),
              "data_generate": run_.data_generate}
     now = time.perf_counter()
-    if (cfg.save_period_s <= 0 or run_.saved_at is None or epoch == cfg.epochs - 1
+    improved = bool(metrics) and fitness > run_.best
+    # last.pt also goes with every new best.pt: a run resumed from it must know the best it has to beat
+    if (cfg.save_period_s <= 0 or run_.saved_at is None or epoch == cfg.epochs - 1 or improved
             or now - run_.saved_at >= cfg.save_period_s):
         save_checkpoint(out / "last.pt", run_.ema.ema, model_raw=run_.model.state_dict(),
                         optimizer=run_.opt.state_dict(), ema_updates=run_.ema.updates, **extra)
         run_.saved_at = now
-    if metrics and fitness > run_.best:
+    if improved:
         run_.best = fitness
         half = copy.deepcopy(run_.ema.ema).half()
         save_checkpoint(out / "best.pt", half, **extra)
@@ -381,13 +388,18 @@ def _hms(seconds: float) -> str:
     return f"{s // 60}m{s % 60:02d}s" if s >= 60 else f"{s}s"
 
 
-def _previous_rows(cfg: TrainConfig, results_path: Path, start_epoch: int) -> list[dict[str, Any]]:
+def _previous_rows(cfg: TrainConfig, results_path: Path, start_epoch: int, log: Any) -> list[dict[str, Any]]:
     """The results table of the run being resumed up to the epoch its last.pt holds (rows of later epochs, written
-    after the last save under ``save_period_s``, are trained again); empty for a new run."""
-    if cfg.resume and results_path.exists():
-        with open(results_path) as f:
-            return [r for r in csv.DictReader(f) if int(r["epoch"]) <= start_epoch]
-    return []
+    after the last save under ``save_period_s``, are trained again, and it says so); empty for a new run."""
+    if not (cfg.resume and results_path.exists()):
+        return []
+    with open(results_path) as f:
+        rows = list(csv.DictReader(f))
+    kept = [r for r in rows if int(r["epoch"]) <= start_epoch]
+    if len(kept) < len(rows):
+        print(f"[train] {len(rows) - len(kept)} rows of results.csv after epoch {start_epoch} are trained again "
+              f"(last.pt was written after epoch {start_epoch})", file=log)
+    return kept
 
 
 def _images_everywhere(images_seen: int, device: torch.device) -> int:
@@ -437,7 +449,7 @@ def train(cfg: TrainConfig, log: Any = sys.stderr) -> dict[str, Any]:
               f"{len(ds)} train images, device {device}, imgsz {cfg.imgsz}{crop}, batch {cfg.batch}, "
               f"epochs {cfg.epochs}, autocast {str(autocast).replace('torch.', '') if autocast else 'off'}", file=log)
     run_ = _Run(cfg, out, log, device, model, net, ema, opt, criterion, autocast, scaler, start.best,
-                _previous_rows(cfg, out / "results.csv", start.epoch), generate_settings(cfg.data))
+                _previous_rows(cfg, out / "results.csv", start.epoch, log), generate_settings(cfg.data))
     t_start = time.perf_counter()
     images_seen = 0
     for epoch in range(start.epoch, cfg.epochs):
