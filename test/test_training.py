@@ -118,7 +118,7 @@ def test_overfits_four_images(four: Path, tmp_path: Path) -> None:
     # last.pt once a minute, not after each of the 400 one-batch epochs (57 ms a write: a third of the test).
     summary = train(TrainConfig(data=str(four / "four.yaml"), out=str(tmp_path / "run"), model="n", imgsz=256,
                                 batch=4, epochs=400, lr0=0.02, device="cpu", workers=0, val_every=400, close_mosaic=0,
-                                augment=False, save_period_s=60.0), log=io.StringIO())
+                                augment=False, save_period=60.0), log=io.StringIO())
     rows = list(csv.DictReader(open(tmp_path / "run" / "results.csv")))
     first, last = (sum(float(r[k]) for k in ("box", "cls", "dfl")) for r in (rows[0], rows[-1]))
     assert last < 0.2 * first, (first, last)
@@ -130,7 +130,7 @@ def test_overfits_four_images(four: Path, tmp_path: Path) -> None:
 
 def test_a_save_period_writes_last_pt_less_often_and_resume_trains_the_rest_again(
         tiny: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """With ``save_period_s`` last.pt is written after the first epoch, the last and each one with a new best (so
+    """With ``save_period`` last.pt is written after the first epoch, the last and each one with a new best (so
     best.pt is never newer than the last.pt a resume starts from), not after every epoch; a run resumed from a
     last.pt older than its results.csv (killed between two writes) trains the later epochs again and keeps one row
     per epoch. A negative period is refused by name."""
@@ -139,7 +139,7 @@ def test_a_save_period_writes_last_pt_less_often_and_resume_trains_the_rest_agai
     import zebra_sim_ros.detection.train as train_module
 
     base = dict(data=str(tiny / "overfit.yaml"), out=str(tmp_path / "run"), model="n", imgsz=128, batch=4,
-                device="cpu", workers=0, max_train_images=4, val_every=1, close_mosaic=0, save_period_s=3600.0)
+                device="cpu", workers=0, max_train_images=4, val_every=1, close_mosaic=0, save_period=3600.0)
     written: list[tuple[str, int]] = []
     real_save = train_module.save_checkpoint
     # the validations' fitness, epoch by epoch: new bests at epochs 1 and 2; resumed at 2, a new best at 3
@@ -173,7 +173,7 @@ def test_a_save_period_writes_last_pt_less_often_and_resume_trains_the_rest_agai
     assert last["epoch"] == 3 and best["epoch"] == 2
     assert last["best_fitness"] == pytest.approx(0.95) and best["best_fitness"] == pytest.approx(0.95)
     with pytest.raises(ParameterError, match="'--save-period' = -1"):
-        train(TrainConfig(epochs=1, **{**base, "save_period_s": -1.0}), log=io.StringIO())  # type: ignore[arg-type]
+        train(TrainConfig(epochs=1, **{**base, "save_period": -1.0}), log=io.StringIO())  # type: ignore[arg-type]
 
 
 def test_other_animals_class_trains_from_a_zebra_checkpoint(tiny: Path, tmp_path: Path) -> None:

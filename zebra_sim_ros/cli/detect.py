@@ -171,7 +171,7 @@ def cmd_train(args: argparse.Namespace) -> Summary:
     cfg = TrainConfig(data=args.data, out=str(args.out), model=args.model, imgsz=args.imgsz, crop=args.crop,
                       epochs=args.epochs, batch=args.batch, device=args.device, workers=args.workers, lr0=args.lr0,
                       warmup_epochs=args.warmup_epochs, close_mosaic=args.close_mosaic, seed=args.seed,
-                      val_every=args.val_every, save_period_s=args.save_period,
+                      val_every=args.val_every, save_period=args.save_period,
                       max_train_images=args.max_train_images, resume=args.resume,
                       init=args.init, amp=args.amp, dont_care=args.dont_care, aug=augment_from_args(args),
                       other_animals=args.other_animals, p2=args.p2)

@@ -58,7 +58,7 @@ class TrainConfig:
     close_mosaic: int = 10
     seed: int = 0
     val_every: int = 1
-    save_period_s: float = 0.0  # last.pt after the first epoch, the last one and any that ends this many seconds
+    save_period: float = 0.0  # s: last.pt after the first epoch, the last one and any that ends this many seconds
     # after the last save (0: after every epoch); for runs of many short epochs, where saving is most of an epoch
     max_train_images: int = 0  # 0 = all
     augment: bool = True  # False: letterbox only (for overfitting tests and debugging)
@@ -86,7 +86,7 @@ class TrainConfig:
                                                       f"({self.imgsz})")
         for name, value, ok, allowed in (("--workers", self.workers, self.workers >= 0, ">= 0"),
                                          ("--val-every", self.val_every, self.val_every >= 1, ">= 1"),
-                                         ("--save-period", self.save_period_s, 0 <= self.save_period_s <= 86400,
+                                         ("--save-period", self.save_period, 0 <= self.save_period <= 86400,
                                           "0..86400 s (0: after every epoch)"),
                                          ("--close-mosaic", self.close_mosaic, self.close_mosaic >= 0, ">= 0"),
                                          ("--warmup-epochs", self.warmup_epochs, 0 <= self.warmup_epochs <= 1000,
@@ -126,7 +126,7 @@ class EMA:
 
 # What a resumed run may change: its length, how often it validates and saves, the machine it runs on. Every other
 # setting shapes the run (the schedule, the augmentation, the data) and must be what it was.
-RESUME_MAY_CHANGE = ("epochs", "device", "workers", "amp", "val_every", "save_period_s")
+RESUME_MAY_CHANGE = ("epochs", "device", "workers", "amp", "val_every", "save_period")
 
 
 def check_resume(cfg: TrainConfig, recorded: dict[str, Any], last: Path) -> None:
@@ -148,7 +148,7 @@ def check_resume(cfg: TrainConfig, recorded: dict[str, Any], last: Path) -> None
 
 def _flag(name: str) -> str:
     """The command-line flag of a :class:`TrainConfig` field."""
-    return "--save-period" if name == "save_period_s" else f"--{name.replace('_', '-')}"
+    return f"--{name.replace('_', '-')}"
 
 
 def _is_main() -> bool:
@@ -342,7 +342,7 @@ def _train_epoch(run_: _Run, loader: DataLoader[Any], epoch: int, warmup: int) -
 
 def _end_epoch(run_: _Run, epoch: int, sums: torch.Tensor, nb: int, val_loader: DataLoader[Any] | None) -> None:
     """Validate the EMA weights (every ``val_every`` epochs and the last), add the epoch's row to results.csv,
-    save last.pt (every epoch, or as ``save_period_s`` says, and always with a new best) and best.pt when the
+    save last.pt (every epoch, or as ``save_period`` says, and always with a new best) and best.pt when the
     fitness improved, and redraw results.png."""
     cfg, out = run_.cfg, run_.out
     print("", file=run_.log)
@@ -368,8 +368,8 @@ def _end_epoch(run_: _Run, epoch: int, sums: torch.Tensor, nb: int, val_loader: 
     now = time.perf_counter()
     improved = bool(metrics) and fitness > run_.best
     # last.pt also goes with every new best.pt: a run resumed from it must know the best it has to beat
-    if (cfg.save_period_s <= 0 or run_.saved_at is None or epoch == cfg.epochs - 1 or improved
-            or now - run_.saved_at >= cfg.save_period_s):
+    if (cfg.save_period <= 0 or run_.saved_at is None or epoch == cfg.epochs - 1 or improved
+            or now - run_.saved_at >= cfg.save_period):
         save_checkpoint(out / "last.pt", run_.ema.ema, model_raw=run_.model.state_dict(),
                         optimizer=run_.opt.state_dict(), ema_updates=run_.ema.updates, **extra)
         run_.saved_at = now
@@ -390,7 +390,7 @@ def _hms(seconds: float) -> str:
 
 def _previous_rows(cfg: TrainConfig, results_path: Path, start_epoch: int, log: Any) -> list[dict[str, Any]]:
     """The results table of the run being resumed up to the epoch its last.pt holds (rows of later epochs, written
-    after the last save under ``save_period_s``, are trained again, and it says so); empty for a new run."""
+    after the last save under ``save_period``, are trained again, and it says so); empty for a new run."""
     if not (cfg.resume and results_path.exists()):
         return []
     with open(results_path) as f:

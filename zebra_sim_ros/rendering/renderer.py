@@ -351,7 +351,7 @@ class Renderer:
 
     def _layers(self, zebras: ZebraSet) -> NDArray[np.float32]:
         """Each zebra's coat layer; the coats not yet in the array come from the coat store (read or baked) in one
-        call, so the processes that render the same animals share the baking."""
+        call, so the processes that render the same animals share the baking, and the mipmaps are built again."""
         keys = [(int(m), int(s)) for m, s in zip(zebras.morph, zebras.coat_seed, strict=True)]
         new = [k for k in dict.fromkeys(keys) if k not in self._coat_layer]
         if len(self._coat_layer) + len(new) > self.options.max_coats:  # rare: more individuals than layers
@@ -371,7 +371,8 @@ class Renderer:
                 self.coats = grown
             self.coats.write(np.ascontiguousarray(tex[::-1]).tobytes(), viewport=(0, 0, layer, s, s, 1))
             self._coat_layer[key] = layer
-        self._coats_dirty = bool(new)
+        if new:
+            self.coats.build_mipmaps()
         return np.array([self._coat_layer[k] for k in keys], dtype=np.float32)
 
     # -- per frame -------------------------------------------------------------------------------
@@ -386,8 +387,6 @@ class Renderer:
         self.p_veg["u_veg_tint"].value = g.vegetation_tint
         self.p_veg["u_detail"].value = 1.0 if self.options.detail else 0.0
         layers = self._layers(zebras)
-        if self._coats_dirty:
-            self.coats.build_mipmaps()
         self._upload_contact(zebras)
         if "u_detail" in self.p_zebra:
             self.p_zebra["u_detail"].value = 1.0 if self.options.detail else 0.0

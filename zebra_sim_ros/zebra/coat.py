@@ -205,13 +205,13 @@ _CELL_CHUNK = 4096  # points per matrix product in :func:`_cells` (4096 x 1,000 
 
 
 def _smoothstep(e0: float, e1: float, x: FloatArray) -> FloatArray:
-    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
-    return np.asarray(t * t * (3 - 2 * t))
+    """0 below ``e0``, 1 beyond ``e1``, the cubic ``t * t * (3 - 2 * t)`` between; ``x`` is left as it is."""
+    return _smoothstep_into(e0, e1, np.array(x, dtype=np.float64))
 
 
 def _smoothstep_into(e0: float, e1: float, x: FloatArray) -> FloatArray:
-    """:func:`_smoothstep` computed in ``x``'s own memory (``x`` is overwritten; the same values, bit for bit).
-    Texel arrays are large enough that fresh temporaries cost as much as the arithmetic."""
+    """:func:`_smoothstep` computed in ``x``'s own memory (``x``, float64, is overwritten). Texel arrays are large
+    enough that fresh temporaries cost as much as the arithmetic."""
     x -= e0
     x /= e1 - e0
     t = np.clip(x, 0.0, 1.0, out=x)
