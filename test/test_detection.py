@@ -1160,3 +1160,46 @@ def test_a_mosaic_crop_draws_its_window_from_the_frames_it_shows(tmp_path: Path)
         sample.window(900, 900, 256)
         counts.append(len(decoded))
     assert min(counts) >= 1 and np.mean(counts) < 3
+
+
+def test_widening_n_to_s_keeps_the_function_and_parts_the_copies() -> None:
+    """``widen_state``: the shipped nano's weights in an ``s`` model compute the same boxes and scores, in
+    evaluation and in training mode; the copies of a channel get unequal shares of their old weights, so one
+    backward pass gives them different gradients; the same seed gives the same shares, another seed others;
+    sizes it does not widen between are refused by name."""
+    from zebra_sim_ros.detection.checkpoint import SHIPPED
+    from zebra_sim_ros.detection.model import widen_state
+
+    ck = read_checkpoint(SHIPPED)
+    narrow = build_model(ck["config"])
+    narrow.load_state_dict({k: v.float() for k, v in ck["model"].items()})
+    state = widen_state(ck["model"], ck["config"], "s", seed=3)
+    wide = build_model({**ck["config"], "size": "s"})
+    wide.load_state_dict(state)
+    assert count_parameters(wide) > 3.5 * count_parameters(narrow)
+    x = torch.rand(2, 3, 256, 320, generator=torch.Generator().manual_seed(0))
+    with torch.no_grad():
+        a, b = narrow.eval()(x), wide.eval()(x)
+    assert a[..., 4].max() > 0.05  # the shipped weights see something in noise: the scores compared are not all 0
+    torch.testing.assert_close(b[..., :4], a[..., :4], atol=0.01, rtol=0)  # px on a 320 px input
+    torch.testing.assert_close(b[..., 4:], a[..., 4:], atol=1e-4, rtol=0)
+    with torch.no_grad():  # batch statistics: the copies see the same batch, so they normalise alike
+        for fa, fb in zip(narrow.train()(x), wide.train()(x), strict=True):
+            torch.testing.assert_close(fb, fa, atol=1e-3, rtol=1e-3)
+    w = state["stem.1.conv.weight"]  # 32 -> 64 outputs, 16 -> 32 inputs: copies share each old weight
+    old = ck["model"]["stem.1.conv.weight"].float()
+    torch.testing.assert_close(w[::2, ::2] + w[::2, 1::2], old, atol=1e-5, rtol=1e-4)
+    share = w[::2, ::2] / old.where(old.abs() > 1e-3, torch.ones_like(old))
+    assert share[old.abs() > 1e-3].min() >= 0.25 - 1e-4 and share[old.abs() > 1e-3].max() <= 0.75 + 1e-4
+    assert share[old.abs() > 1e-3].std() > 0.1  # drawn, not halves
+    wide.train()
+    sum(f.float().pow(2).mean() for f in wide(x)).backward()
+    g = wide.stem[0].conv.weight.grad  # the first layer's output copies: identical weights, unequal downstream
+    assert g is not None and (g[::2] - g[1::2]).abs().max() > 0.01 * g.abs().max()
+    again, other = widen_state(ck["model"], ck["config"], "s", seed=3), widen_state(ck["model"], ck["config"], "s", 4)
+    assert all(torch.equal(again[k], v) for k, v in state.items())
+    assert not torch.equal(other["stem.1.conv.weight"], w)
+    with pytest.raises(ParameterError, match="'model' = 'm'.*'n -> s'"):
+        widen_state(ck["model"], ck["config"], "m", seed=3)
+    with pytest.raises(ParameterError, match="'model' = 'n'"):
+        widen_state(state, {**ck["config"], "size": "s"}, "n", seed=3)

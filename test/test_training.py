@@ -19,7 +19,7 @@ import torch
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
 from zebra_sim_ros.detection.checkpoint import load_model, read_checkpoint, save_checkpoint
 from zebra_sim_ros.detection.evaluate import evaluate
-from zebra_sim_ros.detection.model import ModelConfig, build_model
+from zebra_sim_ros.detection.model import ModelConfig, build_model, widen_state
 from zebra_sim_ros.detection.train import TrainConfig, train
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LabelFilters
@@ -222,4 +222,48 @@ def test_p2_trains_from_a_three_level_checkpoint_and_is_kept_on_resume(tiny: Pat
         train(TrainConfig(out=str(tmp_path / "four"), resume=True, **{**base, "epochs": 2}), log=io.StringIO())
     with pytest.raises(ParameterError, match="'--init'.*add --p2"):
         train(TrainConfig(out=str(tmp_path / "back"), init=str(tmp_path / "four" / "best.pt"), **base),
+              log=io.StringIO())
+
+
+def test_s_trains_from_a_nano_checkpoint_widened_and_blends_back_with_it(tiny: Path, tmp_path: Path) -> None:
+    """``--model s --init`` a nano checkpoint: the run starts from the nano widened (the log says so with the
+    seed), trains every tensor and writes an ``s`` checkpoint; ``export --blend-base`` the nano at share 0 gives
+    back the nano's function in the ``s`` model (the base widened again with the run's seed); a nano run cannot
+    start from the ``s`` checkpoint, nor an ``s`` run from a size it does not widen from."""
+    from zebra_sim_ros.cli import main as cli_main
+
+    base = dict(data=str(tiny / "overfit.yaml"), imgsz=128, batch=4, device="cpu", workers=0, max_train_images=4,
+                val_every=1, close_mosaic=1, epochs=1, seed=5)
+    torch.manual_seed(2)
+    nano = build_model(ModelConfig(size="n", imgsz=128))
+    for m in nano.modules():  # batch norms that are not the identity, as trained ones are not
+        if isinstance(m, torch.nn.BatchNorm2d):
+            m.running_mean.normal_(0, 0.2)  # type: ignore[union-attr]
+            m.running_var.uniform_(0.5, 2.0)  # type: ignore[union-attr]
+            m.weight.data.uniform_(0.5, 1.5)
+    save_checkpoint(tmp_path / "n" / "best.pt", nano)
+    log = io.StringIO()
+    train(TrainConfig(out=str(tmp_path / "s"), model="s", init=str(tmp_path / "n" / "best.pt"), **base), log=log)
+    assert "the n weights widened to s" in log.getvalue() and "seed 5" in log.getvalue()
+    model, ckpt = load_model(tmp_path / "s" / "best.pt")
+    assert model.cfg.size == "s" and ckpt["train_args"]["model"] == "s"
+    raw = read_checkpoint(tmp_path / "s" / "last.pt")["model_raw"]
+    start = widen_state(nano.state_dict(), nano.cfg, "s", seed=5)
+    moved = [k for k, v in start.items() if v.is_floating_point() and not torch.equal(raw[k].float(), v)]
+    assert any(k.startswith("stem.") for k in moved) and any(k.startswith("cls_head.") for k in moved)
+    out = tmp_path / "back.pt"
+    assert cli_main(["export", "--weights", str(tmp_path / "s" / "last.pt"), "--format", "pt", "--blend-base",
+                     str(tmp_path / "n" / "best.pt"), "--blend", "0", "--out", str(out)]) == 0
+    back, ck = load_model(out)
+    assert back.cfg.size == "s" and ck["blended"]["widened_with_seed"] == 5
+    x = torch.rand(1, 3, 128, 128, generator=torch.Generator().manual_seed(0))
+    with torch.no_grad():
+        a, b = nano.eval()(x), back(x)
+    torch.testing.assert_close(b[..., :4], a[..., :4], atol=0.05, rtol=0)  # fp16 storage: px on a 128 px input
+    torch.testing.assert_close(b[..., 4:], a[..., 4:], atol=2e-3, rtol=0)
+    with pytest.raises(ParameterError, match="'--init'.*model size 'n'.*it holds 's'"):
+        train(TrainConfig(out=str(tmp_path / "n2"), model="n", init=str(tmp_path / "s" / "best.pt"),
+                          **base), log=io.StringIO())
+    with pytest.raises(ParameterError, match="'--init'.*model size 'm'.*it holds 'n'"):
+        train(TrainConfig(out=str(tmp_path / "m"), model="m", init=str(tmp_path / "n" / "best.pt"), **base),
               log=io.StringIO())

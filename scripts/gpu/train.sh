@@ -2,18 +2,21 @@
 # Fine-tune on a lent GPU machine, inside one call of at most 10 minutes: `gpu_data/` (made by scripts/gpu/pack.py,
 # carried with the tree) trained as 320 px crops of 2176 px samples for as many epochs as fit in BUDGET seconds. The
 # run starts with E0 epochs; the second epoch is timed and the run resumes with the epoch count that fits. After
-# every epoch an fp16 copy of last.pt (EMA weights, no optimizer) is kept; $OUT receives best.pt (the last epoch,
-# validated on gpu_data/val), results.csv, train.log, the latest snapshot and up to four snapshots (the last three and
-# one from the middle). Each epoch is K passes over the frames (one crop per frame per pass), so that the data
-# loader's workers, which restart each epoch, are not started every few seconds.
+# every epoch an fp16 copy of last.pt (EMA weights, no optimizer) is kept; $OUT receives train.log, results.csv, the
+# latest snapshot (last_snap.pt), best.pt (the last epoch, validated on gpu_data/val) and snapshots (snap/: one from
+# the middle of the run and the two before the last), as many as the machine sends back (8 files of 16 MiB at most,
+# 64 MiB together): a file over 15 MiB (an s snapshot: 22 MB) travels as 15 MiB parts NAME.part00, NAME.part01, ...
+# (join them with `cat NAME.part* > NAME`). Each epoch is K passes over the frames (one crop per frame per pass), so
+# that the data loader's workers, which restart each epoch, are not started every few seconds.
 #
 # Stage 12 (README, "Shipped weights"): run a `BUDGET=480 bash scripts/gpu/train.sh` (stage 11 init, lr0 0.004,
 # seed 16), run b `BUDGET=280 E0=4 LR=0.002 SEED=17 INIT=gpu_data/init.pt bash scripts/gpu/train.sh` (init: run a's
 # last snapshot). AUG holds the augmentation options passed to train, e.g. stage 14's
 # AUG='--aug-zoom 0.5 --aug-background 0.3 --aug-zoom-crop 1 --aug-zoom-max 16'. P2=1 trains with a stride-4 level
 # (`train --p2`); from a three-level INIT (the shipped weights) the other levels start from it and the new one fresh.
-# MODEL=s trains the small model; it cannot start from the nano's weights: give it INIT=none (from scratch) or an
-# s checkpoint (a snapshot an earlier call sent back, to go on from it in the next call).
+# MODEL=s trains the small model: from the nano's weights (the default INIT) widened to it (`train --init` keeps their
+# function: README, "The small model from the nano"), from scratch (INIT=none) or from an s checkpoint (a snapshot an
+# earlier call sent back, to go on from it in the next call).
 set -u
 cd "$(dirname "$0")/../.."
 export PYTHONPATH=$PWD PYTHONUNBUFFERED=1 OPENCV_FOR_THREADS_NUM=1
@@ -52,6 +55,12 @@ train() {  # $1 epochs, $2 seconds allowed, $3 --init WEIGHTS, --resume or nothi
     --amp "$AMP" --lr0 "$LR" --warmup-epochs 0.5 --close-mosaic 1 --val-every 1000 --seed "$SEED" \
     $AUG $ARCH --out $RUN $3 >>"$LOG" 2>&1
 }
+deliver() {  # $1 -> $OUTD/$2, in 15 MiB parts ($2.part00, ...) where it is larger; the old copy or parts go first
+  rm -f "$OUTD/$2" "$OUTD/$2".part*
+  if [ "$(stat -c %s "$1")" -le 15728640 ]; then cp "$1" "$OUTD/$2"
+  else rm -rf "$RUN/parts"; mkdir -p "$RUN/parts" && split -b 15M -d -a 2 "$1" "$RUN/parts/$(basename "$2").part" \
+    && mv "$RUN"/parts/* "$(dirname "$OUTD/$2")/"; fi
+}
 strip() {  # last.pt -> an fp16 checkpoint without optimizer state (export keeps the run's record)
   python3 -m zebra_sim_ros.cli export --weights "$1" --format pt --out "$2" >/dev/null
 }
@@ -61,7 +70,7 @@ snapper() {  # an fp16 copy of last.pt after every epoch
   while sleep 1; do
     n=$(rows)
     if [ "$n" -gt "$done" ] && [ -f $RUN/last.pt ] && [ $RUN/last.pt -nt $RUN/results.csv ]; then
-      sleep 1; strip $RUN/last.pt $RUN/snap/ep_$n.pt && cp $RUN/snap/ep_$n.pt "$OUTD/last_snap.pt" && echo "[run] snapshot epoch $n at $(elapsed) s" >>"$LOG"
+      sleep 1; strip $RUN/last.pt $RUN/snap/ep_$n.pt && deliver $RUN/snap/ep_$n.pt last_snap.pt && echo "[run] snapshot epoch $n at $(elapsed) s" >>"$LOG"
       done=$n
     fi
   done
@@ -102,16 +111,29 @@ echo "[run] training ended at $(elapsed) s, rows $(rows)" >>"$LOG"
 sleep 4; kill $SNAP 2>/dev/null
 n=$(rows); [ -f $RUN/last.pt ] && [ ! -f $RUN/snap/ep_$n.pt ] && strip $RUN/last.pt $RUN/snap/ep_$n.pt
 ls $RUN/snap >>"$LOG"
-[ -f $RUN/best.pt ] && cp $RUN/best.pt "$OUTD/best.pt"
+[ -f $RUN/snap/ep_$n.pt ] && deliver $RUN/snap/ep_$n.pt last_snap.pt
 cp $RUN/results.csv "$OUTD/" 2>/dev/null
-# the last three snapshots and one from the middle of the run (with best.pt, results.csv and the log: 7 files)
-python3 - "$RUN/snap" "$OUTD/snap" <<'EOF'
-import shutil, sys
+# then snapshots, one from the middle of the run and the two before the last, and best.pt, while 8 files and 60 MiB
+# hold them (the log, results.csv and last_snap.pt's parts counted first)
+mapfile -t SEND < <(python3 - "$RUN" "$OUTD" <<'EOF'
+import math, sys
 from pathlib import Path
-snaps = sorted(Path(sys.argv[1]).glob('ep_*.pt'), key=lambda p: int(p.stem[3:]))
-keep = snaps[-3:] + ([snaps[:-3][len(snaps[:-3]) // 2]] if len(snaps) > 3 else [])
-for p in dict.fromkeys(keep):
-    shutil.copy(p, Path(sys.argv[2]) / p.name)
+run, out = Path(sys.argv[1]), Path(sys.argv[2])
+PART, FILES, BYTES = 15 * 2**20, 8, 60 * 2**20
+held = {p for p in out.rglob('*') if p.is_file()} | {out / 'train.log'}
+files, size = len(held), sum(p.stat().st_size for p in held if p.exists())
+snaps = sorted((run / 'snap').glob('ep_*.pt'), key=lambda p: int(p.stem[3:]))
+keep = ([snaps[:-3][len(snaps[:-3]) // 2]] if len(snaps) > 3 else []) + snaps[-3:-1][::-1]
+for p in keep + ([run / 'best.pt'] if (run / 'best.pt').exists() else []):
+    n = max(1, math.ceil(p.stat().st_size / PART))
+    if files + n <= FILES and size + p.stat().st_size <= BYTES:
+        files, size = files + n, size + p.stat().st_size
+        print(p)
 EOF
+)
+for f in "${SEND[@]}"; do
+  case $f in */best.pt) deliver "$f" best.pt ;; *) deliver "$f" "snap/$(basename "$f")" ;; esac
+done
+echo "[run] sent back: $(cd "$OUTD" && find . -type f | sort | tr '\n' ' ')" >>"$LOG"
 echo "[run] done at $(elapsed) s" >>"$LOG"
 tail -40 "$LOG"

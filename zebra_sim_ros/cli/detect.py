@@ -57,7 +57,8 @@ def register(sub: Any) -> None:
     t.add_argument("--out", type=Path, required=True, help="run folder: best.pt, last.pt, results.csv, results.png")
     t.add_argument("--resume", action="store_true", help="continue the run in --out from last.pt")
     t.add_argument("--init", default="", help="start from this checkpoint's weights (fresh schedule), e.g. to "
-                   "train in stages; default: random initialisation")
+                   "train in stages; a nano checkpoint into --model s is widened (the same function, shares drawn "
+                   "with --seed); default: random initialisation")
     add_json_flag(t)
     t.set_defaults(func=cmd_train)
 

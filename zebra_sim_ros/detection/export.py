@@ -21,7 +21,7 @@ from torch import Tensor
 
 from zebra_sim_ros.detection.checkpoint import SHIPPED, load_model, read_checkpoint, save_checkpoint
 from zebra_sim_ros.detection.data import generate_settings
-from zebra_sim_ros.detection.model import build_model, p2_tensors
+from zebra_sim_ros.detection.model import WIDENS, build_model, p2_tensors, widen_state
 from zebra_sim_ros.errors import DependencyError, ParameterError
 
 
@@ -67,7 +67,9 @@ def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | 
     other frames at the same scale; returns the path. ``recipe``: text kept verbatim in the checkpoint (how the
     weights were made: the commands, seeds and times), else the source's own. ``blend_base``: a checkpoint
     ``weights`` was fine-tuned from; the output's tensors are then :func:`blend_weights` of the two with
-    ``blend`` the fine-tuned share (the rest of the record is ``weights``')."""
+    ``blend`` the fine-tuned share (the rest of the record is ``weights``'). A base of the narrower size that
+    ``train --init`` widened (``n`` under an ``s`` run) is widened again with the seed the run records, so it
+    blends with the very weights the run started from."""
     src = read_checkpoint(weights or SHIPPED)
     cfg = dict(src["config"])
     if imgsz:
@@ -79,8 +81,17 @@ def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | 
     blended = None
     if blend_base is not None:
         base = read_checkpoint(blend_base, "--blend-base")
-        state = blend_weights(state, base["model"], blend)
+        base_state, seed = base["model"], None
+        if WIDENS.get(base["config"].get("size")) == cfg.get("size"):  # the size it was widened from (train --init)
+            seed = src.get("train_args", {}).get("seed")
+            if not isinstance(seed, int):
+                raise ParameterError("--blend-base", str(blend_base), f"a checkpoint of size {cfg.get('size')!r}, "
+                                     "or of the size it was widened from where the weights record their seed")
+            base_state = widen_state(base_state, base["config"], str(cfg.get("size")), seed)
+        state = blend_weights(state, base_state, blend)
         blended = {"base": str(blend_base), "base_config": base["config"], "alpha": blend}
+        if seed is not None:
+            blended["widened_with_seed"] = seed
     model.load_state_dict(state)
     extra: dict[str, Any] = {k: src[k] for k in ("epoch", "metrics", "train_args", "best_fitness", "data_generate",
                                                  "recipe") if k in src}

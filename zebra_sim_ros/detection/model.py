@@ -311,6 +311,50 @@ def p2_tensors(state: dict[str, Any]) -> list[str]:
     return [k for k in state if k.startswith(prefixes)]
 
 
+WIDENS = {"n": "s"}  # the sizes :func:`widen_state` grows a checkpoint between: every channel count doubles
+
+
+def widen_state(state: dict[str, Tensor], cfg: ModelConfig | dict[str, Any], size: str,
+                seed: int) -> dict[str, Tensor]:
+    """The weights of a ``size`` model that computes what ``state`` (a ``cfg`` model's) computes: a
+    function-preserving widening (Net2WiderNet, Chen et al. 2016) from ``n`` to ``s``, whose every feature map has
+    twice the channels (the same depth, head outputs and box-branch width).
+
+    Feature channel ``k`` of the wide model is channel ``k // 2`` of the narrow one (interleaved copies, which
+    commute with the C2f's split and every concatenation). A convolution's output channels and a batch norm's
+    statistics are copied; where its input channels were doubled, each pair of copies shares the old weight
+    ``w`` as ``a * w`` and ``(1 - a) * w``, with ``a`` drawn per weight from U(0.25, 0.75) by ``seed``: the
+    sum, so the function, is unchanged (up to rounding), and the unequal shares give each copy its own gradient,
+    so the copies part as the wide model trains. Stride-4 tensors (``p2``) widen like the rest."""
+    src = cfg if isinstance(cfg, ModelConfig) else ModelConfig.from_dict(cfg)
+    if WIDENS.get(src.size) != size:
+        raise ParameterError("model", size, f"{WIDENS.get(src.size) or 'no size'}: a checkpoint of size "
+                             f"{src.size!r} widens to {sorted(f'{a} -> {b}' for a, b in WIDENS.items())} only")
+    target = Detector(ModelConfig(**{**asdict(src), "size": size})).state_dict()
+    if set(target) != set(state):
+        bad = sorted(set(target) ^ set(state))
+        raise ParameterError("--init", f"{len(bad)} tensor(s) of another name, first {bad[0]}",
+                             f"the tensors of a {src.size} model of the same classes and levels")
+    gen = torch.Generator().manual_seed(int(seed))
+    out: dict[str, Tensor] = {}
+    for name, t in target.items():  # in the model's own order: the same seed gives the same shares
+        v = state[name].float() if state[name].is_floating_point() else state[name]
+        if v.shape == t.shape:
+            out[name] = v.clone()
+            continue
+        ratios = [b / a for a, b in zip(v.shape, t.shape, strict=True)] if v.ndim == t.ndim else []
+        if not ratios or any(r not in (1, 2) for r in ratios):
+            raise ParameterError("--init", f"{name} of shape {tuple(v.shape)}",
+                                 f"the shape {tuple(t.shape)} or half of it in each dimension")
+        if ratios[0] == 2:  # output channels (or a batch norm's): copies
+            v = v.repeat_interleave(2, 0)
+        if len(ratios) > 1 and ratios[1] == 2:  # input channels: each copy a share of the old weight
+            a = 0.25 + 0.5 * torch.rand(v.shape, generator=gen)
+            v = torch.stack([a * v, (1.0 - a) * v], 2).flatten(1, 2)
+        out[name] = v
+    return out
+
+
 def build_model(cfg: ModelConfig | dict[str, Any]) -> Detector:
     """A detector from a config (or its dict, as stored in checkpoints)."""
     return Detector(cfg if isinstance(cfg, ModelConfig) else ModelConfig.from_dict(cfg))

@@ -33,7 +33,16 @@ from zebra_sim_ros.detection.config import AMP_MODES
 from zebra_sim_ros.detection.data import Augment, YoloDataset, collate, generate_settings, resolve_splits
 from zebra_sim_ros.detection.evaluate import make_loader, predictions, score, write_plots
 from zebra_sim_ros.detection.loss import DetectionLoss
-from zebra_sim_ros.detection.model import OTHER_ANIMAL, Detector, ModelConfig, build_model, count_parameters, p2_tensors
+from zebra_sim_ros.detection.model import (
+    OTHER_ANIMAL,
+    WIDENS,
+    Detector,
+    ModelConfig,
+    build_model,
+    count_parameters,
+    p2_tensors,
+    widen_state,
+)
 from zebra_sim_ros.errors import ParameterError
 
 
@@ -196,16 +205,24 @@ def _load_weights(cfg: TrainConfig, model: Detector, out: Path, log: Any) -> _St
     """Load ``--init`` weights, or the resumed run's raw weights, into ``model``; where the run starts."""
     if cfg.init:
         init = read_checkpoint(cfg.init, "--init")
-        if init["config"].get("size") != cfg.model:
-            raise ParameterError("--init", cfg.init, f"a checkpoint of model size {cfg.model!r} "
-                                 f"(it holds {init['config'].get('size')!r})")
+        size = init["config"].get("size")
+        if size != cfg.model and WIDENS.get(size) != cfg.model:
+            raise ParameterError("--init", cfg.init, f"a checkpoint of model size {cfg.model!r}"
+                                 f"{''.join(f' or {a!r}' for a, b in WIDENS.items() if b == cfg.model)} "
+                                 f"(it holds {size!r})")
         if list(init["config"].get("names", ["zebra"])) != list(model.cfg.names[: init["config"].get("nc", 1)]):
             raise ParameterError("--init", cfg.init, f"a checkpoint whose classes begin {list(model.cfg.names)} "
                                  f"(it holds {init['config'].get('names')}; --other-animals adds other_animal)")
         if init["config"].get("p2", False) and not cfg.p2:
             raise ParameterError("--init", cfg.init, "a checkpoint without the stride-4 level (it has one: "
                                  "add --p2 to train it)")
-        grown = load_init_weights(model, init["model"])
+        state = init["model"]
+        if size != cfg.model:  # a narrower checkpoint: the same function in the wider model, the shares by the seed
+            state = widen_state(state, init["config"], cfg.model, cfg.seed)
+            if _is_main():
+                print(f"[train] --init {cfg.init}: the {size} weights widened to {cfg.model} (the same function; "
+                      f"the copies' shares drawn with seed {cfg.seed})", file=log)
+        grown = load_init_weights(model, state)
         if grown and _is_main():
             kept = init["config"].get("nc", 1)
             print(f"[train] --init {cfg.init}: {', '.join(model.cfg.names[:kept])} from it, "
