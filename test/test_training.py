@@ -228,8 +228,10 @@ def test_p2_trains_from_a_three_level_checkpoint_and_is_kept_on_resume(tiny: Pat
 def test_s_trains_from_a_nano_checkpoint_widened_and_blends_back_with_it(tiny: Path, tmp_path: Path) -> None:
     """``--model s --init`` a nano checkpoint: the run starts from the nano widened (the log says so with the
     seed), trains every tensor and writes an ``s`` checkpoint; ``export --blend-base`` the nano at share 0 gives
-    back the nano's function in the ``s`` model (the base widened again with the run's seed); a nano run cannot
-    start from the ``s`` checkpoint, nor an ``s`` run from a size it does not widen from."""
+    back the nano's function in the ``s`` model (the base widened again with the run's seed); a later run from
+    the ``s`` checkpoint carries the widening's record, so its blend widens the nano with the first run's seed;
+    weights that record no widening are refused a nano base; a nano run cannot start from the ``s`` checkpoint,
+    nor an ``s`` run from a size it does not widen from."""
     from zebra_sim_ros.cli import main as cli_main
 
     base = dict(data=str(tiny / "overfit.yaml"), imgsz=128, batch=4, device="cpu", workers=0, max_train_images=4,
@@ -261,6 +263,19 @@ def test_s_trains_from_a_nano_checkpoint_widened_and_blends_back_with_it(tiny: P
         a, b = nano.eval()(x), back(x)
     torch.testing.assert_close(b[..., :4], a[..., :4], atol=0.05, rtol=0)  # fp16 storage: px on a 128 px input
     torch.testing.assert_close(b[..., 4:], a[..., 4:], atol=2e-3, rtol=0)
+    # a run from the s checkpoint (another seed) carries the widening's record on, so its blend widens with seed 5
+    train(TrainConfig(out=str(tmp_path / "s2"), model="s", init=str(tmp_path / "s" / "last.pt"),
+                      **{**base, "seed": 6}), log=io.StringIO())
+    assert read_checkpoint(tmp_path / "s2" / "last.pt")["widened"]["seed"] == 5
+    assert cli_main(["export", "--weights", str(tmp_path / "s2" / "last.pt"), "--format", "pt", "--blend-base",
+                     str(tmp_path / "n" / "best.pt"), "--blend", "0.5", "--out", str(out)]) == 0
+    ck = read_checkpoint(out)
+    tuned = read_checkpoint(tmp_path / "s2" / "last.pt")["model"]["stem.1.conv.weight"].float()
+    half = (0.5 * tuned + 0.5 * start["stem.1.conv.weight"]).half().float()
+    assert ck["blended"]["widened_with_seed"] == 5 and torch.equal(ck["model"]["stem.1.conv.weight"].float(), half)
+    save_checkpoint(tmp_path / "scratch.pt", build_model(ModelConfig(size="s", imgsz=128)))  # records no widening
+    assert cli_main(["export", "--weights", str(tmp_path / "scratch.pt"), "--format", "pt", "--blend-base",
+                     str(tmp_path / "n" / "best.pt"), "--blend", "0.5", "--out", str(out)]) == 2
     with pytest.raises(ParameterError, match="'--init'.*model size 'n'.*it holds 's'"):
         train(TrainConfig(out=str(tmp_path / "n2"), model="n", init=str(tmp_path / "s" / "best.pt"),
                           **base), log=io.StringIO())

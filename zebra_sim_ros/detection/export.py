@@ -68,8 +68,8 @@ def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | 
     weights were made: the commands, seeds and times), else the source's own. ``blend_base``: a checkpoint
     ``weights`` was fine-tuned from; the output's tensors are then :func:`blend_weights` of the two with
     ``blend`` the fine-tuned share (the rest of the record is ``weights``'). A base of the narrower size that
-    ``train --init`` widened (``n`` under an ``s`` run) is widened again with the seed the run records, so it
-    blends with the very weights the run started from."""
+    ``train --init`` widened (``n`` under an ``s`` run) is widened again with the seed ``weights`` record
+    (``widened``, carried on through later runs from them), so it blends with the very weights the widening made."""
     src = read_checkpoint(weights or SHIPPED)
     cfg = dict(src["config"])
     if imgsz:
@@ -83,10 +83,11 @@ def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | 
         base = read_checkpoint(blend_base, "--blend-base")
         base_state, seed = base["model"], None
         if WIDENS.get(base["config"].get("size")) == cfg.get("size"):  # the size it was widened from (train --init)
-            seed = src.get("train_args", {}).get("seed")
+            seed = (src.get("widened") or {}).get("seed")
             if not isinstance(seed, int):
-                raise ParameterError("--blend-base", str(blend_base), f"a checkpoint of size {cfg.get('size')!r}, "
-                                     "or of the size it was widened from where the weights record their seed")
+                raise ParameterError("--blend-base", str(blend_base), f"a checkpoint of size {cfg.get('size')!r} "
+                                     f"(or of size {base['config'].get('size')!r} where the weights record that "
+                                     "they were widened from it: train --init)")
             base_state = widen_state(base_state, base["config"], str(cfg.get("size")), seed)
         state = blend_weights(state, base_state, blend)
         blended = {"base": str(blend_base), "base_config": base["config"], "alpha": blend}
@@ -94,7 +95,7 @@ def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | 
             blended["widened_with_seed"] = seed
     model.load_state_dict(state)
     extra: dict[str, Any] = {k: src[k] for k in ("epoch", "metrics", "train_args", "best_fitness", "data_generate",
-                                                 "recipe") if k in src}
+                                                 "recipe", "widened") if k in src}
     if "data_generate" not in extra and "data" in extra.get("train_args", {}):  # checkpoints before it was kept
         extra["data_generate"] = generate_settings(extra["train_args"]["data"])
     if recipe:
