@@ -1199,7 +1199,10 @@ def test_widening_n_to_s_keeps_the_function_and_parts_the_copies() -> None:
     again, other = widen_state(ck["model"], ck["config"], "s", seed=3), widen_state(ck["model"], ck["config"], "s", 4)
     assert all(torch.equal(again[k], v) for k, v in state.items())
     assert not torch.equal(other["stem.1.conv.weight"], w)
-    with pytest.raises(ParameterError, match="'model' = 'm'.*'n -> s'"):
+    with pytest.raises(ParameterError, match="'--model' = 'm'.*'s', the size a 'n' checkpoint widens to"):
         widen_state(ck["model"], ck["config"], "m", seed=3)
-    with pytest.raises(ParameterError, match="'model' = 'n'"):
+    with pytest.raises(ParameterError, match="'--model' = 'n'.*a 's' checkpoint does not widen"):
         widen_state(state, {**ck["config"], "size": "s"}, "n", seed=3)
+    with pytest.raises(ParameterError, match="'--blend-base'.*tensor"):
+        widen_state({k: v for k, v in ck["model"].items() if k != "stem.0.conv.weight"}, ck["config"], "s", 3,
+                    "--blend-base")

@@ -19,7 +19,7 @@ import torch
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
 from zebra_sim_ros.detection.checkpoint import load_model, read_checkpoint, save_checkpoint
 from zebra_sim_ros.detection.evaluate import evaluate
-from zebra_sim_ros.detection.model import ModelConfig, build_model, widen_state
+from zebra_sim_ros.detection.model import ModelConfig, build_model, state_digest, widen_state
 from zebra_sim_ros.detection.train import TrainConfig, train
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LabelFilters
@@ -225,13 +225,15 @@ def test_p2_trains_from_a_three_level_checkpoint_and_is_kept_on_resume(tiny: Pat
               log=io.StringIO())
 
 
-def test_s_trains_from_a_nano_checkpoint_widened_and_blends_back_with_it(tiny: Path, tmp_path: Path) -> None:
+def test_s_trains_from_a_nano_checkpoint_widened_and_blends_back_with_it(tiny: Path, tmp_path: Path,
+                                                                         capsys: pytest.CaptureFixture[str]) -> None:
     """``--model s --init`` a nano checkpoint: the run starts from the nano widened (the log says so with the
     seed), trains every tensor and writes an ``s`` checkpoint; ``export --blend-base`` the nano at share 0 gives
     back the nano's function in the ``s`` model (the base widened again with the run's seed); a later run from
-    the ``s`` checkpoint carries the widening's record, so its blend widens the nano with the first run's seed;
-    weights that record no widening are refused a nano base; a nano run cannot start from the ``s`` checkpoint,
-    nor an ``s`` run from a size it does not widen from."""
+    the ``s`` checkpoint carries the widening's record, and so does a resume, so its blend widens the nano with
+    the first run's seed; weights that record no widening, and a nano other than the one widened, are refused as
+    a base; a nano run cannot start from the ``s`` checkpoint, nor an ``s`` run from a size it does not widen
+    from."""
     from zebra_sim_ros.cli import main as cli_main
 
     base = dict(data=str(tiny / "overfit.yaml"), imgsz=128, batch=4, device="cpu", workers=0, max_train_images=4,
@@ -249,10 +251,16 @@ def test_s_trains_from_a_nano_checkpoint_widened_and_blends_back_with_it(tiny: P
     assert "the n weights widened to s" in log.getvalue() and "seed 5" in log.getvalue()
     model, ckpt = load_model(tmp_path / "s" / "best.pt")
     assert model.cfg.size == "s" and ckpt["train_args"]["model"] == "s"
-    raw = read_checkpoint(tmp_path / "s" / "last.pt")["model_raw"]
+    last = read_checkpoint(tmp_path / "s" / "last.pt")
+    assert last["widened"] == {"from": str(tmp_path / "n" / "best.pt"), "size": "n", "seed": 5,
+                               "digest": state_digest(nano.state_dict())}
+    raw = last["model_raw"]
     start = widen_state(nano.state_dict(), nano.cfg, "s", seed=5)
     moved = [k for k, v in start.items() if v.is_floating_point() and not torch.equal(raw[k].float(), v)]
     assert any(k.startswith("stem.") for k in moved) and any(k.startswith("cls_head.") for k in moved)
+    other = widen_state(nano.state_dict(), nano.cfg, "s", seed=6)  # it started from seed 5's shares, not others
+    k = "stem.1.conv.weight"
+    assert (raw[k].float() - start[k]).abs().max() < 0.5 * (raw[k].float() - other[k]).abs().max()
     out = tmp_path / "back.pt"
     assert cli_main(["export", "--weights", str(tmp_path / "s" / "last.pt"), "--format", "pt", "--blend-base",
                      str(tmp_path / "n" / "best.pt"), "--blend", "0", "--out", str(out)]) == 0
@@ -263,19 +271,32 @@ def test_s_trains_from_a_nano_checkpoint_widened_and_blends_back_with_it(tiny: P
         a, b = nano.eval()(x), back(x)
     torch.testing.assert_close(b[..., :4], a[..., :4], atol=0.05, rtol=0)  # fp16 storage: px on a 128 px input
     torch.testing.assert_close(b[..., 4:], a[..., 4:], atol=2e-3, rtol=0)
-    # a run from the s checkpoint (another seed) carries the widening's record on, so its blend widens with seed 5
+    # a run from the s checkpoint (another seed) carries the widening's record on, and so does its resume, so its
+    # blend widens with seed 5
     train(TrainConfig(out=str(tmp_path / "s2"), model="s", init=str(tmp_path / "s" / "last.pt"),
                       **{**base, "seed": 6}), log=io.StringIO())
-    assert read_checkpoint(tmp_path / "s2" / "last.pt")["widened"]["seed"] == 5
+    train(TrainConfig(out=str(tmp_path / "s2"), model="s", resume=True, **{**base, "seed": 6, "epochs": 2}),
+          log=io.StringIO())
+    resumed = read_checkpoint(tmp_path / "s2" / "last.pt")
+    assert resumed["epoch"] == 1 and resumed["widened"] == last["widened"]
     assert cli_main(["export", "--weights", str(tmp_path / "s2" / "last.pt"), "--format", "pt", "--blend-base",
                      str(tmp_path / "n" / "best.pt"), "--blend", "0.5", "--out", str(out)]) == 0
     ck = read_checkpoint(out)
     tuned = read_checkpoint(tmp_path / "s2" / "last.pt")["model"]["stem.1.conv.weight"].float()
     half = (0.5 * tuned + 0.5 * start["stem.1.conv.weight"]).half().float()
-    assert ck["blended"]["widened_with_seed"] == 5 and torch.equal(ck["model"]["stem.1.conv.weight"].float(), half)
+    assert ck["blended"]["widened_with_seed"] == 5
+    torch.testing.assert_close(ck["model"]["stem.1.conv.weight"].float(), half, atol=1e-3, rtol=0)
     save_checkpoint(tmp_path / "scratch.pt", build_model(ModelConfig(size="s", imgsz=128)))  # records no widening
+    capsys.readouterr()
     assert cli_main(["export", "--weights", str(tmp_path / "scratch.pt"), "--format", "pt", "--blend-base",
                      str(tmp_path / "n" / "best.pt"), "--blend", "0.5", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "'--weights'" in err and "widened from" in err
+    save_checkpoint(tmp_path / "n_other.pt", build_model(ModelConfig(size="n", imgsz=128)))  # not the one widened
+    assert cli_main(["export", "--weights", str(tmp_path / "s2" / "last.pt"), "--format", "pt", "--blend-base",
+                     str(tmp_path / "n_other.pt"), "--blend", "0.5", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "'--blend-base'" in err and last["widened"]["digest"] in err
     with pytest.raises(ParameterError, match="'--init'.*model size 'n'.*it holds 's'"):
         train(TrainConfig(out=str(tmp_path / "n2"), model="n", init=str(tmp_path / "s" / "best.pt"),
                           **base), log=io.StringIO())

@@ -58,8 +58,8 @@ train() {  # $1 epochs, $2 seconds allowed, $3 --init WEIGHTS, --resume or nothi
 deliver() {  # $1 -> $OUTD/$2, in 15 MiB parts ($2.part00, ...) where it is larger; the old copy or parts go first
   rm -f "$OUTD/$2" "$OUTD/$2".part*
   if [ "$(stat -c %s "$1")" -le 15728640 ]; then cp "$1" "$OUTD/$2"
-  else rm -rf "$RUN/parts"; mkdir -p "$RUN/parts" && split -b 15M -d -a 2 "$1" "$RUN/parts/$(basename "$2").part" \
-    && mv "$RUN"/parts/* "$(dirname "$OUTD/$2")/"; fi
+  else local t; t=$(mktemp -d "$RUN/parts.XXXXXX") && split -b 15M -d -a 2 "$1" "$t/$(basename "$2").part" \
+    && mv "$t"/* "$(dirname "$OUTD/$2")/"; rm -rf "$t"; fi
 }
 strip() {  # last.pt -> an fp16 checkpoint without optimizer state (export keeps the run's record)
   python3 -m zebra_sim_ros.cli export --weights "$1" --format pt --out "$2" >/dev/null
@@ -67,7 +67,7 @@ strip() {  # last.pt -> an fp16 checkpoint without optimizer state (export keeps
 rows() { [ -f $RUN/results.csv ] && echo $(( $(wc -l < $RUN/results.csv) - 1 )) || echo 0; }
 snapper() {  # an fp16 copy of last.pt after every epoch
   local done=0
-  while sleep 1; do
+  while sleep 1 && [ ! -f $RUN/snap.stop ]; do
     n=$(rows)
     if [ "$n" -gt "$done" ] && [ -f $RUN/last.pt ] && [ $RUN/last.pt -nt $RUN/results.csv ]; then
       sleep 1; strip $RUN/last.pt $RUN/snap/ep_$n.pt && deliver $RUN/snap/ep_$n.pt last_snap.pt && echo "[run] snapshot epoch $n at $(elapsed) s" >>"$LOG"
@@ -108,7 +108,7 @@ if wait_rows 1; then
   fi
 fi
 echo "[run] training ended at $(elapsed) s, rows $(rows)" >>"$LOG"
-sleep 4; kill $SNAP 2>/dev/null
+sleep 4; touch $RUN/snap.stop; wait $SNAP  # the snapper ends its snapshot in hand, then stops
 n=$(rows); [ -f $RUN/last.pt ] && [ ! -f $RUN/snap/ep_$n.pt ] && strip $RUN/last.pt $RUN/snap/ep_$n.pt
 ls $RUN/snap >>"$LOG"
 [ -f $RUN/snap/ep_$n.pt ] && deliver $RUN/snap/ep_$n.pt last_snap.pt

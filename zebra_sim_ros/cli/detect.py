@@ -136,7 +136,8 @@ def register(sub: Any) -> None:
     e.add_argument("--recipe", default=None, help="pt: a text file kept verbatim in the checkpoint (key 'recipe'): "
                    "how the weights were made (commands, seeds, times)")
     e.add_argument("--blend-base", default=None, help="pt: the checkpoint --weights was fine-tuned from; the output "
-                   "is a weight-space ensemble of the two (WiSE-FT): (1 - --blend) x base + --blend x weights")
+                   "is a weight-space ensemble of the two (WiSE-FT): (1 - --blend) x base + --blend x weights; the "
+                   "nano an s run was widened from is widened again with the seed the run records")
     e.add_argument("--blend", type=float, default=1.0, help="pt, with --blend-base: the fine-tuned weights' share, "
                    "0..1 (default 1: no blend)")
     e.add_argument("--out", type=Path, required=True, help="output file (.onnx or .pt)")

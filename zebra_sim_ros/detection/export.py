@@ -21,7 +21,7 @@ from torch import Tensor
 
 from zebra_sim_ros.detection.checkpoint import SHIPPED, load_model, read_checkpoint, save_checkpoint
 from zebra_sim_ros.detection.data import generate_settings
-from zebra_sim_ros.detection.model import WIDENS, build_model, p2_tensors, widen_state
+from zebra_sim_ros.detection.model import WIDENS, build_model, p2_tensors, state_digest, widen_state
 from zebra_sim_ros.errors import DependencyError, ParameterError
 
 
@@ -83,12 +83,17 @@ def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | 
         base = read_checkpoint(blend_base, "--blend-base")
         base_state, seed = base["model"], None
         if WIDENS.get(base["config"].get("size")) == cfg.get("size"):  # the size it was widened from (train --init)
-            seed = (src.get("widened") or {}).get("seed")
+            record = src.get("widened") or {}
+            seed = record.get("seed")
             if not isinstance(seed, int):
-                raise ParameterError("--blend-base", str(blend_base), f"a checkpoint of size {cfg.get('size')!r} "
-                                     f"(or of size {base['config'].get('size')!r} where the weights record that "
-                                     "they were widened from it: train --init)")
-            base_state = widen_state(base_state, base["config"], str(cfg.get("size")), seed)
+                raise ParameterError("--weights", str(weights), f"weights that record the {base['config'].get('size')} "
+                                     "checkpoint they were widened from (train --init), to blend with one; or a "
+                                     f"--blend-base of size {cfg.get('size')!r}")
+            digest = state_digest(base_state)
+            if record.get("digest", digest) != digest:
+                raise ParameterError("--blend-base", str(blend_base), f"the weights the run was widened from "
+                                     f"({record.get('from')}, digest {record['digest']}; these are {digest})")
+            base_state = widen_state(base_state, base["config"], str(cfg.get("size")), seed, "--blend-base")
         state = blend_weights(state, base_state, blend)
         blended = {"base": str(blend_base), "base_config": base["config"], "alpha": blend}
         if seed is not None:

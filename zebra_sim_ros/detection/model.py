@@ -16,6 +16,7 @@ its model (:func:`build_model`).
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -314,8 +315,19 @@ def p2_tensors(state: dict[str, Any]) -> list[str]:
 WIDENS = {"n": "s"}  # the sizes :func:`widen_state` grows a checkpoint between: every channel count doubles
 
 
+def state_digest(state: dict[str, Tensor]) -> str:
+    """The first 12 hex digits of a sha256 over a state dict's names and float32 values: the same weights give
+    the same digest whatever file, dtype of storage or path they come from."""
+    h = hashlib.sha256()
+    for name in sorted(state):
+        v = state[name]
+        h.update(name.encode())
+        h.update((v.float() if v.is_floating_point() else v).contiguous().cpu().numpy().tobytes())
+    return h.hexdigest()[:12]
+
+
 def widen_state(state: dict[str, Tensor], cfg: ModelConfig | dict[str, Any], size: str,
-                seed: int) -> dict[str, Tensor]:
+                seed: int, name: str = "--init") -> dict[str, Tensor]:
     """The weights of a ``size`` model that computes what ``state`` (a ``cfg`` model's) computes: a
     function-preserving widening (Net2WiderNet, Chen et al. 2016) from ``n`` to ``s``, whose every feature map has
     twice the channels (the same depth, head outputs and box-branch width).
@@ -325,33 +337,36 @@ def widen_state(state: dict[str, Tensor], cfg: ModelConfig | dict[str, Any], siz
     statistics are copied; where its input channels were doubled, each pair of copies shares the old weight
     ``w`` as ``a * w`` and ``(1 - a) * w``, with ``a`` drawn per weight from U(0.25, 0.75) by ``seed``: the
     sum, so the function, is unchanged (up to rounding), and the unequal shares give each copy its own gradient,
-    so the copies part as the wide model trains. Stride-4 tensors (``p2``) widen like the rest."""
+    so the copies part as the wide model trains. Stride-4 tensors (``p2``) widen like the rest. ``name``: the
+    option that gave ``state``, for errors."""
     src = cfg if isinstance(cfg, ModelConfig) else ModelConfig.from_dict(cfg)
     if WIDENS.get(src.size) != size:
-        raise ParameterError("model", size, f"{WIDENS.get(src.size) or 'no size'}: a checkpoint of size "
-                             f"{src.size!r} widens to {sorted(f'{a} -> {b}' for a, b in WIDENS.items())} only")
+        pairs = ", ".join(f"{a} -> {b}" for a, b in WIDENS.items())
+        raise ParameterError("--model", size, f"{WIDENS[src.size]!r}, the size a {src.size!r} checkpoint widens to "
+                             f"(widenings: {pairs})" if src.size in WIDENS else
+                             f"none: a {src.size!r} checkpoint does not widen (widenings: {pairs})")
     target = Detector(ModelConfig(**{**asdict(src), "size": size})).state_dict()
     if set(target) != set(state):
         bad = sorted(set(target) ^ set(state))
-        raise ParameterError("--init", f"{len(bad)} tensor(s) of another name, first {bad[0]}",
-                             f"the tensors of a {src.size} model of the same classes and levels")
+        raise ParameterError(name, f"{len(bad)} tensor(s) of another name, first {bad[0]}",
+                             f"the tensors of a model of size {src.size!r} with the same classes and levels")
     gen = torch.Generator().manual_seed(int(seed))
     out: dict[str, Tensor] = {}
-    for name, t in target.items():  # in the model's own order: the same seed gives the same shares
-        v = state[name].float() if state[name].is_floating_point() else state[name]
+    for key, t in target.items():  # in the model's own order: the same seed gives the same shares
+        v = state[key].float() if state[key].is_floating_point() else state[key]
         if v.shape == t.shape:
-            out[name] = v.clone()
+            out[key] = v.clone()
             continue
         ratios = [b / a for a, b in zip(v.shape, t.shape, strict=True)] if v.ndim == t.ndim else []
-        if not ratios or any(r not in (1, 2) for r in ratios):
-            raise ParameterError("--init", f"{name} of shape {tuple(v.shape)}",
-                                 f"the shape {tuple(t.shape)} or half of it in each dimension")
+        if not ratios or any(r not in (1, 2) for r in ratios[:2]) or any(r != 1 for r in ratios[2:]):
+            raise ParameterError(name, f"{key} of shape {tuple(v.shape)}",
+                                 f"the shape {tuple(t.shape)} or half of it in its channel dimensions")
         if ratios[0] == 2:  # output channels (or a batch norm's): copies
             v = v.repeat_interleave(2, 0)
         if len(ratios) > 1 and ratios[1] == 2:  # input channels: each copy a share of the old weight
             a = 0.25 + 0.5 * torch.rand(v.shape, generator=gen)
             v = torch.stack([a * v, (1.0 - a) * v], 2).flatten(1, 2)
-        out[name] = v
+        out[key] = v
     return out
 
 

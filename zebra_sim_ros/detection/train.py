@@ -41,6 +41,7 @@ from zebra_sim_ros.detection.model import (
     build_model,
     count_parameters,
     p2_tensors,
+    state_digest,
     widen_state,
 )
 from zebra_sim_ros.errors import ParameterError
@@ -221,8 +222,8 @@ def _load_weights(cfg: TrainConfig, model: Detector, out: Path, log: Any) -> _St
         state = init["model"]
         widened = init.get("widened")  # a run from a widened run's checkpoint carries its record on
         if size != cfg.model:  # a narrower checkpoint: the same function in the wider model, the shares by the seed
+            widened = {"from": cfg.init, "size": size, "seed": cfg.seed, "digest": state_digest(state)}
             state = widen_state(state, init["config"], cfg.model, cfg.seed)
-            widened = {"from": cfg.init, "size": size, "seed": cfg.seed}
             if _is_main():
                 print(f"[train] --init {cfg.init}: the {size} weights widened to {cfg.model} (the same function; "
                       f"the copies' shares drawn with seed {cfg.seed})", file=log)
