@@ -1206,3 +1206,29 @@ def test_widening_n_to_s_keeps_the_function_and_parts_the_copies() -> None:
     with pytest.raises(ParameterError, match="'--blend-base'.*tensor"):
         widen_state({k: v for k, v in ck["model"].items() if k != "stem.0.conv.weight"}, ck["config"], "s", 3,
                     "--blend-base")
+
+
+@pytest.mark.parametrize("cfg", [ModelConfig(size="n", p2=True), ModelConfig(size="n", nc=2, names=("zebra", "x"))],
+                         ids=["p2", "two-classes"])
+def test_widening_keeps_the_function_with_a_stride_4_level_and_two_classes(cfg: ModelConfig) -> None:
+    """The stride-4 level (its C2f joins the upsampled stride-8 features with the stem's) and a second class
+    widen like the rest: random weights and batch-norm statistics, the same raw outputs at every level."""
+    from zebra_sim_ros.detection.model import widen_state
+
+    torch.manual_seed(4)
+    narrow = build_model(cfg)
+    for m in narrow.modules():
+        if isinstance(m, torch.nn.BatchNorm2d):
+            m.running_mean.normal_(0, 0.2)  # type: ignore[union-attr]
+            m.running_var.uniform_(0.5, 2.0)  # type: ignore[union-attr]
+            m.weight.data.uniform_(0.5, 1.5)
+            m.bias.data.normal_(0, 0.1)
+    wide = build_model(replace(cfg, size="s"))
+    wide.load_state_dict(widen_state(narrow.state_dict(), cfg, "s", seed=1))
+    x = torch.rand(1, 3, 128, 160, generator=torch.Generator().manual_seed(0))
+    with torch.no_grad():
+        fa, fb = narrow.eval().features(x), wide.eval().features(x)
+    assert len(fa) == len(narrow.strides) == len(fb)
+    for a, b in zip(fa, fb, strict=True):
+        assert a.shape == b.shape
+        torch.testing.assert_close(b, a, atol=1e-4, rtol=1e-4)
