@@ -11,7 +11,9 @@ import re
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 import torch
@@ -303,3 +305,33 @@ def test_s_trains_from_a_nano_checkpoint_widened_and_blends_back_with_it(tiny: P
     with pytest.raises(ParameterError, match="'--init'.*model size 'm'.*it holds 'n'"):
         train(TrainConfig(out=str(tmp_path / "m"), model="m", init=str(tmp_path / "n" / "best.pt"), **base),
               log=io.StringIO())
+
+
+def test_each_epoch_says_how_much_of_it_waited_for_the_data_loader(tiny: Path, tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """The epoch's last log line gives the share of its time spent waiting for batches: a loader slowed by 0.15 s
+    a sample (in process: no workers) makes it most of the epoch, and more than the same run's without the
+    delay."""
+    from zebra_sim_ros.detection.data import YoloDataset
+
+    base = dict(data=str(tiny / "overfit.yaml"), model="n", imgsz=128, batch=2, device="cpu", workers=0,
+                max_train_images=4, val_every=100, close_mosaic=0, epochs=1)
+
+    def share(log: str) -> int:
+        m = re.search(r"\[train\] epoch 1: [\d.]+ s, (\d+)% of it waiting for the data loader \(0 workers\)", log)
+        assert m, log
+        return int(m.group(1))
+
+    log = io.StringIO()
+    train(TrainConfig(out=str(tmp_path / "fast"), **base), log=log)
+    fast = share(log.getvalue())
+    get = YoloDataset.__getitem__
+
+    def slow(self: YoloDataset, i: int) -> Any:
+        time.sleep(0.15)
+        return get(self, i)
+
+    monkeypatch.setattr(YoloDataset, "__getitem__", slow)
+    log = io.StringIO()
+    train(TrainConfig(out=str(tmp_path / "slow"), **base), log=log)
+    assert share(log.getvalue()) >= 70 and share(log.getvalue()) >= fast + 20, (fast, log.getvalue())
