@@ -18,7 +18,7 @@ from pycocotools.cocoeval import COCOeval
 from zebra_sim_ros.detection.boxes import box_iou, decode_ltrb, encode_ltrb, nms, postprocess
 from zebra_sim_ros.detection.checkpoint import load_model, read_checkpoint, save_checkpoint
 from zebra_sim_ros.detection.metrics import ap_by_size, evaluate_detections, precision_recall_at
-from zebra_sim_ros.detection.model import ModelConfig, build_model, count_parameters, p2_tensors
+from zebra_sim_ros.detection.model import ModelConfig, build_model, count_parameters, p2_tensors, widen_state
 from zebra_sim_ros.errors import AssetError, ParameterError
 
 
@@ -1168,7 +1168,6 @@ def test_widening_n_to_s_keeps_the_function_and_parts_the_copies() -> None:
     backward pass gives them different gradients; the same seed gives the same shares, another seed others;
     sizes it does not widen between are refused by name."""
     from zebra_sim_ros.detection.checkpoint import SHIPPED
-    from zebra_sim_ros.detection.model import widen_state
 
     ck = read_checkpoint(SHIPPED)
     narrow = build_model(ck["config"])
@@ -1213,8 +1212,6 @@ def test_widening_n_to_s_keeps_the_function_and_parts_the_copies() -> None:
 def test_widening_keeps_the_function_with_a_stride_4_level_and_two_classes(cfg: ModelConfig) -> None:
     """The stride-4 level (its C2f joins the upsampled stride-8 features with the stem's) and a second class
     widen like the rest: random weights and batch-norm statistics, the same raw outputs at every level."""
-    from zebra_sim_ros.detection.model import widen_state
-
     torch.manual_seed(4)
     narrow = build_model(cfg)
     for m in narrow.modules():
@@ -1230,5 +1227,5 @@ def test_widening_keeps_the_function_with_a_stride_4_level_and_two_classes(cfg: 
         fa, fb = narrow.eval().features(x), wide.eval().features(x)
     assert len(fa) == len(narrow.strides) == len(fb)
     for a, b in zip(fa, fb, strict=True):
-        assert a.shape == b.shape
+        assert a.shape == b.shape and a.abs().max() > 0.1  # outputs that are not all near 0
         torch.testing.assert_close(b, a, atol=1e-4, rtol=1e-4)

@@ -87,6 +87,7 @@ def test_torchrun_trains_one_run_over_two_processes(tiny: Path, tmp_path: Path) 
     assert len(summaries) == 1, run.stdout
     # 6 images, 3 per process and step: one step per process and epoch. Unsplit, each would take two.
     assert summaries[0]["processes"] == 2 and summaries[0]["images_seen"] == 2 * 2 * 3
+    assert run.stderr.count("of it waiting for the data loader") == 2  # the first process's, once an epoch
     rows = list(csv.DictReader(open(tmp_path / "ddp" / "results.csv")))
     assert [r["epoch"] for r in rows] == ["1", "2"] and rows[-1]["mAP50"] != ""
     _, ckpt = load_model(tmp_path / "ddp" / "last.pt")  # the checkpoint rebuilds its model
@@ -310,21 +311,23 @@ def test_s_trains_from_a_nano_checkpoint_widened_and_blends_back_with_it(tiny: P
 def test_each_epoch_says_how_much_of_it_waited_for_the_data_loader(tiny: Path, tmp_path: Path,
                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     """The epoch's last log line gives the share of its time spent waiting for batches: a loader slowed by 0.15 s
-    a sample (in process: no workers) makes it most of the epoch, and more than the same run's without the
-    delay."""
+    a sample (in process: no workers) makes it at least the 0.6 s slept, and 20 points more than the same run's
+    without the delay."""
     from zebra_sim_ros.detection.data import YoloDataset
 
     base = dict(data=str(tiny / "overfit.yaml"), model="n", imgsz=128, batch=2, device="cpu", workers=0,
-                max_train_images=4, val_every=100, close_mosaic=0, epochs=1)
+                max_train_images=4, close_mosaic=0, epochs=1)
 
-    def share(log: str) -> int:
-        m = re.search(r"\[train\] epoch 1: [\d.]+ s, (\d+)% of it waiting for the data loader \(0 workers\)", log)
+    def share(log: str) -> tuple[int, float]:
+        """The share (%) and the epoch's seconds, from a line of its own."""
+        m = re.search(r"^\[train\] epoch 1: ([\d.]+) s, (\d+)% of it waiting for the data loader \(0 workers\)$",
+                      log, re.M)
         assert m, log
-        return int(m.group(1))
+        return int(m.group(2)), float(m.group(1))
 
     log = io.StringIO()
     train(TrainConfig(out=str(tmp_path / "fast"), **base), log=log)
-    fast = share(log.getvalue())
+    fast, _ = share(log.getvalue())
     get = YoloDataset.__getitem__
 
     def slow(self: YoloDataset, i: int) -> Any:
@@ -334,4 +337,6 @@ def test_each_epoch_says_how_much_of_it_waited_for_the_data_loader(tiny: Path, t
     monkeypatch.setattr(YoloDataset, "__getitem__", slow)
     log = io.StringIO()
     train(TrainConfig(out=str(tmp_path / "slow"), **base), log=log)
-    assert share(log.getvalue()) >= 70 and share(log.getvalue()) >= fast + 20, (fast, log.getvalue())
+    slowed, seconds = share(log.getvalue())
+    # four samples of 0.15 s were waited for, however loaded the machine (the printed figures are rounded)
+    assert (slowed + 0.5) / 100 * (seconds + 0.05) >= 0.55 and slowed >= fast + 20, (fast, log.getvalue())

@@ -344,9 +344,10 @@ def _set_lr(opt: torch.optim.SGD, cfg: TrainConfig, epoch: int, it: int, warmup:
 
 def _train_epoch(run_: _Run, loader: DataLoader[Any], epoch: int, warmup: int) -> tuple[torch.Tensor, int]:
     """One pass over ``loader``: summed loss components [box, cls, dfl] and the number of images seen. The log's
-    last line for the epoch says how much of it went to waiting for the data loader (each step ends in a
-    synchronising copy of the losses, so the rest is the steps themselves): near 0 the model sets the pace, far
-    above it the loader does, and more ``--workers`` (or cheaper augmentations) would train faster."""
+    last line for the epoch says how much of it went to waiting for the data loader, its workers' start and end
+    included (they restart each epoch); each step ends in a synchronising copy of the losses, so the rest is the
+    steps themselves. Near 0 the model sets the pace; far above it the loader does, and more ``--workers`` (or
+    cheaper augmentations) would train faster. Under torchrun it is the first process's share."""
     cfg, nb = run_.cfg, len(loader)
     run_.net.train()
     sums = torch.zeros(3)
@@ -358,7 +359,6 @@ def _train_epoch(run_: _Run, loader: DataLoader[Any], epoch: int, warmup: int) -
         _set_lr(run_.opt, cfg, epoch, i + nb * epoch, warmup)
         sums += run_.step(imgs, targets)
         seen += len(imgs)
-        t_asked = time.perf_counter()
         if _is_main() and (i % 10 == 0 or i == nb - 1):
             el = time.perf_counter() - t_epoch
             left = (cfg.epochs - epoch - 1) * nb + (nb - i - 1)  # steps to go; validation time not counted
@@ -366,6 +366,8 @@ def _train_epoch(run_: _Run, loader: DataLoader[Any], epoch: int, warmup: int) -
                   f"cls {sums[1] / (i + 1):.3f} dfl {sums[2] / (i + 1):.3f} "
                   f"{(i + 1) * cfg.batch / max(el, 1e-9):.1f} img/s, ETA {_hms(left * el / (i + 1))}   ", end="",
                   file=run_.log, flush=True)
+        t_asked = time.perf_counter()
+    waited += time.perf_counter() - t_asked  # the loader's end of the epoch: its workers shut down
     if _is_main():
         el = time.perf_counter() - t_epoch
         print(f"\n[train] epoch {epoch + 1}: {el:.1f} s, {100 * waited / max(el, 1e-9):.0f}% of it waiting for the "
