@@ -322,9 +322,14 @@ def test_train_verifier_on_the_command_line_records_its_options(frames: Path, tm
     assert main(["train-verifier", "--data", str(frames), "--epochs", "1", "--batch", "16", "--seed", "3",
                  "--min-side", "40", "--min-side-fraction", "0.05", "--min-visible-pixels", "100",
                  "--clutter-per-frame", "1", "--detector", "shipped", "--mine-conf", "0.05", "--split", "frame",
-                 "--contexts", "1.2", "1.5", "--mirror", "--out", str(out), "--json"]) == 0
+                 "--contexts", "1.2", "1.5", "--mirror", "--crop", "48", "--widths", "8", "16", "24",
+                 "--out", str(out), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out.splitlines()[-1])
     net, ckpt = load_verifier(out)
+    assert net.cfg.crop == 48 and net.cfg.widths == (8, 16, 24)  # the network it built, and its record
+    assert ckpt["train"]["model"]["crop"] == 48 and ckpt["train"]["model"]["widths"] == [8, 16, 24]
+    assert [m.out_channels for m in net.body if isinstance(m, torch.nn.Conv2d)][::2] == [8, 16, 24]
+    assert zebra_probability(net, np.zeros((120, 160, 3), np.uint8), np.array([[10.0, 10, 90, 70]])).shape == (1,)
     assert net.cfg.min_side == 40 and ckpt["train"]["model"]["min_side"] == 40
     assert net.cfg.min_side_fraction == pytest.approx(0.05)
     assert ckpt["train"]["model"]["min_side_fraction"] == pytest.approx(0.05)
@@ -349,6 +354,10 @@ def test_train_verifier_on_the_command_line_records_its_options(frames: Path, tm
     assert "'--min-side-fraction' = 0.9" in capsys.readouterr().err
     assert main(["train-verifier", "--data", str(frames), "--contexts", "1.2", "4", "--out", str(out)]) == 2
     assert "'--contexts' = (1.2, 4.0)" in capsys.readouterr().err
+    assert main(["train-verifier", "--data", str(frames), "--crop", "20", "--out", str(out)]) == 2
+    assert "'--crop' = 20" in capsys.readouterr().err
+    assert main(["train-verifier", "--data", str(frames), "--widths", "8", "0", "--out", str(out)]) == 2
+    assert "'--widths' = (8, 0)" in capsys.readouterr().err
 
 
 def test_the_command_line_takes_a_verifier_where_the_detector_runs(frames: Path, tmp_path: Path,

@@ -101,7 +101,12 @@ def register(sub: Any) -> None:
     tv.add_argument("--mine-on-animals", action=argparse.BooleanOptionalAction, default=d["mine_on_animals"],
                     help="with --detector: its boxes on animals of other species are hard negatives too "
                     "(default); --no-mine-on-animals keeps only its boxes on background")
-    tv.add_argument("--contexts", type=float, nargs="+", default=list(VerifierConfig().contexts),
+    tv.add_argument("--crop", type=int, default=d["crop"],
+                    help="side of the square the network sees, px: every crop is resized to it in training and "
+                    "serving (default: %(default)r)")
+    tv.add_argument("--widths", type=int, nargs="+", default=list(d["widths"]),
+                    help="channels of each stride-2 stage (default: %(default)s)")
+    tv.add_argument("--contexts", type=float, nargs="+", default=list(d["contexts"]),
                     help="when serving, p(zebra) is the mean over a crop at each of these contexts (times the box's "
                     "long side; default: the training context, 1.2, alone); training is unchanged")
     tv.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=d["mirror"],
@@ -190,13 +195,13 @@ def cmd_train_verifier(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.detection.verify import VerifierConfig
     from zebra_sim_ros.detection.verify_train import TrainVerifierConfig, train_verifier
 
-    model = VerifierConfig(min_side=args.min_side, min_side_fraction=args.min_side_fraction,
-                           contexts=tuple(args.contexts), mirror=args.mirror)
+    model = VerifierConfig(crop=args.crop, min_side=args.min_side, widths=tuple(args.widths),
+                           min_side_fraction=args.min_side_fraction, contexts=tuple(args.contexts), mirror=args.mirror)
     try:
         model.check()
     except ParameterError as exc:  # named by the flag that set it, not by the config field
-        flag = {"verifier min_side": "--min-side", "verifier min_side_fraction": "--min-side-fraction",
-                "verifier contexts": "--contexts"}
+        flag = {"verifier crop": "--crop", "verifier widths": "--widths", "verifier min_side": "--min-side",
+                "verifier min_side_fraction": "--min-side-fraction", "verifier contexts": "--contexts"}
         raise ParameterError(flag.get(exc.name, exc.name), exc.value, exc.allowed) from None
     cfg = TrainVerifierConfig(data=tuple(str(d) for d in args.data), out=str(args.out), model=model,
                               **{f.name: getattr(args, f.name) for f in fields(TrainVerifierConfig)
