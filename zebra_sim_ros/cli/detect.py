@@ -104,9 +104,9 @@ def register(sub: Any) -> None:
     tv.add_argument("--crop", type=int, default=d["crop"],
                     help="side of the square the network sees, px: every crop is resized to it in training and "
                     "serving (default: %(default)r)")
-    tv.add_argument("--widths", type=int, nargs="+", default=list(d["widths"]),
+    tv.add_argument("--widths", type=int, nargs="+", default=list(VerifierConfig().widths),
                     help="channels of each stride-2 stage (default: %(default)s)")
-    tv.add_argument("--contexts", type=float, nargs="+", default=list(d["contexts"]),
+    tv.add_argument("--contexts", type=float, nargs="+", default=list(VerifierConfig().contexts),
                     help="when serving, p(zebra) is the mean over a crop at each of these contexts (times the box's "
                     "long side; default: the training context, 1.2, alone); training is unchanged")
     tv.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=d["mirror"],
