@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 import torch
+from model_helpers import randomise_batch_norms
 from pycocotools.coco import COCO
 from pycocotools.cocoeval import COCOeval
 
@@ -1213,13 +1214,7 @@ def test_widening_keeps_the_function_with_a_stride_4_level_and_two_classes(cfg: 
     """The stride-4 level (its C2f joins the upsampled stride-8 features with the stem's) and a second class
     widen like the rest: random weights and batch-norm statistics, the same raw outputs at every level."""
     torch.manual_seed(4)
-    narrow = build_model(cfg)
-    for m in narrow.modules():
-        if isinstance(m, torch.nn.BatchNorm2d):
-            m.running_mean.normal_(0, 0.2)  # type: ignore[union-attr]
-            m.running_var.uniform_(0.5, 2.0)  # type: ignore[union-attr]
-            m.weight.data.uniform_(0.5, 1.5)
-            m.bias.data.normal_(0, 0.1)
+    narrow = randomise_batch_norms(build_model(cfg))
     wide = build_model(replace(cfg, size="s"))
     wide.load_state_dict(widen_state(narrow.state_dict(), cfg, "s", seed=1))
     x = torch.rand(1, 3, 128, 160, generator=torch.Generator().manual_seed(0))

@@ -21,7 +21,7 @@ from torch import Tensor
 
 from zebra_sim_ros.detection.checkpoint import SHIPPED, load_model, read_checkpoint, save_checkpoint
 from zebra_sim_ros.detection.data import generate_settings
-from zebra_sim_ros.detection.model import WIDENS, build_model, p2_tensors, state_digest, widen_state
+from zebra_sim_ros.detection.model import WIDENS, Widening, build_model, p2_tensors, state_digest, widen_state
 from zebra_sim_ros.errors import DependencyError, ParameterError
 
 
@@ -83,16 +83,16 @@ def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | 
         base = read_checkpoint(blend_base, "--blend-base")
         base_state, seed = base["model"], None
         if WIDENS.get(base["config"].get("size")) == cfg.get("size"):  # the size it was widened from (train --init)
-            record = src.get("widened") or {}
-            seed = record.get("seed")
-            if not isinstance(seed, int):
+            record = Widening.of(src, "--weights")
+            if record is None:
                 raise ParameterError("--weights", str(weights), f"weights that record the {base['config'].get('size')} "
                                      "checkpoint they were widened from (train --init), to blend with one; or a "
                                      f"--blend-base of size {cfg.get('size')!r}")
+            seed = record.seed
             digest = state_digest(base_state)
-            if record.get("digest", digest) != digest:
+            if record.digest != digest:
                 raise ParameterError("--blend-base", str(blend_base), f"the weights the run was widened from "
-                                     f"({record.get('from')}, digest {record['digest']}; these are {digest})")
+                                     f"({record.source}, digest {record.digest}; these are {digest})")
             base_state = widen_state(base_state, base["config"], str(cfg.get("size")), seed, "--blend-base")
         state = blend_weights(state, base_state, blend)
         blended = {"base": str(blend_base), "base_config": base["config"], "alpha": blend}

@@ -326,6 +326,38 @@ def state_digest(state: dict[str, Tensor]) -> str:
     return h.hexdigest()[:12]
 
 
+@dataclass(frozen=True)
+class Widening:
+    """Where a model's weights were widened from: ``train --init`` of the narrower checkpoint ``source``, of model
+    ``size``, whose weights have the :func:`state_digest` ``digest``, the copies' shares drawn with ``seed``
+    (:func:`widen_state`). Checkpoints keep it as :meth:`to_dict` under ``widened``, through later runs from them,
+    resumes and exports, so ``export --blend-base`` can widen that very checkpoint again."""
+
+    source: str
+    size: str
+    seed: int
+    digest: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"from": self.source, "size": self.size, "seed": self.seed, "digest": self.digest}
+
+    @classmethod
+    def of(cls, ckpt: dict[str, Any], name: str) -> Widening | None:
+        """The record of checkpoint ``ckpt`` (None: its weights were not widened); a malformed one is refused,
+        named by the option ``name`` that gave the checkpoint."""
+        d = ckpt.get("widened")
+        if d is None:
+            return None
+        try:
+            out = cls(str(d["from"]), str(d["size"]), d["seed"], str(d["digest"]))
+        except (KeyError, TypeError):
+            out = None
+        if out is None or not isinstance(out.seed, int) or isinstance(out.seed, bool):
+            raise ParameterError(name, d, "a checkpoint whose 'widened' record holds from, size, seed (an integer) "
+                                          "and digest")
+        return out
+
+
 def widen_state(state: dict[str, Tensor], cfg: ModelConfig | dict[str, Any], size: str,
                 seed: int, name: str = "--init") -> dict[str, Tensor]:
     """The weights of a ``size`` model that computes what ``state`` (a ``cfg`` model's) computes: a

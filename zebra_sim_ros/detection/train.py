@@ -38,6 +38,7 @@ from zebra_sim_ros.detection.model import (
     WIDENS,
     Detector,
     ModelConfig,
+    Widening,
     build_model,
     count_parameters,
     p2_tensors,
@@ -200,12 +201,12 @@ class _Start:
     optimizer: dict[str, Any] | None = None
     ema_weights: dict[str, Any] | None = None
     init: str = ""  # the weights the run started from (a resumed run keeps what its first start recorded)
-    widened: dict[str, Any] | None = None  # the narrower checkpoint the weights were widened from, and the seed
+    widened: Widening | None = None  # the narrower checkpoint the weights were widened from, and the seed
 
 
 def _load_weights(cfg: TrainConfig, model: Detector, out: Path, log: Any) -> _Start:
     """Load ``--init`` weights, or the resumed run's raw weights, into ``model``; where the run starts."""
-    widened: dict[str, Any] | None = None
+    widened: Widening | None = None
     if cfg.init:
         init = read_checkpoint(cfg.init, "--init")
         size = init["config"].get("size")
@@ -220,9 +221,9 @@ def _load_weights(cfg: TrainConfig, model: Detector, out: Path, log: Any) -> _St
             raise ParameterError("--init", cfg.init, "a checkpoint without the stride-4 level (it has one: "
                                  "add --p2 to train it)")
         state = init["model"]
-        widened = init.get("widened")  # a run from a widened run's checkpoint carries its record on
+        widened = Widening.of(init, "--init")  # a run from a widened run's checkpoint carries its record on
         if size != cfg.model:  # a narrower checkpoint: the same function in the wider model, the shares by the seed
-            widened = {"from": cfg.init, "size": size, "seed": cfg.seed, "digest": state_digest(state)}
+            widened = Widening(cfg.init, str(size), cfg.seed, state_digest(state))
             state = widen_state(state, init["config"], cfg.model, cfg.seed)
             if _is_main():
                 print(f"[train] --init {cfg.init}: the {size} weights widened to {cfg.model} (the same function; "
@@ -245,7 +246,7 @@ def _load_weights(cfg: TrainConfig, model: Detector, out: Path, log: Any) -> _St
     if start_epoch >= cfg.epochs:
         raise ParameterError("--epochs", cfg.epochs, f"more than the {start_epoch} epochs the run in {out} has done")
     return _Start(start_epoch, ckpt.get("best_fitness", -1.0), ckpt.get("ema_updates", 0), ckpt.get("optimizer"),
-                  ckpt["model"], str(ckpt.get("train_args", {}).get("init", "")), ckpt.get("widened"))
+                  ckpt["model"], str(ckpt.get("train_args", {}).get("init", "")), Widening.of(ckpt, "--resume"))
 
 
 def load_init_weights(model: Detector, state: dict[str, Any]) -> list[str]:
@@ -309,7 +310,7 @@ class _Run:
     best: float
     rows: list[dict[str, Any]]
     data_generate: dict[str, Any] | None  # the training set's generate settings (read once, kept in checkpoints)
-    widened: dict[str, Any] | None  # where the weights were widened from (_Start.widened), kept in checkpoints
+    widened: Widening | None  # where the weights were widened from (_Start.widened), kept in checkpoints
     saved_at: float | None = None  # perf_counter time of this process's last save of last.pt (None: not yet)
 
     def step(self, imgs: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
@@ -399,7 +400,7 @@ def _end_epoch(run_: _Run, epoch: int, sums: torch.Tensor, nb: int, val_loader: 
         w.writeheader()
         w.writerows(run_.rows)
     extra = {"epoch": epoch, "metrics": metrics, "train_args": asdict(cfg), "best_fitness": max(run_.best, fitness),
-             "data_generate": run_.data_generate, **({"widened": run_.widened} if run_.widened else {})}
+             "data_generate": run_.data_generate, **({"widened": run_.widened.to_dict()} if run_.widened else {})}
     now = time.perf_counter()
     improved = bool(metrics) and fitness > run_.best
     # last.pt also goes with every new best.pt: a run resumed from it must know the best it has to beat
