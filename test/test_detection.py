@@ -19,7 +19,14 @@ from pycocotools.cocoeval import COCOeval
 from zebra_sim_ros.detection.boxes import box_iou, decode_ltrb, encode_ltrb, nms, postprocess
 from zebra_sim_ros.detection.checkpoint import load_model, read_checkpoint, save_checkpoint
 from zebra_sim_ros.detection.metrics import ap_by_size, evaluate_detections, precision_recall_at
-from zebra_sim_ros.detection.model import ModelConfig, build_model, count_parameters, p2_tensors, widen_state
+from zebra_sim_ros.detection.model import (
+    ModelConfig,
+    Widening,
+    build_model,
+    count_parameters,
+    p2_tensors,
+    widen_state,
+)
 from zebra_sim_ros.errors import AssetError, ParameterError
 
 
@@ -1206,6 +1213,25 @@ def test_widening_n_to_s_keeps_the_function_and_parts_the_copies() -> None:
     with pytest.raises(ParameterError, match="'--blend-base'.*tensor"):
         widen_state({k: v for k, v in ck["model"].items() if k != "stem.0.conv.weight"}, ck["config"], "s", 3,
                     "--blend-base")
+
+
+def test_a_widening_record_reads_back_and_a_malformed_one_is_refused_by_the_option_that_gave_it() -> None:
+    """Checkpoints keep :class:`Widening` as a plain dict; it reads back equal, no record reads as None, a record
+    from before the digest was kept reads with none, and one with a field missing or of the wrong kind is refused
+    with the option, the checkpoint's path and what it holds."""
+    record = Widening("runs/n/best.pt", "n", 5, "0123456789ab")
+    assert record.to_dict() == {"from": "runs/n/best.pt", "size": "n", "seed": 5, "digest": "0123456789ab"}
+    assert Widening.from_dict(record.to_dict(), "--init", "x.pt") == record
+    assert Widening.from_dict(None, "--init", "x.pt") is None
+    old = {k: v for k, v in record.to_dict().items() if k != "digest"}
+    assert Widening.from_dict(old, "--init", "x.pt") == Widening("runs/n/best.pt", "n", 5, None)
+    good = record.to_dict()
+    for bad, shown in (({**good, "seed": "5"}, "'seed': '5'"), ({**good, "seed": True}, "'seed': True"),
+                       ({k: v for k, v in good.items() if k != "size"}, "'seed': 5"), (["n", 5], "['n', 5]"),
+                       ({**good, "from": None}, "'from': None"), ({**good, "digest": 7}, "'digest': 7")):
+        with pytest.raises(ParameterError, match="'--resume'") as err:
+            Widening.from_dict(bad, "--resume", "runs/s/last.pt")
+        assert "runs/s/last.pt" in str(err.value) and shown in str(err.value), bad
 
 
 @pytest.mark.parametrize("cfg", [ModelConfig(size="n", p2=True), ModelConfig(size="n", nc=2, names=("zebra", "x"))],

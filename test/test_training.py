@@ -22,7 +22,7 @@ from model_helpers import randomise_batch_norms
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
 from zebra_sim_ros.detection.checkpoint import load_model, read_checkpoint, save_checkpoint
 from zebra_sim_ros.detection.evaluate import evaluate
-from zebra_sim_ros.detection.model import ModelConfig, Widening, build_model, state_digest, widen_state
+from zebra_sim_ros.detection.model import ModelConfig, build_model, state_digest, widen_state
 from zebra_sim_ros.detection.train import TrainConfig, train
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LabelFilters
@@ -227,20 +227,6 @@ def test_p2_trains_from_a_three_level_checkpoint_and_is_kept_on_resume(tiny: Pat
     with pytest.raises(ParameterError, match="'--init'.*add --p2"):
         train(TrainConfig(out=str(tmp_path / "back"), init=str(tmp_path / "four" / "best.pt"), **base),
               log=io.StringIO())
-
-
-def test_a_widening_record_reads_back_and_a_malformed_one_is_refused_by_the_option_that_gave_it() -> None:
-    """Checkpoints keep :class:`Widening` as a plain dict; reading it back gives the same record, a checkpoint
-    without one gives None, and a record with a field missing or a seed that is not an integer is refused."""
-    record = Widening("runs/n/best.pt", "n", 5, "0123456789ab")
-    assert Widening.of({"widened": record.to_dict()}, "--init") == record
-    assert record.to_dict() == {"from": "runs/n/best.pt", "size": "n", "seed": 5, "digest": "0123456789ab"}
-    assert Widening.of({"model": {}}, "--init") is None
-    good = record.to_dict()
-    for bad in ({k: v for k, v in good.items() if k != "digest"}, {**good, "seed": "5"}, {**good, "seed": True},
-                ["n", 5]):
-        with pytest.raises(ParameterError, match="'--resume'.*seed"):
-            Widening.of({"widened": bad}, "--resume")
 
 
 def test_s_trains_from_a_nano_checkpoint_widened_and_blends_back_with_it(tiny: Path, tmp_path: Path,

@@ -101,12 +101,14 @@ def register(sub: Any) -> None:
     tv.add_argument("--mine-on-animals", action=argparse.BooleanOptionalAction, default=d["mine_on_animals"],
                     help="with --detector: its boxes on animals of other species are hard negatives too "
                     "(default); --no-mine-on-animals keeps only its boxes on background")
-    tv.add_argument("--crop", type=int, default=d["crop"],
-                    help="side of the square the network sees, px: every crop is resized to it in training and "
-                    "serving (default: %(default)r)")
-    tv.add_argument("--widths", type=int, nargs="+", default=list(VerifierConfig().widths),
-                    help="channels of each stride-2 stage (default: %(default)s)")
-    tv.add_argument("--contexts", type=float, nargs="+", default=list(VerifierConfig().contexts),
+    served = VerifierConfig()  # the list defaults, typed (d's values are the fields' raw defaults)
+    tv.add_argument("--crop", type=int, default=served.crop,
+                    help="side of the square the verifier network sees, 32..256 px: each box's crop is resized to it "
+                    "in training and serving (not train's --crop, the windows around zebras; default: %(default)r)")
+    tv.add_argument("--widths", type=int, nargs="+", default=list(served.widths),
+                    help="channels of the network's stride-2 stages, one stage per value, each 1 or more (default: "
+                    f"{' '.join(map(str, served.widths))})")
+    tv.add_argument("--contexts", type=float, nargs="+", default=list(served.contexts),
                     help="when serving, p(zebra) is the mean over a crop at each of these contexts (times the box's "
                     "long side; default: the training context, 1.2, alone); training is unchanged")
     tv.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=d["mirror"],

@@ -81,23 +81,22 @@ def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | 
     blended = None
     if blend_base is not None:
         base = read_checkpoint(blend_base, "--blend-base")
-        base_state, seed = base["model"], None
+        base_state, record = base["model"], None
         if WIDENS.get(base["config"].get("size")) == cfg.get("size"):  # the size it was widened from (train --init)
-            record = Widening.of(src, "--weights")
+            record = Widening.from_dict(src.get("widened"), "--weights", str(weights or SHIPPED))
             if record is None:
                 raise ParameterError("--weights", str(weights), f"weights that record the {base['config'].get('size')} "
                                      "checkpoint they were widened from (train --init), to blend with one; or a "
                                      f"--blend-base of size {cfg.get('size')!r}")
-            seed = record.seed
             digest = state_digest(base_state)
-            if record.digest != digest:
+            if record.digest not in (None, digest):  # records written before the digest was kept: not checked
                 raise ParameterError("--blend-base", str(blend_base), f"the weights the run was widened from "
                                      f"({record.source}, digest {record.digest}; these are {digest})")
-            base_state = widen_state(base_state, base["config"], str(cfg.get("size")), seed, "--blend-base")
+            base_state = widen_state(base_state, base["config"], str(cfg.get("size")), record.seed, "--blend-base")
         state = blend_weights(state, base_state, blend)
         blended = {"base": str(blend_base), "base_config": base["config"], "alpha": blend}
-        if seed is not None:
-            blended["widened_with_seed"] = seed
+        if record is not None:
+            blended["widened_with_seed"] = record.seed
     model.load_state_dict(state)
     extra: dict[str, Any] = {k: src[k] for k in ("epoch", "metrics", "train_args", "best_fitness", "data_generate",
                                                  "recipe", "widened") if k in src}

@@ -331,31 +331,33 @@ class Widening:
     """Where a model's weights were widened from: ``train --init`` of the narrower checkpoint ``source``, of model
     ``size``, whose weights have the :func:`state_digest` ``digest``, the copies' shares drawn with ``seed``
     (:func:`widen_state`). Checkpoints keep it as :meth:`to_dict` under ``widened``, through later runs from them,
-    resumes and exports, so ``export --blend-base`` can widen that very checkpoint again."""
+    resumes and exports, so ``export --blend-base`` can widen that very checkpoint again. ``digest`` is None only in
+    records written before it was kept (nothing to check a base against)."""
 
     source: str
     size: str
     seed: int
-    digest: str
+    digest: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        return {"from": self.source, "size": self.size, "seed": self.seed, "digest": self.digest}
+        """The record as a checkpoint stores it (:meth:`from_dict` reads it back)."""
+        return {"from": self.source, "size": self.size, "seed": self.seed,
+                **({"digest": self.digest} if self.digest is not None else {})}
 
     @classmethod
-    def of(cls, ckpt: dict[str, Any], name: str) -> Widening | None:
-        """The record of checkpoint ``ckpt`` (None: its weights were not widened); a malformed one is refused,
-        named by the option ``name`` that gave the checkpoint."""
-        d = ckpt.get("widened")
+    def from_dict(cls, d: Any, name: str, path: str) -> Widening | None:
+        """A checkpoint's ``widened`` record ``d`` (None: its weights were not widened). A malformed one is refused,
+        named by the option ``name`` that gave the checkpoint and its ``path``."""
         if d is None:
             return None
-        try:
-            out = cls(str(d["from"]), str(d["size"]), d["seed"], str(d["digest"]))
-        except (KeyError, TypeError):
-            out = None
-        if out is None or not isinstance(out.seed, int) or isinstance(out.seed, bool):
-            raise ParameterError(name, d, "a checkpoint whose 'widened' record holds from, size, seed (an integer) "
-                                          "and digest")
-        return out
+        fields = ("from", "size", "seed", "digest")
+        ok = (isinstance(d, dict) and all(isinstance(d.get(k), str) for k in ("from", "size"))
+              and isinstance(d.get("seed"), int) and not isinstance(d.get("seed"), bool)
+              and isinstance(d.get("digest", ""), str) and set(d) <= set(fields))
+        if not ok:
+            raise ParameterError(name, path, f"a checkpoint whose 'widened' record holds from, size (text), seed (an "
+                                             f"integer) and digest (text); it holds {d!r}")
+        return cls(d["from"], d["size"], d["seed"], d.get("digest"))
 
 
 def widen_state(state: dict[str, Tensor], cfg: ModelConfig | dict[str, Any], size: str,

@@ -221,7 +221,8 @@ def _load_weights(cfg: TrainConfig, model: Detector, out: Path, log: Any) -> _St
             raise ParameterError("--init", cfg.init, "a checkpoint without the stride-4 level (it has one: "
                                  "add --p2 to train it)")
         state = init["model"]
-        widened = Widening.of(init, "--init")  # a run from a widened run's checkpoint carries its record on
+        # a run from a widened run's checkpoint carries its record on
+        widened = Widening.from_dict(init.get("widened"), "--init", cfg.init)
         if size != cfg.model:  # a narrower checkpoint: the same function in the wider model, the shares by the seed
             widened = Widening(cfg.init, str(size), cfg.seed, state_digest(state))
             state = widen_state(state, init["config"], cfg.model, cfg.seed)
@@ -245,8 +246,9 @@ def _load_weights(cfg: TrainConfig, model: Detector, out: Path, log: Any) -> _St
     start_epoch = ckpt["epoch"] + 1
     if start_epoch >= cfg.epochs:
         raise ParameterError("--epochs", cfg.epochs, f"more than the {start_epoch} epochs the run in {out} has done")
+    widened = Widening.from_dict(ckpt.get("widened"), "--resume", str(out / "last.pt"))
     return _Start(start_epoch, ckpt.get("best_fitness", -1.0), ckpt.get("ema_updates", 0), ckpt.get("optimizer"),
-                  ckpt["model"], str(ckpt.get("train_args", {}).get("init", "")), Widening.of(ckpt, "--resume"))
+                  ckpt["model"], str(ckpt.get("train_args", {}).get("init", "")), widened)
 
 
 def load_init_weights(model: Detector, state: dict[str, Any]) -> list[str]:
