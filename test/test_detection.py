@@ -1228,7 +1228,8 @@ def test_a_widening_record_reads_back_and_a_malformed_one_is_refused_by_the_opti
     good = record.to_dict()
     for bad, shown in (({**good, "seed": "5"}, "'seed': '5'"), ({**good, "seed": True}, "'seed': True"),
                        ({k: v for k, v in good.items() if k != "size"}, "'seed': 5"), (["n", 5], "['n', 5]"),
-                       ({**good, "from": None}, "'from': None"), ({**good, "digest": 7}, "'digest': 7")):
+                       ({**good, "from": None}, "'from': None"), ({**good, "digest": 7}, "'digest': 7"),
+                       ({**good, "width": 2}, "'width': 2")):
         with pytest.raises(ParameterError, match="'--resume'") as err:
             Widening.from_dict(bad, "--resume", "runs/s/last.pt")
         assert "runs/s/last.pt" in str(err.value) and shown in str(err.value), bad

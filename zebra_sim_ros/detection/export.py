@@ -85,9 +85,9 @@ def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | 
         if WIDENS.get(base["config"].get("size")) == cfg.get("size"):  # the size it was widened from (train --init)
             record = Widening.from_dict(src.get("widened"), "--weights", str(weights or SHIPPED))
             if record is None:
-                raise ParameterError("--weights", str(weights), f"weights that record the {base['config'].get('size')} "
-                                     "checkpoint they were widened from (train --init), to blend with one; or a "
-                                     f"--blend-base of size {cfg.get('size')!r}")
+                raise ParameterError("--weights", str(weights or SHIPPED), "weights that record the "
+                                     f"{base['config'].get('size')} checkpoint they were widened from (train --init), "
+                                     f"to blend with one; or a --blend-base of size {cfg.get('size')!r}")
             digest = state_digest(base_state)
             if record.digest not in (None, digest):  # records written before the digest was kept: not checked
                 raise ParameterError("--blend-base", str(blend_base), f"the weights the run was widened from "

@@ -356,7 +356,7 @@ class Widening:
               and isinstance(d.get("digest", ""), str) and set(d) <= set(fields))
         if not ok:
             raise ParameterError(name, path, f"a checkpoint whose 'widened' record holds from, size (text), seed (an "
-                                             f"integer) and digest (text); it holds {d!r}")
+                                             f"integer) and optionally digest (text), nothing else; it holds {d!r}")
         return cls(d["from"], d["size"], d["seed"], d.get("digest"))
 
 

@@ -402,7 +402,8 @@ def _end_epoch(run_: _Run, epoch: int, sums: torch.Tensor, nb: int, val_loader: 
         w.writeheader()
         w.writerows(run_.rows)
     extra = {"epoch": epoch, "metrics": metrics, "train_args": asdict(cfg), "best_fitness": max(run_.best, fitness),
-             "data_generate": run_.data_generate, **({"widened": run_.widened.to_dict()} if run_.widened else {})}
+             "data_generate": run_.data_generate,
+             **({"widened": run_.widened.to_dict()} if run_.widened is not None else {})}
     now = time.perf_counter()
     improved = bool(metrics) and fitness > run_.best
     # last.pt also goes with every new best.pt: a run resumed from it must know the best it has to beat
