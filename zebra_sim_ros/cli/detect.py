@@ -201,10 +201,9 @@ def cmd_train_verifier(args: argparse.Namespace) -> Summary:
                            min_side_fraction=args.min_side_fraction, contexts=tuple(args.contexts), mirror=args.mirror)
     try:
         model.check()
-    except ParameterError as exc:  # named by the flag that set it, not by the config field
-        flag = {"verifier crop": "--crop", "verifier widths": "--widths", "verifier min_side": "--min-side",
-                "verifier min_side_fraction": "--min-side-fraction", "verifier contexts": "--contexts"}
-        raise ParameterError(flag.get(exc.name, exc.name), exc.value, exc.allowed) from None
+    except ParameterError as exc:  # named by the flag that set it ("verifier min_side" -> --min-side), not the field
+        flag = "--" + exc.name.removeprefix("verifier ").replace("_", "-")
+        raise ParameterError(flag, exc.value, exc.allowed) from None
     cfg = TrainVerifierConfig(data=tuple(str(d) for d in args.data), out=str(args.out), model=model,
                               **{f.name: getattr(args, f.name) for f in fields(TrainVerifierConfig)
                                  if f.name not in ("data", "out", "model", "min_visible_fraction")})

@@ -70,7 +70,8 @@ def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | 
     ``blend`` the fine-tuned share (the rest of the record is ``weights``'). A base of the narrower size that
     ``train --init`` widened (``n`` under an ``s`` run) is widened again with the seed ``weights`` record
     (``widened``, carried on through later runs from them), so it blends with the very weights the widening made."""
-    src = read_checkpoint(weights or SHIPPED)
+    source = str(weights or SHIPPED)
+    src = read_checkpoint(source)
     cfg = dict(src["config"])
     if imgsz:
         cfg["imgsz"] = imgsz
@@ -83,9 +84,9 @@ def export_checkpoint(weights: str | Path | None, out: str | Path, imgsz: int | 
         base = read_checkpoint(blend_base, "--blend-base")
         base_state, record = base["model"], None
         if WIDENS.get(base["config"].get("size")) == cfg.get("size"):  # the size it was widened from (train --init)
-            record = Widening.from_dict(src.get("widened"), "--weights", str(weights or SHIPPED))
+            record = Widening.from_dict(src.get("widened"), "--weights", source)
             if record is None:
-                raise ParameterError("--weights", str(weights or SHIPPED), "weights that record the "
+                raise ParameterError("--weights", source, "weights that record the "
                                      f"{base['config'].get('size')} checkpoint they were widened from (train --init), "
                                      f"to blend with one; or a --blend-base of size {cfg.get('size')!r}")
             digest = state_digest(base_state)
