@@ -11,7 +11,7 @@ from pathlib import Path
 import cv2
 import pytest
 
-from zebra_sim_ros.zebra.asset import ZebraLibrary
+from zebra_sim_ros.zebra.asset import ZebraLibrary, coat_store_dir, library_dir
 from zebra_sim_ros.zebra.coat_store import CoatStore
 
 
@@ -23,7 +23,7 @@ def _run(args: list[str], cache: Path, timeout: float = 120) -> subprocess.Compl
 
 def test_every_subcommand_has_help(zebra_cache: Path) -> None:
     for args in (["--help"], ["asset", "--help"], ["asset", "build", "--help"], ["asset", "info", "--help"],
-                 ["asset", "preview", "--help"]):
+                 ["asset", "prune", "--help"], ["asset", "preview", "--help"]):
         proc = _run(args, zebra_cache)
         assert proc.returncode == 0, (args, proc.stderr)
         assert "usage:" in proc.stdout
@@ -83,3 +83,55 @@ def test_bad_arguments_stop_with_a_message_naming_them(library: ZebraLibrary, ze
     proc = _run(args, zebra_cache)
     assert proc.returncode == 2
     assert needle in proc.stderr and "invalid" in proc.stderr
+
+
+def test_prune_removes_other_versions_caches_and_nothing_else(tmp_path: Path) -> None:
+    """Only the folders named as ours and not read by this code version go; a build whose process runs stays, and
+    so does anything else under the root. ``--dry-run`` lists without removing, ``--all`` takes this version's
+    too."""
+    root = tmp_path / "cache"
+    here, coats = library_dir(root), coat_store_dir(root)
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    old = {"zebra-0123456789abcdef": 3000, "coats-0123456789abcdef-np2.0.0": 500, "coats-fedcba9876543210": 700,
+           f"{here.name}.tmp{dead.pid}": 200}  # an interrupted build of this version: its process is gone
+    others = {here.name: 1000, coats.name: 400, f"zebra-0123456789abcdef.tmp{os.getpid()}": 100,  # being built
+              "zebra-notours": 10, "notes": 10}
+    for name, size in {**old, **others}.items():
+        (root / name / "sub").mkdir(parents=True)
+        (root / name / "sub" / "a.bin").write_bytes(b"x" * size)
+    (root / "coats-0123456789abcdee").write_text("a file, not a folder")
+
+    dry = _run(["asset", "prune", "--cache", str(root), "--dry-run", "--json"], root)
+    assert dry.returncode == 0, dry.stderr
+    summary = json.loads(dry.stdout.strip().splitlines()[-1])
+    assert sorted(Path(p).name for p in summary["removed"]) == sorted(old)
+    assert summary["bytes"] == sum(old.values())
+    assert all((root / name).is_dir() for name in {**old, **others})
+
+    proc = _run(["asset", "prune", "--cache", str(root), "--json"], root)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert sorted(Path(p).name for p in summary["removed"]) == sorted(old) and summary["failed"] == []
+    assert sorted(p.name for p in root.iterdir()) == sorted([*others, "coats-0123456789abcdee"])
+    assert sorted(Path(p).name for p in summary["kept"]) == sorted([here.name, coats.name,
+                                                                    f"zebra-0123456789abcdef.tmp{os.getpid()}"])
+
+    proc = _run(["asset", "prune", "--cache", str(root), "--all", "--json"], root)
+    assert proc.returncode == 0, proc.stderr
+    assert not here.exists() and not coats.exists()
+    assert sorted(p.name for p in root.iterdir()) == sorted(["zebra-notours", "notes", "coats-0123456789abcdee",
+                                                             f"zebra-0123456789abcdef.tmp{os.getpid()}"])
+
+
+def test_info_counts_other_versions_caches(library: ZebraLibrary, zebra_cache: Path, tmp_path: Path) -> None:
+    root = tmp_path / "cache"
+    root.mkdir()
+    (root / library.root.name).symlink_to(library.root)  # this version's cache, not copied
+    (root / "zebra-0123456789abcdef").mkdir()
+    (root / "zebra-0123456789abcdef" / "joints.npy").write_bytes(b"x" * 2_500_000)
+    proc = _run(["asset", "info", "--cache", str(root), "--json"], root)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert summary["other_versions"] == {"folders": 1, "bytes": 2_500_000}
+    assert "1 folders, 2.5 MB ('zebra-sim asset prune' removes them)" in proc.stdout

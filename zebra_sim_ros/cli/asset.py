@@ -1,19 +1,23 @@
-"""``zebra-sim asset ...``: build the zebra asset, inspect it, draw its preview sheet."""
+"""``zebra-sim asset ...``: build the zebra asset, inspect it, prune other versions' caches, draw its preview sheet."""
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from zebra_sim_ros.cli.common import Summary, add_json_flag
 from zebra_sim_ros.errors import ParameterError
 
+if TYPE_CHECKING:
+    from zebra_sim_ros.zebra.asset import CacheFolder
+
 
 def register(sub: Any) -> None:
     """Add the ``asset`` subcommand group."""
-    p = sub.add_parser("asset", help="the procedural zebra asset: build, info, preview")
+    p = sub.add_parser("asset", help="the procedural zebra asset: build, info, prune, preview")
     asub = p.add_subparsers(dest="asset_command", required=True, metavar="ACTION")
 
     b = asub.add_parser("build", help="bake every morph, clip and frame into the cache and write USD files")
@@ -31,6 +35,14 @@ def register(sub: Any) -> None:
     i.add_argument("--cache", type=Path, default=None, help="cache root")
     add_json_flag(i)
     i.set_defaults(func=cmd_info)
+
+    r = asub.add_parser("prune", help="remove the cache's zebra caches and coat stores of other code versions")
+    r.add_argument("--cache", type=Path, default=None, help="cache root")
+    r.add_argument("--all", action="store_true", dest="everything",
+                   help="this version's cache and coat store too (rebuilt on next use)")
+    r.add_argument("--dry-run", action="store_true", help="list what would be removed, remove nothing")
+    add_json_flag(r)
+    r.set_defaults(func=cmd_prune)
 
     v = asub.add_parser("preview", help="contact sheet of clips and frames, side and top views (PNG)")
     v.add_argument("out", type=Path, help="PNG file to write")
@@ -72,6 +84,7 @@ def cmd_build(args: argparse.Namespace) -> Summary:
     print(f"cache: {lib.root}")
     for f in files:
         print(f"wrote {f}")
+    _say_other_versions(lib.root.parent)
     return {"cache": str(lib.root), "digest": lib.manifest["digest"], "morphs": list(lib.morphs),
             "frames": lib.n_frames, "clips": len(lib.clip_names), "files": files,
             "seconds": round(seconds, 3)}
@@ -95,11 +108,45 @@ def cmd_info(args: argparse.Namespace) -> Summary:
         print(f"{name:<14}{int(n):>7}{'yes' if loop else 'no':>6}")
     print(f"{'total':<14}{lib.n_frames:>7}")
     print(f"coat store (the cameras' shared coats; safe to delete): {store.dir}: {coats} coats, {size / 1e6:.1f} MB")
+    old = _say_other_versions(lib.root.parent)
     return {"digest": lib.manifest["digest"], "morphs": list(lib.morphs), "frames": lib.n_frames,
             "coat_store": {"dir": str(store.dir), "coats": coats, "bytes": size},
+            "other_versions": {"folders": len(old), "bytes": sum(f.bytes for f in old)},
             "clips": dict(zip(lib.clip_names, [int(n) for n in lib.clip_frames], strict=True)),
             "joints": len(lib.manifest["joints"]), "keypoints": len(lib.manifest["keypoints"]),  # type: ignore[arg-type]
             "triangles": tris, "vertices": verts}
+
+
+def _say_other_versions(root: Path) -> list[CacheFolder]:
+    """The cache root's zebra caches and coat stores of other code versions (not being built), said in one line
+    when there are any."""
+    from zebra_sim_ros.zebra.asset import cache_folders
+
+    old = [f for f in cache_folders(root) if not f.current and not f.building]
+    if old:
+        print(f"other code versions' caches: {len(old)} folders, {sum(f.bytes for f in old) / 1e6:.1f} MB "
+              "('zebra-sim asset prune' removes them)")
+    return old
+
+
+def cmd_prune(args: argparse.Namespace) -> Summary:
+    """Remove other code versions' caches."""
+    from zebra_sim_ros.zebra.asset import cache_folders, default_cache_root, prune_cache
+
+    root = args.cache or default_cache_root()
+    gone, failed = prune_cache(root, everything=args.everything, dry_run=args.dry_run)
+    verb = "would remove" if args.dry_run else "removed"
+    for f in gone:
+        print(f"{verb} {f.path} ({f.bytes / 1e6:.1f} MB{', this version' if f.current else ''})")
+    for f in failed:
+        print(f"could not remove {f.path} (whole or in part): check its permissions", file=sys.stderr)
+    names = {f.path for f in gone}
+    kept = [f for f in cache_folders(root) if f.path not in names]
+    freed = sum(f.bytes for f in gone)
+    print(f"{verb} {len(gone)} folders, {freed / 1e6:.1f} MB; kept {len(kept)} under {root}")
+    return {"cache": str(root), "dry_run": args.dry_run, "removed": [str(f.path) for f in gone], "bytes": freed,
+            "failed": [str(f.path) for f in failed], "kept": [str(f.path) for f in kept],
+            "exit_code": int(bool(failed))}
 
 
 def cmd_preview(args: argparse.Namespace) -> Summary:

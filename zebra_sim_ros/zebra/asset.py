@@ -16,6 +16,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import shutil
 import time
 from dataclasses import dataclass
@@ -62,6 +63,77 @@ def default_cache_root() -> Path:
         return Path(env)
     xdg = os.environ.get("XDG_CACHE_HOME")
     return (Path(xdg) if xdg else Path.home() / ".cache") / "zebra_sim_ros"
+
+
+def library_dir(cache_root: Path | None = None) -> Path:
+    """This code version's zebra cache: ``<cache root>/zebra-<asset digest>``."""
+    return (cache_root or default_cache_root()) / f"zebra-{asset_digest()}"
+
+
+def coat_store_dir(cache_root: Path | None = None) -> Path:
+    """This code version's coat store (:class:`~zebra_sim_ros.zebra.coat_store.CoatStore`):
+    ``<cache root>/coats-<appearance digest>-np<numpy version>``."""
+    return (cache_root or default_cache_root()) / f"coats-{appearance_digest()}-np{np.__version__}"
+
+
+# The cache root's folders that are ours: zebra caches, their builds in progress (``.tmp<pid>``) and coat stores
+# (named without the numpy version before it was part of the key). Nothing else under the root is ever touched.
+_OUR_FOLDER = re.compile(r"zebra-[0-9a-f]{16}(\.tmp(?P<pid>[0-9]+))?|coats-[0-9a-f]{16}(-np[0-9A-Za-z.+_-]+)?")
+
+
+@dataclass(frozen=True)
+class CacheFolder:
+    """One of the cache root's folders: a zebra cache, a build of one, or a coat store."""
+
+    path: Path
+    current: bool  # read by this code version (its zebra cache or coat store)
+    building: bool  # a build whose process is still running
+    bytes: int  # size of its files
+
+
+def cache_folders(cache_root: Path | None = None) -> list[CacheFolder]:
+    """The zebra caches, builds and coat stores under the cache root, by name; none if the root is not there."""
+    root = cache_root or default_cache_root()
+    if not root.is_dir():
+        return []
+    current = {library_dir(root).name, coat_store_dir(root).name}
+    out = []
+    for path in sorted(root.iterdir()):
+        m = _OUR_FOLDER.fullmatch(path.name)
+        if m is None or not path.is_dir() or path.is_symlink():
+            continue
+        size = sum(f.stat().st_size for f in path.rglob("*") if f.is_file() and not f.is_symlink())
+        out.append(CacheFolder(path, path.name in current, m["pid"] is not None and _alive(int(m["pid"])), size))
+    return out
+
+
+def prune_cache(cache_root: Path | None = None, everything: bool = False, dry_run: bool = False
+                ) -> tuple[list[CacheFolder], list[CacheFolder]]:
+    """Remove the cache root's folders this code version does not read: zebra caches and coat stores of other code
+    (each edit of the zebra or its coats starts new ones: about 0.5 GB a zebra cache, 18 MB a coat store) and builds
+    whose process is gone. ``everything``: this version's too (rebuilt on next use). A build still running is never
+    removed, nor anything not named as ours. Returns the folders removed (``dry_run``: to be removed) and those that
+    could not be, whole or in part (permissions). Other versions of this tool running at the same time lose their
+    cache: run it when they are not."""
+    chosen = [f for f in cache_folders(cache_root) if not f.building and (everything or not f.current)]
+    if dry_run:
+        return chosen, []
+    for f in chosen:
+        shutil.rmtree(f.path, ignore_errors=True)
+    return [f for f in chosen if not f.path.exists()], [f for f in chosen if f.path.exists()]
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` is running (on this machine)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's
+        return True
+    except OverflowError:  # not a pid this system can have
+        return False
+    return True
 
 
 @dataclass(frozen=True)
@@ -208,7 +280,7 @@ def _bake_morph(morph_name: str, meshes: dict[int, ZebraMesh]) -> dict[str, NDAr
 
 def build_library(cache_root: Path | None = None, force: bool = False) -> ZebraLibrary:
     """Bake every morph, clip and frame into the cache (skipped if an intact one exists)."""
-    root = (cache_root or default_cache_root()) / f"zebra-{asset_digest()}"
+    root = library_dir(cache_root)
     if not force and (root / "manifest.json").exists():
         return load_library(cache_root)
     t0 = time.perf_counter()
@@ -259,7 +331,7 @@ def build_library(cache_root: Path | None = None, force: bool = False) -> ZebraL
 
 def load_library(cache_root: Path | None = None, build_if_missing: bool = True) -> ZebraLibrary:
     """Open the baked zebra for this code version, building it first if it is missing."""
-    root = (cache_root or default_cache_root()) / f"zebra-{asset_digest()}"
+    root = library_dir(cache_root)
     manifest_path = root / "manifest.json"
     if not manifest_path.exists():
         if build_if_missing:

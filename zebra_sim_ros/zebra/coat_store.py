@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zebra_sim_ros.zebra import coat, skeleton
-from zebra_sim_ros.zebra.asset import appearance_digest, default_cache_root
+from zebra_sim_ros.zebra.asset import coat_store_dir
 
 Key = tuple[str, int]  # (morph name, coat seed)
 
@@ -34,14 +34,15 @@ class CoatStore:
     claim let go without a coat becomes its own, and one older than ``stale_s`` (its process died) or a wait past
     ``wait_s`` is baked anyway. The bytes are the baked ones, so a coat read is the coat baked, texel for texel; the
     folder is keyed by :func:`~zebra_sim_ros.zebra.asset.appearance_digest` and the numpy version (float64 ``sin``
-    differs between numpy builds), so other code starts another folder. A folder that cannot be made turns the store
+    differs between numpy builds), so other code starts another folder (``zebra-sim asset prune`` removes
+    the old ones). A folder that cannot be made turns the store
     off; one that cannot be written (read-only, full) is still read. Either way ``error`` says why and the coats it
     lacks are baked in memory.
     """
 
     def __init__(self, root: Path | None = None, wait_s: float = 30.0, stale_s: float = 10.0,
                  enabled: bool = True) -> None:
-        self.dir = (root or default_cache_root()) / f"coats-{appearance_digest()}-np{np.__version__}"
+        self.dir = coat_store_dir(root)
         self.wait_s, self.stale_s = wait_s, stale_s
         self.baked = self.read = 0  # coats this store baked, and coats it read from disk
         self.on = enabled  # read and write the folder; False: every coat baked in memory
