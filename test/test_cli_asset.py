@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import cv2
@@ -86,42 +87,54 @@ def test_bad_arguments_stop_with_a_message_naming_them(library: ZebraLibrary, ze
 
 
 def test_prune_removes_other_versions_caches_and_nothing_else(tmp_path: Path) -> None:
-    """Only the folders named as ours and not read by this code version go; a build whose process runs stays, and
-    so does anything else under the root. ``--dry-run`` lists without removing, ``--all`` takes this version's
-    too."""
-    root = tmp_path / "cache"
+    """Only the folders named as ours and not read by this code version go; a build whose process runs here or that
+    was touched within the hour stays, and so does anything else under the root, links included (never followed).
+    ``--dry-run`` lists without removing, ``--all`` takes this version's too."""
+    root, outside = tmp_path / "cache", tmp_path / "outside"
     here, coats = library_dir(root), coat_store_dir(root)
-    dead = subprocess.Popen([sys.executable, "-c", "pass"])
-    dead.wait()
+    no_pid = int(Path("/proc/sys/kernel/pid_max").read_text())  # pids are below it: never a running process
     old = {"zebra-0123456789abcdef": 3000, "coats-0123456789abcdef-np2.0.0": 500, "coats-fedcba9876543210": 700,
-           f"{here.name}.tmp{dead.pid}": 200}  # an interrupted build of this version: its process is gone
-    others = {here.name: 1000, coats.name: 400, f"zebra-0123456789abcdef.tmp{os.getpid()}": 100,  # being built
+           f"{here.name}.tmp{no_pid}": 200}  # an interrupted build of this version: no process, untouched for 2 h
+    others = {here.name: 1000, coats.name: 400,
+              f"zebra-0123456789abcdef.tmp{os.getpid()}": 100,  # being built by a running process
+              f"zebra-0123456789abcdee.tmp{no_pid}": 100,  # no process here, but touched just now: another machine's?
               "zebra-notours": 10, "notes": 10}
     for name, size in {**old, **others}.items():
         (root / name / "sub").mkdir(parents=True)
         (root / name / "sub" / "a.bin").write_bytes(b"x" * size)
+    two_hours_ago = time.time() - 7200
+    for path in (root / f"{here.name}.tmp{no_pid}", root / f"{here.name}.tmp{no_pid}" / "sub"):
+        os.utime(path, (two_hours_ago, two_hours_ago))
+    (outside / "keep").mkdir(parents=True)
+    (outside / "keep" / "b.bin").write_bytes(b"y" * 50)
+    (root / "zebra-0123456789abcdef" / "link").symlink_to(outside / "keep")  # inside an old cache: not followed
+    (root / "coats-00112233445566ff").symlink_to(outside)  # named as ours but a link: not ours
     (root / "coats-0123456789abcdee").write_text("a file, not a folder")
+    untouched = sorted([*others, "coats-00112233445566ff", "coats-0123456789abcdee"])
 
     dry = _run(["asset", "prune", "--cache", str(root), "--dry-run", "--json"], root)
     assert dry.returncode == 0, dry.stderr
     summary = json.loads(dry.stdout.strip().splitlines()[-1])
-    assert sorted(Path(p).name for p in summary["removed"]) == sorted(old)
-    assert summary["bytes"] == sum(old.values())
-    assert all((root / name).is_dir() for name in {**old, **others})
+    assert sorted(Path(p).name for p in summary["would_remove"]) == sorted(old) and "removed" not in summary
+    assert summary["bytes"] == sum(old.values())  # the link inside counts nothing
+    assert sorted(p.name for p in root.iterdir()) == sorted([*old, *untouched])
 
     proc = _run(["asset", "prune", "--cache", str(root), "--json"], root)
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout.strip().splitlines()[-1])
     assert sorted(Path(p).name for p in summary["removed"]) == sorted(old) and summary["failed"] == []
-    assert sorted(p.name for p in root.iterdir()) == sorted([*others, "coats-0123456789abcdee"])
-    assert sorted(Path(p).name for p in summary["kept"]) == sorted([here.name, coats.name,
-                                                                    f"zebra-0123456789abcdef.tmp{os.getpid()}"])
+    assert sorted(p.name for p in root.iterdir()) == untouched
+    assert (outside / "keep" / "b.bin").read_bytes() == b"y" * 50
+    assert sorted(Path(p).name for p in summary["kept"]) == sorted(
+        [here.name, coats.name, f"zebra-0123456789abcdef.tmp{os.getpid()}", f"zebra-0123456789abcdee.tmp{no_pid}"])
 
     proc = _run(["asset", "prune", "--cache", str(root), "--all", "--json"], root)
     assert proc.returncode == 0, proc.stderr
     assert not here.exists() and not coats.exists()
-    assert sorted(p.name for p in root.iterdir()) == sorted(["zebra-notours", "notes", "coats-0123456789abcdee",
-                                                             f"zebra-0123456789abcdef.tmp{os.getpid()}"])
+    assert sorted(p.name for p in root.iterdir()) == sorted(set(untouched) - {here.name, coats.name})
+
+    proc = _run(["asset", "prune", "--cache", str(tmp_path / "no_such_cache")], root)
+    assert proc.returncode == 2 and "--cache" in proc.stderr and "no_such_cache" in proc.stderr
 
 
 def test_info_counts_other_versions_caches(library: ZebraLibrary, zebra_cache: Path, tmp_path: Path) -> None:

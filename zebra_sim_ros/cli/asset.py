@@ -22,7 +22,7 @@ def register(sub: Any) -> None:
 
     b = asub.add_parser("build", help="bake every morph, clip and frame into the cache and write USD files")
     b.add_argument("--out", type=Path, default=None,
-                   help="folder for the USD files and coat textures (default: <cache>/usd)")
+                   help="folder for the USD files and coat textures (default: <cache>/zebra-<digest>/usd)")
     b.add_argument("--cache", type=Path, default=None,
                    help="cache root (default: $ZEBRA_SIM_CACHE or ~/.cache/zebra_sim_ros)")
     b.add_argument("--force", action="store_true", help="rebuild even if an intact cache exists")
@@ -39,7 +39,8 @@ def register(sub: Any) -> None:
     r = asub.add_parser("prune", help="remove the cache's zebra caches and coat stores of other code versions")
     r.add_argument("--cache", type=Path, default=None, help="cache root")
     r.add_argument("--all", action="store_true", dest="everything",
-                   help="this version's cache and coat store too (rebuilt on next use)")
+                   help="this version's cache and coat store too (rebuilt on next use; the USD files 'asset "
+                   "build' wrote into the cache go with it)")
     r.add_argument("--dry-run", action="store_true", help="list what would be removed, remove nothing")
     add_json_flag(r)
     r.set_defaults(func=cmd_prune)
@@ -118,11 +119,11 @@ def cmd_info(args: argparse.Namespace) -> Summary:
 
 
 def _say_other_versions(root: Path) -> list[CacheFolder]:
-    """The cache root's zebra caches and coat stores of other code versions (not being built), said in one line
-    when there are any."""
-    from zebra_sim_ros.zebra.asset import cache_folders
+    """The cache root's folders ``asset prune`` would remove (other code versions', interrupted builds), said in one
+    line when there are any."""
+    from zebra_sim_ros.zebra.asset import prune_cache
 
-    old = [f for f in cache_folders(root) if not f.current and not f.building]
+    old = prune_cache(root, dry_run=True).removed
     if old:
         print(f"other code versions' caches: {len(old)} folders, {sum(f.bytes for f in old) / 1e6:.1f} MB "
               "('zebra-sim asset prune' removes them)")
@@ -131,22 +132,22 @@ def _say_other_versions(root: Path) -> list[CacheFolder]:
 
 def cmd_prune(args: argparse.Namespace) -> Summary:
     """Remove other code versions' caches."""
-    from zebra_sim_ros.zebra.asset import cache_folders, default_cache_root, prune_cache
+    from zebra_sim_ros.zebra.asset import default_cache_root, prune_cache
 
+    if args.cache is not None and not args.cache.is_dir():
+        raise ParameterError("--cache", str(args.cache), "an existing cache folder")
     root = args.cache or default_cache_root()
-    gone, failed = prune_cache(root, everything=args.everything, dry_run=args.dry_run)
+    res = prune_cache(root, everything=args.everything, dry_run=args.dry_run)
     verb = "would remove" if args.dry_run else "removed"
-    for f in gone:
+    for f in res.removed:
         print(f"{verb} {f.path} ({f.bytes / 1e6:.1f} MB{', this version' if f.current else ''})")
-    for f in failed:
+    for f in res.failed:
         print(f"could not remove {f.path} (whole or in part): check its permissions", file=sys.stderr)
-    names = {f.path for f in gone}
-    kept = [f for f in cache_folders(root) if f.path not in names]
-    freed = sum(f.bytes for f in gone)
-    print(f"{verb} {len(gone)} folders, {freed / 1e6:.1f} MB; kept {len(kept)} under {root}")
-    return {"cache": str(root), "dry_run": args.dry_run, "removed": [str(f.path) for f in gone], "bytes": freed,
-            "failed": [str(f.path) for f in failed], "kept": [str(f.path) for f in kept],
-            "exit_code": int(bool(failed))}
+    freed = sum(f.bytes for f in res.removed)
+    print(f"{verb} {len(res.removed)} folders, {freed / 1e6:.1f} MB; kept {len(res.kept)} under {root}")
+    return {"cache": str(root), "dry_run": args.dry_run, ("would_remove" if args.dry_run else "removed"):
+            [str(f.path) for f in res.removed], "bytes": freed, "failed": [str(f.path) for f in res.failed],
+            "kept": [str(f.path) for f in res.kept], "exit_code": int(bool(res.failed))}
 
 
 def cmd_preview(args: argparse.Namespace) -> Summary:

@@ -18,6 +18,7 @@ import json
 import os
 import re
 import shutil
+import stat
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -79,6 +80,7 @@ def coat_store_dir(cache_root: Path | None = None) -> Path:
 # The cache root's folders that are ours: zebra caches, their builds in progress (``.tmp<pid>``) and coat stores
 # (named without the numpy version before it was part of the key). Nothing else under the root is ever touched.
 _OUR_FOLDER = re.compile(r"zebra-[0-9a-f]{16}(\.tmp(?P<pid>[0-9]+))?|coats-[0-9a-f]{16}(-np[0-9A-Za-z.+_-]+)?")
+BUILD_QUIET_S = 3600.0  # a build folder untouched this long, whose process is not running here, was interrupted
 
 
 @dataclass(frozen=True)
@@ -86,9 +88,18 @@ class CacheFolder:
     """One of the cache root's folders: a zebra cache, a build of one, or a coat store."""
 
     path: Path
-    current: bool  # read by this code version (its zebra cache or coat store)
-    building: bool  # a build whose process is still running
+    current: bool  # read by this code version and numpy build (its zebra cache or coat store)
+    building: bool  # a build whose process runs here, or one touched within BUILD_QUIET_S (another machine's?)
     bytes: int  # size of its files
+
+
+@dataclass(frozen=True)
+class PruneResult:
+    """What :func:`prune_cache` removed (on a dry run: would remove), could not remove, and left."""
+
+    removed: list[CacheFolder]
+    failed: list[CacheFolder]  # removed in part or not at all (permissions, a folder in use elsewhere)
+    kept: list[CacheFolder]
 
 
 def cache_folders(cache_root: Path | None = None) -> list[CacheFolder]:
@@ -100,31 +111,57 @@ def cache_folders(cache_root: Path | None = None) -> list[CacheFolder]:
     out = []
     for path in sorted(root.iterdir()):
         m = _OUR_FOLDER.fullmatch(path.name)
-        if m is None or not path.is_dir() or path.is_symlink():
+        if m is None or path.is_symlink() or not path.is_dir():
             continue
-        size = sum(f.stat().st_size for f in path.rglob("*") if f.is_file() and not f.is_symlink())
-        out.append(CacheFolder(path, path.name in current, m["pid"] is not None and _alive(int(m["pid"])), size))
+        building = m["pid"] is not None and (_alive(int(m["pid"])) or _quiet_s(path) < BUILD_QUIET_S)
+        out.append(CacheFolder(path, path.name in current, building, _folder_bytes(path)))
     return out
 
 
-def prune_cache(cache_root: Path | None = None, everything: bool = False, dry_run: bool = False
-                ) -> tuple[list[CacheFolder], list[CacheFolder]]:
-    """Remove the cache root's folders this code version does not read: zebra caches and coat stores of other code
-    (each edit of the zebra or its coats starts new ones: about 0.5 GB a zebra cache, 18 MB a coat store) and builds
-    whose process is gone. ``everything``: this version's too (rebuilt on next use). A build still running is never
-    removed, nor anything not named as ours. Returns the folders removed (``dry_run``: to be removed) and those that
-    could not be, whole or in part (permissions). Other versions of this tool running at the same time lose their
-    cache: run it when they are not."""
-    chosen = [f for f in cache_folders(cache_root) if not f.building and (everything or not f.current)]
+def prune_cache(cache_root: Path | None = None, everything: bool = False, dry_run: bool = False) -> PruneResult:
+    """Remove the cache root's folders that this code version does not read: zebra caches and coat stores of other
+    code or another numpy build (each edit of the zebra or its coats starts new ones, and nothing else removes the
+    old), and interrupted builds. ``everything``: this version's too (the cache is rebuilt on next use; the USD files
+    ``asset build`` wrote into it are not). A build is left while its process runs on this machine or while it was
+    touched within :data:`BUILD_QUIET_S`, and nothing under the root that is not named as ours is touched. Processes
+    using a removed folder (other versions of this tool; with ``everything``, this one's) lose their cache: prune when
+    they are not running."""
+    found = cache_folders(cache_root)
+    chosen = [f for f in found if not f.building and (everything or not f.current)]
     if dry_run:
-        return chosen, []
+        return PruneResult(chosen, [], [f for f in found if f not in chosen])
     for f in chosen:
         shutil.rmtree(f.path, ignore_errors=True)
-    return [f for f in chosen if not f.path.exists()], [f for f in chosen if f.path.exists()]
+    failed = [f for f in chosen if f.path.exists()]
+    return PruneResult([f for f in chosen if f not in failed], failed, [f for f in found if f not in chosen])
+
+
+def _folder_bytes(path: Path) -> int:
+    """Bytes of the files under ``path``, links not followed; files and folders that vanish meanwhile (a camera's
+    claims, another prune) count as nothing."""
+    total = 0
+    for top, _, files in os.walk(path):
+        for name in files:
+            try:
+                st = os.lstat(os.path.join(top, name))
+            except OSError:
+                continue
+            if stat.S_ISREG(st.st_mode):
+                total += st.st_size
+    return total
+
+
+def _quiet_s(path: Path) -> float:
+    """Seconds since anything directly in ``path`` changed (infinite if it is gone)."""
+    try:
+        latest = max([path.stat().st_mtime, *(p.lstat().st_mtime for p in path.iterdir())])
+    except OSError:
+        return float("inf")
+    return time.time() - latest
 
 
 def _alive(pid: int) -> bool:
-    """Whether process ``pid`` is running (on this machine)."""
+    """Whether process ``pid`` is running on this machine."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
