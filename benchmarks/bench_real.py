@@ -36,6 +36,7 @@ import json
 import os
 import platform
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -141,15 +142,17 @@ def score_set(weights: str, folder: Path, imgsz: int, sweep: tuple[float, ...] =
             row[0] += 1
             row[1] += len(d)
             row[2] += int(_centred(d, lab[lab[:, 0] == k, 1:]).any(1).sum()) if len(d) else 0
+    z = _if(bool(zebra))  # a set of other species only has no zebra figures, one of zebras only no false ones
+    o = _if(bool(others))
     return {"weights": weights + (" + verifier" if verifier else ""), "set": folder.name, "imgsz": imgsz or "rule",
             "served": sorted({p.imgsz for p in per}), "zebra_images": len(zebra), "zebras": m.instances,
-            "mAP50": round(m.map50, 4), "mAP50-95": round(m.map50_95, 4), "P@0.25": round(prec, 4),
-            "R@0.25": round(rec, 4), "AP50_small": sizes["small"]["mAP50"], "AP50_medium": sizes["medium"]["mAP50"],
-            "AP50_large": sizes["large"]["mAP50"],
+            "mAP50": z(round(m.map50, 4)), "mAP50-95": z(round(m.map50_95, 4)), "P@0.25": z(round(prec, 4)),
+            "R@0.25": z(round(rec, 4)), "AP50_small": z(sizes["small"]["mAP50"]),
+            "AP50_medium": z(sizes["medium"]["mAP50"]), "AP50_large": z(sizes["large"]["mAP50"]),
             "n_small/medium/large": [sizes[k]["instances"] for k in ("small", "medium", "large")],
-            "other_images": len(others), "other_det_per_image": round(n_other / max(len(others), 1), 4),
-            "other_on_animal_share": round(on_other / max(n_other, 1), 4),
-            "other_centre_on_animal_share": round(centre_on / max(n_other, 1), 4),
+            "other_images": len(others), "other_det_per_image": o(round(n_other / max(len(others), 1), 4)),
+            "other_on_animal_share": o(round(on_other / max(n_other, 1), 4)),
+            "other_centre_on_animal_share": o(round(centre_on / max(n_other, 1), 4)),
             "other_animal_recall": round(found_other / n_animals, 4) if n_animals else None,
             "other_by_class": {k: {"photos": n, "det_per_image": round(dn / n, 3), "centred_per_image": round(c / n, 3)}
                                for k, (n, dn, c) in sorted(species.items())},
@@ -157,13 +160,23 @@ def score_set(weights: str, folder: Path, imgsz: int, sweep: tuple[float, ...] =
             "sweep": [_operating_point(dets, gts, others, t) for t in sweep]}
 
 
+def _if(has: bool) -> Callable[[float], float | None]:
+    """The figure itself where the photos it is about exist, else None (printed as "-")."""
+    return lambda x: x if has else None
+
+
+def _f(x: float | None) -> str:
+    return "-" if x is None else f"{x:.3f}"
+
+
 def _operating_point(dets: list[np.ndarray], gts: list[np.ndarray], others: list[ImagePredictions],
-                     conf: float) -> dict[str, float]:
+                     conf: float) -> dict[str, float | None]:
     """Precision and recall on the zebra photos and detections per photo of other species, at threshold ``conf``."""
     prec, rec = precision_recall_at(dets, gts, conf)
     n = sum(int((p.detections[:, 4] >= conf).sum()) for p in others)
-    return {"conf": conf, "P": round(prec, 4), "R": round(rec, 4),
-            "other_det_per_image": round(n / max(len(others), 1), 4)}
+    z, o = _if(bool(gts)), _if(bool(others))
+    return {"conf": conf, "P": z(round(prec, 4)), "R": z(round(rec, 4)),
+            "other_det_per_image": o(round(n / max(len(others), 1), 4))}
 
 
 def sweep_table(rows: list[dict[str, Any]]) -> list[str]:
@@ -173,7 +186,7 @@ def sweep_table(rows: list[dict[str, Any]]) -> list[str]:
     out = ["| weights | set | imgsz | " + " | ".join(f"conf {c:g}: P / R / other det per photo" for c in confs) + " |",
            "| --- | --- | --- | " + " | ".join("---" for _ in confs) + " |"]
     for r in rows:
-        cells = " | ".join(f"{pt['P']:.3f} / {pt['R']:.3f} / {pt['other_det_per_image']:.3f}" for pt in r["sweep"])
+        cells = " | ".join(f"{_f(pt['P'])} / {_f(pt['R'])} / {_f(pt['other_det_per_image'])}" for pt in r["sweep"])
         out.append(f"| {r['weights']} | {r['set']} | {r['imgsz']} | {cells} |")
     return out
 
@@ -189,10 +202,11 @@ def table(rows: list[dict[str, Any]]) -> list[str]:
         sv = r["served"]
         served = str(sv[0]) if len(sv) == 1 else f"{sv[0]}-{sv[-1]}"
         out.append(f"| {r['weights']} | {r['set']} | {r['imgsz']} ({served}) | "
-                   f"{r['zebra_images']} / {r['zebras']} | {r['mAP50']:.3f} | {r['mAP50-95']:.3f} | "
-                   f"{r['P@0.25']:.3f} / {r['R@0.25']:.3f} | {r['AP50_small']:.3f} / {r['AP50_medium']:.3f} / "
-                   f"{r['AP50_large']:.3f} ({n[0]}/{n[1]}/{n[2]}) | {r['other_det_per_image']:.3f} "
-                   f"({100 * r['other_on_animal_share']:.0f}% / {100 * r['other_centre_on_animal_share']:.0f}%) | "
+                   f"{r['zebra_images']} / {r['zebras']} | {_f(r['mAP50'])} | {_f(r['mAP50-95'])} | "
+                   f"{_f(r['P@0.25'])} / {_f(r['R@0.25'])} | {_f(r['AP50_small'])} / {_f(r['AP50_medium'])} / "
+                   f"{_f(r['AP50_large'])} ({n[0]}/{n[1]}/{n[2]}) | {_f(r['other_det_per_image'])}"
+                   + ("" if r["other_on_animal_share"] is None else f" ({100 * r['other_on_animal_share']:.0f}% / "
+                      f"{100 * r['other_centre_on_animal_share']:.0f}%)") + " | "
                    f"{'-' if r['other_animal_recall'] is None else format(r['other_animal_recall'], '.3f')} | "
                    f"{_by_class(r['other_by_class'])} | {r['ms_per_image']} |")
     return out
