@@ -60,13 +60,31 @@ def main() -> None:
               "datasets/african-wildlife/train (AGPL-3.0); see scripts/real_sets/african_wildlife_dev.py")
 
 
-def write_set(git_dir: Path, photos: list[tuple[str, str]], out: Path, yaml_comment: str, source: str) -> None:
-    """``out`` written anew: each (repository path, local name) of ``photos`` by :func:`copy_photo`, a data.yaml
-    headed by ``yaml_comment`` and a SOURCE.txt naming the repository, the commit and ``source``."""
+def fresh_set(out: Path) -> None:
+    """``out`` emptied, with the layout's three folders."""
     if out.exists():
         shutil.rmtree(out)
     for sub in ("images", "labels", "other_species"):
         (out / sub).mkdir(parents=True)
+
+
+def export_images(git_dir: Path, commit: str, root: str, splits: tuple[str, ...],
+                  skip: frozenset[str] = frozenset()) -> list[str]:
+    """The photos of a YOLO export's ``<root>/<split>/images/`` at ``commit`` (their file names not in ``skip``),
+    sorted; stops, naming the folders, if there is none."""
+    files = git(git_dir, "ls-tree", "-r", "--name-only", commit, root).decode().splitlines()
+    sources = sorted(f for f in files if len(f.split("/")) == 4 and f.split("/")[1] in splits
+                     and f.split("/")[2] == "images" and f.lower().endswith((".jpg", ".jpeg", ".png"))
+                     and Path(f).name not in skip)
+    if not sources:
+        raise SystemExit(f"{git_dir}: no images under {root}/{{{','.join(splits)}}}/images at {commit}")
+    return sources
+
+
+def write_set(git_dir: Path, photos: list[tuple[str, str]], out: Path, yaml_comment: str, source: str) -> None:
+    """``out`` written anew: each (repository path, local name) of ``photos`` by :func:`copy_photo`, a data.yaml
+    headed by ``yaml_comment`` and a SOURCE.txt naming the repository, the commit and ``source``."""
+    fresh_set(out)
     zebra_images = zebra_boxes = 0
     for src, name in photos:
         n = copy_photo(git_dir, src, out, name)

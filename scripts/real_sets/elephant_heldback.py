@@ -30,19 +30,19 @@ from __future__ import annotations
 
 import argparse
 import re
-import shutil
 import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from african_wildlife_dev import git  # noqa: E402  (the one way these scripts read a pinned file)
+from african_wildlife_dev import export_images, fresh_set, git  # noqa: E402  (shared by these scripts)
 
 COMMIT = "d86b9e9f2305a2dfa2fbe123df9fd8b0fa6a9bfc"
 ROOT = "data"
 SPLITS = ("valid_reduced", "test_reduced")
 ELEPHANT_SOURCE, ELEPHANT_OURS = "0", "1"
-WITH_ZEBRAS = {"16ebbed435f259aa_jpg.rf.f143e84d97d32f6dfaaa60a5dde0f0e9.jpg"}  # a poster with a zebra among others
+# photos that show a zebra (a poster of African animals), left out
+WITH_ZEBRAS = frozenset({"16ebbed435f259aa_jpg.rf.f143e84d97d32f6dfaaa60a5dde0f0e9.jpg"})
 
 
 def main() -> None:
@@ -50,36 +50,27 @@ def main() -> None:
     ap.add_argument("git_dir", type=Path)
     ap.add_argument("--out", type=Path, default=HERE.parents[1] / "real_heldback" / "elephant_heldback")
     args = ap.parse_args()
-    commit = COMMIT
-    files = git(args.git_dir, "ls-tree", "-r", "--name-only", commit, ROOT).decode().splitlines()
-    sources = sorted(f for f in files if len(f.split("/")) == 4 and f.split("/")[1] in SPLITS
-                     and f.split("/")[2] == "images" and f.lower().endswith((".jpg", ".jpeg", ".png"))
-                     and Path(f).name not in WITH_ZEBRAS)
-    if not sources:
-        raise SystemExit(f"{args.git_dir}: no images under {ROOT}/{{{','.join(SPLITS)}}}/images at {commit}")
-    if args.out.exists():
-        shutil.rmtree(args.out)
-    for sub in ("images", "labels", "other_species"):
-        (args.out / sub).mkdir(parents=True)
+    sources = export_images(args.git_dir, COMMIT, ROOT, SPLITS, skip=WITH_ZEBRAS)
+    fresh_set(args.out)
     boxes = 0
     for src in sources:
         split = src.split("/")[1].removesuffix("_reduced")
         name = f"{split}_{re.sub(r'[^A-Za-z0-9]', '_', Path(src).stem)}"
         label = src.replace("/images/", "/labels/").rsplit(".", 1)[0] + ".txt"
-        rows = [ln.split() for ln in git(args.git_dir, "show", f"{commit}:{label}").decode().splitlines()
+        rows = [ln.split() for ln in git(args.git_dir, "show", f"{COMMIT}:{label}").decode().splitlines()
                 if ln.strip()]
         bad = [r for r in rows if len(r) != 5 or r[0] != ELEPHANT_SOURCE]
         if bad:  # one class and boxes only: anything else means the source is not what we pinned
-            raise SystemExit(f"{label} at {commit}: row {' '.join(bad[0])!r} is not a class-0 box (5 fields)")
+            raise SystemExit(f"{label} at {COMMIT}: row {' '.join(bad[0])!r} is not a class-0 box (5 fields)")
         (args.out / "images" / f"{name}{Path(src).suffix.lower()}").write_bytes(
-            git(args.git_dir, "show", f"{commit}:{src}"))
+            git(args.git_dir, "show", f"{COMMIT}:{src}"))
         (args.out / "labels" / f"{name}.txt").write_text("")
         (args.out / "other_species" / f"{name}.txt").write_text(
             "".join(" ".join([ELEPHANT_OURS, *r[1:]]) + "\n" for r in rows))
         boxes += len(rows)
     (args.out / "data.yaml").write_text("# real photographs of elephants, HELD BACK: for measuring only, seldom\n"
                                         "path: .\ntrain: images\nval: images\nnames:\n  0: zebra\n")
-    (args.out / "SOURCE.txt").write_text(f"github:ThevinduSK/Elephants-Intrusion-Detection@{commit} "
+    (args.out / "SOURCE.txt").write_text(f"github:ThevinduSK/Elephants-Intrusion-Detection@{COMMIT} "
                                          f"{ROOT}/{{valid_reduced,test_reduced}} (Roboflow school-ihmbv/"
                                          "elephant-intrusion-detection-system-xjwvm v1, Public Domain); see "
                                          "scripts/real_sets/elephant_heldback.py\n")

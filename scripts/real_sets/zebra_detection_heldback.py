@@ -22,12 +22,11 @@ from __future__ import annotations
 
 import argparse
 import re
-import shutil
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from african_wildlife_dev import git  # noqa: E402  (the one way these scripts read a pinned file)
+from african_wildlife_dev import export_images, fresh_set, git  # noqa: E402  (shared by these scripts)
 
 COMMIT = "435de4fad6eb16a260d19f1038d63df5d269c067"
 ROOT = "datasets"
@@ -41,15 +40,8 @@ def main() -> None:
     ap.add_argument("--out", type=Path,
                     default=Path(__file__).resolve().parents[2] / "real_heldback" / "zebra_detection")
     args = ap.parse_args()
-    files = git(args.git_dir, "ls-tree", "-r", "--name-only", COMMIT, ROOT).decode().splitlines()
-    sources = sorted(f for f in files if len(f.split("/")) == 4 and f.split("/")[1] in SPLITS
-                     and f.split("/")[2] == "images" and f.lower().endswith((".jpg", ".jpeg", ".png")))
-    if not sources:
-        raise SystemExit(f"{args.git_dir}: no images under {ROOT}/{{{','.join(SPLITS)}}}/images at {COMMIT}")
-    if args.out.exists():
-        shutil.rmtree(args.out)
-    for sub in ("images", "labels", "other_species"):
-        (args.out / sub).mkdir(parents=True)
+    sources = export_images(args.git_dir, COMMIT, ROOT, SPLITS)
+    fresh_set(args.out)
     zebra_images = boxes = 0
     for src in sources:
         split = src.split("/")[1]
