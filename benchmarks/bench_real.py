@@ -19,6 +19,8 @@ serve a frame; a number: the long side every photo is letterboxed to) it prints 
   1 elephant, 2 rhino): photos, detections per photo, and those centred on an animal of that species;
 - for weights with an ``other_animal`` class (``train --other-animals``): the share of those photos' animals it
   finds as other_animal (conf 0.25, IoU >= 0.5).
+A set without photos of zebras (only other species) has no zebra figures, and one without photos of other species
+no false-detection figures: they print as "-" (null in ``--json``), not as 0.
 
 ``--verifier`` (``shipped`` or a verifier checkpoint) rescores every weights' zebra boxes as the detector node's
 ``verifier`` parameter does; its rows name the weights "+ verifier".

@@ -19,17 +19,13 @@ from __future__ import annotations
 
 import argparse
 import re
-import shutil
-import subprocess
 from pathlib import Path
+
+from common import fresh_set, git  # scripts/real_sets/common.py (the script's folder is on the path)
 
 COMMIT = "676be7122cb9b9fa8f86367621da2a5e1c8d692c"
 ZEBRA = "3"
 HERE = Path(__file__).resolve().parent
-
-
-def git(git_dir: Path, *args: str) -> bytes:
-    return subprocess.run(["git", "-C", str(git_dir), *args], check=True, capture_output=True).stdout
 
 
 def copy_photo(git_dir: Path, src: str, out: Path, name: str) -> int:
@@ -58,27 +54,6 @@ def main() -> None:
     write_set(args.git_dir, [(src, local_name(src)) for src in sources], args.out,
               "# real photographs for measuring only (never training)",
               "datasets/african-wildlife/train (AGPL-3.0); see scripts/real_sets/african_wildlife_dev.py")
-
-
-def fresh_set(out: Path) -> None:
-    """``out`` emptied, with the layout's three folders."""
-    if out.exists():
-        shutil.rmtree(out)
-    for sub in ("images", "labels", "other_species"):
-        (out / sub).mkdir(parents=True)
-
-
-def export_images(git_dir: Path, commit: str, root: str, splits: tuple[str, ...],
-                  skip: frozenset[str] = frozenset()) -> list[str]:
-    """The photos of a YOLO export's ``<root>/<split>/images/`` at ``commit`` (their file names not in ``skip``),
-    sorted; stops, naming the folders, if there is none."""
-    files = git(git_dir, "ls-tree", "-r", "--name-only", commit, root).decode().splitlines()
-    sources = sorted(f for f in files if len(f.split("/")) == 4 and f.split("/")[1] in splits
-                     and f.split("/")[2] == "images" and f.lower().endswith((".jpg", ".jpeg", ".png"))
-                     and Path(f).name not in skip)
-    if not sources:
-        raise SystemExit(f"{git_dir}: no images under {root}/{{{','.join(splits)}}}/images at {commit}")
-    return sources
 
 
 def write_set(git_dir: Path, photos: list[tuple[str, str]], out: Path, yaml_comment: str, source: str) -> None:

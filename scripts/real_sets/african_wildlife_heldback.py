@@ -25,7 +25,8 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from african_wildlife_dev import COMMIT, git, write_set  # noqa: E402  (the same source, pinned to the same commit)
+from african_wildlife_dev import COMMIT, write_set  # noqa: E402  (the same source, pinned to the same commit)
+from common import export_images  # noqa: E402
 
 ROOT = "datasets/african-wildlife"
 SPLITS = ("test", "valid")
@@ -36,10 +37,7 @@ def main() -> None:
     ap.add_argument("git_dir", type=Path)
     ap.add_argument("--out", type=Path, default=HERE.parents[1] / "real_heldback" / "african_wildlife_heldback")
     args = ap.parse_args()
-    files = git(args.git_dir, "ls-tree", "-r", "--name-only", COMMIT, ROOT).decode().splitlines()
-    sources = sorted(f for f in files if f.split("/")[2] in SPLITS and f.split("/")[3] == "images")
-    if not sources:
-        raise SystemExit(f"{args.git_dir}: no images under {ROOT}/{{{','.join(SPLITS)}}} at {COMMIT}")
+    sources = export_images(args.git_dir, COMMIT, ROOT, SPLITS)
     write_set(args.git_dir, [(src, src.split("/")[2] + "_" + re.sub(r"[^A-Za-z0-9]", "_", Path(src).stem))
                              for src in sources], args.out,
               "# real photographs, HELD BACK: for measuring only, seldom",

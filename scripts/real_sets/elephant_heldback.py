@@ -1,12 +1,13 @@
 """Rebuild the HELD-BACK real set ``real_heldback/elephant_heldback/`` (photos of elephants only; measuring only).
 
 Source: github:ThevinduSK/Elephants-Intrusion-Detection, commit d86b9e9f2305a2dfa2fbe123df9fd8b0fa6a9bfc, the VALID
-and TEST splits of ``data/`` (``valid_reduced``, ``test_reduced``): the Roboflow Universe export "Elephant
-intrusion detection system" v1 (school-ihmbv/elephant-intrusion-detection-system-xjwvm, 2023-07-03; one class,
-0 = elephant; every image stretched to 640x640; the export's augmentations - flips, crops, rotation, shear,
-salt-and-pepper noise - were applied to its train split only, which is left out here). License: Public Domain,
-as the export's ``README.dataset.txt`` and ``data.yaml`` state (the file names are Open Images ids: Open Images
-photos are CC BY 2.0).
+and TEST folders of ``data/`` (``valid_reduced``, 150 photos, and ``test_reduced``, 85: the repository owner's
+subsets of a Roboflow Universe export, "Elephant intrusion detection system" v1,
+school-ihmbv/elephant-intrusion-detection-system-xjwvm, 2023-07-03, 4,609 images; one class, 0 = elephant; every
+image stretched to 640x640). The export's augmentations (flips, crops, rotation, shear, salt-and-pepper noise) are,
+as Roboflow makes them, in its train split, which is left out here; the photos here look unaugmented. License: the
+photos are Open Images photos (the file names are their ids; Open Images photos are CC BY 2.0); the export is
+labelled Public Domain (its ``README.dataset.txt`` and ``data.yaml``).
 Why: photos of another species and no zebra, to count false detections on photographs nobody has tuned on (the
 african_wildlife photos of other species have been weighed on many times). Held back: it lives outside ``real/``
 so that ``bench_real.py`` scores it only when named with ``--sets``; score it seldom, never to choose anything, and
@@ -35,7 +36,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from african_wildlife_dev import export_images, fresh_set, git  # noqa: E402  (shared by these scripts)
+from common import export_images, fresh_set, git  # noqa: E402  (shared by these scripts)
 
 COMMIT = "d86b9e9f2305a2dfa2fbe123df9fd8b0fa6a9bfc"
 ROOT = "data"

@@ -22,7 +22,6 @@ Layout written: ``images/*.jpg``, ``labels/*.txt`` (class 0 = zebra: both zebra 
 from __future__ import annotations
 
 import argparse
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -31,7 +30,7 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from african_wildlife_dev import git  # noqa: E402  (the one way these scripts read a pinned file)
+from common import fresh_set, git  # noqa: E402  (shared by these scripts)
 
 COMMIT = "bd0c3f1884a9ed54a89c140f96eb405df7e50e54"
 ZEBRA_CLASSES = {0, 1}
@@ -46,10 +45,7 @@ def main() -> None:
     args = ap.parse_args()
     names = git(args.git_dir, "ls-tree", "-r", "--name-only", COMMIT, "data/zebra/images").decode().split("\n")
     images = sorted({Path(n).name: n for n in names if n.lower().endswith((".jpg", ".jpeg", ".png"))}.items())
-    if args.out.exists():
-        shutil.rmtree(args.out)
-    for sub in ("images", "labels", "other_species"):
-        (args.out / sub).mkdir(parents=True)
+    fresh_set(args.out)
     kept = boxes = others = missing = 0
     for name, path in images:
         label = path.replace("/images/", "/labels/").rsplit(".", 1)[0] + ".txt"

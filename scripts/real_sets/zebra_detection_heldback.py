@@ -26,7 +26,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from african_wildlife_dev import export_images, fresh_set, git  # noqa: E402  (shared by these scripts)
+from common import export_images, fresh_set, git  # noqa: E402  (shared by these scripts)
 
 COMMIT = "435de4fad6eb16a260d19f1038d63df5d269c067"
 ROOT = "datasets"
