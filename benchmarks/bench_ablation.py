@@ -36,7 +36,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from bench_real import _f, find_sets, score_set  # noqa: E402
+from bench_real import find_sets, fmt3, score_set  # noqa: E402
 
 from zebra_sim_ros.zebra.asset import appearance_digest  # noqa: E402
 
@@ -159,8 +159,8 @@ def main() -> None:
              "| --- | " + " | ".join("---" for _ in sets) + " | --- | --- |"]
     for k in sorted(done):
         r = done[k]
-        cells = [f"{_f(r['real'][s]['mAP50'])} / {_f(r['real'][s]['mAP50-95'])} "
-                 f"({_f(r['real'][s]['other_det_per_image'])})" if s in r["real"] else "" for s in sets]
+        cells = [f"{fmt3(r['real'][s]['mAP50'])} / {fmt3(r['real'][s]['mAP50-95'])} "
+                 f"({fmt3(r['real'][s]['other_det_per_image'])})" if s in r["real"] else "" for s in sets]
         lines.append(f"| {k}. {r['name']} | " + " | ".join(cells)
                      + f" | {r['heldout']['mAP50']:.3f} / {r['heldout']['mAP50-95']:.3f} | {r['train_seconds']} |")
     print("\n".join(lines))

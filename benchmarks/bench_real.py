@@ -167,7 +167,8 @@ def _if(has: bool) -> Callable[[float], float | None]:
     return lambda x: x if has else None
 
 
-def _f(x: float | None) -> str:
+def fmt3(x: float | None) -> str:
+    """A figure to three decimals, "-" where the set has none (None)."""
     return "-" if x is None else f"{x:.3f}"
 
 
@@ -188,7 +189,8 @@ def sweep_table(rows: list[dict[str, Any]]) -> list[str]:
     out = ["| weights | set | imgsz | " + " | ".join(f"conf {c:g}: P / R / other det per photo" for c in confs) + " |",
            "| --- | --- | --- | " + " | ".join("---" for _ in confs) + " |"]
     for r in rows:
-        cells = " | ".join(f"{_f(pt['P'])} / {_f(pt['R'])} / {_f(pt['other_det_per_image'])}" for pt in r["sweep"])
+        cells = " | ".join(f"{fmt3(pt['P'])} / {fmt3(pt['R'])} / {fmt3(pt['other_det_per_image'])}"
+                           for pt in r["sweep"])
         out.append(f"| {r['weights']} | {r['set']} | {r['imgsz']} | {cells} |")
     return out
 
@@ -204,9 +206,9 @@ def table(rows: list[dict[str, Any]]) -> list[str]:
         sv = r["served"]
         served = str(sv[0]) if len(sv) == 1 else f"{sv[0]}-{sv[-1]}"
         out.append(f"| {r['weights']} | {r['set']} | {r['imgsz']} ({served}) | "
-                   f"{r['zebra_images']} / {r['zebras']} | {_f(r['mAP50'])} | {_f(r['mAP50-95'])} | "
-                   f"{_f(r['P@0.25'])} / {_f(r['R@0.25'])} | {_f(r['AP50_small'])} / {_f(r['AP50_medium'])} / "
-                   f"{_f(r['AP50_large'])} ({n[0]}/{n[1]}/{n[2]}) | {_f(r['other_det_per_image'])}"
+                   f"{r['zebra_images']} / {r['zebras']} | {fmt3(r['mAP50'])} | {fmt3(r['mAP50-95'])} | "
+                   f"{fmt3(r['P@0.25'])} / {fmt3(r['R@0.25'])} | {fmt3(r['AP50_small'])} / {fmt3(r['AP50_medium'])} / "
+                   f"{fmt3(r['AP50_large'])} ({n[0]}/{n[1]}/{n[2]}) | {fmt3(r['other_det_per_image'])}"
                    + ("" if r["other_on_animal_share"] is None else f" ({100 * r['other_on_animal_share']:.0f}% / "
                       f"{100 * r['other_centre_on_animal_share']:.0f}%)") + " | "
                    f"{'-' if r['other_animal_recall'] is None else format(r['other_animal_recall'], '.3f')} | "

@@ -18,10 +18,9 @@ classes 0-2), ``data.yaml``, ``SOURCE.txt``.
 from __future__ import annotations
 
 import argparse
-import re
 from pathlib import Path
 
-from common import fresh_set, git  # scripts/real_sets/common.py (the script's folder is on the path)
+from common import fresh_set, git, label_rows, local_name  # scripts/real_sets/common.py
 
 COMMIT = "676be7122cb9b9fa8f86367621da2a5e1c8d692c"
 ZEBRA = "3"
@@ -32,17 +31,12 @@ def copy_photo(git_dir: Path, src: str, out: Path, name: str) -> int:
     """Copy the photo ``src`` (a path in the repository at COMMIT) to ``out/images/<name>``, its zebra boxes to
     ``labels/`` (class 0) and the other animals' to ``other_species/``; returns its number of zebras."""
     (out / "images" / f"{name}{Path(src).suffix.lower()}").write_bytes(git(git_dir, "show", f"{COMMIT}:{src}"))
-    label = src.replace("/images/", "/labels/").rsplit(".", 1)[0] + ".txt"
-    rows = [ln.split() for ln in git(git_dir, "show", f"{COMMIT}:{label}").decode().splitlines() if ln.strip()]
+    rows = label_rows(git_dir, COMMIT, src)[1]
     zebra = [" ".join(["0", *r[1:5]]) for r in rows if r[0] == ZEBRA]
     other = [" ".join(r[:5]) for r in rows if r[0] != ZEBRA]
     (out / "labels" / f"{name}.txt").write_text("".join(z + "\n" for z in zebra))
     (out / "other_species" / f"{name}.txt").write_text("".join(o + "\n" for o in other))
     return len(zebra)
-
-
-def local_name(source: str) -> str:
-    return "train_" + re.sub(r"[^A-Za-z0-9]", "_", Path(source).stem)
 
 
 def main() -> None:
@@ -51,7 +45,7 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=HERE.parents[1] / "real" / "african_wildlife_dev")
     args = ap.parse_args()
     sources = [s for s in (HERE / "african_wildlife_dev.txt").read_text().splitlines() if s.strip()]
-    write_set(args.git_dir, [(src, local_name(src)) for src in sources], args.out,
+    write_set(args.git_dir, [(src, local_name("train", src)) for src in sources], args.out,
               "# real photographs for measuring only (never training)",
               "datasets/african-wildlife/train (AGPL-3.0); see scripts/real_sets/african_wildlife_dev.py")
 

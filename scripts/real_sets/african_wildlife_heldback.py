@@ -19,14 +19,13 @@ classes 0-2), ``data.yaml``, ``SOURCE.txt``.
 from __future__ import annotations
 
 import argparse
-import re
 import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 from african_wildlife_dev import COMMIT, write_set  # noqa: E402  (the same source, pinned to the same commit)
-from common import export_images  # noqa: E402
+from common import export_images, local_name  # noqa: E402
 
 ROOT = "datasets/african-wildlife"
 SPLITS = ("test", "valid")
@@ -38,8 +37,7 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=HERE.parents[1] / "real_heldback" / "african_wildlife_heldback")
     args = ap.parse_args()
     sources = export_images(args.git_dir, COMMIT, ROOT, SPLITS)
-    write_set(args.git_dir, [(src, src.split("/")[2] + "_" + re.sub(r"[^A-Za-z0-9]", "_", Path(src).stem))
-                             for src in sources], args.out,
+    write_set(args.git_dir, [(src, local_name(src.split("/")[2], src)) for src in sources], args.out,
               "# real photographs, HELD BACK: for measuring only, seldom",
               f"{ROOT}/{{test,valid}} (AGPL-3.0); see scripts/real_sets/african_wildlife_heldback.py")
 

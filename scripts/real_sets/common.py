@@ -1,8 +1,9 @@
-"""What the real-set scripts share: reading a pinned file of a fetched repository, the set's fresh layout, and the
-photos of a YOLO export's splits."""
+"""What the real-set scripts share: reading a pinned file of a fetched repository, the set's fresh layout, the
+photos of a YOLO export's splits, their label rows and their names in a rebuilt set."""
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -37,3 +38,16 @@ def export_images(git_dir: Path, commit: str, root: str, splits: tuple[str, ...]
     if not sources:
         raise SystemExit(f"{git_dir}: no images under {root}/{{{','.join(splits)}}}/images at {commit}")
     return sources
+
+
+def label_rows(git_dir: Path, commit: str, image: str) -> tuple[str, list[list[str]]]:
+    """The YOLO label file of the export's photo ``image`` (its path in the repository, ``.../labels/<stem>.txt``)
+    and its rows split into fields, blank lines left out. A missing file raises ``CalledProcessError``."""
+    label = image.replace("/images/", "/labels/").rsplit(".", 1)[0] + ".txt"
+    return label, [ln.split() for ln in git(git_dir, "show", f"{commit}:{label}").decode().splitlines() if ln.strip()]
+
+
+def local_name(prefix: str, image: str) -> str:
+    """A photo's file stem in a rebuilt set: ``<prefix>_<source stem>``, every character but letters and digits
+    turned into ``_``."""
+    return f"{prefix}_{re.sub(r'[^A-Za-z0-9]', '_', Path(image).stem)}"

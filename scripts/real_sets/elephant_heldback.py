@@ -30,13 +30,12 @@ into ``_``), ``labels/*.txt`` (empty), ``other_species/*.txt`` (class 1 = elepha
 from __future__ import annotations
 
 import argparse
-import re
 import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from common import export_images, fresh_set, git  # noqa: E402  (shared by these scripts)
+from common import export_images, fresh_set, git, label_rows, local_name  # noqa: E402  (shared by these scripts)
 
 COMMIT = "d86b9e9f2305a2dfa2fbe123df9fd8b0fa6a9bfc"
 ROOT = "data"
@@ -56,10 +55,8 @@ def main() -> None:
     boxes = 0
     for src in sources:
         split = src.split("/")[1].removesuffix("_reduced")
-        name = f"{split}_{re.sub(r'[^A-Za-z0-9]', '_', Path(src).stem)}"
-        label = src.replace("/images/", "/labels/").rsplit(".", 1)[0] + ".txt"
-        rows = [ln.split() for ln in git(args.git_dir, "show", f"{COMMIT}:{label}").decode().splitlines()
-                if ln.strip()]
+        name = local_name(split, src)
+        label, rows = label_rows(args.git_dir, COMMIT, src)
         bad = [r for r in rows if len(r) != 5 or r[0] != ELEPHANT_SOURCE]
         if bad:  # one class and boxes only: anything else means the source is not what we pinned
             raise SystemExit(f"{label} at {COMMIT}: row {' '.join(bad[0])!r} is not a class-0 box (5 fields)")

@@ -30,7 +30,7 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import fresh_set, git  # noqa: E402  (shared by these scripts)
+from common import fresh_set, git, label_rows  # noqa: E402  (shared by these scripts)
 
 COMMIT = "bd0c3f1884a9ed54a89c140f96eb405df7e50e54"
 ZEBRA_CLASSES = {0, 1}
@@ -48,10 +48,8 @@ def main() -> None:
     fresh_set(args.out)
     kept = boxes = others = missing = 0
     for name, path in images:
-        label = path.replace("/images/", "/labels/").rsplit(".", 1)[0] + ".txt"
         try:
-            rows = [ln.split() for ln in git(args.git_dir, "show", f"{COMMIT}:{label}").decode().splitlines()
-                    if ln.strip()]
+            rows = label_rows(args.git_dir, COMMIT, path)[1]
         except subprocess.CalledProcessError:
             continue  # an image without a label file is not annotated: left out
         try:

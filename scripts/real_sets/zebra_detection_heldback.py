@@ -21,12 +21,11 @@ into ``_``), ``labels/*.txt`` (class 0 = zebra), ``other_species/`` (empty), ``d
 from __future__ import annotations
 
 import argparse
-import re
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import export_images, fresh_set, git  # noqa: E402  (shared by these scripts)
+from common import export_images, fresh_set, git, label_rows, local_name  # noqa: E402  (shared by these scripts)
 
 COMMIT = "435de4fad6eb16a260d19f1038d63df5d269c067"
 ROOT = "datasets"
@@ -45,10 +44,8 @@ def main() -> None:
     zebra_images = boxes = 0
     for src in sources:
         split = src.split("/")[1]
-        name = f"{split}_{re.sub(r'[^A-Za-z0-9]', '_', Path(src).stem)}"
-        label = src.replace("/images/", "/labels/").rsplit(".", 1)[0] + ".txt"
-        rows = [ln.split() for ln in git(args.git_dir, "show", f"{COMMIT}:{label}").decode().splitlines()
-                if ln.strip()]
+        name = local_name(split, src)
+        label, rows = label_rows(args.git_dir, COMMIT, src)
         bad = [r for r in rows if len(r) != 5 or r[0] != ZEBRA]
         if bad:  # the export holds one class and boxes only: anything else means the source is not what we pinned
             raise SystemExit(f"{label} at {COMMIT}: row {' '.join(bad[0])!r} is not a class-0 box (5 fields)")

@@ -34,10 +34,9 @@ class CoatStore:
     claim let go without a coat becomes its own, and one older than ``stale_s`` (its process died) or a wait past
     ``wait_s`` is baked anyway. The bytes are the baked ones, so a coat read is the coat baked, texel for texel; the
     folder is keyed by :func:`~zebra_sim_ros.zebra.asset.appearance_digest` and the numpy version (float64 ``sin``
-    differs between numpy builds), so other code starts another folder (``zebra-sim asset prune`` removes
-    the old ones). A folder that cannot be made turns the store
-    off; one that cannot be written (read-only, full) is still read. Either way ``error`` says why and the coats it
-    lacks are baked in memory.
+    differs between numpy builds), so other code starts another folder (``zebra-sim asset prune`` removes the old
+    ones). A folder that cannot be made turns the store off; one that cannot be written (read-only, full) is still
+    read. Either way ``error`` says why and the coats it lacks are baked in memory.
     """
 
     def __init__(self, root: Path | None = None, wait_s: float = 30.0, stale_s: float = 10.0,
