@@ -17,7 +17,7 @@ export PYTHONPATH=$PWD PYTHONUNBUFFERED=1 OPENCV_FOR_THREADS_NUM=1
 T0=$(date +%s)
 BUDGET=${BUDGET:-520}; EPOCHS=${EPOCHS:-5}; K=${K:-12}; IMGSZ=${IMGSZ:-2176}; CROP=${CROP:-320}; BATCH=${BATCH:-32}
 WORKERS=${WORKERS:-7}; DEVICE=${DEVICE:-cuda}; LR=${LR:-0.004}; SEED=${SEED:-33}; MAXIMG=${MAXIMG:-0}
-INIT=${INIT:-zebra_sim_ros/detection/weights/zebra_yolo_n.pt}
+INIT=${INIT:-zebra_sim_ros/detection/weights/zebra_yolo_n.pt}; INIT_A=${INIT_A:-$INIT}; INIT_B=${INIT_B:-$INIT}
 AUG=${AUG:---aug-zoom 0.5}; A_OPTS=${A_OPTS:-}; B_OPTS=${B_OPTS:-}
 OUTD=${OUT:-/tmp/gpu_ab}
 for v in BUDGET EPOCHS K IMGSZ CROP BATCH WORKERS SEED; do  # whole numbers, at least 1
@@ -26,7 +26,7 @@ done
 [[ $MAXIMG =~ ^[0-9]+$ ]] || { echo "ab.sh: MAXIMG=$MAXIMG: want a whole number >= 0 (0: all)" >&2; exit 2; }
 ((BUDGET <= 580)) || { echo "ab.sh: BUDGET=$BUDGET: want at most 580 s (one call runs 600 s at most)" >&2; exit 2; }
 [ "$A_OPTS" != "$B_OPTS" ] || { echo "ab.sh: A_OPTS and B_OPTS are the same ('$A_OPTS'): nothing to compare" >&2; exit 2; }
-[ -f "$INIT" ] || { echo "ab.sh: INIT=$INIT: no such checkpoint" >&2; exit 2; }
+for v in INIT_A INIT_B; do [ -f "${!v}" ] || { echo "ab.sh: $v=${!v}: no such checkpoint" >&2; exit 2; }; done
 [ -d gpu_data/train/images/train ] || { echo "ab.sh: no gpu_data/train/images/train: run scripts/gpu/pack.py" >&2; exit 2; }
 mkdir -p "$OUTD"
 elapsed() { echo $(( $(date +%s) - T0 )); }
@@ -37,13 +37,13 @@ open('gpu_data/ab_mix.yaml', 'w').write('path: .\ntrain: [' + ', '.join(['train/
                                         + ']\nval: val/images/val\nnc: 1\nnames:\n  0: zebra\n')
 EOF
 rows() { [ -f "$1/results.csv" ] && echo $(( $(wc -l < "$1/results.csv") - 1 )) || echo 0; }
-arm() {  # $1 run folder, $2 the arm's options (as words)
+arm() {  # $1 run folder, $2 the arm's options (as words), $3 its init
   rm -rf "$1"; mkdir -p "$1/snap"
   # shellcheck disable=SC2086  # AUG and the arm's options are words
   timeout --signal=TERM --kill-after=10 $((BUDGET - $(elapsed))) python3 -m zebra_sim_ros.cli train \
     --data gpu_data/ab_mix.yaml --model n --imgsz "$IMGSZ" --crop "$CROP" --epochs "$EPOCHS" --batch "$BATCH" \
     --device "$DEVICE" --workers "$WORKERS" --lr0 "$LR" --warmup-epochs 0.5 --close-mosaic 1 --val-every 1000 \
-    --save-period 0 --max-train-images "$MAXIMG" --seed "$SEED" --init "$INIT" $AUG $2 --out "$1" >"$1/train.log" 2>&1
+    --save-period 0 --max-train-images "$MAXIMG" --seed "$SEED" --init "$3" $AUG $2 --out "$1" >"$1/train.log" 2>&1
   echo "[ab] $1 ended (exit $?) at $(elapsed) s, $(rows "$1") epochs" >>"$1/train.log"
 }
 snapper() {  # $1 run folder: an fp16 copy of last.pt after every epoch, until $1/snap.stop appears
@@ -59,11 +59,11 @@ snapper() {  # $1 run folder: an fp16 copy of last.pt after every epoch, until $
 }
 { nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv 2>/dev/null; nproc
   python3 -c "import torch;print('torch',torch.__version__,'cuda',torch.cuda.is_available())"
-  echo "A_OPTS='$A_OPTS' B_OPTS='$B_OPTS' AUG='$AUG' EPOCHS=$EPOCHS K=$K LR=$LR SEED=$SEED INIT=$INIT"
+  echo "A_OPTS='$A_OPTS' B_OPTS='$B_OPTS' AUG='$AUG' EPOCHS=$EPOCHS K=$K LR=$LR SEED=$SEED INIT_A=$INIT_A INIT_B=$INIT_B"
 } >"$OUTD/machine.txt" 2>&1
 A=gpu_data/ab_a; B=gpu_data/ab_b
-arm $A "$A_OPTS" & PA=$!
-arm $B "$B_OPTS" & PB=$!
+arm $A "$A_OPTS" "$INIT_A" & PA=$!
+arm $B "$B_OPTS" "$INIT_B" & PB=$!
 snapper $A & SA=$!
 snapper $B & SB=$!
 wait $PA $PB
