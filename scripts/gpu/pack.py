@@ -98,9 +98,10 @@ def main() -> None:
 
 
 def _tracked() -> list[Path]:
-    """The repository's tracked files (they travel with the pack)."""
-    out = subprocess.run(["git", "ls-files", "-z"], capture_output=True, check=True).stdout.decode()
-    return [Path(f) for f in out.split("\0") if f]
+    """The repository's tracked files (they travel with the pack); none where git cannot list them."""
+    root = Path(__file__).resolve().parents[2]
+    r = subprocess.run(["git", "ls-files", "-z"], cwd=root, capture_output=True, check=False)
+    return [root / f for f in r.stdout.decode().split("\0") if f] if r.returncode == 0 else []
 
 
 def _disk_bytes(paths: Iterable[Path]) -> int:
