@@ -4,6 +4,7 @@ the CPU with a tiny pack; on a lent GPU it is the same script)."""
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import tarfile
@@ -42,32 +43,43 @@ def _pack(tmp: Path) -> Path:
     return out
 
 
+SETTINGS = ("BUDGET", "EPOCHS", "K", "IMGSZ", "CROP", "BATCH", "WORKERS", "DEVICE", "LR", "SEED", "MAXIMG", "INIT",
+            "INIT_A", "INIT_B", "AUG", "A_OPTS", "B_OPTS", "OUT", "DATA")
+
+
 def _ab(env: dict[str, str], timeout: float = 300) -> subprocess.CompletedProcess[str]:
-    full = {**os.environ, **env}
+    """Run ab.sh with these settings only (none inherited), in its own process group, killed whole on timeout."""
+    full = {k: v for k, v in os.environ.items() if k not in SETTINGS} | env
     full["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{full.get('PATH', '')}"  # python3: this interpreter
-    return subprocess.run(["bash", str(AB)], capture_output=True, text=True, timeout=timeout, env=full)
+    with subprocess.Popen(["bash", str(AB)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=full,
+                          start_new_session=True) as proc:
+        try:
+            out, err = proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+            raise
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
 
 
 def test_ab_refuses_settings_that_name_the_bad_value(tmp_path: Path) -> None:
-    data = _pack(tmp_path)
-    base = {"DATA": str(data), "OUT": str(tmp_path / "out"), "DEVICE": "cpu"}
-    r = _ab({**base, "A_OPTS": "--p2", "B_OPTS": "--p2"})
-    assert r.returncode == 2 and "A_OPTS and B_OPTS are the same" in r.stderr
-    r = _ab({**base, "A_OPTS": "--p2", "EPOCHS": "0"})
-    assert r.returncode == 2 and "EPOCHS=0" in r.stderr
-    r = _ab({**base, "A_OPTS": "--p2", "INIT_A": str(tmp_path / "none.pt")})
-    assert r.returncode == 2 and "INIT_A=" in r.stderr and "none.pt" in r.stderr
-    r = _ab({**base, "A_OPTS": "--p2", "DATA": str(tmp_path / "empty")})
-    assert r.returncode == 2 and "DATA=" in r.stderr and "pack.py" in r.stderr
-    r = _ab({**base, "A_OPTS": "--p2", "BUDGET": "900"})
-    assert r.returncode == 2 and "BUDGET=900" in r.stderr
-    assert not (tmp_path / "out" / "a").exists()  # nothing trained
+    data, out = _pack(tmp_path), tmp_path / "out"
+    base = {"DATA": str(data), "OUT": str(out), "DEVICE": "cpu", "A_OPTS": "--p2"}
+    for bad, said in (({"B_OPTS": "--p2"}, "A_OPTS and B_OPTS are the same"), ({"EPOCHS": "0"}, "EPOCHS=0"),
+                      ({"MAXIMG": "-1"}, "MAXIMG=-1"), ({"BUDGET": "900"}, "BUDGET=900"),
+                      ({"INIT_A": str(tmp_path / "none.pt")}, "INIT_A="),
+                      ({"INIT_B": str(tmp_path / "b.pt")}, "INIT_B="),
+                      ({"DATA": str(tmp_path / "empty")}, "DATA=")):
+        r = _ab(base | bad)
+        assert r.returncode == 2 and said in r.stderr, (bad, r.stderr)
+        assert not out.exists()  # refused before anything was made
 
 
 def test_ab_trains_both_arms_and_pairs_their_snapshots(tmp_path: Path) -> None:
     data, out = _pack(tmp_path), tmp_path / "out"
-    r = _ab({"DATA": str(data), "OUT": str(out), "DEVICE": "cpu", "A_OPTS": "--p2", "K": "1", "EPOCHS": "2",
-             "BATCH": "2", "WORKERS": "1", "IMGSZ": "320", "CROP": "160", "BUDGET": "300"})
+    tiny = {"DATA": str(data), "DEVICE": "cpu", "K": "1", "EPOCHS": "2", "BATCH": "2", "WORKERS": "1", "IMGSZ": "320",
+            "CROP": "160", "BUDGET": "200"}
+    r = _ab(tiny | {"OUT": str(out), "A_OPTS": "--p2"})
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     assert "both arms finished 2 epochs" in r.stdout
     for arm, p2 in (("a", True), ("b", False)):
@@ -77,11 +89,25 @@ def test_ab_trains_both_arms_and_pairs_their_snapshots(tmp_path: Path) -> None:
             assert ck["epoch"] == epoch - 1  # checkpoints count epochs from 0
             assert all(t.dtype == torch.float16 for t in ck["model"].values() if t.is_floating_point())
     with tarfile.open(out / "logs.tar.gz") as tar:
-        names = tar.getnames()
-        assert sum(n.endswith("results.csv") for n in names) == 2 and sum(n.endswith("train.log") for n in names) == 2
-        for n in names:
-            if n.endswith("results.csv"):
-                f = tar.extractfile(n)
-                assert f is not None
-                assert len(f.read().decode().strip().splitlines()) == 3  # the header and two epochs
+        assert sorted(tar.getnames()) == sorted(f"ab_{a}/{f}" for a in "ab" for f in ("train.log", "snap.log",
+                                                                                     "results.csv"))
+        for arm in "ab":
+            f = tar.extractfile(f"ab_{arm}/results.csv")
+            assert f is not None
+            assert len(f.read().decode().strip().splitlines()) == 3  # the header and two epochs
     assert "A_OPTS='--p2' B_OPTS=''" in (out / "machine.txt").read_text()
+
+    # the second call's way: each arm from its own snapshot in its own run folder, which the arm empties first
+    out2 = tmp_path / "out2"
+    snaps = {f"INIT_{arm.upper()}": str(data / f"ab_{arm}" / "snap" / "ep_2.pt") for arm in "ab"}
+    r = _ab(tiny | snaps | {"OUT": str(out2), "A_OPTS": "--p2", "EPOCHS": "1"})
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    assert read_checkpoint(out2 / "a" / "ep_1.pt")["config"]["p2"] is True
+
+    # an arm that cannot train stops the other, and the run says so by its exit status
+    out3 = tmp_path / "out3"
+    r = _ab(tiny | {"OUT": str(out3), "A_OPTS": "--no-such-option", "EPOCHS": "50"})
+    assert r.returncode != 0
+    assert "ab_a failed" in r.stdout and "stopping the other arm" in r.stdout
+    assert "both arms finished 0 epochs" in r.stdout
+    assert not list((out3 / "b").glob("*.pt"))

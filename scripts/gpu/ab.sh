@@ -1,17 +1,22 @@
 #!/usr/bin/env bash
-# An A/B on a lent GPU machine inside one call of at most 10 minutes: two `train` runs side by side on `gpu_data/`
-# (made by scripts/gpu/pack.py, carried with the tree), the same data, init, seed, epochs and recipe as train.sh's
-# (320 px crops of 2176 px samples, K passes over the frames per epoch), arm a with A_OPTS and arm b with B_OPTS
-# (e.g. A_OPTS=--p2: the stride-4 level against its control). Each arm gets half the loader processes. The epoch
-# count is fixed (EPOCHS), not fitted to the budget, so that both arms see the same crops under the same schedule; if
-# BUDGET ends them early, the snapshots of the epochs both finished still pair up. After every epoch an fp16 copy of
-# each arm's last.pt (EMA weights) is kept; $OUT receives logs.tar.gz (each arm's train.log and results.csv) and,
-# per arm, the snapshots of the last two epochs both arms finished: a/ep_N.pt, b/ep_N.pt.
+# An A/B on a lent GPU machine inside one call of at most 10 minutes: two `train` runs side by side on a pack made by
+# scripts/gpu/pack.py (DATA, default gpu_data/, carried with the tree), the same data, seed, epochs and recipe as
+# train.sh's (320 px crops of 2176 px samples, K passes over the frames per epoch), arm a with A_OPTS and arm b with
+# B_OPTS (e.g. A_OPTS=--p2: the stride-4 level against its control). Each arm gets half the loader processes and
+# starts from INIT_A / INIT_B (default INIT, the shipped weights; none: from scratch). The epoch count is fixed
+# (EPOCHS), not fitted to the budget, so that both arms see the same crops under the same schedule; if BUDGET ends
+# them early, the snapshots of the epochs both finished still pair up. After every epoch each arm's last.pt (EMA
+# weights) is kept as an fp16 snapshot named by the epoch it holds. $OUT receives machine.txt (the machine and the
+# settings), logs.tar.gz (each arm's train.log, snap.log and results.csv) and, per arm, the snapshots of the last two
+# epochs both arms finished: a/ep_N.pt, b/ep_N.pt. The exit status is 0 only if both arms trained all EPOCHS.
+# Relative paths (DATA, INIT_A, INIT_B, OUT) are taken from the repository's root.
 #
-# The P2 A/B of 2026-11-28 (BENCHMARKS.md, "A stride-4 level on a lent GPU"):
-#   A_OPTS=--p2 AUG='--aug-zoom 0.5 --aug-background 0.3 --aug-zoom-crop 1 --aug-zoom-max 16' bash scripts/gpu/ab.sh
-# A smoke test on a CPU: DEVICE=cpu K=1 MAXIMG=8 EPOCHS=2 BATCH=4 WORKERS=1 IMGSZ=640 bash scripts/gpu/ab.sh
-# DATA names another pack folder than gpu_data (the arms' run folders and the mix file go there too).
+# The P2 A/B of 2026-11-28 (BENCHMARKS.md, "A stride-4 (P2) level on a lent GPU, 101k crops against a control"):
+#   A='--aug-zoom 0.5 --aug-background 0.3 --aug-zoom-crop 1 --aug-zoom-max 16'
+#   A_OPTS=--p2 AUG="$A" BUDGET=520 bash scripts/gpu/ab.sh                       # call 1
+#   INIT_A=gpu_data/ab_a/snap/ep_5.pt INIT_B=gpu_data/ab_b/snap/ep_5.pt A_OPTS=--p2 AUG="$A" LR=0.002 SEED=34 \
+#       BUDGET=400 bash scripts/gpu/ab.sh                                         # call 2, on the same machine
+# A smoke test on a CPU: DEVICE=cpu A_OPTS=--p2 K=1 MAXIMG=8 EPOCHS=2 BATCH=4 WORKERS=1 IMGSZ=640 bash scripts/gpu/ab.sh
 set -u
 cd "$(dirname "$0")/../.."
 export PYTHONPATH=$PWD PYTHONUNBUFFERED=1 OPENCV_FOR_THREADS_NUM=1
@@ -25,61 +30,105 @@ for v in BUDGET EPOCHS K IMGSZ CROP BATCH WORKERS SEED; do  # whole numbers, at 
   [[ ${!v} =~ ^[1-9][0-9]*$ ]] || { echo "ab.sh: $v=${!v}: want a whole number >= 1" >&2; exit 2; }
 done
 [[ $MAXIMG =~ ^[0-9]+$ ]] || { echo "ab.sh: MAXIMG=$MAXIMG: want a whole number >= 0 (0: all)" >&2; exit 2; }
-((BUDGET <= 580)) || { echo "ab.sh: BUDGET=$BUDGET: want at most 580 s (one call runs 600 s at most)" >&2; exit 2; }
+# one call runs 600 s at most; after the budget come the kill's grace (10 s), the last exports and the copies
+((BUDGET <= 540)) || { echo "ab.sh: BUDGET=$BUDGET: want at most 540 s (one call runs 600 s at most)" >&2; exit 2; }
 [ "$A_OPTS" != "$B_OPTS" ] || { echo "ab.sh: A_OPTS and B_OPTS are the same ('$A_OPTS'): nothing to compare" >&2; exit 2; }
-for v in INIT_A INIT_B; do [ -f "${!v}" ] || { echo "ab.sh: $v=${!v}: no such checkpoint" >&2; exit 2; }; done
+for v in INIT_A INIT_B; do
+  [ "${!v}" = none ] || [ -f "${!v}" ] || { echo "ab.sh: $v=${!v}: no such checkpoint (none: from scratch)" >&2; exit 2; }
+done
 [ -d "$DATA/train/images/train" ] || { echo "ab.sh: DATA=$DATA: no $DATA/train/images/train: run scripts/gpu/pack.py" >&2
   exit 2; }
 mkdir -p "$OUTD"
 elapsed() { echo $(( $(date +%s) - T0 )); }
+A=$DATA/ab_a; B=$DATA/ab_b
+# the starting checkpoints beside the run folders, which each arm empties first (an INIT may lie in one: a snapshot of
+# the last call)
+for arm in a b; do
+  v=INIT_${arm^^}; init=${!v}
+  if [ "$init" != none ]; then cp "$init" "$DATA/ab_init_$arm.pt.tmp" && mv "$DATA/ab_init_$arm.pt.tmp" "$DATA/ab_init_$arm.pt"
+    printf -v "$v" '%s' "$DATA/ab_init_$arm.pt"; fi
+done
 python3 - "$K" "$DATA" <<'EOF'
 import sys
 k = int(sys.argv[1])
 open(sys.argv[2] + '/ab_mix.yaml', 'w').write('path: .\ntrain: [' + ', '.join(['train/images/train'] * k)
-                                        + ']\nval: val/images/val\nnc: 1\nnames:\n  0: zebra\n')
+                                              + ']\nval: val/images/val\nnc: 1\nnames:\n  0: zebra\n')
 EOF
 rows() { [ -f "$1/results.csv" ] && echo $(( $(wc -l < "$1/results.csv") - 1 )) || echo 0; }
-arm() {  # $1 run folder, $2 the arm's options (as words), $3 its init
+arm() {  # $1 run folder, $2 the arm's options (as words), $3 its init (none: from scratch); its exit code to $1/rc
   rm -rf "$1"; mkdir -p "$1/snap"
+  local start=() left=$((BUDGET - $(elapsed)))
+  [ "$3" = none ] || start=(--init "$3")
+  if ((left < 10)); then echo "ab.sh: $1: $left s of BUDGET left, not started" >"$1/train.log"; echo 124 >"$1/rc"; return; fi
   # shellcheck disable=SC2086  # AUG and the arm's options are words
-  timeout --signal=TERM --kill-after=10 $((BUDGET - $(elapsed))) python3 -m zebra_sim_ros.cli train \
+  timeout --signal=TERM --kill-after=10 "$left" python3 -m zebra_sim_ros.cli train \
     --data "$DATA/ab_mix.yaml" --model n --imgsz "$IMGSZ" --crop "$CROP" --epochs "$EPOCHS" --batch "$BATCH" \
     --device "$DEVICE" --workers "$WORKERS" --lr0 "$LR" --warmup-epochs 0.5 --close-mosaic 1 --val-every 1000 \
-    --save-period 0 --max-train-images "$MAXIMG" --seed "$SEED" --init "$3" $AUG $2 --out "$1" >"$1/train.log" 2>&1
-  echo "[ab] $1 ended (exit $?) at $(elapsed) s, $(rows "$1") epochs" >>"$1/train.log"
+    --save-period 0 --max-train-images "$MAXIMG" --seed "$SEED" "${start[@]}" $AUG $2 --out "$1" >"$1/train.log" 2>&1
+  echo $? >"$1/rc"
 }
-snapper() {  # $1 run folder: an fp16 copy of last.pt after every epoch, until $1/snap.stop appears
-  local done=0 n
+snapshot() {  # $1 run folder: its last.pt (a complete file: it is replaced by a rename) -> snap/ep_N.pt in fp16, N
+  # being the epoch the checkpoint holds (it counts from 0), whatever the trainer has written since
+  ln -f "$1/last.pt" "$1/snap/raw.pt" || return 1
+  local n; n=$(python3 -c "import sys, torch; print(torch.load(sys.argv[1], map_location='cpu', weights_only=True)['epoch'] + 1)" \
+    "$1/snap/raw.pt") || return 1
+  python3 -m zebra_sim_ros.cli export --weights "$1/snap/raw.pt" --format pt --out "$1/snap/ep_$n.pt" >/dev/null \
+    && echo "[ab] snapshot epoch $n at $(elapsed) s" >>"$1/snap.log"
+  rm -f "$1/snap/raw.pt"
+}
+snapper() {  # $1 run folder: a snapshot after every epoch (the epoch's last.pt lands after its results row), until
+  # $1/snap.stop appears
+  local seen=0 n
   while sleep 1 && [ ! -f "$1/snap.stop" ]; do
     n=$(rows "$1")
-    if [ "$n" -gt "$done" ] && [ -f "$1/last.pt" ] && [ "$1/last.pt" -nt "$1/results.csv" ]; then
-      sleep 1; python3 -m zebra_sim_ros.cli export --weights "$1/last.pt" --format pt --out "$1/snap/ep_$n.pt" \
-        >/dev/null && echo "[ab] snapshot epoch $n at $(elapsed) s" >>"$1/train.log"
-      done=$n
+    if [ "$n" -gt "$seen" ] && [ -f "$1/last.pt" ] && [ "$1/last.pt" -nt "$1/results.csv" ]; then
+      snapshot "$1"; seen=$n
     fi
   done
 }
+stop_all() {  # the trainers (through their timeout) and the snappers
+  for p in ${PA:-} ${PB:-}; do pkill -TERM -P "$p" timeout 2>/dev/null; done
+  touch "$A/snap.stop" "$B/snap.stop" 2>/dev/null
+}
+trap 'stop_all; exit 143' INT TERM
+trap 'touch "$A/snap.stop" "$B/snap.stop" 2>/dev/null' EXIT
 { nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv 2>/dev/null; nproc
   python3 -c "import torch;print('torch',torch.__version__,'cuda',torch.cuda.is_available())"
   echo "A_OPTS='$A_OPTS' B_OPTS='$B_OPTS' AUG='$AUG' EPOCHS=$EPOCHS K=$K LR=$LR SEED=$SEED INIT_A=$INIT_A INIT_B=$INIT_B"
 } >"$OUTD/machine.txt" 2>&1
-A=$DATA/ab_a; B=$DATA/ab_b
-arm $A "$A_OPTS" "$INIT_A" & PA=$!
-arm $B "$B_OPTS" "$INIT_B" & PB=$!
-snapper $A & SA=$!
-snapper $B & SB=$!
-wait $PA $PB
-sleep 3; touch $A/snap.stop $B/snap.stop; wait $SA $SB
-for r in $A $B; do  # the last epoch's snapshot, if the snapper stopped before it
-  n=$(rows $r); if [ "$n" -gt 0 ] && [ -f $r/last.pt ] && [ ! -f $r/snap/ep_$n.pt ]; then
-    python3 -m zebra_sim_ros.cli export --weights $r/last.pt --format pt --out $r/snap/ep_$n.pt >/dev/null; fi
+arm "$A" "$A_OPTS" "$INIT_A" & PA=$!
+arm "$B" "$B_OPTS" "$INIT_B" & PB=$!
+snapper "$A" & SA=$!
+snapper "$B" & SB=$!
+# an arm that fails before its last epoch stops the other: the pair could not be compared past it
+wait -n "$PA" "$PB"
+for r in "$A" "$B"; do
+  if [ -f "$r/rc" ] && [ "$(cat "$r/rc")" != 0 ] && [ "$(rows "$r")" -lt "$EPOCHS" ]; then
+    echo "[ab] $r failed (exit $(cat "$r/rc")) after $(rows "$r") epochs at $(elapsed) s: stopping the other arm"
+    for p in $PA $PB; do pkill -TERM -P "$p" timeout 2>/dev/null; done
+  fi
 done
-n=$(( $(rows $A) < $(rows $B) ? $(rows $A) : $(rows $B) ))
+wait "$PA" "$PB"
+sleep 3; touch "$A/snap.stop" "$B/snap.stop"; wait "$SA" "$SB"
+for r in "$A" "$B"; do  # the last epoch's snapshot, if the snapper stopped before it
+  n=$(rows "$r"); if [ "$n" -gt 0 ] && [ -f "$r/last.pt" ] && [ ! -f "$r/snap/ep_$n.pt" ]; then snapshot "$r"; fi
+done
+n=$(( $(rows "$A") < $(rows "$B") ? $(rows "$A") : $(rows "$B") ))
 mkdir -p "$OUTD/a" "$OUTD/b"
 for e in $((n - 1)) $n; do
   [ "$e" -ge 1 ] || continue
-  for arm in a b; do [ -f "$DATA/ab_$arm/snap/ep_$e.pt" ] && cp "$DATA/ab_$arm/snap/ep_$e.pt" "$OUTD/$arm/"; done
+  for arm in a b; do
+    if [ -f "$DATA/ab_$arm/snap/ep_$e.pt" ]; then cp "$DATA/ab_$arm/snap/ep_$e.pt" "$OUTD/$arm/"
+    else echo "[ab] arm $arm has no snapshot of epoch $e: that pair is incomplete"; fi
+  done
 done
-tar -czf "$OUTD/logs.tar.gz" $A/train.log $A/results.csv $B/train.log $B/results.csv 2>/dev/null
+logs=(); for f in ab_a/train.log ab_a/snap.log ab_a/results.csv ab_b/train.log ab_b/snap.log ab_b/results.csv; do
+  [ -f "$DATA/$f" ] && logs+=("$f"); done
+tar -C "$DATA" -czf "$OUTD/logs.tar.gz" "${logs[@]}"
 echo "[ab] done at $(elapsed) s; both arms finished $n epochs; sent: $(cd "$OUTD" && find . -type f | sort | tr '\n' ' ')"
-for r in $A $B; do echo "== $r"; tr '\r' '\n' <$r/train.log | grep -v "^\[train\] epoch [0-9]*/[0-9]* [0-9]*/" | tail -8; done
+for r in "$A" "$B"; do
+  echo "== $r (exit $(cat "$r/rc" 2>/dev/null || echo '?'))"
+  tr '\r' '\n' <"$r/train.log" | grep -v "^\[train\] epoch [0-9]*/[0-9]* [0-9]*/" | tail -8
+done
+rc_a=$(cat "$A/rc" 2>/dev/null || echo 1); rc_b=$(cat "$B/rc" 2>/dev/null || echo 1)
+[ "$rc_a" = 0 ] && [ "$rc_b" = 0 ] && [ "$n" -eq "$EPOCHS" ]
