@@ -48,9 +48,11 @@ def test_pack_selects_reencodes_and_keeps_labels(tmp_path: Path) -> None:
     # all 12 of a; b less its 1st and 5th frame (every 4th from the first)
     assert got == [f"a_{k:03d}" for k in range(12)] + [f"b_{k:03d}" for k in (1, 2, 3, 5, 6, 7)]
     assert "18 training and 3 validation frames" in r.stdout
-    # the tree that travels counts the repository's tracked files (the shipped weights alone are over 5 MiB)
-    tree = float(r.stdout.split("the tree that travels with it: ")[1].split(" MiB")[0])
-    assert tree > 5.0
+    # the tree that travels counts the repository's files (the shipped weights alone are over 5 MiB) and the pack
+    tree = float(r.stdout.split("travels with it, on disk: ")[1].split(" MiB")[0])
+    pack = float(r.stdout.split("(the pack ")[1].split(",")[0])
+    repo = float(r.stdout.split("the repository ")[1].split(")")[0])
+    assert repo > 5.0 and pack > 0.0 and abs(tree - (pack + repo)) < 0.15  # nothing else in --out; rounding
     for stem in got:  # labels travel unchanged; don't-care files where the source had them
         src_root = tmp_path / stem[0]
         assert (out / "train" / "labels" / "train" / f"{stem}.txt").read_text() == \
