@@ -38,10 +38,10 @@ def main() -> None:
         world = generate_world(name, 0)
         cfg = PlacerConfig.from_params({"seed": args.seed, "strategy": "closeby", "count_min": 40, "count_max": 120,
                                         "camera_width": args.width, "camera_height": args.height})
-        scene = Placer(cfg, world, lib).scene(0).to_dict()
+        scene = Placer(cfg, world, lib).scene(0)
         r = Renderer(world, lib, RenderOptions(width=args.width, height=args.height, shadow_size=1024))
         zs, views = zebras_from_scene(scene, lib), views_from_scene(scene, ["drone_0"])
-        day = scene["lighting"]["day_of_year"]
+        day = scene.lighting.day_of_year
         tiles = []
         for hour, label in ((12.0, "noon"), (18.1, "dusk")):
             v = r.render(zs, lighting_for(hour, day, cfg.latitude_deg), views)[0]
