@@ -5,10 +5,12 @@
 # B_OPTS (e.g. A_OPTS=--p2: the stride-4 level against its control). Each arm gets half the loader processes and
 # starts from INIT_A / INIT_B (default INIT, the shipped weights; none: from scratch). The epoch count is fixed
 # (EPOCHS), not fitted to the budget, so that both arms see the same crops under the same schedule; if BUDGET ends
-# them early, the snapshots of the epochs both finished still pair up. After every epoch each arm's last.pt (EMA
-# weights) is kept as an fp16 snapshot named by the epoch it holds. $OUT receives machine.txt (the machine and the
-# settings), logs.tar.gz (each arm's train.log, snap.log and results.csv) and, per arm, the snapshots of the last two
-# epochs both arms finished: a/ep_N.pt, b/ep_N.pt. The exit status is 0 only if both arms trained all EPOCHS.
+# them early, the snapshots of the epochs both finished still pair up. As each arm's last.pt (EMA weights) lands, a
+# hard link keeps it (the trainer replaces it by a rename, so a link is always a whole checkpoint); at the end
+# scripts/gpu/snapshots.py names them by the epoch they hold and exports the last two epochs both arms reached as fp16
+# snapshots, snap/ep_N.pt in each run folder (a next call's INIT_A / INIT_B). $OUT receives machine.txt (the machine
+# and the settings), logs.tar.gz (each arm's train.log and results.csv) and the pairs: a/ep_N.pt, b/ep_N.pt. The exit
+# status is 0 only if both arms trained all EPOCHS.
 # Relative paths (DATA, INIT_A, INIT_B, OUT) are taken from the repository's root.
 #
 # The P2 A/B of 2026-11-28 (BENCHMARKS.md, "A stride-4 (P2) level on a lent GPU, 101k crops against a control"):
@@ -41,13 +43,17 @@ done
 mkdir -p "$OUTD"
 elapsed() { echo $(( $(date +%s) - T0 )); }
 A=$DATA/ab_a; B=$DATA/ab_b
-# the starting checkpoints beside the run folders, which each arm empties first (an INIT may lie in one: a snapshot of
-# the last call)
+# the starting checkpoints beside the run folders, which are emptied next (an INIT may lie in one: a snapshot of the
+# last call); the sources as given are what machine.txt records
+SRC_A=$INIT_A; SRC_B=$INIT_B
 for arm in a b; do
-  v=INIT_${arm^^}; init=${!v}
-  if [ "$init" != none ]; then cp "$init" "$DATA/ab_init_$arm.pt.tmp" && mv "$DATA/ab_init_$arm.pt.tmp" "$DATA/ab_init_$arm.pt"
-    printf -v "$v" '%s' "$DATA/ab_init_$arm.pt"; fi
+  v=INIT_${arm^^}; init=${!v}; [ "$init" != none ] || continue
+  rm -f "$DATA/ab_init_$arm.pt"
+  cp "$init" "$DATA/ab_init_$arm.pt.tmp" && mv "$DATA/ab_init_$arm.pt.tmp" "$DATA/ab_init_$arm.pt" \
+    || { echo "ab.sh: $v=$init: could not be copied to $DATA" >&2; exit 1; }
+  printf -v "$v" '%s' "$DATA/ab_init_$arm.pt"
 done
+for r in "$A" "$B"; do rm -rf "$r"; mkdir -p "$r/snap"; done
 python3 - "$K" "$DATA" <<'EOF'
 import sys
 k = int(sys.argv[1])
@@ -56,10 +62,11 @@ open(sys.argv[2] + '/ab_mix.yaml', 'w').write('path: .\ntrain: [' + ', '.join(['
 EOF
 rows() { [ -f "$1/results.csv" ] && echo $(( $(wc -l < "$1/results.csv") - 1 )) || echo 0; }
 arm() {  # $1 run folder, $2 the arm's options (as words), $3 its init (none: from scratch); its exit code to $1/rc
-  rm -rf "$1"; mkdir -p "$1/snap"
   local start=() left=$((BUDGET - $(elapsed)))
   [ "$3" = none ] || start=(--init "$3")
-  if ((left < 10)); then echo "ab.sh: $1: $left s of BUDGET left, not started" >"$1/train.log"; echo 124 >"$1/rc"; return; fi
+  if [ -f "$1/snap.stop" ] || ((left < 10)); then
+    echo "ab.sh: $1: stopped or $left s of BUDGET left: not started" >"$1/train.log"; echo 124 >"$1/rc"; return
+  fi
   # shellcheck disable=SC2086  # AUG and the arm's options are words
   timeout --signal=TERM --kill-after=10 "$left" python3 -m zebra_sim_ros.cli train \
     --data "$DATA/ab_mix.yaml" --model n --imgsz "$IMGSZ" --crop "$CROP" --epochs "$EPOCHS" --batch "$BATCH" \
@@ -67,39 +74,29 @@ arm() {  # $1 run folder, $2 the arm's options (as words), $3 its init (none: fr
     --save-period 0 --max-train-images "$MAXIMG" --seed "$SEED" "${start[@]}" $AUG $2 --out "$1" >"$1/train.log" 2>&1
   echo $? >"$1/rc"
 }
-snapshot() {  # $1 run folder: its last.pt (a complete file: it is replaced by a rename) -> snap/ep_N.pt in fp16, N
-  # being the epoch the checkpoint holds (it counts from 0), whatever the trainer has written since
-  ln -f "$1/last.pt" "$1/snap/raw.pt" || return 1
-  local n; n=$(python3 -c "import sys, torch; print(torch.load(sys.argv[1], map_location='cpu', weights_only=True)['epoch'] + 1)" \
-    "$1/snap/raw.pt") || return 1
-  python3 -m zebra_sim_ros.cli export --weights "$1/snap/raw.pt" --format pt --out "$1/snap/ep_$n.pt" >/dev/null \
-    && echo "[ab] snapshot epoch $n at $(elapsed) s" >>"$1/snap.log"
-  rm -f "$1/snap/raw.pt"
-}
-snapper() {  # $1 run folder: a snapshot after every epoch (the epoch's last.pt lands after its results row), until
-  # $1/snap.stop appears
-  local seen=0 n
-  while sleep 1 && [ ! -f "$1/snap.stop" ]; do
-    n=$(rows "$1")
-    if [ "$n" -gt "$seen" ] && [ -f "$1/last.pt" ] && [ "$1/last.pt" -nt "$1/results.csv" ]; then
-      snapshot "$1"; seen=$n
-    fi
+linker() {  # $1 run folder: a hard link to each last.pt as it lands (a new inode: the trainer writes it by a rename),
+  # until $1/snap.stop appears or this script is gone; snapshots.py names and exports them
+  local seen='' ino
+  while sleep 0.2 && [ ! -f "$1/snap.stop" ] && kill -0 $$ 2>/dev/null; do
+    ino=$(stat -c %i "$1/last.pt" 2>/dev/null) || continue
+    if [ "$ino" != "$seen" ]; then ln -f "$1/last.pt" "$1/snap/raw_$ino.pt" 2>/dev/null && seen=$ino; fi
   done
 }
-stop_all() {  # the trainers (through their timeout) and the snappers
-  for p in ${PA:-} ${PB:-}; do pkill -TERM -P "$p" timeout 2>/dev/null; done
+stop_all() {  # the trainers (through their timeout, which passes it on to its process group) and the linkers
   touch "$A/snap.stop" "$B/snap.stop" 2>/dev/null
+  for p in ${PA:-} ${PB:-}; do pkill -TERM -P "$p" timeout 2>/dev/null; done
 }
-trap 'stop_all; exit 143' INT TERM
+trap 'stop_all; exit 130' INT
+trap 'stop_all; exit 143' TERM
 trap 'touch "$A/snap.stop" "$B/snap.stop" 2>/dev/null' EXIT
 { nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv 2>/dev/null; nproc
   python3 -c "import torch;print('torch',torch.__version__,'cuda',torch.cuda.is_available())"
-  echo "A_OPTS='$A_OPTS' B_OPTS='$B_OPTS' AUG='$AUG' EPOCHS=$EPOCHS K=$K LR=$LR SEED=$SEED INIT_A=$INIT_A INIT_B=$INIT_B"
+  echo "A_OPTS='$A_OPTS' B_OPTS='$B_OPTS' AUG='$AUG' EPOCHS=$EPOCHS K=$K LR=$LR SEED=$SEED INIT_A=$SRC_A INIT_B=$SRC_B"
 } >"$OUTD/machine.txt" 2>&1
 arm "$A" "$A_OPTS" "$INIT_A" & PA=$!
 arm "$B" "$B_OPTS" "$INIT_B" & PB=$!
-snapper "$A" & SA=$!
-snapper "$B" & SB=$!
+linker "$A" & SA=$!
+linker "$B" & SB=$!
 # an arm that fails before its last epoch stops the other: the pair could not be compared past it
 wait -n "$PA" "$PB"
 for r in "$A" "$B"; do
@@ -109,20 +106,12 @@ for r in "$A" "$B"; do
   fi
 done
 wait "$PA" "$PB"
-sleep 3; touch "$A/snap.stop" "$B/snap.stop"; wait "$SA" "$SB"
-for r in "$A" "$B"; do  # the last epoch's snapshot, if the snapper stopped before it
-  n=$(rows "$r"); if [ "$n" -gt 0 ] && [ -f "$r/last.pt" ] && [ ! -f "$r/snap/ep_$n.pt" ]; then snapshot "$r"; fi
-done
-n=$(( $(rows "$A") < $(rows "$B") ? $(rows "$A") : $(rows "$B") ))
-mkdir -p "$OUTD/a" "$OUTD/b"
-for e in $((n - 1)) $n; do
-  [ "$e" -ge 1 ] || continue
-  for arm in a b; do
-    if [ -f "$DATA/ab_$arm/snap/ep_$e.pt" ]; then cp "$DATA/ab_$arm/snap/ep_$e.pt" "$OUTD/$arm/"
-    else echo "[ab] arm $arm has no snapshot of epoch $e: that pair is incomplete"; fi
-  done
-done
-logs=(); for f in ab_a/train.log ab_a/snap.log ab_a/results.csv ab_b/train.log ab_b/snap.log ab_b/results.csv; do
+touch "$A/snap.stop" "$B/snap.stop"; wait "$SA" "$SB"
+for r in "$A" "$B"; do [ -f "$r/last.pt" ] && ln -f "$r/last.pt" "$r/snap/raw_last.pt"; done  # in case it was missed
+python3 scripts/gpu/snapshots.py "$A" "$B" --out "$OUTD"
+n=$(for r in "$A" "$B"; do ls "$r/snap" | sed -n 's/^full_ep_\([0-9]*\)\.pt$/\1/p' | sort -n | tail -1 | grep . || echo 0
+  done | sort -n | head -1)
+logs=(); for f in ab_a/train.log ab_a/results.csv ab_b/train.log ab_b/results.csv; do
   [ -f "$DATA/$f" ] && logs+=("$f"); done
 tar -C "$DATA" -czf "$OUTD/logs.tar.gz" "${logs[@]}"
 echo "[ab] done at $(elapsed) s; both arms finished $n epochs; sent: $(cd "$OUTD" && find . -type f | sort | tr '\n' ' ')"
