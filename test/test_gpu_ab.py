@@ -3,68 +3,24 @@ the CPU with a tiny pack; on a lent GPU it is the same script)."""
 
 from __future__ import annotations
 
-import os
-import signal
 import subprocess
-import sys
 import tarfile
 from pathlib import Path
 
-import cv2
-import numpy as np
 import torch
+from gpu_helpers import ROOT, run_script, tiny_pack
 
 from zebra_sim_ros.detection.checkpoint import read_checkpoint
 
-ROOT = Path(__file__).resolve().parents[1]
 AB = ROOT / "scripts" / "gpu" / "ab.sh"
-PACK = ROOT / "scripts" / "gpu" / "pack.py"
-
-
-def _pack(tmp: Path) -> Path:
-    """A packed folder of 6 training and 2 validation frames: grey ground with one dark striped box each."""
-    src = tmp / "set"
-    rng = np.random.default_rng(7)
-    for split, n in (("train", 6), ("val", 2)):
-        for sub in ("images", "labels"):
-            (src / sub / split).mkdir(parents=True, exist_ok=True)
-        for k in range(n):
-            img = rng.integers(90, 140, (180, 320, 3), dtype=np.uint8)
-            x0, y0 = 40 + 30 * k, 50 + 10 * k
-            img[y0:y0 + 40, x0:x0 + 60] = 30
-            img[y0:y0 + 40:6, x0:x0 + 60] = 230  # stripes
-            cv2.imwrite(str(src / "images" / split / f"f{k}.jpg"), img)
-            (src / "labels" / split / f"f{k}.txt").write_text(
-                f"0 {(x0 + 30) / 320:.4f} {(y0 + 20) / 180:.4f} {60 / 320:.4f} {40 / 180:.4f}\n")
-    out = tmp / "pack"
-    r = subprocess.run([sys.executable, str(PACK), "--train", str(src / "images" / "train"), "--val",
-                        str(src / "images" / "val"), "--out", str(out)], capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0, r.stderr
-    return out
-
-
-SETTINGS = ("BUDGET", "EPOCHS", "K", "IMGSZ", "CROP", "BATCH", "WORKERS", "DEVICE", "LR", "SEED", "MAXIMG", "INIT",
-            "INIT_A", "INIT_B", "AUG", "A_OPTS", "B_OPTS", "OUT", "DATA")
 
 
 def _ab(env: dict[str, str], timeout: float = 300) -> subprocess.CompletedProcess[str]:
-    """Run ab.sh with these settings only (none inherited), in its own process group, killed whole on timeout."""
-    full = {k: v for k, v in os.environ.items() if k not in SETTINGS} | env
-    full["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{full.get('PATH', '')}"  # python3: this interpreter
-    with subprocess.Popen(["bash", str(AB)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=full,
-                          start_new_session=True) as proc:
-        try:
-            out, err = proc.communicate(timeout=timeout)
-        except subprocess.TimeoutExpired:  # its session: `timeout` puts the trainers in a process group of their own
-            subprocess.run(["pkill", "-KILL", "-s", str(proc.pid)], check=False, timeout=30)
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.communicate()
-            raise
-    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+    return run_script(AB, env, timeout)
 
 
 def test_ab_refuses_settings_that_name_the_bad_value(tmp_path: Path) -> None:
-    data, out = _pack(tmp_path), tmp_path / "out"
+    data, out = tiny_pack(tmp_path), tmp_path / "out"
     base = {"DATA": str(data), "OUT": str(out), "DEVICE": "cpu", "A_OPTS": "--p2"}
     for bad, said in (({"B_OPTS": "--p2"}, "A_OPTS and B_OPTS are the same"), ({"EPOCHS": "0"}, "EPOCHS=0"),
                       ({"MAXIMG": "-1"}, "MAXIMG=-1"), ({"BUDGET": "900"}, "BUDGET=900"),
@@ -77,7 +33,7 @@ def test_ab_refuses_settings_that_name_the_bad_value(tmp_path: Path) -> None:
 
 
 def test_ab_trains_both_arms_and_pairs_their_snapshots(tmp_path: Path) -> None:
-    data, out = _pack(tmp_path), tmp_path / "out"
+    data, out = tiny_pack(tmp_path), tmp_path / "out"
     tiny = {"DATA": str(data), "DEVICE": "cpu", "K": "1", "EPOCHS": "2", "BATCH": "2", "WORKERS": "1", "IMGSZ": "320",
             "CROP": "160", "BUDGET": "200"}
     r = _ab(tiny | {"OUT": str(out), "A_OPTS": "--p2"})

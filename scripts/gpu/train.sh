@@ -25,7 +25,7 @@ BUDGET=${BUDGET:-470}; K=${K:-24}; E0=${E0:-12}; IMGSZ=${IMGSZ:-2176}; CROP=${CR
 WORKERS=${WORKERS:-15}; DEVICE=${DEVICE:-cuda}; OUTD=${OUT:-/tmp/gpu_out}; LR=${LR:-0.004}; SEED=${SEED:-16}
 INIT=${INIT:-zebra_sim_ros/detection/weights/zebra_yolo_n.pt}
 AUG=${AUG:---aug-zoom 0.5}  # the train options of augmentation, as words (stage 12's by default)
-P2=${P2:-0}; MODEL=${MODEL:-n}
+P2=${P2:-0}; MODEL=${MODEL:-n}; DATA=${DATA:-gpu_data}  # DATA: another pack folder (its run_out/ and mix file go there)
 case $MODEL in n|s) ;; *) echo "train.sh: MODEL=$MODEL: want n or s" >&2; exit 2 ;; esac
 case $P2 in 0) ARCH= ;; 1) ARCH=--p2 ;; *) echo "train.sh: P2=$P2: want 0 or 1" >&2; exit 2 ;; esac
 for v in BUDGET K E0 IMGSZ CROP BATCH WORKERS SEED; do  # whole numbers, at least 1
@@ -36,24 +36,25 @@ if [ "$INIT" = none ]; then START=; else
   [ -f "$INIT" ] || { echo "train.sh: INIT=$INIT: no such checkpoint (none: from scratch)" >&2; exit 2; }
   START="--init $INIT"
 fi
-[ -d gpu_data/train/images/train ] || { echo "train.sh: no gpu_data/train/images/train: run scripts/gpu/pack.py" >&2; exit 2; }
-RUN=gpu_data/run_out; rm -rf $RUN; mkdir -p $RUN/snap "$OUTD/snap"
+[ -d "$DATA/train/images/train" ] || { echo "train.sh: DATA=$DATA: no $DATA/train/images/train: run scripts/gpu/pack.py" >&2
+  exit 2; }
+RUN=$DATA/run_out; rm -rf "$RUN"; mkdir -p "$RUN/snap" "$OUTD/snap"
 LOG=$OUTD/train.log
 elapsed() { echo $(( $(date +%s) - T0 )); }
 { nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv 2>/dev/null; nproc
   python3 -c "import torch,cv2,numpy,yaml;print('torch',torch.__version__,'cuda',torch.cuda.is_available(),'cv2',cv2.__version__,'numpy',numpy.__version__)"
 } >"$LOG" 2>&1
-python3 - "$K" <<'EOF'
+python3 - "$K" "$DATA" <<'EOF'
 import sys
 k = int(sys.argv[1])
-open('gpu_data/mix.yaml', 'w').write('path: .\ntrain: [' + ', '.join(['train/images/train'] * k)
+open(sys.argv[2] + '/mix.yaml', 'w').write('path: .\ntrain: [' + ', '.join(['train/images/train'] * k)
                                      + ']\nval: val/images/val\nnc: 1\nnames:\n  0: zebra\n')
 EOF
 train() {  # $1 epochs, $2 seconds allowed, $3 --init WEIGHTS, --resume or nothing (from scratch)
-  timeout --signal=TERM --kill-after=10 "$2" python3 -m zebra_sim_ros.cli train --data gpu_data/mix.yaml --model "$MODEL" \
+  timeout --signal=TERM --kill-after=10 "$2" python3 -m zebra_sim_ros.cli train --data "$DATA/mix.yaml" --model "$MODEL" \
     --imgsz "$IMGSZ" --crop "$CROP" --epochs "$1" --batch "$BATCH" --device "$DEVICE" --workers "$WORKERS" \
     --amp "$AMP" --lr0 "$LR" --warmup-epochs 0.5 --close-mosaic 1 --val-every 1000 --seed "$SEED" \
-    $AUG $ARCH --out $RUN $3 >>"$LOG" 2>&1
+    $AUG $ARCH --out "$RUN" $3 >>"$LOG" 2>&1
 }
 deliver() {  # $1 -> $OUTD/$2, in 15 MiB parts ($2.part00, ...) where it is larger; the old copy or parts go first
   rm -f "$OUTD/$2" "$OUTD/$2".part*
@@ -64,13 +65,15 @@ deliver() {  # $1 -> $OUTD/$2, in 15 MiB parts ($2.part00, ...) where it is larg
 strip() {  # last.pt -> an fp16 checkpoint without optimizer state (export keeps the run's record)
   python3 -m zebra_sim_ros.cli export --weights "$1" --format pt --out "$2" >/dev/null
 }
-rows() { [ -f $RUN/results.csv ] && echo $(( $(wc -l < $RUN/results.csv) - 1 )) || echo 0; }
-snapper() {  # an fp16 copy of last.pt after every epoch
+rows() { [ -f "$RUN"/results.csv ] && echo $(( $(wc -l < "$RUN"/results.csv) - 1 )) || echo 0; }
+snapper() {  # an fp16 copy of last.pt after every epoch, named by the results rows it saw: on epochs shorter than an
+  # export (seconds, as on a CPU) a copy can hold a later epoch than its name (ab.sh's linker names them by content);
+  # the last one, made after training ends, is always the last epoch
   local done=0
-  while sleep 1 && [ ! -f $RUN/snap.stop ]; do
+  while sleep 1 && [ ! -f "$RUN"/snap.stop ]; do
     n=$(rows)
-    if [ "$n" -gt "$done" ] && [ -f $RUN/last.pt ] && [ $RUN/last.pt -nt $RUN/results.csv ]; then
-      sleep 1; strip $RUN/last.pt $RUN/snap/ep_$n.pt && deliver $RUN/snap/ep_$n.pt last_snap.pt && echo "[run] snapshot epoch $n at $(elapsed) s" >>"$LOG"
+    if [ "$n" -gt "$done" ] && [ -f "$RUN"/last.pt ] && [ "$RUN"/last.pt -nt "$RUN"/results.csv ]; then
+      sleep 1; strip "$RUN"/last.pt "$RUN"/snap/ep_$n.pt && deliver "$RUN"/snap/ep_$n.pt last_snap.pt && echo "[run] snapshot epoch $n at $(elapsed) s" >>"$LOG"
       done=$n
     fi
   done
@@ -79,7 +82,7 @@ snapper & SNAP=$!
 AMP=auto
 wait_rows() {  # until the trainer has written epoch $1's results and last.pt, or has stopped
   while kill -0 $TR 2>/dev/null; do
-    [ "$(rows)" -ge "$1" ] && [ -f $RUN/last.pt ] && [ $RUN/last.pt -nt $RUN/results.csv ] && return 0
+    [ "$(rows)" -ge "$1" ] && [ -f "$RUN"/last.pt ] && [ "$RUN"/last.pt -nt "$RUN"/results.csv ] && return 0
     sleep 1
   done
   [ "$(rows)" -ge "$1" ]
@@ -90,7 +93,7 @@ stop_train() {  # TERM to this run's trainer only (the timeout under the backgro
 train "$E0" $((BUDGET - $(elapsed))) "$START" & TR=$!
 if ! wait_rows 1; then  # the first start failed: once more in float32
   echo "[run] the first start failed at $(elapsed) s; again with --amp off" >>"$LOG"
-  AMP=off; rm -rf $RUN/last.pt $RUN/results.csv
+  AMP=off; rm -rf "$RUN"/last.pt "$RUN"/results.csv
   train "$E0" $((BUDGET - $(elapsed))) "$START" & TR=$!
 fi
 if wait_rows 1; then
@@ -108,11 +111,11 @@ if wait_rows 1; then
   fi
 fi
 echo "[run] training ended at $(elapsed) s, rows $(rows)" >>"$LOG"
-sleep 4; touch $RUN/snap.stop; wait $SNAP  # the snapper ends its snapshot in hand, then stops
-n=$(rows); [ -f $RUN/last.pt ] && [ ! -f $RUN/snap/ep_$n.pt ] && strip $RUN/last.pt $RUN/snap/ep_$n.pt
-ls $RUN/snap >>"$LOG"
-[ -f $RUN/snap/ep_$n.pt ] && deliver $RUN/snap/ep_$n.pt last_snap.pt
-cp $RUN/results.csv "$OUTD/" 2>/dev/null
+sleep 4; touch "$RUN"/snap.stop; wait $SNAP  # the snapper ends its snapshot in hand, then stops
+n=$(rows); [ -f "$RUN"/last.pt ] && [ ! -f "$RUN"/snap/ep_$n.pt ] && strip "$RUN"/last.pt "$RUN"/snap/ep_$n.pt
+ls "$RUN"/snap >>"$LOG"
+[ -f "$RUN"/snap/ep_$n.pt ] && deliver "$RUN"/snap/ep_$n.pt last_snap.pt
+cp "$RUN"/results.csv "$OUTD/" 2>/dev/null
 # then snapshots, one from the middle of the run and the two before the last, and best.pt, while 8 files and 60 MiB
 # hold them (the log, results.csv and last_snap.pt's parts counted first)
 mapfile -t SEND < <(python3 - "$RUN" "$OUTD" <<'EOF'

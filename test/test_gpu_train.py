@@ -1,0 +1,51 @@
+"""scripts/gpu/train.sh: a fine-tune fitted to a time budget, run here on the CPU with a tiny pack (on a lent GPU it
+is the same script): two epochs timed, the run resumed with the epoch count that fits, fp16 snapshots sent back."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+from pathlib import Path
+
+import torch
+from gpu_helpers import ROOT, run_script, tiny_pack
+
+from zebra_sim_ros.detection.checkpoint import read_checkpoint
+
+TRAIN = ROOT / "scripts" / "gpu" / "train.sh"
+
+
+def _train(env: dict[str, str], timeout: float = 300) -> subprocess.CompletedProcess[str]:
+    return run_script(TRAIN, env, timeout)
+
+
+def test_train_sh_refuses_settings_that_name_the_bad_value(tmp_path: Path) -> None:
+    data, out = tiny_pack(tmp_path), tmp_path / "out"
+    base = {"DATA": str(data), "OUT": str(out), "DEVICE": "cpu"}
+    for bad, said in (({"MODEL": "x"}, "MODEL=x"), ({"P2": "2"}, "P2=2"), ({"E0": "0"}, "E0=0"),
+                      ({"BUDGET": "700"}, "BUDGET=700"), ({"INIT": str(tmp_path / "no.pt")}, "INIT="),
+                      ({"DATA": str(tmp_path / "empty")}, "DATA=")):
+        r = _train(base | bad)
+        assert r.returncode == 2 and said in r.stderr, (bad, r.stderr)
+        assert not out.exists()  # refused before anything was made
+
+
+def test_train_sh_fits_the_epochs_to_its_budget_and_sends_the_last_snapshot(tmp_path: Path) -> None:
+    data, out = tiny_pack(tmp_path), tmp_path / "out"
+    r = _train({"DATA": str(data), "OUT": str(out), "DEVICE": "cpu", "K": "1", "E0": "3", "BATCH": "2",
+                "WORKERS": "1", "IMGSZ": "320", "CROP": "160", "BUDGET": "70"})
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    log = (out / "train.log").read_text()
+    fit = re.search(r"\[run\] epoch 2 took (\d+) s; (\d+) s gone; (\d+) epochs fit", log)
+    assert fit, log[-3000:]
+    ended = re.search(r"\[run\] training ended at \d+ s, rows (\d+)", log)
+    assert ended, log[-3000:]
+    rows = int(ended.group(1))
+    assert 3 <= rows <= int(fit.group(3))  # at least E0's minimum of 3; no more than it planned
+    results = (out / "results.csv").read_text().strip().splitlines()
+    assert len(results) == rows + 1  # the header and one row per epoch, the resumed run's included
+    assert [int(line.split(",")[0]) for line in results[1:]] == list(range(1, rows + 1))
+    snap = read_checkpoint(out / "last_snap.pt")  # the last epoch's EMA weights in fp16, the run's record kept
+    assert snap["epoch"] == rows - 1  # checkpoints count epochs from 0
+    assert all(t.dtype == torch.float16 for t in snap["model"].values() if t.is_floating_point())
+    assert snap["train_args"]["crop"] == 160 and snap["config"]["p2"] is False
