@@ -21,6 +21,8 @@
 # A smoke test on a CPU: DEVICE=cpu A_OPTS=--p2 K=1 MAXIMG=8 EPOCHS=2 BATCH=4 WORKERS=1 IMGSZ=640 bash scripts/gpu/ab.sh
 set -u
 cd "$(dirname "$0")/../.."
+# shellcheck source=scripts/gpu/lib.sh
+source scripts/gpu/lib.sh
 export PYTHONPATH=$PWD PYTHONUNBUFFERED=1 OPENCV_FOR_THREADS_NUM=1
 T0=$(date +%s)
 BUDGET=${BUDGET:-520}; EPOCHS=${EPOCHS:-5}; K=${K:-12}; IMGSZ=${IMGSZ:-2176}; CROP=${CROP:-320}; BATCH=${BATCH:-32}
@@ -28,9 +30,7 @@ WORKERS=${WORKERS:-7}; DEVICE=${DEVICE:-cuda}; LR=${LR:-0.004}; SEED=${SEED:-33}
 INIT=${INIT:-zebra_sim_ros/detection/weights/zebra_yolo_n.pt}; INIT_A=${INIT_A:-$INIT}; INIT_B=${INIT_B:-$INIT}
 AUG=${AUG:---aug-zoom 0.5}; A_OPTS=${A_OPTS:-}; B_OPTS=${B_OPTS:-}
 OUTD=${OUT:-/tmp/gpu_ab}; DATA=${DATA:-gpu_data}
-for v in BUDGET EPOCHS K IMGSZ CROP BATCH WORKERS SEED; do  # whole numbers, at least 1
-  [[ ${!v} =~ ^[1-9][0-9]*$ ]] || { echo "ab.sh: $v=${!v}: want a whole number >= 1" >&2; exit 2; }
-done
+whole_numbers ab.sh BUDGET EPOCHS K IMGSZ CROP BATCH WORKERS SEED
 [[ $MAXIMG =~ ^[0-9]+$ ]] || { echo "ab.sh: MAXIMG=$MAXIMG: want a whole number >= 0 (0: all)" >&2; exit 2; }
 # one call runs 600 s at most; after the budget come the kill's grace (10 s), the last exports and the copies
 ((BUDGET <= 540)) || { echo "ab.sh: BUDGET=$BUDGET: want at most 540 s (one call runs 600 s at most)" >&2; exit 2; }
@@ -54,13 +54,7 @@ for arm in a b; do
   printf -v "$v" '%s' "$DATA/ab_init_$arm.pt"
 done
 for r in "$A" "$B"; do rm -rf "$r"; mkdir -p "$r/snap"; done
-python3 - "$K" "$DATA" <<'EOF'
-import sys
-k = int(sys.argv[1])
-open(sys.argv[2] + '/ab_mix.yaml', 'w').write('path: .\ntrain: [' + ', '.join(['train/images/train'] * k)
-                                              + ']\nval: val/images/val\nnc: 1\nnames:\n  0: zebra\n')
-EOF
-rows() { [ -f "$1/results.csv" ] && echo $(( $(wc -l < "$1/results.csv") - 1 )) || echo 0; }
+write_mix "$K" "$DATA/ab_mix.yaml"
 arm() {  # $1 run folder, $2 the arm's options (as words), $3 its init (none: from scratch); its exit code to $1/rc
   local start=() left=$((BUDGET - $(elapsed)))
   [ "$3" = none ] || start=(--init "$3")
@@ -100,8 +94,8 @@ linker "$B" & SB=$!
 # an arm that fails before its last epoch stops the other: the pair could not be compared past it
 wait -n "$PA" "$PB"
 for r in "$A" "$B"; do
-  if [ -f "$r/rc" ] && [ "$(cat "$r/rc")" != 0 ] && [ "$(rows "$r")" -lt "$EPOCHS" ]; then
-    echo "[ab] $r failed (exit $(cat "$r/rc")) after $(rows "$r") epochs at $(elapsed) s: stopping the other arm"
+  if [ -f "$r/rc" ] && [ "$(cat "$r/rc")" != 0 ] && [ "$(rows_of "$r")" -lt "$EPOCHS" ]; then
+    echo "[ab] $r failed (exit $(cat "$r/rc")) after $(rows_of "$r") epochs at $(elapsed) s: stopping the other arm"
     for p in $PA $PB; do pkill -TERM -P "$p" timeout 2>/dev/null; done
   fi
 done

@@ -19,6 +19,8 @@
 # earlier call sent back, to go on from it in the next call).
 set -u
 cd "$(dirname "$0")/../.."
+# shellcheck source=scripts/gpu/lib.sh
+source scripts/gpu/lib.sh
 export PYTHONPATH=$PWD PYTHONUNBUFFERED=1 OPENCV_FOR_THREADS_NUM=1
 T0=$(date +%s)
 BUDGET=${BUDGET:-470}; K=${K:-24}; E0=${E0:-12}; IMGSZ=${IMGSZ:-2176}; CROP=${CROP:-320}; BATCH=${BATCH:-32}
@@ -28,9 +30,7 @@ AUG=${AUG:---aug-zoom 0.5}  # the train options of augmentation, as words (stage
 P2=${P2:-0}; MODEL=${MODEL:-n}; DATA=${DATA:-gpu_data}  # DATA: another pack folder (its run_out/ and mix file go there)
 case $MODEL in n|s) ;; *) echo "train.sh: MODEL=$MODEL: want n or s" >&2; exit 2 ;; esac
 case $P2 in 0) ARCH= ;; 1) ARCH=--p2 ;; *) echo "train.sh: P2=$P2: want 0 or 1" >&2; exit 2 ;; esac
-for v in BUDGET K E0 IMGSZ CROP BATCH WORKERS SEED; do  # whole numbers, at least 1
-  [[ ${!v} =~ ^[1-9][0-9]*$ ]] || { echo "train.sh: $v=${!v}: want a whole number >= 1" >&2; exit 2; }
-done
+whole_numbers train.sh BUDGET K E0 IMGSZ CROP BATCH WORKERS SEED
 ((BUDGET <= 590)) || { echo "train.sh: BUDGET=$BUDGET: want at most 590 s (one call runs 600 s at most)" >&2; exit 2; }
 if [ "$INIT" = none ]; then START=; else
   [ -f "$INIT" ] || { echo "train.sh: INIT=$INIT: no such checkpoint (none: from scratch)" >&2; exit 2; }
@@ -44,12 +44,7 @@ elapsed() { echo $(( $(date +%s) - T0 )); }
 { nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv 2>/dev/null; nproc
   python3 -c "import torch,cv2,numpy,yaml;print('torch',torch.__version__,'cuda',torch.cuda.is_available(),'cv2',cv2.__version__,'numpy',numpy.__version__)"
 } >"$LOG" 2>&1
-python3 - "$K" "$DATA" <<'EOF'
-import sys
-k = int(sys.argv[1])
-open(sys.argv[2] + '/mix.yaml', 'w').write('path: .\ntrain: [' + ', '.join(['train/images/train'] * k)
-                                     + ']\nval: val/images/val\nnc: 1\nnames:\n  0: zebra\n')
-EOF
+write_mix "$K" "$DATA/mix.yaml"
 train() {  # $1 epochs, $2 seconds allowed, $3 --init WEIGHTS, --resume or nothing (from scratch)
   timeout --signal=TERM --kill-after=10 "$2" python3 -m zebra_sim_ros.cli train --data "$DATA/mix.yaml" --model "$MODEL" \
     --imgsz "$IMGSZ" --crop "$CROP" --epochs "$1" --batch "$BATCH" --device "$DEVICE" --workers "$WORKERS" \
@@ -65,7 +60,7 @@ deliver() {  # $1 -> $OUTD/$2, in 15 MiB parts ($2.part00, ...) where it is larg
 strip() {  # last.pt -> an fp16 checkpoint without optimizer state (export keeps the run's record)
   python3 -m zebra_sim_ros.cli export --weights "$1" --format pt --out "$2" >/dev/null
 }
-rows() { [ -f "$RUN"/results.csv ] && echo $(( $(wc -l < "$RUN"/results.csv) - 1 )) || echo 0; }
+rows() { rows_of "$RUN"; }
 snapper() {  # an fp16 copy of last.pt after every epoch, named by the results rows it saw: on epochs shorter than an
   # export (seconds, as on a CPU) a copy can hold a later epoch than its name (ab.sh's linker names them by content);
   # the last one, made after training ends, is always the last epoch

@@ -1,0 +1,24 @@
+# Shared by scripts/gpu/train.sh and ab.sh (sourced, not run): their settings' checks, the epoch mix file and the
+# results counter.
+
+# whole_numbers SCRIPT VAR...: each named variable a whole number >= 1, or exit 2 naming it
+whole_numbers() {
+  local script=$1 v; shift
+  for v in "$@"; do
+    [[ ${!v} =~ ^[1-9][0-9]*$ ]] || { echo "$script: $v=${!v}: want a whole number >= 1" >&2; exit 2; }
+  done
+}
+
+# write_mix K FILE: a dataset.yaml beside the pack's train/ and val/ that lists the training frames K times, so that
+# an epoch is K passes (the loader's workers restart each epoch: not every few seconds)
+write_mix() {
+  python3 - "$1" "$2" <<'PY'
+import sys
+k = int(sys.argv[1])
+open(sys.argv[2], 'w').write('path: .\ntrain: [' + ', '.join(['train/images/train'] * k)
+                             + ']\nval: val/images/val\nnc: 1\nnames:\n  0: zebra\n')
+PY
+}
+
+# rows_of RUN: the epochs a run folder's results.csv holds (0 without one)
+rows_of() { [ -f "$1/results.csv" ] && echo $(( $(wc -l < "$1/results.csv") - 1 )) || echo 0; }
