@@ -56,3 +56,12 @@ def run_script(script: Path, env: dict[str, str], timeout: float = 300) -> subpr
             proc.communicate()
             raise
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+
+
+def assert_refused(script: Path, base: dict[str, str], cases: list[tuple[dict[str, str], str]], out: Path) -> None:
+    """Each case's settings over ``base`` stop the script with exit 2, its message holding the case's text, before
+    it makes ``out``."""
+    for bad, said in cases:
+        r = run_script(script, base | bad)
+        assert r.returncode == 2 and said in r.stderr, (bad, r.stderr)
+        assert not out.exists()  # refused before anything was made

@@ -22,9 +22,7 @@
 set -u
 cd "$(dirname "$0")/../.."
 # shellcheck source=scripts/gpu/lib.sh
-source scripts/gpu/lib.sh
-export PYTHONPATH=$PWD PYTHONUNBUFFERED=1 OPENCV_FOR_THREADS_NUM=1
-T0=$(date +%s)
+source scripts/gpu/lib.sh  # the environment, the clock (elapsed) and the helpers both scripts use
 BUDGET=${BUDGET:-520}; EPOCHS=${EPOCHS:-5}; K=${K:-12}; IMGSZ=${IMGSZ:-2176}; CROP=${CROP:-320}; BATCH=${BATCH:-32}
 WORKERS=${WORKERS:-7}; DEVICE=${DEVICE:-cuda}; LR=${LR:-0.004}; SEED=${SEED:-33}; MAXIMG=${MAXIMG:-0}
 INIT=${INIT:-zebra_sim_ros/detection/weights/zebra_yolo_n.pt}; INIT_A=${INIT_A:-$INIT}; INIT_B=${INIT_B:-$INIT}
@@ -41,7 +39,6 @@ done
 [ -d "$DATA/train/images/train" ] || { echo "ab.sh: DATA=$DATA: no $DATA/train/images/train: run scripts/gpu/pack.py" >&2
   exit 2; }
 mkdir -p "$OUTD"
-elapsed() { echo $(( $(date +%s) - T0 )); }
 A=$DATA/ab_a; B=$DATA/ab_b
 # the starting checkpoints beside the run folders, which are emptied next (an INIT may lie in one: a snapshot of the
 # last call); the sources as given are what machine.txt records

@@ -1,5 +1,10 @@
-# Shared by scripts/gpu/train.sh and ab.sh (sourced, not run): their settings' checks, the epoch mix file and the
-# results counter.
+# Shared by scripts/gpu/train.sh and ab.sh (sourced from the repository's root, not run): the trainer's environment,
+# the clock, their settings' checks, the epoch mix file and the results counter.
+export PYTHONPATH=$PWD PYTHONUNBUFFERED=1 OPENCV_FOR_THREADS_NUM=1
+T0=$(date +%s)
+
+# elapsed: seconds since the script started
+elapsed() { echo $(( $(date +%s) - T0 )); }
 
 # whole_numbers SCRIPT VAR...: each named variable a whole number >= 1, or exit 2 naming it
 whole_numbers() {

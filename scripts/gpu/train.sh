@@ -20,9 +20,7 @@
 set -u
 cd "$(dirname "$0")/../.."
 # shellcheck source=scripts/gpu/lib.sh
-source scripts/gpu/lib.sh
-export PYTHONPATH=$PWD PYTHONUNBUFFERED=1 OPENCV_FOR_THREADS_NUM=1
-T0=$(date +%s)
+source scripts/gpu/lib.sh  # the environment, the clock (elapsed) and the helpers both scripts use
 BUDGET=${BUDGET:-470}; K=${K:-24}; E0=${E0:-12}; IMGSZ=${IMGSZ:-2176}; CROP=${CROP:-320}; BATCH=${BATCH:-32}
 WORKERS=${WORKERS:-15}; DEVICE=${DEVICE:-cuda}; OUTD=${OUT:-/tmp/gpu_out}; LR=${LR:-0.004}; SEED=${SEED:-16}
 INIT=${INIT:-zebra_sim_ros/detection/weights/zebra_yolo_n.pt}
@@ -40,7 +38,6 @@ fi
   exit 2; }
 RUN=$DATA/run_out; rm -rf "$RUN"; mkdir -p "$RUN/snap" "$OUTD/snap"
 LOG=$OUTD/train.log
-elapsed() { echo $(( $(date +%s) - T0 )); }
 { nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv 2>/dev/null; nproc
   python3 -c "import torch,cv2,numpy,yaml;print('torch',torch.__version__,'cuda',torch.cuda.is_available(),'cv2',cv2.__version__,'numpy',numpy.__version__)"
 } >"$LOG" 2>&1
