@@ -99,16 +99,14 @@ done
 wait "$PA" "$PB"
 touch "$A/snap.stop" "$B/snap.stop"; wait "$SA" "$SB"
 for r in "$A" "$B"; do [ -f "$r/last.pt" ] && ln -f "$r/last.pt" "$r/snap/raw_last.pt"; done  # in case it was missed
-python3 scripts/gpu/snapshots.py "$A" "$B" --out "$OUTD"
-n=$(for r in "$A" "$B"; do ls "$r/snap" | sed -n 's/^full_ep_\([0-9]*\)\.pt$/\1/p' | sort -n | tail -1 | grep . || echo 0
-  done | sort -n | head -1)
+python3 scripts/gpu/snapshots.py "$A" "$B" --out "$OUTD" --want "$EPOCHS"; snaps=$?
 logs=(); for f in ab_a/train.log ab_a/results.csv ab_b/train.log ab_b/results.csv; do
   [ -f "$DATA/$f" ] && logs+=("$f"); done
 tar -C "$DATA" -czf "$OUTD/logs.tar.gz" "${logs[@]}"
-echo "[ab] done at $(elapsed) s; both arms finished $n epochs; sent: $(cd "$OUTD" && find . -type f | sort | tr '\n' ' ')"
+echo "[ab] done at $(elapsed) s; sent: $(cd "$OUTD" && find . -type f | sort | tr '\n' ' ')"
 for r in "$A" "$B"; do
   echo "== $r (exit $(cat "$r/rc" 2>/dev/null || echo '?'))"
   tr '\r' '\n' <"$r/train.log" | grep -v "^\[train\] epoch [0-9]*/[0-9]* [0-9]*/" | tail -8
 done
 rc_a=$(cat "$A/rc" 2>/dev/null || echo 1); rc_b=$(cat "$B/rc" 2>/dev/null || echo 1)
-[ "$rc_a" = 0 ] && [ "$rc_b" = 0 ] && [ "$n" -eq "$EPOCHS" ]
+[ "$rc_a" = 0 ] && [ "$rc_b" = 0 ] && [ "$snaps" = 0 ]

@@ -92,8 +92,10 @@ def main() -> None:
     total += sum(_copy_frame(f, a.out / "val", "val", a.val_quality) for f in val)
     _record_generators(a.train, a.out / "train" / "generate.json")
     mib = total / 2**20
-    pack = _disk_bytes(p for sub in ("train", "val") for p in (a.out / sub).rglob("*")) / 2**20
-    rest = _disk_bytes(p for p in a.out.rglob("*") if p.relative_to(a.out).parts[0] not in ("train", "val")) / 2**20
+    written = [p for p in a.out.rglob("*") if p.is_file()]
+    in_pack = [p.relative_to(a.out).parts[0] in ("train", "val") for p in written]
+    pack = _disk_bytes(p for p, ours in zip(written, in_pack, strict=True) if ours) / 2**20
+    rest = _disk_bytes(p for p, ours in zip(written, in_pack, strict=True) if not ours) / 2**20
     repo = _repository_files()
     here = _disk_bytes(repo or []) / 2**20
     tree = pack + rest + here

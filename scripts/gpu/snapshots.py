@@ -7,7 +7,7 @@ In each run folder, ``snap/raw_*.pt`` (links ab.sh made as each ``last.pt`` land
 from 0) become ``snap/full_ep_N.pt`` (the newest link of each epoch; the rest removed). With n the highest epoch that
 every arm reached, epochs n-1 and n of each arm are exported to ``snap/ep_N.pt`` (what a next call's INIT_A/INIT_B
 takes) and copied to ``OUT/<arm>/ep_N.pt``, ``<arm>`` being the folder's name after ``ab_``. Prints one line per arm
-and the pairs sent; exit status 1 if no epoch was finished by every arm.
+and the pairs sent; exit status 1 if no epoch was finished by every arm, or fewer than ``--want``.
 """
 
 from __future__ import annotations
@@ -22,37 +22,31 @@ from zebra_sim_ros.errors import ZebraSimError
 
 
 def name_links(run: Path) -> dict[int, Path]:
-    """Rename ``run/snap/raw_*.pt`` by the epoch each holds (1-based); returns {epoch: path}."""
-    found: dict[int, tuple[float, Path]] = {}
-    for raw in sorted((run / "snap").glob("raw_*.pt")):
+    """Rename ``run/snap/raw_*.pt`` by the epoch each holds (1-based; of two links to one epoch the newer file
+    stays); returns {epoch: path}."""
+    for raw in sorted((run / "snap").glob("raw_*.pt"), key=lambda p: p.stat().st_mtime):
         try:
             epoch = int(read_checkpoint(raw)["epoch"]) + 1
         except (ZebraSimError, KeyError, TypeError, ValueError) as exc:  # not one of our checkpoints: say so
             print(f"snapshots: {raw}: not a readable checkpoint ({exc}); left out")
             continue
-        mtime = raw.stat().st_mtime
-        if epoch not in found or mtime > found[epoch][0]:
-            if epoch in found:
-                found[epoch][1].unlink()
-            found[epoch] = (mtime, raw)
-        else:
-            raw.unlink()
-    for e, (_, raw) in found.items():
-        raw.replace(run / "snap" / f"full_ep_{e}.pt")
+        raw.replace(run / "snap" / f"full_ep_{epoch}.pt")
     return dict(sorted((int(p.stem.removeprefix("full_ep_")), p) for p in (run / "snap").glob("full_ep_*.pt")))
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("runs", type=Path, nargs="+", help="the arms' run folders (ab_a, ab_b)")
+    ap.add_argument("runs", type=Path, nargs=2, help="the two arms' run folders (ab_a, ab_b)")
     ap.add_argument("--out", type=Path, required=True, help="where OUT/<arm>/ep_N.pt go")
+    ap.add_argument("--want", type=int, default=1, help="exit status 1 unless every arm reached this many epochs")
     a = ap.parse_args()
     epochs = {run: name_links(run) for run in a.runs}
     for run, got in epochs.items():
         print(f"snapshots: {run.name}: epochs {', '.join(map(str, got)) or 'none'}")
-    n = min((max(got, default=0) for got in epochs.values()), default=0)
+    n = min(max(got, default=0) for got in epochs.values())
+    print(f"snapshots: both arms finished {n} epochs")
     if n < 1:
-        print("snapshots: no epoch was finished by every arm: nothing to pair")
+        print("snapshots: nothing to pair")
         raise SystemExit(1)
     for run, got in epochs.items():
         arm = run.name.removeprefix("ab_")
@@ -66,6 +60,8 @@ def main() -> None:
             ep = export_checkpoint(got[e], run / "snap" / f"ep_{e}.pt")
             shutil.copy(ep, a.out / arm / ep.name)
     print(f"snapshots: paired epochs {max(n - 1, 1)}-{n} in {a.out}")
+    if n < a.want:
+        raise SystemExit(1)
 
 
 if __name__ == "__main__":
