@@ -31,7 +31,7 @@ def copy_photo(git_dir: Path, src: str, out: Path, name: str) -> int:
     """Copy the photo ``src`` (a path in the repository at COMMIT) to ``out/images/<name>``, its zebra boxes to
     ``labels/`` (class 0) and the other animals' to ``other_species/``; returns its number of zebras."""
     (out / "images" / f"{name}{Path(src).suffix.lower()}").write_bytes(git(git_dir, "show", f"{COMMIT}:{src}"))
-    rows = label_rows(git_dir, COMMIT, src)[1]
+    rows = label_rows(git_dir, COMMIT, src)
     zebra = [" ".join(["0", *r[1:5]]) for r in rows if r[0] == ZEBRA]
     other = [" ".join(r[:5]) for r in rows if r[0] != ZEBRA]
     (out / "labels" / f"{name}.txt").write_text("".join(z + "\n" for z in zebra))

@@ -40,11 +40,17 @@ def export_images(git_dir: Path, commit: str, root: str, splits: tuple[str, ...]
     return sources
 
 
-def label_rows(git_dir: Path, commit: str, image: str) -> tuple[str, list[list[str]]]:
-    """The YOLO label file of the export's photo ``image`` (its path in the repository, ``.../labels/<stem>.txt``)
-    and its rows split into fields, blank lines left out. A missing file raises ``CalledProcessError``."""
+def label_rows(git_dir: Path, commit: str, image: str, only_class: str | None = None) -> list[list[str]]:
+    """The rows, split into fields, of the YOLO label file of the export's photo ``image`` (its path in the
+    repository; the labels at ``.../labels/<stem>.txt``), blank lines left out. ``only_class``: the export holds
+    boxes of this one class only, and a row of another class or shape stops the script, naming the file (the source
+    would not be what was pinned). A missing file raises ``CalledProcessError``."""
     label = image.replace("/images/", "/labels/").rsplit(".", 1)[0] + ".txt"
-    return label, [ln.split() for ln in git(git_dir, "show", f"{commit}:{label}").decode().splitlines() if ln.strip()]
+    rows = [ln.split() for ln in git(git_dir, "show", f"{commit}:{label}").decode().splitlines() if ln.strip()]
+    bad = [r for r in rows if only_class is not None and (len(r) != 5 or r[0] != only_class)]
+    if bad:
+        raise SystemExit(f"{label} at {commit}: row {' '.join(bad[0])!r} is not a class-{only_class} box (5 fields)")
+    return rows
 
 
 def local_name(prefix: str, image: str) -> str:

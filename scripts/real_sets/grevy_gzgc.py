@@ -49,7 +49,7 @@ def main() -> None:
     kept = boxes = others = missing = 0
     for name, path in images:
         try:
-            rows = label_rows(args.git_dir, COMMIT, path)[1]
+            rows = label_rows(args.git_dir, COMMIT, path)
         except subprocess.CalledProcessError:
             continue  # an image without a label file is not annotated: left out
         try:
