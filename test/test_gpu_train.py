@@ -46,3 +46,8 @@ def test_train_sh_fits_the_epochs_to_its_budget_and_sends_the_last_snapshot(tmp_
     assert snap["epoch"] == rows - 1  # checkpoints count epochs from 0
     assert all(t.dtype == torch.float16 for t in snap["model"].values() if t.is_floating_point())
     assert snap["train_args"]["crop"] == 160 and snap["config"]["p2"] is False
+    # every snapshot kept is named by the epoch it holds (CPU epochs of a few seconds outrun an export), the last
+    # epoch among them
+    kept = {int(p.stem.removeprefix("ep_")): read_checkpoint(p)["epoch"]
+            for p in (data / "run_out" / "snap").glob("ep_*.pt")}
+    assert rows in kept and all(held == n - 1 for n, held in kept.items()), kept

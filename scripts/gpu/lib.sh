@@ -1,5 +1,6 @@
 # Shared by scripts/gpu/train.sh and ab.sh (sourced from the repository's root, not run): the trainer's environment,
-# the clock, their settings' checks, the epoch mix file and the results counter.
+# the clock, their settings' checks, the epoch mix file, the results counter and
+# the snapshots named by the epoch they hold.
 export PYTHONPATH=$PWD PYTHONUNBUFFERED=1 OPENCV_FOR_THREADS_NUM=1
 T0=$(date +%s)
 
@@ -22,6 +23,22 @@ import sys
 k = int(sys.argv[1])
 open(sys.argv[2], 'w').write('path: .\ntrain: [' + ', '.join(['train/images/train'] * k)
                              + ']\nval: val/images/val\nnc: 1\nnames:\n  0: zebra\n')
+PY
+}
+
+# snap_named CHECKPOINT FOLDER: an fp16 export of CHECKPOINT (a hard link to a last.pt: always a whole file) as
+# FOLDER/ep_N.pt, N the epoch it holds (1-based; not the results rows seen, which a short epoch can outrun); prints N
+snap_named() {
+  python3 - "$1" "$2" <<'PY'
+import sys
+from pathlib import Path
+from zebra_sim_ros.detection.checkpoint import read_checkpoint
+from zebra_sim_ros.detection.export import export_checkpoint
+src, folder = Path(sys.argv[1]), Path(sys.argv[2])
+n = int(read_checkpoint(src)["epoch"]) + 1
+tmp = export_checkpoint(src, folder / f".ep_{n}.pt.tmp")
+tmp.replace(folder / f"ep_{n}.pt")
+print(n)
 PY
 }
 

@@ -54,20 +54,16 @@ deliver() {  # $1 -> $OUTD/$2, in 15 MiB parts ($2.part00, ...) where it is larg
   else local t; t=$(mktemp -d "$RUN/parts.XXXXXX") && split -b 15M -d -a 2 "$1" "$t/$(basename "$2").part" \
     && mv "$t"/* "$(dirname "$OUTD/$2")/"; rm -rf "$t"; fi
 }
-strip() {  # last.pt -> an fp16 checkpoint without optimizer state (export keeps the run's record)
-  python3 -m zebra_sim_ros.cli export --weights "$1" --format pt --out "$2" >/dev/null
-}
 rows() { rows_of "$RUN"; }
-snapper() {  # an fp16 copy of last.pt after every epoch, named by the results rows it saw: on epochs shorter than an
-  # export (seconds, as on a CPU) a copy can hold a later epoch than its name (ab.sh's linker names them by content);
-  # the last one, made after training ends, is always the last epoch
-  local done=0
+snapper() {  # an fp16 copy of each last.pt as it lands (a new inode: the trainer writes it by a rename), through a
+  # hard link (a whole file) and named by the epoch it holds; delivered as last_snap.pt
+  local seen='' ino n
   while sleep 1 && [ ! -f "$RUN"/snap.stop ]; do
-    n=$(rows)
-    if [ "$n" -gt "$done" ] && [ -f "$RUN"/last.pt ] && [ "$RUN"/last.pt -nt "$RUN"/results.csv ]; then
-      sleep 1; strip "$RUN"/last.pt "$RUN"/snap/ep_$n.pt && deliver "$RUN"/snap/ep_$n.pt last_snap.pt && echo "[run] snapshot epoch $n at $(elapsed) s" >>"$LOG"
-      done=$n
-    fi
+    ino=$(stat -c %i "$RUN"/last.pt 2>/dev/null) || continue
+    [ "$ino" != "$seen" ] && ln -f "$RUN"/last.pt "$RUN"/snap/cur.pt 2>/dev/null || continue
+    seen=$ino
+    n=$(snap_named "$RUN"/snap/cur.pt "$RUN"/snap) && deliver "$RUN"/snap/ep_$n.pt last_snap.pt \
+      && echo "[run] snapshot epoch $n at $(elapsed) s" >>"$LOG"
   done
 }
 snapper & SNAP=$!
@@ -104,8 +100,9 @@ if wait_rows 1; then
 fi
 echo "[run] training ended at $(elapsed) s, rows $(rows)" >>"$LOG"
 sleep 4; touch "$RUN"/snap.stop; wait $SNAP  # the snapper ends its snapshot in hand, then stops
-n=$(rows); [ -f "$RUN"/last.pt ] && [ ! -f "$RUN"/snap/ep_$n.pt ] && strip "$RUN"/last.pt "$RUN"/snap/ep_$n.pt
-ls "$RUN"/snap >>"$LOG"
+# the last epoch once more, whatever the snapper saw: last_snap.pt is always the last epoch trained
+n=0; [ -f "$RUN"/last.pt ] && ln -f "$RUN"/last.pt "$RUN"/snap/cur.pt && n=$(snap_named "$RUN"/snap/cur.pt "$RUN"/snap)
+rm -f "$RUN"/snap/cur.pt; ls "$RUN"/snap >>"$LOG"
 [ -f "$RUN"/snap/ep_$n.pt ] && deliver "$RUN"/snap/ep_$n.pt last_snap.pt
 cp "$RUN"/results.csv "$OUTD/" 2>/dev/null
 # then snapshots, one from the middle of the run and the two before the last, and best.pt, while 8 files and 60 MiB
