@@ -550,6 +550,11 @@ def test_autocast_dtype_follows_the_device(monkeypatch: pytest.MonkeyPatch) -> N
         monkeypatch.setattr(torch.cpu, "_is_avx512_bf16_supported", lambda v=bf16: v)
         monkeypatch.setattr(torch.cpu, "_is_amx_tile_supported", lambda v=amx: v)
         assert amp_dtype("auto", cpu) == want  # emulated bfloat16 is slower than float32: not chosen
+    monkeypatch.setattr(torch.cpu, "_is_avx512_bf16_supported", lambda: True)  # the instructions, but oneDNN capped:
+    for cap, want in (("AVX2", None), ("avx512_core_vnni", None), ("AVX512_CORE_BF16", torch.bfloat16),
+                      ("AVX512_CORE_AMX", torch.bfloat16), ("ALL", torch.bfloat16), ("", torch.bfloat16)):
+        monkeypatch.setenv("ONEDNN_MAX_CPU_ISA", cap)
+        assert amp_dtype("auto", cpu) == want, cap
 
 
 def test_serving_in_bfloat16_decodes_boxes_in_float32(tmp_path: Path) -> None:
@@ -688,7 +693,8 @@ def test_bf16_autocast_trains_where_the_cpu_has_bf16_instructions() -> None:
     from zebra_sim_ros.detection.loss import DetectionLoss
 
     if amp_dtype("auto", torch.device("cpu")) is None:
-        pytest.skip("no AVX512-BF16 or AMX on this CPU: --amp auto trains in float32 here, bf16 is not used")
+        pytest.skip("no AVX512-BF16 or AMX on this CPU (or oneDNN capped below them): --amp auto trains in "
+                    "float32 here, bf16 is not used")
     torch.manual_seed(0)
     model = build_model(ModelConfig(size="n", imgsz=128)).train().to(memory_format=torch.channels_last)
     criterion = DetectionLoss(model)

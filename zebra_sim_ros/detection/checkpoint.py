@@ -7,6 +7,7 @@ fp16 in shipped files), ``epoch``, ``metrics``, ``train_args`` and, for resuming
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +20,22 @@ from zebra_sim_ros.errors import AssetError, ParameterError
 FORMAT = "zebra_sim_ros/detector"
 VERSION = 1
 SHIPPED = Path(__file__).resolve().parent / "weights" / "zebra_yolo_n.pt"
+# oneDNN's instruction-set caps (ONEDNN_MAX_CPU_ISA) as its dnnl_cpu_isa_t bit masks; AVX512_CORE_BF16's bits are the
+# ones native bfloat16 convolutions need
+_ONEDNN_ISA = {"SSE41": 0x1, "AVX": 0x3, "AVX2": 0x7, "AVX2_VNNI": 0xF, "AVX2_VNNI_2": 0x1F, "AVX512_CORE": 0x27,
+               "AVX512_CORE_VNNI": 0x67, "AVX512_CORE_BF16": 0xE7, "AVX10_1_512": 0x1EF, "AVX512_CORE_FP16": 0x1EF,
+               "AVX10_1_512_AMX": 0xFEF, "AVX512_CORE_AMX": 0xFEF, "AVX10_1_512_AMX_FP16": 0x1FEF,
+               "AVX512_CORE_AMX_FP16": 0x1FEF}
+_BF16_BITS = _ONEDNN_ISA["AVX512_CORE_BF16"]
+
+
+def onednn_allows_bf16() -> bool:
+    """False where ONEDNN_MAX_CPU_ISA (or its older name DNNL_MAX_CPU_ISA) caps oneDNN below AVX512_CORE_BF16: its
+    convolutions then emulate bfloat16 even on a CPU that has the instructions. Unset, ALL or DEFAULT: True."""
+    cap = (os.environ.get("ONEDNN_MAX_CPU_ISA") or os.environ.get("DNNL_MAX_CPU_ISA") or "").strip().upper()
+    if cap in ("", "ALL", "DEFAULT"):
+        return True
+    return _ONEDNN_ISA.get(cap, _BF16_BITS) & _BF16_BITS == _BF16_BITS  # a name oneDNN does not know: not a cap
 
 
 def amp_dtype(mode: str, device: torch.device, name: str = "--amp") -> torch.dtype | None:
@@ -26,7 +43,8 @@ def amp_dtype(mode: str, device: torch.device, name: str = "--amp") -> torch.dty
 
     auto: float16 on CUDA (with a gradient scaler); on a CPU with bfloat16 instructions (AVX512-BF16 or AMX),
     bfloat16, which trained 2x faster than float32 on a 2-core EPYC with AVX512-BF16; elsewhere float32 (emulated
-    bfloat16 measured 8.5x slower: BENCHMARKS.md). The loss is always computed in float32, and a served model's
+    bfloat16 measured 8.5x slower: BENCHMARKS.md), as where ONEDNN_MAX_CPU_ISA keeps oneDNN from those
+    instructions (:func:`onednn_allows_bf16`). The loss is always computed in float32, and a served model's
     boxes too (:attr:`~zebra_sim_ros.detection.model.Detector.serve_dtype`). ``name``: the option or parameter
     that set ``mode``, for the error.
     """
@@ -37,7 +55,8 @@ def amp_dtype(mode: str, device: torch.device, name: str = "--amp") -> torch.dty
     if mode == "auto":
         if device.type == "cuda":
             return torch.float16
-        fast_bf16 = torch.cpu._is_avx512_bf16_supported() or torch.cpu._is_amx_tile_supported()
+        has_bf16 = torch.cpu._is_avx512_bf16_supported() or torch.cpu._is_amx_tile_supported()
+        fast_bf16 = has_bf16 and onednn_allows_bf16()
         return torch.bfloat16 if device.type == "cpu" and fast_bf16 else None
     if mode == "fp16" and device.type != "cuda":
         raise ParameterError(name, mode, "bf16 or off on a CPU (float16 autocast wants CUDA)")
