@@ -546,6 +546,8 @@ def test_autocast_dtype_follows_the_device(monkeypatch: pytest.MonkeyPatch) -> N
     assert amp_dtype("bf16", cpu) == torch.bfloat16 and amp_dtype("off", cpu) is None
     with pytest.raises(ParameterError, match="'--amp'"):
         amp_dtype("fp16", cpu)
+    for var in ("ONEDNN_MAX_CPU_ISA", "DNNL_MAX_CPU_ISA"):  # oneDNN uncapped, whatever this process was given
+        monkeypatch.delenv(var, raising=False)
     for bf16, amx, want in ((True, False, torch.bfloat16), (False, True, torch.bfloat16), (False, False, None)):
         monkeypatch.setattr(torch.cpu, "_is_avx512_bf16_supported", lambda v=bf16: v)
         monkeypatch.setattr(torch.cpu, "_is_amx_tile_supported", lambda v=amx: v)
