@@ -1,10 +1,18 @@
 #!/usr/bin/env bash
 # Set up (idempotent), then lint, type-check and test. Extra arguments go to pytest.
+# ZEBRA_SIM_CPU=avx2 runs the tests as on a CPU without AVX-512 (scripts/cpu_avx2.env): our machines differ.
 # OMP_NUM_THREADS is deliberately left as the caller has it (not set here); tests that start
 # ROS processes choose their own ROS_DOMAIN_ID.
 set -euo pipefail
 
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
+case ${ZEBRA_SIM_CPU:-} in
+    "") ;;
+    avx2) source scripts/cpu_avx2.env
+          echo "[test] AVX-512 code paths off (ZEBRA_SIM_CPU=avx2: scripts/cpu_avx2.env)" ;;
+    *) echo "[test] ZEBRA_SIM_CPU=$ZEBRA_SIM_CPU: want avx2 or nothing" >&2; exit 2 ;;
+esac
+
 bash scripts/setup.sh
 
 # The venv first on PATH, so tests that spawn tools (colcon, console scripts) get the venv's.

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import os
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -557,6 +558,30 @@ def test_autocast_dtype_follows_the_device(monkeypatch: pytest.MonkeyPatch) -> N
                       ("AVX512_CORE_AMX", torch.bfloat16), ("ALL", torch.bfloat16), ("", torch.bfloat16)):
         monkeypatch.setenv("ONEDNN_MAX_CPU_ISA", cap)
         assert amp_dtype("auto", cpu) == want, cap
+
+
+def test_the_avx2_environment_keeps_every_library_off_avx512() -> None:
+    """``ZEBRA_SIM_CPU=avx2 bash scripts/test.sh`` sources scripts/cpu_avx2.env to run the suite as on our CPUs
+    without AVX-512: in a process started under it torch's ATen kernels run AVX2 code, NumPy dispatches no x86-64-v4
+    loops, OpenCV reports its AVX-512 dispatch unavailable, and ``--amp auto`` trains in float32."""
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[1]
+    probe = ("import cv2, torch\n"
+             "from numpy._core._multiarray_umath import __cpu_features__ as f\n"
+             "from zebra_sim_ros.detection.checkpoint import amp_dtype\n"
+             "print(torch.backends.cpu.get_cpu_capability(), f.get('X86_V4', False), cv2.getCPUFeaturesLine(), "
+             "amp_dtype('auto', torch.device('cpu')))")
+    env = {k: v for k, v in os.environ.items() if k not in ("ATEN_CPU_CAPABILITY", "ONEDNN_MAX_CPU_ISA",
+                                                            "OPENCV_CPU_DISABLE", "NPY_DISABLE_CPU_FEATURES")}
+    out = subprocess.run(["bash", "-c", 'source scripts/cpu_avx2.env && exec "$0" -c "$1"', sys.executable, probe],
+                         cwd=root, env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "Trying to disable unknown CPU feature" not in out.stderr, out.stderr  # a name OpenCV does not know
+    capability, v4, *features, amp = out.stdout.split()
+    assert capability == "AVX2" and v4 == "False" and amp == "None", out.stdout
+    assert all(w.endswith("?") for w in features if "AVX512" in w), features  # compiled in, switched off
 
 
 def test_serving_in_bfloat16_decodes_boxes_in_float32(tmp_path: Path) -> None:
