@@ -65,15 +65,7 @@ arm() {  # $1 run folder, $2 the arm's options (as words), $3 its init (none: fr
     --save-period 0 --max-train-images "$MAXIMG" --seed "$SEED" "${start[@]}" $AUG $2 --out "$1" >"$1/train.log" 2>&1
   echo $? >"$1/rc"
 }
-linker() {  # $1 run folder: a hard link to each last.pt as it lands (a new inode: the trainer writes it by a rename),
-  # until $1/snap.stop appears or this script is gone; snapshots.py names and exports them
-  local seen='' ino
-  while sleep 0.2 && [ ! -f "$1/snap.stop" ] && kill -0 $$ 2>/dev/null; do
-    ino=$(stat -c %i "$1/last.pt" 2>/dev/null) || continue
-    if [ "$ino" != "$seen" ]; then ln -f "$1/last.pt" "$1/snap/raw_$ino.pt" 2>/dev/null && seen=$ino; fi
-  done
-}
-stop_all() {  # the trainers (through their timeout, which passes it on to its process group) and the linkers
+stop_all() {  # the trainers (through their timeout, which passes it on to its process group) and the watches on last.pt
   touch "$A/snap.stop" "$B/snap.stop" 2>/dev/null
   for p in ${PA:-} ${PB:-}; do pkill -TERM -P "$p" timeout 2>/dev/null; done
 }
@@ -86,8 +78,8 @@ trap 'touch "$A/snap.stop" "$B/snap.stop" 2>/dev/null' EXIT
 } >"$OUTD/machine.txt" 2>&1
 arm "$A" "$A_OPTS" "$INIT_A" & PA=$!
 arm "$B" "$B_OPTS" "$INIT_B" & PB=$!
-linker "$A" & SA=$!
-linker "$B" & SB=$!
+each_new_last "$A" 0.2 true & SA=$!  # a hard link to each last.pt as it lands: snapshots.py names them by epoch
+each_new_last "$B" 0.2 true & SB=$!
 # an arm that fails before its last epoch stops the other: the pair could not be compared past it
 wait -n "$PA" "$PB"
 for r in "$A" "$B"; do
@@ -99,7 +91,7 @@ done
 wait "$PA" "$PB"
 touch "$A/snap.stop" "$B/snap.stop"; wait "$SA" "$SB"
 for r in "$A" "$B"; do [ -f "$r/last.pt" ] && ln -f "$r/last.pt" "$r/snap/raw_last.pt"; done  # in case it was missed
-python3 scripts/gpu/snapshots.py "$A" "$B" --out "$OUTD" --want "$EPOCHS"; snaps=$?
+python3 scripts/gpu/snapshots.py pair "$A" "$B" --out "$OUTD" --want "$EPOCHS"; snaps=$?
 logs=(); for f in ab_a/train.log ab_a/results.csv ab_b/train.log ab_b/results.csv; do
   [ -f "$DATA/$f" ] && logs+=("$f"); done
 tar -C "$DATA" -czf "$OUTD/logs.tar.gz" "${logs[@]}"

@@ -1,6 +1,5 @@
 # Shared by scripts/gpu/train.sh and ab.sh (sourced from the repository's root, not run): the trainer's environment,
-# the clock, their settings' checks, the epoch mix file, the results counter and
-# the snapshots named by the epoch they hold.
+# the clock, their settings' checks, the epoch mix file, the results counter and the watch on last.pt.
 export PYTHONPATH=$PWD PYTHONUNBUFFERED=1 OPENCV_FOR_THREADS_NUM=1
 T0=$(date +%s)
 
@@ -26,20 +25,19 @@ open(sys.argv[2], 'w').write('path: .\ntrain: [' + ', '.join(['train/images/trai
 PY
 }
 
-# snap_named CHECKPOINT FOLDER: an fp16 export of CHECKPOINT (a hard link to a last.pt: always a whole file) as
-# FOLDER/ep_N.pt, N the epoch it holds (1-based; not the results rows seen, which a short epoch can outrun); prints N
-snap_named() {
-  python3 - "$1" "$2" <<'PY'
-import sys
-from pathlib import Path
-from zebra_sim_ros.detection.checkpoint import read_checkpoint
-from zebra_sim_ros.detection.export import export_checkpoint
-src, folder = Path(sys.argv[1]), Path(sys.argv[2])
-n = int(read_checkpoint(src)["epoch"]) + 1
-tmp = export_checkpoint(src, folder / f".ep_{n}.pt.tmp")
-tmp.replace(folder / f"ep_{n}.pt")
-print(n)
-PY
+# each_new_last RUN POLL COMMAND...: each time RUN/last.pt is replaced (a new inode: the trainer writes it by a
+# rename), a hard link to it (a whole file, whatever lands next) as RUN/snap/raw_<inode>.pt, and COMMAND run with
+# that path appended; every POLL seconds until RUN/snap.stop appears or the script that sourced this is gone
+each_new_last() {
+  local run=$1 poll=$2 seen='' ino; shift 2
+  while sleep "$poll" && [ ! -f "$run/snap.stop" ] && kill -0 $$ 2>/dev/null; do
+    ino=$(stat -c %i "$run/last.pt" 2>/dev/null) || continue
+    [ "$ino" != "$seen" ] || continue
+    ln -f "$run/last.pt" "$run/snap/.new.pt" 2>/dev/null || continue
+    seen=$(stat -c %i "$run/snap/.new.pt")  # the inode linked, should another last.pt have landed since the stat
+    mv -f "$run/snap/.new.pt" "$run/snap/raw_$seen.pt"
+    "$@" "$run/snap/raw_$seen.pt"
+  done
 }
 
 # rows_of RUN: the epochs a run folder's results.csv holds (0 without one)

@@ -1,13 +1,16 @@
-"""The snapshots of an A/B's arms (``scripts/gpu/ab.sh``): each arm's hard links to its successive ``last.pt`` named
-by the epoch they hold, and the last two epochs that every arm finished exported as fp16 serving checkpoints.
+"""Snapshots of training runs on a lent GPU, named by the epoch they hold (a checkpoint counts its epochs from 0; the
+names count from 1), not by the results rows seen, which a short epoch can outrun.
 
-    python scripts/gpu/snapshots.py gpu_data/ab_a gpu_data/ab_b --out $OUT
+    python scripts/gpu/snapshots.py one RUN/snap/raw_123.pt RUN/snap        # train.sh: prints N of ep_N.pt
+    python scripts/gpu/snapshots.py pair gpu_data/ab_a gpu_data/ab_b --out $OUT --want 5      # ab.sh
 
-In each run folder, ``snap/raw_*.pt`` (links ab.sh made as each ``last.pt`` landed; a checkpoint counts its epochs
-from 0) become ``snap/full_ep_N.pt`` (the newest link of each epoch; the rest removed). With n the highest epoch that
-every arm reached, epochs n-1 and n of each arm are exported to ``snap/ep_N.pt`` (what a next call's INIT_A/INIT_B
-takes) and copied to ``OUT/<arm>/ep_N.pt``, ``<arm>`` being the folder's name after ``ab_``. Prints one line per arm
-and the pairs sent; exit status 1 if no epoch was finished by every arm, or fewer than ``--want``.
+``one``: a checkpoint (a hard link to a ``last.pt``: always a whole file) exported as an fp16 serving checkpoint
+``FOLDER/ep_N.pt``; prints N. ``pair``: in each of an A/B's run folders, ``snap/raw_*.pt`` (the links ab.sh made
+as each ``last.pt`` landed) become ``snap/full_ep_N.pt`` (the newest link of each epoch; the rest removed). With n
+the highest epoch that every arm reached, epochs n-1 and n of each arm are exported to ``snap/ep_N.pt`` (what a next
+call's INIT_A/INIT_B takes) and copied to ``OUT/<arm>/ep_N.pt``, ``<arm>`` being the folder's name after ``ab_``.
+Prints one line per arm and the pairs sent; exit status 1 if no epoch was finished by every arm, or fewer than
+``--want``.
 """
 
 from __future__ import annotations
@@ -21,12 +24,26 @@ from zebra_sim_ros.detection.export import export_checkpoint
 from zebra_sim_ros.errors import ZebraSimError
 
 
+def epoch_of(checkpoint: Path) -> int:
+    """The epoch a checkpoint holds, counted from 1."""
+    return int(read_checkpoint(checkpoint)["epoch"]) + 1
+
+
+def export_by_epoch(checkpoint: Path, folder: Path) -> int:
+    """``checkpoint`` exported as ``folder/ep_N.pt`` (fp16, no optimizer; the run's record kept), N the epoch it
+    holds; returns N. The export is written under a hidden name first, then renamed: a reader never sees half."""
+    out = export_checkpoint(checkpoint, folder / ".export.pt")
+    n = epoch_of(out)  # read from the small fp16 export, not the full checkpoint again
+    out.replace(folder / f"ep_{n}.pt")
+    return n
+
+
 def name_links(run: Path) -> dict[int, Path]:
     """Rename ``run/snap/raw_*.pt`` by the epoch each holds (1-based; of two links to one epoch the newer file
     stays); returns {epoch: path}."""
     for raw in sorted((run / "snap").glob("raw_*.pt"), key=lambda p: p.stat().st_mtime):
         try:
-            epoch = int(read_checkpoint(raw)["epoch"]) + 1
+            epoch = epoch_of(raw)
         except (ZebraSimError, KeyError, TypeError, ValueError) as exc:  # not one of our checkpoints: say so
             print(f"snapshots: {raw}: not a readable checkpoint ({exc}); left out")
             continue
@@ -34,23 +51,19 @@ def name_links(run: Path) -> dict[int, Path]:
     return dict(sorted((int(p.stem.removeprefix("full_ep_")), p) for p in (run / "snap").glob("full_ep_*.pt")))
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("runs", type=Path, nargs=2, help="the two arms' run folders (ab_a, ab_b)")
-    ap.add_argument("--out", type=Path, required=True, help="where OUT/<arm>/ep_N.pt go")
-    ap.add_argument("--want", type=int, default=1, help="exit status 1 unless every arm reached this many epochs")
-    a = ap.parse_args()
-    epochs = {run: name_links(run) for run in a.runs}
+def pair(runs: list[Path], out: Path, want: int) -> int:
+    """Name each arm's links, export the last two epochs every arm reached into ``out/<arm>/``; the exit status."""
+    epochs = {run: name_links(run) for run in runs}
     for run, got in epochs.items():
         print(f"snapshots: {run.name}: epochs {', '.join(map(str, got)) or 'none'}")
     n = min(max(got, default=0) for got in epochs.values())
     print(f"snapshots: both arms finished {n} epochs")
     if n < 1:
         print("snapshots: nothing to pair")
-        raise SystemExit(1)
+        return 1
     for run, got in epochs.items():
         arm = run.name.removeprefix("ab_")
-        (a.out / arm).mkdir(parents=True, exist_ok=True)
+        (out / arm).mkdir(parents=True, exist_ok=True)
         for e in (n - 1, n):
             if e < 1:
                 continue
@@ -58,10 +71,26 @@ def main() -> None:
                 print(f"snapshots: {run.name} has no snapshot of epoch {e}: that pair is incomplete")
                 continue
             ep = export_checkpoint(got[e], run / "snap" / f"ep_{e}.pt")
-            shutil.copy(ep, a.out / arm / ep.name)
-    print(f"snapshots: paired epochs {max(n - 1, 1)}-{n} in {a.out}")
-    if n < a.want:
-        raise SystemExit(1)
+            shutil.copy(ep, out / arm / ep.name)
+    print(f"snapshots: paired epochs {max(n - 1, 1)}-{n} in {out}")
+    return 1 if n < want else 0
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    one = sub.add_parser("one", help="export one checkpoint as FOLDER/ep_N.pt; prints N")
+    one.add_argument("checkpoint", type=Path)
+    one.add_argument("folder", type=Path)
+    pr = sub.add_parser("pair", help="name an A/B's links by epoch and export the last two epochs both arms reached")
+    pr.add_argument("runs", type=Path, nargs=2, help="the two arms' run folders (ab_a, ab_b)")
+    pr.add_argument("--out", type=Path, required=True, help="where OUT/<arm>/ep_N.pt go")
+    pr.add_argument("--want", type=int, default=1, help="exit status 1 unless every arm reached this many epochs")
+    a = ap.parse_args()
+    if a.cmd == "one":
+        print(export_by_epoch(a.checkpoint, a.folder))
+        return
+    raise SystemExit(pair(a.runs, a.out, a.want))
 
 
 if __name__ == "__main__":

@@ -55,18 +55,17 @@ deliver() {  # $1 -> $OUTD/$2, in 15 MiB parts ($2.part00, ...) where it is larg
     && mv "$t"/* "$(dirname "$OUTD/$2")/"; rm -rf "$t"; fi
 }
 rows() { rows_of "$RUN"; }
-snapper() {  # an fp16 copy of each last.pt as it lands (a new inode: the trainer writes it by a rename), through a
-  # hard link (a whole file) and named by the epoch it holds; delivered as last_snap.pt
-  local seen='' ino n
-  while sleep 1 && [ ! -f "$RUN"/snap.stop ]; do
-    ino=$(stat -c %i "$RUN"/last.pt 2>/dev/null) || continue
-    [ "$ino" != "$seen" ] && ln -f "$RUN"/last.pt "$RUN"/snap/cur.pt 2>/dev/null || continue
-    seen=$ino
-    n=$(snap_named "$RUN"/snap/cur.pt "$RUN"/snap) && deliver "$RUN"/snap/ep_$n.pt last_snap.pt \
-      && echo "[run] snapshot epoch $n at $(elapsed) s" >>"$LOG"
-  done
+snap_one() {  # $1 a link to a last.pt: exported as snap/ep_N.pt (N the epoch it holds) and delivered as
+  # last_snap.pt; snap/exported keeps its inode (the last one sent) and snap/exported.n its N
+  local n
+  if n=$(python3 scripts/gpu/snapshots.py one "$1" "$RUN"/snap) && deliver "$RUN"/snap/ep_$n.pt last_snap.pt; then
+    ln -f "$1" "$RUN"/snap/exported && echo "$n" >"$RUN"/snap/exported.n && rm -f "$1"
+    echo "[run] snapshot epoch $n at $(elapsed) s" >>"$LOG"
+  else
+    echo "[run] the snapshot of $1 failed at $(elapsed) s (kept)" >>"$LOG"
+  fi
 }
-snapper & SNAP=$!
+each_new_last "$RUN" 1 snap_one & SNAP=$!  # every last.pt the trainer writes, as it lands
 AMP=auto
 wait_rows() {  # until the trainer has written epoch $1's results and last.pt, or has stopped
   while kill -0 $TR 2>/dev/null; do
@@ -99,11 +98,12 @@ if wait_rows 1; then
   fi
 fi
 echo "[run] training ended at $(elapsed) s, rows $(rows)" >>"$LOG"
-sleep 4; touch "$RUN"/snap.stop; wait $SNAP  # the snapper ends its snapshot in hand, then stops
-# the last epoch once more, whatever the snapper saw: last_snap.pt is always the last epoch trained
-n=0; [ -f "$RUN"/last.pt ] && ln -f "$RUN"/last.pt "$RUN"/snap/cur.pt && n=$(snap_named "$RUN"/snap/cur.pt "$RUN"/snap)
-rm -f "$RUN"/snap/cur.pt; ls "$RUN"/snap >>"$LOG"
-[ -f "$RUN"/snap/ep_$n.pt ] && deliver "$RUN"/snap/ep_$n.pt last_snap.pt
+sleep 4; touch "$RUN"/snap.stop; wait $SNAP  # the watch ends the snapshot in hand, then stops
+# the last epoch, where the watch had not sent it: last_snap.pt is the last epoch trained
+if [ -f "$RUN"/last.pt ] && ! [ "$RUN"/last.pt -ef "$RUN"/snap/exported ]; then
+  ln -f "$RUN"/last.pt "$RUN"/snap/raw_last.pt && snap_one "$RUN"/snap/raw_last.pt
+fi
+ls "$RUN"/snap >>"$LOG"
 cp "$RUN"/results.csv "$OUTD/" 2>/dev/null
 # then snapshots, one from the middle of the run and the two before the last, and best.pt, while 8 files and 60 MiB
 # hold them (the log, results.csv and last_snap.pt's parts counted first)
