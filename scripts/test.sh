@@ -8,6 +8,7 @@ set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 case ${ZEBRA_SIM_CPU:-} in
     "") ;;
+    # shellcheck source=scripts/cpu_avx2.env
     avx2) source scripts/cpu_avx2.env
           echo "[test] AVX-512 code paths off (ZEBRA_SIM_CPU=avx2: scripts/cpu_avx2.env)" ;;
     *) echo "[test] ZEBRA_SIM_CPU=$ZEBRA_SIM_CPU: want avx2 or nothing" >&2; exit 2 ;;

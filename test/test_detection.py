@@ -6,6 +6,9 @@ import contextlib
 import io
 import json
 import os
+import platform
+import subprocess
+import sys
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -560,28 +563,44 @@ def test_autocast_dtype_follows_the_device(monkeypatch: pytest.MonkeyPatch) -> N
         assert amp_dtype("auto", cpu) == want, cap
 
 
+AVX2_PROBE = """
+import ctypes, glob, json, cv2, numpy, torch
+from numpy._core._multiarray_umath import __cpu_features__ as f
+from zebra_sim_ros.detection.checkpoint import amp_dtype
+conv = torch.nn.Conv2d(16, 32, 3).to(memory_format=torch.channels_last)
+with torch.no_grad():  # oneDNN says which instructions it ran this with (ONEDNN_VERBOSE)
+    conv(torch.randn(2, 16, 64, 64).to(memory_format=torch.channels_last))
+blas = ctypes.CDLL(glob.glob(numpy.__path__[0] + "/../numpy.libs/libscipy_openblas64_*.so")[0])
+core = blas.scipy_openblas_get_corename64_
+core.restype = ctypes.c_char_p
+print(json.dumps({"aten": torch.backends.cpu.get_cpu_capability(), "x86_v4": bool(f.get("X86_V4", False)),
+                  "opencv": cv2.getCPUFeaturesLine().split(), "openblas": core().decode(),
+                  "amp": str(amp_dtype("auto", torch.device("cpu")))}))
+"""
+CPU_CAPS = ("ATEN_CPU_CAPABILITY", "ONEDNN_MAX_CPU_ISA", "DNNL_MAX_CPU_ISA", "OPENCV_CPU_DISABLE",
+            "NPY_DISABLE_CPU_FEATURES", "OPENBLAS_CORETYPE", "MKL_ENABLE_INSTRUCTIONS")
+
+
 def test_the_avx2_environment_keeps_every_library_off_avx512() -> None:
     """``ZEBRA_SIM_CPU=avx2 bash scripts/test.sh`` sources scripts/cpu_avx2.env to run the suite as on our CPUs
-    without AVX-512: in a process started under it torch's ATen kernels run AVX2 code, NumPy dispatches no x86-64-v4
-    loops, OpenCV reports its AVX-512 dispatch unavailable, and ``--amp auto`` trains in float32."""
-    import subprocess
-    import sys
-
+    without AVX-512: in a process started under it oneDNN's convolutions and torch's ATen kernels run AVX2 code,
+    NumPy dispatches no x86-64-v4 loops and its OpenBLAS takes the Haswell kernels, OpenCV reports its AVX-512
+    dispatch switched off, and ``--amp auto`` trains in float32. Only where there is AVX2 to fall back to."""
+    if platform.machine() not in ("x86_64", "AMD64") or torch.backends.cpu.get_cpu_capability() == "DEFAULT":
+        pytest.skip(f"not an x86-64 CPU with AVX2 ({platform.machine()}, "
+                    f"{torch.backends.cpu.get_cpu_capability()}): nothing to cap")
     root = Path(__file__).resolve().parents[1]
-    probe = ("import cv2, torch\n"
-             "from numpy._core._multiarray_umath import __cpu_features__ as f\n"
-             "from zebra_sim_ros.detection.checkpoint import amp_dtype\n"
-             "print(torch.backends.cpu.get_cpu_capability(), f.get('X86_V4', False), cv2.getCPUFeaturesLine(), "
-             "amp_dtype('auto', torch.device('cpu')))")
-    env = {k: v for k, v in os.environ.items() if k not in ("ATEN_CPU_CAPABILITY", "ONEDNN_MAX_CPU_ISA",
-                                                            "OPENCV_CPU_DISABLE", "NPY_DISABLE_CPU_FEATURES")}
-    out = subprocess.run(["bash", "-c", 'source scripts/cpu_avx2.env && exec "$0" -c "$1"', sys.executable, probe],
-                         cwd=root, env=env, capture_output=True, text=True, timeout=120)
+    env = {k: v for k, v in os.environ.items() if k not in CPU_CAPS} | {"ONEDNN_VERBOSE": "1"}
+    out = subprocess.run(["bash", "-c", 'source scripts/cpu_avx2.env && exec "$0" -c "$1"', sys.executable,
+                          AVX2_PROBE], cwd=root, env=env, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     assert "Trying to disable unknown CPU feature" not in out.stderr, out.stderr  # a name OpenCV does not know
-    capability, v4, *features, amp = out.stdout.split()
-    assert capability == "AVX2" and v4 == "False" and amp == "None", out.stdout
-    assert all(w.endswith("?") for w in features if "AVX512" in w), features  # compiled in, switched off
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    isas = {line.split("isa:")[1].split(",")[0] for line in out.stdout.splitlines() if ",isa:" in line}
+    assert isas == {"Intel AVX2"}, isas  # oneDNN's own report of the convolution
+    assert got["aten"] == "AVX2" and not got["x86_v4"] and got["amp"] == "None", got
+    assert got["openblas"] == "Haswell", got
+    assert all(w.endswith("?") for w in got["opencv"] if "AVX512" in w), got  # compiled in, switched off
 
 
 def test_serving_in_bfloat16_decodes_boxes_in_float32(tmp_path: Path) -> None:

@@ -20,8 +20,8 @@ from zebra_sim_ros.errors import AssetError, ParameterError
 FORMAT = "zebra_sim_ros/detector"
 VERSION = 1
 SHIPPED = Path(__file__).resolve().parent / "weights" / "zebra_yolo_n.pt"
-# oneDNN's instruction-set caps (ONEDNN_MAX_CPU_ISA) as its dnnl_cpu_isa_t bit masks; AVX512_CORE_BF16's bits are the
-# ones native bfloat16 convolutions need
+# oneDNN's instruction-set caps (ONEDNN_MAX_CPU_ISA) as its dnnl_cpu_isa_t bit masks (oneDNN 3.x); AVX512_CORE_BF16's
+# bits are the ones native bfloat16 convolutions need. A name not listed (newer ones, AVX10_2 and on) is no cap here.
 _ONEDNN_ISA = {"SSE41": 0x1, "AVX": 0x3, "AVX2": 0x7, "AVX2_VNNI": 0xF, "AVX2_VNNI_2": 0x1F, "AVX512_CORE": 0x27,
                "AVX512_CORE_VNNI": 0x67, "AVX512_CORE_BF16": 0xE7, "AVX10_1_512": 0x1EF, "AVX512_CORE_FP16": 0x1EF,
                "AVX10_1_512_AMX": 0xFEF, "AVX512_CORE_AMX": 0xFEF, "AVX10_1_512_AMX_FP16": 0x1FEF,
@@ -31,11 +31,12 @@ _BF16_BITS = _ONEDNN_ISA["AVX512_CORE_BF16"]
 
 def onednn_allows_bf16() -> bool:
     """False where ONEDNN_MAX_CPU_ISA (or its older name DNNL_MAX_CPU_ISA) caps oneDNN below AVX512_CORE_BF16: its
-    convolutions then emulate bfloat16 even on a CPU that has the instructions. Unset, ALL or DEFAULT: True."""
-    cap = (os.environ.get("ONEDNN_MAX_CPU_ISA") or os.environ.get("DNNL_MAX_CPU_ISA") or "").strip().upper()
+    convolutions then emulate bfloat16 even on a CPU that has the instructions. Unset, DEFAULT (oneDNN 3) or ALL
+    (oneDNN 2): True. Case is ignored, as oneDNN ignores it."""
+    cap = (os.environ.get("ONEDNN_MAX_CPU_ISA") or os.environ.get("DNNL_MAX_CPU_ISA") or "").upper()
     if cap in ("", "ALL", "DEFAULT"):
         return True
-    return _ONEDNN_ISA.get(cap, _BF16_BITS) & _BF16_BITS == _BF16_BITS  # a name oneDNN does not know: not a cap
+    return _ONEDNN_ISA.get(cap, _BF16_BITS) & _BF16_BITS == _BF16_BITS  # a name not listed: not a cap
 
 
 def amp_dtype(mode: str, device: torch.device, name: str = "--amp") -> torch.dtype | None:
