@@ -47,7 +47,11 @@ def name_links(run: Path) -> dict[int, Path]:
         except (ZebraSimError, KeyError, TypeError, ValueError) as exc:  # not one of our checkpoints: say so
             print(f"snapshots: {raw}: not a readable checkpoint ({exc}); left out")
             continue
-        raw.replace(run / "snap" / f"full_ep_{epoch}.pt")
+        target = run / "snap" / f"full_ep_{epoch}.pt"
+        if target.exists() and raw.samefile(target):  # a second link to one file (ab.sh's raw_last.pt): renaming
+            raw.unlink()  # it onto the other would leave both
+        else:
+            raw.replace(target)
     return dict(sorted((int(p.stem.removeprefix("full_ep_")), p) for p in (run / "snap").glob("full_ep_*.pt")))
 
 

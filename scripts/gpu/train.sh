@@ -48,18 +48,20 @@ train() {  # $1 epochs, $2 seconds allowed, $3 --init WEIGHTS, --resume or nothi
     --amp "$AMP" --lr0 "$LR" --warmup-epochs 0.5 --close-mosaic 1 --val-every 1000 --seed "$SEED" \
     $AUG $ARCH --out "$RUN" $3 >>"$LOG" 2>&1
 }
-deliver() {  # $1 -> $OUTD/$2, in 15 MiB parts ($2.part00, ...) where it is larger; the old copy or parts go first
+deliver() {  # $1 -> $OUTD/$2, in 15 MiB parts ($2.part00, ...) where it is larger; the old copy or parts go first;
+  # the status says whether it was sent
   rm -f "$OUTD/$2" "$OUTD/$2".part*
-  if [ "$(stat -c %s "$1")" -le 15728640 ]; then cp "$1" "$OUTD/$2"
-  else local t; t=$(mktemp -d "$RUN/parts.XXXXXX") && split -b 15M -d -a 2 "$1" "$t/$(basename "$2").part" \
-    && mv "$t"/* "$(dirname "$OUTD/$2")/"; rm -rf "$t"; fi
+  if [ "$(stat -c %s "$1")" -le 15728640 ]; then cp "$1" "$OUTD/$2"; return; fi
+  local t rc; t=$(mktemp -d "$RUN/parts.XXXXXX") || return
+  split -b 15M -d -a 2 "$1" "$t/$(basename "$2").part" && mv "$t"/* "$(dirname "$OUTD/$2")/"; rc=$?
+  rm -rf "$t"; return $rc
 }
 rows() { rows_of "$RUN"; }
 snap_one() {  # $1 a link to a last.pt: exported as snap/ep_N.pt (N the epoch it holds) and delivered as
-  # last_snap.pt; snap/exported keeps its inode (the last one sent) and snap/exported.n its N
+  # last_snap.pt; snap/exported keeps its inode (the last one sent)
   local n
   if n=$(python3 scripts/gpu/snapshots.py one "$1" "$RUN"/snap) && deliver "$RUN"/snap/ep_$n.pt last_snap.pt; then
-    ln -f "$1" "$RUN"/snap/exported && echo "$n" >"$RUN"/snap/exported.n && rm -f "$1"
+    ln -f "$1" "$RUN"/snap/exported && rm -f "$1"
     echo "[run] snapshot epoch $n at $(elapsed) s" >>"$LOG"
   else
     echo "[run] the snapshot of $1 failed at $(elapsed) s (kept)" >>"$LOG"
