@@ -3,7 +3,6 @@ the CPU with a tiny pack; on a lent GPU it is the same script)."""
 
 from __future__ import annotations
 
-import subprocess
 import tarfile
 from pathlib import Path
 
@@ -13,10 +12,6 @@ from gpu_helpers import ROOT, assert_refused, run_script, tiny_pack
 from zebra_sim_ros.detection.checkpoint import read_checkpoint
 
 AB = ROOT / "scripts" / "gpu" / "ab.sh"
-
-
-def _ab(env: dict[str, str], timeout: float = 300) -> subprocess.CompletedProcess[str]:
-    return run_script(AB, env, timeout)
 
 
 def test_ab_refuses_settings_that_name_the_bad_value(tmp_path: Path) -> None:
@@ -33,7 +28,7 @@ def test_ab_trains_both_arms_and_pairs_their_snapshots(tmp_path: Path) -> None:
     data, out = tiny_pack(tmp_path), tmp_path / "out"
     tiny = {"DATA": str(data), "DEVICE": "cpu", "K": "1", "EPOCHS": "2", "BATCH": "2", "WORKERS": "1", "IMGSZ": "320",
             "CROP": "160", "BUDGET": "200"}
-    r = _ab(tiny | {"OUT": str(out), "A_OPTS": "--p2"})
+    r = run_script(AB, tiny | {"OUT": str(out), "A_OPTS": "--p2"})
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     assert "both arms finished 2 epochs" in r.stdout
     for arm, p2 in (("a", True), ("b", False)):
@@ -53,13 +48,13 @@ def test_ab_trains_both_arms_and_pairs_their_snapshots(tmp_path: Path) -> None:
     # the second call's way: each arm from its own snapshot in its own run folder, which the arm empties first
     out2 = tmp_path / "out2"
     snaps = {f"INIT_{arm.upper()}": str(data / f"ab_{arm}" / "snap" / "ep_2.pt") for arm in "ab"}
-    r = _ab(tiny | snaps | {"OUT": str(out2), "A_OPTS": "--p2", "EPOCHS": "1"})
+    r = run_script(AB, tiny | snaps | {"OUT": str(out2), "A_OPTS": "--p2", "EPOCHS": "1"})
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     assert read_checkpoint(out2 / "a" / "ep_1.pt")["config"]["p2"] is True
 
     # an arm that cannot train stops the other, and the run says so by its exit status
     out3 = tmp_path / "out3"
-    r = _ab(tiny | {"OUT": str(out3), "A_OPTS": "--no-such-option", "EPOCHS": "50"})
+    r = run_script(AB, tiny | {"OUT": str(out3), "A_OPTS": "--no-such-option", "EPOCHS": "50"})
     assert r.returncode != 0
     assert "ab_a failed" in r.stdout and "stopping the other arm" in r.stdout
     assert "ab_b (exit 143)" in r.stdout  # stopped by the signal, not run to its 50 epochs or the budget

@@ -4,7 +4,6 @@ is the same script): two epochs timed, the run resumed with the epoch count that
 from __future__ import annotations
 
 import re
-import subprocess
 from pathlib import Path
 
 import torch
@@ -13,10 +12,6 @@ from gpu_helpers import ROOT, assert_refused, run_script, tiny_pack
 from zebra_sim_ros.detection.checkpoint import read_checkpoint
 
 TRAIN = ROOT / "scripts" / "gpu" / "train.sh"
-
-
-def _train(env: dict[str, str], timeout: float = 300) -> subprocess.CompletedProcess[str]:
-    return run_script(TRAIN, env, timeout)
 
 
 def test_train_sh_refuses_settings_that_name_the_bad_value(tmp_path: Path) -> None:
@@ -29,7 +24,7 @@ def test_train_sh_refuses_settings_that_name_the_bad_value(tmp_path: Path) -> No
 
 def test_train_sh_fits_the_epochs_to_its_budget_and_sends_the_last_snapshot(tmp_path: Path) -> None:
     data, out = tiny_pack(tmp_path), tmp_path / "out"
-    r = _train({"DATA": str(data), "OUT": str(out), "DEVICE": "cpu", "K": "1", "E0": "3", "BATCH": "2",
+    r = run_script(TRAIN, {"DATA": str(data), "OUT": str(out), "DEVICE": "cpu", "K": "1", "E0": "3", "BATCH": "2",
                 "WORKERS": "1", "IMGSZ": "320", "CROP": "160", "BUDGET": "70"})
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     log = (out / "train.log").read_text()
