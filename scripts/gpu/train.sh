@@ -58,16 +58,29 @@ deliver() {  # $1 -> $OUTD/$2, in 15 MiB parts ($2.part00, ...) where it is larg
 }
 rows() { rows_of "$RUN"; }
 snap_one() {  # $1 a link to a last.pt: exported as snap/ep_N.pt (N the epoch it holds) and delivered as
-  # last_snap.pt; snap/exported keeps its inode (the last one sent)
+  # last_snap.pt; snap/exported keeps its inode (the last one sent); a failed one is kept as snap/failed_*.pt
   local n
   if n=$(python3 scripts/gpu/snapshots.py one "$1" "$RUN"/snap) && deliver "$RUN"/snap/ep_$n.pt last_snap.pt; then
     ln -f "$1" "$RUN"/snap/exported && rm -f "$1"
     echo "[run] snapshot epoch $n at $(elapsed) s" >>"$LOG"
   else
-    echo "[run] the snapshot of $1 failed at $(elapsed) s (kept)" >>"$LOG"
+    mv -f "$1" "$RUN/snap/failed_${1##*/raw_}"
+    echo "[run] the snapshot of $1 failed at $(elapsed) s (kept as failed_${1##*/raw_})" >>"$LOG"
   fi
 }
-each_new_last "$RUN" 1 snap_one & SNAP=$!  # every last.pt the trainer writes, as it lands
+export_links() {  # the watch's links, oldest first (a link keeps last.pt's time), each through snap_one, until the
+  # watch has stopped and none is left: an export never holds up the watch, so no epoch is skipped while one runs
+  local f last=''
+  while :; do
+    f=$(ls -tr "$RUN"/snap/raw_*.pt 2>/dev/null | head -n 1)
+    if [ -n "$f" ]; then snap_one "$f"; continue; fi
+    [ -z "$last" ] || return 0
+    kill -0 "$SNAP" 2>/dev/null || last=1  # stopped: one more look, for a link made as it stopped
+    [ -n "$last" ] || sleep 1
+  done
+}
+each_new_last "$RUN" 0.2 true & SNAP=$!  # a hard link to every last.pt the trainer writes, as it lands
+export_links & EXPORT=$!
 AMP=auto
 wait_rows() {  # until the trainer has written epoch $1's results and last.pt, or has stopped
   while kill -0 $TR 2>/dev/null; do
@@ -100,7 +113,13 @@ if wait_rows 1; then
   fi
 fi
 echo "[run] training ended at $(elapsed) s, rows $(rows)" >>"$LOG"
-sleep 4; touch "$RUN"/snap.stop; wait $SNAP  # the watch ends the snapshot in hand, then stops
+sleep 4; touch "$RUN"/snap.stop; wait $SNAP  # the watch stops
+# the exports left: the newest three links at most (the snapshots sent back are among the last three), so that a
+# backlog cannot outlast the call
+mapfile -t OLD < <(ls -t "$RUN"/snap/raw_*.pt 2>/dev/null | tail -n +4)
+rm -f "${OLD[@]}"
+echo "[run] ${#OLD[@]} older links not exported" >>"$LOG"
+wait $EXPORT
 # the last epoch, where the watch had not sent it: last_snap.pt is the last epoch trained
 if [ -f "$RUN"/last.pt ] && ! [ "$RUN"/last.pt -ef "$RUN"/snap/exported ]; then
   ln -f "$RUN"/last.pt "$RUN"/snap/raw_last.pt && snap_one "$RUN"/snap/raw_last.pt
