@@ -54,3 +54,9 @@ def test_train_sh_fits_the_epochs_to_its_budget_and_sends_the_last_snapshot(tmp_
     assert dropped, log[-3000:]
     assert {last - 2, last - 1, last} <= set(kept) and len(kept) + int(dropped.group(1)) == last, (kept, log[-2000:])
     assert not list((data / "run_out" / "snap").glob("raw_*.pt")), "a link left unexported"
+    # sent back besides last_snap.pt: one snapshot from the middle of the run and the two before the last, and best.pt
+    epochs = sorted(kept)
+    older = epochs[:-3]
+    assert sorted(p.name for p in (out / "snap").glob("*.pt")) == sorted(
+        f"ep_{n}.pt" for n in [older[len(older) // 2], *epochs[-3:-1]]), log[-1000:]
+    assert (out / "best.pt").is_file() == (data / "run_out" / "best.pt").is_file()  # none if the timeout cut the run

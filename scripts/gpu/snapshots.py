@@ -3,6 +3,7 @@ names count from 1), not by the results rows seen, which a short epoch can outru
 
     python scripts/gpu/snapshots.py one RUN/snap/raw_123.pt RUN/snap        # train.sh: prints N of ep_N.pt
     python scripts/gpu/snapshots.py pair gpu_data/ab_a gpu_data/ab_b --out $OUT --want 5      # ab.sh
+    python scripts/gpu/snapshots.py pick RUN $OUT                             # train.sh: the files to send back
 
 ``one``: a checkpoint (a hard link to a ``last.pt``: always a whole file) exported as an fp16 serving checkpoint
 ``FOLDER/ep_N.pt``; prints N. ``pair``: in each of an A/B's run folders, ``snap/raw_*.pt`` (the links ab.sh made
@@ -10,12 +11,13 @@ as each ``last.pt`` landed) become ``snap/full_ep_N.pt`` (the newest link of eac
 the highest epoch that every arm reached, epochs n-1 and n of each arm are exported to ``snap/ep_N.pt`` (what a next
 call's INIT_A/INIT_B takes) and copied to ``OUT/<arm>/ep_N.pt``, ``<arm>`` being the folder's name after ``ab_``.
 Prints one line per arm and the pairs sent; exit status 1 if no epoch was finished by every arm, or fewer than
-``--want``.
+``--want``. ``pick``: which of a run's ``snap/ep_N.pt`` and its ``best.pt`` to send back, one path a line.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import shutil
 from pathlib import Path
 
@@ -80,6 +82,28 @@ def pair(runs: list[Path], out: Path, want: int) -> int:
     return 1 if n < want else 0
 
 
+# what one call sends back: 8 files and 60 MiB at most, a file over 15 MiB counted as its 15 MiB parts
+PART, FILES, BYTES = 15 * 2**20, 8, 60 * 2**20
+
+
+def pick(run: Path, out: Path) -> list[Path]:
+    """The snapshots worth sending back from ``run`` (one from the middle of the run and the two before the last,
+    newest first; the last one is already sent as last_snap.pt) and ``run/best.pt``, in that order, while they fit
+    beside what ``out`` already holds (train.log counted whether or not it is there yet)."""
+    held = {p for p in out.rglob("*") if p.is_file()} | {out / "train.log"}
+    files, size = len(held), sum(p.stat().st_size for p in held if p.exists())
+    snaps = sorted((run / "snap").glob("ep_*.pt"), key=lambda p: int(p.stem.removeprefix("ep_")))
+    older = snaps[:-3]
+    keep = ([older[len(older) // 2]] if older else []) + snaps[-3:-1][::-1]
+    chosen = []
+    for p in keep + ([run / "best.pt"] if (run / "best.pt").exists() else []):
+        n = max(1, math.ceil(p.stat().st_size / PART))
+        if files + n <= FILES and size + p.stat().st_size <= BYTES:
+            files, size = files + n, size + p.stat().st_size
+            chosen.append(p)
+    return chosen
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -90,9 +114,16 @@ def main() -> None:
     pr.add_argument("runs", type=Path, nargs=2, help="the two arms' run folders (ab_a, ab_b)")
     pr.add_argument("--out", type=Path, required=True, help="where OUT/<arm>/ep_N.pt go")
     pr.add_argument("--want", type=int, default=1, help="exit status 1 unless every arm reached this many epochs")
+    pk = sub.add_parser("pick", help="the snapshots and best.pt of a run that fit what one call sends back")
+    pk.add_argument("run", type=Path)
+    pk.add_argument("out", type=Path, help="the folder sent back (what it holds already is counted)")
     a = ap.parse_args()
     if a.cmd == "one":
         print(export_by_epoch(a.checkpoint, a.folder))
+        return
+    if a.cmd == "pick":
+        for p in pick(a.run, a.out):
+            print(p)
         return
     raise SystemExit(pair(a.runs, a.out, a.want))
 

@@ -128,22 +128,7 @@ ls "$RUN"/snap >>"$LOG"
 cp "$RUN"/results.csv "$OUTD/" 2>/dev/null
 # then snapshots, one from the middle of the run and the two before the last, and best.pt, while 8 files and 60 MiB
 # hold them (the log, results.csv and last_snap.pt's parts counted first)
-mapfile -t SEND < <(python3 - "$RUN" "$OUTD" <<'EOF'
-import math, sys
-from pathlib import Path
-run, out = Path(sys.argv[1]), Path(sys.argv[2])
-PART, FILES, BYTES = 15 * 2**20, 8, 60 * 2**20
-held = {p for p in out.rglob('*') if p.is_file()} | {out / 'train.log'}
-files, size = len(held), sum(p.stat().st_size for p in held if p.exists())
-snaps = sorted((run / 'snap').glob('ep_*.pt'), key=lambda p: int(p.stem[3:]))
-keep = ([snaps[:-3][len(snaps[:-3]) // 2]] if len(snaps) > 3 else []) + snaps[-3:-1][::-1]
-for p in keep + ([run / 'best.pt'] if (run / 'best.pt').exists() else []):
-    n = max(1, math.ceil(p.stat().st_size / PART))
-    if files + n <= FILES and size + p.stat().st_size <= BYTES:
-        files, size = files + n, size + p.stat().st_size
-        print(p)
-EOF
-)
+mapfile -t SEND < <(python3 scripts/gpu/snapshots.py pick "$RUN" "$OUTD")
 for f in "${SEND[@]}"; do
   case $f in */best.pt) deliver "$f" best.pt ;; *) deliver "$f" "snap/$(basename "$f")" ;; esac
 done
