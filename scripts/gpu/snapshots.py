@@ -21,19 +21,19 @@ import math
 import shutil
 from pathlib import Path
 
-from zebra_sim_ros.detection.checkpoint import read_checkpoint
-from zebra_sim_ros.detection.export import export_checkpoint
-from zebra_sim_ros.errors import ZebraSimError
-
 
 def epoch_of(checkpoint: Path) -> int:
     """The epoch a checkpoint holds, counted from 1."""
+    from zebra_sim_ros.detection.checkpoint import read_checkpoint  # torch: not for `pick`, run as the call ends
+
     return int(read_checkpoint(checkpoint)["epoch"]) + 1
 
 
 def export_by_epoch(checkpoint: Path, folder: Path) -> int:
     """``checkpoint`` exported as ``folder/ep_N.pt`` (fp16, no optimizer; the run's record kept), N the epoch it
     holds; returns N. The export is written under a hidden name first, then renamed: a reader never sees half."""
+    from zebra_sim_ros.detection.export import export_checkpoint
+
     out = export_checkpoint(checkpoint, folder / ".export.pt")
     n = epoch_of(out)  # read from the small fp16 export, not the full checkpoint again
     out.replace(folder / f"ep_{n}.pt")
@@ -43,6 +43,8 @@ def export_by_epoch(checkpoint: Path, folder: Path) -> int:
 def name_links(run: Path) -> dict[int, Path]:
     """Rename ``run/snap/raw_*.pt`` by the epoch each holds (1-based; of two links to one epoch the newer file
     stays); returns {epoch: path}."""
+    from zebra_sim_ros.errors import ZebraSimError
+
     for raw in sorted((run / "snap").glob("raw_*.pt"), key=lambda p: p.stat().st_mtime):
         try:
             epoch = epoch_of(raw)
@@ -59,6 +61,8 @@ def name_links(run: Path) -> dict[int, Path]:
 
 def pair(runs: list[Path], out: Path, want: int) -> int:
     """Name each arm's links, export the last two epochs every arm reached into ``out/<arm>/``; the exit status."""
+    from zebra_sim_ros.detection.export import export_checkpoint
+
     epochs = {run: name_links(run) for run in runs}
     for run, got in epochs.items():
         print(f"snapshots: {run.name}: epochs {', '.join(map(str, got)) or 'none'}")

@@ -65,18 +65,25 @@ snap_one() {  # $1 a link to a last.pt: exported as snap/ep_N.pt (N the epoch it
     echo "[run] snapshot epoch $n at $(elapsed) s" >>"$LOG"
   else
     mv -f "$1" "$RUN/snap/failed_${1##*/raw_}"
-    echo "[run] the snapshot of $1 failed at $(elapsed) s (kept as failed_${1##*/raw_})" >>"$LOG"
+    echo "[run] the snapshot of $1 failed at $(elapsed) s (the link kept as failed_${1##*/raw_})" >>"$LOG"
   fi
 }
-export_links() {  # the watch's links, oldest first (a link keeps last.pt's time), each through snap_one, until the
-  # watch has stopped and none is left: an export never holds up the watch, so no epoch is skipped while one runs
-  local f last=''
+export_links() {  # the watch's links, oldest first (a link keeps last.pt's time), each through snap_one: an export
+  # never holds up the watch, so no epoch is skipped while one runs. Once the watch has stopped, the links left but
+  # the newest three are dropped (counted in the log: the snapshots sent back are among the last three, and a
+  # backlog must not outlast the call), the rest exported, and the loop ends.
+  local f stopped='' old
   while :; do
+    if [ -z "$stopped" ] && ! kill -0 "$SNAP" 2>/dev/null; then  # no link comes after this look
+      stopped=1
+      mapfile -t old < <(ls -t "$RUN"/snap/raw_*.pt 2>/dev/null | tail -n +4)
+      rm -f "${old[@]}"
+      echo "[run] ${#old[@]} older links not exported" >>"$LOG"
+    fi
     f=$(ls -tr "$RUN"/snap/raw_*.pt 2>/dev/null | head -n 1)
     if [ -n "$f" ]; then snap_one "$f"; continue; fi
-    [ -z "$last" ] || return 0
-    kill -0 "$SNAP" 2>/dev/null || last=1  # stopped: one more look, for a link made as it stopped
-    [ -n "$last" ] || sleep 1
+    [ -z "$stopped" ] || return 0
+    sleep 1
   done
 }
 each_new_last "$RUN" 0.2 true & SNAP=$!  # a hard link to every last.pt the trainer writes, as it lands
@@ -113,13 +120,7 @@ if wait_rows 1; then
   fi
 fi
 echo "[run] training ended at $(elapsed) s, rows $(rows)" >>"$LOG"
-sleep 4; touch "$RUN"/snap.stop; wait $SNAP  # the watch stops
-# the exports left: the newest three links at most (the snapshots sent back are among the last three), so that a
-# backlog cannot outlast the call
-mapfile -t OLD < <(ls -t "$RUN"/snap/raw_*.pt 2>/dev/null | tail -n +4)
-rm -f "${OLD[@]}"
-echo "[run] ${#OLD[@]} older links not exported" >>"$LOG"
-wait $EXPORT
+sleep 4; touch "$RUN"/snap.stop; wait $SNAP; wait $EXPORT  # the watch stops, then the exports left are done
 # the last epoch, where the watch had not sent it: last_snap.pt is the last epoch trained
 if [ -f "$RUN"/last.pt ] && ! [ "$RUN"/last.pt -ef "$RUN"/snap/exported ]; then
   ln -f "$RUN"/last.pt "$RUN"/snap/raw_last.pt && snap_one "$RUN"/snap/raw_last.pt
