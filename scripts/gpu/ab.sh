@@ -78,8 +78,8 @@ trap 'touch "$A/snap.stop" "$B/snap.stop" 2>/dev/null' EXIT
 } >"$OUTD/machine.txt" 2>&1
 arm "$A" "$A_OPTS" "$INIT_A" & PA=$!
 arm "$B" "$B_OPTS" "$INIT_B" & PB=$!
-each_new_last "$A" 0.2 true & SA=$!  # a hard link to each last.pt as it lands: snapshots.py names them by epoch
-each_new_last "$B" 0.2 true & SB=$!
+each_new_last "$A" 0.2 & SA=$!  # a hard link to each last.pt as it lands: snapshots.py names them by epoch
+each_new_last "$B" 0.2 & SB=$!
 # an arm that fails before its last epoch stops the other: the pair could not be compared past it
 wait -n "$PA" "$PB"
 for r in "$A" "$B"; do

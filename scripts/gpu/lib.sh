@@ -25,18 +25,17 @@ open(sys.argv[2], 'w').write('path: .\ntrain: [' + ', '.join(['train/images/trai
 PY
 }
 
-# each_new_last RUN POLL COMMAND...: each time RUN/last.pt is replaced (a new inode: the trainer writes it by a
-# rename), a hard link to it (a whole file, whatever lands next) as RUN/snap/raw_<inode>.pt, and COMMAND run with
-# that path appended; every POLL seconds until RUN/snap.stop appears or the script that sourced this is gone
+# each_new_last RUN POLL: each time RUN/last.pt is replaced (a new inode: the trainer writes it by a rename), a hard
+# link to it (a whole file, whatever lands next) as RUN/snap/raw_<inode>.pt; every POLL seconds until RUN/snap.stop
+# appears or the script that sourced this is gone
 each_new_last() {
-  local run=$1 poll=$2 seen='' ino; shift 2
+  local run=$1 poll=$2 seen='' ino
   while sleep "$poll" && [ ! -f "$run/snap.stop" ] && kill -0 $$ 2>/dev/null; do
     ino=$(stat -c %i "$run/last.pt" 2>/dev/null) || continue
     [ "$ino" != "$seen" ] || continue
     ln -f "$run/last.pt" "$run/snap/.new.pt" 2>/dev/null || continue
     seen=$(stat -c %i "$run/snap/.new.pt")  # the inode linked, should another last.pt have landed since the stat
     mv -f "$run/snap/.new.pt" "$run/snap/raw_$seen.pt"
-    "$@" "$run/snap/raw_$seen.pt"
   done
 }
 

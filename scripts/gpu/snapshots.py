@@ -21,10 +21,12 @@ import math
 import shutil
 from pathlib import Path
 
+from zebra_sim_ros.errors import ZebraSimError  # no torch: `pick` runs as the call ends
+
 
 def epoch_of(checkpoint: Path) -> int:
     """The epoch a checkpoint holds, counted from 1."""
-    from zebra_sim_ros.detection.checkpoint import read_checkpoint  # torch: not for `pick`, run as the call ends
+    from zebra_sim_ros.detection.checkpoint import read_checkpoint  # torch, here and below: not for `pick`
 
     return int(read_checkpoint(checkpoint)["epoch"]) + 1
 
@@ -43,8 +45,6 @@ def export_by_epoch(checkpoint: Path, folder: Path) -> int:
 def name_links(run: Path) -> dict[int, Path]:
     """Rename ``run/snap/raw_*.pt`` by the epoch each holds (1-based; of two links to one epoch the newer file
     stays); returns {epoch: path}."""
-    from zebra_sim_ros.errors import ZebraSimError
-
     for raw in sorted((run / "snap").glob("raw_*.pt"), key=lambda p: p.stat().st_mtime):
         try:
             epoch = epoch_of(raw)

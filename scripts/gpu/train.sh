@@ -86,7 +86,7 @@ export_links() {  # the watch's links, oldest first (a link keeps last.pt's time
     sleep 1
   done
 }
-each_new_last "$RUN" 0.2 true & SNAP=$!  # a hard link to every last.pt the trainer writes, as it lands
+each_new_last "$RUN" 0.2 & SNAP=$!  # a hard link to every last.pt the trainer writes, as it lands
 export_links & EXPORT=$!
 AMP=auto
 wait_rows() {  # until the trainer has written epoch $1's results and last.pt, or has stopped
