@@ -3,7 +3,10 @@ is the same script): two epochs timed, the run resumed with the epoch count that
 
 from __future__ import annotations
 
+import os
 import re
+import subprocess
+import time
 from pathlib import Path
 
 import torch
@@ -60,3 +63,37 @@ def test_train_sh_fits_the_epochs_to_its_budget_and_sends_the_last_snapshot(tmp_
     assert sorted(p.name for p in (out / "snap").glob("*.pt")) == sorted(
         f"ep_{n}.pt" for n in ([older[len(older) // 2]] if older else []) + epochs[-3:-1]), log[-1000:]
     assert (out / "best.pt").is_file() == (data / "run_out" / "best.pt").is_file()  # none if the timeout cut the run
+
+
+def _export_links(run: Path, links: dict[str, float], watch_s: float, late: str = "") -> list[str]:
+    """lib.sh's export_links on RUN/snap/raw_*.pt links made with these modification times (seconds ago), the
+    watch a `sleep watch_s` (0: already gone), a link named ``late`` added 0.5 s in; the links snap_one got, in
+    order (this snap_one records the name and takes the link away, as train.sh's does)."""
+    (run / "snap").mkdir(parents=True)
+    now = time.time()
+    for name, ago in links.items():
+        (run / "snap" / name).write_bytes(b"x")
+        os.utime(run / "snap" / name, (now - ago, now - ago))
+    script = f"""source scripts/gpu/lib.sh
+snap_one() {{ echo "${{1##*/}}" >> "{run}/order"; rm -f "$1"; }}
+sleep {watch_s} & W=$!
+if [ {watch_s} = 0 ]; then wait $W; fi
+if [ -n "{late}" ]; then (sleep 0.5; touch "{run}/snap/{late}") & fi
+export_links "{run}" "$W" "{run}/log"
+"""
+    r = subprocess.run(["bash", "-c", script], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert not list((run / "snap").glob("raw_*.pt")), "a link left behind"
+    return (run / "order").read_text().split() if (run / "order").exists() else []
+
+
+def test_export_links_sends_oldest_first_and_drops_all_but_three_once_the_watch_is_gone(tmp_path: Path) -> None:
+    # names out of time order: the order must come from the links' times
+    links = {"raw_50.pt": 60, "raw_7.pt": 50, "raw_300.pt": 40, "raw_12.pt": 30, "raw_9.pt": 20, "raw_88.pt": 10}
+    got = _export_links(tmp_path / "gone", links, 0)
+    assert got == ["raw_12.pt", "raw_9.pt", "raw_88.pt"]  # the newest three, oldest first
+    assert (tmp_path / "gone" / "log").read_text() == "[run] 3 older links not exported\n"
+    # while the watch runs nothing is dropped, and a link that lands later is sent after the earlier ones
+    got = _export_links(tmp_path / "alive", links, 2.5, late="raw_1.pt")
+    assert got == ["raw_50.pt", "raw_7.pt", "raw_300.pt", "raw_12.pt", "raw_9.pt", "raw_88.pt", "raw_1.pt"]
+    assert (tmp_path / "alive" / "log").read_text() == "[run] 0 older links not exported\n"

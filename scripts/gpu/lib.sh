@@ -1,5 +1,5 @@
 # Shared by scripts/gpu/train.sh and ab.sh (sourced from the repository's root, not run): the trainer's environment,
-# the clock, their settings' checks, the epoch mix file, the results counter and the watch on last.pt.
+# the clock, their settings' checks, the epoch mix file, the results counter, the watch on last.pt and its exports.
 export PYTHONPATH=$PWD PYTHONUNBUFFERED=1 OPENCV_FOR_THREADS_NUM=1
 T0=$(date +%s)
 
@@ -41,3 +41,25 @@ each_new_last() {
 
 # rows_of RUN: the epochs a run folder's results.csv holds (0 without one)
 rows_of() { [ -f "$1/results.csv" ] && echo $(( $(wc -l < "$1/results.csv") - 1 )) || echo 0; }
+
+# export_links RUN WATCH LOG: the links the watch (process WATCH, running each_new_last) leaves as RUN/snap/raw_*.pt,
+# oldest first (a link keeps its last.pt's time), each through the caller's `snap_one LINK`, which must take the link
+# away (export it, or keep it under another name). An export never holds up the watch, so no epoch is skipped while
+# one runs. Once the watch has stopped, the links left but the newest three are dropped (counted in LOG: the
+# snapshots sent back are among the last three, and a backlog must not outlast the call), the rest exported, and
+# the function returns.
+export_links() {
+  local run=$1 watch=$2 log=$3 f stopped='' old
+  while :; do
+    if [ -z "$stopped" ] && ! kill -0 "$watch" 2>/dev/null; then  # no link comes after this look
+      stopped=1
+      mapfile -t old < <(ls -t "$run"/snap/raw_*.pt 2>/dev/null | tail -n +4)
+      rm -f "${old[@]}"
+      echo "[run] ${#old[@]} older links not exported" >>"$log"
+    fi
+    f=$(ls -tr "$run"/snap/raw_*.pt 2>/dev/null | head -n 1)
+    if [ -n "$f" ]; then snap_one "$f"; continue; fi
+    [ -z "$stopped" ] || return 0
+    sleep 1
+  done
+}

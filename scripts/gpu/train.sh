@@ -68,26 +68,8 @@ snap_one() {  # $1 a link to a last.pt: exported as snap/ep_N.pt (N the epoch it
     echo "[run] the snapshot of $1 failed at $(elapsed) s (the link kept as failed_${1##*/raw_})" >>"$LOG"
   fi
 }
-export_links() {  # the watch's links, oldest first (a link keeps last.pt's time), each through snap_one: an export
-  # never holds up the watch, so no epoch is skipped while one runs. Once the watch has stopped, the links left but
-  # the newest three are dropped (counted in the log: the snapshots sent back are among the last three, and a
-  # backlog must not outlast the call), the rest exported, and the loop ends.
-  local f stopped='' old
-  while :; do
-    if [ -z "$stopped" ] && ! kill -0 "$SNAP" 2>/dev/null; then  # no link comes after this look
-      stopped=1
-      mapfile -t old < <(ls -t "$RUN"/snap/raw_*.pt 2>/dev/null | tail -n +4)
-      rm -f "${old[@]}"
-      echo "[run] ${#old[@]} older links not exported" >>"$LOG"
-    fi
-    f=$(ls -tr "$RUN"/snap/raw_*.pt 2>/dev/null | head -n 1)
-    if [ -n "$f" ]; then snap_one "$f"; continue; fi
-    [ -z "$stopped" ] || return 0
-    sleep 1
-  done
-}
 each_new_last "$RUN" 0.2 & SNAP=$!  # a hard link to every last.pt the trainer writes, as it lands
-export_links & EXPORT=$!
+export_links "$RUN" "$SNAP" "$LOG" & EXPORT=$!  # each link through snap_one, behind the watch
 AMP=auto
 wait_rows() {  # until the trainer has written epoch $1's results and last.pt, or has stopped
   while kill -0 $TR 2>/dev/null; do
