@@ -71,7 +71,7 @@ def _export_links(run: Path, links: dict[str, float], watch_s: float, late: str 
     order (this snap_one records the name and takes the link away, as train.sh's does)."""
     (run / "snap").mkdir(parents=True)
     now = time.time()
-    for name, ago in links.items():
+    for name, ago in sorted(links.items()):  # made in name order, so that neither name nor making order is time order
         (run / "snap" / name).write_bytes(b"x")
         os.utime(run / "snap" / name, (now - ago, now - ago))
     script = f"""source scripts/gpu/lib.sh
@@ -94,6 +94,6 @@ def test_export_links_sends_oldest_first_and_drops_all_but_three_once_the_watch_
     assert got == ["raw_12.pt", "raw_9.pt", "raw_88.pt"]  # the newest three, oldest first
     assert (tmp_path / "gone" / "log").read_text() == "[run] 3 older links not exported\n"
     # while the watch runs nothing is dropped, and a link that lands later is sent after the earlier ones
-    got = _export_links(tmp_path / "alive", links, 2.5, late="raw_1.pt")
+    got = _export_links(tmp_path / "alive", links, 3, late="raw_1.pt")
     assert got == ["raw_50.pt", "raw_7.pt", "raw_300.pt", "raw_12.pt", "raw_9.pt", "raw_88.pt", "raw_1.pt"]
     assert (tmp_path / "alive" / "log").read_text() == "[run] 0 older links not exported\n"

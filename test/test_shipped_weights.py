@@ -2,19 +2,18 @@
 
 The shipped model (stage 17, README "Shipped weights") is a weight-space blend (0.5 stage 16 + 0.5 its fine-tuning
 on our CPU on 240 savanna frames of herds packed into a smaller rectangle, seed 7300). Stage 16 was a blend (0.5
-stage 15 + 0.5 its fine-tuning on our CPU on stage 14's sets, the close views of other species rendered again with
-a hide). Stage 15 was a blend
-(0.5 stage 14 + 0.5 its fine-tuning on a GPU on 910 frames of stage 14's sets, the close views of other species
-rendered again with their own shapes). Stage 14 was a blend (0.5 stage 13 + 0.5 its fine-tuning on our CPU on
-the same sets plus ground-level close views of other species, seed 3300). Stage 13 was a blend (0.5 stage 12 +
-0.5 its fine-tuning on our CPU on the sets of stages 11 and 12 together: seeds 6000, 6001, 5000, 5001,
-3000 and 3100). Stage 12 was a blend (0.5 stage 11 + 0.5 its fine-tuning on 504 savanna 1280x720 frames, seeds 6000
-and 6001, on a GPU). Stage 11 was itself a blend (0.3 stage 10 + 0.7 its fine-tuning on 320 px crops of 2176 px
-samples of 1280x720 frames, seeds 5000 and 5001, all worlds, far and close-by, and 640x360 frames, seed 3000, all
-strategies). Stage 10 was fine-tuned from stage 7 (stage 8 on whole frames, stages 9 and 10 on crops around zebras)
-on 2,448 photographic frames of all twelve worlds and four strategies (``generate --seed 1000 --worlds all
---strategy all``; each world and strategy its own placer stream) and 900 ground-level frames (``--seed 2000
---strategy low``); stages 1-7 used seeds 100, 200 and 400 on seven worlds.
+stage 15 + 0.5 its fine-tuning on our CPU on stage 14's sets, the close views of other species rendered again with a
+hide). Stage 15 was a blend (0.5 stage 14 + 0.5 its fine-tuning on a GPU on 910 frames of stage 14's sets, the close
+views of other species rendered again with their own shapes). Stage 14 was a blend (0.5 stage 13 + 0.5 its
+fine-tuning on our CPU on the same sets plus ground-level close views of other species, seed 3300). Stage 13 was a
+blend (0.5 stage 12 + 0.5 its fine-tuning on our CPU on the sets of stages 11 and 12 together: seeds 6000, 6001,
+5000, 5001, 3000 and 3100). Stage 12 was a blend (0.5 stage 11 + 0.5 its fine-tuning on 504 savanna 1280x720 frames,
+seeds 6000 and 6001, on a GPU). Stage 11 was itself a blend (0.3 stage 10 + 0.7 its fine-tuning on 320 px crops of
+2176 px samples of 1280x720 frames, seeds 5000 and 5001, all worlds, far and close-by, and 640x360 frames, seed
+3000, all strategies). Stage 10 was fine-tuned from stage 7 (stage 8 on whole frames, stages 9 and 10 on crops
+around zebras) on 2,448 photographic frames of all twelve worlds and four strategies (``generate --seed 1000
+--worlds all --strategy all``; each world and strategy its own placer stream) and 900 ground-level frames (``--seed
+2000 --strategy low``); stages 1-7 used seeds 100, 200 and 400 on seven worlds.
 Here small sets are generated with seed 777, whose streams none of those share, with
 the generator's defaults (the photographic look, weather, the camera model, domain
 randomisation, other species), and scored with our COCO metrics at the shipped file's own inference-size rule
@@ -81,6 +80,7 @@ def test_shipped_weights_are_ours_and_say_how_they_were_trained() -> None:
         (7300, ["savanna"], "both", 1280, "photo")]
     assert (gen[0]["placer"]["rect_min"], gen[0]["placer"]["rect_max"]) == (15, 45)  # the herd packed (default 40-120)
     recipe = ckpt["recipe"]
+    assert recipe == SHIPPED.with_name("zebra_yolo_n.recipe.txt").read_text()  # the file beside it, verbatim
     assert "zebra-sim generate" in recipe and all(f"--blend-base stage1{k}.pt" in recipe for k in range(7))
     assert "scripts/gpu/pack.py" in recipe and "scripts/gpu/train.sh" in recipe and "--keep-every" in recipe
     # every stage's data travels by its generate seed (the TRAINING_STREAMS above)
