@@ -419,15 +419,16 @@ def test_hard_negatives_are_the_detectors_boxes_on_no_zebra(frames: Path, tmp_pa
     base = TrainVerifierConfig(data=(str(frames),), out="x.pt", min_visible_pixels=100, seed=4)
     plain = collect_crops(base)
     mined = collect_crops(TrainVerifierConfig(data=(str(frames),), out="x.pt", min_visible_pixels=100, seed=4,
-                                              detector="shipped", mine_conf=0.01))
+                                              detector="shipped", mine_conf=0.001))
     keep = mined.kind != 3
     np.testing.assert_array_equal(mined.x[keep], plain.x)
     assert mined.counts()["detector's false boxes"] > 0 and plain.counts()["detector's false boxes"] == 0
     assert not mined.y[~keep].any()
     off = collect_crops(TrainVerifierConfig(data=(str(frames),), out="x.pt", min_visible_pixels=100, seed=4,
-                                            detector="shipped", mine_conf=0.01, mine_on_animals=False))
+                                            detector="shipped", mine_conf=0.001, mine_on_animals=False))
     np.testing.assert_array_equal(off.x[off.kind != 3], plain.x)
-    # boxes on the other species' animals are no longer hard negatives: fewer of them, none new
+    # boxes on the other species' animals are no longer hard negatives: fewer of them, none new (conf 0.001: stage 17
+    # leaves no box off the animals on these frames at 0.01)
     assert 0 < off.counts()["detector's false boxes"] < mined.counts()["detector's false boxes"]
     with pytest.raises(ParameterError, match="--detector"):
         TrainVerifierConfig(data=(str(frames),), out="x.pt", detector=str(tmp_path / "none.pt")).check()
