@@ -188,6 +188,16 @@ def test_ap_by_size_agrees_with_pycocotools_area_ranges() -> None:
     assert total == sum(len(g) for g in gts)
 
 
+def test_a_box_with_a_non_finite_coordinate_never_matches() -> None:
+    # a diverged model's NaN box is a false positive: ranked first, it halves the precision at full recall (the loop
+    # before the candidate walk let a NaN IoU take the zebra and scored 1.0)
+    gts = [np.array([[10.0, 10, 50, 40]])]
+    for bad in (np.nan, np.inf):
+        preds = [np.array([[bad, 10, 50, 40, 0.9], [11, 10, 50, 41, 0.8]])]
+        m = evaluate_detections(preds, gts)
+        assert m.recall == pytest.approx(1.0) and m.map50 == pytest.approx(0.5), (bad, m.to_dict())
+
+
 def test_precision_recall_at_a_threshold() -> None:
     gts = [np.array([[0.0, 0, 10, 10], [20, 20, 40, 50]]), np.zeros((0, 4))]
     preds = [np.array([[0.0, 0, 10, 10, 0.9], [100, 100, 120, 120, 0.5], [20, 20, 40, 50, 0.1]]),
