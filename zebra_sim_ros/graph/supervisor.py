@@ -91,15 +91,17 @@ class Supervisor:
             if code is not None and (not c.expected_exit or code != 0):
                 raise NodeDied(c, code)
 
-    def stop(self, order: Sequence[Child] | None = None, grace_s: float = 10.0) -> dict[str, int | None]:
+    def stop(self, order: Sequence[Child] | None = None, grace_s: float = 10.0,
+             kill_after_s: float = 5.0) -> dict[str, int | None]:
         """Stop every process still running, in ``order`` (default: reverse start order), and return each one's
-        exit status. SIGINT first; SIGTERM and then SIGKILL for those that do not exit within ``grace_s``."""
+        exit status. SIGINT first; SIGTERM for those that do not exit within ``grace_s``, and SIGKILL for those
+        still running ``kill_after_s`` after it."""
         todo = list(order) if order is not None else list(reversed(self.children))
         todo += [c for c in self.children if c not in todo]
         for c in todo:
             if c.proc.poll() is None:
                 self._signal(c, signal.SIGINT)
-                self._wait(c, grace_s, signal.SIGTERM) or self._wait(c, 5.0, signal.SIGKILL)
+                self._wait(c, grace_s, signal.SIGTERM) or self._wait(c, kill_after_s, signal.SIGKILL)
                 self._wait(c, 5.0, None)
         for c in self.children:
             c.log_file.close()
