@@ -1,12 +1,20 @@
-"""Shared fixtures: one baked zebra library per test session, in a private cache folder."""
+"""Shared fixtures: the zebra library in a private cache folder for the session (linked from the default cache);
+``zebra-sim`` run in the test's own process."""
 
 from __future__ import annotations
 
+import os
+import shutil
+import signal
+import subprocess
+import sys
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import pytest
 
-from zebra_sim_ros.zebra.asset import ZebraLibrary, build_library
+from zebra_sim_ros.errors import AssetError
+from zebra_sim_ros.zebra.asset import ZebraLibrary, build_library, library_dir, load_library
 
 
 @pytest.fixture(scope="session")
@@ -16,4 +24,61 @@ def zebra_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="session")
 def library(zebra_cache: Path) -> ZebraLibrary:
-    return build_library(zebra_cache)
+    # The private cache holds hard links to the default cache's baked arrays and manifest (which generate, the nodes
+    # and ``up`` use, and build when it is missing): the arrays are opened read-only and a rebuild writes new files
+    # and renames them in, so no test writes through a link. The ``usd`` folder that ``asset build`` without
+    # ``--out`` writes in place is not linked. test_rebuild_is_bit_identical still compares a fresh build with these.
+    # Where links cannot be made (another file system) the library is baked here, as before.
+    try:
+        shared = load_library().root
+        shutil.copytree(shared, library_dir(zebra_cache), copy_function=os.link, ignore=shutil.ignore_patterns("usd"))
+    except (OSError, AssetError):
+        shutil.rmtree(library_dir(zebra_cache), ignore_errors=True)
+        return build_library(zebra_cache)
+    return load_library(zebra_cache, build_if_missing=False)
+
+
+CliRun = Callable[..., "subprocess.CompletedProcess[str]"]
+
+
+@pytest.fixture
+def cli(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> CliRun:
+    """``cli(args, env, timeout)``: ``zebra-sim ARGS`` through the console script's own ``main`` in this process, its
+    exit status and everything written to stdout and stderr (file descriptors, children's included) returned as a
+    finished process's; a SystemExit is a status as the interpreter makes it, and a run past ``timeout`` seconds
+    fails the test. A fresh interpreter costs about 3 s on our 2 cores (torch's import most of it); the tests whose
+    subject is the process itself (a closed pipe, a signal, the installed script) still start one."""
+    from zebra_sim_ros.cli import main
+
+    def on_alarm(signum: int, frame: object) -> None:
+        raise TimeoutError("zebra-sim ran past its timeout")
+
+    def run(args: Sequence[object], env: Mapping[str, str] | None = None,
+            timeout: float = 300.0) -> subprocess.CompletedProcess[str]:
+        argv = [str(a) for a in args]
+        with monkeypatch.context() as m:
+            for key, value in (env or {}).items():
+                m.setenv(key, value)
+            before = capfd.readouterr()
+            old = signal.signal(signal.SIGALRM, on_alarm)
+            signal.setitimer(signal.ITIMER_REAL, timeout)
+            try:
+                code = main(argv)
+            except SystemExit as exc:
+                if exc.code is None or isinstance(exc.code, int):
+                    code = exc.code or 0
+                else:
+                    print(exc.code, file=sys.stderr)
+                    code = 1
+            finally:
+                signal.setitimer(signal.ITIMER_REAL, 0)
+                signal.signal(signal.SIGALRM, old)
+            sys.stdout.flush()
+            sys.stderr.flush()
+            out, err = capfd.readouterr()
+        # written back, so a failing test's report still shows everything, this run's output included
+        sys.stdout.write(before.out + out)
+        sys.stderr.write(before.err + err)
+        return subprocess.CompletedProcess(argv, code, out, err)
+
+    return run

@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import os
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import CliRun
 from mcap.reader import make_reader
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
@@ -93,7 +92,7 @@ def test_sigterm_finalises_the_bag(peer: Peer, tmp_path: Path) -> None:
         assert make_reader(f, validate_crcs=True).get_summary().statistics.message_count == 10
 
 
-def test_sigkill_then_recover(peer: Peer, tmp_path: Path) -> None:
+def test_sigkill_then_recover(peer: Peer, tmp_path: Path, cli: CliRun) -> None:
     pub = peer.node.create_publisher(Image, "/drone_0/image_raw", 100)
     bag = tmp_path / "killed.mcap"
     with node_process("recorder", {"output": str(bag), "discovery_period_s": 0.1, "chunk_size_mb": 0.05},
@@ -108,8 +107,7 @@ def test_sigkill_then_recover(peer: Peer, tmp_path: Path) -> None:
     with open(bag, "rb") as f:
         with pytest.raises(Exception):  # noqa: B017 - no summary, no footer: the file is cut
             make_reader(f).get_summary()
-    out = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "bag", "recover", str(bag),
-                          str(tmp_path / "ok.mcap"), "--json"], capture_output=True, text=True, timeout=60)
+    out = cli(["bag", "recover", bag, tmp_path / "ok.mcap", "--json"])
     assert out.returncode == 0, out.stderr
     with open(tmp_path / "ok.mcap", "rb") as f:
         survived = make_reader(f, validate_crcs=True).get_summary().statistics.message_count

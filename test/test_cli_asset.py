@@ -1,4 +1,5 @@
-"""``zebra-sim asset ...`` as a user runs it: a real process, JSON summary last, clear errors."""
+"""``zebra-sim asset ...``: JSON summary last, clear errors. The build runs as a user runs it, a real process; the
+rest through the console script's ``main`` in the test's process (the ``cli`` fixture)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from pathlib import Path
 
 import cv2
 import pytest
+from conftest import CliRun
 
 from zebra_sim_ros.zebra.asset import ZebraLibrary, coat_store_dir, library_dir
 from zebra_sim_ros.zebra.coat_store import CoatStore
@@ -22,10 +24,10 @@ def _run(args: list[str], cache: Path, timeout: float = 120) -> subprocess.Compl
                           text=True, timeout=timeout)
 
 
-def test_every_subcommand_has_help(zebra_cache: Path) -> None:
+def test_every_subcommand_has_help(zebra_cache: Path, cli: CliRun) -> None:
     for args in (["--help"], ["asset", "--help"], ["asset", "build", "--help"], ["asset", "info", "--help"],
                  ["asset", "prune", "--help"], ["asset", "preview", "--help"]):
-        proc = _run(args, zebra_cache)
+        proc = cli(args, {"ZEBRA_SIM_CACHE": str(zebra_cache)})
         assert proc.returncode == 0, (args, proc.stderr)
         assert "usage:" in proc.stdout
 
@@ -41,10 +43,10 @@ def test_build_writes_usd_and_a_json_summary(library: ZebraLibrary, zebra_cache:
         assert cv2.imread(str(tmp_path / "usd" / f"zebra_{name}_coat.png")).shape == (128, 128, 3)
 
 
-def test_info_json(library: ZebraLibrary, zebra_cache: Path) -> None:
+def test_info_json(library: ZebraLibrary, zebra_cache: Path, cli: CliRun) -> None:
     store = CoatStore(zebra_cache)
     store.coats([("plains", 1), ("rhino", 2)], 64)  # two coats in the cache's store, as a camera leaves them
-    proc = _run(["asset", "info", "--json"], zebra_cache)
+    proc = cli(["asset", "info", "--json"], {"ZEBRA_SIM_CACHE": str(zebra_cache)})
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout.strip().splitlines()[-1])
     assert summary["keypoints"] >= 20 and summary["joints"] >= 25
@@ -56,10 +58,10 @@ def test_info_json(library: ZebraLibrary, zebra_cache: Path) -> None:
     assert f"{store.dir}: {len(files)} coats" in proc.stdout
 
 
-def test_preview_sheet(library: ZebraLibrary, zebra_cache: Path, tmp_path: Path) -> None:
+def test_preview_sheet(library: ZebraLibrary, zebra_cache: Path, tmp_path: Path, cli: CliRun) -> None:
     out = tmp_path / "sheet.png"
-    proc = _run(["asset", "preview", str(out), "--clips", "walk,graze", "--frames-per-clip", "3",
-                 "--cell", "100", "--json"], zebra_cache)
+    proc = cli(["asset", "preview", str(out), "--clips", "walk,graze", "--frames-per-clip", "3",
+                "--cell", "100", "--json"], {"ZEBRA_SIM_CACHE": str(zebra_cache)})
     assert proc.returncode == 0, proc.stderr
     img = cv2.imread(str(out))
     summary = json.loads(proc.stdout.strip().splitlines()[-1])
@@ -79,14 +81,14 @@ def test_preview_sheet(library: ZebraLibrary, zebra_cache: Path, tmp_path: Path)
     (["asset", "preview", "x.png", "--morph", "quagga"], "morph"),
 ])
 def test_bad_arguments_stop_with_a_message_naming_them(library: ZebraLibrary, zebra_cache: Path, tmp_path: Path,
-                                                       args: list[str], needle: str) -> None:
+                                                       args: list[str], needle: str, cli: CliRun) -> None:
     args = [str(tmp_path / a) if a.endswith((".png", ".jpg")) else a for a in args]
-    proc = _run(args, zebra_cache)
+    proc = cli(args, {"ZEBRA_SIM_CACHE": str(zebra_cache)})
     assert proc.returncode == 2
     assert needle in proc.stderr and "invalid" in proc.stderr
 
 
-def test_prune_removes_other_versions_caches_and_nothing_else(tmp_path: Path) -> None:
+def test_prune_removes_other_versions_caches_and_nothing_else(tmp_path: Path, cli: CliRun) -> None:
     """Only the folders named as ours and not read by this code version go; a build whose process runs here or that
     was touched within the hour stays, and so does anything else under the root, links included (never followed).
     ``--dry-run`` lists without removing, ``--all`` takes this version's too."""
@@ -112,14 +114,14 @@ def test_prune_removes_other_versions_caches_and_nothing_else(tmp_path: Path) ->
     (root / "coats-0123456789abcdee").write_text("a file, not a folder")
     untouched = sorted([*others, "coats-00112233445566ff", "coats-0123456789abcdee"])
 
-    dry = _run(["asset", "prune", "--cache", str(root), "--dry-run", "--json"], root)
+    dry = cli(["asset", "prune", "--cache", str(root), "--dry-run", "--json"], {"ZEBRA_SIM_CACHE": str(root)})
     assert dry.returncode == 0, dry.stderr
     summary = json.loads(dry.stdout.strip().splitlines()[-1])
     assert sorted(Path(p).name for p in summary["would_remove"]) == sorted(old) and "removed" not in summary
     assert summary["bytes"] == sum(old.values())  # the link inside counts nothing
     assert sorted(p.name for p in root.iterdir()) == sorted([*old, *untouched])
 
-    proc = _run(["asset", "prune", "--cache", str(root), "--json"], root)
+    proc = cli(["asset", "prune", "--cache", str(root), "--json"], {"ZEBRA_SIM_CACHE": str(root)})
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout.strip().splitlines()[-1])
     assert sorted(Path(p).name for p in summary["removed"]) == sorted(old) and summary["failed"] == []
@@ -128,22 +130,23 @@ def test_prune_removes_other_versions_caches_and_nothing_else(tmp_path: Path) ->
     assert sorted(Path(p).name for p in summary["kept"]) == sorted(
         [here.name, coats.name, f"zebra-0123456789abcdef.tmp{os.getpid()}", f"zebra-0123456789abcdee.tmp{no_pid}"])
 
-    proc = _run(["asset", "prune", "--cache", str(root), "--all", "--json"], root)
+    proc = cli(["asset", "prune", "--cache", str(root), "--all", "--json"], {"ZEBRA_SIM_CACHE": str(root)})
     assert proc.returncode == 0, proc.stderr
     assert not here.exists() and not coats.exists()
     assert sorted(p.name for p in root.iterdir()) == sorted(set(untouched) - {here.name, coats.name})
 
-    proc = _run(["asset", "prune", "--cache", str(tmp_path / "no_such_cache")], root)
+    proc = cli(["asset", "prune", "--cache", str(tmp_path / "no_such_cache")], {"ZEBRA_SIM_CACHE": str(root)})
     assert proc.returncode == 2 and "--cache" in proc.stderr and "no_such_cache" in proc.stderr
 
 
-def test_info_counts_other_versions_caches(library: ZebraLibrary, zebra_cache: Path, tmp_path: Path) -> None:
+def test_info_counts_other_versions_caches(library: ZebraLibrary, zebra_cache: Path, tmp_path: Path,
+                                           cli: CliRun) -> None:
     root = tmp_path / "cache"
     root.mkdir()
     (root / library.root.name).symlink_to(library.root)  # this version's cache, not copied
     (root / "zebra-0123456789abcdef").mkdir()
     (root / "zebra-0123456789abcdef" / "joints.npy").write_bytes(b"x" * 2_500_000)
-    proc = _run(["asset", "info", "--cache", str(root), "--json"], root)
+    proc = cli(["asset", "info", "--cache", str(root), "--json"], {"ZEBRA_SIM_CACHE": str(root)})
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout.strip().splitlines()[-1])
     assert summary["other_versions"] == {"folders": 1, "bytes": 2_500_000}

@@ -7,17 +7,14 @@ import subprocess
 import sys
 from pathlib import Path
 
+from conftest import CliRun
+
 REPO = Path(__file__).resolve().parents[1]
 
 
-def _run(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "place", *args], capture_output=True, text=True,
-                          timeout=120)
-
-
-def test_scenes_and_summary(tmp_path: Path) -> None:
-    proc = _run("--seed", "4", "--steps", "4", "--params-file", str(REPO / "config" / "placer.yaml"),
-                "--set", "count_max=30", "--strategy", "closeby", "--json")
+def test_scenes_and_summary(tmp_path: Path, cli: CliRun) -> None:
+    proc = cli(["place", "--seed", "4", "--steps", "4", "--params-file", REPO / "config" / "placer.yaml",
+                "--set", "count_max=30", "--strategy", "closeby", "--json"])
     assert proc.returncode == 0, proc.stderr
     lines = proc.stdout.strip().splitlines()
     scenes = [json.loads(x) for x in lines[:-1]]
@@ -27,25 +24,23 @@ def test_scenes_and_summary(tmp_path: Path) -> None:
     assert all(c["strategy"] == "closeby" for s in scenes for c in s["cameras"])
     assert summary["steps"] == 4 and summary["zebras_placed"] == sum(s["placed"] for s in scenes)
     # Step 3 made alone is step 3 of the sequence.
-    alone = _run("--seed", "4", "--steps", "1", "--start-step", "3", "--set", "count_max=30",
-                 "--strategy", "closeby", "--out", str(tmp_path / "s.jsonl"))
+    alone = cli(["place", "--seed", "4", "--steps", "1", "--start-step", "3", "--set", "count_max=30",
+                 "--strategy", "closeby", "--out", tmp_path / "s.jsonl"])
     assert alone.returncode == 0, alone.stderr
     assert json.loads((tmp_path / "s.jsonl").read_text()) == scenes[3]
 
 
-def test_bad_values_are_named() -> None:
+def test_bad_values_are_named(cli: CliRun) -> None:
     for args, needle in ((["--set", "scale_min=2.0"], "scale_min"), (["--set", "nonsense"], "--set"),
                          (["--steps", "0"], "--steps"), (["--world", "atlantis"], "world")):
-        proc = _run(*args)
+        proc = cli(["place", *args])
         assert proc.returncode == 2, (args, proc.stdout, proc.stderr)
         assert needle in proc.stderr
 
 
-def test_a_closed_pipe_ends_quietly_and_options_are_never_abbreviated() -> None:
+def test_a_closed_pipe_ends_quietly_and_options_are_never_abbreviated(cli: CliRun) -> None:
     """``zebra-sim place --steps 20 | head -c 100``: the reader goes away, zebra-sim stops without a traceback;
     ``--frame`` is not taken for ``--frames`` (nor ``--step`` for ``--steps``)."""
-    import subprocess
-    import sys
 
     proc = subprocess.Popen([sys.executable, "-m", "zebra_sim_ros.cli", "place", "--steps", "20", "--seed", "3"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
@@ -54,6 +49,5 @@ def test_a_closed_pipe_ends_quietly_and_options_are_never_abbreviated() -> None:
     proc.stdout.close()  # 20 scenes are about 700 KB: far more than a pipe holds, so a write meets the closed pipe
     err = proc.stderr.read().decode()
     assert proc.wait(timeout=120) == 141 and "Traceback" not in err and "BrokenPipe" not in err, err
-    bad = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "place", "--step", "2"], capture_output=True,
-                         text=True, timeout=120)
+    bad = cli(["place", "--step", "2"])
     assert bad.returncode == 2 and "unrecognized arguments: --step 2" in bad.stderr, bad.stderr

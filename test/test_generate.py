@@ -5,14 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 import shlex
-import subprocess
-import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 import yaml
+from conftest import CliRun
 from pycocotools.coco import COCO
 
 from zebra_sim_ros.dataset.generate import GenerateConfig, Job, frame_name, generate, plan, stream_seed
@@ -206,11 +205,9 @@ def test_every_world_and_strategy_draws_its_own_stream() -> None:
     assert len(hours) == 16  # the placer's first draw of step 0 (its time of day) differs in every stream
 
 
-def test_cli_summary_and_bad_arguments(tmp_path: Path) -> None:
-    base = [sys.executable, "-m", "zebra_sim_ros.cli", "generate"]
-    proc = subprocess.run(base + ["--frames", "3", "--strategy", "SC", "--imgsz", "256x144", "--out",
-                                  str(tmp_path / "c"), "--set", "count_max=20", "--json", "--quiet"],
-                          capture_output=True, text=True, timeout=300)
+def test_cli_summary_and_bad_arguments(tmp_path: Path, cli: CliRun) -> None:
+    proc = cli(["generate", "--frames", "3", "--strategy", "SC", "--imgsz", "256x144", "--out", tmp_path / "c",
+                "--set", "count_max=20", "--json", "--quiet"])
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout.strip().splitlines()[-1])
     assert summary["frames_written"] == 3
@@ -218,7 +215,7 @@ def test_cli_summary_and_bad_arguments(tmp_path: Path) -> None:
     for args, needle in ((["--frames", "0"], "--frames"), (["--frames", "3", "--strategy", "sideways"], "--strategy"),
                          (["--frames", "3", "--imgsz", "big"], "--imgsz"), (["--frames", "3", "--shard", "3/2"],
                                                                             "--shard")):
-        bad = subprocess.run(base + args + ["--out", str(tmp_path / "d")], capture_output=True, text=True, timeout=60)
+        bad = cli(["generate", *args, "--out", tmp_path / "d"])
         assert bad.returncode == 2 and needle in bad.stderr, (args, bad.stderr)
 
 

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import json
+import runpy
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
 import numpy as np
+import pytest
 
 from zebra_sim_ros.detection.data import generate_settings
 
@@ -32,17 +35,44 @@ def _set(root: Path, split: str, n: int, prefix: str, seed: int = 6001) -> Path:
     return root / "images" / split
 
 
-def _pack(*args: str | Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, str(PACK), *map(str, args)], capture_output=True, text=True, timeout=120)
+Pack = Callable[..., "subprocess.CompletedProcess[str]"]
 
 
-def test_pack_selects_reencodes_and_keeps_labels(tmp_path: Path) -> None:
+@pytest.fixture
+def pack(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> Pack:
+    """``pack(ARGS)``: scripts/gpu/pack.py run as ``python pack.py ARGS`` is, but in this process (a fresh
+    interpreter importing torch costs about 3 s a run on our 2 cores): a SystemExit with a message prints it to
+    stderr and exits 1, as the interpreter does; the status, stdout and stderr come back as a finished process's."""
+
+    def run(*args: str | Path) -> subprocess.CompletedProcess[str]:
+        argv = [str(PACK), *map(str, args)]
+        with monkeypatch.context() as m:
+            m.setattr(sys, "argv", argv)
+            capfd.readouterr()
+            try:
+                runpy.run_path(str(PACK), run_name="__main__")
+                code = 0
+            except SystemExit as exc:
+                if exc.code is None or isinstance(exc.code, int):
+                    code = exc.code or 0
+                else:
+                    print(exc.code, file=sys.stderr)
+                    code = 1
+            sys.stdout.flush()
+            sys.stderr.flush()
+            out, err = capfd.readouterr()
+        return subprocess.CompletedProcess(argv, code, out, err)
+
+    return run
+
+
+def test_pack_selects_reencodes_and_keeps_labels(tmp_path: Path, pack: Pack) -> None:
     a = _set(tmp_path / "a", "train", 12, "a")
     b = _set(tmp_path / "b", "train", 8, "b", seed=6000)
     val = _set(tmp_path / "b", "val", 5, "v", seed=6000)
     out = tmp_path / "gpu_data"
-    r = _pack("--train", a, b, "--drop-every", f"{b}=4", "--val", val, "--val-frames", "3", "--quality", "60",
-              "--out", out)
+    r = pack("--train", a, b, "--drop-every", f"{b}=4", "--val", val, "--val-frames", "3", "--quality", "60",
+             "--out", out)
     assert r.returncode == 0, r.stderr
     got = sorted(p.stem for p in (out / "train" / "images" / "train").glob("*.jpg"))
     # all 12 of a; b less its 1st and 5th frame (every 4th from the first)
@@ -50,9 +80,9 @@ def test_pack_selects_reencodes_and_keeps_labels(tmp_path: Path) -> None:
     assert "18 training and 3 validation frames" in r.stdout
     # the tree that travels counts the repository's files (the shipped weights alone are over 5 MiB) and the pack
     tree = float(r.stdout.split("travels with it, on disk: ")[1].split(" MiB")[0])
-    pack = float(r.stdout.split("(the pack ")[1].split(",")[0])
+    pack_mib = float(r.stdout.split("(the pack ")[1].split(",")[0])
     repo = float(r.stdout.split("the repository ")[1].split(")")[0])
-    assert repo > 5.0 and pack > 0.0 and abs(tree - (pack + repo)) < 0.15  # nothing else in --out; rounding
+    assert repo > 5.0 and pack_mib > 0.0 and abs(tree - (pack_mib + repo)) < 0.15  # nothing else in --out; rounding
     for stem in got:  # labels travel unchanged; don't-care files where the source had them
         src_root = tmp_path / stem[0]
         assert (out / "train" / "labels" / "train" / f"{stem}.txt").read_text() == \
@@ -69,34 +99,34 @@ def test_pack_selects_reencodes_and_keeps_labels(tmp_path: Path) -> None:
     assert generate_settings(out / "mix.yaml") == {"sets": {str(tmp_path / "a"): {"seed": 6001},
                                                             str(tmp_path / "b"): {"seed": 6000}}}
     one = tmp_path / "one"
-    assert _pack("--train", a, "--val", val, "--val-frames", "1", "--out", one).returncode == 0
+    assert pack("--train", a, "--val", val, "--val-frames", "1", "--out", one).returncode == 0
     assert json.loads((one / "train" / "generate.json").read_text()) == {"config": {"seed": 6001}}  # one: a copy
     assert generate_settings(one / "train" / "images" / "train") == {"sets": {str(one / "train"): {"seed": 6001}}}
 
-    r = _pack("--train", a, b, "--drop-every", f"{b}=4", "--val", val, "--thin", "3", "--out", out)
+    r = pack("--train", a, b, "--drop-every", f"{b}=4", "--val", val, "--thin", "3", "--out", out)
     assert r.returncode == 0, r.stderr
     thinned = sorted(p.stem for p in (out / "train" / "images" / "train").glob("*.jpg"))
     assert thinned == [s for k, s in enumerate(got) if k % 3]  # every 3rd of the sorted list left out, old files gone
 
-    r = _pack("--train", a, b, "--keep-every", f"{a}=5", "--val", val, "--out", out)
+    r = pack("--train", a, b, "--keep-every", f"{a}=5", "--val", val, "--out", out)
     assert r.returncode == 0, r.stderr
     kept = sorted(p.stem for p in (out / "train" / "images" / "train").glob("*.jpg"))
     assert kept == ["a_000", "a_005", "a_010"] + [f"b_{k:03d}" for k in range(8)]  # a's 1st, 6th, 11th; all of b
 
 
-def test_pack_refuses_bad_options_and_oversized_trees(tmp_path: Path) -> None:
+def test_pack_refuses_bad_options_and_oversized_trees(tmp_path: Path, pack: Pack) -> None:
     a = _set(tmp_path / "a", "train", 4, "a")
-    r = _pack("--train", a, "--drop-every", f"{a}=1", "--val", a)
+    r = pack("--train", a, "--drop-every", f"{a}=1", "--val", a)
     assert r.returncode != 0 and "--drop-every" in r.stderr and "N >= 2" in r.stderr
-    r = _pack("--train", a, "--keep-every", f"{a}=x", "--val", a)
+    r = pack("--train", a, "--keep-every", f"{a}=x", "--val", a)
     assert r.returncode != 0 and "--keep-every" in r.stderr and "N >= 2" in r.stderr
-    r = _pack("--train", a, "--keep-every", f"{a}=2", "--drop-every", f"{a}=3", "--val", a)
+    r = pack("--train", a, "--keep-every", f"{a}=2", "--drop-every", f"{a}=3", "--val", a)
     assert r.returncode != 0 and "both --drop-every and --keep-every" in r.stderr
-    r = _pack("--train", tmp_path / "nothing", "--val", a, "--out", tmp_path / "o")
+    r = pack("--train", tmp_path / "nothing", "--val", a, "--out", tmp_path / "o")
     assert r.returncode != 0 and "holds no .jpg or .png frames" in r.stderr
-    r = _pack("--train", a, "--val", a, "--out", tmp_path / "o", "--thin", "1")
+    r = pack("--train", a, "--val", a, "--out", tmp_path / "o", "--thin", "1")
     assert r.returncode != 0 and "--thin 1" in r.stderr
-    r = _pack("--train", a, "--val", a, "--out", tmp_path / "o", "--quality", "101")
+    r = pack("--train", a, "--val", a, "--out", tmp_path / "o", "--quality", "101")
     assert r.returncode != 0 and "--quality 101" in r.stderr
-    r = _pack("--train", a, "--val", a, "--out", tmp_path / "o", "--max-mib", "0.00001")
+    r = pack("--train", a, "--val", a, "--out", tmp_path / "o", "--max-mib", "0.00001")
     assert r.returncode != 0 and "over --max-mib" in r.stderr

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 import rclpy
+from conftest import CliRun
 from geometry_msgs.msg import PoseStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -64,7 +63,7 @@ def domain() -> int:
     return fresh_domain_id()
 
 
-def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path) -> None:
+def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path, cli: CliRun) -> None:
     listener = Listener(domain)
     try:
         # Poses, markers and /tf are volatile: the placer waits until this listener is matched on each, else the
@@ -92,11 +91,9 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path) 
         assert all(sorted(t.child_frame_id for t in m.transforms) == [f"drone_{i}/base_link" for i in range(3)]
                    for m in listener.tf)
         # The node's scenes are exactly the command line's (same parameters, no ROS).
-        cli = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "place", "--steps", "2",
-                              "--set", "count_max=40", "--set", "rate_hz=4.0", "--seed", "9"],
-                             capture_output=True, text=True, timeout=120)
-        assert cli.returncode == 0, cli.stderr
-        assert [json.loads(line) for line in cli.stdout.splitlines()[:2]] == listener.scenes[:2]
+        placed = cli(["place", "--steps", "2", "--set", "count_max=40", "--set", "rate_hz=4.0", "--seed", "9"])
+        assert placed.returncode == 0, placed.stderr
+        assert [json.loads(line) for line in placed.stdout.splitlines()[:2]] == listener.scenes[:2]
     finally:
         listener.close()
 

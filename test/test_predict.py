@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from conftest import CliRun
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header
@@ -30,15 +29,14 @@ def _zebra_like(seed: int, size: tuple[int, int] = (160, 96)) -> np.ndarray:
     return img
 
 
-def _predict(*args: str) -> dict:
-    run = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "predict", *args, "--json"],
-                         capture_output=True, text=True, timeout=300)
+def _predict(cli: CliRun, *args: str) -> dict:
+    run = cli(["predict", *args, "--json"])
     assert run.returncode == 0, run.stderr[-3000:]
     assert "images/s" in run.stdout  # the throughput line
     return dict(json.loads(run.stdout.strip().splitlines()[-1]))
 
 
-def test_predict_a_folder_writes_one_drawn_image_label_and_json_each(tmp_path: Path) -> None:
+def test_predict_a_folder_writes_one_drawn_image_label_and_json_each(tmp_path: Path, cli: CliRun) -> None:
     src = tmp_path / "frames"
     (src / "sub").mkdir(parents=True)
     for k in range(20):
@@ -46,7 +44,7 @@ def test_predict_a_folder_writes_one_drawn_image_label_and_json_each(tmp_path: P
     out = tmp_path / "out"
     # conf 0.001: a striped blob is no zebra to weights trained on rendered ones (stage 13 scores none of them
     # over 0.02); this test needs detections to check the files, not good ones
-    s = _predict(str(src), "--out", str(out), "--conf", "0.001", "--quiet")
+    s = _predict(cli, str(src), "--out", str(out), "--conf", "0.001", "--quiet")
     assert s["images"] == 20
     drawn = sorted((out / "images").glob("*.jpg"))
     labels = sorted((out / "labels").glob("*.txt"))
@@ -68,14 +66,14 @@ def test_predict_a_folder_writes_one_drawn_image_label_and_json_each(tmp_path: P
     assert cv2.imread(str(drawn[0])).shape == (96, 160, 3)
 
 
-def test_predict_a_video_writes_a_drawn_video_and_labels_per_frame(tmp_path: Path) -> None:
+def test_predict_a_video_writes_a_drawn_video_and_labels_per_frame(tmp_path: Path, cli: CliRun) -> None:
     video = tmp_path / "clip.mp4"
     writer = cv2.VideoWriter(str(video), cv2.VideoWriter.fourcc(*"mp4v"), 10.0, (160, 96))
     for k in range(6):
         writer.write(_zebra_like(k)[..., ::-1])
     writer.release()
     out = tmp_path / "out"
-    s = _predict(str(video), "--out", str(out))
+    s = _predict(cli, str(video), "--out", str(out))
     assert s["images"] == 6 and s["video"] == str(out / "clip_detections.mp4")
     cap = cv2.VideoCapture(s["video"])
     assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 6
@@ -84,7 +82,7 @@ def test_predict_a_video_writes_a_drawn_video_and_labels_per_frame(tmp_path: Pat
     assert Detections.from_json((out / "json" / "clip_000003.json").read_text()).stamp.ns == 300_000_000
 
 
-def test_predict_a_bag_detects_every_camera_image_and_nothing_else(tmp_path: Path) -> None:
+def test_predict_a_bag_detects_every_camera_image_and_nothing_else(tmp_path: Path, cli: CliRun) -> None:
     bag = tmp_path / "b.mcap"
     w = BagWriter(bag)
     for topic, typ in (("/drone_0/image_raw", "sensor_msgs/msg/Image"), ("/drone_1/image_raw", "sensor_msgs/msg/Image"),
@@ -103,18 +101,17 @@ def test_predict_a_bag_detects_every_camera_image_and_nothing_else(tmp_path: Pat
         w.write("/drone_0/depth", serialize_message(depth), k * 10**9)
     w.close()
     out = tmp_path / "out"
-    s = _predict(str(bag), "--out", str(out), "--quiet")
+    s = _predict(cli, str(bag), "--out", str(out), "--quiet")
     assert s["images"] == 6  # one per camera image; the depth images are not camera colour
     names = sorted(p.stem for p in (out / "labels").glob("*.txt"))
     assert names == sorted(f"drone_{i}_image_raw_{k * 10**9}" for i in (0, 1) for k in range(3))
     assert Detections.from_json((out / "json" / "drone_1_image_raw_2000000000.json").read_text()).stamp.sec == 2
-    s1 = _predict(str(bag), "--out", str(tmp_path / "only"), "--topics", "/drone_1/image_raw", "--quiet")
+    s1 = _predict(cli, str(bag), "--out", str(tmp_path / "only"), "--topics", "/drone_1/image_raw", "--quiet")
     assert s1["images"] == 3
 
 
-def test_predict_refuses_a_source_it_cannot_read(tmp_path: Path) -> None:
+def test_predict_refuses_a_source_it_cannot_read(tmp_path: Path, cli: CliRun) -> None:
     (tmp_path / "notes.txt").write_text("x")
     for src in (tmp_path / "missing.jpg", tmp_path / "notes.txt"):
-        run = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "predict", str(src), "--out",
-                              str(tmp_path / "o")], capture_output=True, text=True, timeout=120)
+        run = cli(["predict", src, "--out", tmp_path / "o"])
         assert run.returncode == 2 and "SOURCE" in run.stderr and str(src) in run.stderr, run.stderr

@@ -14,6 +14,7 @@ from typing import Any
 
 import cv2
 import pytest
+from conftest import CliRun
 from ros_helpers import Peer, detection_array_class, fresh_domain_id, node_process, ros_env
 
 from zebra_sim_ros.graph.spec import UpConfig, graph_spec
@@ -46,7 +47,7 @@ def _last_json(stdout: str) -> dict[str, Any]:
     return dict(json.loads(stdout.strip().splitlines()[-1]))
 
 
-def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tmp_path: Path) -> None:
+def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tmp_path: Path, cli: CliRun) -> None:
     domain = fresh_domain_id()
     run = _up(tmp_path / "up", domain)
     assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-2000:]
@@ -104,8 +105,7 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
             peer.spin(lambda: False, 1.0)  # the recorder receives the last detections too
     finally:
         peer.close()
-    ev = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "bag", "eval", str(bag2), "--json"],
-                        capture_output=True, text=True, timeout=120)
+    ev = cli(["bag", "eval", bag2, "--json"])
     assert ev.returncode == 0, ev.stderr
     replayed = _last_json(ev.stdout)
     assert [replayed[d]["frames"] for d in DRONES] == [3, 3, 3]

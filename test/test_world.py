@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import CliRun
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.world.noise import derive_rng, spectral_noise, value_noise
@@ -306,13 +305,8 @@ def test_y_up_centimetre_quad_mesh_loads_in_metres(tmp_path: Path) -> None:
     assert float(w.terrain.slope_deg(10.0, -10.0)) == pytest.approx(np.degrees(np.arctan(0.1)), abs=0.01)
 
 
-def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "world", *args], capture_output=True,
-                          text=True, timeout=120)
-
-
-def test_cli_world_list_json() -> None:
-    proc = _cli("list", "--json")
+def test_cli_world_list_json(cli: CliRun) -> None:
+    proc = cli(["world", "list", "--json"])
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout.strip().splitlines()[-1])
     assert [w["name"] for w in summary["worlds"]] == list(PRESETS)
@@ -320,24 +314,24 @@ def test_cli_world_list_json() -> None:
     assert "savanna" in proc.stdout.splitlines()[0]
 
 
-def test_cli_world_export_and_bad_preset(tmp_path: Path) -> None:
+def test_cli_world_export_and_bad_preset(tmp_path: Path, cli: CliRun) -> None:
     out = tmp_path / "scrub.usd"
-    proc = _cli("export", "--preset", "scrubland", "--seed", "2", str(out), "--json")
+    proc = cli(["world", "export", "--preset", "scrubland", "--seed", "2", out, "--json"])
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout.strip().splitlines()[-1])
     assert summary["path"] == str(out) and summary["bytes"] == out.stat().st_size > 1_000_000
     assert summary["preset"] == "scrubland" and summary["seed"] == 2 and summary["triangles"] == 2 * 512 * 512
     assert summary["instances"] == generate_world("scrubland", 2).instance_count()
-    bad = _cli("export", "--preset", "atlantis", str(tmp_path / "x.usd"))
+    bad = cli(["world", "export", "--preset", "atlantis", tmp_path / "x.usd"])
     assert bad.returncode == 2
     assert "--preset" in bad.stderr and "savanna" in bad.stderr and "atlantis" in bad.stderr
 
 
-def test_cli_world_preview(tmp_path: Path) -> None:
+def test_cli_world_preview(tmp_path: Path, cli: CliRun) -> None:
     import cv2
 
     out = tmp_path / "m.png"
-    proc = _cli("preview", "--preset", "moorland", "--px-per-m", "1", str(out), "--json")
+    proc = cli(["world", "preview", "--preset", "moorland", "--px-per-m", "1", out, "--json"])
     assert proc.returncode == 0, proc.stderr
     img = cv2.imread(str(out))
     assert img.shape == (512, 512, 3) and img.std() > 5
