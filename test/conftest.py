@@ -41,6 +41,14 @@ def library(zebra_cache: Path) -> ZebraLibrary:
 CliRun = Callable[..., "subprocess.CompletedProcess[str]"]
 
 
+def exit_status(exc: SystemExit) -> int:
+    """The status the interpreter exits with on ``exc``, printing a message code to stderr as it does."""
+    if exc.code is None or isinstance(exc.code, int):
+        return exc.code or 0
+    print(exc.code, file=sys.stderr)
+    return 1
+
+
 @pytest.fixture
 def cli(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> CliRun:
     """``cli(args, env, timeout)``: ``zebra-sim ARGS`` through the console script's own ``main`` in this process, its
@@ -65,11 +73,7 @@ def cli(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> C
             try:
                 code = main(argv)
             except SystemExit as exc:
-                if exc.code is None or isinstance(exc.code, int):
-                    code = exc.code or 0
-                else:
-                    print(exc.code, file=sys.stderr)
-                    code = 1
+                code = exit_status(exc)
             finally:
                 signal.setitimer(signal.ITIMER_REAL, 0)
                 signal.signal(signal.SIGALRM, old)

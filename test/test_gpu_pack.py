@@ -12,6 +12,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from conftest import exit_status
 
 from zebra_sim_ros.detection.data import generate_settings
 
@@ -53,11 +54,7 @@ def pack(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> 
                 runpy.run_path(str(PACK), run_name="__main__")
                 code = 0
             except SystemExit as exc:
-                if exc.code is None or isinstance(exc.code, int):
-                    code = exc.code or 0
-                else:
-                    print(exc.code, file=sys.stderr)
-                    code = 1
+                code = exit_status(exc)
             sys.stdout.flush()
             sys.stderr.flush()
             out, err = capfd.readouterr()
