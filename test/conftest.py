@@ -49,6 +49,11 @@ def exit_status(exc: SystemExit) -> int:
     return 1
 
 
+class CliTimeout(BaseException):
+    """A ``cli`` run past its timeout: a BaseException, so no ``except OSError`` (or Exception) in the code under
+    test swallows it."""
+
+
 @pytest.fixture
 def cli(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> CliRun:
     """``cli(args, env, timeout)``: ``zebra-sim ARGS`` through the console script's own ``main`` in this process, its
@@ -59,11 +64,12 @@ def cli(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> C
     from zebra_sim_ros.cli import main
 
     def on_alarm(signum: int, frame: object) -> None:
-        raise TimeoutError("zebra-sim ran past its timeout")
+        raise CliTimeout(f"zebra-sim ran past its timeout: {signum}")
 
     def run(args: Sequence[object], env: Mapping[str, str] | None = None,
-            timeout: float = 300.0) -> subprocess.CompletedProcess[str]:
+            timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
         argv = [str(a) for a in args]
+        out = err = ""
         with monkeypatch.context() as m:
             for key, value in (env or {}).items():
                 m.setenv(key, value)
@@ -71,18 +77,20 @@ def cli(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> C
             old = signal.signal(signal.SIGALRM, on_alarm)
             signal.setitimer(signal.ITIMER_REAL, timeout)
             try:
-                code = main(argv)
-            except SystemExit as exc:
-                code = exit_status(exc)
+                try:
+                    code = main(argv)
+                except SystemExit as exc:
+                    code = exit_status(exc)
+                finally:
+                    signal.setitimer(signal.ITIMER_REAL, 0)
+                    signal.signal(signal.SIGALRM, old)
+                    sys.stdout.flush()
+                    sys.stderr.flush()
+                    out, err = capfd.readouterr()
             finally:
-                signal.setitimer(signal.ITIMER_REAL, 0)
-                signal.signal(signal.SIGALRM, old)
-            sys.stdout.flush()
-            sys.stderr.flush()
-            out, err = capfd.readouterr()
-        # written back, so a failing test's report still shows everything, this run's output included
-        sys.stdout.write(before.out + out)
-        sys.stderr.write(before.err + err)
+                # written back on every path, so a failing test's report shows everything, this run's output too
+                sys.stdout.write(before.out + out)
+                sys.stderr.write(before.err + err)
         return subprocess.CompletedProcess(argv, code, out, err)
 
     return run

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from conftest import exit_status
 
 ROOT = Path(__file__).resolve().parents[1]
 PACK = ROOT / "scripts" / "gpu" / "pack.py"
@@ -46,7 +47,7 @@ def tiny_pack(tmp: Path) -> Path:
         with contextlib.redirect_stdout(log):
             runpy.run_path(str(PACK), run_name="__main__")
     except SystemExit as exc:
-        if exc.code not in (None, 0):
+        if exit_status(exc) != 0:
             raise AssertionError(f"pack.py refused the tiny set: {exc.code} {log.getvalue()}") from exc
     finally:
         sys.argv = argv

@@ -49,15 +49,18 @@ def pack(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> 
         argv = [str(PACK), *map(str, args)]
         with monkeypatch.context() as m:
             m.setattr(sys, "argv", argv)
-            capfd.readouterr()
+            before = capfd.readouterr()
             try:
                 runpy.run_path(str(PACK), run_name="__main__")
                 code = 0
             except SystemExit as exc:
                 code = exit_status(exc)
-            sys.stdout.flush()
-            sys.stderr.flush()
-            out, err = capfd.readouterr()
+            finally:
+                sys.stdout.flush()
+                sys.stderr.flush()
+                out, err = capfd.readouterr()
+                sys.stdout.write(before.out + out)  # written back: a failing test's report shows it all
+                sys.stderr.write(before.err + err)
         return subprocess.CompletedProcess(argv, code, out, err)
 
     return run
