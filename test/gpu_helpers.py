@@ -23,6 +23,26 @@ SETTINGS = ("BUDGET", "EPOCHS", "E0", "K", "IMGSZ", "CROP", "BATCH", "WORKERS", 
             "INIT", "INIT_A", "INIT_B", "AUG", "A_OPTS", "B_OPTS", "OUT", "DATA", "P2", "MODEL")
 
 
+def run_pack(*args: str | Path) -> subprocess.CompletedProcess[str]:
+    """scripts/gpu/pack.py run as ``python pack.py ARGS`` is, but in this process (a fresh interpreter importing
+    torch costs about 3 s on our 2 cores): a SystemExit with a message prints it to stderr and exits 1, as the
+    interpreter does; its status, stdout and stderr come back as a finished process's (it prints only through
+    Python: its one child, git, has its output captured)."""
+    argv, saved = [str(PACK), *map(str, args)], sys.argv
+    out, err = io.StringIO(), io.StringIO()
+    sys.argv = argv
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                runpy.run_path(str(PACK), run_name="__main__")
+                code = 0
+            except SystemExit as exc:
+                code = exit_status(exc)
+    finally:
+        sys.argv = saved
+    return subprocess.CompletedProcess(argv, code, out.getvalue(), err.getvalue())
+
+
 def tiny_pack(tmp: Path) -> Path:
     """A packed folder of 6 training and 2 validation frames: grey ground with one dark striped box each."""
     src = tmp / "set"
@@ -39,18 +59,8 @@ def tiny_pack(tmp: Path) -> Path:
             (src / "labels" / split / f"f{k}.txt").write_text(
                 f"0 {(x0 + 30) / 320:.4f} {(y0 + 20) / 180:.4f} {60 / 320:.4f} {40 / 180:.4f}\n")
     out = tmp / "pack"
-    # pack.py run as ``python pack.py ...`` is, in this process (a fresh interpreter costs about 3 s)
-    argv, log = sys.argv, io.StringIO()
-    sys.argv = [str(PACK), "--train", str(src / "images" / "train"), "--val", str(src / "images" / "val"), "--out",
-                str(out)]
-    try:
-        with contextlib.redirect_stdout(log):
-            runpy.run_path(str(PACK), run_name="__main__")
-    except SystemExit as exc:
-        if exit_status(exc) != 0:
-            raise AssertionError(f"pack.py refused the tiny set: {exc.code} {log.getvalue()}") from exc
-    finally:
-        sys.argv = argv
+    r = run_pack("--train", src / "images" / "train", "--val", src / "images" / "val", "--out", out)
+    assert r.returncode == 0, r.stdout + r.stderr
     return out
 
 

@@ -3,21 +3,13 @@
 from __future__ import annotations
 
 import json
-import runpy
-import subprocess
-import sys
-from collections.abc import Callable
 from pathlib import Path
 
 import cv2
 import numpy as np
-import pytest
-from conftest import exit_status
+from gpu_helpers import run_pack
 
 from zebra_sim_ros.detection.data import generate_settings
-
-ROOT = Path(__file__).resolve().parents[1]
-PACK = ROOT / "scripts" / "gpu" / "pack.py"
 
 
 def _set(root: Path, split: str, n: int, prefix: str, seed: int = 6001) -> Path:
@@ -36,42 +28,12 @@ def _set(root: Path, split: str, n: int, prefix: str, seed: int = 6001) -> Path:
     return root / "images" / split
 
 
-Pack = Callable[..., "subprocess.CompletedProcess[str]"]
-
-
-@pytest.fixture
-def pack(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> Pack:
-    """``pack(ARGS)``: scripts/gpu/pack.py run as ``python pack.py ARGS`` is, but in this process (a fresh
-    interpreter importing torch costs about 3 s a run on our 2 cores): a SystemExit with a message prints it to
-    stderr and exits 1, as the interpreter does; the status, stdout and stderr come back as a finished process's."""
-
-    def run(*args: str | Path) -> subprocess.CompletedProcess[str]:
-        argv = [str(PACK), *map(str, args)]
-        with monkeypatch.context() as m:
-            m.setattr(sys, "argv", argv)
-            before = capfd.readouterr()
-            try:
-                runpy.run_path(str(PACK), run_name="__main__")
-                code = 0
-            except SystemExit as exc:
-                code = exit_status(exc)
-            finally:
-                sys.stdout.flush()
-                sys.stderr.flush()
-                out, err = capfd.readouterr()
-                sys.stdout.write(before.out + out)  # written back: a failing test's report shows it all
-                sys.stderr.write(before.err + err)
-        return subprocess.CompletedProcess(argv, code, out, err)
-
-    return run
-
-
-def test_pack_selects_reencodes_and_keeps_labels(tmp_path: Path, pack: Pack) -> None:
+def test_pack_selects_reencodes_and_keeps_labels(tmp_path: Path) -> None:
     a = _set(tmp_path / "a", "train", 12, "a")
     b = _set(tmp_path / "b", "train", 8, "b", seed=6000)
     val = _set(tmp_path / "b", "val", 5, "v", seed=6000)
     out = tmp_path / "gpu_data"
-    r = pack("--train", a, b, "--drop-every", f"{b}=4", "--val", val, "--val-frames", "3", "--quality", "60",
+    r = run_pack("--train", a, b, "--drop-every", f"{b}=4", "--val", val, "--val-frames", "3", "--quality", "60",
              "--out", out)
     assert r.returncode == 0, r.stderr
     got = sorted(p.stem for p in (out / "train" / "images" / "train").glob("*.jpg"))
@@ -99,34 +61,34 @@ def test_pack_selects_reencodes_and_keeps_labels(tmp_path: Path, pack: Pack) -> 
     assert generate_settings(out / "mix.yaml") == {"sets": {str(tmp_path / "a"): {"seed": 6001},
                                                             str(tmp_path / "b"): {"seed": 6000}}}
     one = tmp_path / "one"
-    assert pack("--train", a, "--val", val, "--val-frames", "1", "--out", one).returncode == 0
+    assert run_pack("--train", a, "--val", val, "--val-frames", "1", "--out", one).returncode == 0
     assert json.loads((one / "train" / "generate.json").read_text()) == {"config": {"seed": 6001}}  # one: a copy
     assert generate_settings(one / "train" / "images" / "train") == {"sets": {str(one / "train"): {"seed": 6001}}}
 
-    r = pack("--train", a, b, "--drop-every", f"{b}=4", "--val", val, "--thin", "3", "--out", out)
+    r = run_pack("--train", a, b, "--drop-every", f"{b}=4", "--val", val, "--thin", "3", "--out", out)
     assert r.returncode == 0, r.stderr
     thinned = sorted(p.stem for p in (out / "train" / "images" / "train").glob("*.jpg"))
     assert thinned == [s for k, s in enumerate(got) if k % 3]  # every 3rd of the sorted list left out, old files gone
 
-    r = pack("--train", a, b, "--keep-every", f"{a}=5", "--val", val, "--out", out)
+    r = run_pack("--train", a, b, "--keep-every", f"{a}=5", "--val", val, "--out", out)
     assert r.returncode == 0, r.stderr
     kept = sorted(p.stem for p in (out / "train" / "images" / "train").glob("*.jpg"))
     assert kept == ["a_000", "a_005", "a_010"] + [f"b_{k:03d}" for k in range(8)]  # a's 1st, 6th, 11th; all of b
 
 
-def test_pack_refuses_bad_options_and_oversized_trees(tmp_path: Path, pack: Pack) -> None:
+def test_pack_refuses_bad_options_and_oversized_trees(tmp_path: Path) -> None:
     a = _set(tmp_path / "a", "train", 4, "a")
-    r = pack("--train", a, "--drop-every", f"{a}=1", "--val", a)
+    r = run_pack("--train", a, "--drop-every", f"{a}=1", "--val", a)
     assert r.returncode != 0 and "--drop-every" in r.stderr and "N >= 2" in r.stderr
-    r = pack("--train", a, "--keep-every", f"{a}=x", "--val", a)
+    r = run_pack("--train", a, "--keep-every", f"{a}=x", "--val", a)
     assert r.returncode != 0 and "--keep-every" in r.stderr and "N >= 2" in r.stderr
-    r = pack("--train", a, "--keep-every", f"{a}=2", "--drop-every", f"{a}=3", "--val", a)
+    r = run_pack("--train", a, "--keep-every", f"{a}=2", "--drop-every", f"{a}=3", "--val", a)
     assert r.returncode != 0 and "both --drop-every and --keep-every" in r.stderr
-    r = pack("--train", tmp_path / "nothing", "--val", a, "--out", tmp_path / "o")
+    r = run_pack("--train", tmp_path / "nothing", "--val", a, "--out", tmp_path / "o")
     assert r.returncode != 0 and "holds no .jpg or .png frames" in r.stderr
-    r = pack("--train", a, "--val", a, "--out", tmp_path / "o", "--thin", "1")
+    r = run_pack("--train", a, "--val", a, "--out", tmp_path / "o", "--thin", "1")
     assert r.returncode != 0 and "--thin 1" in r.stderr
-    r = pack("--train", a, "--val", a, "--out", tmp_path / "o", "--quality", "101")
+    r = run_pack("--train", a, "--val", a, "--out", tmp_path / "o", "--quality", "101")
     assert r.returncode != 0 and "--quality 101" in r.stderr
-    r = pack("--train", a, "--val", a, "--out", tmp_path / "o", "--max-mib", "0.00001")
+    r = run_pack("--train", a, "--val", a, "--out", tmp_path / "o", "--max-mib", "0.00001")
     assert r.returncode != 0 and "over --max-mib" in r.stderr
