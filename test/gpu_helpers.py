@@ -14,7 +14,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from conftest import exit_status
+from cli_helpers import exit_status
 
 ROOT = Path(__file__).resolve().parents[1]
 PACK = ROOT / "scripts" / "gpu" / "pack.py"

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import cv2
 import pytest
-from conftest import CliRun
+from cli_helpers import CliRun
 
 from zebra_sim_ros.zebra.asset import ZebraLibrary, coat_store_dir, library_dir
 from zebra_sim_ros.zebra.coat_store import CoatStore

@@ -7,7 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from conftest import CliRun
+from cli_helpers import CliRun
 
 REPO = Path(__file__).resolve().parents[1]
 

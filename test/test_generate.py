@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import pytest
 import yaml
-from conftest import CliRun
+from cli_helpers import CliRun
 from pycocotools.coco import COCO
 
 from zebra_sim_ros.dataset.generate import GenerateConfig, Job, frame_name, generate, plan, stream_seed

@@ -232,6 +232,18 @@ def test_supervisor_escalates_to_sigterm_and_sigkill(tmp_path: Path) -> None:
     assert time.monotonic() - t0 < 10
 
 
+@pytest.mark.parametrize("bad", [{"kill_after_s": -1.0}, {"grace_s": float("nan")}, {"kill_after_s": float("inf")}])
+def test_supervisor_stop_refuses_a_bad_wait_and_stops_nothing(tmp_path: Path, bad: dict[str, float]) -> None:
+    with Supervisor(tmp_path, dict(os.environ)) as sup:
+        child = sup.start(_spec("sleeper"), _py("""
+            import time
+            time.sleep(60)"""))
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            sup.stop(**bad)
+        assert child.proc.poll() is None
+    assert child.proc.poll() is not None
+
+
 def test_nodes_die_with_a_supervisor_killed_outright(tmp_path: Path) -> None:
     script = f"""
         import os, sys, time

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 import rclpy
-from conftest import CliRun
+from cli_helpers import CliRun
 from geometry_msgs.msg import PoseStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy

@@ -14,7 +14,7 @@ from typing import Any
 
 import cv2
 import pytest
-from conftest import CliRun
+from cli_helpers import CliRun
 from ros_helpers import Peer, detection_array_class, fresh_domain_id, node_process, ros_env
 
 from zebra_sim_ros.graph.spec import UpConfig, graph_spec

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import CliRun
+from cli_helpers import CliRun
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.world.noise import derive_rng, spectral_noise, value_noise

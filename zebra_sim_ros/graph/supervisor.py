@@ -9,6 +9,7 @@ SIGTERM, then SIGKILL, each after a grace period.
 from __future__ import annotations
 
 import ctypes
+import math
 import os
 import signal
 import subprocess
@@ -95,7 +96,10 @@ class Supervisor:
              kill_after_s: float = 5.0) -> dict[str, int | None]:
         """Stop every process still running, in ``order`` (default: reverse start order), and return each one's
         exit status. SIGINT first; SIGTERM for those that do not exit within ``grace_s``, and SIGKILL for those
-        still running ``kill_after_s`` after it."""
+        still running ``kill_after_s`` after it. Both are seconds, finite and 0 or more."""
+        for name, value in (("grace_s", grace_s), ("kill_after_s", kill_after_s)):
+            if not 0.0 <= value < math.inf:
+                raise ValueError(f"Supervisor.stop: {name} must be a finite number of seconds >= 0, got {value!r}")
         todo = list(order) if order is not None else list(reversed(self.children))
         todo += [c for c in self.children if c not in todo]
         for c in todo:

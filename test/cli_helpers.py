@@ -1,0 +1,65 @@
+"""Running ``zebra-sim`` (or any console-script ``main``) in the test's own process, as the ``cli`` fixture of
+conftest.py does: the exit status as the interpreter makes it, fd-level output, and a timeout that no ``except``
+in the code under test swallows."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+from collections.abc import Callable, Mapping, Sequence
+
+import pytest
+
+CliRun = Callable[..., "subprocess.CompletedProcess[str]"]
+
+
+def exit_status(exc: SystemExit) -> int:
+    """The status the interpreter exits with on ``exc``, printing a message code to stderr as it does."""
+    if exc.code is None or isinstance(exc.code, int):
+        return exc.code or 0
+    print(exc.code, file=sys.stderr)
+    return 1
+
+
+class CliTimeout(BaseException):
+    """A ``cli`` run past its timeout: a BaseException, so no ``except OSError`` (or Exception) in the code under
+    test swallows it."""
+
+
+def run_cli(main: Callable[[list[str]], int | None], args: Sequence[object], capfd: pytest.CaptureFixture[str],
+            monkeypatch: pytest.MonkeyPatch, env: Mapping[str, str] | None = None,
+            timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
+    """``main(ARGS)`` in this process with ``env`` set for the run: its exit status (a SystemExit as the interpreter
+    makes it), stdout and stderr (file descriptors, children's included) as a finished process's. A run past
+    ``timeout`` seconds raises :class:`CliTimeout` (SIGALRM; main thread only)."""
+    if not timeout > 0:
+        raise ValueError(f"timeout must be a positive number of seconds, got {timeout!r}")
+
+    def on_alarm(signum: int, frame: object) -> None:
+        raise CliTimeout(f"zebra-sim ran past its timeout of {timeout} s (signal {signum})")
+
+    argv = [str(a) for a in args]
+    out = err = ""
+    with monkeypatch.context() as m:
+        for key, value in (env or {}).items():
+            m.setenv(key, value)
+        before = capfd.readouterr()
+        old = signal.signal(signal.SIGALRM, on_alarm)
+        signal.setitimer(signal.ITIMER_REAL, timeout)
+        try:
+            try:
+                code = main(argv) or 0
+            except SystemExit as exc:
+                code = exit_status(exc)
+            finally:
+                signal.setitimer(signal.ITIMER_REAL, 0)
+                signal.signal(signal.SIGALRM, old)
+                sys.stdout.flush()
+                sys.stderr.flush()
+                out, err = capfd.readouterr()
+        finally:
+            # written back on every path, so a failing test's report shows everything, this run's output too
+            sys.stdout.write(before.out + out)
+            sys.stderr.write(before.err + err)
+    return subprocess.CompletedProcess(argv, code, out, err)

@@ -1,0 +1,56 @@
+"""The in-process runner behind the ``cli`` fixture: statuses as the interpreter makes them, output captured at the
+file descriptors, and a timeout that fails the test even through code that catches every Exception."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import pytest
+from cli_helpers import CliTimeout, run_cli
+
+
+def test_a_run_past_its_timeout_raises_through_a_catch_all(
+        capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    caught: list[BaseException] = []
+
+    def stubborn(argv: list[str]) -> int:
+        try:
+            time.sleep(10)
+        except Exception as exc:  # what generate's `except OSError` or a broad handler would do
+            caught.append(exc)
+        return 0
+
+    t0 = time.monotonic()
+    with pytest.raises(CliTimeout, match="timeout of 0.3 s"):
+        run_cli(stubborn, [], capfd, monkeypatch, timeout=0.3)
+    assert time.monotonic() - t0 < 5
+    assert caught == []
+    # the alarm is off again: a later sleep is not interrupted
+    time.sleep(0.5)
+
+
+def test_statuses_and_output_come_back_as_a_finished_process(
+        capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    def noisy(argv: list[str]) -> int:
+        print("out:", *argv)
+        os.write(2, b"err at the fd\n")
+        raise SystemExit("bad value 'x' for --frames")
+
+    done = run_cli(noisy, ["a", 3], capfd, monkeypatch, env={"ZEBRA_T": "1"})
+    assert done.args == ["a", "3"]
+    assert done.returncode == 1
+    assert done.stdout == "out: a 3\n"
+    assert "err at the fd" in done.stderr and "bad value 'x' for --frames" in done.stderr
+    assert run_cli(lambda argv: 3, [], capfd, monkeypatch).returncode == 3
+    assert run_cli(lambda argv: (_ for _ in ()).throw(SystemExit(0)), [], capfd, monkeypatch).returncode == 0
+    seen: list[str | None] = []
+    run_cli(lambda argv: seen.append(os.environ.get("ZEBRA_T")) or 0, [], capfd, monkeypatch, env={"ZEBRA_T": "7"})
+    assert seen == ["7"] and "ZEBRA_T" not in os.environ
+
+
+@pytest.mark.parametrize("timeout", [0, -1.0, float("nan")])
+def test_a_timeout_that_is_not_positive_is_refused(
+        timeout: float, capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    with pytest.raises(ValueError, match="timeout must be a positive number of seconds"):
+        run_cli(lambda argv: 0, [], capfd, monkeypatch, timeout=timeout)
