@@ -4,6 +4,7 @@ in the code under test swallows."""
 
 from __future__ import annotations
 
+import math
 import signal
 import subprocess
 import sys
@@ -33,8 +34,8 @@ def run_cli(main: Callable[[list[str]], int | None], args: Sequence[object], cap
     """``main(ARGS)`` in this process with ``env`` set for the run: its exit status (a SystemExit as the interpreter
     makes it), stdout and stderr (file descriptors, children's included) as a finished process's. A run past
     ``timeout`` seconds raises :class:`CliTimeout` (SIGALRM; main thread only)."""
-    if not timeout > 0:
-        raise ValueError(f"timeout must be a positive number of seconds, got {timeout!r}")
+    if not 0 < timeout < math.inf:
+        raise ValueError(f"timeout must be a positive, finite number of seconds, got {timeout!r}")
 
     def on_alarm(signum: int, frame: object) -> None:
         raise CliTimeout(f"zebra-sim ran past its timeout of {timeout} s (signal {signum})")
@@ -46,9 +47,9 @@ def run_cli(main: Callable[[list[str]], int | None], args: Sequence[object], cap
             m.setenv(key, value)
         before = capfd.readouterr()
         old = signal.signal(signal.SIGALRM, on_alarm)
-        signal.setitimer(signal.ITIMER_REAL, timeout)
         try:
             try:
+                signal.setitimer(signal.ITIMER_REAL, timeout)
                 code = main(argv) or 0
             except SystemExit as exc:
                 code = exit_status(exc)

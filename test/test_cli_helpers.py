@@ -4,6 +4,7 @@ file descriptors, and a timeout that fails the test even through code that catch
 from __future__ import annotations
 
 import os
+import signal
 import time
 
 import pytest
@@ -21,13 +22,17 @@ def test_a_run_past_its_timeout_raises_through_a_catch_all(
             caught.append(exc)
         return 0
 
+    before = signal.getsignal(signal.SIGALRM)
     t0 = time.monotonic()
     with pytest.raises(CliTimeout, match="timeout of 0.3 s"):
         run_cli(stubborn, [], capfd, monkeypatch, timeout=0.3)
     assert time.monotonic() - t0 < 5
     assert caught == []
-    # the alarm is off again: a later sleep is not interrupted
-    time.sleep(0.5)
+    # a run that ends before its timeout leaves no timer running, and either way the old handler is back
+    assert signal.getsignal(signal.SIGALRM) is before
+    assert run_cli(lambda argv: 0, [], capfd, monkeypatch, timeout=30).returncode == 0
+    assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
+    assert signal.getsignal(signal.SIGALRM) is before
 
 
 def test_statuses_and_output_come_back_as_a_finished_process(
@@ -49,8 +54,8 @@ def test_statuses_and_output_come_back_as_a_finished_process(
     assert seen == ["7"] and "ZEBRA_T" not in os.environ
 
 
-@pytest.mark.parametrize("timeout", [0, -1.0, float("nan")])
-def test_a_timeout_that_is_not_positive_is_refused(
+@pytest.mark.parametrize("timeout", [0, -1.0, float("nan"), float("inf")])
+def test_a_timeout_that_is_not_positive_and_finite_is_refused(
         timeout: float, capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
-    with pytest.raises(ValueError, match="timeout must be a positive number of seconds"):
+    with pytest.raises(ValueError, match="timeout must be a positive, finite number"):
         run_cli(lambda argv: 0, [], capfd, monkeypatch, timeout=timeout)
