@@ -5,6 +5,8 @@ in the code under test swallows."""
 from __future__ import annotations
 
 import math
+import os
+import runpy
 import signal
 import subprocess
 import sys
@@ -21,6 +23,22 @@ def exit_status(exc: SystemExit) -> int:
         return exc.code or 0
     print(exc.code, file=sys.stderr)
     return 1
+
+
+def script_main(script: str | os.PathLike[str]) -> Callable[[list[str]], int | None]:
+    """A ``main`` for :func:`run_cli` that runs the Python file ``script`` as ``python SCRIPT ARGV`` would (as
+    ``__main__``, with ``sys.argv`` set for the run and put back after it)."""
+    path = os.fspath(script)
+
+    def main(argv: list[str]) -> int | None:
+        saved, sys.argv = sys.argv, [path, *argv]
+        try:
+            runpy.run_path(path, run_name="__main__")
+        finally:
+            sys.argv = saved
+        return 0
+
+    return main
 
 
 class CliTimeout(BaseException):

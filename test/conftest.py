@@ -10,7 +10,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import pytest
-from cli_helpers import CliRun, run_cli
+from cli_helpers import CliRun, run_cli, script_main
 
 from zebra_sim_ros.errors import AssetError
 from zebra_sim_ros.zebra.asset import ZebraLibrary, build_library, library_dir, load_library
@@ -45,6 +45,19 @@ def cli(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> C
     interpreter costs about 3 s on our 2 cores (torch's import most of it); the tests whose subject is the process
     itself (a closed pipe, a signal, the installed script) still start one."""
     from zebra_sim_ros.cli import main
+
+    def run(args: Sequence[object], env: Mapping[str, str] | None = None,
+            timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
+        return run_cli(main, args, capfd, monkeypatch, env, timeout)
+
+    return run
+
+
+@pytest.fixture
+def pack(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> CliRun:
+    """``pack(args, env, timeout)``: ``python scripts/gpu/pack.py ARGS`` run in this process as the ``cli`` fixture
+    runs ``zebra-sim`` (its one child, git, writes to the same captured descriptors)."""
+    main = script_main(Path(__file__).resolve().parents[1] / "scripts" / "gpu" / "pack.py")
 
     def run(args: Sequence[object], env: Mapping[str, str] | None = None,
             timeout: float = 120.0) -> subprocess.CompletedProcess[str]:

@@ -3,10 +3,7 @@ without inheriting any and kills the script's whole session on timeout."""
 
 from __future__ import annotations
 
-import contextlib
-import io
 import os
-import runpy
 import signal
 import subprocess
 import sys
@@ -14,37 +11,17 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from cli_helpers import exit_status
+from cli_helpers import CliRun
 
 ROOT = Path(__file__).resolve().parents[1]
-PACK = ROOT / "scripts" / "gpu" / "pack.py"
 # the scripts' settings: none is taken from the environment the tests run in
 SETTINGS = ("BUDGET", "EPOCHS", "E0", "K", "IMGSZ", "CROP", "BATCH", "WORKERS", "DEVICE", "LR", "SEED", "MAXIMG",
             "INIT", "INIT_A", "INIT_B", "AUG", "A_OPTS", "B_OPTS", "OUT", "DATA", "P2", "MODEL")
 
 
-def run_pack(*args: str | Path) -> subprocess.CompletedProcess[str]:
-    """scripts/gpu/pack.py run as ``python pack.py ARGS`` is, but in this process (a fresh interpreter importing
-    torch costs about 3 s on our 2 cores): a SystemExit with a message prints it to stderr and exits 1, as the
-    interpreter does; its status, stdout and stderr come back as a finished process's (it prints only through
-    Python: its one child, git, has its output captured)."""
-    argv, saved = [str(PACK), *map(str, args)], sys.argv
-    out, err = io.StringIO(), io.StringIO()
-    sys.argv = argv
-    try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            try:
-                runpy.run_path(str(PACK), run_name="__main__")
-                code = 0
-            except SystemExit as exc:
-                code = exit_status(exc)
-    finally:
-        sys.argv = saved
-    return subprocess.CompletedProcess(argv, code, out.getvalue(), err.getvalue())
-
-
-def tiny_pack(tmp: Path) -> Path:
-    """A packed folder of 6 training and 2 validation frames: grey ground with one dark striped box each."""
+def tiny_pack(tmp: Path, pack: CliRun) -> Path:
+    """A packed folder of 6 training and 2 validation frames: grey ground with one dark striped box each (``pack``:
+    the conftest fixture that runs scripts/gpu/pack.py)."""
     src = tmp / "set"
     rng = np.random.default_rng(7)
     for split, n in (("train", 6), ("val", 2)):
@@ -59,7 +36,7 @@ def tiny_pack(tmp: Path) -> Path:
             (src / "labels" / split / f"f{k}.txt").write_text(
                 f"0 {(x0 + 30) / 320:.4f} {(y0 + 20) / 180:.4f} {60 / 320:.4f} {40 / 180:.4f}\n")
     out = tmp / "pack"
-    r = run_pack("--train", src / "images" / "train", "--val", src / "images" / "val", "--out", out)
+    r = pack(["--train", src / "images" / "train", "--val", src / "images" / "val", "--out", out])
     assert r.returncode == 0, r.stdout + r.stderr
     return out
 

@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 import time
+from pathlib import Path
 
 import pytest
-from cli_helpers import CliTimeout, run_cli
+from cli_helpers import CliTimeout, run_cli, script_main
 
 
 def test_a_run_past_its_timeout_raises_through_a_catch_all(
@@ -59,3 +61,19 @@ def test_a_timeout_that_is_not_positive_and_finite_is_refused(
         timeout: float, capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
     with pytest.raises(ValueError, match="timeout must be a positive, finite number"):
         run_cli(lambda argv: 0, [], capfd, monkeypatch, timeout=timeout)
+
+
+def test_a_script_runs_as_main_with_its_argv_which_is_put_back(
+        tmp_path: Path, capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    script = tmp_path / "tool.py"
+    script.write_text("import sys\nif __name__ == '__main__':\n    print(sys.argv)\n"
+                      "    sys.exit(4 if sys.argv[1:] == ['--n', '2'] else 'wrong argv')\n")
+    before = list(sys.argv)
+    done = run_cli(script_main(script), ["--n", 2], capfd, monkeypatch)
+    assert done.returncode == 4, done.stderr
+    assert done.stdout == f"{[str(script), '--n', '2']}\n"
+    assert sys.argv == before
+    script.write_text("raise RuntimeError('broken tool')\n")
+    with pytest.raises(RuntimeError, match="broken tool"):
+        run_cli(script_main(script), [], capfd, monkeypatch)
+    assert sys.argv == before

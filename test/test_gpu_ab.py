@@ -7,6 +7,7 @@ import tarfile
 from pathlib import Path
 
 import torch
+from cli_helpers import CliRun
 from gpu_helpers import ROOT, assert_refused, run_script, tiny_pack
 
 from zebra_sim_ros.detection.checkpoint import read_checkpoint
@@ -14,8 +15,8 @@ from zebra_sim_ros.detection.checkpoint import read_checkpoint
 AB = ROOT / "scripts" / "gpu" / "ab.sh"
 
 
-def test_ab_refuses_settings_that_name_the_bad_value(tmp_path: Path) -> None:
-    data, out = tiny_pack(tmp_path), tmp_path / "out"
+def test_ab_refuses_settings_that_name_the_bad_value(tmp_path: Path, pack: CliRun) -> None:
+    data, out = tiny_pack(tmp_path, pack), tmp_path / "out"
     base = {"DATA": str(data), "OUT": str(out), "DEVICE": "cpu", "A_OPTS": "--p2"}
     assert_refused(AB, base, [({"B_OPTS": "--p2"}, "A_OPTS and B_OPTS are the same"), ({"EPOCHS": "0"}, "EPOCHS=0"),
                               ({"MAXIMG": "-1"}, "MAXIMG=-1"), ({"BUDGET": "900"}, "BUDGET=900"),
@@ -24,8 +25,8 @@ def test_ab_refuses_settings_that_name_the_bad_value(tmp_path: Path) -> None:
                               ({"DATA": str(tmp_path / "empty")}, "DATA=")], out)
 
 
-def test_ab_trains_both_arms_and_pairs_their_snapshots(tmp_path: Path) -> None:
-    data, out = tiny_pack(tmp_path), tmp_path / "out"
+def test_ab_trains_both_arms_and_pairs_their_snapshots(tmp_path: Path, pack: CliRun) -> None:
+    data, out = tiny_pack(tmp_path, pack), tmp_path / "out"
     tiny = {"DATA": str(data), "DEVICE": "cpu", "K": "1", "EPOCHS": "2", "BATCH": "2", "WORKERS": "1", "IMGSZ": "320",
             "CROP": "160", "BUDGET": "200"}
     r = run_script(AB, tiny | {"OUT": str(out), "A_OPTS": "--p2"})

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from gpu_helpers import run_pack
+from cli_helpers import CliRun
 
 from zebra_sim_ros.detection.data import generate_settings
 
@@ -28,13 +28,13 @@ def _set(root: Path, split: str, n: int, prefix: str, seed: int = 6001) -> Path:
     return root / "images" / split
 
 
-def test_pack_selects_reencodes_and_keeps_labels(tmp_path: Path) -> None:
+def test_pack_selects_reencodes_and_keeps_labels(tmp_path: Path, pack: CliRun) -> None:
     a = _set(tmp_path / "a", "train", 12, "a")
     b = _set(tmp_path / "b", "train", 8, "b", seed=6000)
     val = _set(tmp_path / "b", "val", 5, "v", seed=6000)
     out = tmp_path / "gpu_data"
-    r = run_pack("--train", a, b, "--drop-every", f"{b}=4", "--val", val, "--val-frames", "3", "--quality", "60",
-             "--out", out)
+    r = pack(["--train", a, b, "--drop-every", f"{b}=4", "--val", val, "--val-frames", "3", "--quality", "60",
+              "--out", out])
     assert r.returncode == 0, r.stderr
     got = sorted(p.stem for p in (out / "train" / "images" / "train").glob("*.jpg"))
     # all 12 of a; b less its 1st and 5th frame (every 4th from the first)
@@ -61,34 +61,34 @@ def test_pack_selects_reencodes_and_keeps_labels(tmp_path: Path) -> None:
     assert generate_settings(out / "mix.yaml") == {"sets": {str(tmp_path / "a"): {"seed": 6001},
                                                             str(tmp_path / "b"): {"seed": 6000}}}
     one = tmp_path / "one"
-    assert run_pack("--train", a, "--val", val, "--val-frames", "1", "--out", one).returncode == 0
+    assert pack(["--train", a, "--val", val, "--val-frames", "1", "--out", one]).returncode == 0
     assert json.loads((one / "train" / "generate.json").read_text()) == {"config": {"seed": 6001}}  # one: a copy
     assert generate_settings(one / "train" / "images" / "train") == {"sets": {str(one / "train"): {"seed": 6001}}}
 
-    r = run_pack("--train", a, b, "--drop-every", f"{b}=4", "--val", val, "--thin", "3", "--out", out)
+    r = pack(["--train", a, b, "--drop-every", f"{b}=4", "--val", val, "--thin", "3", "--out", out])
     assert r.returncode == 0, r.stderr
     thinned = sorted(p.stem for p in (out / "train" / "images" / "train").glob("*.jpg"))
     assert thinned == [s for k, s in enumerate(got) if k % 3]  # every 3rd of the sorted list left out, old files gone
 
-    r = run_pack("--train", a, b, "--keep-every", f"{a}=5", "--val", val, "--out", out)
+    r = pack(["--train", a, b, "--keep-every", f"{a}=5", "--val", val, "--out", out])
     assert r.returncode == 0, r.stderr
     kept = sorted(p.stem for p in (out / "train" / "images" / "train").glob("*.jpg"))
     assert kept == ["a_000", "a_005", "a_010"] + [f"b_{k:03d}" for k in range(8)]  # a's 1st, 6th, 11th; all of b
 
 
-def test_pack_refuses_bad_options_and_oversized_trees(tmp_path: Path) -> None:
+def test_pack_refuses_bad_options_and_oversized_trees(tmp_path: Path, pack: CliRun) -> None:
     a = _set(tmp_path / "a", "train", 4, "a")
-    r = run_pack("--train", a, "--drop-every", f"{a}=1", "--val", a)
+    r = pack(["--train", a, "--drop-every", f"{a}=1", "--val", a])
     assert r.returncode != 0 and "--drop-every" in r.stderr and "N >= 2" in r.stderr
-    r = run_pack("--train", a, "--keep-every", f"{a}=x", "--val", a)
+    r = pack(["--train", a, "--keep-every", f"{a}=x", "--val", a])
     assert r.returncode != 0 and "--keep-every" in r.stderr and "N >= 2" in r.stderr
-    r = run_pack("--train", a, "--keep-every", f"{a}=2", "--drop-every", f"{a}=3", "--val", a)
+    r = pack(["--train", a, "--keep-every", f"{a}=2", "--drop-every", f"{a}=3", "--val", a])
     assert r.returncode != 0 and "both --drop-every and --keep-every" in r.stderr
-    r = run_pack("--train", tmp_path / "nothing", "--val", a, "--out", tmp_path / "o")
+    r = pack(["--train", tmp_path / "nothing", "--val", a, "--out", tmp_path / "o"])
     assert r.returncode != 0 and "holds no .jpg or .png frames" in r.stderr
-    r = run_pack("--train", a, "--val", a, "--out", tmp_path / "o", "--thin", "1")
+    r = pack(["--train", a, "--val", a, "--out", tmp_path / "o", "--thin", "1"])
     assert r.returncode != 0 and "--thin 1" in r.stderr
-    r = run_pack("--train", a, "--val", a, "--out", tmp_path / "o", "--quality", "101")
+    r = pack(["--train", a, "--val", a, "--out", tmp_path / "o", "--quality", "101"])
     assert r.returncode != 0 and "--quality 101" in r.stderr
-    r = run_pack("--train", a, "--val", a, "--out", tmp_path / "o", "--max-mib", "0.00001")
+    r = pack(["--train", a, "--val", a, "--out", tmp_path / "o", "--max-mib", "0.00001"])
     assert r.returncode != 0 and "over --max-mib" in r.stderr

@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import torch
+from cli_helpers import CliRun
 from gpu_helpers import ROOT, assert_refused, run_script, tiny_pack
 
 from zebra_sim_ros.detection.checkpoint import read_checkpoint
@@ -17,16 +18,17 @@ from zebra_sim_ros.detection.checkpoint import read_checkpoint
 TRAIN = ROOT / "scripts" / "gpu" / "train.sh"
 
 
-def test_train_sh_refuses_settings_that_name_the_bad_value(tmp_path: Path) -> None:
-    data, out = tiny_pack(tmp_path), tmp_path / "out"
+def test_train_sh_refuses_settings_that_name_the_bad_value(tmp_path: Path, pack: CliRun) -> None:
+    data, out = tiny_pack(tmp_path, pack), tmp_path / "out"
     base = {"DATA": str(data), "OUT": str(out), "DEVICE": "cpu"}
     assert_refused(TRAIN, base, [({"MODEL": "x"}, "MODEL=x"), ({"P2": "2"}, "P2=2"), ({"E0": "0"}, "E0=0"),
                                  ({"BUDGET": "700"}, "BUDGET=700"), ({"INIT": str(tmp_path / "no.pt")}, "INIT="),
                                  ({"DATA": str(tmp_path / "empty")}, "DATA=")], out)
 
 
-def test_train_sh_fits_the_epochs_to_its_budget_and_sends_the_last_snapshot(tmp_path: Path) -> None:
-    data, out = tiny_pack(tmp_path), tmp_path / "out"
+def test_train_sh_fits_the_epochs_to_its_budget_and_sends_the_last_snapshot(tmp_path: Path,
+                                                                            pack: CliRun) -> None:
+    data, out = tiny_pack(tmp_path, pack), tmp_path / "out"
     r = run_script(TRAIN, {"DATA": str(data), "OUT": str(out), "DEVICE": "cpu", "K": "4", "E0": "3", "BATCH": "2",
                 "WORKERS": "1", "IMGSZ": "320", "CROP": "160", "BUDGET": "70"})
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
