@@ -11,12 +11,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from cli_helpers import CliRun
 
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
 from zebra_sim_ros.detection.verify import (
     SHIPPED_VERIFIER,
     Verifier,
     VerifierConfig,
+    ensemble_verifiers,
     judged_side,
     load_verifier,
     rescore,
@@ -127,6 +129,65 @@ def test_served_views_average_the_crops_at_each_context_and_their_mirror_images(
         VerifierConfig(contexts=(1.2, 1.2)).check()
     old = {"crop": 96, "context": 1.2, "min_side": 24.0, "widths": [8, 16]}  # a checkpoint from before the views
     assert VerifierConfig.from_dict(old).views() == [(1.2, False)]
+
+
+def test_an_ensemble_averages_its_members_probabilities_and_records_them(
+        tmp_path: Path, cli: CliRun) -> None:
+    """Three verifiers saved apart, joined on the command line: the ensemble's p(zebra) of every box is the mean of
+    the members' own (not the sigmoid of their mean logit), its record names each member's file by sha256, and it
+    serves the views it is given. Members of another shape, too few, an ensemble as a member and training an
+    ensemble are refused by name."""
+    rng = np.random.default_rng(8)
+    img = rng.integers(0, 255, (160, 240, 3), dtype=np.uint8)
+    boxes = np.array([[20, 30, 90, 80], [120, 40, 200, 150], [60, 100, 110, 140]], np.float32)
+    cfg = VerifierConfig(widths=(8, 16), min_side=10)
+    paths, singles = [], []
+    for k in range(3):
+        torch.manual_seed(40 + k)
+        net = Verifier(cfg).eval()
+        with torch.no_grad():
+            net.head.weight.mul_(300)  # spread the answers: a random head says about 0.5 to everything
+            net.head.bias.fill_(2.0 * k - 2.0)  # and the members apart
+        paths.append(tmp_path / f"m{k}.pt")
+        save_verifier(paths[-1], net, seed=40 + k)
+        singles.append(zebra_probability(net, img, boxes))
+    assert np.ptp(np.stack(singles), 0).max() > 0.05  # the members disagree
+    done = cli(["verifier-ensemble", *paths, "--out", tmp_path / "e.pt"])
+    assert done.returncode == 0, done.stderr
+    ens, record = load_verifier(tmp_path / "e.pt")
+    assert ens.cfg == replace(cfg, members=3)
+    assert [m["sha256"] for m in record["members"]] == [hashlib.sha256(p.read_bytes()).hexdigest() for p in paths]
+    assert [m["seed"] for m in record["members"]] == [40, 41, 42]
+    np.testing.assert_allclose(zebra_probability(ens, img, boxes), np.mean(singles, 0), rtol=1e-5, atol=1e-6)
+    logit_mean = 1 / (1 + np.exp(-np.mean([np.log(s / (1 - s)) for s in singles], 0)))
+    assert np.abs(logit_mean - np.mean(singles, 0)).max() > 1e-3  # the test tells the two means apart
+    dets = np.concatenate([boxes, np.full((3, 1), 0.8, np.float32)], 1)
+    np.testing.assert_allclose(verify(ens, img, dets)[:, 4], 0.8 * np.mean(singles, 0), rtol=1e-5)
+    # stored in float16, it answers within float16's rounding and serves in float32
+    assert cli(["verifier-ensemble", *paths, "--half", "--out", tmp_path / "h.pt"]).returncode == 0
+    half, hrec = load_verifier(tmp_path / "h.pt")
+    assert hrec["float16"] is True and next(half.parameters()).dtype == torch.float32
+    assert (tmp_path / "h.pt").stat().st_size < 0.7 * (tmp_path / "e.pt").stat().st_size
+    np.testing.assert_allclose(zebra_probability(half, img, boxes), np.mean(singles, 0), atol=0.02)
+    # the views given on the command line are served; the weights are the same
+    views = ensemble_verifiers(paths[:2], tmp_path / "v.pt", contexts=(1.2, 1.45), mirror=True)
+    assert views["config"]["contexts"] == [1.2, 1.45] and views["config"]["mirror"] is True
+    assert load_verifier(tmp_path / "v.pt")[0].cfg.views() == [(1.2, False), (1.2, True), (1.45, False), (1.45, True)]
+    save_verifier(tmp_path / "wide.pt", Verifier(VerifierConfig(widths=(8, 24), min_side=10)))
+    refused = cli(["verifier-ensemble", paths[0], tmp_path / "wide.pt", "--out", tmp_path / "x.pt"])
+    assert refused.returncode == 2 and "widths" in refused.stderr and "wide.pt" in refused.stderr
+    refused = cli(["verifier-ensemble", paths[0], "--out", tmp_path / "x.pt"])
+    assert refused.returncode == 2 and "members" in refused.stderr
+    refused = cli(["verifier-ensemble", tmp_path / "e.pt", paths[0], "--out", tmp_path / "x.pt"])
+    assert refused.returncode == 2 and "ensemble already" in refused.stderr
+    refused = cli(["verifier-ensemble", *paths[:2], "--contexts", "0.5", "--out", tmp_path / "x.pt"])
+    assert refused.returncode == 2 and "--contexts" in refused.stderr
+    assert not (tmp_path / "x.pt").exists()
+    with pytest.raises(ParameterError, match="verifier members"):
+        (tmp_path / "set" / "annotations").mkdir(parents=True)
+        TrainVerifierConfig(data=(str(tmp_path / "set"),), out="y", model=replace(cfg, members=2)).check()
+    with pytest.raises(ParameterError, match="verifier members"):
+        VerifierConfig(members=0).check()
 
 
 def test_detect_with_a_verifier_is_detect_rescored(tmp_path: Path) -> None:

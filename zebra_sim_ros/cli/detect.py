@@ -117,6 +117,21 @@ def register(sub: Any) -> None:
     add_json_flag(tv)
     tv.set_defaults(func=cmd_train_verifier)
 
+    ve = sub.add_parser("verifier-ensemble", help="join verifiers trained apart into one that averages their p(zebra)",
+                        description="One verifier checkpoint holding 2 or more verifiers of one network shape (e.g. "
+                        "one recipe's seeds): a box's p(zebra) is the mean of theirs, at each member's cost. Serving "
+                        "settings are the first member's unless --contexts or --mirror are given.")
+    ve.add_argument("members", nargs="+", help="verifier checkpoints ('shipped': the package's)")
+    ve.add_argument("--contexts", type=float, nargs="+", default=None,
+                    help="when serving, the crops' contexts (times the box's long side; default: the first member's)")
+    ve.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=None,
+                    help="when serving, each crop's mirror image too (default: the first member's setting)")
+    ve.add_argument("--half", action="store_true",
+                    help="store the weights in float16: half the file, served in float32 as ever (default: float32)")
+    ve.add_argument("--out", type=Path, required=True, help="ensemble checkpoint to write (.pt)")
+    add_json_flag(ve)
+    ve.set_defaults(func=cmd_verifier_ensemble)
+
     v = sub.add_parser("val", help="precision, recall, mAP50 and mAP50-95 (COCO definition) of a checkpoint")
     v.add_argument("--weights", default=None, help="checkpoint (default: the shipped weights)")
     v.add_argument("--data", required=True, help="dataset.yaml, or a folder of images with a sibling labels/ folder")
@@ -210,6 +225,21 @@ def cmd_train_verifier(args: argparse.Namespace) -> Summary:
     record = train_verifier(cfg)
     print(f"verifier: {args.out} ({record['seconds']} s; held-out crops called zebra: {record['val']})")
     return {"out": str(args.out), **{k: v for k, v in record.items() if k != "history"}}
+
+
+def cmd_verifier_ensemble(args: argparse.Namespace) -> Summary:
+    """Join verifiers into an ensemble."""
+    from zebra_sim_ros.detection.verify import ensemble_verifiers
+
+    try:
+        record = ensemble_verifiers(args.members, args.out, args.contexts, args.mirror, args.half)
+    except ParameterError as exc:  # named by the flag that set it ("verifier contexts" -> --contexts)
+        if not exc.name.startswith("verifier "):
+            raise
+        raise ParameterError("--" + exc.name.removeprefix("verifier "), exc.value, exc.allowed) from None
+    shas = ", ".join(m["sha256"][:12] for m in record["members"])
+    print(f"verifier ensemble: {args.out} ({len(record['members'])} members: {shas})")
+    return {"out": str(args.out), **record}
 
 
 def cmd_val(args: argparse.Namespace) -> Summary:

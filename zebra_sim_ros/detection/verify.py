@@ -13,13 +13,16 @@ Training (``zebra-sim train-verifier``) is :mod:`zebra_sim_ros.detection.verify_
 dict: ``format`` ("zebra_sim_ros/verifier"), ``version``, ``config``
 (:class:`VerifierConfig`), ``model`` (state dict), ``train`` (the :class:`TrainVerifierConfig` it was trained with,
 seed included), ``crops`` (how many of each kind), ``val`` (share called zebra per kind on the held-out crops) and,
-where hard negatives were mined, ``detector_sha256`` (the mining detector's file).
+where hard negatives were mined, ``detector_sha256`` (the mining detector's file). An ensemble
+(:func:`ensemble_verifiers`, ``zebra-sim verifier-ensemble``) is a verifier whose config has ``members`` > 1: its
+``model`` holds each member's weights (``members.<i>.``) and its ``members`` key each member's file sha256 and record.
 """
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +37,7 @@ from zebra_sim_ros.errors import ParameterError
 FORMAT = "zebra_sim_ros/verifier"
 VERSION = 1
 SHIPPED_VERIFIER = Path(__file__).resolve().parent / "weights" / "zebra_verifier.pt"
+MAX_MEMBERS = 8
 
 
 @dataclass(frozen=True)
@@ -44,7 +48,9 @@ class VerifierConfig:
     ``min_side_fraction``, ``contexts`` and ``mirror`` are for serving only. A box is judged when its long side is
     also at least ``min_side_fraction`` of the image's long side (0.0375: 24 px on a 640 px photo, 48 px on a
     1280x720 frame); training crops animals by ``min_side`` alone. Its p(zebra) is the mean over one crop at each of
-    ``contexts`` (empty: ``context`` alone) and, with ``mirror``, each crop's mirror image too."""
+    ``contexts`` (empty: ``context`` alone) and, with ``mirror``, each crop's mirror image too. ``members`` > 1 makes
+    the verifier an ensemble of that many networks of this shape, trained apart: p(zebra) of a crop is the mean of
+    theirs (:func:`ensemble_verifiers`)."""
 
     crop: int = 96
     context: float = 1.2
@@ -53,6 +59,7 @@ class VerifierConfig:
     min_side_fraction: float = 0.0
     contexts: tuple[float, ...] = ()
     mirror: bool = False
+    members: int = 1
 
     def check(self) -> None:
         if not 32 <= self.crop <= 256:
@@ -69,6 +76,8 @@ class VerifierConfig:
         if any(not 1.0 <= c <= 3.0 for c in self.contexts) or len(set(self.contexts)) != len(self.contexts):
             raise ParameterError("verifier contexts", self.contexts,
                                  "distinct values in 1.0..3.0 (times the box's long side; empty: context alone)")
+        if not 1 <= self.members <= MAX_MEMBERS:
+            raise ParameterError("verifier members", self.members, f"1..{MAX_MEMBERS} (networks averaged)")
 
     def views(self) -> list[tuple[float, bool]]:
         """The (context, mirrored) crops whose p(zebra) a served box averages."""
@@ -82,18 +91,24 @@ class VerifierConfig:
     def from_dict(cls, d: dict[str, Any]) -> VerifierConfig:
         cfg = cls(int(d["crop"]), float(d["context"]), float(d["min_side"]), tuple(int(w) for w in d["widths"]),
                   float(d.get("min_side_fraction", 0.0)),  # checkpoints before the fraction judged by min_side alone
-                  tuple(float(c) for c in d.get("contexts", ())), bool(d.get("mirror", False)))  # and by one crop
+                  tuple(float(c) for c in d.get("contexts", ())), bool(d.get("mirror", False)),  # and by one crop
+                  int(d.get("members", 1)))
         cfg.check()
         return cfg
 
 
 class Verifier(nn.Module):
-    """Stride-2 stages of two 3x3 convolutions each (batch norm, SiLU), global average, one logit: p(zebra)."""
+    """Stride-2 stages of two 3x3 convolutions each (batch norm, SiLU), global average, one logit: p(zebra). With
+    ``cfg.members`` > 1, that many such networks (``self.members``), their probabilities averaged."""
 
     def __init__(self, cfg: VerifierConfig | None = None) -> None:
         super().__init__()
         self.cfg = cfg or VerifierConfig()
         self.cfg.check()
+        if self.cfg.members > 1:
+            one = replace(self.cfg, members=1)
+            self.members = nn.ModuleList(Verifier(one) for _ in range(self.cfg.members))
+            return
         layers: list[nn.Module] = []
         chans = (3, *self.cfg.widths)
         for a, b in zip(chans[:-1], chans[1:], strict=True):
@@ -103,8 +118,16 @@ class Verifier(nn.Module):
         self.head = nn.Linear(chans[-1], 1)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """(B, 3, crop, crop) RGB in 0..1 -> (B,) logits of "zebra"."""
+        """(B, 3, crop, crop) RGB in 0..1 -> (B,) logits of "zebra" (an ensemble's: the logit of its mean p)."""
+        if self.cfg.members > 1:
+            return torch.logit(self.probability(x), eps=1e-7)
         return self.head(self.body(x).mean((2, 3))).squeeze(1)
+
+    def probability(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, 3, crop, crop) RGB in 0..1 -> (B,) p(zebra): an ensemble's is its members' mean."""
+        if self.cfg.members > 1:
+            return torch.stack([torch.sigmoid(m(x)) for m in self.members]).mean(0)
+        return torch.sigmoid(self(x))
 
 
 def square_crop(img: NDArray[np.uint8], box: Sequence[float] | NDArray[Any], context: float, out: int,
@@ -128,7 +151,7 @@ def square_crop(img: NDArray[np.uint8], box: Sequence[float] | NDArray[Any], con
 def zebra_probability(net: Verifier, image: NDArray[np.uint8], boxes: NDArray[Any], batch: int = 64
                       ) -> NDArray[np.float32]:
     """p(zebra) of each box [x0, y0, x1, y1, ...] of an RGB ``image``: the mean over the crops of
-    :meth:`VerifierConfig.views`."""
+    :meth:`VerifierConfig.views` (and, for an ensemble, over its members)."""
     if not len(boxes):
         return np.zeros(0, np.float32)
     c = net.cfg
@@ -140,7 +163,7 @@ def zebra_probability(net: Verifier, image: NDArray[np.uint8], boxes: NDArray[An
     x = torch.from_numpy(crops).permute(0, 3, 1, 2).float().div_(255)
     was = net.training
     net.eval()
-    p = torch.cat([torch.sigmoid(net(x[i:i + batch].to(dev))).float().cpu() for i in range(0, len(x), batch)])
+    p = torch.cat([net.probability(x[i:i + batch].to(dev)).float().cpu() for i in range(0, len(x), batch)])
     net.train(was)
     return p.view(len(views), len(boxes)).mean(0).numpy().astype(np.float32)
 
@@ -186,13 +209,16 @@ def rescore(net: Verifier, image: NDArray[np.uint8], dets: NDArray[Any], conf: f
     return out[np.argsort(-out[:, 4], kind="stable")]
 
 
-def save_verifier(path: str | Path, net: Verifier, **extra: Any) -> None:
+def save_verifier(path: str | Path, net: Verifier, *, half: bool = False, **extra: Any) -> None:
+    """Write ``net`` and ``extra`` as a verifier checkpoint (its floating-point weights in float16 with ``half``:
+    half the file, read back as float32)."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     tmp = p.with_name(p.name + ".tmp")
+    state = {k: v.half() if half and v.is_floating_point() else v for k, v in net.state_dict().items()}
     torch.save({"format": FORMAT, "version": VERSION,
                 "config": net.cfg.to_dict(),
-                "model": net.state_dict(), **extra}, tmp)
+                "model": state, **extra}, tmp)
     tmp.replace(p)
 
 
@@ -210,3 +236,41 @@ def load_verifier(path: str | Path | None = None, device: str | torch.device = "
     net = Verifier(VerifierConfig.from_dict(ckpt["config"]))
     net.load_state_dict({k: v.float() for k, v in ckpt["model"].items()})
     return net.to(device).eval(), {k: v for k, v in ckpt.items() if k != "model"}
+
+
+def ensemble_verifiers(paths: Sequence[str | Path], out: str | Path, contexts: Sequence[float] | None = None,
+                       mirror: bool | None = None, half: bool = False) -> dict[str, Any]:
+    """Write to ``out`` one verifier that averages the p(zebra) of the single verifiers at ``paths`` (2 to
+    MAX_MEMBERS of them, of one network shape and one training crop and context; :data:`SHIPPED_VERIFIER` as
+    "shipped"). Its serving settings are the first member's, ``contexts`` and ``mirror`` overriding theirs where
+    given; ``half`` stores the weights in float16. Returns the checkpoint's record (without weights): ``members``
+    lists each file's sha256 and record."""
+    if not 2 <= len(paths) <= MAX_MEMBERS:
+        raise ParameterError("members", [str(p) for p in paths], f"2..{MAX_MEMBERS} verifier checkpoints")
+    nets: list[Verifier] = []
+    records: list[dict[str, Any]] = []
+    shas: list[str] = []
+    for path in paths:
+        net, record = load_verifier(path, "cpu", "members")
+        if net.cfg.members != 1:
+            raise ParameterError("members", str(path), "a single verifier (this one is an ensemble already)")
+        first = nets[0].cfg if nets else net.cfg
+        for field in ("crop", "context", "min_side", "widths"):
+            if getattr(net.cfg, field) != getattr(first, field):
+                raise ParameterError("members", str(path), f"a verifier of the first one's {field} "
+                                     f"{getattr(first, field)!r} (this one has {getattr(net.cfg, field)!r})")
+        nets.append(net)
+        records.append(record)
+        file = SHIPPED_VERIFIER if path in ("", "shipped") else Path(path)
+        shas.append(hashlib.sha256(file.read_bytes()).hexdigest())
+    cfg = replace(nets[0].cfg, members=len(nets),
+                  contexts=nets[0].cfg.contexts if contexts is None else tuple(float(c) for c in contexts),
+                  mirror=nets[0].cfg.mirror if mirror is None else bool(mirror))
+    ens = Verifier(cfg)
+    for slot, net in zip(ens.members, nets, strict=True):
+        slot.load_state_dict(net.state_dict())
+    members = [{"sha256": sha, "file": str(path), **{k: v for k, v in rec.items()
+                                                      if k not in ("format", "version", "config")}}
+               for sha, path, rec in zip(shas, paths, records, strict=True)]
+    save_verifier(out, ens.eval(), half=half, members=members, float16=half)
+    return {"config": cfg.to_dict(), "members": members, "float16": half}

@@ -93,6 +93,9 @@ class TrainVerifierConfig:
         if self.detector not in ("", "shipped") and not Path(self.detector).is_file():
             raise ParameterError("--detector", self.detector, "empty, shipped or an existing detector checkpoint")
         self.model.check()
+        if self.model.members != 1:
+            raise ParameterError("verifier members", self.model.members,
+                                 "1 to train (members are trained apart; zebra-sim verifier-ensemble joins them)")
 
     def to_dict(self) -> dict[str, Any]:
         return {**asdict(self), "data": list(self.data), "model": self.model.to_dict()}
@@ -367,7 +370,7 @@ def train_verifier(cfg: TrainVerifierConfig, log: Callable[[str], None] = print)
         history.append({"epoch": ep + 1, "loss": round(total / per_epoch, 4), "called_zebra": called})
         log(f"[train-verifier] epoch {ep + 1}/{cfg.epochs}: loss {total / per_epoch:.4f}, called zebra on held-out "
             f"crops: {json.dumps(called)} ({time.perf_counter() - t0:.0f} s)")
-    record = {"train": cfg.to_dict(), "crops": crops.counts(), "val": history[-1]["called_zebra"],
+    record: dict[str, Any] = {"train": cfg.to_dict(), "crops": crops.counts(), "val": history[-1]["called_zebra"],
               "history": history, "seconds": round(time.perf_counter() - t0, 1)}
     if cfg.detector:  # which weights mined the hard negatives: "shipped" names different weights as they change
         record["detector_sha256"] = hashlib.sha256(_detector_file(cfg).read_bytes()).hexdigest()
