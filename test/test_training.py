@@ -114,14 +114,15 @@ def four(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_overfits_four_images(four: Path, tmp_path: Path) -> None:
-    # The learning check: no augmentation, the same four images 400 times. 400 iterations, not fewer:
-    # batch norm's running variance starts at 1 and decays by 0.97 per step, while the first layer's activations
-    # vary by ~0.01; after 150 steps eval mode still normalised them by 2.4x their variance and scored 0.
+    # The learning check: no augmentation, the same four images 250 times. Not many fewer: batch norm's
+    # running variance starts at 1 and decays by 0.97 per step, while the first layer's activations vary by ~0.01;
+    # after 150 steps eval mode still normalised them by 2.4x their variance and scored 0. After 250 (0.97^250 =
+    # 5e-4) the loss was 0.11 of its first and mAP50 1.0, on a 2-core EPYC without AVX-512 in 99 s (400: 155 s).
     gts = sum(len(p.read_text().splitlines()) for p in (four / "labels").glob("*.txt"))
     assert gts >= 12, "the fixture should hold a dozen zebras or more"
     # last.pt once a minute, not after each of the 400 one-batch epochs (57 ms a write: a third of the test).
     summary = train(TrainConfig(data=str(four / "four.yaml"), out=str(tmp_path / "run"), model="n", imgsz=256,
-                                batch=4, epochs=400, lr0=0.02, device="cpu", workers=0, val_every=400, close_mosaic=0,
+                                batch=4, epochs=250, lr0=0.02, device="cpu", workers=0, val_every=250, close_mosaic=0,
                                 augment=False, save_period=60.0), log=io.StringIO())
     rows = list(csv.DictReader(open(tmp_path / "run" / "results.csv")))
     first, last = (sum(float(r[k]) for k in ("box", "cls", "dfl")) for r in (rows[0], rows[-1]))
