@@ -48,15 +48,15 @@ class CliTimeout(BaseException):
 
 def run_cli(main: Callable[[list[str]], int | None], args: Sequence[object], capfd: pytest.CaptureFixture[str],
             monkeypatch: pytest.MonkeyPatch, env: Mapping[str, str] | None = None,
-            timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
+            timeout: float = 120.0, name: str = "zebra-sim") -> subprocess.CompletedProcess[str]:
     """``main(ARGS)`` in this process with ``env`` set for the run: its exit status (a SystemExit as the interpreter
     makes it), stdout and stderr (file descriptors, children's included) as a finished process's. A run past
-    ``timeout`` seconds raises :class:`CliTimeout` (SIGALRM; main thread only)."""
+    ``timeout`` seconds raises :class:`CliTimeout` naming the program ``name`` (SIGALRM; main thread only)."""
     if not 0 < timeout < math.inf:
         raise ValueError(f"timeout must be a positive, finite number of seconds, got {timeout!r}")
 
     def on_alarm(signum: int, frame: object) -> None:
-        raise CliTimeout(f"zebra-sim ran past its timeout of {timeout} s (signal {signum})")
+        raise CliTimeout(f"{name} ran past its timeout of {timeout} s (signal {signum})")
 
     argv = [str(a) for a in args]
     out = err = ""

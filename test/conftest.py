@@ -6,7 +6,7 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import pytest
@@ -37,6 +37,17 @@ def library(zebra_cache: Path) -> ZebraLibrary:
     return load_library(zebra_cache, build_if_missing=False)
 
 
+def _runner(main: Callable[[list[str]], int | None], name: str, capfd: pytest.CaptureFixture[str],
+            monkeypatch: pytest.MonkeyPatch) -> CliRun:
+    """``run(args, env, timeout)`` of ``main`` through ``cli_helpers.run_cli``, its timeout naming ``name``."""
+
+    def run(args: Sequence[object], env: Mapping[str, str] | None = None,
+            timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
+        return run_cli(main, args, capfd, monkeypatch, env, timeout, name)
+
+    return run
+
+
 @pytest.fixture
 def cli(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> CliRun:
     """``cli(args, env, timeout)``: ``zebra-sim ARGS`` through the console script's own ``main`` in this process
@@ -46,21 +57,12 @@ def cli(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> C
     itself (a closed pipe, a signal, the installed script) still start one."""
     from zebra_sim_ros.cli import main
 
-    def run(args: Sequence[object], env: Mapping[str, str] | None = None,
-            timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
-        return run_cli(main, args, capfd, monkeypatch, env, timeout)
-
-    return run
+    return _runner(main, "zebra-sim", capfd, monkeypatch)
 
 
 @pytest.fixture
 def pack(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> CliRun:
     """``pack(args, env, timeout)``: ``python scripts/gpu/pack.py ARGS`` run in this process as the ``cli`` fixture
     runs ``zebra-sim`` (its one child, git, writes to the same captured descriptors)."""
-    main = script_main(Path(__file__).resolve().parents[1] / "scripts" / "gpu" / "pack.py")
-
-    def run(args: Sequence[object], env: Mapping[str, str] | None = None,
-            timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
-        return run_cli(main, args, capfd, monkeypatch, env, timeout)
-
-    return run
+    script = Path(__file__).resolve().parents[1] / "scripts" / "gpu" / "pack.py"
+    return _runner(script_main(script), "pack.py", capfd, monkeypatch)

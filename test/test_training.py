@@ -120,7 +120,7 @@ def test_overfits_four_images(four: Path, tmp_path: Path) -> None:
     # 5e-4) the loss was 0.11 of its first and mAP50 1.0, on a 2-core EPYC without AVX-512 in 99 s (400: 155 s).
     gts = sum(len(p.read_text().splitlines()) for p in (four / "labels").glob("*.txt"))
     assert gts >= 12, "the fixture should hold a dozen zebras or more"
-    # last.pt once a minute, not after each of the 400 one-batch epochs (57 ms a write: a third of the test).
+    # last.pt once a minute, not after each of the 250 one-batch epochs (57 ms a write: a third of the test).
     summary = train(TrainConfig(data=str(four / "four.yaml"), out=str(tmp_path / "run"), model="n", imgsz=256,
                                 batch=4, epochs=250, lr0=0.02, device="cpu", workers=0, val_every=250, close_mosaic=0,
                                 augment=False, save_period=60.0), log=io.StringIO())

@@ -177,14 +177,26 @@ def test_an_ensemble_averages_its_members_probabilities_and_records_them(
     refused = cli(["verifier-ensemble", paths[0], tmp_path / "wide.pt", "--out", tmp_path / "x.pt"])
     assert refused.returncode == 2 and "widths" in refused.stderr and "wide.pt" in refused.stderr
     refused = cli(["verifier-ensemble", paths[0], "--out", tmp_path / "x.pt"])
-    assert refused.returncode == 2 and "members" in refused.stderr
+    assert refused.returncode == 2 and "2..8 verifier checkpoints" in refused.stderr
+    refused = cli(["verifier-ensemble", paths[0], paths[1], paths[0], "--out", tmp_path / "x.pt"])
+    assert refused.returncode == 2 and "an earlier member's" in refused.stderr and "m0.pt" in refused.stderr
     refused = cli(["verifier-ensemble", tmp_path / "e.pt", paths[0], "--out", tmp_path / "x.pt"])
     assert refused.returncode == 2 and "ensemble already" in refused.stderr
     refused = cli(["verifier-ensemble", *paths[:2], "--contexts", "0.5", "--out", tmp_path / "x.pt"])
-    assert refused.returncode == 2 and "--contexts" in refused.stderr
+    assert refused.returncode == 2 and "'--contexts' = (0.5,)" in refused.stderr
     assert not (tmp_path / "x.pt").exists()
+    raw = torch.load(tmp_path / "e.pt", weights_only=True)
+    assert raw["version"] == 2 and torch.load(paths[0], weights_only=True)["version"] == 1
+    from zebra_sim_ros.detection.checkpoint import read_checkpoint
+
+    with pytest.raises(AssetError, match="checkpoint version 2; this build reads 1"):
+        read_checkpoint(tmp_path / "e.pt", "verifier", "zebra_sim_ros/verifier", 1)
+    raw["config"]["members"] = 1  # weights of three networks under the config of one
+    torch.save(raw, tmp_path / "bad.pt")
+    with pytest.raises(AssetError, match=r"bad\.pt: its weights do not fit its config"):
+        load_verifier(tmp_path / "bad.pt")
+    (tmp_path / "set" / "annotations").mkdir(parents=True)
     with pytest.raises(ParameterError, match="verifier members"):
-        (tmp_path / "set" / "annotations").mkdir(parents=True)
         TrainVerifierConfig(data=(str(tmp_path / "set"),), out="y", model=replace(cfg, members=2)).check()
     with pytest.raises(ParameterError, match="verifier members"):
         VerifierConfig(members=0).check()

@@ -233,13 +233,14 @@ def cmd_verifier_ensemble(args: argparse.Namespace) -> Summary:
 
     try:
         record = ensemble_verifiers(args.members, args.out, args.contexts, args.mirror, args.half)
-    except ParameterError as exc:  # named by the flag that set it ("verifier contexts" -> --contexts)
-        if not exc.name.startswith("verifier "):
+    except ParameterError as exc:  # named by the option that set it, not the config field
+        if exc.name != "verifier contexts":
             raise
-        raise ParameterError("--" + exc.name.removeprefix("verifier "), exc.value, exc.allowed) from None
+        raise ParameterError("--contexts", exc.value, exc.allowed) from None
     shas = ", ".join(m["sha256"][:12] for m in record["members"])
     print(f"verifier ensemble: {args.out} ({len(record['members'])} members: {shas})")
-    return {"out": str(args.out), **record}
+    members = [{k: v for k, v in m.items() if k != "history"} for m in record["members"]]  # as train-verifier's
+    return {"out": str(args.out), **record, "members": members}
 
 
 def cmd_val(args: argparse.Namespace) -> Summary:

@@ -74,10 +74,10 @@ def save_checkpoint(path: str | Path, model: Detector, **extra: Any) -> None:
     tmp.replace(p)
 
 
-def read_checkpoint(path: str | Path, name: str = "weights", fmt: str = FORMAT, version: int = VERSION
-                    ) -> dict[str, Any]:
-    """The checkpoint dict of format ``fmt`` and ``version``; raises :class:`ParameterError` (naming the parameter
-    ``name``) for a missing file, :class:`AssetError` for a bad one."""
+def read_checkpoint(path: str | Path, name: str = "weights", fmt: str = FORMAT,
+                    version: int | tuple[int, ...] = VERSION) -> dict[str, Any]:
+    """The checkpoint dict of format ``fmt`` and ``version`` (or one of several); raises :class:`ParameterError`
+    (naming the parameter ``name``) for a missing file, :class:`AssetError` for a bad one."""
     p = Path(path)
     if not p.is_file():
         raise ParameterError(name, str(p), "an existing checkpoint file")
@@ -87,8 +87,10 @@ def read_checkpoint(path: str | Path, name: str = "weights", fmt: str = FORMAT, 
         raise AssetError(f"{name} {p} cannot be read as a checkpoint ({type(exc).__name__}: {exc})") from exc
     if not isinstance(ckpt, dict) or ckpt.get("format") != fmt:
         raise AssetError(f"{name} {p}: not a {fmt} checkpoint")
-    if ckpt.get("version") != version:
-        raise AssetError(f"{name} {p}: checkpoint version {ckpt.get('version')}; this build reads {version}")
+    versions = version if isinstance(version, tuple) else (version,)
+    if ckpt.get("version") not in versions:
+        readable = " or ".join(map(str, versions))
+        raise AssetError(f"{name} {p}: checkpoint version {ckpt.get('version')}; this build reads {readable}")
     return ckpt
 
 

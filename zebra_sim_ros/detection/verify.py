@@ -32,12 +32,13 @@ import torch
 from numpy.typing import NDArray
 from torch import nn
 
-from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.errors import AssetError, ParameterError
 
 FORMAT = "zebra_sim_ros/verifier"
-VERSION = 1
+VERSION = 1  # one network
+ENSEMBLE_VERSION = 2  # members > 1: a build that reads version 1 only refuses it by its version, not by its keys
 SHIPPED_VERIFIER = Path(__file__).resolve().parent / "weights" / "zebra_verifier.pt"
-MAX_MEMBERS = 8
+MAX_MEMBERS = 8  # each member costs one network's time on every judged crop: 8 is already 8x the served cost
 
 
 @dataclass(frozen=True)
@@ -216,7 +217,7 @@ def save_verifier(path: str | Path, net: Verifier, *, half: bool = False, **extr
     p.parent.mkdir(parents=True, exist_ok=True)
     tmp = p.with_name(p.name + ".tmp")
     state = {k: v.half() if half and v.is_floating_point() else v for k, v in net.state_dict().items()}
-    torch.save({"format": FORMAT, "version": VERSION,
+    torch.save({"format": FORMAT, "version": ENSEMBLE_VERSION if net.cfg.members > 1 else VERSION,
                 "config": net.cfg.to_dict(),
                 "model": state, **extra}, tmp)
     tmp.replace(p)
@@ -229,24 +230,35 @@ def load_verifier(path: str | Path | None = None, device: str | torch.device = "
     :class:`AssetError`."""
     from zebra_sim_ros.detection.checkpoint import read_checkpoint
 
-    p = SHIPPED_VERIFIER if path in (None, "", "shipped") else Path(path)
+    p = verifier_file(path)
     if not p.is_file():
         raise ParameterError(name, str(p), "an existing verifier checkpoint ('shipped': the package's)")
-    ckpt = read_checkpoint(p, name, FORMAT, VERSION)
+    ckpt = read_checkpoint(p, name, FORMAT, (VERSION, ENSEMBLE_VERSION))
     net = Verifier(VerifierConfig.from_dict(ckpt["config"]))
-    net.load_state_dict({k: v.float() for k, v in ckpt["model"].items()})
+    try:
+        net.load_state_dict({k: v.float() for k, v in ckpt["model"].items()})
+    except RuntimeError as exc:  # torch lists every mismatched tensor: name the file and the first of them
+        first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), str(exc))
+        raise AssetError(f"{name} {p}: its weights do not fit its config {ckpt['config']} ({first})") from None
     return net.to(device).eval(), {k: v for k, v in ckpt.items() if k != "model"}
+
+
+def verifier_file(path: str | Path | None) -> Path:
+    """The file a verifier argument names: None, "" or "shipped" the package's, else the path itself."""
+    return SHIPPED_VERIFIER if path in (None, "", "shipped") else Path(path)
 
 
 def ensemble_verifiers(paths: Sequence[str | Path], out: str | Path, contexts: Sequence[float] | None = None,
                        mirror: bool | None = None, half: bool = False) -> dict[str, Any]:
     """Write to ``out`` one verifier that averages the p(zebra) of the single verifiers at ``paths`` (2 to
-    MAX_MEMBERS of them, of one network shape and one training crop and context; :data:`SHIPPED_VERIFIER` as
-    "shipped"). Its serving settings are the first member's, ``contexts`` and ``mirror`` overriding theirs where
-    given; ``half`` stores the weights in float16. Returns the checkpoint's record (without weights): ``members``
-    lists each file's sha256 and record."""
+    MAX_MEMBERS of them, distinct files of one network shape, crop, context and ``min_side``; "shipped" for
+    :data:`SHIPPED_VERIFIER`). Its serving settings are the first member's, ``contexts`` and ``mirror`` overriding
+    theirs where given; ``half`` stores the weights in float16. Returns the checkpoint's record (without weights):
+    ``members`` lists each file's sha256 and record."""
     if not 2 <= len(paths) <= MAX_MEMBERS:
         raise ParameterError("members", [str(p) for p in paths], f"2..{MAX_MEMBERS} verifier checkpoints")
+    if contexts is not None:  # checked before any member is read: the error names the option, not a member
+        replace(VerifierConfig(), contexts=tuple(float(c) for c in contexts)).check()
     nets: list[Verifier] = []
     records: list[dict[str, Any]] = []
     shas: list[str] = []
@@ -259,10 +271,12 @@ def ensemble_verifiers(paths: Sequence[str | Path], out: str | Path, contexts: S
             if getattr(net.cfg, field) != getattr(first, field):
                 raise ParameterError("members", str(path), f"a verifier of the first one's {field} "
                                      f"{getattr(first, field)!r} (this one has {getattr(net.cfg, field)!r})")
+        sha = hashlib.sha256(verifier_file(path).read_bytes()).hexdigest()
+        if sha in shas:
+            raise ParameterError("members", str(path), "verifiers trained apart (this file is an earlier member's)")
         nets.append(net)
         records.append(record)
-        file = SHIPPED_VERIFIER if path in ("", "shipped") else Path(path)
-        shas.append(hashlib.sha256(file.read_bytes()).hexdigest())
+        shas.append(sha)
     cfg = replace(nets[0].cfg, members=len(nets),
                   contexts=nets[0].cfg.contexts if contexts is None else tuple(float(c) for c in contexts),
                   mirror=nets[0].cfg.mirror if mirror is None else bool(mirror))
