@@ -61,9 +61,7 @@ have="$(cat "$STAMP" 2>/dev/null || true)"
 if [[ "$want" == "$have" && -x "$VENV/bin/zebra-sim" ]]; then
     log "python packages up to date (stamp matches)"
 else
-    # --no-compile: pip byte-compiles every file it installs (torch's thousands: 57 s against 19 s for torch alone
-    # on our 2 cores); Python compiles the modules actually imported on their first import instead (+3 s for torch).
-    PIP=("$VENV/bin/python" -m pip install -q --no-compile)
+    PIP=("$VENV/bin/python" -m pip install -q)
     # torch first and pinned: 2.13.0 resolves to the local CPU build; unpinned, pip would
     # fetch several GB of CUDA packages.
     log "pip: torch==2.13.0 (CPU build)"
