@@ -74,6 +74,17 @@ def save_checkpoint(path: str | Path, model: Detector, **extra: Any) -> None:
     tmp.replace(p)
 
 
+def load_weights(module: torch.nn.Module, state: dict[str, torch.Tensor], misfit: str) -> None:
+    """``state`` (any float dtype) into ``module``; weights that do not fit it are an :class:`AssetError` that
+    starts with ``misfit`` and names the first problem of those torch lists, and counts them."""
+    try:
+        module.load_state_dict({k: v.float() for k, v in state.items()})
+    except RuntimeError as exc:
+        lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip().startswith(("size mismatch", "Missing",
+                                                                                      "Unexpected"))]
+        raise AssetError(f"{misfit}: {len(lines)} problem(s), first: {lines[0] if lines else exc}") from exc
+
+
 def read_checkpoint(path: str | Path, name: str = "weights", fmt: str = FORMAT,
                     version: int | tuple[int, ...] = VERSION) -> dict[str, Any]:
     """The checkpoint dict of format ``fmt`` and ``version`` (or one of several); raises :class:`ParameterError`
@@ -102,13 +113,7 @@ def load_model(path: str | Path | None = None, device: str | torch.device = "cpu
     serve_dtype = amp_dtype(amp, torch.device(device), amp_name)
     ckpt = read_checkpoint(path or SHIPPED)
     model = build_model(ckpt["config"])
-    try:
-        model.load_state_dict({k: v.float() for k, v in ckpt["model"].items()})
-    except RuntimeError as exc:  # torch lists every mismatched tensor: name the first and count them
-        lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip().startswith(("size mismatch", "Missing",
-                                                                                      "Unexpected"))]
-        raise AssetError(f"weights {path or SHIPPED} do not fit their own config {ckpt['config']}: {len(lines)} "
-                         f"problem(s), first: {lines[0] if lines else exc}") from exc
+    load_weights(model, ckpt["model"], f"weights {path or SHIPPED} do not fit their own config {ckpt['config']}")
     model = model.to(device).eval()
     if fuse:
         model = model.fuse()

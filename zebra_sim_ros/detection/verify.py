@@ -32,7 +32,7 @@ import torch
 from numpy.typing import NDArray
 from torch import nn
 
-from zebra_sim_ros.errors import AssetError, ParameterError
+from zebra_sim_ros.errors import ParameterError
 
 FORMAT = "zebra_sim_ros/verifier"
 VERSION = 1  # one network
@@ -228,18 +228,14 @@ def load_verifier(path: str | Path | None = None, device: str | torch.device = "
     """The verifier of a checkpoint (None or "shipped": the package's), in eval mode, and its checkpoint dict
     (without the weights). A missing file is a :class:`ParameterError` naming ``name``; a bad one an
     :class:`AssetError`."""
-    from zebra_sim_ros.detection.checkpoint import read_checkpoint
+    from zebra_sim_ros.detection.checkpoint import load_weights, read_checkpoint
 
     p = verifier_file(path)
     if not p.is_file():
         raise ParameterError(name, str(p), "an existing verifier checkpoint ('shipped': the package's)")
     ckpt = read_checkpoint(p, name, FORMAT, (VERSION, ENSEMBLE_VERSION))
     net = Verifier(VerifierConfig.from_dict(ckpt["config"]))
-    try:
-        net.load_state_dict({k: v.float() for k, v in ckpt["model"].items()})
-    except RuntimeError as exc:  # torch lists every mismatched tensor: name the file and the first of them
-        first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), str(exc))
-        raise AssetError(f"{name} {p}: its weights do not fit its config {ckpt['config']} ({first})") from None
+    load_weights(net, ckpt["model"], f"{name} {p}: its weights do not fit its config {ckpt['config']}")
     return net.to(device).eval(), {k: v for k, v in ckpt.items() if k != "model"}
 
 
