@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
-import hashlib
 import json
 import os
 import platform
@@ -46,7 +45,7 @@ import cv2
 import numpy as np
 import torch
 
-from zebra_sim_ros.detection.checkpoint import SHIPPED, load_model
+from zebra_sim_ros.detection.checkpoint import SHIPPED, file_sha256, load_model
 from zebra_sim_ros.detection.data import image_size, label_path, read_labels
 from zebra_sim_ros.detection.evaluate import ImagePredictions, make_loader, predictions_by_class
 from zebra_sim_ros.detection.metrics import ap_by_size, evaluate_detections, iou_matrix, precision_recall_at
@@ -71,7 +70,7 @@ def find_sets(roots: tuple[Path, ...] = DEFAULT_ROOTS) -> list[Path]:
 
 
 def sha256_12(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()[:12]
+    return file_sha256(path)[:12]
 
 
 def other_labels(p: ImagePredictions) -> np.ndarray:

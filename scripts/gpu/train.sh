@@ -102,7 +102,7 @@ if wait_rows 1; then
   fi
 fi
 echo "[run] training ended at $(elapsed) s, rows $(rows)" >>"$LOG"
-sleep 4; touch "$RUN"/snap.stop; wait $SNAP; wait $EXPORT  # the watch stops, then the exports left are done
+sleep 1; touch "$RUN"/snap.stop; wait $SNAP; wait $EXPORT  # the watch stops, then the exports left are done
 # the last epoch, where the watch had not sent it: last_snap.pt is the last epoch trained
 if [ -f "$RUN"/last.pt ] && ! [ "$RUN"/last.pt -ef "$RUN"/snap/exported ]; then
   ln -f "$RUN"/last.pt "$RUN"/snap/raw_last.pt && snap_one "$RUN"/snap/raw_last.pt

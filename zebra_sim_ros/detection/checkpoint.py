@@ -7,6 +7,7 @@ fp16 in shipped files), ``epoch``, ``metrics``, ``train_args`` and, for resuming
 
 from __future__ import annotations
 
+import hashlib
 import os
 from pathlib import Path
 from typing import Any
@@ -72,6 +73,11 @@ def save_checkpoint(path: str | Path, model: Detector, **extra: Any) -> None:
     tmp = p.with_name(p.name + ".tmp")
     torch.save(ckpt, tmp)
     tmp.replace(p)
+
+
+def file_sha256(path: str | Path) -> str:
+    """The sha256 (hex) of a file's bytes: how records and benchmark tables name the weights they used."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def load_weights(module: torch.nn.Module, state: dict[str, torch.Tensor], misfit: str) -> None:

@@ -20,7 +20,6 @@ where hard negatives were mined, ``detector_sha256`` (the mining detector's file
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -251,6 +250,8 @@ def ensemble_verifiers(paths: Sequence[str | Path], out: str | Path, contexts: S
     :data:`SHIPPED_VERIFIER`). Its serving settings are the first member's, ``contexts`` and ``mirror`` overriding
     theirs where given; ``half`` stores the weights in float16. Returns the checkpoint's record (without weights):
     ``members`` lists each file's sha256 and record."""
+    from zebra_sim_ros.detection.checkpoint import file_sha256
+
     if not 2 <= len(paths) <= MAX_MEMBERS:
         raise ParameterError("members", [str(p) for p in paths], f"2..{MAX_MEMBERS} verifier checkpoints")
     if contexts is not None:  # checked before any member is read: the error names the option, not a member
@@ -267,7 +268,7 @@ def ensemble_verifiers(paths: Sequence[str | Path], out: str | Path, contexts: S
             if getattr(net.cfg, field) != getattr(first, field):
                 raise ParameterError("members", str(path), f"a verifier of the first one's {field} "
                                      f"{getattr(first, field)!r} (this one has {getattr(net.cfg, field)!r})")
-        sha = hashlib.sha256(verifier_file(path).read_bytes()).hexdigest()
+        sha = file_sha256(verifier_file(path))
         if sha in shas:
             raise ParameterError("members", str(path), "verifiers trained apart (this file is an earlier member's)")
         nets.append(net)

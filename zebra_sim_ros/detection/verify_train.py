@@ -8,7 +8,6 @@ sky, defocus: what photographs hold and the generator's frames lack), under phot
 
 from __future__ import annotations
 
-import hashlib
 import json
 import time
 from collections.abc import Callable
@@ -341,7 +340,9 @@ def train_verifier(cfg: TrainVerifierConfig, log: Callable[[str], None] = print)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, cfg.lr, total_steps=cfg.epochs * per_epoch, pct_start=0.1)
     pos = float(y[tr].mean())
     lossf = nn.BCEWithLogitsLoss(pos_weight=torch.tensor((1 - pos) / pos if 0 < pos < 1 else 1.0))
-    from zebra_sim_ros.detection.checkpoint import amp_dtype  # the trainer's rule: bfloat16 where the CPU has it
+    from zebra_sim_ros.detection.checkpoint import amp_dtype, file_sha256
+
+    # amp: the trainer's rule, bfloat16 where the CPU has it
 
     dtype = amp_dtype("auto", torch.device("cpu"))
     m = _STORE_MARGIN // 2  # the centre window of each stored crop
@@ -373,6 +374,6 @@ def train_verifier(cfg: TrainVerifierConfig, log: Callable[[str], None] = print)
     record: dict[str, Any] = {"train": cfg.to_dict(), "crops": crops.counts(), "val": history[-1]["called_zebra"],
               "history": history, "seconds": round(time.perf_counter() - t0, 1)}
     if cfg.detector:  # which weights mined the hard negatives: "shipped" names different weights as they change
-        record["detector_sha256"] = hashlib.sha256(_detector_file(cfg).read_bytes()).hexdigest()
+        record["detector_sha256"] = file_sha256(_detector_file(cfg))
     save_verifier(cfg.out, net, **record)
     return record
