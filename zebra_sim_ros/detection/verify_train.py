@@ -342,9 +342,7 @@ def train_verifier(cfg: TrainVerifierConfig, log: Callable[[str], None] = print)
     lossf = nn.BCEWithLogitsLoss(pos_weight=torch.tensor((1 - pos) / pos if 0 < pos < 1 else 1.0))
     from zebra_sim_ros.detection.checkpoint import amp_dtype, file_sha256
 
-    # amp: the trainer's rule, bfloat16 where the CPU has it
-
-    dtype = amp_dtype("auto", torch.device("cpu"))
+    dtype = amp_dtype("auto", torch.device("cpu"))  # the trainer's rule: bfloat16 where the CPU has it
     m = _STORE_MARGIN // 2  # the centre window of each stored crop
     xv = x[val].float()[:, :, m:m + cfg.model.crop, m:m + cfg.model.crop] / 255
     history = []
