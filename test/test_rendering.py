@@ -188,8 +188,8 @@ def test_a_recoloured_ground_changes_the_terrain_only(library: ZebraLibrary, opt
 
 def test_the_coat_array_grows_without_changing_a_pixel(library: ZebraLibrary, options: RenderOptions,
                                                         monkeypatch: pytest.MonkeyPatch) -> None:
-    """Twelve individuals rendered with a coat array that starts at two layers (grown 2 -> 4 -> 8 -> 16, each
-    time copying the coats so far) look exactly as with one of all sixteen layers from the start."""
+    """Twelve individuals rendered with a coat array that starts at two layers (doubled to 16 at once, for the frame's
+    twelve coats) look exactly as with one of all sixteen layers from the start."""
     import zebra_sim_ros.rendering.renderer as renderer_module
 
     zebras = _zebras(library, [(float(x), float(y)) for x in (-3, 0, 3) for y in (-2, 0, 2, 4)], yaw=0.7)
@@ -205,6 +205,44 @@ def test_the_coat_array_grows_without_changing_a_pixel(library: ZebraLibrary, op
         finally:
             r.release()
     assert np.array_equal(rgb[2], rgb[16])
+
+
+def test_a_frame_of_new_animals_starts_the_coat_array_again(library: ZebraLibrary, options: RenderOptions,
+                                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    """A frame that shows none of the coats held and would grow the array (``generate``: new animals every frame)
+    puts its coats at layer 0 again, in the array as it is; a frame that shows some of them keeps them and grows it,
+    copying them over. Either way its pixels are those of a fresh renderer's."""
+    from dataclasses import replace
+
+    import zebra_sim_ros.rendering.renderer as renderer_module
+
+    monkeypatch.setattr(renderer_module, "COAT_LAYERS_FIRST", 16)
+    opts = replace(options, max_coats=64)
+    spots = [(float(x), float(y)) for x in (-3, 0, 3) for y in (-2, 0, 2, 4)]
+    first = _zebras(library, spots, yaw=0.7)
+    fresh_animals = replace(first, coat_seed=first.coat_seed + 100)  # twelve other individuals
+    mixed = replace(first, coat_seed=first.coat_seed + np.where(np.arange(12) < 6, 100, 200))  # 100-105 held
+    view = _view((0.0, -14.0, 10.0), 90.0, -35.0)
+
+    def alone(zebras: ZebraSet) -> np.ndarray:
+        r = Renderer(flat_world(), library, opts)
+        try:
+            return r.render(zebras, NOON, [view])[0].rgb
+        finally:
+            r.release()
+
+    r = Renderer(flat_world(), library, opts)
+    try:
+        r.render(first, NOON, [view])
+        assert r.coats.size[2] == 16 and sorted(r._coat_layer.values()) == list(range(12))
+        again = r.render(fresh_animals, NOON, [view])[0].rgb  # 24 coats would not fit: none of the 12 is shown
+        assert r.coats.size[2] == 16 and set(r._coat_layer) == {(0, 100 + i) for i in range(12)}
+        assert np.array_equal(again, alone(fresh_animals))
+        both = r.render(mixed, NOON, [view])[0].rgb  # six held, six new: 18 coats, the array doubled
+        assert r.coats.size[2] == 32 and len(r._coat_layer) == 18 and r._coat_layer[(0, 100)] == 0
+        assert np.array_equal(both, alone(mixed))
+    finally:
+        r.release()
 
 
 def test_coats_from_the_store_render_as_baked_ones(library: ZebraLibrary, options: RenderOptions) -> None:

@@ -33,7 +33,8 @@ FloatArray = NDArray[np.float64]
 TILE_M = 64
 COAT_LAYERS_FIRST = 64
 """Coat layers a renderer starts with: mipmaps are built over every layer of the array each frame that brings new
-coats, so an array sized to the coats in use (doubled as it fills) costs a fraction of one of ``max_coats``."""
+coats, so an array sized to the coats in use (doubled as it fills, and started again at layer 0 by a frame that
+shows none of the coats it holds) costs a fraction of one of ``max_coats``."""
 
 
 @dataclass(frozen=True)
@@ -342,10 +343,11 @@ class Renderer:
                                    "ssbo": ctx.buffer(reserve=4, dynamic=True)}
 
     def _coat_array(self, layers: int) -> Any:
-        """A texture array of ``layers`` coats, mipmapped and filtered as every coat is sampled."""
+        """A texture array of ``layers`` coats, filtered as every coat is sampled. Its mipmaps are built once coats
+        are written into it (:meth:`_layers`): built over the empty array, as they once were, they cost a tenth of a
+        six-world ``generate``'s time and were built again before any was sampled."""
         s = self.options.coat_size
         arr = self.ctx.texture_array((s, s, layers), 3)
-        arr.build_mipmaps()
         arr.filter = (self.ctx.LINEAR_MIPMAP_LINEAR, self.ctx.LINEAR)
         return arr
 
@@ -353,22 +355,33 @@ class Renderer:
         """Each zebra's coat layer; the coats not yet in the array come from the coat store (read or baked) in one
         call, so the processes that render the same animals share the baking, and the mipmaps are built again."""
         keys = [(int(m), int(s)) for m, s in zip(zebras.morph, zebras.coat_seed, strict=True)]
-        new = [k for k in dict.fromkeys(keys) if k not in self._coat_layer]
-        if len(self._coat_layer) + len(new) > self.options.max_coats:  # rare: more individuals than layers
+        unique = list(dict.fromkeys(keys))
+        new = [k for k in unique if k not in self._coat_layer]
+        held, cap = len(self._coat_layer), self.options.max_coats
+        if held + len(new) > cap or (held and held + len(new) > self.coats.size[2] and len(new) == len(unique)):
+            # More individuals than layers (rare), or a frame that shows none of the coats held and would grow the
+            # array (``generate``: new animals every frame): its coats start again at layer 0. A coat's layer only
+            # says where the shader finds it, so the pixels are the same; the array stays the size of a frame's
+            # coats, not ``max_coats``, and so does the cost of its mipmaps.
             self._coat_layer.clear()
-            new = list(dict.fromkeys(keys))
-            if len(new) > self.options.max_coats:
-                raise ParameterError("max_coats", self.options.max_coats, f">= the {len(new)} individuals of a frame")
+            new = unique
+            if len(new) > cap:
+                raise ParameterError("max_coats", cap, f">= the {len(new)} individuals of a frame")
+        need = len(self._coat_layer) + len(new)
+        if need > self.coats.size[2]:  # full: doubled until the frame's coats fit, once, the coats held copied over
+            size = self.coats.size[2]
+            while size < need:
+                size *= 2
+            grown = self._coat_array(min(size, cap))
+            if self._coat_layer:
+                grown.write(self.coats.read(), viewport=(0, 0, 0, *self.coats.size))
+            self.coats.release()
+            self.coats = grown
         names = self.library.morphs
         texs = self.coat_store.coats([(names[m], seed) for m, seed in new], self.options.coat_size)
         s = self.options.coat_size
         for key, tex in zip(new, texs, strict=True):
             layer = len(self._coat_layer)
-            if layer >= self.coats.size[2]:  # full: twice the layers, the coats so far copied over
-                grown = self._coat_array(min(2 * self.coats.size[2], self.options.max_coats))
-                grown.write(self.coats.read(), viewport=(0, 0, 0, *self.coats.size))
-                self.coats.release()
-                self.coats = grown
             self.coats.write(np.ascontiguousarray(tex[::-1]).tobytes(), viewport=(0, 0, layer, s, s, 1))
             self._coat_layer[key] = layer
         if new:
