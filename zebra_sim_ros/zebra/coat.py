@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -270,53 +271,89 @@ def _part_samples(mesh: ZebraMesh, name: str, size: int) -> tuple[NDArray[np.int
     return rows, cols, p, along, around
 
 
-def _part_pattern(name: str, p: FloatArray, along: FloatArray, around: FloatArray, morph: Morph,
-                  period: float) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Stripe phase (in periods), forced black (0..1) and forced white (0..1) under each texel of part ``name``
-    (``p`` bind positions, ``along``/``around`` 0..1 on the part's tube)."""
-    j = bind_positions(morph)
+class _Pattern(NamedTuple):
+    """What a part's stripe phase, forced black and forced white are made of but the individual's stripe period: the
+    same for every coat of a morph, so worked out once with the part's texels (:func:`_geometry`). The phase is
+    ``dist / (per * period) ** power``, but on the barrel: there ``(1 - rump) * dist / period + rump * arc / (1.2 *
+    period)``, bands on the body turning into arcs round the haunch."""
+
+    dist: FloatArray  # the phase times the period's multiple: a distance across the part's bands, metres
+    per: float
+    power: float | None  # None: not raised (the legs' 0.95 narrows their rings towards the hooves)
+    rump: FloatArray | None  # barrel: the haunch's share (0..1), 1 - it, and the distance from the haunch's centre
+    body: FloatArray | None
+    arc: FloatArray | None
+    dark_extra: FloatArray  # forced black (0..1)
+    keep: FloatArray  # 1 - forced white
+
+
+def _part_pattern(name: str, p: FloatArray, along: FloatArray, around: FloatArray, morph: Morph) -> _Pattern:
+    """The stripe pattern's geometry under each texel of part ``name`` (``p`` bind positions, ``along``/``around``
+    0..1 on the part's tube); :func:`_phase` gives the stripe phase (in periods) for an individual's period."""
+    j = _bind(morph)
     pel, n1, hd = j[JOINT_INDEX["pelvis"]], j[JOINT_INDEX["neck_1"]], j[JOINT_INDEX["head"]]
     x, z = p[..., 0], p[..., 2]
     dark_extra = np.zeros_like(x)
     white_extra = np.zeros_like(x)
+    rump = body = arc = None
+    per, power = 0.5, None
     if name == "barrel":
         haunch = pel + np.array([0.45, 0.0, -0.55]) * morph.withers_height / 1.3
         rump = _smoothstep(pel[0] + 0.25, pel[0] - 0.15, x)
-        phase_body = x / period
-        phase_rump = np.linalg.norm((p - haunch)[..., [0, 2]], axis=-1) / (1.2 * period)
-        phase = (1 - rump) * phase_body + rump * phase_rump
+        dist, body, arc = x, 1 - rump, np.linalg.norm((p - haunch)[..., [0, 2]], axis=-1)
         ang = np.abs(around - 0.5)  # 0.5 = straight down; 0 or 1 = along the spine
         dark_extra = (ang > 0.47).astype(float) * (morph.coat in ("stripes", "brindle"))  # dorsal stripe
         if morph.white_belly:
             white_extra = _smoothstep(0.14, 0.08, ang)
     elif name in ("neck", "mane"):
         nd = (hd - n1) / np.linalg.norm(hd - n1)
-        phase = (p @ nd) / (0.9 * period)
+        dist, per = p @ nd, 0.9
     elif name == "head":
-        hdir = head_direction(morph)
-        phase = (p @ hdir) / (0.35 * period)
+        dist, per = p @ head_direction(morph), 0.35
         dark_extra = _smoothstep(0.80, 0.88, along)  # the dark muzzle
     elif name.startswith("leg"):
-        phase = z / (0.45 * period) ** 0.95
+        dist, per, power = z, 0.45, 0.95
         dark_extra = _smoothstep(0.955, 0.97, along)  # hooves
         if morph.white_belly:
             white_extra = _smoothstep(0.30, 0.20, z)  # Grévy's fade to white low on the legs
     elif name.startswith("ear"):
-        phase = z / (0.5 * period)
+        dist = z
         dark_extra = _smoothstep(0.72, 0.8, along)
         white_extra = 0.6 * _smoothstep(0.5, 0.3, around % 1.0)
     elif name == "snout":  # a trunk: the skin of the body, ringed (horns and a nasal horn are coloured in bake_coat)
-        phase = z / (0.5 * period)
+        dist = z
     else:  # tail: striped at the root, black tuft
-        phase = z / (0.5 * period)
+        dist = z
         dark_extra = _smoothstep(0.62, 0.7, along)
-    return phase, dark_extra, white_extra
+    return _Pattern(dist, per, power, rump, body, arc, dark_extra, 1 - white_extra)
 
 
-_Samples = tuple[NDArray[np.int64], NDArray[np.int64], FloatArray, FloatArray, FloatArray]
+def _phase(pat: _Pattern, period: float) -> FloatArray:
+    """A part's stripe phase, in periods, for an individual's stripe ``period`` (metres)."""
+    if pat.rump is not None and pat.body is not None and pat.arc is not None:
+        return pat.body * (pat.dist / period) + pat.rump * (pat.arc / (1.2 * period))
+    if pat.power is None:
+        return pat.dist / (pat.per * period)
+    return pat.dist / (pat.per * period) ** pat.power
+
+
+_BIND: dict[str, FloatArray] = {}
+
+
+def _bind(morph: Morph) -> FloatArray:
+    """``bind_positions(morph)``, worked out once per process (read-only; a morph is keyed by all its fields)."""
+    key = repr(morph)
+    got = _BIND.get(key)
+    if got is None:
+        got = _BIND[key] = bind_positions(morph)
+        got.flags.writeable = False
+    return got
+
+
+_Samples = tuple[NDArray[np.int64], NDArray[np.int64], FloatArray, FloatArray, FloatArray, _Pattern]
 _GEOMETRY: OrderedDict[tuple[str, int], list[tuple[str, _Samples]]] = OrderedDict()
 _MESHES: dict[str, ZebraMesh] = {}
-_GEOMETRY_KEEP = 16  # (morph, size) entries kept: eleven morphs at 256 texels take about 40 MB
+_GEOMETRY_KEEP = 16  # (morph, size) entries kept: eleven morphs at 256 texels take about 50 MB
 
 
 def _geometry_mesh(morph: Morph) -> ZebraMesh:
@@ -327,16 +364,24 @@ def _geometry_mesh(morph: Morph) -> ZebraMesh:
     return _MESHES[key]
 
 
+def _samples(mesh: ZebraMesh, morph: Morph, size: int) -> list[tuple[str, _Samples]]:
+    """Each part's texels, what lies under them (:func:`_part_samples`) and its stripe pattern's geometry."""
+    got = []
+    for pg in mesh.parts:
+        rows, cols, p, along, around = _part_samples(mesh, pg.name, size)
+        got.append((pg.name, (rows, cols, p, along, around, _part_pattern(pg.name, p, along, around, morph))))
+    return got
+
+
 def _geometry(morph: Morph, size: int) -> list[tuple[str, _Samples]]:
-    """Each part's texels and what lies under them (:func:`_part_samples`) for ``morph`` at ``size`` texels: the
-    same for every individual of a morph, so computed once and kept (the :data:`_GEOMETRY_KEEP` latest)."""
+    """:func:`_samples` of ``morph``'s own mesh at ``size`` texels: the same for every individual of a morph, so
+    computed once and kept (the :data:`_GEOMETRY_KEEP` latest)."""
     key = (repr(morph), size)
     got = _GEOMETRY.get(key)
     if got is None:
-        mesh = _geometry_mesh(morph)
-        got = [(pg.name, _part_samples(mesh, pg.name, size)) for pg in mesh.parts]
-        for _, arrays in got:
-            for a in arrays:
+        got = _samples(_geometry_mesh(morph), morph, size)
+        for _, (*arrays, pattern) in got:
+            for a in [*arrays, *(v for v in pattern if isinstance(v, np.ndarray))]:
                 a.flags.writeable = False  # shared by every later coat: a stray write would change them all
         _GEOMETRY[key] = got
         while len(_GEOMETRY) > _GEOMETRY_KEEP:
@@ -353,8 +398,8 @@ def bake_coat(morph: Morph, params: CoatParams, size: int = 512, mesh: ZebraMesh
     if mesh is None:
         mesh, samples = _geometry_mesh(morph), _geometry(morph, size)
     else:
-        samples = [(pg.name, _part_samples(mesh, pg.name, size)) for pg in mesh.parts]
-    pel_x = bind_positions(morph)[JOINT_INDEX["pelvis"], 0]
+        samples = _samples(mesh, morph, size)
+    pel_x = _bind(morph)[JOINT_INDEX["pelvis"], 0]
     period = morph.stripe_period * params.period_scale
     img = np.zeros((size, size, 3))
     base = np.array(params.base_rgb)
@@ -371,14 +416,13 @@ def bake_coat(morph: Morph, params: CoatParams, size: int = 512, mesh: ZebraMesh
         lo, hi = mesh.vertices.min(axis=0) - 0.1, mesh.vertices.max(axis=0) + 0.1
         n_cells = int(np.clip(np.prod(hi - lo) / period ** 3, 8, 4000))
         seeds, picks = crng.uniform(lo, hi, (n_cells, 3)), crng.uniform(0, 1, n_cells)
-    for name, (rows, cols, p, along, around) in samples:
+    for name, (rows, cols, p, along, around, pattern) in samples:
         if name.startswith("horn") or (name == "snout" and morph.snout == "horn"):
             # Horn or tusk: its own colour, a little darker at the base and lighter towards the tip; no coat pattern.
             img[_window(rows, cols)] = np.clip(np.asarray(morph.horn_rgb) * (0.8 + 0.35 * along[..., None]), 0, 1)
             continue
         warp = params.warp_amplitude * _mean_sin(p @ k.T, ph) * 2.0
-        phase, dark_extra, white_extra = _part_pattern(name, p, along, around, morph, period)
-        f = (phase + warp) % 1.0
+        f = (_phase(pattern, period) + warp) % 1.0
         # Black where f < black_fraction, with soft edges at both ends of the band.
         b = _smoothstep(-edge, edge, f) * _smoothstep(params.black_fraction + edge, params.black_fraction - edge, f)
         b = b + _smoothstep(1 - edge, 1 + edge, f)
@@ -390,7 +434,7 @@ def bake_coat(morph: Morph, params: CoatParams, size: int = 512, mesh: ZebraMesh
             b = np.zeros_like(f)
         elif params.pattern == "brindle":
             b = 0.6 * b  # faint bands
-        b = np.clip(np.maximum(b, dark_extra) * (1 - white_extra), 0, 1)
+        b = np.clip(np.maximum(b, pattern.dark_extra) * pattern.keep, 0, 1)
         col = base * (1 - b[..., None]) + black * b[..., None]
         if params.pattern != "stripes":  # other species: hide noise, creases, mud and dust
             shade, earth = _hide(p, params, height)
