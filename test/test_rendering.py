@@ -238,6 +238,10 @@ def test_a_frame_of_new_animals_starts_the_coat_array_again(library: ZebraLibrar
         again = r.render(fresh_animals, NOON, [view])[0].rgb  # 24 coats would not fit: none of the 12 is shown
         assert r.coats.size[2] == 16 and set(r._coat_layer) == {(0, 100 + i) for i in range(12)}
         assert np.array_equal(again, alone(fresh_animals))
+        # a frame that would grow the array but whose coats cannot be had (a morph the library lacks) changes nothing
+        with pytest.raises(IndexError):
+            r.render(replace(mixed, morph=np.where(np.arange(12) == 11, 99, mixed.morph)), NOON, [view])
+        assert r.coats.size[2] == 16 and np.array_equal(r.render(fresh_animals, NOON, [view])[0].rgb, again)
         both = r.render(mixed, NOON, [view])[0].rgb  # six held, six new: 18 coats, the array doubled
         assert r.coats.size[2] == 32 and len(r._coat_layer) == 18 and r._coat_layer[(0, 100)] == 0
         assert np.array_equal(both, alone(mixed))

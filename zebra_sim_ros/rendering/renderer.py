@@ -56,7 +56,8 @@ class RenderOptions:
     terrain_detail_distance_m: float = 180.0
     zebra_detail_distance_m: float = 35.0
     coat_size: int = 256
-    max_coats: int = 1024  # coat layers at most (the array starts at COAT_LAYERS_FIRST and doubles as it fills)
+    max_coats: int = 1024  # coat layers at most (the array starts at COAT_LAYERS_FIRST and doubles as it fills;
+    # a frame of new animals starts it again at layer 0)
     detail: bool = True  # procedural ground detail (grass tufts, soil, stones, micro-relief) and the photographic coat
     # shading (contrast, belly, dust, sheen); False: flat ground colours and the coat texture as it is
     contact_shadows: bool = True  # soft occlusion on the ground under every animal
@@ -358,15 +359,20 @@ class Renderer:
         unique = list(dict.fromkeys(keys))
         new = [k for k in unique if k not in self._coat_layer]
         held, cap = len(self._coat_layer), self.options.max_coats
-        if held + len(new) > cap or (held and held + len(new) > self.coats.size[2] and len(new) == len(unique)):
+        restart = held + len(new) > cap or (held and held + len(new) > self.coats.size[2] and len(new) == len(unique))
+        if restart:
             # More individuals than layers (rare), or a frame that shows none of the coats held and would grow the
             # array (``generate``: new animals every frame): its coats start again at layer 0. A coat's layer only
             # says where the shader finds it, so the pixels are the same; the array stays the size of a frame's
             # coats, not ``max_coats``, and so does the cost of its mipmaps.
-            self._coat_layer.clear()
             new = unique
             if len(new) > cap:
                 raise ParameterError("max_coats", cap, f">= the {len(new)} individuals of a frame")
+        names = self.library.morphs
+        # the coats first: one that cannot be had (a morph the library lacks) leaves the array and its layers as they were
+        texs = self.coat_store.coats([(names[m], seed) for m, seed in new], self.options.coat_size)
+        if restart:
+            self._coat_layer.clear()
         need = len(self._coat_layer) + len(new)
         if need > self.coats.size[2]:  # full: doubled until the frame's coats fit, once, the coats held copied over
             size = self.coats.size[2]
@@ -377,8 +383,6 @@ class Renderer:
                 grown.write(self.coats.read(), viewport=(0, 0, 0, *self.coats.size))
             self.coats.release()
             self.coats = grown
-        names = self.library.morphs
-        texs = self.coat_store.coats([(names[m], seed) for m, seed in new], self.options.coat_size)
         s = self.options.coat_size
         for key, tex in zip(new, texs, strict=True):
             layer = len(self._coat_layer)
