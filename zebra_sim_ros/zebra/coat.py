@@ -274,12 +274,13 @@ def _part_samples(mesh: ZebraMesh, name: str, size: int) -> tuple[NDArray[np.int
 class _Pattern(NamedTuple):
     """What a part's stripe phase, forced black and forced white are made of but the individual's stripe period: the
     same for every coat of a morph, so worked out once with the part's texels (:func:`_geometry`). The phase is
-    ``dist / (per * period) ** power``, but on the barrel: there ``(1 - rump) * dist / period + rump * arc / (1.2 *
-    period)``, bands on the body turning into arcs round the haunch."""
+    ``dist / (per * period) ** power``, but on the barrel: there ``(1 - rump) * (dist / period) + rump * (arc / (1.2 *
+    period))``, bands on the body turning into arcs round the haunch (:func:`_phase`: the same operations in the
+    same order as when the phase was computed whole, so the coats are the same bytes)."""
 
     dist: FloatArray  # the phase times the period's multiple: a distance across the part's bands, metres
     per: float
-    power: float | None  # None: not raised (the legs' 0.95 narrows their rings towards the hooves)
+    power: float | None  # what ``per * period`` is raised to (the legs: 0.95); None: not raised
     rump: FloatArray | None  # barrel: the haunch's share (0..1), 1 - it, and the distance from the haunch's centre
     body: FloatArray | None
     arc: FloatArray | None
@@ -353,7 +354,7 @@ def _bind(morph: Morph) -> FloatArray:
 _Samples = tuple[NDArray[np.int64], NDArray[np.int64], FloatArray, FloatArray, FloatArray, _Pattern]
 _GEOMETRY: OrderedDict[tuple[str, int], list[tuple[str, _Samples]]] = OrderedDict()
 _MESHES: dict[str, ZebraMesh] = {}
-_GEOMETRY_KEEP = 16  # (morph, size) entries kept: eleven morphs at 256 texels take about 50 MB
+_GEOMETRY_KEEP = 16  # (morph, size) entries kept: eleven morphs at 256 texels take about 61 MB
 
 
 def _geometry_mesh(morph: Morph) -> ZebraMesh:
