@@ -369,7 +369,8 @@ class Renderer:
             if len(new) > cap:
                 raise ParameterError("max_coats", cap, f">= the {len(new)} individuals of a frame")
         names = self.library.morphs
-        # the coats first: one that cannot be had (a morph the library lacks) leaves the array and its layers as they were
+        # the coats first: one that cannot be had (a morph the library lacks) leaves the array and its layers as they
+        # were
         texs = self.coat_store.coats([(names[m], seed) for m, seed in new], self.options.coat_size)
         if restart:
             self._coat_layer.clear()

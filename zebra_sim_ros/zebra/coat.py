@@ -417,7 +417,7 @@ def bake_coat(morph: Morph, params: CoatParams, size: int = 512, mesh: ZebraMesh
         lo, hi = mesh.vertices.min(axis=0) - 0.1, mesh.vertices.max(axis=0) + 0.1
         n_cells = int(np.clip(np.prod(hi - lo) / period ** 3, 8, 4000))
         seeds, picks = crng.uniform(lo, hi, (n_cells, 3)), crng.uniform(0, 1, n_cells)
-    for name, (rows, cols, p, along, around, pattern) in samples:
+    for name, (rows, cols, p, along, _, pattern) in samples:
         if name.startswith("horn") or (name == "snout" and morph.snout == "horn"):
             # Horn or tusk: its own colour, a little darker at the base and lighter towards the tip; no coat pattern.
             img[_window(rows, cols)] = np.clip(np.asarray(morph.horn_rgb) * (0.8 + 0.35 * along[..., None]), 0, 1)
