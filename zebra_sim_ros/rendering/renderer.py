@@ -359,7 +359,8 @@ class Renderer:
         unique = list(dict.fromkeys(keys))
         new = [k for k in unique if k not in self._coat_layer]
         held, cap = len(self._coat_layer), self.options.max_coats
-        restart = held + len(new) > cap or (held and held + len(new) > self.coats.size[2] and len(new) == len(unique))
+        none_held = held > 0 and len(new) == len(unique)  # a frame that shows none of the coats the array holds
+        restart = held + len(new) > cap or (none_held and held + len(new) > self.coats.size[2])
         if restart:
             # More individuals than layers (rare), or a frame that shows none of the coats held and would grow the
             # array (``generate``: new animals every frame): its coats start again at layer 0. A coat's layer only
