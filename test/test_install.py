@@ -157,3 +157,16 @@ def test_the_core_never_imports_rclpy() -> None:
     offenders = [str(p.relative_to(REPO)) for p in (REPO / PACKAGE).rglob("*.py")
                  if "nodes" not in p.relative_to(REPO / PACKAGE).parts and pattern.search(p.read_text())]
     assert not offenders, offenders
+
+
+def test_the_command_line_starts_without_torch() -> None:
+    """``zebra-sim``'s parser (every command's options, the training augmentations and the verifier's settings
+    among them) is built without importing torch: a command that needs no model (``--help``, ``generate``, ``up``,
+    ``bag``) starts in about a second instead of four (torch's import, on our 2 cores); the commands that run a model
+    import it when they run."""
+    code = ("import sys; from zebra_sim_ros.cli import build_parser; build_parser(); "
+            "print(sorted(m for m in ('torch', 'zebra_sim_ros.detection.data', 'zebra_sim_ros.detection.verify') "
+            "if m in sys.modules))")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.strip() == "[]", run.stdout

@@ -14,10 +14,10 @@ import torch
 from cli_helpers import CliRun
 
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
+from zebra_sim_ros.detection.config import TrainVerifierConfig, VerifierConfig
 from zebra_sim_ros.detection.verify import (
     SHIPPED_VERIFIER,
     Verifier,
-    VerifierConfig,
     ensemble_verifiers,
     judged_side,
     load_verifier,
@@ -29,7 +29,6 @@ from zebra_sim_ros.detection.verify import (
 )
 from zebra_sim_ros.detection.verify_train import (
     KINDS,
-    TrainVerifierConfig,
     collect_crops,
     draw_clutter,
     held_out,

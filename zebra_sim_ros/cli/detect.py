@@ -67,8 +67,7 @@ def register(sub: Any) -> None:
                         description="Crops of every animal (zebras, other species) and of background in the frames "
                         "of generated datasets (their annotations/ say which animal is a zebra), a small network "
                         "trained on them under photometric augmentations; see zebra_sim_ros/detection/verify_train.py.")
-    from zebra_sim_ros.detection.verify import VerifierConfig
-    from zebra_sim_ros.detection.verify_train import SPLITS, TrainVerifierConfig
+    from zebra_sim_ros.detection.config import SPLITS, TrainVerifierConfig, VerifierConfig
 
     d = {f.name: f.default for c in (VerifierConfig, TrainVerifierConfig) for f in fields(c)}  # declared once, there
     tv.add_argument("--data", nargs="+", required=True, help="folders written by zebra-sim generate")
@@ -171,7 +170,7 @@ def add_augment_options(parser: argparse.ArgumentParser) -> None:
     """``--aug-<name>`` for every field of :class:`~zebra_sim_ros.detection.data.Augment` (declared there once)."""
     from dataclasses import fields
 
-    from zebra_sim_ros.detection.data import Augment
+    from zebra_sim_ros.detection.config import Augment
 
     g = parser.add_argument_group("augmentation (0 switches one off)")
     for f in fields(Augment):
@@ -183,7 +182,7 @@ def augment_from_args(args: argparse.Namespace) -> Any:
     """The :class:`~zebra_sim_ros.detection.data.Augment` the ``--aug-*`` options give."""
     from dataclasses import fields
 
-    from zebra_sim_ros.detection.data import Augment
+    from zebra_sim_ros.detection.config import Augment
 
     return Augment(**{f.name: getattr(args, f"aug_{f.name}") for f in fields(Augment)})
 
@@ -209,8 +208,8 @@ def cmd_train(args: argparse.Namespace) -> Summary:
 
 def cmd_train_verifier(args: argparse.Namespace) -> Summary:
     """Train the crop verifier."""
-    from zebra_sim_ros.detection.verify import VerifierConfig
-    from zebra_sim_ros.detection.verify_train import TrainVerifierConfig, train_verifier
+    from zebra_sim_ros.detection.config import TrainVerifierConfig, VerifierConfig
+    from zebra_sim_ros.detection.verify_train import train_verifier
 
     model = VerifierConfig(crop=args.crop, min_side=args.min_side, widths=tuple(args.widths),
                            min_side_fraction=args.min_side_fraction, contexts=tuple(args.contexts), mirror=args.mirror)

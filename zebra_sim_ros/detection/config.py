@@ -1,11 +1,15 @@
-"""The detector node's parameters."""
+"""The detector's settings: the node's parameters, the model's sizes, and the training augmentation's strengths
+(:class:`Augment`). Nothing here imports torch, so the command line builds its options without it."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+from typing import Any
 
 from zebra_sim_ros.detection.metrics import MAX_DETECTIONS
+from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.params import (
     ParamSpec,
     StageConfig,
@@ -97,3 +101,189 @@ def output_base(image_topic: str) -> str:
     if "/" not in topic.lstrip("/"):
         return "/detections" if topic.startswith("/") else "detections"
     return f"{topic.rsplit('/', 1)[0]}/detections"
+
+
+def _aug(default: float, text: str, lo: float = 0.0, hi: float = 1.0, off: float | None = 0.0) -> Any:
+    """An :class:`Augment` field: its default, help, allowed range and the value that switches it off (None: a
+    setting that switches nothing off, kept at its default by :meth:`Augment.none`)."""
+    return field(default=default, metadata={"help": text, "lo": lo, "hi": hi, "off": off})
+
+
+@dataclass(frozen=True)
+class Augment:
+    """Augmentation strengths: the geometry and HSV of YOLOv5/8's defaults, and what breaks the shortcuts a
+    detector learns from rendered frames (a clean sensor, one camera's colours, small far zebras only). Each field
+    is a ``zebra-sim train`` option (``--aug-<name>``); :meth:`none` switches all off."""
+
+    mosaic: float = _aug(1.0, "probability of a mosaic of four images")
+    scale: float = _aug(0.5, "random scale 1 +- this", hi=10.0)
+    translate: float = _aug(0.1, "random translation, share of the image side")
+    fliplr: float = _aug(0.5, "probability of a horizontal flip")
+    hsv_h: float = _aug(0.015, "hue jitter, share of the hue circle")
+    hsv_s: float = _aug(0.7, "saturation gain 1 +- this", hi=10.0)
+    hsv_v: float = _aug(0.4, "brightness gain 1 +- this", hi=10.0)
+    zoom: float = _aug(0.3, "probability that a sample is a crop around one labelled zebra, enlarged (--aug-zoom-max) "
+                            "until it spans 15-80%% of the side, often cut by the edges: large zebras from far ones")
+    grayscale: float = _aug(0.05, "probability of a grey image")
+    gamma: float = _aug(0.25, "gamma exp(U(-this, this)) on the whole image")
+    white_balance: float = _aug(0.12, "per-channel gain exp(U(-this, this)): another camera's colour")
+    blur: float = _aug(0.2, "probability of a Gaussian blur of sigma 0.4-1.6 px (defocus)")
+    noise: float = _aug(0.25, "probability of Gaussian sensor noise of 2-10 levels")
+    jpeg: float = _aug(0.3, "probability of a JPEG round trip at quality 30-90")
+    cutout: float = _aug(0.15, "probability of 1-3 grey rectangles of 5-25%% of the side; a box hidden over 60%% "
+                               "is dropped")
+    background: float = _aug(0.0, "probability that a zoom crop (--aug-zoom) is centred on an animal of another "
+                                  "species (from the set's annotations/, as generate writes them) or else on a random "
+                                  "point, not on a zebra, enlarged alike: hard negatives at the size of large zebras")
+    zoom_max: float = _aug(4.0, "largest enlargement of a zoom crop (--aug-zoom), 1-16: more makes larger, "
+                                "blurrier animals from far ones", lo=1.0, hi=16.0, off=None)
+    zoom_crop: float = _aug(0.0, "with --crop: probability that a zoom crop sizes its animal to 15-80%% of the "
+                                 "--crop window the model sees (and centres the window on it) rather than of the "
+                                 "--imgsz sample, where the enlargement cap keeps far animals small in the window")
+
+    @classmethod
+    def none(cls) -> Augment:
+        """Letterbox only: every augmentation off."""
+        return cls(**{f.name: f.metadata["off"] for f in fields(cls) if f.metadata["off"] is not None})
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any] | None) -> Augment:
+        """From a checkpoint's record (unknown or missing names: the defaults)."""
+        names = {f.name for f in fields(cls)}
+        return cls(**{k: float(v) for k, v in (d or {}).items() if k in names})
+
+    def check(self) -> None:
+        """Raise :class:`ParameterError` naming the first value out of range."""
+        for f in fields(self):
+            v = getattr(self, f.name)
+            lo, hi = f.metadata["lo"], f.metadata["hi"]
+            if not lo <= v <= hi:
+                raise ParameterError(f"--aug-{f.name.replace('_', '-')}", v, f"{lo:g}..{hi:g}")
+
+
+MAX_MEMBERS = 8  # each member costs one network's time on every judged crop: 8 is already 8x the served cost
+SPLITS = ("crop", "frame")  # how train-verifier holds crops out: a share of the crops, or of the frames
+
+
+@dataclass(frozen=True)
+class VerifierConfig:
+    """What the verifier sees: ``crop`` px squares around boxes of at least ``min_side`` px, ``context`` times the
+    box's long side.
+
+    ``min_side_fraction``, ``contexts`` and ``mirror`` are for serving only. A box is judged when its long side is
+    also at least ``min_side_fraction`` of the image's long side (0.0375: 24 px on a 640 px photo, 48 px on a
+    1280x720 frame); training crops animals by ``min_side`` alone. Its p(zebra) is the mean over one crop at each of
+    ``contexts`` (empty: ``context`` alone) and, with ``mirror``, each crop's mirror image too. ``members`` > 1 makes
+    the verifier an ensemble of that many networks of this shape, trained apart: p(zebra) of a crop is the mean of
+    theirs (:func:`ensemble_verifiers`)."""
+
+    crop: int = 96
+    context: float = 1.2
+    min_side: float = 24.0
+    widths: tuple[int, ...] = (32, 64, 96, 128, 192)
+    min_side_fraction: float = 0.0
+    contexts: tuple[float, ...] = ()
+    mirror: bool = False
+    members: int = 1
+
+    def check(self) -> None:
+        if not 32 <= self.crop <= 256:
+            raise ParameterError("verifier crop", self.crop, "32..256 px")
+        if not 1.0 <= self.context <= 3.0:
+            raise ParameterError("verifier context", self.context, "1.0..3.0 (times the box's long side)")
+        if not self.min_side >= 1.0:
+            raise ParameterError("verifier min_side", self.min_side, ">= 1 px")
+        if not 0.0 <= self.min_side_fraction <= 0.5:
+            raise ParameterError("verifier min_side_fraction", self.min_side_fraction,
+                                 "0..0.5 (of the image's long side; 0: min_side alone)")
+        if not self.widths or any(w < 1 for w in self.widths):
+            raise ParameterError("verifier widths", self.widths, "a non-empty list of channel counts >= 1")
+        if any(not 1.0 <= c <= 3.0 for c in self.contexts) or len(set(self.contexts)) != len(self.contexts):
+            raise ParameterError("verifier contexts", self.contexts,
+                                 "distinct values in 1.0..3.0 (times the box's long side; empty: context alone)")
+        if not 1 <= self.members <= MAX_MEMBERS:
+            raise ParameterError("verifier members", self.members, f"1..{MAX_MEMBERS} (networks averaged)")
+
+    def views(self) -> list[tuple[float, bool]]:
+        """The (context, mirrored) crops whose p(zebra) a served box averages."""
+        return [(c, m) for c in self.contexts or (self.context,) for m in ((False, True) if self.mirror else (False,))]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The config as a checkpoint stores it (lists, not tuples); :meth:`from_dict` reads it back."""
+        return {**asdict(self), "widths": list(self.widths), "contexts": list(self.contexts)}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> VerifierConfig:
+        cfg = cls(int(d["crop"]), float(d["context"]), float(d["min_side"]), tuple(int(w) for w in d["widths"]),
+                  float(d.get("min_side_fraction", 0.0)),  # checkpoints before the fraction judged by min_side alone
+                  tuple(float(c) for c in d.get("contexts", ())), bool(d.get("mirror", False)),  # and by one crop
+                  int(d.get("members", 1)))
+        cfg.check()
+        return cfg
+
+
+@dataclass(frozen=True)
+class TrainVerifierConfig:
+    """``zebra-sim train-verifier``: crops of the generated datasets in ``data`` (folders with ``annotations/``)."""
+
+    data: tuple[str, ...]
+    out: str
+    epochs: int = 10
+    batch: int = 128
+    lr: float = 2e-3
+    seed: int = 25
+    val_fraction: float = 0.1
+    # how the held-out crops are drawn: "crop" (a random share of the crops: an animal's two jittered crops can fall
+    # on both sides, so the held-out figures are optimistic) or "frame" (every crop of a random share of the frames)
+    split: str = "crop"
+    min_visible_pixels: int = 300  # animals with fewer visible pixels are not cropped
+    min_visible_fraction: float = 0.3
+    background_per_frame: int = 2
+    # hard negatives: a detector's boxes on the frames ('shipped' or a checkpoint; '' = none) at mine_imgsz and
+    # mine_conf that overlap no zebra become crops of kind "detector's false boxes"
+    detector: str = ""
+    mine_imgsz: int = 640
+    mine_conf: float = 0.1
+    # off: the detector's boxes on animals of other species (centre in one or IoU >= 0.1) are not hard negatives
+    # either, only those on background are (the animals have crops of their own)
+    mine_on_animals: bool = True
+    # parts: this many squares per cropped animal of 40-75% of its box's long side, centred in the middle half of
+    # the box (a zebra's part is a zebra, another species' part is not); clutter: this many drawn squares per
+    # frame (draw_clutter), never a zebra. Both drawn from streams of their own: the other crops stay the same.
+    parts_per_animal: int = 0
+    clutter_per_frame: int = 0
+    model: VerifierConfig = field(default_factory=VerifierConfig)
+
+    def check(self) -> None:
+        if not self.data:
+            raise ParameterError("--data", list(self.data), "one or more generated dataset folders")
+        for d in self.data:
+            if not (Path(d) / "annotations").is_dir():
+                raise ParameterError("--data", d, "a folder written by zebra-sim generate (with annotations/)")
+        for name, value, lo in (("--epochs", self.epochs, 1), ("--batch", self.batch, 2), ("--seed", self.seed, 0),
+                                ("--background-per-frame", self.background_per_frame, 0),
+                                ("--parts-per-animal", self.parts_per_animal, 0),
+                                ("--clutter-per-frame", self.clutter_per_frame, 0)):
+            if value < lo:
+                raise ParameterError(name, value, f">= {lo}")
+        if not 0 < self.lr <= 1:
+            raise ParameterError("--lr", self.lr, "in (0, 1]")
+        if not 0 < self.val_fraction < 0.5:
+            raise ParameterError("--val-fraction", self.val_fraction, "in (0, 0.5)")
+        if self.split not in SPLITS:
+            raise ParameterError("--split", self.split, " or ".join(SPLITS))
+        from zebra_sim_ros.detection.config import imgsz_ok
+
+        if not imgsz_ok(self.mine_imgsz):
+            raise ParameterError("--mine-imgsz", self.mine_imgsz, "a multiple of 32 in 64..4096")
+        if not 0 < self.mine_conf < 1:
+            raise ParameterError("--mine-conf", self.mine_conf, "in (0, 1)")
+        if self.detector not in ("", "shipped") and not Path(self.detector).is_file():
+            raise ParameterError("--detector", self.detector, "empty, shipped or an existing detector checkpoint")
+        self.model.check()
+        if self.model.members != 1:
+            raise ParameterError("verifier members", self.model.members,
+                                 "1 to train (members are trained apart; zebra-sim verifier-ensemble joins them)")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {**asdict(self), "data": list(self.data), "model": self.model.to_dict()}

@@ -22,7 +22,7 @@ from __future__ import annotations
 import json
 import struct
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -33,70 +33,12 @@ import yaml
 from numpy.typing import NDArray
 from torch.utils.data import Dataset
 
-from zebra_sim_ros.detection.config import STRIDE
+from zebra_sim_ros.detection.config import STRIDE, Augment
 from zebra_sim_ros.detection.model import ZEBRA
 from zebra_sim_ros.errors import AssetError, ParameterError
 
 IMAGE_EXTS = (".jpg", ".jpeg", ".png", ".bmp")
 DONT_CARE = -1  # the class of a don't-care box among training targets
-
-
-def _aug(default: float, text: str, lo: float = 0.0, hi: float = 1.0, off: float | None = 0.0) -> Any:
-    """An :class:`Augment` field: its default, help, allowed range and the value that switches it off (None: a
-    setting that switches nothing off, kept at its default by :meth:`Augment.none`)."""
-    return field(default=default, metadata={"help": text, "lo": lo, "hi": hi, "off": off})
-
-
-@dataclass(frozen=True)
-class Augment:
-    """Augmentation strengths: the geometry and HSV of YOLOv5/8's defaults, and what breaks the shortcuts a
-    detector learns from rendered frames (a clean sensor, one camera's colours, small far zebras only). Each field
-    is a ``zebra-sim train`` option (``--aug-<name>``); :meth:`none` switches all off."""
-
-    mosaic: float = _aug(1.0, "probability of a mosaic of four images")
-    scale: float = _aug(0.5, "random scale 1 +- this", hi=10.0)
-    translate: float = _aug(0.1, "random translation, share of the image side")
-    fliplr: float = _aug(0.5, "probability of a horizontal flip")
-    hsv_h: float = _aug(0.015, "hue jitter, share of the hue circle")
-    hsv_s: float = _aug(0.7, "saturation gain 1 +- this", hi=10.0)
-    hsv_v: float = _aug(0.4, "brightness gain 1 +- this", hi=10.0)
-    zoom: float = _aug(0.3, "probability that a sample is a crop around one labelled zebra, enlarged (--aug-zoom-max) "
-                            "until it spans 15-80%% of the side, often cut by the edges: large zebras from far ones")
-    grayscale: float = _aug(0.05, "probability of a grey image")
-    gamma: float = _aug(0.25, "gamma exp(U(-this, this)) on the whole image")
-    white_balance: float = _aug(0.12, "per-channel gain exp(U(-this, this)): another camera's colour")
-    blur: float = _aug(0.2, "probability of a Gaussian blur of sigma 0.4-1.6 px (defocus)")
-    noise: float = _aug(0.25, "probability of Gaussian sensor noise of 2-10 levels")
-    jpeg: float = _aug(0.3, "probability of a JPEG round trip at quality 30-90")
-    cutout: float = _aug(0.15, "probability of 1-3 grey rectangles of 5-25%% of the side; a box hidden over 60%% "
-                               "is dropped")
-    background: float = _aug(0.0, "probability that a zoom crop (--aug-zoom) is centred on an animal of another "
-                                  "species (from the set's annotations/, as generate writes them) or else on a random "
-                                  "point, not on a zebra, enlarged alike: hard negatives at the size of large zebras")
-    zoom_max: float = _aug(4.0, "largest enlargement of a zoom crop (--aug-zoom), 1-16: more makes larger, "
-                                "blurrier animals from far ones", lo=1.0, hi=16.0, off=None)
-    zoom_crop: float = _aug(0.0, "with --crop: probability that a zoom crop sizes its animal to 15-80%% of the "
-                                 "--crop window the model sees (and centres the window on it) rather than of the "
-                                 "--imgsz sample, where the enlargement cap keeps far animals small in the window")
-
-    @classmethod
-    def none(cls) -> Augment:
-        """Letterbox only: every augmentation off."""
-        return cls(**{f.name: f.metadata["off"] for f in fields(cls) if f.metadata["off"] is not None})
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any] | None) -> Augment:
-        """From a checkpoint's record (unknown or missing names: the defaults)."""
-        names = {f.name for f in fields(cls)}
-        return cls(**{k: float(v) for k, v in (d or {}).items() if k in names})
-
-    def check(self) -> None:
-        """Raise :class:`ParameterError` naming the first value out of range."""
-        for f in fields(self):
-            v = getattr(self, f.name)
-            lo, hi = f.metadata["lo"], f.metadata["hi"]
-            if not lo <= v <= hi:
-                raise ParameterError(f"--aug-{f.name.replace('_', '-')}", v, f"{lo:g}..{hi:g}")
 
 
 def generate_settings(data: str | Path) -> dict[str, Any] | None:

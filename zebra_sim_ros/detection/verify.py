@@ -21,7 +21,7 @@ where hard negatives were mined, ``detector_sha256`` (the mining detector's file
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -31,70 +31,13 @@ import torch
 from numpy.typing import NDArray
 from torch import nn
 
+from zebra_sim_ros.detection.config import MAX_MEMBERS, VerifierConfig
 from zebra_sim_ros.errors import ParameterError
 
 FORMAT = "zebra_sim_ros/verifier"
 VERSION = 1  # one network
 ENSEMBLE_VERSION = 2  # members > 1: a build that reads version 1 only refuses it by its version, not by its keys
 SHIPPED_VERIFIER = Path(__file__).resolve().parent / "weights" / "zebra_verifier.pt"
-MAX_MEMBERS = 8  # each member costs one network's time on every judged crop: 8 is already 8x the served cost
-
-
-@dataclass(frozen=True)
-class VerifierConfig:
-    """What the verifier sees: ``crop`` px squares around boxes of at least ``min_side`` px, ``context`` times the
-    box's long side.
-
-    ``min_side_fraction``, ``contexts`` and ``mirror`` are for serving only. A box is judged when its long side is
-    also at least ``min_side_fraction`` of the image's long side (0.0375: 24 px on a 640 px photo, 48 px on a
-    1280x720 frame); training crops animals by ``min_side`` alone. Its p(zebra) is the mean over one crop at each of
-    ``contexts`` (empty: ``context`` alone) and, with ``mirror``, each crop's mirror image too. ``members`` > 1 makes
-    the verifier an ensemble of that many networks of this shape, trained apart: p(zebra) of a crop is the mean of
-    theirs (:func:`ensemble_verifiers`)."""
-
-    crop: int = 96
-    context: float = 1.2
-    min_side: float = 24.0
-    widths: tuple[int, ...] = (32, 64, 96, 128, 192)
-    min_side_fraction: float = 0.0
-    contexts: tuple[float, ...] = ()
-    mirror: bool = False
-    members: int = 1
-
-    def check(self) -> None:
-        if not 32 <= self.crop <= 256:
-            raise ParameterError("verifier crop", self.crop, "32..256 px")
-        if not 1.0 <= self.context <= 3.0:
-            raise ParameterError("verifier context", self.context, "1.0..3.0 (times the box's long side)")
-        if not self.min_side >= 1.0:
-            raise ParameterError("verifier min_side", self.min_side, ">= 1 px")
-        if not 0.0 <= self.min_side_fraction <= 0.5:
-            raise ParameterError("verifier min_side_fraction", self.min_side_fraction,
-                                 "0..0.5 (of the image's long side; 0: min_side alone)")
-        if not self.widths or any(w < 1 for w in self.widths):
-            raise ParameterError("verifier widths", self.widths, "a non-empty list of channel counts >= 1")
-        if any(not 1.0 <= c <= 3.0 for c in self.contexts) or len(set(self.contexts)) != len(self.contexts):
-            raise ParameterError("verifier contexts", self.contexts,
-                                 "distinct values in 1.0..3.0 (times the box's long side; empty: context alone)")
-        if not 1 <= self.members <= MAX_MEMBERS:
-            raise ParameterError("verifier members", self.members, f"1..{MAX_MEMBERS} (networks averaged)")
-
-    def views(self) -> list[tuple[float, bool]]:
-        """The (context, mirrored) crops whose p(zebra) a served box averages."""
-        return [(c, m) for c in self.contexts or (self.context,) for m in ((False, True) if self.mirror else (False,))]
-
-    def to_dict(self) -> dict[str, Any]:
-        """The config as a checkpoint stores it (lists, not tuples); :meth:`from_dict` reads it back."""
-        return {**asdict(self), "widths": list(self.widths), "contexts": list(self.contexts)}
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> VerifierConfig:
-        cfg = cls(int(d["crop"]), float(d["context"]), float(d["min_side"]), tuple(int(w) for w in d["widths"]),
-                  float(d.get("min_side_fraction", 0.0)),  # checkpoints before the fraction judged by min_side alone
-                  tuple(float(c) for c in d.get("contexts", ())), bool(d.get("mirror", False)),  # and by one crop
-                  int(d.get("members", 1)))
-        cfg.check()
-        return cfg
 
 
 class Verifier(nn.Module):

@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +21,8 @@ import torch
 from numpy.typing import NDArray
 from torch import nn
 
-from zebra_sim_ros.detection.verify import Verifier, VerifierConfig, read_rgb, save_verifier, square_crop
+from zebra_sim_ros.detection.config import SPLITS, TrainVerifierConfig
+from zebra_sim_ros.detection.verify import Verifier, read_rgb, save_verifier, square_crop
 from zebra_sim_ros.errors import ParameterError
 
 # crop kinds (a crop's ``kind`` indexes KINDS); ZEBRA_KINDS are the ones labelled zebra
@@ -29,75 +30,7 @@ BACKGROUND, OTHER_SPECIES, ZEBRA_CROP, FALSE_BOX, CLUTTER, ZEBRA_PART, OTHER_PAR
 KINDS = ("background", "other species", "zebra", "detector's false boxes", "drawn clutter", "parts of zebras",
          "parts of other species")
 ZEBRA_KINDS = (ZEBRA_CROP, ZEBRA_PART)
-SPLITS = ("crop", "frame")
 _STORE_MARGIN = 16  # crops are stored this much larger than the net's input: training draws a random window
-
-
-@dataclass(frozen=True)
-class TrainVerifierConfig:
-    """``zebra-sim train-verifier``: crops of the generated datasets in ``data`` (folders with ``annotations/``)."""
-
-    data: tuple[str, ...]
-    out: str
-    epochs: int = 10
-    batch: int = 128
-    lr: float = 2e-3
-    seed: int = 25
-    val_fraction: float = 0.1
-    # how the held-out crops are drawn: "crop" (a random share of the crops: an animal's two jittered crops can fall
-    # on both sides, so the held-out figures are optimistic) or "frame" (every crop of a random share of the frames)
-    split: str = "crop"
-    min_visible_pixels: int = 300  # animals with fewer visible pixels are not cropped
-    min_visible_fraction: float = 0.3
-    background_per_frame: int = 2
-    # hard negatives: a detector's boxes on the frames ('shipped' or a checkpoint; '' = none) at mine_imgsz and
-    # mine_conf that overlap no zebra become crops of kind "detector's false boxes"
-    detector: str = ""
-    mine_imgsz: int = 640
-    mine_conf: float = 0.1
-    # off: the detector's boxes on animals of other species (centre in one or IoU >= 0.1) are not hard negatives
-    # either, only those on background are (the animals have crops of their own)
-    mine_on_animals: bool = True
-    # parts: this many squares per cropped animal of 40-75% of its box's long side, centred in the middle half of
-    # the box (a zebra's part is a zebra, another species' part is not); clutter: this many drawn squares per
-    # frame (draw_clutter), never a zebra. Both drawn from streams of their own: the other crops stay the same.
-    parts_per_animal: int = 0
-    clutter_per_frame: int = 0
-    model: VerifierConfig = field(default_factory=VerifierConfig)
-
-    def check(self) -> None:
-        if not self.data:
-            raise ParameterError("--data", list(self.data), "one or more generated dataset folders")
-        for d in self.data:
-            if not (Path(d) / "annotations").is_dir():
-                raise ParameterError("--data", d, "a folder written by zebra-sim generate (with annotations/)")
-        for name, value, lo in (("--epochs", self.epochs, 1), ("--batch", self.batch, 2), ("--seed", self.seed, 0),
-                                ("--background-per-frame", self.background_per_frame, 0),
-                                ("--parts-per-animal", self.parts_per_animal, 0),
-                                ("--clutter-per-frame", self.clutter_per_frame, 0)):
-            if value < lo:
-                raise ParameterError(name, value, f">= {lo}")
-        if not 0 < self.lr <= 1:
-            raise ParameterError("--lr", self.lr, "in (0, 1]")
-        if not 0 < self.val_fraction < 0.5:
-            raise ParameterError("--val-fraction", self.val_fraction, "in (0, 0.5)")
-        if self.split not in SPLITS:
-            raise ParameterError("--split", self.split, " or ".join(SPLITS))
-        from zebra_sim_ros.detection.config import imgsz_ok
-
-        if not imgsz_ok(self.mine_imgsz):
-            raise ParameterError("--mine-imgsz", self.mine_imgsz, "a multiple of 32 in 64..4096")
-        if not 0 < self.mine_conf < 1:
-            raise ParameterError("--mine-conf", self.mine_conf, "in (0, 1)")
-        if self.detector not in ("", "shipped") and not Path(self.detector).is_file():
-            raise ParameterError("--detector", self.detector, "empty, shipped or an existing detector checkpoint")
-        self.model.check()
-        if self.model.members != 1:
-            raise ParameterError("verifier members", self.model.members,
-                                 "1 to train (members are trained apart; zebra-sim verifier-ensemble joins them)")
-
-    def to_dict(self) -> dict[str, Any]:
-        return {**asdict(self), "data": list(self.data), "model": self.model.to_dict()}
 
 
 @dataclass(frozen=True)
