@@ -160,12 +160,17 @@ def test_a_solid_hide_is_textured_and_muddy_up_to_its_mud_line(morph: object) ->
 
 def test_the_in_place_helpers_give_what_their_plain_forms_give() -> None:
     """bake_coat's helpers that work in their argument's memory: the mean of the waves' sines, the smoothstep and
-    the part's atlas window give what numpy's mean, the plain smoothstep and the index arrays give."""
+    the part's atlas window give what numpy's mean (of float32 sines), the plain smoothstep and the index arrays
+    give; the float32 sines are within float32's reach of float64's."""
     rng = np.random.default_rng(5)
     for k in (3, 4, 6):
         waves, phase = rng.normal(size=(40, 30, k)) * 20, rng.uniform(0, 2 * np.pi, k)
-        want = np.mean(np.sin(waves + phase), axis=-1)
-        np.testing.assert_allclose(_mean_sin(waves.copy(), phase), want, rtol=0, atol=1e-15)
+        got = _mean_sin(waves.copy(), phase)
+        want = np.mean(np.sin((waves + phase).astype(np.float32)).astype(np.float64), axis=-1)
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
+        # arguments up to ~90 rad: float32's spacing there is 7.6e-6; a coat texel's level is 1/255
+        np.testing.assert_allclose(got, np.mean(np.sin(waves + phase), axis=-1), rtol=0, atol=2e-5)
+        assert not np.array_equal(got, np.mean(np.sin(waves + phase), axis=-1))  # float32 sines indeed
     x = rng.uniform(-0.5, 1.5, (50, 3))
     for e0, e1 in ((0.3, 0.0), (0.0, 1.0)):
         np.testing.assert_allclose(_smoothstep_into(e0, e1, x.copy()), _smoothstep(e0, e1, x), rtol=0, atol=1e-15)

@@ -33,7 +33,7 @@ class CoatStore:
     is interrupted. A process that finds a coat claimed bakes its unclaimed ones first, then waits for the rest: a
     claim let go without a coat becomes its own, and one older than ``stale_s`` (its process died) or a wait past
     ``wait_s`` is baked anyway. The bytes are the baked ones, so a coat read is the coat baked, texel for texel; the
-    folder is keyed by :func:`~zebra_sim_ros.zebra.asset.appearance_digest` and the numpy version (float64 ``sin``
+    folder is keyed by :func:`~zebra_sim_ros.zebra.asset.appearance_digest` and the numpy version (``sin``
     differs between numpy builds), so other code starts another folder (``zebra-sim asset prune`` removes the old
     ones). A folder that cannot be made turns the store off; one that cannot be written (read-only, full) is still
     read. Either way ``error`` says why and the coats it lacks are baked in memory.
