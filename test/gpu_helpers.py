@@ -16,7 +16,7 @@ from cli_helpers import CliRun
 ROOT = Path(__file__).resolve().parents[1]
 # the scripts' settings: none is taken from the environment the tests run in
 SETTINGS = ("BUDGET", "EPOCHS", "E0", "K", "IMGSZ", "CROP", "BATCH", "WORKERS", "DEVICE", "LR", "SEED", "MAXIMG",
-            "INIT", "INIT_A", "INIT_B", "AUG", "A_OPTS", "B_OPTS", "OUT", "DATA", "P2", "MODEL")
+            "INIT", "INIT_A", "INIT_B", "AUG", "A_OPTS", "B_OPTS", "OUT", "DATA", "P2", "MODEL", "THREADS")
 
 
 def tiny_pack(tmp: Path, pack: CliRun) -> Path:

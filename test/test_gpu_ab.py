@@ -3,6 +3,7 @@ the CPU with a tiny pack; on a lent GPU it is the same script)."""
 
 from __future__ import annotations
 
+import os
 import tarfile
 from pathlib import Path
 
@@ -44,7 +45,9 @@ def test_ab_trains_both_arms_and_pairs_their_snapshots(tmp_path: Path, pack: Cli
             f = tar.extractfile(f"ab_{arm}/results.csv")
             assert f is not None
             assert len(f.read().decode().strip().splitlines()) == 3  # the header and two epochs
-    assert "A_OPTS='--p2' B_OPTS=''" in (out / "machine.txt").read_text()
+    machine = (out / "machine.txt").read_text()
+    assert "A_OPTS='--p2' B_OPTS=''" in machine
+    assert f"THREADS={max(1, len(os.sched_getaffinity(0)) // 2)} " in machine  # each arm's torch threads: half the cores
 
     # the second call's way: each arm from its own snapshot in its own run folder, which the arm empties first
     out2 = tmp_path / "out2"

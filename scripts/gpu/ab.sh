@@ -3,14 +3,15 @@
 # scripts/gpu/pack.py (DATA, default gpu_data/, carried with the tree), the same data, seed, epochs and recipe as
 # train.sh's (320 px crops of 2176 px samples, K passes over the frames per epoch), arm a with A_OPTS and arm b with
 # B_OPTS (e.g. A_OPTS=--p2: the stride-4 level against its control). Each arm gets half the loader processes and
-# starts from INIT_A / INIT_B (default INIT, the shipped weights; none: from scratch). The epoch count is fixed
-# (EPOCHS), not fitted to the budget, so that both arms see the same crops under the same schedule; if BUDGET ends
-# them early, the snapshots of the epochs both finished still pair up. As each arm's last.pt (EMA weights) lands, a
-# hard link keeps it (the trainer replaces it by a rename, so a link is always a whole checkpoint); at the end
-# scripts/gpu/snapshots.py names them by the epoch they hold and exports the last two epochs both arms reached as fp16
-# snapshots, snap/ep_N.pt in each run folder (a next call's INIT_A / INIT_B). $OUT receives machine.txt (the machine
-# and the settings), logs.tar.gz (each arm's train.log and results.csv) and the pairs: a/ep_N.pt, b/ep_N.pt. The exit
-# status is 0 only if both arms trained all EPOCHS.
+# THREADS torch threads (default half the cores; with all of them each, two arms on 2 cores trained 3-4x slower, their
+# threads spinning against each other), and starts from INIT_A / INIT_B (default INIT, the shipped weights; none: from
+# scratch). The epoch count is fixed (EPOCHS), not fitted to the budget, so that both arms see the same crops under
+# the same schedule; if BUDGET ends them early, the snapshots of the epochs both finished still pair up. As each arm's
+# last.pt (EMA weights) lands, a hard link keeps it (the trainer replaces it by a rename, so a link is always a whole
+# checkpoint); at the end scripts/gpu/snapshots.py names them by the epoch they hold and exports the last two epochs
+# both arms reached as fp16 snapshots, snap/ep_N.pt in each run folder (a next call's INIT_A / INIT_B). $OUT receives
+# machine.txt (the machine and the settings), logs.tar.gz (each arm's train.log and results.csv) and the pairs:
+# a/ep_N.pt, b/ep_N.pt. The exit status is 0 only if both arms trained all EPOCHS.
 # Relative paths (DATA, INIT_A, INIT_B, OUT) are taken from the repository's root.
 #
 # The P2 A/B of 2026-11-28 (BENCHMARKS.md, "A stride-4 (P2) level on a lent GPU, 101k crops against a control"):
@@ -25,10 +26,12 @@ cd "$(dirname "$0")/../.."
 source scripts/gpu/lib.sh  # the environment, the clock (elapsed) and the helpers both scripts use
 BUDGET=${BUDGET:-520}; EPOCHS=${EPOCHS:-5}; K=${K:-12}; IMGSZ=${IMGSZ:-2176}; CROP=${CROP:-320}; BATCH=${BATCH:-32}
 WORKERS=${WORKERS:-7}; DEVICE=${DEVICE:-cuda}; LR=${LR:-0.004}; SEED=${SEED:-33}; MAXIMG=${MAXIMG:-0}
+CORES=$(env -u OMP_NUM_THREADS -u OMP_THREAD_LIMIT nproc)  # nproc would answer OMP_NUM_THREADS if set
+THREADS=${THREADS:-$(( CORES / 2 > 0 ? CORES / 2 : 1 ))}  # each arm's torch threads: half the cores
 INIT=${INIT:-zebra_sim_ros/detection/weights/zebra_yolo_n.pt}; INIT_A=${INIT_A:-$INIT}; INIT_B=${INIT_B:-$INIT}
 AUG=${AUG:---aug-zoom 0.5}; A_OPTS=${A_OPTS:-}; B_OPTS=${B_OPTS:-}
 OUTD=${OUT:-/tmp/gpu_ab}; DATA=${DATA:-gpu_data}
-whole_numbers ab.sh BUDGET EPOCHS K IMGSZ CROP BATCH WORKERS SEED
+whole_numbers ab.sh BUDGET EPOCHS K IMGSZ CROP BATCH WORKERS SEED THREADS
 [[ $MAXIMG =~ ^[0-9]+$ ]] || { echo "ab.sh: MAXIMG=$MAXIMG: want a whole number >= 0 (0: all)" >&2; exit 2; }
 # one call runs 600 s at most; after the budget come the kill's grace (10 s), the last exports and the copies
 ((BUDGET <= 540)) || { echo "ab.sh: BUDGET=$BUDGET: want at most 540 s (one call runs 600 s at most)" >&2; exit 2; }
@@ -59,7 +62,7 @@ arm() {  # $1 run folder, $2 the arm's options (as words), $3 its init (none: fr
     echo "ab.sh: $1: stopped or $left s of BUDGET left: not started" >"$1/train.log"; echo 124 >"$1/rc"; return
   fi
   # shellcheck disable=SC2086  # AUG and the arm's options are words
-  timeout --signal=TERM --kill-after=10 "$left" python3 -m zebra_sim_ros.cli train \
+  OMP_NUM_THREADS=$THREADS timeout --signal=TERM --kill-after=10 "$left" python3 -m zebra_sim_ros.cli train \
     --data "$DATA/ab_mix.yaml" --model n --imgsz "$IMGSZ" --crop "$CROP" --epochs "$EPOCHS" --batch "$BATCH" \
     --device "$DEVICE" --workers "$WORKERS" --lr0 "$LR" --warmup-epochs 0.5 --close-mosaic 1 --val-every 1000 \
     --save-period 0 --max-train-images "$MAXIMG" --seed "$SEED" "${start[@]}" $AUG $2 --out "$1" >"$1/train.log" 2>&1
@@ -75,6 +78,7 @@ trap 'touch "$A/snap.stop" "$B/snap.stop" 2>/dev/null' EXIT
 { nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv 2>/dev/null; nproc
   python3 -c "import torch;print('torch',torch.__version__,'cuda',torch.cuda.is_available())"
   echo "A_OPTS='$A_OPTS' B_OPTS='$B_OPTS' AUG='$AUG' EPOCHS=$EPOCHS K=$K LR=$LR SEED=$SEED INIT_A=$SRC_A INIT_B=$SRC_B"
+  echo "THREADS=$THREADS (torch threads per arm)"
 } >"$OUTD/machine.txt" 2>&1
 arm "$A" "$A_OPTS" "$INIT_A" & PA=$!
 arm "$B" "$B_OPTS" "$INIT_B" & PB=$!
