@@ -47,7 +47,7 @@ def test_ab_trains_both_arms_and_pairs_their_snapshots(tmp_path: Path, pack: Cli
             assert len(f.read().decode().strip().splitlines()) == 3  # the header and two epochs
     machine = (out / "machine.txt").read_text()
     assert "A_OPTS='--p2' B_OPTS=''" in machine
-    assert f"THREADS={max(1, len(os.sched_getaffinity(0)) // 2)} " in machine  # each arm's torch threads: half the cores
+    assert f"THREADS={max(1, len(os.sched_getaffinity(0)) // 2)} " in machine  # torch threads per arm: half the cores
 
     # the second call's way: each arm from its own snapshot in its own run folder, which the arm empties first
     out2 = tmp_path / "out2"
