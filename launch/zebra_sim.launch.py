@@ -23,6 +23,7 @@ from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 
 from launch import LaunchDescription
+from zebra_sim_ros.graph.spec import NODE_ENVIRONMENT
 
 PACKAGE = "zebra_sim_ros"
 
@@ -77,9 +78,10 @@ def generate_launch_description():
                  "lockstep_timeout_s": 120.0, "camera_width": arg("width", int),
                  "camera_height": arg("height", int), "wait_for_subscribers": 1, "wait_for_nodes": ["recorder"]}]),
     ]
+    # OpenMP threads that sleep when idle (zebra_sim_ros.graph.spec.NODE_ENVIRONMENT), as zebra-sim up gives them.
     # Our Fast DDS profile (100 ms heartbeat: large images that lost a fragment arrive in 0.1 s, not 3 s),
     # as zebra-sim up sets it, unless a profile file is already chosen.
-    env = []
+    env = [SetEnvironmentVariable(k, v) for k, v in NODE_ENVIRONMENT.items() if k not in os.environ]
     if not (os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE") or os.environ.get("FASTDDS_DEFAULT_PROFILES_FILE")):
         env.append(SetEnvironmentVariable("FASTRTPS_DEFAULT_PROFILES_FILE", file("fastdds.xml")))
     return LaunchDescription(args + env + nodes)

@@ -15,9 +15,11 @@ from typing import Any
 
 import pytest
 
+from zebra_sim_ros.cli.up import _graph_environment
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.graph.spec import (
     DDS_PROFILE,
+    NODE_ENVIRONMENT,
     NODE_PARAMS,
     NodeSpec,
     UpConfig,
@@ -155,7 +157,7 @@ class _Recorder:
 
 
 def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    for var in ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE"):
+    for var in ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE", *NODE_ENVIRONMENT):
         monkeypatch.delenv(var, raising=False)
     rec = _Recorder()
     for name, mod in rec.modules(tmp_path / "share").items():
@@ -182,7 +184,18 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
                 assert v == s.overrides[k], (s.label, k)
     assert int(rec.args["frames"]) == UpConfig().frames and rec.args["world"] == UpConfig().world
     share = tmp_path / "share" / "config"
-    assert rec.env == {"FASTRTPS_DEFAULT_PROFILES_FILE": str(share / "fastdds.xml")}
+    assert rec.env == {"FASTRTPS_DEFAULT_PROFILES_FILE": str(share / "fastdds.xml"), "OMP_WAIT_POLICY": "PASSIVE"}
+    # up gives its nodes the same, but what the caller set (its profile is set here, in this process, as up sets it)
+    monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", str(REPO / "config" / DDS_PROFILE))
+    assert _graph_environment(REPO / "config", None)["OMP_WAIT_POLICY"] == "PASSIVE"
+    monkeypatch.setenv("OMP_WAIT_POLICY", "ACTIVE")
+    assert _graph_environment(REPO / "config", None)["OMP_WAIT_POLICY"] == "ACTIVE"
+    rec = _Recorder()
+    for name, mod in rec.modules(tmp_path / "share").items():
+        monkeypatch.setitem(sys.modules, name, mod)
+    exec(compile((REPO / "launch" / "zebra_sim.launch.py").read_text(), "zebra_sim.launch.py", "exec"), ns)
+    ns["generate_launch_description"]()
+    assert "OMP_WAIT_POLICY" not in rec.env  # the launch file leaves the caller's alone too
     assert dds_environment(share, {}) == {}  # no such file there: up leaves the environment alone
     ours = str(REPO / "config" / DDS_PROFILE)
     assert dds_environment(REPO / "config", {}) == {"FASTRTPS_DEFAULT_PROFILES_FILE": ours}

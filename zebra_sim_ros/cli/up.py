@@ -147,10 +147,11 @@ def _up_config(args: argparse.Namespace) -> UpConfig:
 
 
 def _graph_environment(conf: Path, domain_id: int | None) -> dict[str, str]:
-    """The nodes' environment: ours with the config's DDS profile and ``domain_id`` (None: inherited)."""
-    from zebra_sim_ros.graph.spec import dds_environment
+    """The nodes' environment: ours with the config's DDS profile and ``domain_id`` (None: inherited), and
+    :data:`~zebra_sim_ros.graph.spec.NODE_ENVIRONMENT` where the caller set none of it."""
+    from zebra_sim_ros.graph.spec import NODE_ENVIRONMENT, dds_environment
 
-    env = dds_environment(conf, dict(os.environ, PYTHONUNBUFFERED="1", RCUTILS_COLORIZED_OUTPUT="0"))
+    env = dds_environment(conf, NODE_ENVIRONMENT | dict(os.environ, PYTHONUNBUFFERED="1", RCUTILS_COLORIZED_OUTPUT="0"))
     if env.get("FASTRTPS_DEFAULT_PROFILES_FILE"):  # the watcher's participant reads it from this process's env
         os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = env["FASTRTPS_DEFAULT_PROFILES_FILE"]
     if domain_id is not None:

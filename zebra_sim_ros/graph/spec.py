@@ -138,6 +138,11 @@ def config_dir(explicit: str = "") -> Path:
 
 
 DDS_PROFILE = "fastdds.xml"
+# What every node process of a graph gets unless its caller set it: OpenMP threads (torch's, in the detector) that
+# sleep when they have no work instead of spinning. Spinning, they took the CPU the cameras and the labeller of the
+# same graph needed: on 2 cores the detector's median step took 0.50 s against 0.20 (BENCHMARKS.md, "OpenMP threads
+# that wait passively").
+NODE_ENVIRONMENT = {"OMP_WAIT_POLICY": "PASSIVE"}
 _PROFILE_VARS = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
 
 
