@@ -28,7 +28,7 @@ COMMANDS = (["--help"], ["generate", "--help"])
 # the parser as the console script builds it, then whether torch came with it (printed last, on stderr)
 _CHILD = ("import sys, runpy; sys.argv = ['zebra-sim'] + sys.argv[1:]\n"
           "try:\n    runpy.run_module('zebra_sim_ros.cli', run_name='__main__')\n"
-          "except SystemExit:\n    pass\n"
+          "except SystemExit as e:\n    if e.code not in (0, None):\n        raise\n"
           "print('torch' in sys.modules, file=sys.stderr)")
 
 

@@ -23,9 +23,10 @@ from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 
 from launch import LaunchDescription
-from zebra_sim_ros.graph.spec import NODE_ENVIRONMENT
 
 PACKAGE = "zebra_sim_ros"
+# OpenMP threads that sleep when idle, as zebra-sim up gives its nodes (zebra_sim_ros.graph.spec.NODE_ENVIRONMENT)
+NODE_ENVIRONMENT = {"OMP_WAIT_POLICY": "PASSIVE"}
 
 
 def generate_launch_description():
@@ -78,7 +79,6 @@ def generate_launch_description():
                  "lockstep_timeout_s": 120.0, "camera_width": arg("width", int),
                  "camera_height": arg("height", int), "wait_for_subscribers": 1, "wait_for_nodes": ["recorder"]}]),
     ]
-    # OpenMP threads that sleep when idle (zebra_sim_ros.graph.spec.NODE_ENVIRONMENT), as zebra-sim up gives them.
     # Our Fast DDS profile (100 ms heartbeat: large images that lost a fragment arrive in 0.1 s, not 3 s),
     # as zebra-sim up sets it, unless a profile file is already chosen.
     env = [SetEnvironmentVariable(k, v) for k, v in NODE_ENVIRONMENT.items() if k not in os.environ]

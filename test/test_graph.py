@@ -184,7 +184,8 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
                 assert v == s.overrides[k], (s.label, k)
     assert int(rec.args["frames"]) == UpConfig().frames and rec.args["world"] == UpConfig().world
     share = tmp_path / "share" / "config"
-    assert rec.env == {"FASTRTPS_DEFAULT_PROFILES_FILE": str(share / "fastdds.xml"), "OMP_WAIT_POLICY": "PASSIVE"}
+    assert rec.env == {"FASTRTPS_DEFAULT_PROFILES_FILE": str(share / "fastdds.xml"), **NODE_ENVIRONMENT}
+    assert NODE_ENVIRONMENT == {"OMP_WAIT_POLICY": "PASSIVE"}
     # up gives its nodes the same, but what the caller set (its profile is set here, in this process, as up sets it)
     monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", str(REPO / "config" / DDS_PROFILE))
     assert _graph_environment(REPO / "config", None)["OMP_WAIT_POLICY"] == "PASSIVE"

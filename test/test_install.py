@@ -167,6 +167,6 @@ def test_the_command_line_starts_without_torch() -> None:
     code = ("import sys; from zebra_sim_ros.cli import build_parser; build_parser(); "
             "print(sorted(m for m in ('torch', 'zebra_sim_ros.detection.data', 'zebra_sim_ros.detection.verify') "
             "if m in sys.modules))")
-    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    run = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr[-2000:]
     assert run.stdout.strip() == "[]", run.stdout

@@ -75,7 +75,7 @@ stop_all() {  # the trainers (through their timeout, which passes it on to its p
 trap 'stop_all; exit 130' INT
 trap 'stop_all; exit 143' TERM
 trap 'touch "$A/snap.stop" "$B/snap.stop" 2>/dev/null' EXIT
-{ nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv 2>/dev/null; nproc
+{ nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv 2>/dev/null; echo "$CORES"
   python3 -c "import torch;print('torch',torch.__version__,'cuda',torch.cuda.is_available())"
   echo "A_OPTS='$A_OPTS' B_OPTS='$B_OPTS' AUG='$AUG' EPOCHS=$EPOCHS K=$K LR=$LR SEED=$SEED INIT_A=$SRC_A INIT_B=$SRC_B"
   echo "THREADS=$THREADS (torch threads per arm)"

@@ -167,7 +167,7 @@ def register(sub: Any) -> None:
 
 
 def add_augment_options(parser: argparse.ArgumentParser) -> None:
-    """``--aug-<name>`` for every field of :class:`~zebra_sim_ros.detection.data.Augment` (declared there once)."""
+    """``--aug-<name>`` for every field of :class:`~zebra_sim_ros.detection.config.Augment` (declared there once)."""
     from dataclasses import fields
 
     from zebra_sim_ros.detection.config import Augment
@@ -179,7 +179,7 @@ def add_augment_options(parser: argparse.ArgumentParser) -> None:
 
 
 def augment_from_args(args: argparse.Namespace) -> Any:
-    """The :class:`~zebra_sim_ros.detection.data.Augment` the ``--aug-*`` options give."""
+    """The :class:`~zebra_sim_ros.detection.config.Augment` the ``--aug-*`` options give."""
     from dataclasses import fields
 
     from zebra_sim_ros.detection.config import Augment

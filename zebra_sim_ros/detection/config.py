@@ -175,7 +175,7 @@ class VerifierConfig:
     1280x720 frame); training crops animals by ``min_side`` alone. Its p(zebra) is the mean over one crop at each of
     ``contexts`` (empty: ``context`` alone) and, with ``mirror``, each crop's mirror image too. ``members`` > 1 makes
     the verifier an ensemble of that many networks of this shape, trained apart: p(zebra) of a crop is the mean of
-    theirs (:func:`ensemble_verifiers`)."""
+    theirs (:func:`~zebra_sim_ros.detection.verify.ensemble_verifiers`)."""
 
     crop: int = 96
     context: float = 1.2
@@ -272,8 +272,6 @@ class TrainVerifierConfig:
             raise ParameterError("--val-fraction", self.val_fraction, "in (0, 0.5)")
         if self.split not in SPLITS:
             raise ParameterError("--split", self.split, " or ".join(SPLITS))
-        from zebra_sim_ros.detection.config import imgsz_ok
-
         if not imgsz_ok(self.mine_imgsz):
             raise ParameterError("--mine-imgsz", self.mine_imgsz, "a multiple of 32 in 64..4096")
         if not 0 < self.mine_conf < 1:

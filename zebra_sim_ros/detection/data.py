@@ -11,8 +11,9 @@ Batches are ``(images (B, 3, H, W) float in [0, 1], targets (T, 6) [image index,
 training batches are square (H = W = imgsz).
 
 Training augmentation: mosaic of four images, random affine (scale, translation), horizontal flip and HSV
-jitter (YOLOv5's), then what breaks the synthetic shortcuts (:class:`Augment`): crops zoomed around one zebra,
-cut-out, grey images, gamma and white balance, blur, sensor noise and JPEG.
+jitter (YOLOv5's), then what breaks the synthetic shortcuts (their strengths:
+:class:`~zebra_sim_ros.detection.config.Augment`): crops zoomed around one zebra, cut-out, grey images, gamma and
+white balance, blur, sensor noise and JPEG.
 Validation: letterbox only, as inference letterboxes (long side to the inference size, each side padded
 to a multiple of 32), with the scale and padding kept to map boxes back to the original image.
 """

@@ -11,11 +11,12 @@ lost resolution, blur, noise; JPEG at a random quality when the crops are cut). 
 
 Training (``zebra-sim train-verifier``) is :mod:`zebra_sim_ros.detection.verify_train`. A verifier checkpoint is a
 dict: ``format`` ("zebra_sim_ros/verifier"), ``version``, ``config``
-(:class:`VerifierConfig`), ``model`` (state dict), ``train`` (the :class:`TrainVerifierConfig` it was trained with,
-seed included), ``crops`` (how many of each kind), ``val`` (share called zebra per kind on the held-out crops) and,
-where hard negatives were mined, ``detector_sha256`` (the mining detector's file). An ensemble
-(:func:`ensemble_verifiers`, ``zebra-sim verifier-ensemble``) is a verifier whose config has ``members`` > 1: its
-``model`` holds each member's weights (``members.<i>.``) and its ``members`` key each member's file sha256 and record.
+(:class:`~zebra_sim_ros.detection.config.VerifierConfig`), ``model`` (state dict), ``train`` (the
+:class:`~zebra_sim_ros.detection.config.TrainVerifierConfig` it was trained with, seed included), ``crops`` (how
+many of each kind), ``val`` (share called zebra per kind on the held-out crops) and, where hard negatives were mined,
+``detector_sha256`` (the mining detector's file). An ensemble (:func:`ensemble_verifiers`, ``zebra-sim
+verifier-ensemble``) is a verifier whose config has ``members`` > 1: its ``model`` holds each member's weights
+(``members.<i>.``) and its ``members`` key each member's file sha256 and record.
 """
 
 from __future__ import annotations

@@ -140,8 +140,9 @@ def config_dir(explicit: str = "") -> Path:
 DDS_PROFILE = "fastdds.xml"
 # What every node process of a graph gets unless its caller set it: OpenMP threads (torch's, in the detector) that
 # sleep when they have no work instead of spinning. Spinning, they took the CPU the cameras and the labeller of the
-# same graph needed: on 2 cores the detector's median step took 0.50 s against 0.20 (BENCHMARKS.md, "OpenMP threads
-# that wait passively").
+# same graph needed: on 2 cores the detector's median step took 0.50 s against 0.20 on 320x180 frames, and the
+# graph ran 1.07-1.12x the steps per second at 1280x720 (BENCHMARKS.md, "OpenMP threads that wait passively").
+# The launch file holds a copy (it imports nothing of ours); test_graph checks that the two agree.
 NODE_ENVIRONMENT = {"OMP_WAIT_POLICY": "PASSIVE"}
 _PROFILE_VARS = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
 

@@ -146,7 +146,8 @@ def _hide(p: FloatArray, params: CoatParams, height: float) -> tuple[FloatArray,
     s = p @ k.T  # creases at the zero lines of three waves bent by the noise
     s += rng.uniform(0, 2 * np.pi, 3)
     s += 4.0 * fbm[..., None]
-    s = _smoothstep_into(0.3, 0.0, np.abs(_sin32(s)).astype(np.float64))
+    s32 = _sin32(s)
+    s = _smoothstep_into(0.3, 0.0, np.abs(s32, out=s32).astype(np.float64))
     crease = np.maximum(np.maximum(s[..., 0], s[..., 1]), s[..., 2])
     shade = np.clip(1.0 + params.hide_amp * 4.0 * fbm, 0.5, 1.5) * (1.0 - params.wrinkle * crease)
     h = params.mud_height * height
