@@ -20,7 +20,8 @@ def test_ab_refuses_settings_that_name_the_bad_value(tmp_path: Path, pack: CliRu
     data, out = tiny_pack(tmp_path, pack), tmp_path / "out"
     base = {"DATA": str(data), "OUT": str(out), "DEVICE": "cpu", "A_OPTS": "--p2"}
     assert_refused(AB, base, [({"B_OPTS": "--p2"}, "A_OPTS and B_OPTS are the same"), ({"EPOCHS": "0"}, "EPOCHS=0"),
-                              ({"MAXIMG": "-1"}, "MAXIMG=-1"), ({"BUDGET": "900"}, "BUDGET=900"),
+                              ({"MAXIMG": "-1"}, "MAXIMG=-1"), ({"THREADS": "0"}, "THREADS=0"),
+                              ({"BUDGET": "900"}, "BUDGET=900"),
                               ({"INIT_A": str(tmp_path / "none.pt")}, "INIT_A="),
                               ({"INIT_B": str(tmp_path / "b.pt")}, "INIT_B="),
                               ({"DATA": str(tmp_path / "empty")}, "DATA=")], out)

@@ -156,15 +156,21 @@ class _Recorder:
         return mods
 
 
-def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    for var in ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE", *NODE_ENVIRONMENT):
-        monkeypatch.delenv(var, raising=False)
+def _launch(monkeypatch: pytest.MonkeyPatch, share: Path) -> _Recorder:
+    """What the launch file builds in this environment, its package's share folder ``share``."""
     rec = _Recorder()
-    for name, mod in rec.modules(tmp_path / "share").items():
+    for name, mod in rec.modules(share).items():
         monkeypatch.setitem(sys.modules, name, mod)
     ns: dict[str, Any] = {}
     exec(compile((REPO / "launch" / "zebra_sim.launch.py").read_text(), "zebra_sim.launch.py", "exec"), ns)
     ns["generate_launch_description"]()
+    return rec
+
+
+def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    for var in ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE", *NODE_ENVIRONMENT):
+        monkeypatch.delenv(var, raising=False)
+    rec = _launch(monkeypatch, tmp_path / "share")
     up = graph_spec(UpConfig())
     launched = [(n["executable"], n["name"], "/" + n["namespace"] if n["namespace"] else "",
                  Path(n["parameters"][0]).name, Path(n["parameters"][0]).parent, set(n["parameters"][1]))
@@ -191,12 +197,7 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
     assert _graph_environment(REPO / "config", None)["OMP_WAIT_POLICY"] == "PASSIVE"
     monkeypatch.setenv("OMP_WAIT_POLICY", "ACTIVE")
     assert _graph_environment(REPO / "config", None)["OMP_WAIT_POLICY"] == "ACTIVE"
-    rec = _Recorder()
-    for name, mod in rec.modules(tmp_path / "share").items():
-        monkeypatch.setitem(sys.modules, name, mod)
-    exec(compile((REPO / "launch" / "zebra_sim.launch.py").read_text(), "zebra_sim.launch.py", "exec"), ns)
-    ns["generate_launch_description"]()
-    assert "OMP_WAIT_POLICY" not in rec.env  # the launch file leaves the caller's alone too
+    assert "OMP_WAIT_POLICY" not in _launch(monkeypatch, tmp_path / "share").env  # the caller's kept there too
     assert dds_environment(share, {}) == {}  # no such file there: up leaves the environment alone
     ours = str(REPO / "config" / DDS_PROFILE)
     assert dds_environment(REPO / "config", {}) == {"FASTRTPS_DEFAULT_PROFILES_FILE": ours}
