@@ -15,3 +15,15 @@ macro(fix_python_includes)
     endif()
   endforeach()
 endmacro()
+
+# rclpy loads a message package's C typesupports only (through its Python extension). With
+# -DZEBRA_SIM_PYTHON_ONLY=ON (as scripts/build_interfaces.sh builds into the venv) the C++ generators are dropped
+# from the extensions rosidl_generate_interfaces runs: rosidl_generator_cpp and the cpp, fastrtps_cpp and
+# introspection_cpp typesupports, a third of the build's time. Off by default, so a ROS 2 workspace (colcon) builds the
+# whole package, C++ headers included.
+option(ZEBRA_SIM_PYTHON_ONLY "generate the C and Python code only" OFF)
+macro(python_only_generators)
+  if(ZEBRA_SIM_PYTHON_ONLY)
+    list(FILTER AMENT_EXTENSIONS_rosidl_generate_idl_interfaces EXCLUDE REGEX "_cpp:")
+  endif()
+endmacro()

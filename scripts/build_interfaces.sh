@@ -2,7 +2,9 @@
 # Build the message packages under interfaces/ into the venv (prefix .venv: libraries in .venv/lib, Python in its
 # site-packages, .msg texts in .venv/share/<pkg>/msg), with CMake and the rosidl generators from PyPI. Idempotent:
 # a package is rebuilt only when its sources change. tf2_msgs is built only where no other tf2_msgs can be imported
-# (a ROS 2 install that has geometry2 keeps its own). Needs cmake and a C/C++ compiler (scripts/setup.sh installs
+# (a ROS 2 install that has geometry2 keeps its own). Only the C and Python code is generated
+# (-DZEBRA_SIM_PYTHON_ONLY=ON, interfaces/python_includes.cmake): rclpy loads the C typesupports, and the C++ ones were
+# a third of the build's time (benchmarks/bench_interfaces_build.py). Needs cmake and a C/C++ compiler (scripts/setup.sh installs
 # them). Usage: bash scripts/build_interfaces.sh [--force]
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
@@ -32,8 +34,8 @@ export PATH="$VENV/bin:$PATH"
 for pkg in tf2_msgs zebra_sim_msgs; do
     src="$ROOT/interfaces/$pkg"
     stamp="$VENV/share/$pkg/.zebra_sim_build_stamp"
-    want="$(cat "$ROOT/interfaces/python_includes.cmake" "$src/CMakeLists.txt" "$src/package.xml" "$src"/msg/*.msg \
-        | sha256sum | cut -d' ' -f1)"
+    want="$(cat "$ROOT/scripts/build_interfaces.sh" "$ROOT/interfaces/python_includes.cmake" "$src/CMakeLists.txt" \
+        "$src/package.xml" "$src"/msg/*.msg | sha256sum | cut -d' ' -f1)"
     if ((force == 0)) && [[ "$(cat "$stamp" 2>/dev/null || true)" == "$want" ]]; then
         log "$pkg up to date"
         continue
@@ -45,7 +47,7 @@ for pkg in tf2_msgs zebra_sim_msgs; do
     log "building $pkg"
     rm -rf "$BUILD/$pkg"
     if ! { cmake -S "$src" -B "$BUILD/$pkg" -DCMAKE_INSTALL_PREFIX="$VENV" -DPython3_EXECUTABLE="$PY" \
-              -DBUILD_TESTING=OFF -DCMAKE_BUILD_TYPE=Release \
+              -DBUILD_TESTING=OFF -DCMAKE_BUILD_TYPE=Release -DZEBRA_SIM_PYTHON_ONLY=ON \
            && cmake --build "$BUILD/$pkg" -j "$(nproc)" \
            && cmake --install "$BUILD/$pkg"; } >"$BUILD/$pkg.log" 2>&1; then
         tail -30 "$BUILD/$pkg.log" >&2
