@@ -8,7 +8,12 @@ to train or choose weights say nothing about new ones) exactly as default ``zebr
 inference-size rule, conf 0.001, up to 300 detections per image, don't-care boxes honoured), and prints per seed,
 their median, and all seeds' frames pooled into one COCO evaluation (the steadiest single figure).
 
-    python benchmarks/bench_default_seeds.py --seeds 4242 8888 9191 --weights shipped runs/x/best.pt
+``--bootstrap N`` also resamples the placements (the three views of one placement drawn together) N times, the same
+draws for every row: each row's pooled mAP50 gets a 95% interval, and each row after the first the paired difference
+from the first row (median, 95% interval, and the share of draws in which it scores higher): how far a difference
+between two weights on these frames would move on new placements.
+
+    python benchmarks/bench_default_seeds.py --seeds 4242 8888 9191 --weights shipped runs/x/best.pt [--bootstrap 1000]
 """
 
 from __future__ import annotations
@@ -23,11 +28,13 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
 from zebra_sim_ros.detection.checkpoint import load_model
-from zebra_sim_ros.detection.evaluate import ImagePredictions, make_loader, predictions, score
+from zebra_sim_ros.detection.evaluate import ImagePredictions, make_loader, matched, placement, predictions, score
+from zebra_sim_ros.detection.metrics import MatchedImage, paired_bootstrap
 from zebra_sim_ros.detection.predict import inference_size
 from zebra_sim_ros.detection.verify import Verifier, load_verifier, read_rgb, rescore
 from zebra_sim_ros.zebra.asset import appearance_digest
@@ -66,6 +73,26 @@ def row(weights: str, per_seed: dict[int, list[ImagePredictions]], seconds: floa
             "pooled": scored([x for p in per_seed.values() for x in p]), "seconds": round(seconds, 1)}
 
 
+def matched_all(per_seed: dict[int, list[ImagePredictions]]) -> list[MatchedImage]:
+    """Every seed's images, in order, matched for the bootstrap."""
+    return matched([x for ps in per_seed.values() for x in ps])
+
+
+def bootstrap_rows(rows: list[dict[str, Any]], runs: list[list[MatchedImage]], groups: list[tuple[int, str]],
+                   samples: int, seed: int) -> None:
+    """Add each row's pooled mAP50 interval and, after the first row, its paired difference from the first."""
+    draws = paired_bootstrap(runs, groups, samples, seed, map50_only=True)[:, :, 0]
+    for r, row_ in enumerate(rows):
+        lo, hi = np.percentile(draws[:, r], [2.5, 97.5])
+        row_["pooled mAP50 95%"] = [round(float(lo), 4), round(float(hi), 4)]
+        if r:
+            d = draws[:, r] - draws[:, 0]
+            lo, mid, hi = np.percentile(d, [2.5, 50, 97.5])
+            row_["minus first row"] = {"median": round(float(mid), 4),
+                                       "95%": [round(float(lo), 4), round(float(hi), 4)],
+                                       "share higher": round(float(np.mean(d > 0)), 3)}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[4242, 8888, 9191])
@@ -75,8 +102,12 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, default=Path("datasets"))
     ap.add_argument("--verifier", default="", help="also score each weights with this verifier ('shipped': the "
                     "package's) rescoring its zebra boxes, as the detector node's verifier parameter does")
+    ap.add_argument("--bootstrap", type=int, default=0, help="resamples of the placements (0: none)")
+    ap.add_argument("--bootstrap-seed", type=int, default=0)
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
+    if args.bootstrap < 0:
+        raise SystemExit(f"--bootstrap must be 0 or more, got {args.bootstrap}")
     if args.frames < 1:
         raise SystemExit(f"--frames must be 1 or more, got {args.frames}")
     if args.workers < 1:
@@ -85,6 +116,8 @@ def main() -> None:
         raise SystemExit(f"--seeds must be distinct and 0 or more, got {args.seeds}")
     folders = {s: default_set(args.cache, s, args.frames, args.workers) for s in args.seeds}
     rows: list[dict[str, Any]] = []
+    runs: list[list[MatchedImage]] = []
+    groups: list[tuple[int, str]] = []
     net = load_verifier(args.verifier, "cpu", "--verifier")[0] if args.verifier else None
     for w in args.weights:
         model, _ = load_model(None if w == "shipped" else w, torch.device("cpu"))
@@ -92,10 +125,17 @@ def main() -> None:
         t0 = time.perf_counter()
         per_seed = {s: predictions(model, make_loader(f, rule), VAL_CONF) for s, f in folders.items()}
         rows.append(row(w, per_seed, time.perf_counter() - t0))
+        if args.bootstrap:
+            runs.append(matched_all(per_seed))
+            groups = [(s, placement(x.file)) for s, ps in per_seed.items() for x in ps]
         if net is not None:  # the same detections rescored, as predictions(..., verifier=net) would give them
             t0 = time.perf_counter()
             per_seed = {s: [verified(net, x) for x in p] for s, p in per_seed.items()}
             rows.append(row(w + " + verifier", per_seed, time.perf_counter() - t0))
+            if args.bootstrap:
+                runs.append(matched_all(per_seed))
+    if args.bootstrap:
+        bootstrap_rows(rows, runs, groups, args.bootstrap, args.bootstrap_seed)
     if args.json:
         print(json.dumps({"machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
                           "frames": args.frames, "rows": rows}, indent=1))
@@ -108,6 +148,18 @@ def main() -> None:
         p = r["pooled"]
         print(f"| {r['weights']} | {' | '.join(cells)} | {r['median mAP50']:.3f} | "
               f"{p['mAP50']:.3f} / {p['mAP50-95']:.3f} ({p['zebras']} zebras) |")
+    if args.bootstrap:
+        print(f"\n{args.bootstrap} resamples of the {len(set(groups))} placements (seed {args.bootstrap_seed}), pooled "
+              f"mAP50, the same draws for every row:\n")
+        print(f"| weights | 95% interval | minus {rows[0]['weights']}: median | its 95% interval | "
+              "share of draws higher |")
+        print("| --- | --- | --- | --- | --- |")
+        for r in rows:
+            lo, hi = r["pooled mAP50 95%"]
+            d = r.get("minus first row")
+            rest = (f"{d['median']:+.4f} | {d['95%'][0]:+.4f} to {d['95%'][1]:+.4f} | {d['share higher']:.3f}" if d
+                    else "- | - | -")
+            print(f"| {r['weights']} | {lo:.4f} to {hi:.4f} | {rest} |")
 
 
 if __name__ == "__main__":

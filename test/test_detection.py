@@ -231,6 +231,65 @@ def test_a_herd_of_over_100_zebras_is_scored_whole() -> None:
     assert capped.recall == pytest.approx(100 / 180, abs=0.01) and capped.map50 < 0.6
 
 
+def test_paired_bootstrap_draws_whole_groups_and_pairs_the_runs() -> None:
+    """Resamples of a set's placements: one group holds every image, so each draw is the set itself; a group drawn
+    takes all its images; two runs are scored on the same draws, so a run with a false positive less never scores
+    under the other; the same seed gives the same draws."""
+    from zebra_sim_ros.detection.metrics import match_images, paired_bootstrap
+    from zebra_sim_ros.errors import ParameterError
+
+    preds, gts = _random_eval_set(3)
+    whole = evaluate_detections(preds, gts)
+    matched = match_images(preds, gts)
+    once = paired_bootstrap([matched], ["one"] * len(gts), samples=5, seed=1)
+    assert once.shape == (5, 1, 10) and np.allclose(once[:, 0], whole.ap, atol=1e-12)
+    # two placements of two views each: one found perfectly, one not at all (its detections all elsewhere)
+    box = np.array([[0.0, 0, 10, 10], [20, 20, 40, 50]])
+    hit = np.concatenate([box, [[0.9], [0.8]]], 1)
+    miss = np.concatenate([box + 100, [[0.7], [0.6]]], 1)
+    g2 = [box] * 4
+    p2 = [hit, hit, miss, miss]
+    mixed = evaluate_detections(p2, g2).map50
+    draws = paired_bootstrap([match_images(p2, g2)], ["a", "a", "b", "b"], samples=200, seed=2, map50_only=True)
+    values = draws[:, 0, 0]
+    assert np.all(draws[:, 0, 1:] == 0.0)  # only AP50 was computed
+    for v in (1.0, 0.0, mixed):  # both a, both b, or one of each: nothing else
+        assert np.isclose(values, v, atol=1e-9).any()
+    assert np.isclose(values[:, None], [1.0, 0.0, mixed], atol=1e-9).any(1).all()
+    # pairing: run B is run A without its lowest-scored false positive (at IoU 0.5) in each image
+    fewer = []
+    for p, m in zip(preds, matched, strict=True):
+        p = p[np.argsort(-p[:, 4], kind="mergesort")]  # the order match_images keeps
+        fp = np.flatnonzero(~m.tp[0] & ~m.ignored[0])
+        fewer.append(np.delete(p, fp[-1], axis=0) if len(fp) else p)
+    groups = [i // 3 for i in range(len(gts))]
+    ab = paired_bootstrap([matched, match_images(fewer, gts)], groups, samples=100, seed=3, map50_only=True)
+    assert np.all(ab[:, 1, 0] >= ab[:, 0, 0] - 1e-12) and np.ptp(ab[:, 0, 0]) > 0.01  # the draws do differ
+    assert np.array_equal(ab, paired_bootstrap([matched, match_images(fewer, gts)], groups, 100, 3, True))
+    with pytest.raises(ParameterError, match="samples"):
+        paired_bootstrap([matched], groups, samples=0)
+    with pytest.raises(ParameterError, match="runs"):
+        paired_bootstrap([matched, matched[:-1]], groups)
+
+
+def test_val_intervals_draw_a_placements_views_together() -> None:
+    """``val --bootstrap``: a generated set's three views of a placement share its key; resampled, a set of one
+    placement found and one missed spans both extremes, and its figures lie inside the intervals."""
+    from zebra_sim_ros.detection.evaluate import ImagePredictions, bootstrap_interval, placement, score
+
+    assert placement("d/images/val/savanna_far_12_000003_drone_1.jpg") == "savanna_far_12_000003"
+    assert placement("photo_7.jpg") == "photo_7"  # not a generated view: a placement of its own
+    box = np.array([[0.0, 0, 10, 10], [20, 20, 40, 50]])
+    hit, miss = np.concatenate([box, [[0.9], [0.8]]], 1), np.concatenate([box + 100, [[0.7], [0.6]]], 1)
+    per_image = [ImagePredictions(f"w_far_1_00000{k}_drone_{d}.jpg", hit if k == 0 else miss, box, np.zeros((0, 4)),
+                                  640) for k in (0, 1) for d in range(3)]
+    b = bootstrap_interval(per_image, 400, seed=5)
+    assert b["placements"] == 2 and b["samples"] == 400 and b["seed"] == 5
+    assert b["mAP50 95%"] == pytest.approx([0.0, 1.0], abs=1e-9)
+    assert b["mAP50 95%"][0] <= score(per_image).map50 <= b["mAP50 95%"][1]
+    assert bootstrap_interval(per_image, 400, seed=5) == b
+
+
 def test_model_sizes_and_shapes() -> None:
     n, s = build_model(ModelConfig(size="n")), build_model(ModelConfig(size="s"))
     assert 2.5e6 < count_parameters(n) < 3.5e6 and 10e6 < count_parameters(s) < 12.5e6
@@ -492,7 +551,8 @@ def test_validation_serves_each_image_as_detect_does(tmp_path: Path, capsys: pyt
     from zebra_sim_ros.cli import main
 
     save_checkpoint(tmp_path / "m.pt", model)
-    for extra, sizes in (([], [96, 256]), (["--imgsz", "128"], 128), (["--scale", "0.5"], [64, 160])):
+    for extra, sizes in (([], [96, 256]), (["--imgsz", "128", "--bootstrap", "20"], 128),
+                         (["--scale", "0.5"], [64, 160])):
         assert main(["val", "--weights", str(tmp_path / "m.pt"), "--data", str(tmp_path / "images"), "--device", "cpu",
                      "--json", "--plots", str(tmp_path / "plots"), *extra]) == 0
         text = capsys.readouterr().out
@@ -501,6 +561,12 @@ def test_validation_serves_each_image_as_detect_does(tmp_path: Path, capsys: pyt
         assert out["ms_per_image"] > 0 and f"{out['ms_per_image']} ms per image on cpu" in text  # the serving cost
         assert set(out["ap_by_size"]) == {"<8", "8-16", "16-32", "32-96", ">=96", "small", "medium", "large"}
         assert all(cv2.imread(out["plots"][k]) is not None for k in ("pr_curve", "predictions"))
+        if "--bootstrap" in extra:  # two images, each its own placement; nothing labelled, so AP 0 in every draw
+            assert out["bootstrap"] == {"samples": 20, "seed": 0, "placements": 2, "mAP50 95%": [0.0, 0.0],
+                                        "mAP50-95 95%": [0.0, 0.0]}
+            assert "95% intervals over 20 resamples of the 2 placements (seed 0)" in text
+    assert main(["val", "--data", str(tmp_path / "images"), "--bootstrap", "-1"]) == 2
+    assert "--bootstrap" in capsys.readouterr().err
     for bad in ("9", "-0.5", "0.2"):
         assert main(["val", "--data", str(tmp_path / "images"), "--scale", bad]) == 2
         assert f"argument --scale: '{bad}': allowed 0 (off) or 0.25..4" in capsys.readouterr().err

@@ -140,6 +140,9 @@ def register(sub: Any) -> None:
     add_option(v, spec_of(DetectorConfig, "conf"), default=0.001, note="val counts every detection above it into AP")
     add_option(v, spec_of(DetectorConfig, "iou"))
     add_option(v, spec_of(DetectorConfig, "max_det"), note="detections per image that count into AP, by score")
+    v.add_argument("--bootstrap", type=int, default=0, help="also give 95%% intervals of mAP50 and mAP50-95 over "
+                   "this many resamples of the set's placements (a placement's views drawn together; 0: none)")
+    v.add_argument("--bootstrap-seed", type=int, default=0, help="seed of the resamples (recorded in the output)")
     v.add_argument("--plot", type=Path, default=None, help="also write the PR curve (IoU 0.5) to this PNG")
     v.add_argument("--plots", type=Path, default=Path("runs/val"), help="folder for pr_curve.png and "
                    "predictions.jpg (16 images: ground truth green, detections at conf 0.25 red); '' for none")
@@ -253,6 +256,8 @@ def cmd_val(args: argparse.Namespace) -> Summary:
     check_scale("--scale", args.scale)
     if args.batch < 1:
         raise ParameterError("--batch", args.batch, ">= 1")
+    if args.bootstrap < 0:
+        raise ParameterError("--bootstrap", args.bootstrap, ">= 0 (0: none)")
     for name, value in (("--conf", args.conf), ("--iou", args.iou)):
         if not 0.0 <= value <= 1.0:
             raise ParameterError(name, value, "0..1")
@@ -269,6 +274,13 @@ def cmd_val(args: argparse.Namespace) -> Summary:
           f"{d['mAP50-95']:>10.3f}")
     print("by box size (sqrt of area, px):" + "".join(
         f"  {k} {v['mAP50']:.3f}/{v['mAP50-95']:.3f} ({v['instances']})" for k, v in facts["ap_by_size"].items()))
+    if args.bootstrap:
+        from zebra_sim_ros.detection.evaluate import bootstrap_interval
+
+        b = facts["bootstrap"] = bootstrap_interval(per_image, args.bootstrap, args.bootstrap_seed, args.max_det)
+        print(f"95% intervals over {b['samples']} resamples of the {b['placements']} placements (seed {b['seed']}): "
+              f"mAP50 {b['mAP50 95%'][0]:.3f}-{b['mAP50 95%'][1]:.3f}, "
+              f"mAP50-95 {b['mAP50-95 95%'][0]:.3f}-{b['mAP50-95 95%'][1]:.3f}")
     if args.plot:
         pr_curve_png(m, str(args.plot))
         print(f"PR curve: {args.plot}")

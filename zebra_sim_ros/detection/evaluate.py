@@ -6,6 +6,7 @@ dataset for ``zebra-sim val``. Works on any YOLO-format labelled set, real image
 
 from __future__ import annotations
 
+import re
 import time
 from collections import defaultdict
 from collections.abc import Callable, Sequence
@@ -20,7 +21,15 @@ from torch.utils.data import DataLoader
 from zebra_sim_ros.detection.boxes import postprocess
 from zebra_sim_ros.detection.checkpoint import load_model, select_device
 from zebra_sim_ros.detection.data import ImageMeta, YoloDataset, collate, resolve_split
-from zebra_sim_ros.detection.metrics import MAX_DETECTIONS, DetectionMetrics, ap_by_size, evaluate_detections
+from zebra_sim_ros.detection.metrics import (
+    MAX_DETECTIONS,
+    DetectionMetrics,
+    MatchedImage,
+    ap_by_size,
+    evaluate_detections,
+    match_images,
+    paired_bootstrap,
+)
 from zebra_sim_ros.detection.model import ZEBRA, Detector
 from zebra_sim_ros.detection.predict import describe_size, inference_size, unletterbox
 
@@ -114,6 +123,33 @@ def score(per_image: list[ImagePredictions], max_det: int = MAX_DETECTIONS) -> D
     """COCO metrics of :func:`predictions` (or a subset of them), don't-care boxes honoured."""
     return evaluate_detections([p.detections for p in per_image], [p.labels for p in per_image], max_det,
                                [p.ignore for p in per_image])
+
+
+def matched(per_image: Sequence[ImagePredictions], max_det: int = MAX_DETECTIONS) -> list[MatchedImage]:
+    """:func:`predictions` matched image by image (:func:`~zebra_sim_ros.detection.metrics.match_images`), for
+    :func:`~zebra_sim_ros.detection.metrics.paired_bootstrap`."""
+    return match_images([p.detections for p in per_image], [p.labels for p in per_image], max_det,
+                        [p.ignore for p in per_image])
+
+
+def placement(file: str | Path) -> str:
+    """The placement an image of a generated set shows, the key its views share in a bootstrap: the file's name
+    without its drone (``savanna_far_1234_000003_drone_1`` -> ``savanna_far_1234_000003``); an image named
+    otherwise is a placement of its own."""
+    return re.sub(r"_drone_\d+$", "", Path(file).stem)
+
+
+def bootstrap_interval(per_image: Sequence[ImagePredictions], samples: int, seed: int = 0,
+                       max_det: int = MAX_DETECTIONS) -> dict[str, Any]:
+    """95% intervals of mAP50 and mAP50-95 over ``samples`` resamples of the set's placements (:func:`placement`;
+    the views of one placement drawn together), seeded: how far the figures would move on new placements."""
+    groups = [placement(p.file) for p in per_image]
+    ap = paired_bootstrap([matched(per_image, max_det)], groups, samples, seed)[:, 0]
+    lo50, hi50 = np.percentile(ap[:, 0], [2.5, 97.5])
+    lo, hi = np.percentile(ap.mean(1), [2.5, 97.5])
+    return {"samples": samples, "seed": seed, "placements": len(set(groups)),
+            "mAP50 95%": [round(float(lo50), 4), round(float(hi50), 4)],
+            "mAP50-95 95%": [round(float(lo), 4), round(float(hi), 4)]}
 
 
 def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", imgsz: int | None = None,

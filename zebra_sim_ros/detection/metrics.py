@@ -13,10 +13,14 @@ false positive; ignore boxes are never missed and may take any number of detecti
 
 from __future__ import annotations
 
+from collections.abc import Hashable, Sequence
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
+
+from zebra_sim_ros.errors import ParameterError
 
 IOU_THRESHOLDS = np.linspace(0.5, 0.95, 10)
 # Detections per image that count, by score (pycocotools' maxDets). COCO's 100 fits its photos (at most a few
@@ -136,43 +140,53 @@ def _match_image(pred: NDArray[np.float64], gt: NDArray[np.float64], ign: NDArra
     return tp, ig
 
 
-def evaluate_detections(preds: list[NDArray[np.float64]], gts: list[NDArray[np.float64]],
-                        max_det: int = MAX_DETECTIONS, ignores: list[NDArray[np.float64]] | None = None,
-                        size_range: tuple[float, float] | None = None) -> DetectionMetrics:
-    """Metrics of per-image predictions (n, 5) [x0, y0, x1, y1, score] against ground truths (m, 4) xyxy.
+class MatchedImage(NamedTuple):
+    """One image's detections after COCO's matching (:func:`match_images`): what AP is accumulated from."""
 
-    Single class (zebra); boxes in the same pixel coordinates. ``ignores``: per image, don't-care boxes (k, 4)
-    xyxy (pycocotools' ``iscrowd=1``: see the module's docstring); None for none. ``size_range``: only objects
-    whose sqrt(area) in px lies in [lo, hi) count (COCO's area ranges; see :func:`_match_image`). With no ground
-    truth at all, AP is 0.
-    """
-    t = len(IOU_THRESHOLDS)
-    scores_all, tp_all, ig_all = [], [], []
-    n_gt = 0
+    scores: NDArray[np.float64]  # (n,) its detections' scores, highest first, at most ``max_det``
+    tp: NDArray[np.bool_]  # (thresholds, n) true positives at each IoU threshold
+    ignored: NDArray[np.bool_]  # (thresholds, n) on a don't-care box or out of range: neither right nor wrong
+    n_gt: int  # ground-truth boxes that count
+
+
+def match_images(preds: list[NDArray[np.float64]], gts: list[NDArray[np.float64]],
+                 max_det: int = MAX_DETECTIONS, ignores: list[NDArray[np.float64]] | None = None,
+                 size_range: tuple[float, float] | None = None) -> list[MatchedImage]:
+    """Each image's detections matched to its ground truth (arguments as :func:`evaluate_detections`). Matching is
+    per image, so any subset or resample of a set's images is scored from these without matching again."""
+    out = []
     per_image_ignores = ignores if ignores is not None else [np.zeros((0, 4))] * len(gts)
     for pred, gt, ign in zip(preds, gts, per_image_ignores, strict=True):
         pred = np.asarray(pred, dtype=np.float64).reshape(-1, 5)
         gt = np.asarray(gt, dtype=np.float64).reshape(-1, 4)
         if size_range is None:
-            n_gt += len(gt)
+            n_gt = len(gt)
         else:
             side = np.sqrt(np.clip((gt[:, 2] - gt[:, 0]) * (gt[:, 3] - gt[:, 1]), 0, None))
-            n_gt += int(np.sum((side >= size_range[0]) & (side < size_range[1])))
+            n_gt = int(np.sum((side >= size_range[0]) & (side < size_range[1])))
         pred = pred[np.argsort(-pred[:, 4], kind="mergesort")[:max_det]]
         tp, ig = _match_image(pred, gt, np.asarray(ign, dtype=np.float64).reshape(-1, 4), size_range)
-        scores_all.append(pred[:, 4])
-        tp_all.append(tp)
-        ig_all.append(ig)
-    scores = np.concatenate(scores_all) if scores_all else np.zeros(0)
-    tps = np.concatenate(tp_all, axis=1) if tp_all else np.zeros((t, 0), dtype=bool)
-    igs = np.concatenate(ig_all, axis=1) if ig_all else np.zeros((t, 0), dtype=bool)
+        out.append(MatchedImage(pred[:, 4], tp, ig, n_gt))
+    return out
+
+
+def _accumulate(images: Sequence[MatchedImage],
+                first_only: bool = False) -> tuple[NDArray[np.float64], tuple[NDArray[np.float64], NDArray[np.float64]],
+                                                   tuple[float, float, float]]:
+    """AP per IoU threshold (only the first, IoU 0.5, if ``first_only``; the others 0), the precision-recall curve
+    at IoU 0.5 and (precision, recall, confidence) at its best F1, from matched images."""
+    t = len(IOU_THRESHOLDS)
+    n_gt = sum(m.n_gt for m in images)
+    scores = np.concatenate([m.scores for m in images]) if images else np.zeros(0)
+    tps = np.concatenate([m.tp for m in images], axis=1) if images else np.zeros((t, 0), dtype=bool)
+    igs = np.concatenate([m.ignored for m in images], axis=1) if images else np.zeros((t, 0), dtype=bool)
     order = np.argsort(-scores, kind="mergesort")
     scores, tps, igs = scores[order], tps[:, order], igs[:, order]
     ap = np.zeros(t)
     pr = (np.zeros(0), np.zeros(0))
-    best_p = best_r = best_conf = 0.0
+    best = (0.0, 0.0, 0.0)
     if n_gt and len(scores):
-        for ti in range(t):
+        for ti in range(1 if first_only else t):
             # an ignored detection adds to neither count (its entry repeats the previous point, as in pycocotools)
             tp_c = np.cumsum(tps[ti]).astype(np.float64)
             fp_c = np.cumsum(~tps[ti] & ~igs[ti]).astype(np.float64)
@@ -186,9 +200,50 @@ def evaluate_detections(preds: list[NDArray[np.float64]], gts: list[NDArray[np.f
                 pr = (rc, pc)
                 f1 = 2 * pc * rc / (pc + rc + 1e-12)
                 k = int(np.argmax(f1))
-                best_p, best_r, best_conf = float(pc[k]), float(rc[k]), float(scores[k])
+                best = (float(pc[k]), float(rc[k]), float(scores[k]))
+    return ap, pr, best
+
+
+def evaluate_detections(preds: list[NDArray[np.float64]], gts: list[NDArray[np.float64]],
+                        max_det: int = MAX_DETECTIONS, ignores: list[NDArray[np.float64]] | None = None,
+                        size_range: tuple[float, float] | None = None) -> DetectionMetrics:
+    """Metrics of per-image predictions (n, 5) [x0, y0, x1, y1, score] against ground truths (m, 4) xyxy.
+
+    Single class (zebra); boxes in the same pixel coordinates. ``ignores``: per image, don't-care boxes (k, 4)
+    xyxy (pycocotools' ``iscrowd=1``: see the module's docstring); None for none. ``size_range``: only objects
+    whose sqrt(area) in px lies in [lo, hi) count (COCO's area ranges; see :func:`_match_image`). With no ground
+    truth at all, AP is 0.
+    """
+    matched = match_images(preds, gts, max_det, ignores, size_range)
+    ap, pr, (best_p, best_r, best_conf) = _accumulate(matched)
     return DetectionMetrics(ap=ap, precision=best_p, recall=best_r, f1_confidence=best_conf, images=len(gts),
-                            instances=n_gt, pr_curve=pr)
+                            instances=sum(m.n_gt for m in matched), pr_curve=pr)
+
+
+def paired_bootstrap(runs: Sequence[Sequence[MatchedImage]], groups: Sequence[Hashable], samples: int = 1000,
+                     seed: int = 0, map50_only: bool = False) -> NDArray[np.float64]:
+    """AP of every run on ``samples`` resamples of the same images: (samples, runs, thresholds).
+
+    ``runs``: each a set's images matched (:func:`match_images`), the same images in the same order for every run
+    (several detectors on one set). ``groups``: one key per image; images that share a key (the views of one
+    placement, whose animals and light are the same) are drawn together, so the spread is that of a set of new
+    placements. Every run is scored on the same draws (paired), so the spread of a difference between two runs leaves
+    out what the draws change for both alike. ``map50_only``: only AP at IoU 0.5 (the other columns 0), about ten
+    times faster. Seeded: the same arguments give the same draws."""
+    if samples < 1:
+        raise ParameterError("samples", samples, "1 or more")
+    n = len(groups)
+    if not runs or any(len(r) != n for r in runs):
+        raise ParameterError("runs", [len(r) for r in runs], f"one or more runs of {n} images each (one per group key)")
+    keys = list(dict.fromkeys(groups))
+    members = [[i for i, g in enumerate(groups) if g == k] for k in keys]
+    rng = np.random.default_rng(seed)
+    out = np.zeros((samples, len(runs), len(IOU_THRESHOLDS)))
+    for s in range(samples):
+        picked = [i for k in rng.integers(0, len(keys), len(keys)) for i in members[k]]
+        for r, run in enumerate(runs):
+            out[s, r] = _accumulate([run[i] for i in picked], first_only=map50_only)[0]
+    return out
 
 
 # Object sizes (sqrt of box area, px) for AP by size: ours (half our zebras are under 12 px) and COCO's.
