@@ -25,6 +25,11 @@ no false-detection figures: they print as "-" (null in ``--json``), not as 0.
 ``--verifier`` (``shipped`` or a verifier checkpoint) rescores every weights' zebra boxes as the detector node's
 ``verifier`` parameter does; its rows name the weights "+ verifier".
 
+``--bootstrap N`` also resamples each set's photos N times (those with zebras and those of other species each with
+replacement; the draws depend only on the seed and the photo counts, so every weights is scored on the same draws):
+95% intervals of mAP50 and of the false detections per photo of other species, and for each weights after the first
+its paired difference from the first (median and 95% interval) on the same set and size.
+
 The table's header names the date, the machine and each weights' sha256 (first 12 hex digits), and the
 verifier's.
 """
@@ -48,7 +53,14 @@ import torch
 from zebra_sim_ros.detection.checkpoint import SHIPPED, file_sha256, load_model
 from zebra_sim_ros.detection.data import image_size, label_path, read_labels
 from zebra_sim_ros.detection.evaluate import ImagePredictions, make_loader, predictions_by_class
-from zebra_sim_ros.detection.metrics import ap_by_size, evaluate_detections, iou_matrix, precision_recall_at
+from zebra_sim_ros.detection.metrics import (
+    ap_by_size,
+    evaluate_detections,
+    iou_matrix,
+    match_images,
+    paired_bootstrap,
+    precision_recall_at,
+)
 from zebra_sim_ros.detection.model import OTHER_ANIMAL, ZEBRA
 from zebra_sim_ros.detection.predict import inference_size
 from zebra_sim_ros.detection.verify import SHIPPED_VERIFIER, load_verifier
@@ -99,8 +111,8 @@ def _centred(d: np.ndarray, boxes: np.ndarray) -> np.ndarray:
                       & (cy[:, None] >= boxes[None, :, 1]) & (cy[:, None] <= boxes[None, :, 3]))
 
 
-def score_set(weights: str, folder: Path, imgsz: int, sweep: tuple[float, ...] = (), verifier: str = ""
-              ) -> dict[str, Any]:
+def score_set(weights: str, folder: Path, imgsz: int, sweep: tuple[float, ...] = (), verifier: str = "",
+              bootstrap: int = 0, seed: int = 0) -> dict[str, Any]:
     model, _ = load_model(None if weights == "shipped" else weights, torch.device("cpu"))
     net = load_verifier(verifier, "cpu", "--verifier")[0] if verifier else None
 
@@ -158,7 +170,53 @@ def score_set(weights: str, folder: Path, imgsz: int, sweep: tuple[float, ...] =
             "other_by_class": {k: {"photos": n, "det_per_image": round(dn / n, 3), "centred_per_image": round(c / n, 3)}
                                for k, (n, dn, c) in sorted(species.items())},
             "ms_per_image": round(1000 * seconds / max(len(per), 1), 1),
-            "sweep": [_operating_point(dets, gts, others, t) for t in sweep]}
+            "sweep": [_operating_point(dets, gts, others, t) for t in sweep],
+            "draws": _draws(dets, gts, others, bootstrap, seed) if bootstrap else None}
+
+
+def _draws(dets: list[np.ndarray], gts: list[np.ndarray], others: list[ImagePredictions], samples: int,
+           seed: int) -> dict[str, list[float] | None]:
+    """mAP50 over ``samples`` resamples of the zebra photos, and false detections per photo (conf 0.25) over as many
+    resamples of the other species' photos; the same draws for every weights scored on the set."""
+    ap50 = (paired_bootstrap([match_images(dets, gts)], list(range(len(gts))), samples, seed, map50_only=True)[:, 0, 0]
+            if gts else None)
+    counts = np.array([int((p.detections[:, 4] >= CONF).sum()) for p in others], dtype=np.float64)
+    rng = np.random.default_rng([seed, 1])
+    fp = (np.array([counts[rng.integers(0, len(counts), len(counts))].mean() for _ in range(samples)])
+          if len(counts) else None)
+    return {"mAP50": None if ap50 is None else ap50.tolist(),
+            "other_det_per_image": None if fp is None else fp.tolist()}
+
+
+def _interval(x: np.ndarray) -> str:
+    lo, hi = np.percentile(x, [2.5, 97.5])
+    return f"{lo:.3f}-{hi:.3f}"
+
+
+def bootstrap_table(rows: list[dict[str, Any]], samples: int, seed: int) -> list[str]:
+    """Each row's 95% intervals and, after the first weights, its paired difference from the first weights' row on
+    the same set and size (median, 95% interval)."""
+    first: dict[tuple[str, str], dict[str, Any]] = {}
+    out = [f"{samples} resamples of each set's photos (seed {seed}), the same draws for every weights:", "",
+           "| weights | set | imgsz | mAP50 95% | minus the first weights: median (95%) | other det/photo 95% | "
+           "minus the first weights: median (95%) |", "| --- | --- | --- | --- | --- | --- | --- |"]
+    for r in rows:
+        key = (r["set"], str(r["imgsz"]))
+        base = first.setdefault(key, r)
+        cells = []
+        for name in ("mAP50", "other_det_per_image"):
+            x = r["draws"][name]
+            if x is None:
+                cells += ["-", "-"]
+                continue
+            cells.append(_interval(np.asarray(x)))
+            if base is r:
+                cells.append("-")
+            else:
+                d = np.asarray(x) - np.asarray(base["draws"][name])
+                cells.append(f"{np.median(d):+.3f} ({np.percentile(d, 2.5):+.3f} to {np.percentile(d, 97.5):+.3f})")
+        out.append(f"| {r['weights']} | {r['set']} | {r['imgsz']} | " + " | ".join(cells) + " |")
+    return out
 
 
 def _if(has: bool) -> Callable[[float], float | None]:
@@ -231,6 +289,9 @@ def main() -> None:
                     "per photo at each of these thresholds")
     ap.add_argument("--verifier", default="", help="rescore the zebra boxes with this verifier ('shipped': the "
                     "package's), as the detector node's verifier parameter does")
+    ap.add_argument("--bootstrap", type=int, default=0, help="resamples of each set's photos for 95%% intervals "
+                    "and paired differences (0: none)")
+    ap.add_argument("--bootstrap-seed", type=int, default=0)
     ap.add_argument("--no-append", action="store_true", help="do not append the table to BENCHMARKS.md")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
@@ -244,8 +305,10 @@ def main() -> None:
     bad = [c for c in args.conf_sweep if not 0.0 < c < 1.0]
     if bad:
         raise SystemExit(f"--conf-sweep {bad[0]}: want thresholds between 0 and 1")
-    rows = [score_set(w, s, n, tuple(args.conf_sweep), args.verifier) for w in args.weights for s in sets
-            for n in args.imgsz]
+    if args.bootstrap < 0:
+        raise SystemExit(f"--bootstrap {args.bootstrap}: want 0 (none) or more")
+    rows = [score_set(w, s, n, tuple(args.conf_sweep), args.verifier, args.bootstrap, args.bootstrap_seed)
+            for w in args.weights for s in sets for n in args.imgsz]
     machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores"
     digests = ", ".join(f"{w} {sha256_12(SHIPPED if w == 'shipped' else Path(w))}" for w in args.weights)
     if args.verifier:
@@ -253,9 +316,11 @@ def main() -> None:
         digests += f"; verifier {args.verifier} {sha256_12(v)}"
     head = f"`bench_real.py` {dt.date.today().isoformat()}, {machine}; weights sha256: {digests}"
     lines = [head, "", *table(rows)] + (["", *sweep_table(rows)] if args.conf_sweep else [])
+    if args.bootstrap:
+        lines += ["", *bootstrap_table(rows, args.bootstrap, args.bootstrap_seed)]
     print("\n".join(lines))
     if args.json:
-        print(json.dumps(rows))
+        print(json.dumps([{k: v for k, v in r.items() if k != "draws"} for r in rows]))
     if not args.no_append:
         with open(ROOT / "BENCHMARKS.md", "a", encoding="utf-8") as f:
             f.write("\n" + "\n".join(lines) + "\n")
