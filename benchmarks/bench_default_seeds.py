@@ -34,7 +34,7 @@ import torch
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
 from zebra_sim_ros.detection.checkpoint import load_model
 from zebra_sim_ros.detection.evaluate import ImagePredictions, make_loader, matched, placement, predictions, score
-from zebra_sim_ros.detection.metrics import MatchedImage, paired_bootstrap
+from zebra_sim_ros.detection.metrics import MatchedImage, interval95, paired_bootstrap
 from zebra_sim_ros.detection.predict import inference_size
 from zebra_sim_ros.detection.verify import Verifier, load_verifier, read_rgb, rescore
 from zebra_sim_ros.zebra.asset import appearance_digest
@@ -83,14 +83,13 @@ def bootstrap_rows(rows: list[dict[str, Any]], runs: list[list[MatchedImage]], g
     """Add each row's pooled mAP50 interval and, after the first row, its paired difference from the first."""
     draws = paired_bootstrap(runs, groups, samples, seed, map50_only=True)[:, :, 0]
     for r, row_ in enumerate(rows):
-        lo, hi = np.percentile(draws[:, r], [2.5, 97.5])
-        row_["pooled mAP50 95%"] = [round(float(lo), 4), round(float(hi), 4)]
+        row_["pooled mAP50 95%"] = [round(x, 4) for x in interval95(draws[:, r])]
         if r:
             d = draws[:, r] - draws[:, 0]
-            lo, mid, hi = np.percentile(d, [2.5, 50, 97.5])
-            row_["minus first row"] = {"median": round(float(mid), 4),
-                                       "95%": [round(float(lo), 4), round(float(hi), 4)],
-                                       "share higher": round(float(np.mean(d > 0)), 3)}
+            row_["minus first row"] = {"median of paired draws": round(float(np.median(d)), 4),
+                                       "95%": [round(x, 4) for x in interval95(d)],
+                                       "share higher": round(float(np.mean(d > 0)), 3),
+                                       "share lower": round(float(np.mean(d < 0)), 3)}
 
 
 def main() -> None:
@@ -108,6 +107,8 @@ def main() -> None:
     args = ap.parse_args()
     if args.bootstrap < 0:
         raise SystemExit(f"--bootstrap must be 0 or more, got {args.bootstrap}")
+    if args.bootstrap_seed < 0:
+        raise SystemExit(f"--bootstrap-seed must be 0 or more, got {args.bootstrap_seed}")
     if args.frames < 1:
         raise SystemExit(f"--frames must be 1 or more, got {args.frames}")
     if args.workers < 1:
@@ -137,8 +138,10 @@ def main() -> None:
     if args.bootstrap:
         bootstrap_rows(rows, runs, groups, args.bootstrap, args.bootstrap_seed)
     if args.json:
+        boot = ({"samples": args.bootstrap, "seed": args.bootstrap_seed, "placements": len(set(groups))}
+                if args.bootstrap else None)
         print(json.dumps({"machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
-                          "frames": args.frames, "rows": rows}, indent=1))
+                          "frames": args.frames, "bootstrap": boot, "rows": rows}, indent=1))
         return
     print(f"| weights | {' | '.join(f'seed {s}' for s in args.seeds)} | median | pooled ({args.frames} x "
           f"{len(args.seeds)} frames) |")
@@ -151,14 +154,14 @@ def main() -> None:
     if args.bootstrap:
         print(f"\n{args.bootstrap} resamples of the {len(set(groups))} placements (seed {args.bootstrap_seed}), pooled "
               f"mAP50, the same draws for every row:\n")
-        print(f"| weights | 95% interval | minus {rows[0]['weights']}: median | its 95% interval | "
+        print(f"| weights | 95% interval | minus {rows[0]['weights']}: median of paired draws | its 95% interval | "
               "share of draws higher |")
         print("| --- | --- | --- | --- | --- |")
         for r in rows:
             lo, hi = r["pooled mAP50 95%"]
             d = r.get("minus first row")
-            rest = (f"{d['median']:+.4f} | {d['95%'][0]:+.4f} to {d['95%'][1]:+.4f} | {d['share higher']:.3f}" if d
-                    else "- | - | -")
+            rest = (f"{d['median of paired draws']:+.4f} | {d['95%'][0]:+.4f} to {d['95%'][1]:+.4f} | "
+                    f"{d['share higher']:.3f}" if d else "- | - | -")
             print(f"| {r['weights']} | {lo:.4f} to {hi:.4f} | {rest} |")
 
 

@@ -56,6 +56,7 @@ from zebra_sim_ros.detection.evaluate import ImagePredictions, make_loader, pred
 from zebra_sim_ros.detection.metrics import (
     ap_by_size,
     evaluate_detections,
+    interval95,
     iou_matrix,
     match_images,
     paired_bootstrap,
@@ -185,36 +186,47 @@ def _draws(dets: list[np.ndarray], gts: list[np.ndarray], others: list[ImagePred
     fp = (np.array([counts[rng.integers(0, len(counts), len(counts))].mean() for _ in range(samples)])
           if len(counts) else None)
     return {"mAP50": None if ap50 is None else ap50.tolist(),
-            "other_det_per_image": None if fp is None else fp.tolist()}
+            "other_det_per_image": None if fp is None else fp.tolist(), "photos": [len(gts), len(others)]}
 
 
-def _interval(x: np.ndarray) -> str:
-    lo, hi = np.percentile(x, [2.5, 97.5])
-    return f"{lo:.3f}-{hi:.3f}"
-
-
-def bootstrap_table(rows: list[dict[str, Any]], samples: int, seed: int) -> list[str]:
-    """Each row's 95% intervals and, after the first weights, its paired difference from the first weights' row on
-    the same set and size (median, 95% interval)."""
+def summarise_draws(rows: list[dict[str, Any]], samples: int, seed: int) -> None:
+    """Replace each row's draws by what the tables and ``--json`` give: 95% intervals and, after the first weights
+    on the same set and size, the paired difference from it (median of the paired draws, 95% interval). Draws are
+    paired only over the same photos: rows whose photo counts differ from the first's get no difference."""
     first: dict[tuple[str, str], dict[str, Any]] = {}
-    out = [f"{samples} resamples of each set's photos (seed {seed}), the same draws for every weights:", "",
-           "| weights | set | imgsz | mAP50 95% | minus the first weights: median (95%) | other det/photo 95% | "
-           "minus the first weights: median (95%) |", "| --- | --- | --- | --- | --- | --- | --- |"]
     for r in rows:
-        key = (r["set"], str(r["imgsz"]))
-        base = first.setdefault(key, r)
+        draws = r.pop("draws")
+        base = first.setdefault((r["set"], str(r["imgsz"])), {**r, "draws": draws})
+        out: dict[str, Any] = {"samples": samples, "seed": seed, "photos": draws["photos"]}
+        for name in ("mAP50", "other_det_per_image"):
+            x = draws[name]
+            if x is None:
+                continue
+            out[f"{name} 95%"] = [round(v, 4) for v in interval95(np.asarray(x))]
+            if base["weights"] != r["weights"] and base["draws"]["photos"] == draws["photos"]:
+                d = np.asarray(x) - np.asarray(base["draws"][name])
+                out[f"{name} minus {base['weights']}"] = {"median of paired draws": round(float(np.median(d)), 4),
+                                                          "95%": [round(v, 4) for v in interval95(d)]}
+        r["bootstrap"] = out
+
+
+def bootstrap_table(rows: list[dict[str, Any]]) -> list[str]:
+    """Each row's 95% intervals and, after the first weights, its paired difference from the first weights' row on
+    the same set and size (:func:`summarise_draws`)."""
+    b0 = rows[0]["bootstrap"]
+    out = [f"{b0['samples']} resamples of each set's photos (seed {b0['seed']}), the same draws for every weights:", "",
+           "| weights | set | imgsz | mAP50 95% | minus the first weights: median of paired draws (95%) | "
+           "other det/photo 95% | minus the first weights: median of paired draws (95%) |",
+           "| --- | --- | --- | --- | --- | --- | --- |"]
+    for r in rows:
+        b = r["bootstrap"]
         cells = []
         for name in ("mAP50", "other_det_per_image"):
-            x = r["draws"][name]
-            if x is None:
-                cells += ["-", "-"]
-                continue
-            cells.append(_interval(np.asarray(x)))
-            if base is r:
-                cells.append("-")
-            else:
-                d = np.asarray(x) - np.asarray(base["draws"][name])
-                cells.append(f"{np.median(d):+.3f} ({np.percentile(d, 2.5):+.3f} to {np.percentile(d, 97.5):+.3f})")
+            iv = b.get(f"{name} 95%")
+            cells.append("-" if iv is None else f"{iv[0]:.3f}-{iv[1]:.3f}")
+            d = next((v for k, v in b.items() if k.startswith(f"{name} minus ")), None)
+            cells.append("-" if d is None else f"{d['median of paired draws']:+.3f} ({d['95%'][0]:+.3f} to "
+                         f"{d['95%'][1]:+.3f})")
         out.append(f"| {r['weights']} | {r['set']} | {r['imgsz']} | " + " | ".join(cells) + " |")
     return out
 
@@ -307,6 +319,8 @@ def main() -> None:
         raise SystemExit(f"--conf-sweep {bad[0]}: want thresholds between 0 and 1")
     if args.bootstrap < 0:
         raise SystemExit(f"--bootstrap {args.bootstrap}: want 0 (none) or more")
+    if args.bootstrap_seed < 0:
+        raise SystemExit(f"--bootstrap-seed {args.bootstrap_seed}: want 0 or more")
     rows = [score_set(w, s, n, tuple(args.conf_sweep), args.verifier, args.bootstrap, args.bootstrap_seed)
             for w in args.weights for s in sets for n in args.imgsz]
     machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores"
@@ -317,10 +331,14 @@ def main() -> None:
     head = f"`bench_real.py` {dt.date.today().isoformat()}, {machine}; weights sha256: {digests}"
     lines = [head, "", *table(rows)] + (["", *sweep_table(rows)] if args.conf_sweep else [])
     if args.bootstrap:
-        lines += ["", *bootstrap_table(rows, args.bootstrap, args.bootstrap_seed)]
+        summarise_draws(rows, args.bootstrap, args.bootstrap_seed)
+        lines += ["", *bootstrap_table(rows)]
+    else:
+        for r in rows:
+            r.pop("draws")
     print("\n".join(lines))
     if args.json:
-        print(json.dumps([{k: v for k, v in r.items() if k != "draws"} for r in rows]))
+        print(json.dumps(rows))
     if not args.no_append:
         with open(ROOT / "BENCHMARKS.md", "a", encoding="utf-8") as f:
             f.write("\n" + "\n".join(lines) + "\n")

@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
 # Build the message packages under interfaces/ into the venv (prefix .venv: libraries in .venv/lib, Python in its
 # site-packages, .msg texts in .venv/share/<pkg>/msg), with CMake and the rosidl generators from PyPI. Idempotent:
-# a package is rebuilt only when its sources change. tf2_msgs is built only where no other tf2_msgs can be imported
-# (a ROS 2 install that has geometry2 keeps its own). Only the C and Python code is generated
-# (-DZEBRA_SIM_PYTHON_ONLY=ON, interfaces/python_includes.cmake): rclpy loads the C typesupports, and the C++ ones were
-# a third of the build's time (benchmarks/bench_interfaces_build.py). Needs cmake and a C/C++ compiler (scripts/setup.sh installs
-# them). Usage: bash scripts/build_interfaces.sh [--force]
+# a package is rebuilt only when its sources (or this script) change. tf2_msgs is built only where no other tf2_msgs
+# can be imported (a ROS 2 install that has geometry2 keeps its own). Only the C and Python code is generated
+# (-DZEBRA_SIM_PYTHON_ONLY=ON, interfaces/python_includes.cmake): rclpy loads the C typesupports, and the C++ ones
+# were a third of the build's time (benchmarks/bench_interfaces_build.py). Needs cmake and a C/C++ compiler
+# (scripts/setup.sh installs them). Usage: bash scripts/build_interfaces.sh [--force]
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 ROOT="$PWD"
@@ -45,6 +45,11 @@ for pkg in tf2_msgs zebra_sim_msgs; do
         continue
     fi
     log "building $pkg"
+    # what the last build installed goes first (its install manifest), so no file of an older build (C++ headers and
+    # typesupports built before -DZEBRA_SIM_PYTHON_ONLY, or a removed message's code) stays in the venv
+    if [[ -f "$BUILD/$pkg/install_manifest.txt" ]]; then
+        xargs -d '\n' rm -f < "$BUILD/$pkg/install_manifest.txt"
+    fi
     rm -rf "$BUILD/$pkg"
     if ! { cmake -S "$src" -B "$BUILD/$pkg" -DCMAKE_INSTALL_PREFIX="$VENV" -DPython3_EXECUTABLE="$PY" \
               -DBUILD_TESTING=OFF -DCMAKE_BUILD_TYPE=Release -DZEBRA_SIM_PYTHON_ONLY=ON \

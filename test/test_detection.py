@@ -268,6 +268,8 @@ def test_paired_bootstrap_draws_whole_groups_and_pairs_the_runs() -> None:
     assert np.array_equal(ab, paired_bootstrap([matched, match_images(fewer, gts)], groups, 100, 3, True))
     with pytest.raises(ParameterError, match="samples"):
         paired_bootstrap([matched], groups, samples=0)
+    with pytest.raises(ParameterError, match="seed.*-1"):
+        paired_bootstrap([matched], groups, seed=-1)
     with pytest.raises(ParameterError, match="runs"):
         paired_bootstrap([matched, matched[:-1]], groups)
 
@@ -565,8 +567,9 @@ def test_validation_serves_each_image_as_detect_does(tmp_path: Path, capsys: pyt
             assert out["bootstrap"] == {"samples": 20, "seed": 0, "placements": 2, "mAP50 95%": [0.0, 0.0],
                                         "mAP50-95 95%": [0.0, 0.0]}
             assert "95% intervals over 20 resamples of the 2 placements (seed 0)" in text
-    assert main(["val", "--data", str(tmp_path / "images"), "--bootstrap", "-1"]) == 2
-    assert "--bootstrap" in capsys.readouterr().err
+    for bad in (["--bootstrap", "-1"], ["--bootstrap", "5", "--bootstrap-seed", "-2"]):  # refused before any work
+        assert main(["val", "--data", str(tmp_path / "images"), *bad]) == 2
+        assert f"{bad[-2]}" in capsys.readouterr().err
     for bad in ("9", "-0.5", "0.2"):
         assert main(["val", "--data", str(tmp_path / "images"), "--scale", bad]) == 2
         assert f"argument --scale: '{bad}': allowed 0 (off) or 0.25..4" in capsys.readouterr().err

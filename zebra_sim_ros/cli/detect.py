@@ -258,6 +258,8 @@ def cmd_val(args: argparse.Namespace) -> Summary:
         raise ParameterError("--batch", args.batch, ">= 1")
     if args.bootstrap < 0:
         raise ParameterError("--bootstrap", args.bootstrap, ">= 0 (0: none)")
+    if args.bootstrap_seed < 0:
+        raise ParameterError("--bootstrap-seed", args.bootstrap_seed, ">= 0")
     for name, value in (("--conf", args.conf), ("--iou", args.iou)):
         if not 0.0 <= value <= 1.0:
             raise ParameterError(name, value, "0..1")

@@ -27,6 +27,7 @@ from zebra_sim_ros.detection.metrics import (
     MatchedImage,
     ap_by_size,
     evaluate_detections,
+    interval95,
     match_images,
     paired_bootstrap,
 )
@@ -145,11 +146,9 @@ def bootstrap_interval(per_image: Sequence[ImagePredictions], samples: int, seed
     the views of one placement drawn together), seeded: how far the figures would move on new placements."""
     groups = [placement(p.file) for p in per_image]
     ap = paired_bootstrap([matched(per_image, max_det)], groups, samples, seed)[:, 0]
-    lo50, hi50 = np.percentile(ap[:, 0], [2.5, 97.5])
-    lo, hi = np.percentile(ap.mean(1), [2.5, 97.5])
     return {"samples": samples, "seed": seed, "placements": len(set(groups)),
-            "mAP50 95%": [round(float(lo50), 4), round(float(hi50), 4)],
-            "mAP50-95 95%": [round(float(lo), 4), round(float(hi), 4)]}
+            "mAP50 95%": [round(x, 4) for x in interval95(ap[:, 0])],
+            "mAP50-95 95%": [round(x, 4) for x in interval95(ap.mean(1))]}
 
 
 def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", imgsz: int | None = None,

@@ -220,6 +220,12 @@ def evaluate_detections(preds: list[NDArray[np.float64]], gts: list[NDArray[np.f
                             instances=sum(m.n_gt for m in matched), pr_curve=pr)
 
 
+def interval95(draws: NDArray[np.float64]) -> tuple[float, float]:
+    """The central 95% interval (2.5th and 97.5th percentiles) of bootstrap draws."""
+    lo, hi = np.percentile(np.asarray(draws, dtype=np.float64), [2.5, 97.5])
+    return float(lo), float(hi)
+
+
 def paired_bootstrap(runs: Sequence[Sequence[MatchedImage]], groups: Sequence[Hashable], samples: int = 1000,
                      seed: int = 0, map50_only: bool = False) -> NDArray[np.float64]:
     """AP of every run on ``samples`` resamples of the same images: (samples, runs, thresholds).
@@ -232,15 +238,19 @@ def paired_bootstrap(runs: Sequence[Sequence[MatchedImage]], groups: Sequence[Ha
     times faster. Seeded: the same arguments give the same draws."""
     if samples < 1:
         raise ParameterError("samples", samples, "1 or more")
+    if seed < 0:
+        raise ParameterError("seed", seed, "0 or more")
     n = len(groups)
     if not runs or any(len(r) != n for r in runs):
         raise ParameterError("runs", [len(r) for r in runs], f"one or more runs of {n} images each (one per group key)")
-    keys = list(dict.fromkeys(groups))
-    members = [[i for i, g in enumerate(groups) if g == k] for k in keys]
+    by_key: dict[Hashable, list[int]] = {}
+    for i, g in enumerate(groups):
+        by_key.setdefault(g, []).append(i)
+    members = list(by_key.values())  # in the order the keys first appear
     rng = np.random.default_rng(seed)
     out = np.zeros((samples, len(runs), len(IOU_THRESHOLDS)))
     for s in range(samples):
-        picked = [i for k in rng.integers(0, len(keys), len(keys)) for i in members[k]]
+        picked = [i for k in rng.integers(0, len(members), len(members)) for i in members[k]]
         for r, run in enumerate(runs):
             out[s, r] = _accumulate([run[i] for i in picked], first_only=map50_only)[0]
     return out
