@@ -75,7 +75,10 @@ def test_record_a_live_graph_and_read_it_back(peer: Peer, tmp_path: Path) -> Non
 
 
 def test_sigterm_finalises_the_bag(peer: Peer, tmp_path: Path) -> None:
-    pub = peer.node.create_publisher(String, "/chatter", 10)
+    # transient local: the recorder subscribes with the offered durability, so messages published before its reader
+    # has matched (seen the subscription, not yet the match, on a loaded machine: 6 of 10 recorded) still reach it
+    pub = peer.node.create_publisher(String, "/chatter",
+                                     QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL))
     bag = tmp_path / "term.mcap"
     with node_process("recorder", {"output": str(bag), "discovery_period_s": 0.1}, _domain(peer),
                       tmp_path / "rec.log") as rec:
@@ -88,7 +91,9 @@ def test_sigterm_finalises_the_bag(peer: Peer, tmp_path: Path) -> None:
         rec.send_signal(signal.SIGTERM)
         assert rec.wait(timeout=30) == 0
     with open(bag, "rb") as f:
-        assert make_reader(f, validate_crcs=True).get_summary().statistics.message_count == 10
+        summary = make_reader(f, validate_crcs=True).get_summary()
+    assert summary is not None and summary.statistics.message_count == 10
+    assert all("transient_local" in c.metadata["offered_qos_profiles"] for c in summary.channels.values())
 
 
 def test_sigkill_then_recover(peer: Peer, tmp_path: Path, cli: CliRun) -> None:
