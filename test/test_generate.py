@@ -131,6 +131,37 @@ def test_same_seed_same_bytes_and_resume(dataset: Path, tmp_path: Path) -> None:
     assert all(before[n] == after[n] for n in untouched)
 
 
+def test_a_worker_killed_mid_run_stops_generate_at_once_and_a_rerun_completes_it(dataset: Path,
+                                                                                 tmp_path: Path) -> None:
+    """A worker the OOM killer takes (SIGKILL, after the run's first frame) sends nothing more: generate stops within
+    seconds, naming --workers and the exit code (it used to wait ten minutes for the queue), and stops the other
+    worker too. Nothing written is lost: a rerun writes only what is missing, the same bytes as an unbroken run."""
+    import multiprocessing
+    import os
+    import signal
+    import time
+
+    out = tmp_path / "killed"
+    killed: list[float] = []
+
+    def kill_one(done: int, total: int, t0: float) -> None:
+        if not killed:
+            victim = multiprocessing.active_children()[0]
+            os.kill(victim.pid, signal.SIGKILL)  # type: ignore[arg-type]
+            killed.append(time.monotonic())
+
+    with pytest.raises(ParameterError, match=r"--workers.*exit codes \[.*-9.*\].*rerun to resume"):
+        generate(GenerateConfig(out=str(out), workers=2, **SMALL), progress=kill_one)
+    assert killed and time.monotonic() - killed[0] < 20, "generate waited on a dead worker"
+    assert multiprocessing.active_children() == []  # the other worker was stopped, not left running
+    kept = len(list((out / "annotations").glob("*.json")))
+    assert 0 < kept < 12
+    stats = generate(GenerateConfig(out=str(out), **SMALL), progress=lambda *a: None)
+    assert stats["frames_written"] + stats["frames_skipped_complete"] == 12 and stats["frames_written"] < 12
+    for p in (dataset / "annotations").glob("*.json"):
+        assert p.read_bytes() == (out / "annotations" / p.name).read_bytes(), p.name
+
+
 @pytest.mark.parametrize(("key", "what"), [("asset_digest", "animal asset"),
                                            ("appearance_digest", r"animal appearance \(asset and coats\)")])
 def test_a_folder_of_other_animals_is_not_continued(dataset: Path, tmp_path: Path, key: str, what: str) -> None:

@@ -31,6 +31,7 @@ import io
 import json
 import multiprocessing as mp
 import os
+import queue as queue_module
 import shlex
 import sys
 import time
@@ -322,9 +323,21 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], show: Callable[[int], Non
         p.start()
     done, finished = 0, 0
     times = {"place": 0.0, "render": 0.0, "label": 0.0, "write": 0.0}
+    heard = time.monotonic()
+    stalled = False
     try:
         while finished < len(procs):
-            kind, val = queue.get(timeout=600)
+            try:
+                kind, val = queue.get(timeout=_WORKER_POLL_S)
+            except queue_module.Empty:
+                # a worker that died (an exception, the OOM killer) sends nothing more: stop now, not after a timeout
+                if any(p.exitcode not in (None, 0) for p in procs):
+                    break
+                if time.monotonic() - heard > _WORKER_STALL_S:
+                    stalled = True
+                    break
+                continue
+            heard = time.monotonic()
             if kind == "frames":
                 done += val
                 show(done)
@@ -333,14 +346,24 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], show: Callable[[int], Non
                 for k in times:
                     times[k] += val[k]
     finally:
+        failed = finished < len(procs)
         for p in procs:
+            if failed and p.is_alive():  # the rest of a failed run is not waited for: a rerun resumes it
+                p.terminate()
             p.join(timeout=30)
             if p.is_alive():
-                p.terminate()
+                p.kill()
     bad = [p.exitcode for p in procs if p.exitcode]
+    if stalled:
+        raise ParameterError("--workers", cfg.workers, f"workers that write a frame at least every "
+                             f"{_WORKER_STALL_S:.0f} s (none came; stopped); rerun to resume")
     if bad:
         raise ParameterError("--workers", cfg.workers, f"workers that finish (exit codes {bad}); rerun to resume")
     return done, times
+
+
+_WORKER_POLL_S = 0.5  # how often the parent looks for a dead worker while none reports
+_WORKER_STALL_S = 600.0  # a live worker that reports nothing for this long is taken as hung
 
 
 def _check_same_asset(out: Path, have: list[str]) -> None:
