@@ -134,26 +134,36 @@ def test_same_seed_same_bytes_and_resume(dataset: Path, tmp_path: Path) -> None:
 def test_a_worker_killed_mid_run_stops_generate_at_once_and_a_rerun_completes_it(dataset: Path,
                                                                                  tmp_path: Path) -> None:
     """A worker the OOM killer takes (SIGKILL, after the run's first frame) sends nothing more: generate stops within
-    seconds, naming --workers and the exit code (it used to wait ten minutes for the queue), and stops the other
-    worker too. Nothing written is lost: a rerun writes only what is missing, the same bytes as an unbroken run."""
+    seconds with an error naming that worker, its exit code and signal (it used to wait ten minutes for the queue),
+    and stops the other worker too. Nothing written is lost: a rerun writes only what is missing, the same bytes as
+    an unbroken run."""
     import multiprocessing
     import os
     import signal
     import time
 
+    from zebra_sim_ros.errors import WorkerError
+
     out = tmp_path / "killed"
-    killed: list[float] = []
+    before = set(multiprocessing.active_children())
+    killed: list[tuple[int, float]] = []
 
     def kill_one(done: int, total: int, t0: float) -> None:
         if not killed:
-            victim = multiprocessing.active_children()[0]
-            os.kill(victim.pid, signal.SIGKILL)  # type: ignore[arg-type]
-            killed.append(time.monotonic())
+            workers = sorted(set(multiprocessing.active_children()) - before, key=lambda p: p.pid or 0)
+            assert len(workers) == 2, workers
+            assert workers[0].pid is not None
+            os.kill(workers[0].pid, signal.SIGKILL)
+            killed.append((workers[0].pid, time.monotonic()))
 
-    with pytest.raises(ParameterError, match=r"--workers.*exit codes \[.*-9.*\].*rerun to resume"):
+    with pytest.raises(WorkerError) as err:
         generate(GenerateConfig(out=str(out), workers=2, **SMALL), progress=kill_one)
-    assert killed and time.monotonic() - killed[0] < 20, "generate waited on a dead worker"
-    assert multiprocessing.active_children() == []  # the other worker was stopped, not left running
+    assert killed and time.monotonic() - killed[0][1] < 20, "generate waited on a dead worker"
+    message = str(err.value)
+    assert f"(pid {killed[0][0]}) died with exit code -9 (SIGKILL" in message, message
+    assert str(out) in message and "run the same command again" in message
+    assert "-15" not in message  # the worker the parent stopped itself is not reported as a failure
+    assert set(multiprocessing.active_children()) <= before  # the other worker was stopped, not left running
     kept = len(list((out / "annotations").glob("*.json")))
     assert 0 < kept < 12
     stats = generate(GenerateConfig(out=str(out), **SMALL), progress=lambda *a: None)

@@ -26,3 +26,7 @@ class AssetError(ZebraSimError):
 
 class DependencyError(ZebraSimError):
     """An optional dependency or system library is missing; the message says what to install."""
+
+
+class WorkerError(ZebraSimError):
+    """A worker process of a parallel job died or hung; the message names it, its exit code and how to resume."""

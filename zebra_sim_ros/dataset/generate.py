@@ -33,6 +33,7 @@ import multiprocessing as mp
 import os
 import queue as queue_module
 import shlex
+import signal
 import sys
 import time
 import zlib
@@ -52,7 +53,7 @@ from zebra_sim_ros.dataset.coco import (
     yolo_lines,
     zebra_annotation,
 )
-from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.errors import ParameterError, WorkerError
 from zebra_sim_ros.labels.config import LabelFilters
 from zebra_sim_ros.messages import FrameAnnotation, Labels, Rle, Scene
 
@@ -313,8 +314,14 @@ def _progress(done: int, total: int, t0: float, stream: Any) -> None:
     stream.flush()
 
 
-def _run_workers(cfg: GenerateConfig, todo: list[Job], show: Callable[[int], None]) -> tuple[int, dict[str, float]]:
-    """Run ``todo`` in ``cfg.workers`` spawned processes; returns the frames written and the summed stage times."""
+def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int,
+                 show: Callable[[int], None]) -> tuple[int, dict[str, float]]:
+    """Run ``todo`` (``total`` frames) in ``cfg.workers`` spawned processes; returns the frames written and the
+    summed stage times.
+
+    A worker that dies (an exception, the OOM killer) sends nothing more: the parent looks at the workers' exit codes
+    every :data:`_WORKER_POLL_S` seconds, also while the others keep reporting, stops the rest and raises
+    :class:`WorkerError` naming the dead one; so it does for a live worker silent for :data:`_WORKER_STALL_S`."""
     ctx = mp.get_context("spawn")  # fresh processes: GL contexts do not survive fork
     queue = ctx.Queue()
     chunks = [todo[k::cfg.workers] for k in range(cfg.workers)]
@@ -323,46 +330,65 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], show: Callable[[int], Non
         p.start()
     done, finished = 0, 0
     times = {"place": 0.0, "render": 0.0, "label": 0.0, "write": 0.0}
-    heard = time.monotonic()
-    stalled = False
+    heard = looked = time.monotonic()
+    failure = ""
     try:
         while finished < len(procs):
             try:
                 kind, val = queue.get(timeout=_WORKER_POLL_S)
             except queue_module.Empty:
-                # a worker that died (an exception, the OOM killer) sends nothing more: stop now, not after a timeout
-                if any(p.exitcode not in (None, 0) for p in procs):
-                    break
-                if time.monotonic() - heard > _WORKER_STALL_S:
-                    stalled = True
-                    break
-                continue
-            heard = time.monotonic()
+                kind = ""
+            now = time.monotonic()
             if kind == "frames":
                 done += val
                 show(done)
-            else:
+            elif kind == "done":
                 finished += 1
                 for k in times:
                     times[k] += val[k]
+            if kind:
+                heard = now
+            if kind and now - looked < _WORKER_POLL_S:
+                continue
+            looked = now
+            dead = [(k, p) for k, p in enumerate(procs) if p.exitcode not in (None, 0)]
+            if dead:  # the exit codes as the workers died, before the others are stopped below
+                failure = "; ".join(f"worker {k} (pid {p.pid}) died with exit code {p.exitcode}"
+                                    f"{_signal_name(p.exitcode)}" for k, p in dead)
+                break
+            if now - heard > _WORKER_STALL_S:
+                failure = f"no worker reported a frame for {_WORKER_STALL_S:.0f} s (taken as hung)"
+                break
     finally:
-        failed = finished < len(procs)
+        stop = finished < len(procs)
         for p in procs:
-            if failed and p.is_alive():  # the rest of a failed run is not waited for: a rerun resumes it
+            if stop and p.is_alive():  # the rest of a failed run is not waited for: a rerun resumes it
                 p.terminate()
             p.join(timeout=30)
             if p.is_alive():
                 p.kill()
-    bad = [p.exitcode for p in procs if p.exitcode]
-    if stalled:
-        raise ParameterError("--workers", cfg.workers, f"workers that write a frame at least every "
-                             f"{_WORKER_STALL_S:.0f} s (none came; stopped); rerun to resume")
-    if bad:
-        raise ParameterError("--workers", cfg.workers, f"workers that finish (exit codes {bad}); rerun to resume")
+                p.join(timeout=10)
+    if not failure:  # every worker said it was done: one that then failed on its way out
+        failure = "; ".join(f"worker {k} (pid {p.pid}) ended with exit code {p.exitcode}{_signal_name(p.exitcode)} "
+                            f"after its last frame" for k, p in enumerate(procs) if p.exitcode)
+    if failure:
+        raise WorkerError(f"generate into {cfg.out}: {failure}, after {done} of {total} frames; "
+                          f"the other workers were stopped and every frame written is kept: run the same command "
+                          f"again to write the rest")
     return done, times
 
 
-_WORKER_POLL_S = 0.5  # how often the parent looks for a dead worker while none reports
+def _signal_name(exitcode: int | None) -> str:
+    """`` (SIGKILL)`` for a process a signal ended (a negative exit code), else nothing."""
+    if exitcode is None or exitcode >= 0:
+        return ""
+    try:
+        return f" ({signal.Signals(-exitcode).name}{': killed, often for memory' if exitcode == -9 else ''})"
+    except ValueError:
+        return ""
+
+
+_WORKER_POLL_S = 0.5  # how often the parent looks at the workers' exit codes
 _WORKER_STALL_S = 600.0  # a live worker that reports nothing for this long is taken as hung
 
 
@@ -415,7 +441,7 @@ def generate(cfg: GenerateConfig, progress: Callable[[int, int, float], None] | 
                 show(done, total, t0)
             times = pipe.times
         else:
-            done, times = _run_workers(cfg, todo, lambda d: show(d, total, t0))
+            done, times = _run_workers(cfg, todo, total, lambda d: show(d, total, t0))
         if progress is None:
             sys.stderr.write("\n")
     seconds = time.perf_counter() - t0
