@@ -89,8 +89,17 @@ else
     # write it, and every process would compile torch's modules again. As pip does, files that do not compile (a
     # package's Python 2 examples, say) are left as they are.
     log "compiling the installed packages' bytecode"
-    "$VENV/bin/python" -m compileall -q -j0 "$VENV" >/dev/null 2>&1 \
-        || log "compileall: some installed files do not compile (pip would have skipped them too)"
+    # compileall exits 1 when any file does not compile (pip skips those too); one that wrote nothing (no process
+    # pool, say) is run again on one core
+    clog="$VENV/compileall.log"
+    torch_pyc='*/site-packages/torch/__pycache__/__init__.cpython-*.pyc'
+    if ! "$VENV/bin/python" -m compileall -q -j0 "$VENV" >"$clog" 2>&1; then
+        if [[ -z "$(find "$VENV" -path "$torch_pyc" -print -quit)" ]]; then
+            log "compileall -j0 wrote no bytecode (not even torch's); again on one core"
+            "$VENV/bin/python" -m compileall -q "$VENV" >"$clog" 2>&1 || true
+        fi
+        log "compileall: $(grep -c '^\*\*\*' "$clog" || true) installed files do not compile, as pip allows ($clog)"
+    fi
     echo "$want" >"$STAMP"
 fi
 # (d) The message packages (tf2_msgs/TFMessage where ROS 2's own is missing, zebra_sim_msgs/Detection2DArray),

@@ -25,9 +25,10 @@ echo "[test] ruff check ."
 # it reads none of their files.
 echo "[test] mypy, beside the message packages' build"
 mypy_log="$(mktemp)"
-trap 'rm -f "$mypy_log"' EXIT
 .venv/bin/mypy >"$mypy_log" 2>&1 &
 mypy_pid=$!
+# a failed build or an interrupt (background jobs of a script ignore SIGINT) leaves no mypy running
+trap 'kill "$mypy_pid" 2>/dev/null || true; rm -f "$mypy_log"' EXIT
 bash scripts/build_interfaces.sh || { kill "$mypy_pid" 2>/dev/null || true; exit 1; }
 mypy_rc=0
 wait "$mypy_pid" || mypy_rc=$?
