@@ -46,6 +46,35 @@ def constant(p: float, cfg: VerifierConfig | None = None) -> Verifier:
     return net.eval()
 
 
+def test_a_square_crop_past_the_edge_is_the_nearest_edge_pixels_exactly() -> None:
+    """Crops across an edge, a corner, or wholly outside the image (a shifted training crop) equal a reference built
+    pixel by pixel: each pixel of the square taken from the nearest pixel of the image, then resized as inside."""
+    import cv2
+
+    rng = np.random.default_rng(5)
+    img = rng.integers(0, 256, (120, 200, 3), dtype=np.uint8)
+    cases = [((-30, 10, 20, 60), 1.5, (0.0, 0.0)), ((170, 90, 230, 130), 2.0, (0.0, 0.0)),
+             ((5, 5, 25, 25), 3.0, (0.0, 0.0)), ((150, 40, 190, 80), 1.0, (3.0, -2.5)),
+             ((0, 0, 200, 120), 1.2, (0.0, 0.0))]
+    for _ in range(40):
+        x0, y0 = rng.uniform(-60, 200), rng.uniform(-60, 120)
+        cases.append(((x0, y0, x0 + rng.uniform(2, 90), y0 + rng.uniform(2, 90)), float(rng.uniform(1, 3)),
+                      (float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1)))))
+    outside = 0
+    for box, context, shift in cases:
+        x0, y0, x1, y1 = box
+        side = max(2, int(round(max(x1 - x0, y1 - y0) * context)))
+        cx, cy = (x0 + x1) / 2 + shift[0] * (x1 - x0), (y0 + y1) / 2 + shift[1] * (y1 - y0)
+        left, top = int(round(cx - side / 2)), int(round(cy - side / 2))
+        outside += left >= 200 or top >= 120 or left + side <= 0 or top + side <= 0
+        rows = np.clip(np.arange(top, top + side), 0, 119)
+        cols = np.clip(np.arange(left, left + side), 0, 199)
+        want = cv2.resize(img[rows[:, None], cols[None, :]], (24, 24),
+                          interpolation=cv2.INTER_AREA if side > 24 else cv2.INTER_LINEAR)
+        np.testing.assert_array_equal(square_crop(img, box, context, 24, shift), want, err_msg=str(box))
+    assert outside >= 1  # the wholly-outside case is among them
+
+
 def test_a_square_crop_is_the_box_and_its_context_and_repeats_the_edge() -> None:
     img = np.zeros((200, 300, 3), np.uint8)
     img[50:90, 100:180] = 255  # an 80 x 40 white box

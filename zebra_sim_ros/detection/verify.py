@@ -84,9 +84,17 @@ def square_crop(img: NDArray[np.uint8], box: Sequence[float] | NDArray[Any], con
     side = max(2, int(round(max(x1 - x0, y1 - y0) * context)))
     cx, cy = (x0 + x1) / 2 + shift[0] * (x1 - x0), (y0 + y1) / 2 + shift[1] * (y1 - y0)
     left, top = int(round(cx - side / 2)), int(round(cy - side / 2))
-    pad = max(0, -left, -top, left + side - w, top + side - h)
-    src = cv2.copyMakeBorder(img, pad, pad, pad, pad, cv2.BORDER_REPLICATE) if pad else img
-    patch = src[top + pad:top + pad + side, left + pad:left + pad + side]
+    r0, r1, c0, c1 = max(top, 0), min(top + side, h), max(left, 0), min(left + side, w)  # the part inside the image
+    patch: NDArray[np.uint8]
+    if (r0, r1, c0, c1) == (top, top + side, left, left + side):
+        patch = img[top:top + side, left:left + side]
+    elif r0 < r1 and c0 < c1:  # that part with its edge pixels repeated, not the whole image padded (a copy per box)
+        patch = np.asarray(cv2.copyMakeBorder(img[r0:r1, c0:c1], r0 - top, top + side - r1, c0 - left,
+                                              left + side - c1, cv2.BORDER_REPLICATE), dtype=np.uint8)
+    else:  # wholly outside (a shifted training crop): each pixel the nearest edge pixel
+        rows = np.clip(np.arange(top, top + side), 0, h - 1)
+        cols = np.clip(np.arange(left, left + side), 0, w - 1)
+        patch = img[rows[:, None], cols[None, :]]
     return np.asarray(cv2.resize(patch, (out, out), interpolation=cv2.INTER_AREA if side > out else cv2.INTER_LINEAR),
                       dtype=np.uint8)
 
