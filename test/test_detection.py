@@ -569,7 +569,7 @@ def test_validation_serves_each_image_as_detect_does(tmp_path: Path, capsys: pyt
             assert "95% intervals over 20 resamples of the 2 placements (seed 0)" in text
     for bad in (["--bootstrap", "-1"], ["--bootstrap", "5", "--bootstrap-seed", "-2"]):  # refused before any work
         assert main(["val", "--data", str(tmp_path / "images"), *bad]) == 2
-        assert f"{bad[-2]}" in capsys.readouterr().err
+        assert bad[-2] in capsys.readouterr().err
     for bad in ("9", "-0.5", "0.2"):
         assert main(["val", "--data", str(tmp_path / "images"), "--scale", bad]) == 2
         assert f"argument --scale: '{bad}': allowed 0 (off) or 0.25..4" in capsys.readouterr().err
