@@ -5,7 +5,10 @@
 For the first ``--images`` images of each folder (sorted), ``detect`` runs one image at a time, alternately
 without and with the verifier, three times each; it prints per folder the median milliseconds per image of both,
 their ratio (measured in the same run, so machines' speeds cancel) and how many boxes per image the verifier
-looked at. ``--imgsz 0``: the checkpoint's rule (drone frames), 256: how photographs are served.
+looked at. Then the verifier's own time per image it judged boxes in (``zebra_probability`` on them), as served
+(batch norms folded, channels-last: ``load_verifier``'s default) and unfused (as trained), alternately, five times
+each, medians and their ratio. ``--imgsz 0``: the checkpoint's rule (drone frames), 256: how photographs are
+served.
 """
 
 from __future__ import annotations
@@ -17,12 +20,13 @@ import statistics
 import time
 from pathlib import Path
 
+import numpy as np
 import torch
 
 from zebra_sim_ros.detection.checkpoint import load_model
 from zebra_sim_ros.detection.data import IMAGE_EXTS
 from zebra_sim_ros.detection.predict import detect
-from zebra_sim_ros.detection.verify import judged_side, load_verifier, read_rgb
+from zebra_sim_ros.detection.verify import judged_side, load_verifier, read_rgb, zebra_probability
 
 
 def main() -> None:
@@ -37,12 +41,13 @@ def main() -> None:
         raise SystemExit(f"--images must be 1 or more, got {args.images}")
     model, _ = load_model(None)
     net, _ = load_verifier(args.verifier, "cpu", "--verifier")
+    unfused, _ = load_verifier(args.verifier, "cpu", "--verifier", fuse=False)
     print(f"bench_verifier.py {time.strftime('%Y-%m-%d')}, {platform.processor() or platform.machine()}, "
           f"{os.cpu_count()} cores, torch threads {torch.get_num_threads()}; conf {args.conf}, imgsz "
           f"{args.imgsz or 'rule'}")
     print("| folder | images | detector alone, ms/img (median) | with the verifier, ms/img | ratio | boxes looked at "
-          "per image |")
-    print("| --- | --- | --- | --- | --- | --- |")
+          "per image | the verifier's own ms/img: served / unfused (ratio) |")
+    print("| --- | --- | --- | --- | --- | --- | --- |")
     for folder in args.folders:
         files = sorted(p for p in folder.rglob("*") if p.suffix.lower() in IMAGE_EXTS)[: args.images]
         if not files:
@@ -51,6 +56,7 @@ def main() -> None:
         plain: list[float] = []
         verified: list[float] = []
         looked = 0
+        judged: list[tuple[np.ndarray, np.ndarray]] = []  # (image, the boxes the verifier judged in it)
         detect(model, images[:1], args.imgsz or None, args.conf, verifier=net)  # warm-up
         for rep in range(3):
             for img in images:
@@ -59,9 +65,21 @@ def main() -> None:
                     d = detect(model, [img], args.imgsz or None, args.conf, verifier=v)[0]
                     times.append(1000 * (time.perf_counter() - t0))
                     if v is None and rep == 0 and len(d):
-                        looked += int(((d[:, 2:4] - d[:, 0:2]).max(1) >= judged_side(net.cfg, img.shape)).sum())
+                        big = d[(d[:, 2:4] - d[:, 0:2]).max(1) >= judged_side(net.cfg, img.shape)]
+                        looked += len(big)
+                        if len(big):
+                            judged.append((img, big))
+        own: dict[str, list[float]] = {"served": [], "unfused": []}
+        for _ in range(5):
+            for img_, big in judged:
+                for name, v in (("served", net), ("unfused", unfused)):
+                    t0 = time.perf_counter()
+                    zebra_probability(v, img_, big)
+                    own[name].append(1000 * (time.perf_counter() - t0))
         a, b = statistics.median(plain), statistics.median(verified)
-        print(f"| {folder} | {len(images)} | {a:.1f} | {b:.1f} | {b / a:.2f} | {looked / len(images):.2f} |")
+        s, u = (statistics.median(own[k]) if own[k] else 0.0 for k in ("served", "unfused"))
+        print(f"| {folder} | {len(images)} | {a:.1f} | {b:.1f} | {b / a:.2f} | {looked / len(images):.2f} | "
+              f"{s:.2f} / {u:.2f} ({s / u if u else float('nan'):.2f}) |")
 
 
 if __name__ == "__main__":

@@ -251,6 +251,32 @@ def test_detect_with_a_verifier_is_detect_rescored(tmp_path: Path) -> None:
     np.testing.assert_allclose(np.sort(half[:, 4])[::-1], np.sort(want[want >= 0.05])[::-1], rtol=1e-4)
 
 
+def test_a_served_verifier_has_its_batch_norms_folded_and_answers_as_the_trained_one(tmp_path: Path) -> None:
+    """load_verifier folds the shipped verifier's batch norms (their running statistics) into its convolutions, as
+    served; its p(zebra) of crops of every kind is the unfused network's to float32 rounding, and the folded network
+    is neither trained nor saved by mistake."""
+    plain, _ = load_verifier("shipped", fuse=False)
+    served, _ = load_verifier("shipped")
+    assert not plain.fused and served.fused
+    assert any(isinstance(m, torch.nn.BatchNorm2d) for m in plain.modules())
+    assert not any(isinstance(m, torch.nn.BatchNorm2d) for m in served.modules())
+    rng = np.random.default_rng(12)
+    img = rng.integers(0, 256, (240, 320, 3), dtype=np.uint8)
+    img[:, ::9] = 255  # stripes here and there, flat and noisy patches elsewhere
+    img[100:, 200:] = (90, 120, 60)
+    x0, y0 = rng.uniform(-20, 300, 24), rng.uniform(-20, 220, 24)
+    side = rng.uniform(24, 120, 24)
+    boxes = np.stack([x0, y0, x0 + side, y0 + side * rng.uniform(0.5, 1.5, 24)], 1).astype(np.float32)
+    want = zebra_probability(plain, img, boxes)
+    assert np.ptp(want) > 0.05  # the boxes are told apart, so the comparison says something
+    np.testing.assert_allclose(zebra_probability(served, img, boxes), want, rtol=0, atol=2e-5)
+    with pytest.raises(RuntimeError, match="fused verifier"):
+        served.train()
+    with pytest.raises(ParameterError, match="unfused verifier"):
+        save_verifier(tmp_path / "x.pt", served)
+    assert not (tmp_path / "x.pt").exists()
+
+
 def test_checkpoints_round_trip_and_bad_files_name_themselves(tmp_path: Path) -> None:
     net = constant(0.7, VerifierConfig(crop=48, context=1.5, min_side=30, widths=(8, 16, 24), contexts=(1.3, 1.6),
                                        mirror=True))
