@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import shlex
 from pathlib import Path
 
@@ -131,39 +132,49 @@ def test_same_seed_same_bytes_and_resume(dataset: Path, tmp_path: Path) -> None:
     assert all(before[n] == after[n] for n in untouched)
 
 
-def test_a_worker_killed_mid_run_stops_generate_at_once_and_a_rerun_completes_it(dataset: Path,
-                                                                                 tmp_path: Path) -> None:
+@pytest.mark.parametrize(("sig", "said"), [
+    ("SIGKILL", r"died with exit code -9 \(SIGKILL"),
+    ("SIGSTOP", r"reported nothing for \d+ s \(over the 3 s allowed: taken as hung\)")])
+def test_a_worker_killed_or_hung_mid_run_stops_generate_at_once_and_a_rerun_completes_it(
+        dataset: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, sig: str, said: str) -> None:
     """A worker the OOM killer takes (SIGKILL, after the run's first frame) sends nothing more: generate stops within
     seconds with an error naming that worker, its exit code and signal (it used to wait ten minutes for the queue),
-    and stops the other worker too. Nothing written is lost: a rerun writes only what is missing, the same bytes as
-    an unbroken run."""
+    and stops the other worker too. A worker that hangs (stopped by SIGSTOP; the silence allowed cut to 3 s once both
+    run) is found while the other still reports, named, and ended although stopped. Nothing written is lost: a rerun
+    writes only what is missing, the same bytes as an unbroken run."""
     import multiprocessing
     import os
     import signal
     import time
 
+    from zebra_sim_ros.dataset import generate as generate_module
     from zebra_sim_ros.errors import WorkerError
 
-    out = tmp_path / "killed"
+    out = tmp_path / "broken"
     before = set(multiprocessing.active_children())
-    killed: list[tuple[int, float]] = []
+    hit: list[tuple[int, float]] = []
 
-    def kill_one(done: int, total: int, t0: float) -> None:
-        if not killed:
+    def break_one(done: int, total: int, t0: float) -> None:
+        if not hit:  # the run's first report (from either worker)
             workers = sorted(set(multiprocessing.active_children()) - before, key=lambda p: p.pid or 0)
             assert len(workers) == 2, workers
             assert workers[0].pid is not None
-            os.kill(workers[0].pid, signal.SIGKILL)
-            killed.append((workers[0].pid, time.monotonic()))
+            os.kill(workers[0].pid, getattr(signal, sig))
+            hit.append((workers[0].pid, time.monotonic()))
+        elif len(hit) == 1:  # the next, from the other worker: it is past its pipeline's building (seconds) too,
+            monkeypatch.setattr(generate_module, "_WORKER_STALL_S", 3.0)  # so the silence allowed can be cut
+            hit.append((0, 0.0))
 
     with pytest.raises(WorkerError) as err:
-        generate(GenerateConfig(out=str(out), workers=2, **SMALL), progress=kill_one)
-    assert killed and time.monotonic() - killed[0][1] < 20, "generate waited on a dead worker"
+        generate(GenerateConfig(out=str(out), workers=2, **SMALL), progress=break_one)
+    assert hit and time.monotonic() - hit[0][1] < 20, "generate waited on a broken worker"
     message = str(err.value)
-    assert f"(pid {killed[0][0]}) died with exit code -9 (SIGKILL" in message, message
+    assert re.search(rf"\(pid {hit[0][0]}\) {said}", message), message
     assert str(out) in message and "run the same command again" in message
     assert "-15" not in message  # the worker the parent stopped itself is not reported as a failure
-    assert set(multiprocessing.active_children()) <= before  # the other worker was stopped, not left running
+    assert set(multiprocessing.active_children()) <= before  # every worker ended, the stopped one too
+    with pytest.raises(ProcessLookupError):
+        os.kill(hit[0][0], 0)  # reaped, not left stopped
     kept = len(list((out / "annotations").glob("*.json")))
     assert 0 < kept < 12
     stats = generate(GenerateConfig(out=str(out), **SMALL), progress=lambda *a: None)

@@ -27,6 +27,7 @@ rebuilt from the annotation files at the end of every run (``--finalize-only`` d
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import multiprocessing as mp
@@ -297,11 +298,12 @@ class _Pipeline:
         return name
 
 
-def _worker(cfg: GenerateConfig, jobs: list[Job], queue: Any) -> None:
+def _worker(cfg: GenerateConfig, jobs: list[Job], queue: Any, index: int) -> None:
+    queue.put(("started", index, None))  # before the pipeline is built (a GL context; the asset, if not cached)
     pipe = _Pipeline(cfg)
     for job in jobs:
-        queue.put(("frames", len(pipe.run(job))))
-    queue.put(("done", pipe.times))
+        queue.put(("frames", index, len(pipe.run(job))))
+    queue.put(("done", index, pipe.times))
 
 
 def _progress(done: int, total: int, t0: float, stream: Any) -> None:
@@ -321,33 +323,38 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int,
 
     A worker that dies (an exception, the OOM killer) sends nothing more: the parent looks at the workers' exit codes
     every :data:`_WORKER_POLL_S` seconds, also while the others keep reporting, stops the rest and raises
-    :class:`WorkerError` naming the dead one; so it does for a live worker silent for :data:`_WORKER_STALL_S`."""
+    :class:`WorkerError` naming the dead one; so it does for a live worker that has not finished and has reported
+    nothing for :data:`_WORKER_STALL_S` (each worker's silence is timed apart, so one that hangs is found while the
+    others still report)."""
     ctx = mp.get_context("spawn")  # fresh processes: GL contexts do not survive fork
     queue = ctx.Queue()
     chunks = [todo[k::cfg.workers] for k in range(cfg.workers)]
-    procs = [ctx.Process(target=_worker, args=(cfg, ch, queue), daemon=True) for ch in chunks if ch]
+    procs = [ctx.Process(target=_worker, args=(cfg, ch, queue, k), daemon=True)
+             for k, ch in enumerate(c for c in chunks if c)]
     for p in procs:
         p.start()
-    done, finished = 0, 0
+    done = 0
+    finished: set[int] = set()
     times = {"place": 0.0, "render": 0.0, "label": 0.0, "write": 0.0}
-    heard = looked = time.monotonic()
+    looked = time.monotonic()
+    heard = [looked] * len(procs)  # when each worker last reported
     failure = ""
     try:
-        while finished < len(procs):
+        while len(finished) < len(procs):
             try:
-                kind, val = queue.get(timeout=_WORKER_POLL_S)
+                kind, index, val = queue.get(timeout=_WORKER_POLL_S)
             except queue_module.Empty:
-                kind = ""
+                kind, index = "", -1
             now = time.monotonic()
             if kind == "frames":
                 done += val
                 show(done)
             elif kind == "done":
-                finished += 1
+                finished.add(index)
                 for k in times:
                     times[k] += val[k]
             if kind:
-                heard = now
+                heard[index] = now
             if kind and now - looked < _WORKER_POLL_S:
                 continue
             looked = now
@@ -356,14 +363,19 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int,
                 failure = "; ".join(f"worker {k} (pid {p.pid}) died with exit code {p.exitcode}"
                                     f"{_signal_name(p.exitcode)}" for k, p in dead)
                 break
-            if now - heard > _WORKER_STALL_S:
-                failure = f"no worker reported a frame for {_WORKER_STALL_S:.0f} s (taken as hung)"
+            hung = [(k, p) for k, p in enumerate(procs) if k not in finished and now - heard[k] > _WORKER_STALL_S]
+            if hung:
+                failure = "; ".join(f"worker {k} (pid {p.pid}) reported nothing for {now - heard[k]:.0f} s (over "
+                                    f"the {_WORKER_STALL_S:.0f} s allowed: taken as hung)" for k, p in hung)
                 break
     finally:
-        stop = finished < len(procs)
+        stop = len(finished) < len(procs)
         for p in procs:
             if stop and p.is_alive():  # the rest of a failed run is not waited for: a rerun resumes it
                 p.terminate()
+                if p.pid is not None:
+                    with contextlib.suppress(OSError):  # a stopped worker (SIGSTOP, ^Z) takes its SIGTERM only
+                        os.kill(p.pid, signal.SIGCONT)  # once continued
             p.join(timeout=30)
             if p.is_alive():
                 p.kill()
