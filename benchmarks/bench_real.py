@@ -191,7 +191,8 @@ def _draws(dets: list[np.ndarray], gts: list[np.ndarray], others: list[ImagePred
 
 def summarise_draws(rows: list[dict[str, Any]], samples: int, seed: int) -> None:
     """Replace each row's draws by what the tables and ``--json`` give: 95% intervals and, after the first weights
-    on the same set and size, the paired difference from it (median of the paired draws, 95% interval). Draws are
+    on the same set and size, the paired difference from it (median of the paired draws, 95% interval: key "<figure>
+    minus first weights", the first weights' name under "first weights"). Draws are
     paired only over the same photos: rows whose photo counts differ from the first's get no difference."""
     first: dict[tuple[str, str], dict[str, Any]] = {}
     for r in rows:
@@ -205,8 +206,9 @@ def summarise_draws(rows: list[dict[str, Any]], samples: int, seed: int) -> None
             out[f"{name} 95%"] = [round(v, 4) for v in interval95(np.asarray(x))]
             if base["weights"] != r["weights"] and base["draws"]["photos"] == draws["photos"]:
                 d = np.asarray(x) - np.asarray(base["draws"][name])
-                out[f"{name} minus {base['weights']}"] = {"median of paired draws": round(float(np.median(d)), 4),
-                                                          "95%": [round(v, 4) for v in interval95(d)]}
+                out["first weights"] = base["weights"]
+                out[f"{name} minus first weights"] = {"median of paired draws": round(float(np.median(d)), 4),
+                                                      "95%": [round(v, 4) for v in interval95(d)]}
         r["bootstrap"] = out
 
 
@@ -224,7 +226,7 @@ def bootstrap_table(rows: list[dict[str, Any]]) -> list[str]:
         for name in ("mAP50", "other_det_per_image"):
             iv = b.get(f"{name} 95%")
             cells.append("-" if iv is None else f"{iv[0]:.3f}-{iv[1]:.3f}")
-            d = next((v for k, v in b.items() if k.startswith(f"{name} minus ")), None)
+            d = b.get(f"{name} minus first weights")
             cells.append("-" if d is None else f"{d['median of paired draws']:+.3f} ({d['95%'][0]:+.3f} to "
                          f"{d['95%'][1]:+.3f})")
         out.append(f"| {r['weights']} | {r['set']} | {r['imgsz']} | " + " | ".join(cells) + " |")
