@@ -277,3 +277,30 @@ def test_coats_from_the_store_render_as_baked_ones(library: ZebraLibrary, option
             r.release()
     assert counts == [(12, 0), (12, 0), (0, 12)]
     assert np.array_equal(rgb[0], rgb[1]) and np.array_equal(rgb[0], rgb[2])
+
+
+def test_only_the_animals_a_view_sees_get_a_coat(library: ZebraLibrary, options: RenderOptions) -> None:
+    """Coats are baked for the animals some view of the frame can see, no others: a view of part of a herd bakes
+    only its animals' coats and renders exactly as when the frame's other view, which sees them all, has every coat
+    baked (the animals out of view are culled from every pass, shadows included)."""
+    zebras = _zebras(library, [(float(x), float(y)) for x in (-30, -27, 0, 3, 30, 33) for y in (0, 3)], yaw=0.7)
+    close = _view((0.0, -10.0, 6.0), 90.0, -30.0)  # the two zebras at x = 0 and 3 wide, not those 30 m off
+    whole = _view((0.0, -60.0, 40.0), 90.0, -35.0)
+    seen, baked, coats = [], [], []
+    for views in ([close], [close, whole]):
+        r = Renderer(flat_world(), library, options)
+        try:
+            out = r.render(zebras, NOON, views)
+            seen.append(out[0])
+            baked.append(r.coat_store.baked)
+            coats.append(len(r._coat_layer))
+            if len(views) == 2:
+                assert set(np.unique(out[1].instances)) - {0} == set(zebras.ids + 1)  # the whole herd in view
+        finally:
+            r.release()
+    in_close = set(np.unique(seen[0].instances)) - {0}
+    assert in_close == {15, 16, 17, 18}  # ids + 1 of the four zebras at x = 0 and 3
+    assert baked[0] == coats[0] == 4, (baked, coats)  # the far ones' coats were never baked
+    assert baked[1] == coats[1] == 12
+    for a, b in ((seen[0].rgb, seen[1].rgb), (seen[0].depth, seen[1].depth), (seen[0].instances, seen[1].instances)):
+        assert np.array_equal(a, b)

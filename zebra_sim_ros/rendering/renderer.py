@@ -352,10 +352,13 @@ class Renderer:
         arr.filter = (self.ctx.LINEAR_MIPMAP_LINEAR, self.ctx.LINEAR)
         return arr
 
-    def _layers(self, zebras: ZebraSet) -> NDArray[np.float32]:
+    def _layers(self, zebras: ZebraSet, seen: NDArray[np.bool_]) -> NDArray[np.float32]:
         """Each zebra's coat layer; the coats not yet in the array come from the coat store (read or baked) in one
-        call, so the processes that render the same animals share the baking, and the mipmaps are built again."""
-        keys = [(int(m), int(s)) for m, s in zip(zebras.morph, zebras.coat_seed, strict=True)]
+        call, so the processes that render the same animals share the baking, and the mipmaps are built again. Only
+        the animals ``seen`` by some view of the frame get a coat: the others are culled from every pass (shadows
+        included), so their layer (0) is never sampled and their coats are never baked."""
+        idx = np.flatnonzero(seen)
+        keys = [(int(zebras.morph[i]), int(zebras.coat_seed[i])) for i in idx]
         unique = list(dict.fromkeys(keys))
         new = [k for k in unique if k not in self._coat_layer]
         held, cap = len(self._coat_layer), self.options.max_coats
@@ -392,7 +395,9 @@ class Renderer:
             self._coat_layer[key] = layer
         if new:
             self.coats.build_mipmaps()
-        return np.array([self._coat_layer[k] for k in keys], dtype=np.float32)
+        layers = np.zeros(zebras.count, dtype=np.float32)
+        layers[idx] = [self._coat_layer[k] for k in keys]
+        return layers
 
     # -- per frame -------------------------------------------------------------------------------
     def render(self, zebras: ZebraSet, lighting: Lighting, views: list[CameraView],
@@ -405,7 +410,10 @@ class Renderer:
         self.p_terrain["u_ground_desat"].value = g.desaturation
         self.p_veg["u_veg_tint"].value = g.vegetation_tint
         self.p_veg["u_detail"].value = 1.0 if self.options.detail else 0.0
-        layers = self._layers(zebras)
+        seen = np.zeros(zebras.count, dtype=bool)
+        for v in views:
+            seen |= self._in_view(zebras, self._view_planes(v))
+        layers = self._layers(zebras, seen)
         self._upload_contact(zebras)
         if "u_detail" in self.p_zebra:
             self.p_zebra["u_detail"].value = 1.0 if self.options.detail else 0.0
@@ -521,6 +529,19 @@ class Renderer:
         times["zebras_lod0"], times["zebras_lod1"] = counts[0], counts[1]
         return RenderedView(view.name, rgb, depth, id16, self.camera.K, times)
 
+    def _view_planes(self, view: CameraView) -> FloatArray:
+        """The frustum planes of ``view`` (:func:`_frustum_planes`), as :meth:`_render_view` draws it."""
+        pos = np.asarray(view.position, dtype=np.float64)
+        o = self.options
+        return _frustum_planes(perspective(self.camera, o.near_m, o.far_m) @ view_matrix(pos, view.r_optical))
+
+    @staticmethod
+    def _in_view(zebras: ZebraSet, planes: FloatArray) -> NDArray[np.bool_]:
+        """The animals whose bounding sphere (2.5 x scale + 0.5 m: any pose) reaches into the frustum ``planes``."""
+        if not zebras.count:
+            return np.zeros(0, dtype=bool)
+        return _spheres_visible(planes, zebras.position, 2.5 * zebras.scale + 0.5)
+
     def _cull_zebras(self, zebras: ZebraSet, layers: NDArray[np.float32], planes: FloatArray,
                      pos: FloatArray) -> dict[int, int]:
         """Fill each level of detail's buffers with the zebras in view (near: LOD 0, far: LOD 1); counts per LOD."""
@@ -528,7 +549,7 @@ class Renderer:
         counts = {0: 0, 1: 0}
         if zebras.count:
             d = np.linalg.norm(zebras.position - pos, axis=1)
-            vis = _spheres_visible(planes, zebras.position, 2.5 * zebras.scale + 0.5)
+            vis = self._in_view(zebras, planes)
             for lod, mask in ((0, d < o.zebra_detail_distance_m), (1, d >= o.zebra_detail_distance_m)):
                 counts[lod] = self._zebra_buffers(zebras, layers, np.flatnonzero(vis & mask), lod)
         return counts
