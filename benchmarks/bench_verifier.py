@@ -5,7 +5,8 @@
 For the first ``--images`` images of each folder (sorted), ``detect`` runs one image at a time, alternately
 without and with the verifier, three times each; it prints per folder the median milliseconds per image of both,
 their ratio (measured in the same run, so machines' speeds cancel) and how many boxes per image the verifier
-looked at. Then the verifier's own time per image it judged boxes in (``zebra_probability`` on them), as served
+looked at. Then the verifier's own time per image it judged boxes in (``zebra_probability`` on them; boxes of every
+class, where ``detect`` rescores the zebra boxes only: the same for a one-class detector), as served
 (batch norms folded, channels-last: ``load_verifier``'s default) and unfused (as trained), alternately, five times
 each, medians and their ratio. ``--imgsz 0``: the checkpoint's rule (drone frames), 256: how photographs are
 served.

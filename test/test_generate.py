@@ -163,11 +163,13 @@ def test_a_worker_killed_or_hung_mid_run_stops_generate_at_once_and_a_rerun_comp
             hit.append((workers[0].pid, time.monotonic()))
         elif len(hit) == 1:  # the next, from the other worker: it is past its pipeline's building (seconds) too,
             monkeypatch.setattr(generate_module, "_WORKER_STALL_S", 3.0)  # so the silence allowed can be cut
-            hit.append((0, 0.0))
+            hit.append((0, 0.0))  # (SMALL gives each worker two jobs: after the first report the other worker
+            # always reports once more, whichever worker sent it)
 
     with pytest.raises(WorkerError) as err:
         generate(GenerateConfig(out=str(out), workers=2, **SMALL), progress=break_one)
-    assert hit and time.monotonic() - hit[0][1] < 20, "generate waited on a broken worker"
+    # a death is seen within a poll; a hang after the silence allowed, once the other worker has reported again
+    assert hit and time.monotonic() - hit[0][1] < (20 if sig == "SIGKILL" else 60), "generate waited on a worker"
     message = str(err.value)
     assert re.search(rf"\(pid {hit[0][0]}\) {said}", message), message
     assert str(out) in message and "run the same command again" in message

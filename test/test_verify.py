@@ -275,6 +275,10 @@ def test_a_served_verifier_has_its_batch_norms_folded_and_answers_as_the_trained
     with pytest.raises(ParameterError, match="unfused verifier"):
         save_verifier(tmp_path / "x.pt", served)
     assert not (tmp_path / "x.pt").exists()
+    ens = Verifier(VerifierConfig(widths=(8, 16), members=2))  # built in training mode
+    ens.members[0].fuse()  # type: ignore[operator]
+    assert ens.fused  # one member folded: the whole cannot be trained or saved
+    assert not ens.fuse().training and len(zebra_probability(ens, img, boxes)) == len(boxes)
 
 
 def test_checkpoints_round_trip_and_bad_files_name_themselves(tmp_path: Path) -> None:
@@ -370,8 +374,9 @@ def test_train_verifier_writes_a_checkpoint_that_records_its_recipe(frames: Path
     # the serving views are recorded, never trained on: the same run with them gives the same weights
     served = VerifierConfig(widths=(8, 16, 24), contexts=(1.2, 1.45), mirror=True)
     train_verifier(replace(cfg, out=str(tmp_path / "w.pt"), model=served), log=lambda s: None)
-    net2, ckpt2 = load_verifier(tmp_path / "w.pt")
+    net2, ckpt2 = load_verifier(tmp_path / "w.pt", fuse=False)  # the weights as trained, both
     assert net2.cfg == served and ckpt2["train"]["model"]["mirror"]
+    net = load_verifier(tmp_path / "v.pt", fuse=False)[0]
     for k, v in net.state_dict().items():
         assert torch.equal(v, net2.state_dict()[k]), k
 

@@ -495,7 +495,7 @@ class Renderer:
         t0 = time.perf_counter()
         pos = np.asarray(view.position, dtype=np.float64)
         vp = perspective(self.camera, o.near_m, o.far_m) @ view_matrix(pos, view.r_optical)
-        planes = _frustum_planes(vp)
+        planes = self._view_planes(view)  # as render() found the animals to give coats to
         counts = self._cull_zebras(zebras, layers, planes, pos)
         veg_counts = self._cull_vegetation(planes, pos)
         times["prepare"] = time.perf_counter() - t0
@@ -530,7 +530,8 @@ class Renderer:
         return RenderedView(view.name, rgb, depth, id16, self.camera.K, times)
 
     def _view_planes(self, view: CameraView) -> FloatArray:
-        """The frustum planes of ``view`` (:func:`_frustum_planes`), as :meth:`_render_view` draws it."""
+        """The frustum planes of ``view`` (:func:`_frustum_planes`): the one culling of the animals, for their coats
+        (:meth:`render`) and their draws (:meth:`_render_view`) alike."""
         pos = np.asarray(view.position, dtype=np.float64)
         o = self.options
         return _frustum_planes(perspective(self.camera, o.near_m, o.far_m) @ view_matrix(pos, view.r_optical))
