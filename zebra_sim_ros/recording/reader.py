@@ -7,6 +7,8 @@ schema; when a record cannot be read it stops and keeps where and why in ``stopp
 
 from __future__ import annotations
 
+import os
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,11 +32,15 @@ class BagMessage:
     log_time: int
     publish_time: int
     metadata: dict[str, str]
+    # the records it was written under (what ``recover`` writes again); not part of the message's value
+    channel: Channel | None = field(default=None, compare=False, repr=False)
+    schema: Schema | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass
 class BagReader:
-    """Messages of one or more bag files, in file order (each file in its write order)."""
+    """Messages of one or more bag files, in file order (each file in its write order; the files of a split
+    recording, ``<name>_<n>.mcap``, in the order of ``n``)."""
 
     paths: list[Path]
     stopped: list[str] = field(default_factory=list)
@@ -43,13 +49,14 @@ class BagReader:
 
     @classmethod
     def open(cls, paths: list[str | Path] | str | Path, name: str = "bag") -> BagReader:
-        """Check the files exist (a folder means every .mcap in it, sorted); errors name the parameter ``name``."""
+        """Check the files exist (a folder means every .mcap in it, by :func:`file_order`: ``run_2`` before
+        ``run_10``); errors name the parameter ``name``."""
         items = [paths] if isinstance(paths, str | Path) else list(paths)
         files: list[Path] = []
         for item in items:
             p = Path(item)
             if p.is_dir():
-                files += sorted(p.glob("*.mcap"))
+                files += sorted(p.glob("*.mcap"), key=file_order)
             elif p.is_file():
                 files.append(p)
             else:
@@ -74,27 +81,42 @@ class BagReader:
     def messages(self, topics: set[str] | None = None) -> Iterator[BagMessage]:
         """Every readable message. A chunk that fails its CRC or does not decompress is skipped and noted in
         :attr:`stopped`, and reading goes on with the next one; damage that breaks the record stream itself
-        (a cut file, a bad record length) ends that file's stream, also noted."""
+        (a cut file, a bad record length) ends that file's stream, also noted. The channels and schemas come from
+        the records as they are read and, where the file has a readable summary, from it first: a damaged chunk
+        that held a topic's first definition loses only its own messages. Messages whose channel was never read
+        are counted in a note."""
         for k, path in enumerate(self.paths):
             schemas: dict[int, Schema] = {}
+            summary = file_summary(path)
+            if summary is not None:
+                schemas.update(summary.schemas)
+                self.channels.update({(k, cid): ch for cid, ch in summary.channels.items()})
+            orphans = 0
             with open(path, "rb") as f:
                 reader = StreamReader(f, emit_chunks=True, validate_crcs=True)
                 try:
                     for rec in self._unchunked(reader.records, path, f):
                         if isinstance(rec, Schema):
                             schemas[rec.id] = rec
+                            self.schemas[(k << 16) + rec.id] = rec
                         elif isinstance(rec, Channel):
                             self.channels[(k, rec.id)] = rec
                         elif isinstance(rec, Message):
                             ch = self.channels.get((k, rec.channel_id))
-                            if ch is None or (topics is not None and ch.topic not in topics):
+                            if ch is None:
+                                orphans += 1
+                                continue
+                            if topics is not None and ch.topic not in topics:
                                 continue
                             sc = schemas.get(ch.schema_id)
                             yield BagMessage(ch.topic, sc.name if sc else "", rec.data, rec.log_time, rec.publish_time,
-                                             dict(ch.metadata))
+                                             dict(ch.metadata), ch, sc)
                 except Exception as exc:  # truncation or corruption: the mcap reader raises several types
                     self.stopped.append(f"{path}: stopped at byte {f.tell()} of {path.stat().st_size} "
                                         f"({type(exc).__name__}: {exc})")
+            if orphans:
+                self.stopped.append(f"{path}: skipped {orphans} messages of channels whose definition was not read "
+                                    f"(it was in a damaged part, and the file has no readable summary)")
             self.schemas.update({(k << 16) + i: s for i, s in schemas.items()})
 
     def _unchunked(self, records: Iterator[McapRecord], path: Path, f: IO[bytes]) -> Iterator[McapRecord]:
@@ -111,6 +133,13 @@ class BagReader:
                                     f"{exc})")
                 continue
             yield from inner
+
+
+def file_order(path: Path) -> tuple[str, int, str]:
+    """Sort key of bag files: a split recording's ``<name>_<n>.mcap`` by name, then by the number ``n`` (``run_2``
+    before ``run_10``); other names by name."""
+    m = re.fullmatch(r"(.*)_(\d+)", path.stem)
+    return (m.group(1), int(m.group(2)), path.name) if m else (path.stem, -1, path.name)
 
 
 def file_summary(path: Path) -> Summary | None:
@@ -167,7 +196,9 @@ def summarize(paths: list[str | Path] | str | Path, full: bool = False) -> dict[
 
 
 def recover(src: str | Path, dst: str | Path, compression: str = "zstd") -> dict[str, Any]:
-    """Write every intact message of ``src`` (a bag cut short, e.g. by SIGKILL) into a complete bag ``dst``."""
+    """Write every intact message of ``src`` (a bag cut short, e.g. by SIGKILL; a file or a folder of split files)
+    into a complete bag ``dst``, each under the channel and schema it was written with; ``dst`` appears only once it
+    is complete (written beside it, then renamed)."""
     from zebra_sim_ros.recording.writer import COMPRESSIONS
 
     reader = BagReader.open(src)
@@ -175,33 +206,27 @@ def recover(src: str | Path, dst: str | Path, compression: str = "zstd") -> dict
     if out.resolve() == Path(src).resolve():
         raise ParameterError("OUT", str(dst), "a different file than IN")
     out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
     n = 0
-    with open(out, "wb") as f:
-        w = Writer(f, compression=COMPRESSIONS.get(compression, CompressionType.ZSTD))
-        w.start(profile="ros2", library="zebra_sim_ros recover")
-        ids: dict[str, int] = {}
-        schema_ids: dict[str, int] = {}
-        for m in reader.messages():
-            if m.topic not in ids:
-                key = (0, next(cid for (k, cid), ch in reader.channels.items() if ch.topic == m.topic))
-                ch = reader.channels[key]
-                if m.type_name not in schema_ids:
-                    sc = next(s for s in _schemas_of(reader, src) if s.name == m.type_name)
-                    schema_ids[m.type_name] = w.register_schema(sc.name, sc.encoding, sc.data)
-                ids[m.topic] = w.register_channel(m.topic, ch.message_encoding, schema_ids[m.type_name], m.metadata)
-            w.add_message(ids[m.topic], m.log_time, m.data, m.publish_time, sequence=n)
-            n += 1
-        w.finish()
+    try:
+        with open(tmp, "wb") as f:
+            w = Writer(f, compression=COMPRESSIONS.get(compression, CompressionType.ZSTD))
+            w.start(profile="ros2", library="zebra_sim_ros recover")
+            ids: dict[tuple[str, str], int] = {}
+            schema_ids: dict[tuple[str, str, bytes], int] = {}
+            for m in reader.messages():
+                key = (m.topic, m.type_name)
+                if key not in ids:
+                    sc, ch = m.schema, m.channel
+                    assert ch is not None  # every message the reader yields has its channel
+                    skey = (sc.name, sc.encoding, sc.data) if sc is not None else ("", "", b"")
+                    if skey not in schema_ids:
+                        schema_ids[skey] = w.register_schema(*skey) if sc is not None else 0  # 0: no schema
+                    ids[key] = w.register_channel(m.topic, ch.message_encoding, schema_ids[skey], m.metadata)
+                w.add_message(ids[key], m.log_time, m.data, m.publish_time, sequence=n)
+                n += 1
+            w.finish()
+        tmp.replace(out)
+    finally:
+        tmp.unlink(missing_ok=True)
     return {"in": str(src), "out": str(out), "messages": n, "damage": reader.stopped}
-
-
-def _schemas_of(reader: BagReader, src: str | Path) -> list[Schema]:
-    out = []
-    with open(src, "rb") as f:
-        try:
-            for rec in StreamReader(f).records:
-                if isinstance(rec, Schema):
-                    out.append(rec)
-        except Exception:  # noqa: BLE001 - the damaged tail has no schema we still need
-            pass
-    return out
