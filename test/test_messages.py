@@ -61,7 +61,10 @@ def test_scene_round_trips_and_refuses_other_schemas(savanna: World, library: Ze
     d = json.loads(text)
     for broken, named in (({**d, "version": 2}, "version 2"), ({**d, "schema": "x"}, "not a zebra_sim_ros/scene"),
                           ({k: v for k, v in d.items() if k != "cameras"}, "lacks 'cameras'"),
-                          ({**d, "zebras": [{"id": 1}]}, "malformed")):
+                          ({**d, "zebras": [{"id": 1}]}, "malformed"),
+                          ({**d, "world": "savanna"}, "malformed: AttributeError"),  # not an object
+                          ({**d, "rectangle": [0, 0]}, "malformed: AttributeError"),
+                          ({**d, "step": float("inf")}, "malformed: OverflowError")):  # JSON's Infinity
         with pytest.raises(MessageFormatError, match=named):
             Scene.from_json(json.dumps(broken))
     with pytest.raises(MessageFormatError, match="not JSON"):

@@ -116,10 +116,11 @@ def _checked(d: Any, schema: str, version: int, required: Sequence[str]) -> dict
 
 
 def _parse(kind: str, build: Any, d: Any) -> Any:
-    """``build(d)``, with a missing key or a wrong type reported as :class:`MessageFormatError`."""
+    """``build(d)``, with a missing key or a wrong type reported as :class:`MessageFormatError` (a field that is not
+    the object it should be, an infinite number where an integer belongs)."""
     try:
         return build(d)
-    except (KeyError, TypeError, ValueError, IndexError) as exc:
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError, ArithmeticError) as exc:
         raise MessageFormatError(f"{kind} is malformed: {type(exc).__name__} {exc}") from exc
 
 
