@@ -117,6 +117,20 @@ def test_a_bad_verifier_stops_the_node(tmp_path: Path, kind: str) -> None:
     assert "verifier" in proc.stderr + proc.stdout and str(path) in proc.stderr + proc.stdout
 
 
+def test_an_empty_or_short_image_is_refused_by_name_not_detected() -> None:
+    """An image of zero width or height (or too few bytes) is a ValueError the node counts and skips: it used to
+    reach the detector, whose letterbox divided by zero and ended the node."""
+    from zebra_sim_ros.nodes.detector import to_rgb
+
+    for w, h in ((0, 4), (4, 0)):
+        with pytest.raises(ValueError, match=rf"an empty image \({w}x{h}\)"):
+            to_rgb(Image(height=h, width=w, encoding="rgb8", step=3 * w, data=bytes(3 * w * h)))
+    with pytest.raises(ValueError, match="does not fit 4x4 rgb8"):
+        to_rgb(Image(height=4, width=4, encoding="rgb8", step=12, data=bytes(40)))
+    assert to_rgb(Image(height=1, width=2, encoding="bgr8", step=6, data=bytes([1, 2, 3, 4, 5, 6]))).tolist() == \
+        [[[3, 2, 1], [6, 5, 4]]]
+
+
 def test_marker_colours_follow_the_class() -> None:
     from zebra_sim_ros.detection.draw import OTHER_COLOUR
     from zebra_sim_ros.nodes.detector import ZEBRA_COLOUR, _marker_colour

@@ -56,6 +56,8 @@ def to_rgb(msg: Image) -> np.ndarray:
     if spec is None:
         raise ValueError(f"unsupported encoding {msg.encoding!r} (converted: {sorted(_CHANNELS)})")
     ch, order = spec
+    if msg.width == 0 or msg.height == 0:
+        raise ValueError(f"an empty image ({msg.width}x{msg.height})")
     buf = np.frombuffer(bytes(msg.data), dtype=np.uint8)
     if msg.step < msg.width * ch or len(buf) < msg.step * msg.height:
         raise ValueError(f"image data of {len(buf)} bytes does not fit {msg.width}x{msg.height} {msg.encoding}")
