@@ -74,6 +74,20 @@ def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
         peer.close()
 
 
+def test_an_uncalibrated_camera_info_is_a_skipped_frame_not_a_crash() -> None:
+    """A CameraInfo whose K is all zeros (an uncalibrated camera) or not finite is refused with a ValueError, which
+    the node counts and skips; it used to divide by zero and end the node."""
+    from types import SimpleNamespace
+
+    from zebra_sim_ros.nodes.labeller import LabellerNode
+
+    for fx in (0.0, float("nan"), float("inf"), -500.0):
+        with pytest.raises(ValueError, match=r"K\[0\] = "):
+            LabellerNode._labeller(SimpleNamespace(labellers={}), 320, 240, fx)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="0x240"):
+        LabellerNode._labeller(SimpleNamespace(labellers={}), 0, 240, 500.0)  # type: ignore[arg-type]
+
+
 def test_bad_labeller_parameter_stops_the_node() -> None:
     proc = run_node_once("labeller", {"min_visible_fraction": 1.5})
     assert proc.returncode == 2

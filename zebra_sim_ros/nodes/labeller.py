@@ -142,6 +142,9 @@ class LabellerNode(ZebraNode[LabellerConfig]):
                                           f"({self.stats['unmatched']} so far)")
 
     def _labeller(self, width: int, height: int, fx: float) -> Labeller:
+        if not (np.isfinite(fx) and fx > 0) or width <= 0 or height <= 0:
+            raise ValueError(f"camera_info of {width}x{height} px with focal length K[0] = {fx}: want a calibrated "
+                             f"camera (K[0] > 0) and a non-empty image")
         hfov = float(np.degrees(2 * np.arctan(width / 2 / fx)))
         key = (width, height, round(hfov, 6))
         if key not in self.labellers:
@@ -159,9 +162,9 @@ class LabellerNode(ZebraNode[LabellerConfig]):
             info: CameraInfo = got["info"]
             labeller = self._labeller(int(info.width), int(info.height), float(info.k[0]))
             labels = labeller.label(self.scenes[t], drone, image_array(got["instances"]), image_array(got["depth"]))
-        except (ZebraSimError, KeyError, ValueError) as exc:
-            self.stats["bad_messages"] += 1
-            self.get_logger().error(f"{drone} stamp {t}: frame skipped ({exc})")
+        except (ZebraSimError, KeyError, ValueError, TypeError, IndexError, ArithmeticError) as exc:
+            self.stats["bad_messages"] += 1  # an instance image with inf in it (32FC1), say
+            self.get_logger().error(f"{drone} stamp {t}: frame skipped ({type(exc).__name__}: {exc})")
             return
         header = got["instances"].header
         labels_pub, markers_pub, boxes_pub = self.pubs[drone]
