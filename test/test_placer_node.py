@@ -24,7 +24,8 @@ SMALL = {"count_max": 40, "world": "savanna"}
 class Listener:
     """A test-side node collecting what the placer publishes."""
 
-    def __init__(self, domain: int, name: str = "test_listener") -> None:
+    def __init__(self, domain: int, name: str = "test_listener", stream: QoSProfile | int = 10) -> None:
+        """``stream``: the QoS of its pose and marker subscriptions (the scene's is reliable, as a camera's)."""
         self.context = rclpy.Context()
         rclpy.init(context=self.context, domain_id=domain)
         self.node = rclpy.create_node(name, context=self.context)
@@ -40,8 +41,8 @@ class Listener:
         self.node.create_subscription(String, "/zebra_sim/scene", self._on_scene, latched)
         for name in self.poses:
             self.node.create_subscription(PoseStamped, f"/{name}/camera/pose",
-                                          lambda m, n=name: self.poses[n].append(m), 10)
-        self.node.create_subscription(MarkerArray, "/zebra_sim/zebras/markers", self.markers.append, 10)
+                                          lambda m, n=name: self.poses[n].append(m), stream)
+        self.node.create_subscription(MarkerArray, "/zebra_sim/zebras/markers", self.markers.append, stream)
         self.node.create_subscription(TFMessage, "/tf", self.tf.append, 100)
         self.ack_pub = self.node.create_publisher(Header, "/zebra_sim/frame_done", 100)
 
@@ -94,6 +95,25 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path, 
         placed = cli(["place", "--steps", "2", "--set", "count_max=40", "--set", "rate_hz=4.0", "--seed", "9"])
         assert placed.returncode == 0, placed.stderr
         assert [json.loads(line) for line in placed.stdout.splitlines()[:2]] == listener.scenes[:2]
+    finally:
+        listener.close()
+
+
+def test_a_best_effort_placer_still_sends_its_scene_reliable(domain: int, tmp_path: Path) -> None:
+    """``qos_reliability:=best_effort`` makes the markers and poses best effort; the scene stays reliable, as the
+    cameras and the labeller subscribe it (a best-effort scene used to match none of them, and the graph stalled)."""
+    listener = Listener(domain, stream=QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT))
+    try:
+        params = dict(SMALL, mode="rate", rate_hz=4.0, max_steps=3, seed=9, wait_for_subscribers=1,
+                      qos_reliability="best_effort")
+        with node_process("placer", params, domain, tmp_path / "placer.log") as proc:
+            assert listener.spin_until(lambda: len(listener.scenes) >= 3 and all(listener.poses.values()), 60), \
+                (tmp_path / "placer.log").read_text()
+            assert proc.wait(timeout=20) == 0
+        log = (tmp_path / "placer.log").read_text()
+        assert "zebra_sim/scene: reliability=reliable" in log, log[-1500:]
+        assert "markers and poses: reliability=best_effort" in log, log[-1500:]
+        assert [s["step"] for s in listener.scenes] == [0, 1, 2]
     finally:
         listener.close()
 

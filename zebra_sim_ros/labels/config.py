@@ -54,7 +54,7 @@ class LabellerConfig(StageConfig):
     sync_window: int = param(20, "frames kept while waiting for a stamp's missing inputs", lo=1, hi=1000)
     ack_name: str = param("", "if set, acknowledge a step on zebra_sim/frame_done under this name once every drone "
                           "of it is labelled (for the placer's lockstep)", allowed="a name or empty")
-    qos_reliability: str = reliability_param("QoS reliability of the outputs and of the scene subscription")
+    qos_reliability: str = reliability_param("QoS reliability of the outputs (the scene is subscribed reliable)")
     image_reliability: str = image_reliability_param()
     qos_depth: int = param(10, "history depth", lo=1, hi=1000)
 

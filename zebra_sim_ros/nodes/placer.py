@@ -70,7 +70,9 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         self.get_logger().info(
             f"world '{world.name}' ({world.source}), asset {self.placer.library.manifest['digest']}, seed {c.seed}, "
             f"strategy {c.strategy}, mode {c.mode}, ready in {time.perf_counter() - t0:.1f} s")
-        latched = qos(c.qos_reliability, 1, transient_local=True)
+        # the scene is always reliable (as /clock and /tf): the cameras and the labeller subscribe reliable and need
+        # every step; a best-effort scene would match none of them
+        latched = qos("reliable", 1, transient_local=True)
         stream = qos(c.qos_reliability, c.qos_depth)
         self.get_logger().info(f"QoS {SCENE_TOPIC}: {describe_qos(latched)}; markers and poses: {describe_qos(stream)}")
         self.scene_pub = self.create_publisher(String, SCENE_TOPIC, latched)

@@ -152,7 +152,8 @@ class PlacerConfig(StageConfig):
     max_steps: int = param(0, "stop after this many steps (0: never)", lo=0, hi=2**31)
     start_step: int = param(0, "first step index (to resume or reproduce a step alone)", lo=0, hi=2**31)
     qos_depth: int = param(10, "history depth of the published topics", lo=1, hi=1000)
-    qos_reliability: str = reliability_param("QoS reliability of the published topics")
+    qos_reliability: str = reliability_param("QoS reliability of the markers and poses (the scene, /clock and /tf "
+                                             "are always reliable)")
 
     def check(self) -> None:
         """Cross-parameter rules (each parameter alone was checked by its spec)."""
