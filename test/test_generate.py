@@ -52,6 +52,23 @@ def test_a_generated_folder_is_read_through_its_yaml(dataset: Path) -> None:
     assert files and files == sorted((dataset / "images" / "train").glob("*.jpg"))
 
 
+def test_a_folder_whose_name_yaml_would_misread_is_still_the_yaml_path(dataset: Path, tmp_path: Path) -> None:
+    """dataset.yaml quotes its path: a folder named with " #" (a YAML comment) or ": " (a mapping) is read back
+    whole, and the trainer's loader finds its images through it."""
+    import shutil
+
+    from zebra_sim_ros.dataset.generate import finalize
+    from zebra_sim_ros.detection.data import YoloDataset, resolve_split
+
+    for name in ("set #2", "a: b"):
+        out = tmp_path / name
+        shutil.copytree(dataset, out)
+        finalize(out)
+        assert yaml.safe_load((out / "dataset.yaml").read_text())["path"] == str(out.resolve())
+        assert YoloDataset(resolve_split(out / "dataset.yaml", "train")).files == sorted(
+            (out / "images" / "train").glob("*.jpg"))
+
+
 def test_coco_loads_and_equals_yolo(dataset: Path) -> None:
     """Kept zebras: COCO annotations = labels/; zebras seen but dropped by the filters: COCO crowds = ignore/."""
     checked = {0: 0, 1: 0}
