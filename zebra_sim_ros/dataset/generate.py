@@ -524,9 +524,9 @@ def finalize(out: Path, cfg: GenerateConfig | None = None) -> dict[str, Any]:
                 "categories": [CATEGORY, *SPECIES_CATEGORIES], "images": images[split], "annotations": anns[split]}
         (out / "coco" / f"{split}.json").write_text(json.dumps(coco, separators=(",", ":")))
         (out / f"{split}.txt").write_text("".join(f"./{im['file_name']}\n" for im in images[split]))
-    path = json.dumps(str(out.resolve()))  # quoted: a folder named "set #2" or "a: b" is still one YAML string
+    quoted = json.dumps(str(out.resolve()))  # quoted: a folder named "set #2" or "a: b" is still one YAML string
     yaml_text = (f"# zebra_sim_ros synthetic dataset (YOLO format); COCO in coco/\n"
-                 f"path: {path}\ntrain: images/train\nval: images/val\nnc: 1\nnames:\n  0: zebra\n")
+                 f"path: {quoted}\ntrain: images/train\nval: images/val\nnc: 1\nnames:\n  0: zebra\n")
     (out / "dataset.yaml").write_text(yaml_text)
     return {"images_train": len(images["train"]), "images_val": len(images["val"]), "zebras_labelled": kept,
             "other_species_labelled": dict(sorted(others.items())),
