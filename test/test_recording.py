@@ -105,6 +105,63 @@ def test_size_cap_ends_with_a_finalised_bag(tmp_path: Path) -> None:
     assert path.read_bytes() == finished
 
 
+def test_a_cap_under_two_chunks_still_records_up_to_it(tmp_path: Path) -> None:
+    """The room kept under the cap is what the open chunk holds, not two whole chunks: a 1.5 MB cap with 1 MB chunks
+    records about a megabyte and a half (it refused the first message), and the bag still ends under its cap."""
+    w = BagWriter(tmp_path / "c.mcap", chunk_size=1 << 20, max_bytes=1_500_000, compression="none")
+    w.add_channel("/text", "std_msgs/msg/String", [profile_dict()])
+    written = 0
+    with pytest.raises(BagFullError, match="size cap"):
+        for i in range(100_000):
+            w.write("/text", serialize_message(String(data="x" * 200 + str(i))), 10**9 + i)
+            written += 1
+    [path] = w.close()
+    assert 1_000_000 < path.stat().st_size <= 1_500_000 and written > 4000, (path.stat().st_size, written)
+    with open(path, "rb") as f:
+        assert make_reader(f).get_summary().statistics.message_count == written
+
+
+def test_output_names_never_collide_and_an_unwritable_one_is_named(tmp_path: Path) -> None:
+    """``run.1`` and ``run.2`` are two bags (``.mcap`` is added to the name, not put in place of ``.1``); an output
+    that cannot be opened is a ParameterError naming ``output``."""
+    from zebra_sim_ros.errors import ParameterError
+
+    paths = []
+    for k in (1, 2):
+        w = BagWriter(tmp_path / f"run.{k}")
+        w.add_channel("/text", "std_msgs/msg/String", [profile_dict()])
+        w.write("/text", serialize_message(String(data=f"bag {k}")), 10**9)
+        paths += w.close()
+    assert [p.name for p in paths] == ["run.1.mcap", "run.2.mcap"]
+    for k, p in enumerate(paths, 1):
+        assert [m.data for m in BagReader.open(p).messages()] == [serialize_message(String(data=f"bag {k}"))]
+    (tmp_path / "a_file").write_text("x")
+    with pytest.raises(ParameterError, match=r"'output'.*a_file/x\.mcap.*can be written"):
+        BagWriter(tmp_path / "a_file" / "x.mcap")
+
+
+def test_a_full_disk_at_a_split_is_a_bag_full_error_and_close_still_works(tmp_path: Path,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """The disk fills while a split file is finished: the write says BagFullError (the recorder ends the recording
+    on it), and close() afterwards returns the files instead of failing on a closed stream."""
+    import errno
+
+    from mcap.writer import Writer
+
+    w = BagWriter(tmp_path / "s.mcap", split_seconds=1.0)
+    w.add_channel("/text", "std_msgs/msg/String", [profile_dict()])
+    w.write("/text", serialize_message(String(data="first")), 10**9)
+
+    def full(self: Writer) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(Writer, "finish", full)
+    with pytest.raises(BagFullError, match=r"disk full while finishing .*s_0\.mcap"):
+        w.write("/text", serialize_message(String(data="second")), 3 * 10**9)
+    monkeypatch.undo()
+    assert w.close() == [tmp_path / "s_0.mcap"]
+
+
 def test_cut_bag_reads_what_is_intact_and_recovers(tmp_path: Path) -> None:
     [path] = _write(tmp_path / "full.mcap", n=300)
     data = path.read_bytes()

@@ -19,7 +19,8 @@ class RecorderConfig(StageConfig):
     """Validated recorder parameters; the topic selection (``topics``, ``topic_regex``, ``exclude_regex``) may
     change while it records."""
 
-    output: str = param("bags/zebra_sim.mcap", "bag file to write (split files get _0, _1, ... before .mcap)",
+    output: str = param("bags/zebra_sim.mcap", "bag file to write (.mcap added to a name without it; split files "
+                        "get _0, _1, ... before .mcap)",
                         allowed="a path", check=lambda v: len(v) > 0)
     topics: tuple[str, ...] = param(("",), "topics to record; [''] (empty) records every topic that matches "
                                     "topic_regex", allowed="a list of topic names", check=_str_list, runtime=True)

@@ -48,8 +48,8 @@ class BagWriter:
         if chunk_size < 1024:
             raise ParameterError("chunk_size", chunk_size, ">= 1024 bytes")
         self.path = Path(path)
-        if self.path.suffix != ".mcap":
-            self.path = self.path.with_suffix(".mcap")
+        if self.path.suffix != ".mcap":  # "run.1" -> "run.1.mcap": another name than "run.2" gets, never the same
+            self.path = self.path.with_name(self.path.name + ".mcap")
         self.compression, self.chunk_size = compression, chunk_size
         self.split_bytes, self.split_ns, self.max_bytes = split_bytes, int(split_seconds * 1e9), max_bytes
         self.reserve_bytes = reserve_bytes  # -1: automatic (see the module's docstring); 0: none
@@ -71,8 +71,13 @@ class BagWriter:
     def _open(self) -> None:
         k = len(self.files)
         p = self._file_path(k)
-        p.parent.mkdir(parents=True, exist_ok=True)
-        self._stream = open(p, "wb")  # noqa: SIM115 - closed in _close_file
+        try:
+            p.parent.mkdir(parents=True, exist_ok=True)
+            self._stream = open(p, "wb")  # noqa: SIM115 - closed in _close_file
+        except OSError as exc:
+            if exc.errno == errno.ENOSPC:
+                raise BagFullError(f"disk full while opening {p}: {exc}") from exc
+            raise ParameterError("output", str(p), f"a bag file that can be written ({exc.strerror or exc})") from exc
         self._writer = Writer(self._stream, chunk_size=self.chunk_size, compression=COMPRESSIONS[self.compression])
         self._writer.start(profile="ros2", library="zebra_sim_ros")
         self._schemas = {}
@@ -80,13 +85,22 @@ class BagWriter:
         self._file_start_ns = None
 
     def _close_file(self) -> None:
-        if self._writer is not None and self._stream is not None:
-            try:
-                self._writer.finish()
-            finally:
-                self._closed_bytes += self._stream.tell()
-                self._stream.close()
+        """Finish the open file; whatever happens (a full disk), the writer and stream are let go, so a later
+        close() does not touch a closed stream."""
+        writer, stream = self._writer, self._stream
         self._writer, self._stream = None, None
+        if writer is not None and stream is not None:
+            try:
+                writer.finish()
+            except OSError as exc:
+                if exc.errno == errno.ENOSPC:
+                    raise BagFullError(f"disk full while finishing {self.files[-1]}: {exc}") from exc
+                raise
+            finally:
+                try:
+                    self._closed_bytes += stream.tell()
+                finally:
+                    stream.close()
 
     def add_channel(self, topic: str, type_name: str, qos_profiles: list[dict[str, Any]]) -> None:
         """Declare a topic (``type_name`` like ``sensor_msgs/msg/Image``); its schema text is looked up now."""
@@ -117,9 +131,10 @@ class BagWriter:
         if self._writer is None:  # closed: reopening would truncate the finished file
             raise RuntimeError(f"write to {self.path} after close()")
         if self.max_bytes:
-            # Room kept for the open chunk, the summary and the indexes, so the finished bag stays under the cap.
+            # Room kept for the open chunk (what it holds so far, each message with its record and index), the
+            # summary and the indexes, so the finished bag stays under the cap; a cap smaller than a chunk works too.
             written = self.bytes_written
-            margin = 2 * self.chunk_size + 16384 + written // 25
+            margin = self._unflushed + 64 + 16384 + written // 25
             if written + len(data) + margin > self.max_bytes:
                 raise BagFullError(f"bag reached its size cap of {self.max_bytes} bytes ({written} written)")
         self._check_free_space(len(data))
