@@ -130,6 +130,26 @@ def _timed_bag(path: Path, gaps: list[float]) -> list[int]:
     return times
 
 
+def test_ctrl_c_while_replay_waits_ends_it_at_once_and_cleanly(peer: Peer, tmp_path: Path) -> None:
+    """SIGINT while the play thread waits 30 s for the next message: the node ends within seconds, exit status 0,
+    without the play thread publishing through a destroyed node ("replay failed")."""
+    import time
+
+    _timed_bag(tmp_path / "t.mcap", [0.0, 30.0])
+    got: list[str] = []
+    peer.node.create_subscription(String, "/tick", lambda m: got.append(m.data), 10)
+    log = tmp_path / "replay.log"
+    with node_process("replay", {"bags": [str(tmp_path / "t.mcap")], "wait_for_subscribers_s": 20.0, "clock": True,
+                                 "clock_rate_hz": 1000.0}, _domain(peer),
+                      log) as proc:
+        assert peer.spin(lambda: got == ["tick 0"], 60), log.read_text()
+        t0 = time.monotonic()
+        os.killpg(proc.pid, signal.SIGINT)
+        assert proc.wait(timeout=10) == 0, log.read_text()
+        assert time.monotonic() - t0 < 5
+    assert "replay failed" not in log.read_text() and got == ["tick 0"], log.read_text()
+
+
 @pytest.mark.parametrize("rate", [1.0, 2.0])
 def test_replay_keeps_order_and_spacing(peer: Peer, tmp_path: Path, rate: float) -> None:
     gaps = [0.0] + [0.05, 0.15, 0.1, 0.02, 0.2] * 5

@@ -143,6 +143,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                     time.sleep(0.01)
                 pace = _Pace(rel, self.cfg.rate)
             self._wait(pace, rel, t0_bag, m.log_time)
+            if self.done:
+                return
             if self.clock_pub is not None:
                 self.clock_pub.publish(Clock(clock=stamp(m.log_time)))
             pub.publish(m.data)
@@ -156,7 +158,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
     def _wait(self, pace: _Pace, rel: float, t0_bag: int, log_time: int) -> None:
         """Sleep in slices until bag time ``rel`` is due, publishing /clock on the way; a new rate applies at once."""
         period = 1.0 / self.cfg.clock_rate_hz
-        while True:
+        while not self.done:  # stop() ends the wait too
             now = time.monotonic()
             pace.set_rate(self.cfg.rate, now)
             if self.clock_pub is not None and now - pace.last_clock >= period:
@@ -167,6 +169,14 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             if now >= target:
                 return
             time.sleep(min(target - now, period / 2 if self.clock_pub else 0.05))
+
+
+    def stop(self) -> None:
+        """End the play thread before the node's publishers go (it would publish through destroyed ones)."""
+        self.done = True
+        thread = getattr(self, "thread", None)
+        if thread is not None:
+            thread.join(timeout=5.0)
 
 
 def main(argv: list[str] | None = None) -> int:
