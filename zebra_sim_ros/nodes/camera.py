@@ -93,7 +93,8 @@ class CameraNode(ZebraNode[CameraConfig]):
             t0 = time.perf_counter()
             world = load_world(*key)
             if self.sim is not None:
-                self.sim.release()
+                old, self.sim, self.world_key = self.sim, None, None  # a failed build below leaves no released one
+                old.release()
             self.sim = Simulator(world, self.library, self.cfg.render_options(), sensor=self.cfg.sensor_model())
             self.world_key = key
             info = self.sim.renderer.info
@@ -150,9 +151,12 @@ class CameraNode(ZebraNode[CameraConfig]):
         """Say what the coats cost, release the GL context."""
         if self.sim is not None:
             store = self.sim.renderer.coat_store
-            self.get_logger().info(f"{self.frames} frames; coats baked {store.baked}, read from the store {store.read}")
+            self.get_logger().info(f"{self.frames} frames, {self.skipped} scenes skipped; coats baked {store.baked}, "
+                                   f"read from the store {store.read}")
             self.sim.release()
             self.sim = None
+        else:
+            self.get_logger().info(f"{self.frames} frames, {self.skipped} scenes skipped")
 
 
 def main(argv: list[str] | None = None) -> int:

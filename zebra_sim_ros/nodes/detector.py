@@ -142,6 +142,10 @@ class DetectorNode(ZebraNode[DetectorConfig]):
         if self.stats["batches"] % 50 == 1:
             self.get_logger().info(f"{self.stats}; {self.seconds / self.stats['batches']:.3f} s per batch")
 
+    def stop(self) -> None:
+        """Say what was detected and what was skipped."""
+        print(f"[detector] stopping: {self.stats}", flush=True)  # plain: the ROS context may be shut down already
+
     def _publish(self, topic: str, msg: Image, img: np.ndarray, dets: np.ndarray) -> None:
         header = msg.header
         payload = detections_message(Stamp(header.stamp.sec, header.stamp.nanosec), header.frame_id, int(msg.width),
