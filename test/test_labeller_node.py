@@ -126,6 +126,18 @@ def test_box_markers_and_step_acknowledgements() -> None:
     assert sent[0][1].stamp.nanosec == 1
     for t in (2, 3, 4):
         acks.part_done(stamp(t), "a")
-    assert sorted(acks.done) == [3, 4]  # only the last `window` stamps are remembered
+    assert list(acks.done.items) == [3, 4]  # only the last `window` stamps are remembered
+    # a restarted placer (or a looping replay) sends older stamps again: they are the latest to arrive, kept until
+    # every part is done (they were forgotten as they came, and lockstep stalled)
+    sent.clear()
+    assert acks.part_done(stamp(1), "a") is False and acks.part_done(stamp(1), "b") is True
+    assert [h.stamp.nanosec for _, h in sent] == [1] and list(acks.done.items) == [4, 1]
+    from zebra_sim_ros.nodes.ros_adapter import RecentStamps
+
+    recent: RecentStamps[str] = RecentStamps(2)
+    assert recent.put(10, "x") == [] and recent.put(20, "y") == [] and recent.put(5, "z") == [(10, "x")]
+    value, pushed = recent.touch(20, str)  # seen again: the latest now, its value kept
+    assert value == "y" and pushed == [] and list(recent.items) == [5, 20]
+    assert recent.touch(7, lambda: "w") == ("w", [(5, "z")]) and 7 in recent and recent.pop(7) == "w"
     silent = StepAcks(FakeNode(), "", ["a"], window=5)  # type: ignore[arg-type]
     assert silent.pub is None and silent.part_done(stamp(1), "a") is True

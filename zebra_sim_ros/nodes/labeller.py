@@ -28,6 +28,7 @@ from zebra_sim_ros.labels.labeller import Labeller
 from zebra_sim_ros.messages import Labels, Scene
 from zebra_sim_ros.nodes.placer import SCENE_TOPIC
 from zebra_sim_ros.nodes.ros_adapter import (
+    RecentStamps,
     StepAcks,
     ZebraNode,
     box_marker,
@@ -90,8 +91,9 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         q = qos(c.qos_reliability, c.qos_depth)
         image_q = qos(c.image_reliability, c.qos_depth)
         scene_qos = qos("reliable", 1, transient_local=True)
-        self.scenes: dict[int, Scene] = {}
-        self.pending: dict[tuple[str, int], dict[str, Any]] = {}
+        # the last sync_window stamps to arrive (a restarted placer or a looping replay sends older ones again)
+        self.scenes: RecentStamps[Scene] = RecentStamps(c.sync_window)
+        self.pending: RecentStamps[dict[str, dict[str, Any]]] = RecentStamps(c.sync_window)  # stamp: drone: kind
         self.stats = {"labelled": 0, "unmatched": 0, "bad_messages": 0}
         self.create_subscription(String, SCENE_TOPIC, self._on_scene, scene_qos)
         self.pubs: dict[str, tuple[Any, Any, Any]] = {}
@@ -121,25 +123,21 @@ class LabellerNode(ZebraNode[LabellerConfig]):
             self.get_logger().error(f"bad scene skipped ({self.stats['bad_messages']} bad so far): {exc}")
             return
         t = scene.stamp.ns
-        self.scenes[t] = scene
-        for old in sorted(self.scenes)[:-self.cfg.sync_window]:
-            del self.scenes[old]
+        self.scenes.put(t, scene)
         for d in self.cfg.drones:
             self._try(d, t)
 
     def _on_input(self, drone: str, kind: str, msg: Any) -> None:
         t = stamp_ns(msg.header.stamp)
-        self.pending.setdefault((drone, t), {})[kind] = msg
-        self._try(drone, t)
-        # Forget what can no longer be matched: older than the window of newest stamps.
-        stamps = sorted({s for _, s in self.pending})
-        if len(stamps) > self.cfg.sync_window:
-            cutoff = stamps[-self.cfg.sync_window]
-            for key in [k for k in self.pending if k[1] < cutoff]:
-                del self.pending[key]
+        by_drone, dropped = self.pending.touch(t, dict)
+        by_drone.setdefault(drone, {})[kind] = msg
+        # Forget what can no longer be matched: stamps pushed out of the window of the latest to arrive.
+        for old, drones in dropped:
+            for d in drones:
                 self.stats["unmatched"] += 1
-                self.get_logger().warning(f"{key[0]}: inputs of stamp {key[1]} never all arrived; dropped "
+                self.get_logger().warning(f"{d}: inputs of stamp {old} never all arrived; dropped "
                                           f"({self.stats['unmatched']} so far)")
+        self._try(drone, t)
 
     def _labeller(self, width: int, height: int, fx: float) -> Labeller:
         if not (np.isfinite(fx) and fx > 0) or width <= 0 or height <= 0:
@@ -153,15 +151,19 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         return self.labellers[key]
 
     def _try(self, drone: str, t: int) -> None:
-        got = self.pending.get((drone, t))
-        if not got or len(got) < 3 or t not in self.scenes:
+        by_drone = self.pending.get(t) or {}
+        got = by_drone.get(drone)
+        scene = self.scenes.get(t)
+        if not got or len(got) < 3 or scene is None:
             return
-        del self.pending[(drone, t)]
+        del by_drone[drone]
+        if not by_drone:
+            self.pending.pop(t)
         t0 = time.perf_counter()
         try:
             info: CameraInfo = got["info"]
             labeller = self._labeller(int(info.width), int(info.height), float(info.k[0]))
-            labels = labeller.label(self.scenes[t], drone, image_array(got["instances"]), image_array(got["depth"]))
+            labels = labeller.label(scene, drone, image_array(got["instances"]), image_array(got["depth"]))
         except (ZebraSimError, KeyError, ValueError, TypeError, IndexError, ArithmeticError) as exc:
             self.stats["bad_messages"] += 1  # an instance image with inf in it (32FC1), say
             self.get_logger().error(f"{drone} stamp {t}: frame skipped ({type(exc).__name__}: {exc})")

@@ -186,22 +186,57 @@ def box_marker(header: Header, ns: str, boxes: Iterable[tuple[Sequence[float], C
                        outline_color=first or ColorRGBA(), points=points, outline_colors=colors)
 
 
+V = TypeVar("V")
+
+
+class RecentStamps(Generic[V]):
+    """Values by stamp (ns), keeping the ``window`` stamps that arrived last. Not the largest ``window``: a restarted
+    placer or a looping replay sends older stamps again, and those must be kept, not forgotten as they arrive."""
+
+    def __init__(self, window: int) -> None:
+        self.window = window
+        self.items: dict[int, V] = {}  # in order of arrival, the latest last
+
+    def __contains__(self, t: int) -> bool:
+        return t in self.items
+
+    def get(self, t: int) -> V | None:
+        return self.items.get(t)
+
+    def pop(self, t: int) -> V | None:
+        return self.items.pop(t, None)
+
+    def touch(self, t: int, make: Callable[[], V]) -> tuple[V, list[tuple[int, V]]]:
+        """Stamp ``t``'s value (``make()`` if new), now the latest arrival; and the stamps this pushed out."""
+        v = self.items.pop(t) if t in self.items else make()
+        return v, self.put(t, v)
+
+    def put(self, t: int, v: V) -> list[tuple[int, V]]:
+        """Set stamp ``t``'s value, now the latest arrival; returns the stamps (and values) this pushed out."""
+        self.items.pop(t, None)
+        self.items[t] = v
+        out: list[tuple[int, V]] = []
+        while len(self.items) > self.window:
+            old = next(iter(self.items))
+            out.append((old, self.items.pop(old)))
+        return out
+
+
 class StepAcks:
     """Acknowledges a stamp on :data:`ACK_TOPIC` as ``name`` once each of ``parts`` (drones, image topics) is
-    done with it, for the placer's lockstep; remembers the last ``window`` stamps. No name: no acknowledgements."""
+    done with it, for the placer's lockstep; remembers the last ``window`` stamps to arrive. No name: no
+    acknowledgements."""
 
-    def __init__(self, node: Node, name: str, parts: Iterable[str], window: int) -> None:
+    def __init__(self, node: Node | None, name: str, parts: Iterable[str], window: int) -> None:
         self.name, self.parts, self.window = name, frozenset(parts), window
-        self.pub = node.create_publisher(Header, ACK_TOPIC, qos("reliable", 100)) if name else None
-        self.done: dict[int, set[str]] = {}
+        self.pub = node.create_publisher(Header, ACK_TOPIC, qos("reliable", 100)) if name and node else None
+        self.done: RecentStamps[set[str]] = RecentStamps(window)
 
     def part_done(self, stamp_msg: Time, part: str) -> bool:
         """Note ``part`` done with this stamp; True (and acknowledged, with a name) when it was the last one."""
         t = stamp_ns(stamp_msg)
-        done = self.done.setdefault(t, set())
+        done, _ = self.done.touch(t, set)
         done.add(part)
-        for old in sorted(self.done)[:-self.window]:
-            del self.done[old]
         complete = done >= self.parts
         if complete and self.pub is not None:
             self.pub.publish(Header(stamp=stamp_msg, frame_id=self.name))
