@@ -52,6 +52,23 @@ def test_a_generated_folder_is_read_through_its_yaml(dataset: Path) -> None:
     assert files and files == sorted((dataset / "images" / "train").glob("*.jpg"))
 
 
+def test_a_world_named_twice_and_finalizing_a_folder_never_generated_are_refused_by_name(tmp_path: Path,
+                                                                                      cli: CliRun) -> None:
+    """``--worlds savanna,savanna`` planned every savanna step twice (two jobs for one frame); ``--finalize-only`` on a
+    folder that generate never wrote ended in a traceback about coco/train.json. Both are refused, naming the
+    option."""
+    from zebra_sim_ros.dataset.generate import finalize
+    from zebra_sim_ros.errors import ParameterError
+
+    with pytest.raises(ParameterError, match=r"'--worlds' = 'savanna,zoo,savanna'.*each world once"):
+        GenerateConfig(out=str(tmp_path / "x"), frames=6, worlds=("savanna", "zoo", "savanna")).check()
+    with pytest.raises(ParameterError, match=r"'--out'.*nope.*annotations/"):
+        finalize(tmp_path / "nope")
+    r = cli(["generate", "--frames", "1", "--out", tmp_path / "nope", "--finalize-only"])
+    assert r.returncode == 2 and "annotations/" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    assert not (tmp_path / "nope").exists()
+
+
 def test_a_folder_whose_name_yaml_would_misread_is_still_the_yaml_path(dataset: Path, tmp_path: Path) -> None:
     """dataset.yaml quotes its path: a folder named with " #" (a YAML comment) or ": " (a mapping) is read back
     whole, and the trainer's loader finds its images through it."""

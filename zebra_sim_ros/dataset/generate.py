@@ -109,6 +109,8 @@ class GenerateConfig:
             raise ParameterError("--strategy", self.strategy, f"one of {STRATEGIES} (or the sets SF, SC)")
         if not self.worlds:
             raise ParameterError("--worlds", "", "at least one world")
+        if len(set(self.worlds)) != len(self.worlds):  # a world named twice would plan its steps twice
+            raise ParameterError("--worlds", ",".join(self.worlds), "each world once")
         if self.image_format not in ("jpg", "png"):
             raise ParameterError("--format", self.image_format, "jpg or png")
         if not 1 <= self.jpeg_quality <= 100:
@@ -494,6 +496,9 @@ def format_histogram(hist: dict[str, int], width: int = 40) -> list[str]:
 
 def finalize(out: Path, cfg: GenerateConfig | None = None) -> dict[str, Any]:
     """Rebuild coco/{train,val}.json, the split lists and dataset.yaml from the annotation files."""
+    out = Path(out)
+    if not (out / "annotations").is_dir():
+        raise ParameterError("--out", str(out), "a folder generate has written (it holds annotations/)")
     images: dict[str, list[dict[str, Any]]] = {"train": [], "val": []}
     anns: dict[str, list[dict[str, Any]]] = {"train": [], "val": []}
     kept = 0
