@@ -87,6 +87,23 @@ def test_placer_and_three_cameras_in_lockstep(tmp_path: Path) -> None:
         peer.close()
 
 
+def test_a_camera_that_does_not_acknowledge_has_no_acknowledgement_publisher(tmp_path: Path) -> None:
+    """``ack:=false``: the camera offers nothing on zebra_sim/frame_done, so a lockstep placer, which starts once an
+    acknowledger publishes there, does not start on its account (it did, racing ahead of the real acknowledgers)."""
+    domain = fresh_domain_id()
+    peer = Peer(domain, "test_camera_ack")
+    node, ex = peer.node, peer.ex
+    try:
+        log = tmp_path / "camera.log"
+        with node_process("camera", {"drone_index": 0, "width": 64, "height": 48, "ack": False}, domain, log):
+            assert spin_until(node, ex, lambda: node.count_publishers("/drone_0/image_raw") > 0, 60), log.read_text()
+            spin_until(node, ex, lambda: False, 0.5)  # its other publishers are announced with the first
+            assert node.count_publishers("/drone_0/camera_info") == 1
+            assert node.count_publishers("/zebra_sim/frame_done") == 0
+    finally:
+        peer.close()
+
+
 def test_bad_camera_parameter_stops_the_node() -> None:
     proc = run_node_once("camera", {"jpeg_quality": 150})
     assert proc.returncode == 2

@@ -75,7 +75,8 @@ class CameraNode(ZebraNode[CameraConfig]):
         self.pub_depth = self.create_publisher(Image, f"{c.name}/depth", out_qos)
         self.pub_ids = self.create_publisher(Image, f"{c.name}/instances", out_qos)
         self.pub_info = self.create_publisher(CameraInfo, f"{c.name}/camera_info", out_qos)
-        self.pub_ack = self.create_publisher(Header, ACK_TOPIC, qos("reliable", 100))
+        # only when it acknowledges: a lockstep placer starts once an acknowledger publishes on the topic
+        self.pub_ack = self.create_publisher(Header, ACK_TOPIC, qos("reliable", 100)) if c.ack else None
         self.create_subscription(String, SCENE_TOPIC, self._on_scene, scene_qos)
         self.get_logger().info(
             f"{c.name}: {c.width}x{c.height}, hfov {c.hfov_deg} deg, shadows {c.shadows}, effects "
@@ -138,7 +139,7 @@ class CameraNode(ZebraNode[CameraConfig]):
         self.pub_ids.publish(image_msg(header, view.instances.astype("<u2"), "mono16"))
         self.pub_info.publish(camera_info_msg(header, view.K, c.width, c.height))
         self.frames += 1
-        if c.ack:
+        if self.pub_ack is not None:
             self.pub_ack.publish(Header(stamp=header.stamp, frame_id=c.name))
         if self.frames % 20 == 1:
             store = self.sim.renderer.coat_store if self.sim is not None else None
