@@ -146,7 +146,7 @@ def test_ctrl_c_while_replay_waits_ends_it_at_once_and_cleanly(peer: Peer, tmp_p
         t0 = time.monotonic()
         os.killpg(proc.pid, signal.SIGINT)
         assert proc.wait(timeout=10) == 0, log.read_text()
-        assert time.monotonic() - t0 < 5
+        assert time.monotonic() - t0 < 8  # not the 30 s it would have waited for the next message
     assert "replay failed" not in log.read_text() and got == ["tick 0"], log.read_text()
 
 

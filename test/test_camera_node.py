@@ -96,9 +96,10 @@ def test_a_camera_that_does_not_acknowledge_has_no_acknowledgement_publisher(tmp
     try:
         log = tmp_path / "camera.log"
         with node_process("camera", {"drone_index": 0, "width": 64, "height": 48, "ack": False}, domain, log):
-            assert spin_until(node, ex, lambda: node.count_publishers("/drone_0/image_raw") > 0, 60), log.read_text()
-            spin_until(node, ex, lambda: False, 0.5)  # its other publishers are announced with the first
-            assert node.count_publishers("/drone_0/camera_info") == 1
+            # its scene subscription is made after where the acknowledgement publisher would be: once this side
+            # has discovered it, it would have discovered that publisher too
+            assert spin_until(node, ex, lambda: node.count_subscribers("/zebra_sim/scene") > 0, 60), log.read_text()
+            assert spin_until(node, ex, lambda: node.count_publishers("/drone_0/camera_info") == 1, 10)
             assert node.count_publishers("/zebra_sim/frame_done") == 0
     finally:
         peer.close()

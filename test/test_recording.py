@@ -105,20 +105,14 @@ def test_size_cap_ends_with_a_finalised_bag(tmp_path: Path) -> None:
     assert path.read_bytes() == finished
 
 
-def test_a_cap_under_two_chunks_still_records_up_to_it(tmp_path: Path) -> None:
-    """The room kept under the cap is what the open chunk holds, not two whole chunks: a 1.5 MB cap with 1 MB chunks
-    records about a megabyte and a half (it refused the first message), and the bag still ends under its cap."""
-    w = BagWriter(tmp_path / "c.mcap", chunk_size=1 << 20, max_bytes=1_500_000, compression="none")
-    w.add_channel("/text", "std_msgs/msg/String", [profile_dict()])
-    written = 0
-    with pytest.raises(BagFullError, match="size cap"):
-        for i in range(100_000):
-            w.write("/text", serialize_message(String(data="x" * 200 + str(i))), 10**9 + i)
-            written += 1
-    [path] = w.close()
-    assert 1_000_000 < path.stat().st_size <= 1_500_000 and written > 4000, (path.stat().st_size, written)
-    with open(path, "rb") as f:
-        assert make_reader(f).get_summary().statistics.message_count == written
+def test_a_cap_under_two_chunks_is_refused_by_name(tmp_path: Path) -> None:
+    """The writer keeps two chunks and 16 KiB under its cap, so a smaller cap is refused when the bag is opened
+    (naming it and the least it takes), not by a BagFullError on the first message."""
+    from zebra_sim_ros.errors import ParameterError
+
+    with pytest.raises(ParameterError, match=r"'max_bytes' = 1500000.*2113536 bytes with chunks of 1048576"):
+        BagWriter(tmp_path / "c.mcap", chunk_size=1 << 20, max_bytes=1_500_000)
+    assert not (tmp_path / "c.mcap").exists()
 
 
 def test_output_names_never_collide_and_an_unwritable_one_is_named(tmp_path: Path) -> None:

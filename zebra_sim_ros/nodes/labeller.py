@@ -1,8 +1,9 @@
 """The ``labeller`` node: exact ground truth for every drone frame (``ros2 run zebra_sim_ros labeller``).
 
 Subscribes ``zebra_sim/scene`` and, per drone in ``drones``, ``<drone>/instances``, ``<drone>/depth`` and
-``<drone>/camera_info``; matches them by stamp (frames whose inputs do not all arrive within ``sync_window``
-newer stamps are dropped and counted) and publishes per drone, with the image's stamp:
+``<drone>/camera_info``; matches them by stamp (frames whose inputs do not all arrive before ``sync_window``
+other stamps have arrived after theirs are dropped and counted; a stamp older than those seen, from a restarted
+placer or a looping replay, is a new one) and publishes per drone, with the image's stamp:
 
 - ``<drone>/labels`` (std_msgs/String): the label JSON (schema in ``zebra_sim_ros.labels.labeller``);
 - ``<drone>/labels/markers`` (visualization_msgs/ImageMarker): one LINE_LIST with every zebra's visible box

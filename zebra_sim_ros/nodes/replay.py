@@ -138,8 +138,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             if pub is None:
                 continue
             if pace is None:  # every publisher known so far should have a subscriber (up to wait_for_subscribers_s)
-                while time.monotonic() < wait_until and any(p is not None and p.get_subscription_count() == 0
-                                                            for p in self.pubs.values()):
+                while not self.done and time.monotonic() < wait_until and any(
+                        p is not None and p.get_subscription_count() == 0 for p in self.pubs.values()):
                     time.sleep(0.01)
                 pace = _Pace(rel, self.cfg.rate)
             self._wait(pace, rel, t0_bag, m.log_time)
@@ -169,7 +169,6 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             if now >= target:
                 return
             time.sleep(min(target - now, period / 2 if self.clock_pub else 0.05))
-
 
     def stop(self) -> None:
         """End the play thread before the node's publishers go (it would publish through destroyed ones)."""

@@ -238,6 +238,8 @@ class StepAcks:
         done, _ = self.done.touch(t, set)
         done.add(part)
         complete = done >= self.parts
+        if complete:  # a step sent again (a restarted placer, a re-sent step) is acknowledged when all are done again
+            self.done.pop(t)
         if complete and self.pub is not None:
             self.pub.publish(Header(stamp=stamp_msg, frame_id=self.name))
         return complete

@@ -47,6 +47,9 @@ class BagWriter:
             raise ParameterError("compression", compression, f"one of {sorted(COMPRESSIONS)}")
         if chunk_size < 1024:
             raise ParameterError("chunk_size", chunk_size, ">= 1024 bytes")
+        if 0 < max_bytes < 2 * chunk_size + 16384:  # the room write() keeps under the cap (the recorder checks too)
+            raise ParameterError("max_bytes", max_bytes, f"0 or at least two chunks and 16 KiB for the summary "
+                                 f"({2 * chunk_size + 16384} bytes with chunks of {chunk_size})")
         self.path = Path(path)
         if self.path.suffix != ".mcap":  # "run.1" -> "run.1.mcap": another name than "run.2" gets, never the same
             self.path = self.path.with_name(self.path.name + ".mcap")
@@ -89,18 +92,22 @@ class BagWriter:
         close() does not touch a closed stream."""
         writer, stream = self._writer, self._stream
         self._writer, self._stream = None, None
-        if writer is not None and stream is not None:
-            try:
-                writer.finish()
-            except OSError as exc:
-                if exc.errno == errno.ENOSPC:
-                    raise BagFullError(f"disk full while finishing {self.files[-1]}: {exc}") from exc
-                raise
-            finally:
-                try:
-                    self._closed_bytes += stream.tell()
-                finally:
-                    stream.close()
+        if writer is None or stream is None:
+            return
+        error: OSError | None = None
+        try:
+            writer.finish()
+        except OSError as exc:
+            error = exc
+        try:
+            self._closed_bytes += stream.tell()
+            stream.close()  # flushes: a full disk may say so here too
+        except OSError as exc:
+            error = error or exc
+        if error is not None:
+            if error.errno == errno.ENOSPC:
+                raise BagFullError(f"disk full while finishing {self.files[-1]}: {error}") from error
+            raise error
 
     def add_channel(self, topic: str, type_name: str, qos_profiles: list[dict[str, Any]]) -> None:
         """Declare a topic (``type_name`` like ``sensor_msgs/msg/Image``); its schema text is looked up now."""
@@ -131,10 +138,9 @@ class BagWriter:
         if self._writer is None:  # closed: reopening would truncate the finished file
             raise RuntimeError(f"write to {self.path} after close()")
         if self.max_bytes:
-            # Room kept for the open chunk (what it holds so far, each message with its record and index), the
-            # summary and the indexes, so the finished bag stays under the cap; a cap smaller than a chunk works too.
+            # Room kept for the open chunk, the summary and the indexes, so the finished bag stays under the cap.
             written = self.bytes_written
-            margin = self._unflushed + 64 + 16384 + written // 25
+            margin = 2 * self.chunk_size + 16384 + written // 25
             if written + len(data) + margin > self.max_bytes:
                 raise BagFullError(f"bag reached its size cap of {self.max_bytes} bytes ({written} written)")
         self._check_free_space(len(data))
