@@ -64,9 +64,11 @@ def test_a_world_named_twice_and_finalizing_a_folder_never_generated_are_refused
         GenerateConfig(out=str(tmp_path / "x"), frames=6, worlds=("savanna", "zoo", "savanna")).check()
     with pytest.raises(ParameterError, match=r"'--out'.*nope.*annotations/"):
         finalize(tmp_path / "nope")
-    r = cli(["generate", "--frames", "1", "--out", tmp_path / "nope", "--finalize-only"])
+    r = cli(["generate", "--out", tmp_path / "nope", "--finalize-only"])  # --frames: not needed to finalize
     assert r.returncode == 2 and "annotations/" in r.stderr and "Traceback" not in r.stderr, r.stderr
     assert not (tmp_path / "nope").exists()
+    r = cli(["generate", "--out", tmp_path / "nope"])
+    assert r.returncode == 2 and "'--frames'" in r.stderr and "Traceback" not in r.stderr, r.stderr
 
 
 def test_a_folder_whose_name_yaml_would_misread_is_still_the_yaml_path(dataset: Path, tmp_path: Path) -> None:

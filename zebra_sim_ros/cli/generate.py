@@ -22,7 +22,8 @@ def register(sub: Any) -> None:
 
     p = sub.add_parser("generate", help="generate a labelled dataset (images, masks, depth, YOLO, COCO)",
                        description=(layout or "").strip(), formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--frames", type=int, required=True, help="camera images in all (the paper: 36000)")
+    p.add_argument("--frames", type=int, default=None,
+                   help="camera images in all (the paper: 36000); required but with --finalize-only")
     p.add_argument("--strategy", default="both",
                    help="far, closeby, low (ground level), nadir (survey drone looking down), both (far and "
                         "closeby, half each), all (the four, a quarter each), or the paper's sets SF (= both) and SC "
@@ -77,6 +78,9 @@ def cmd_generate(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.labels.config import LabelFilters
     from zebra_sim_ros.world.presets import PRESETS
 
+    if args.frames is None and not args.finalize_only:
+        raise ParameterError("--frames", None, "the number of camera images to generate (only --finalize-only "
+                             "goes without)")
     width, height = parse_imgsz(args.imgsz)
     try:
         i, n = (int(v) for v in args.shard.split("/"))
@@ -89,8 +93,9 @@ def cmd_generate(args: argparse.Namespace) -> Summary:
             raise ParameterError("--set", item, "NAME=VALUE")
         name, raw = item.split("=", 1)
         placer[name.strip()] = yaml.safe_load(raw)
+    frames = 1 if args.frames is None else args.frames  # finalizing counts none
     cfg = GenerateConfig(
-        out=str(args.out), frames=args.frames, strategy=NAMED_SETS.get(args.strategy, args.strategy), worlds=worlds,
+        out=str(args.out), frames=frames, strategy=NAMED_SETS.get(args.strategy, args.strategy), worlds=worlds,
         seed=args.seed, world_seed=args.world_seed, width=width, height=height, hfov_deg=args.hfov_deg,
         image_format=args.format, jpeg_quality=args.jpeg_quality, workers=args.workers, shard=(i, n),
         sensor_strength=args.sensor_strength, look=args.look, other_animals=args.other_animals_max,
