@@ -71,6 +71,32 @@ def test_a_world_named_twice_and_finalizing_a_folder_never_generated_are_refused
     assert r.returncode == 2 and "'--frames'" in r.stderr and "Traceback" not in r.stderr, r.stderr
 
 
+def test_a_folder_is_continued_only_with_the_settings_its_frames_were_written_with(dataset: Path,
+                                                                                    tmp_path: Path) -> None:
+    """Continuing a folder with another frame size (or split, or placer setting) would mix two kinds of frame in
+    one dataset: refused, naming the setting, every file left as it was. More frames and other workers continue
+    it. The settings are recorded when a run starts, so a run cut short is checked as well."""
+    import shutil
+
+    from zebra_sim_ros.errors import ParameterError
+
+    out = tmp_path / "more"
+    shutil.copytree(dataset, out)
+    before = {q: q.read_bytes() for q in out.rglob("*") if q.is_file()}
+    for change, named in (({"width": 352}, "width 320 there, 352 now"), ({"val_fraction": 0.5}, "val_fraction"),
+                          ({"placer": {"count_max": 61}}, "placer")):
+        with pytest.raises(ParameterError, match=rf"'--out'.*{named}"):
+            generate(GenerateConfig(out=str(out), **{**SMALL, **change}), progress=lambda *a: None)
+        assert {q: q.read_bytes() for q in out.rglob("*") if q.is_file()} == before
+    stats = generate(GenerateConfig(out=str(out), **{**SMALL, "frames": 15, "workers": 2}), progress=lambda *a: None)
+    assert stats["frames_skipped_complete"] == 12 and stats["frames_written"] > 0  # the twelve kept, more added
+    cut = tmp_path / "cut"
+    cut.mkdir()
+    (cut / "generate.json").write_text(json.dumps({"config": {"width": 640, "seed": 5}, "stats": None}))
+    with pytest.raises(ParameterError, match="width 640 there, 320 now"):  # a run cut short left only this
+        generate(GenerateConfig(out=str(cut), **SMALL), progress=lambda *a: None)
+
+
 def test_a_folder_whose_name_yaml_would_misread_is_still_the_yaml_path(dataset: Path, tmp_path: Path) -> None:
     """dataset.yaml quotes its path: a folder named with " #" (a YAML comment) or ": " (a mapping) is read back
     whole, and the trainer's loader finds its images through it."""

@@ -15,7 +15,7 @@ Layout of the output folder::
                                          step, world, lighting, camera pose and intrinsics, split, COCO RLEs
     coco/{train,val}.json                COCO (boxes, keypoints with skeleton, visibility, RLE masks)
     dataset.yaml                         for YOLO trainers (path, train, val, names)
-    generate.json                        the settings and the last run's statistics
+    generate.json                        the settings (from a run's start) and the last run's statistics
 
 A frame is ``<world>_<strategy>_<seed>_<step>_<camera>``. The split is by placement (a placement's steps
 and cameras never straddle train and val): about 20% of placements go to val, chosen by a hash of world, seed
@@ -427,6 +427,27 @@ def _check_same_asset(out: Path, have: list[str]) -> None:
                                      f"were rendered with {what} {then}, this code renders {what} {ours}")
 
 
+_RESUMABLE = ("frames", "workers", "shard", "out")  # settings a run may change when it continues a folder
+
+
+def _check_same_settings(out: Path, settings: dict[str, Any]) -> None:
+    """Refuse to continue a folder whose frames were written with other settings (another size, split, look,
+    placer...): a resumed run would mix them in one dataset. ``generate.json`` holds them from the start of every
+    run; more frames, other workers or another shard may continue it. A setting the record lacks (written by an
+    older version) is not compared."""
+    try:
+        then = json.loads((out / "generate.json").read_text())["config"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return
+    if not isinstance(then, dict):
+        return
+    ours = json.loads(json.dumps(settings))  # tuples as lists, as the record holds them
+    for key, value in ours.items():
+        if key not in _RESUMABLE and key in then and then[key] != value:
+            raise ParameterError("--out", str(out), f"a new folder, or the settings its frames were written with "
+                                 f"({key} {then[key]!r} there, {value!r} now)")
+
+
 def generate(cfg: GenerateConfig, progress: Callable[[int, int, float], None] | None = None) -> dict[str, Any]:
     """Run (or continue) a generation; returns statistics. Rebuilds COCO and the YAML at the end."""
     from zebra_sim_ros.placement.config import PlacerConfig
@@ -441,6 +462,10 @@ def generate(cfg: GenerateConfig, progress: Callable[[int, int, float], None] | 
     jobs = plan(cfg, len(cameras))
     have = {p.stem for p in (out / "annotations").glob("*.json")}
     _check_same_asset(out, sorted(have))
+    settings = _config_json(cfg)
+    _check_same_settings(out, settings)
+    if not (out / "generate.json").is_file():  # the settings from the start: an interrupted run is checked too
+        (out / "generate.json").write_text(json.dumps({"config": settings, "stats": None}, indent=1))
     todo = [j for j in jobs if not all(frame_name(j, c) in have for c in cameras)]
     total = len(todo) * len(cameras)
     t0 = time.perf_counter()
@@ -463,7 +488,7 @@ def generate(cfg: GenerateConfig, progress: Callable[[int, int, float], None] | 
     stats = {"frames_written": done, "frames_skipped_complete": len(jobs) * len(cameras) - total,
              "seconds": round(seconds, 2), "frames_per_s": round(done / seconds, 3) if done else None,
              "time_split_s": {k: round(v, 2) for k, v in times.items()}, **counts}
-    (out / "generate.json").write_text(json.dumps({"config": _config_json(cfg), "stats": stats}, indent=1))
+    (out / "generate.json").write_text(json.dumps({"config": settings, "stats": stats}, indent=1))
     return stats
 
 
