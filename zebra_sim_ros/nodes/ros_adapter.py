@@ -228,7 +228,7 @@ class StepAcks:
     acknowledgements."""
 
     def __init__(self, node: Node | None, name: str, parts: Iterable[str], window: int) -> None:
-        self.name, self.parts, self.window = name, frozenset(parts), window
+        self.name, self.parts = name, frozenset(parts)
         self.pub = node.create_publisher(Header, ACK_TOPIC, qos("reliable", 100)) if name and node else None
         self.done: RecentStamps[set[str]] = RecentStamps(window)
 

@@ -410,16 +410,18 @@ class Renderer:
         self.p_terrain["u_ground_desat"].value = g.desaturation
         self.p_veg["u_veg_tint"].value = g.vegetation_tint
         self.p_veg["u_detail"].value = 1.0 if self.options.detail else 0.0
-        seen = np.zeros(zebras.count, dtype=bool)
-        for v in views:
-            seen |= self._in_view(zebras, self._view_planes(v))
-        layers = self._layers(zebras, seen)
+        # one culling per view, for the coats (those of animals no view sees are never baked) and the draws alike
+        frusta = [self._frustum(v) for v in views]
+        in_view = [self._in_view(zebras, planes) for _, planes in frusta]
+        layers = self._layers(zebras, np.logical_or.reduce(in_view, axis=0) if in_view
+                              else np.zeros(zebras.count, dtype=bool))
         self._upload_contact(zebras)
         if "u_detail" in self.p_zebra:
             self.p_zebra["u_detail"].value = 1.0 if self.options.detail else 0.0
         if "u_ground_z" in self.p_zebra:
             self.p_zebra["u_ground_z"].value = float(np.median(zebras.position[:, 2])) if zebras.count else 0.0
-        return [self._render_view(zebras, layers, lighting, v) for v in views]
+        return [self._render_view(zebras, layers, lighting, v, vp, planes, vis)
+                for v, (vp, planes), vis in zip(views, frusta, in_view, strict=True)]
 
     def _surface_weights(self, colours: NDArray[np.float32]) -> NDArray[np.float32]:
         """The world's surface classes per terrain sample (grass, soil, rock, wet), or ones read off the colours."""
@@ -489,14 +491,12 @@ class Renderer:
         return proj @ view_m
 
     def _render_view(self, zebras: ZebraSet, layers: NDArray[np.float32], lighting: Lighting,
-                     view: CameraView) -> RenderedView:
+                     view: CameraView, vp: FloatArray, planes: FloatArray, in_view: NDArray[np.bool_]) -> RenderedView:
         o = self.options
         times: dict[str, float] = {}
         t0 = time.perf_counter()
         pos = np.asarray(view.position, dtype=np.float64)
-        vp = perspective(self.camera, o.near_m, o.far_m) @ view_matrix(pos, view.r_optical)
-        planes = self._view_planes(view)  # as render() found the animals to give coats to
-        counts = self._cull_zebras(zebras, layers, planes, pos)
+        counts = self._cull_zebras(zebras, layers, in_view, pos)
         veg_counts = self._cull_vegetation(planes, pos)
         times["prepare"] = time.perf_counter() - t0
 
@@ -529,12 +529,12 @@ class Renderer:
         times["zebras_lod0"], times["zebras_lod1"] = counts[0], counts[1]
         return RenderedView(view.name, rgb, depth, id16, self.camera.K, times)
 
-    def _view_planes(self, view: CameraView) -> FloatArray:
-        """The frustum planes of ``view`` (:func:`_frustum_planes`): the one culling of the animals, for their coats
-        (:meth:`render`) and their draws (:meth:`_render_view`) alike."""
-        pos = np.asarray(view.position, dtype=np.float64)
+    def _frustum(self, view: CameraView) -> tuple[FloatArray, FloatArray]:
+        """The view-projection matrix of ``view`` and its frustum planes (:func:`_frustum_planes`)."""
         o = self.options
-        return _frustum_planes(perspective(self.camera, o.near_m, o.far_m) @ view_matrix(pos, view.r_optical))
+        vp = perspective(self.camera, o.near_m, o.far_m) @ view_matrix(np.asarray(view.position, dtype=np.float64),
+                                                                       view.r_optical)
+        return vp, _frustum_planes(vp)
 
     @staticmethod
     def _in_view(zebras: ZebraSet, planes: FloatArray) -> NDArray[np.bool_]:
@@ -543,14 +543,14 @@ class Renderer:
             return np.zeros(0, dtype=bool)
         return _spheres_visible(planes, zebras.position, 2.5 * zebras.scale + 0.5)
 
-    def _cull_zebras(self, zebras: ZebraSet, layers: NDArray[np.float32], planes: FloatArray,
+    def _cull_zebras(self, zebras: ZebraSet, layers: NDArray[np.float32], vis: NDArray[np.bool_],
                      pos: FloatArray) -> dict[int, int]:
-        """Fill each level of detail's buffers with the zebras in view (near: LOD 0, far: LOD 1); counts per LOD."""
+        """Fill each level of detail's buffers with the zebras ``vis`` marks in view (near: LOD 0, far: LOD 1);
+        counts per LOD."""
         o = self.options
         counts = {0: 0, 1: 0}
         if zebras.count:
             d = np.linalg.norm(zebras.position - pos, axis=1)
-            vis = self._in_view(zebras, planes)
             for lod, mask in ((0, d < o.zebra_detail_distance_m), (1, d >= o.zebra_detail_distance_m)):
                 counts[lod] = self._zebra_buffers(zebras, layers, np.flatnonzero(vis & mask), lod)
         return counts
