@@ -113,6 +113,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                     break
                 self.reader = BagReader.open(self.bags)
         except Exception as exc:  # noqa: BLE001 - reported, and the node ends with an error status
+            if self.done or not self.context.ok():  # Ctrl-C: rclpy's handler ended the context under this thread
+                return
             self.get_logger().error(f"replay failed: {type(exc).__name__}: {exc}")
             self.exit_code = 1
         finally:
