@@ -124,3 +124,20 @@ def detections_dict(msg: Any) -> dict[str, Any]:
                     "class_name": hyp.class_id, "id": d.id, "frame_id": d.header.frame_id})
     return {"stamp": {"sec": msg.header.stamp.sec, "nanosec": msg.header.stamp.nanosec},
             "frame_id": msg.header.frame_id, "detections": out}
+
+
+def collect_diagnostics(node: Any, name: str) -> list[dict[str, Any]]:
+    """Subscribe ``node`` to /diagnostics; the returned list fills, as it spins, with the statuses named ``name``
+    (``<node>: <executable>``) as {level (int), message, hardware_id, values (dict)}."""
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    got: list[dict[str, Any]] = []
+
+    def on_array(msg: DiagnosticArray) -> None:
+        for s in msg.status:
+            if s.name == name:
+                level = s.level[0] if isinstance(s.level, bytes) else int(s.level)
+                got.append({"level": level, "message": s.message, "hardware_id": s.hardware_id,
+                            "values": {kv.key: kv.value for kv in s.values}})
+    node.create_subscription(DiagnosticArray, "/diagnostics", on_array, 50)
+    return got

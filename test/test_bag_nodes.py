@@ -13,7 +13,7 @@ from cli_helpers import CliRun
 from mcap.reader import make_reader
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
-from ros_helpers import Peer, fresh_domain_id, node_process
+from ros_helpers import Peer, collect_diagnostics, fresh_domain_id, node_process
 from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header, String
@@ -29,6 +29,10 @@ def peer():  # type: ignore[no-untyped-def]
     p = Peer(fresh_domain_id())
     yield p
     p.close()
+
+
+# the recorder's own /diagnostics left out where a test counts what it recorded
+ONLY_DATA = {"exclude_regex": "^/(rosout|parameter_events|diagnostics)$"}
 
 
 def _domain(peer: Peer) -> int:
@@ -47,7 +51,7 @@ def test_record_a_live_graph_and_read_it_back(peer: Peer, tmp_path: Path) -> Non
     pub_s = peer.node.create_publisher(String, "/zebra_sim/scene", latched)
     pub_i = peer.node.create_publisher(Image, "/drone_0/image_raw", 10)
     bag = tmp_path / "live.mcap"
-    with node_process("recorder", {"output": str(bag), "discovery_period_s": 0.1}, _domain(peer),
+    with node_process("recorder", {"output": str(bag), "discovery_period_s": 0.1, **ONLY_DATA}, _domain(peer),
                       tmp_path / "rec.log") as rec:
         subscribed = lambda: all(peer.node.count_subscribers(t) > 0  # noqa: E731
                                  for t in ("/drone_0/image_raw", "/zebra_sim/scene"))
@@ -81,7 +85,7 @@ def test_sigterm_finalises_the_bag(peer: Peer, tmp_path: Path) -> None:
     pub = peer.node.create_publisher(String, "/chatter",
                                      QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL))
     bag = tmp_path / "term.mcap"
-    with node_process("recorder", {"output": str(bag), "discovery_period_s": 0.1}, _domain(peer),
+    with node_process("recorder", {"output": str(bag), "discovery_period_s": 0.1, **ONLY_DATA}, _domain(peer),
                       tmp_path / "rec.log") as rec:
         assert peer.spin(lambda: peer.node.count_subscribers("/chatter") > 0, 30)
         assert bag.exists()  # created at start: an empty recording is an empty, valid bag
@@ -100,7 +104,7 @@ def test_sigterm_finalises_the_bag(peer: Peer, tmp_path: Path) -> None:
 def test_sigkill_then_recover(peer: Peer, tmp_path: Path, cli: CliRun) -> None:
     pub = peer.node.create_publisher(Image, "/drone_0/image_raw", 100)
     bag = tmp_path / "killed.mcap"
-    with node_process("recorder", {"output": str(bag), "discovery_period_s": 0.1, "chunk_size_mb": 0.05},
+    with node_process("recorder", {"output": str(bag), "discovery_period_s": 0.1, "chunk_size_mb": 0.05, **ONLY_DATA},
                       _domain(peer), tmp_path / "rec.log") as rec:
         assert peer.spin(lambda: peer.node.count_subscribers("/drone_0/image_raw") > 0, 30)
         for k in range(150):
@@ -201,17 +205,27 @@ def test_a_cut_bag_replays_its_first_half_and_says_so(peer: Peer, tmp_path: Path
 
 def test_a_full_bag_ends_with_a_finalised_file_and_an_error(peer: Peer, tmp_path: Path) -> None:
     pub = peer.node.create_publisher(Image, "/drone_0/image_raw", 100)
+    status = collect_diagnostics(peer.node, "recorder: recorder")
     bag = tmp_path / "capped.mcap"
     with node_process("recorder", {"output": str(bag), "discovery_period_s": 0.1, "max_size_mb": 0.3,
-                                   "chunk_size_mb": 0.02, "compression": "none"},
+                                   "chunk_size_mb": 0.02, "compression": "none", "diagnostics_period_s": 0.2},
                       _domain(peer), tmp_path / "rec.log") as rec:
         assert peer.spin(lambda: peer.node.count_subscribers("/drone_0/image_raw") > 0, 30)
+        assert peer.spin(lambda: len(status) > 0, 30), (tmp_path / "rec.log").read_text()  # before it records
         for k in range(200):
             pub.publish(_image(k))
             peer.spin(lambda: False, 0.01)
         assert rec.wait(timeout=30) == 1
     log = (tmp_path / "rec.log").read_text()
     assert "recording ended" in log and "size cap" in log
+    # /diagnostics: OK while it recorded, then, before the node exits, one last status that says why it ended
+    assert peer.spin(lambda: any(s["level"] == 2 for s in status), 5), status
+    assert status[0]["level"] == 0 and status[0]["values"]["output"] == str(bag)
+    assert status[-1]["level"] == 2 and "recording ended" in status[-1]["message"] and \
+        "size cap" in status[-1]["message"], status[-1]
+    levels = [s["level"] for s in status]
+    assert all(x == 2 for x in levels[levels.index(2):]), levels  # once ended, it stays an error to the last
+    assert 5 < int(status[-1]["values"]["messages"]) < 200
     with open(bag, "rb") as f:
         n = make_reader(f, validate_crcs=True).get_summary().statistics.message_count
     assert 5 < n < 200 and bag.stat().st_size <= 0.3 * (1 << 20)

@@ -9,6 +9,7 @@ import pytest
 from builtin_interfaces.msg import Time
 from ros_helpers import (
     Peer,
+    collect_diagnostics,
     detection_array_class,
     detections_dict,
     fresh_domain_id,
@@ -58,9 +59,11 @@ def test_detections_keep_the_image_stamp(tmp_path: Path) -> None:
                              10)
     node.create_subscription(Image, "/drone_0/detections/image", annotated.append, 10)
     pub = node.create_publisher(Image, "/drone_0/image_raw", 10)
+    status = collect_diagnostics(node, "detector: detector")
     rgb = np.random.default_rng(0).integers(0, 255, (180, 320, 3), dtype=np.uint8)
     try:
-        params = {"image_topics": ["/drone_0/image_raw"], "weights": _weights(tmp_path), "imgsz": 320}
+        params = {"image_topics": ["/drone_0/image_raw"], "weights": _weights(tmp_path), "imgsz": 320,
+                  "diagnostics_period_s": 0.3}
         with node_process("detector", params, domain, tmp_path / "detector.log") as proc:
             assert spin_until(node, ex, lambda: node.count_subscribers("/drone_0/image_raw") > 0, 60), \
                 (tmp_path / "detector.log").read_text()
@@ -77,12 +80,22 @@ def test_detections_keep_the_image_stamp(tmp_path: Path) -> None:
                 if (seen := spin_until(node, ex, lambda: "unsupported encoding" in log_path.read_text(), 1.0)):
                     break
             assert seen, log_path.read_text()
+            # /diagnostics warns in the period the bad image was skipped in
+            assert spin_until(node, ex, lambda: any(s["level"] == 1 for s in status), 10), status
+            warn = next(s for s in status if s["level"] == 1)
+            assert "skipped" in warn["message"] and int(warn["values"]["skipped"]) >= 1, warn
             for k, s in enumerate(stamps):
                 pub.publish(_image(s, rgb, "bgr8" if k == 1 else "rgb8"))
                 spin_until(node, ex, lambda k=k: len(got) > k, 30)
             assert spin_until(node, ex, lambda: len(got) >= 3 and len(annotated) >= 3, 30), \
                 (tmp_path / "detector.log").read_text()
             assert proc.poll() is None  # the bad image did not stop it
+            # ... and is OK again once images are detected without a new problem
+            assert spin_until(node, ex, lambda: status[-1]["level"] == 0 and status[-1]["values"]["images"] == "3",
+                              10), status[-3:]
+        timed = [s for s in status if "seconds per image" in s["values"]]
+        assert timed and all(0 < float(s["values"]["seconds per image"]) < 30 for s in timed), status
+        assert {s["hardware_id"] for s in status} == {"cpu"} and status[-1]["values"]["verifier"] == "off"
         assert [(d["stamp"]["sec"], d["stamp"]["nanosec"]) for d in got] == [(s.sec, s.nanosec) for s in stamps]
         assert all(d["frame_id"] == "drone_0/camera_optical" for d in got)
         assert all(x["frame_id"] == "drone_0/camera_optical" and x["class_name"] == "zebra" for d in got

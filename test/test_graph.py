@@ -318,7 +318,7 @@ def test_readme_starts_with_the_two_commands_and_lists_every_topic_of_the_graph(
     assert [line.split("#")[0].strip() for line in first_block] == ["bash scripts/main.sh", "bash scripts/test.sh"]
     assert "scripts/test.sh" in (REPO / ".ci" / "run").read_text()
     topics = {re.sub(r"drone_\d+", "drone_{i}", t) for s in graph_spec(UpConfig()) for t in s.publishes}
-    for t in sorted(topics | {"/zebra_sim/frame_done", "/clock"}):
+    for t in sorted(topics | {"/zebra_sim/frame_done", "/clock", "/diagnostics"}):
         assert f"| `{t}` |" in readme, t
 
 

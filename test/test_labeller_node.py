@@ -7,7 +7,16 @@ from contextlib import ExitStack
 from pathlib import Path
 
 import pytest
-from ros_helpers import Peer, fresh_domain_id, node_process, run_node_once, spin_until
+from ros_helpers import (
+    Peer,
+    collect_diagnostics,
+    detection_array_class,
+    detections_dict,
+    fresh_domain_id,
+    node_process,
+    run_node_once,
+    spin_until,
+)
 from sensor_msgs.msg import Image
 from std_msgs.msg import String
 from visualization_msgs.msg import ImageMarker, MarkerArray
@@ -25,7 +34,14 @@ def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
     image_stamps: dict[str, set[int]] = {d: set() for d in DRONES}
     markers: dict[str, list[ImageMarker]] = {d: [] for d in DRONES}
     boxes: dict[str, list[MarkerArray]] = {d: [] for d in DRONES}
+    truth: dict[str, dict[int, dict]] = {d: {} for d in DRONES}
+    health = {n: collect_diagnostics(node, n)
+              for n in ("labeller: labeller", "placer: placer", "drone_1_camera: camera")}
     for d in DRONES:
+        def on_truth(m: object, d: str = d) -> None:
+            x = detections_dict(m)
+            truth[d][x["stamp"]["sec"] * 10**9 + x["stamp"]["nanosec"]] = x
+
         def on_labels(m: String, d: str = d) -> None:
             x = json.loads(m.data)
             labels[d][x["stamp"]["sec"] * 10**9 + x["stamp"]["nanosec"]] = x
@@ -37,16 +53,20 @@ def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
         node.create_subscription(Image, f"/{d}/image_raw", on_image, 10)
         node.create_subscription(ImageMarker, f"/{d}/labels/markers", markers[d].append, 10)
         node.create_subscription(MarkerArray, f"/{d}/labels/boxes3d", boxes[d].append, 10)
+        node.create_subscription(detection_array_class(), f"/{d}/labels/boxes2d", on_truth, 10)
     try:
         with ExitStack() as stack:
             for i, d in enumerate(DRONES):
                 params = {"drone_index": i, "width": 256, "height": 144, "shadow_size": 512}
-                stack.enter_context(node_process("camera", params, domain, tmp_path / f"{d}.log", name=f"{d}_camera"))
-            stack.enter_context(node_process("labeller", {"ack_name": "labeller", "image_reliability": "reliable"},
+                stack.enter_context(node_process("camera", {**params, "diagnostics_period_s": 0.5}, domain,
+                                                 tmp_path / f"{d}.log", name=f"{d}_camera"))
+            stack.enter_context(node_process("labeller", {"ack_name": "labeller", "image_reliability": "reliable",
+                                                          "diagnostics_period_s": 0.5},
                                              domain, tmp_path / "labeller.log"))
             # volatile topics: start the placer once this test has discovered the cameras' and labeller's
             # publishers, so that no first frame goes out before this test's subscriptions are matched
-            topics = [f"/{d}/{t}" for d in DRONES for t in ("image_raw", "labels", "labels/markers", "labels/boxes3d")]
+            topics = [f"/{d}/{t}" for d in DRONES
+                      for t in ("image_raw", "labels", "labels/markers", "labels/boxes3d", "labels/boxes2d")]
             assert spin_until(node, ex, lambda: all(node.count_publishers(t) for t in topics), 60), "nodes not up"
             spin_until(node, ex, lambda: False, 0.5)
             placer = stack.enter_context(node_process(
@@ -54,10 +74,21 @@ def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
                            "lockstep_ack_from": ["drone_0", "drone_1", "drone_2", "labeller"],
                            "camera_width": 256, "camera_height": 144}, domain, tmp_path / "placer.log"))
             ok = spin_until(node, ex, lambda: all(len(labels[d]) >= STEPS and set(labels[d]) <= image_stamps[d]
-                                                  for d in DRONES), 180)
+                                                  and len(truth[d]) >= STEPS for d in DRONES), 180)
             logs = "\n".join(p.read_text()[-1500:] for p in sorted(tmp_path.glob("*.log")))
             assert ok, logs
             assert placer.wait(timeout=60) == 0, logs
+            # the placer ended by itself and said so on /diagnostics; the labeller reports every frame it labelled
+            assert spin_until(node, ex, lambda: bool(health["placer: placer"]) and bool(health["labeller: labeller"])
+                              and int(health["labeller: labeller"][-1]["values"]["frames"]) >= STEPS * len(DRONES),
+                              10), health
+        last = health["placer: placer"][-1]
+        assert last["level"] == 0 and last["message"] == f"done: {STEPS} steps", last
+        assert last["values"]["steps"] == str(STEPS)
+        assert all(s["level"] == 0 for n in ("labeller: labeller", "drone_1_camera: camera")
+                   for s in health[n]), health  # nothing skipped, nothing unmatched
+        assert {s["hardware_id"] for s in health["drone_1_camera: camera"]} == {"drone_1"}
+        assert any(float(s["values"].get("seconds per frame", 0)) > 0 for s in health["drone_1_camera: camera"])
         for d in DRONES:
             assert set(labels[d]) <= image_stamps[d]  # every label carries the stamp of an image
             for x in labels[d].values():
@@ -70,6 +101,19 @@ def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
             assert markers[d][-1].header.frame_id == f"{d}/camera_optical"
             assert len(markers[d][-1].points) % 2 == 0
             assert boxes[d]
+            # the ground truth as detections: per labelled frame, its labelled zebras then the other species seen,
+            # each with its scene id and visible box
+            assert set(truth[d]) == set(labels[d])
+            for t, x in labels[d].items():
+                others = [z for z in x["zebras"] if z.get("species", "zebra") != "zebra"]
+                want = [z for z in x["zebras"] if z["kept"]] + others
+                got = truth[d][t]
+                assert got["frame_id"] == f"{d}/camera_optical"
+                assert [g["id"] for g in got["detections"]] == [str(z["id"]) for z in want]
+                assert [g["class_name"] for g in got["detections"]] == [z.get("species", "zebra") for z in want]
+                assert all(g["score"] == 1.0 and g["box_xyxy"] == pytest.approx(z["box_visible"], abs=1e-6)
+                           for g, z in zip(got["detections"], want, strict=True))
+        assert sum(len(x["detections"]) for d in DRONES for x in truth[d].values()) > 0  # something was checked
     finally:
         peer.close()
 

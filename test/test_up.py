@@ -64,6 +64,11 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     preview = cv2.imread(live["preview"])
     assert preview is not None and preview.shape == (180, 960, 3)
     assert "mAP50" in run.stdout and live["bag"] in run.stdout
+    # every node reported on /diagnostics, and nothing went wrong (the placer may resend a step on a slow machine)
+    health = live["health"]
+    assert set(health) == {f"{s.label}: {s.executable}" for s in graph_spec(UpConfig())}, health
+    assert all(h["reports"].get("OK", 0) > 0 for h in health.values()), health
+    assert all(set(h["reports"]) == {"OK"} for n, h in health.items() if n != "placer: placer"), health
     _check_time_base_tf_and_typed_detections(Path(live["bag"]), steps=3)
 
     # Replay the recorded images (and labels) into a fresh detector with the live one's settings (the checkpoint's

@@ -580,6 +580,15 @@ class Labels(_Message):
     def with_zebras(self, zebras: Sequence[LabelledZebra]) -> Labels:
         return replace(self, zebras=tuple(zebras))
 
+    def ground_truth(self) -> tuple[Detections, tuple[int, ...]]:
+        """The labels as detections with score 1 (``<drone>/labels/boxes2d``) and each one's scene id: every
+        kept zebra (class 0, ``zebra``; the boxes a dataset's labels hold), then every animal of another species
+        seen (class -1, named by its species: no class of the detector). Zebras seen but not labelled
+        (:attr:`dont_care`) are left out. Boxes are the visible ones."""
+        animals = self.kept + self.others
+        dets = tuple(Detection(z.box_visible, 1.0, 0 if z.is_zebra else -1, z.species) for z in animals)
+        return Detections(self.stamp, self.frame_id, self.width, self.height, dets), tuple(z.id for z in animals)
+
     def to_dict(self) -> dict[str, Any]:
         return {"schema": LABELS_SCHEMA, "version": LABELS_VERSION, "stamp": self.stamp.to_dict(), "step": self.step,
                 "seed": self.seed, "camera": self.camera, "frame_id": self.frame_id, "width": self.width,

@@ -159,6 +159,13 @@ def image_reliability_param() -> Any:
                  choices=RELIABILITY)
 
 
+def diagnostics_param() -> Any:
+    """The ``diagnostics_period_s`` field every node has: how often it reports its health on /diagnostics
+    (:mod:`zebra_sim_ros.health`)."""
+    return param(1.0, "how often the node's health (its counts, rates, warnings and errors) is published on "
+                 "/diagnostics (diagnostic_msgs/DiagnosticArray; 0: never)", "s", lo=0.0, hi=3600.0)
+
+
 # Parameters every rclpy node has, which a node's own declarations never list.
 ROS_BUILTIN_PARAMS = ("use_sim_time", "start_type_description_service")
 

@@ -180,7 +180,8 @@ def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, 
     sup = Supervisor(out / "logs", env)
     try:
         # domain_id None: rclpy reads ROS_DOMAIN_ID as the nodes do
-        with GraphWatch(placer.overrides["lockstep_ack_from"], domain_id, cfg.namespace) as watch:
+        statuses = [f"{s.label}: {s.executable}" for s in specs]
+        with GraphWatch(placer.overrides["lockstep_ack_from"], domain_id, cfg.namespace, statuses) as watch:
             try:
                 result["ready_s"] = _start_and_wait(sup, watch, others, conf, cfg, t_start)
                 print(f"[up] {len(others)} nodes ready in {result['ready_s']:.1f} s; placer starts "
@@ -197,6 +198,7 @@ def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, 
                 result["exit_code"] = 130
             finally:
                 codes = sup.stop([c for c in sup.children if c.spec.executable != "recorder"])  # recorder last
+                result["health"] = watch.health
                 result["exit_status"] = codes
                 bad = {k: v for k, v in codes.items() if v not in (0, None) and k != result.get("died")}
                 if bad:
@@ -228,9 +230,12 @@ def _run_steps(sup: Supervisor, watch: GraphWatch, pl: Child, cfg: UpConfig) -> 
     """Follow the placer's lockstep steps until it exits, printing progress; TimeoutError when a step stalls."""
     last, done, t_steps = time.monotonic(), 0, time.monotonic()
     cr, end = ("\r", "") if sys.stdout.isatty() else ("", "\n")
+    lead = "\n" if cr else ""  # off the progress line
     while pl.proc.poll() is None:
         sup.check()
         watch.spin(0.2)
+        for name, level, message in watch.take_changes():  # a node warns, fails or is well again
+            print(f"{lead}[up] {name}: {level.name} {message}", flush=True)
         if (now_done := watch.steps_done()) != done:
             done, last = now_done, time.monotonic()
             rate = done / (last - t_steps)

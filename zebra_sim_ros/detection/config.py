@@ -13,6 +13,7 @@ from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.params import (
     ParamSpec,
     StageConfig,
+    diagnostics_param,
     image_reliability_param,
     names_list,
     param,
@@ -89,6 +90,7 @@ class DetectorConfig(StageConfig):
     qos_reliability: str = reliability_param("QoS reliability of the outputs")
     image_reliability: str = image_reliability_param()
     qos_depth: int = param(5, "history depth", lo=1, hi=1000)
+    diagnostics_period_s: float = diagnostics_param()
 
 
 DETECTOR_PARAMS: tuple[ParamSpec, ...] = DetectorConfig.specs()

@@ -23,7 +23,7 @@ from zebra_sim_ros.rendering.config import CAMERA_PARAMS
 PACKAGE = "zebra_sim_ros"
 DRONES = ("drone_0", "drone_1", "drone_2")
 CAMERA_TOPICS = ("image_raw", "depth", "instances", "camera_info")
-LABELLER_TOPICS = ("labels", "labels/markers", "labels/boxes3d")
+LABELLER_TOPICS = ("labels", "labels/markers", "labels/boxes3d", "labels/boxes2d")
 DETECTOR_TOPICS = ("detections", "detections/image", "detections/markers")
 PLACER_TOPICS = ("zebra_sim/scene", "zebra_sim/zebras/markers", *(f"{d}/camera/pose" for d in DRONES))
 # By convention absolute (tf2 listeners and every node's time source use them); a namespaced graph remaps them.

@@ -7,6 +7,7 @@ from dataclasses import dataclass, fields
 from zebra_sim_ros.params import (
     ParamSpec,
     StageConfig,
+    diagnostics_param,
     image_reliability_param,
     names_list,
     param,
@@ -57,6 +58,7 @@ class LabellerConfig(StageConfig):
     qos_reliability: str = reliability_param("QoS reliability of the outputs (the scene is subscribed reliable)")
     image_reliability: str = image_reliability_param()
     qos_depth: int = param(10, "history depth", lo=1, hi=1000)
+    diagnostics_period_s: float = diagnostics_param()
 
     def filters(self) -> LabelFilters:
         """The filters part."""

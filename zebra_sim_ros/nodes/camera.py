@@ -27,6 +27,7 @@ from std_msgs.msg import Header, String
 
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.frames import optical_frame
+from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.nodes.placer import SCENE_TOPIC
 from zebra_sim_ros.nodes.ros_adapter import (
@@ -147,6 +148,14 @@ class CameraNode(ZebraNode[CameraConfig]):
             self.get_logger().info(f"step {scene.step}: frame {self.frames}, "
                                    f"{self.render_seconds / max(self.frames, 1):.2f} s/frame render, "
                                    f"{self.skipped} scenes skipped{coats}")
+
+    def activity(self) -> Activity:
+        """Frames published (a re-sent step's too) and scenes skipped; the render time."""
+        c = self.cfg
+        world = self.world_key[0] if self.world_key else "none loaded yet"
+        return Activity({"frames": self.frames, "skipped": self.skipped}, "frames", ("skipped",),
+                        busy_s=self.render_seconds, hardware=c.name,
+                        info={"world": str(world), "image size": f"{c.width}x{c.height}"})
 
     def stop(self) -> None:
         """Say what the coats cost, release the GL context."""

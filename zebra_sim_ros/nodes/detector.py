@@ -31,6 +31,7 @@ from zebra_sim_ros.detection.config import DETECTOR_PARAMS, DetectorConfig, outp
 from zebra_sim_ros.detection.draw import OTHER_COLOUR, draw_boxes
 from zebra_sim_ros.detection.predict import describe_size, detect, detections_message
 from zebra_sim_ros.detection.verify import load_verifier
+from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Stamp
 from zebra_sim_ros.nodes.ros_adapter import (
     StepAcks,
@@ -141,6 +142,14 @@ class DetectorNode(ZebraNode[DetectorConfig]):
             self._publish(topic, msg, img, d)
         if self.stats["batches"] % 50 == 1:
             self.get_logger().info(f"{self.stats}; {self.seconds / self.stats['batches']:.3f} s per batch")
+
+    def activity(self) -> Activity:
+        """Images detected; images skipped (unreadable, or replaced by a newer frame of their topic before their
+        batch ran: the detector is behind its cameras); the time in detection."""
+        c = self.cfg
+        return Activity(dict(self.stats), "images", ("skipped",), busy_s=self.seconds, hardware=str(self.device),
+                        info={"weights": c.weights or "shipped", "verifier": c.verifier or "off",
+                              "conf": f"{c.conf:g}", "topics": ", ".join(c.image_topics)})
 
     def stop(self) -> None:
         """Say what was detected and what was skipped."""

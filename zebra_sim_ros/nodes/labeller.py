@@ -8,7 +8,10 @@ placer or a looping replay, is a new one) and publishes per drone, with the imag
 - ``<drone>/labels`` (std_msgs/String): the label JSON (schema in ``zebra_sim_ros.labels.labeller``);
 - ``<drone>/labels/markers`` (visualization_msgs/ImageMarker): one LINE_LIST with every zebra's visible box
   (green) and full box (orange), frame_id of the image, for Foxglove's image panel;
-- ``<drone>/labels/boxes3d`` (visualization_msgs/MarkerArray): the zebras' oriented 3D boxes in ``map``.
+- ``<drone>/labels/boxes3d`` (visualization_msgs/MarkerArray): the zebras' oriented 3D boxes in ``map``;
+- ``<drone>/labels/boxes2d`` (Detection2DArray, the detector's type): the ground truth as detections of score 1,
+  each ``id`` the scene's zebra id: the labelled zebras' visible boxes, and the other species seen, named by their
+  species (:meth:`zebra_sim_ros.messages.Labels.ground_truth`), to compare with ``<drone>/detections`` live.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from visualization_msgs.msg import ImageMarker, Marker, MarkerArray
 
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.camera import PinholeCamera
+from zebra_sim_ros.health import Activity
 from zebra_sim_ros.labels.config import LABELLER_PARAMS, LabellerConfig
 from zebra_sim_ros.labels.labeller import Labeller
 from zebra_sim_ros.messages import Labels, Scene
@@ -34,7 +38,10 @@ from zebra_sim_ros.nodes.ros_adapter import (
     ZebraNode,
     box_marker,
     describe_qos,
+    detection_array_msg,
+    detection_array_type,
     help_text,
+    message_class,
     qos,
     run_node,
     stamp_ns,
@@ -97,14 +104,17 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         self.pending: RecentStamps[dict[str, dict[str, Any]]] = RecentStamps(c.sync_window)  # stamp: drone: kind
         self.stats = {"labelled": 0, "unmatched": 0, "bad_messages": 0}
         self.create_subscription(String, SCENE_TOPIC, self._on_scene, scene_qos)
-        self.pubs: dict[str, tuple[Any, Any, Any]] = {}
+        self.pubs: dict[str, tuple[Any, Any, Any, Any]] = {}
+        self.det_type = detection_array_type()
+        det_class = message_class(self.det_type)
         for d in c.drones:
             for topic, kind, typ in (("instances", "instances", Image), ("depth", "depth", Image),
                                      ("camera_info", "info", CameraInfo)):
                 self.create_subscription(typ, f"{d}/{topic}", self._handler(d, kind), image_q)
             self.pubs[d] = (self.create_publisher(String, f"{d}/labels", q),
                             self.create_publisher(ImageMarker, f"{d}/labels/markers", q),
-                            self.create_publisher(MarkerArray, f"{d}/labels/boxes3d", q))
+                            self.create_publisher(MarkerArray, f"{d}/labels/boxes3d", q),
+                            self.create_publisher(det_class, f"{d}/labels/boxes2d", q))
         self.acks = StepAcks(self, c.ack_name, c.drones, window=c.sync_window)
         self.get_logger().info(f"labelling {list(c.drones)}; QoS images: {describe_qos(image_q)}, outputs: "
                                f"{describe_qos(q)}; "
@@ -170,15 +180,23 @@ class LabellerNode(ZebraNode[LabellerConfig]):
             self.get_logger().error(f"{drone} stamp {t}: frame skipped ({type(exc).__name__}: {exc})")
             return
         header = got["instances"].header
-        labels_pub, markers_pub, boxes_pub = self.pubs[drone]
+        labels_pub, markers_pub, boxes_pub, truth_pub = self.pubs[drone]
         labels_pub.publish(String(data=labels.to_json()))
         markers_pub.publish(box_markers(header, labels))
         boxes_pub.publish(boxes3d(header, labels))
+        truth_pub.publish(detection_array_msg(self.det_type, header, *labels.ground_truth()))
         self.stats["labelled"] += 1
         self.seconds += time.perf_counter() - t0
         self.acks.part_done(header.stamp, drone)
         if self.stats["labelled"] % 30 == 1:
             self.get_logger().info(f"{self.stats}; {self.seconds / self.stats['labelled']:.3f} s per frame")
+
+    def activity(self) -> Activity:
+        """Frames labelled; frames whose inputs never all arrived (unmatched) and bad messages skipped."""
+        counts = {"frames": self.stats["labelled"], "unmatched": self.stats["unmatched"],
+                  "bad_messages": self.stats["bad_messages"]}
+        return Activity(counts, "frames", ("unmatched", "bad_messages"), busy_s=self.seconds,
+                        info={"drones": ", ".join(self.cfg.drones)})
 
     def stop(self) -> None:
         """Release GL resources."""

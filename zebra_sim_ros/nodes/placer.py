@@ -32,6 +32,7 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
 from zebra_sim_ros.geometry.frames import OPTICAL_IN_BASE_XYZW, base_frame, body_orientation, optical_frame
+from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.nodes.ros_adapter import (
     ACK_TOPIC,
@@ -94,6 +95,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         self.outputs = [self.scene_pub, self.marker_pub, *self.pose_pubs, self.tf_pub]
         self.step = c.start_step
         self.published = 0
+        self.resent = 0  # lockstep steps published again for want of an acknowledgement
         self.pending: Scene | None = None
         self.acked: set[str] = set()
         self.sent_at = 0.0
@@ -195,6 +197,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             missing = sorted(set(c.lockstep_ack_from) - self.acked)
             self.get_logger().warning(f"step {self.pending.step}: no acknowledgement from {missing} after "
                                       f"{c.lockstep_timeout_s:.1f} s; publishing it again")
+            self.resent += 1
             self._publish(self.pending)
 
     def _on_ack(self, msg: Header) -> None:
@@ -207,6 +210,24 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             self.step += 1
             self.published += 1
             self._lockstep_tick()
+
+
+    def activity(self) -> Activity:
+        """Steps published (in lockstep: acknowledged by all); steps published again for want of an
+        acknowledgement; what it waits for."""
+        c = self.cfg
+        waiting = ""
+        if self._finished():
+            waiting = f"done: {self.published} steps"
+        elif not self.started:
+            waiting = "waiting for subscribers before the first step"
+        elif self.pending is not None and time.monotonic() - self.sent_at > 1.0:
+            missing = sorted(set(c.lockstep_ack_from) - self.acked)
+            waiting = (f"step {self.pending.step}: waiting {time.monotonic() - self.sent_at:.1f} s for "
+                       f"{', '.join(missing)} to acknowledge")
+        return Activity({"steps": self.published, "resent": self.resent}, "steps", ("resent",), waiting=waiting,
+                        info={"world": c.world, "seed": str(c.seed), "strategy": c.strategy, "mode": c.mode,
+                              "next step": str(self.step)})
 
 
 def _transform(header: Header, child: str, xyz: tuple[float, float, float],

@@ -23,6 +23,7 @@ from typing import Any
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 
 from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.health import Activity
 from zebra_sim_ros.nodes.ros_adapter import ZebraNode, describe_qos, help_text, message_class, qos, run_node
 from zebra_sim_ros.recording.config import RECORDER_PARAMS, RecorderConfig
 from zebra_sim_ros.recording.qos import profile_dict, replay_profile
@@ -125,6 +126,14 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         if self.core.error is not None and not self.done:
             self.get_logger().error(f"recording ended: {self.core.error}")
             self.done, self.exit_code = True, 1
+
+    def activity(self) -> Activity:
+        """Messages written and dropped (the writer fell behind by ``queue_size``); an error ends the recording."""
+        t = self.core.totals()
+        return Activity({"messages": t["messages"], "dropped": t["dropped"],
+                         "topics": sum(s is not None for s in self.subs.values())}, "messages", ("dropped",),
+                        error=f"recording ended: {t['error']}" if t["error"] is not None else "",
+                        info={"output": str(self.writer.path), "queue": str(t["queue"]), "MB/s": f"{t['mb_per_s']:g}"})
 
     def stop(self) -> None:
         """Finalise the bag and print the statistics."""

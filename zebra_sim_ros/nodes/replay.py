@@ -19,6 +19,7 @@ from typing import Any
 import yaml
 from rosgraph_msgs.msg import Clock
 
+from zebra_sim_ros.health import Activity
 from zebra_sim_ros.nodes.ros_adapter import (
     ZebraNode,
     flush,
@@ -71,6 +72,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         self.pubs: dict[str, Any] = {}
         self.clock_pub = self.create_publisher(Clock, "/clock", 10) if c.clock else None
         self.published = 0
+        self.error = ""  # why playing failed
+        self.waiting = ""  # what the play thread waits for before it plays
         for topic, type_name, metadata in self.reader.channel_list():  # publishers up front: subscribers match
             self._publisher(topic, type_name, metadata)                    # before the first message is played
         self.get_logger().info(f"playing {[str(p) for p in self.reader.paths]} at rate {c.rate}, "
@@ -115,7 +118,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         except Exception as exc:  # noqa: BLE001 - reported, and the node ends with an error status
             if self.done or not self.context.ok():  # Ctrl-C: rclpy's handler ended the context under this thread
                 return
-            self.get_logger().error(f"replay failed: {type(exc).__name__}: {exc}")
+            self.error = f"replay failed: {type(exc).__name__}: {exc}"
+            self.get_logger().error(self.error)
             self.exit_code = 1
         finally:
             self.done = True
@@ -142,7 +146,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             if pace is None:  # every publisher known so far should have a subscriber (up to wait_for_subscribers_s)
                 while not self.done and time.monotonic() < wait_until and any(
                         p is not None and p.get_subscription_count() == 0 for p in self.pubs.values()):
+                    self.waiting = f"waiting up to {c.wait_for_subscribers_s:g} s for subscribers"
                     time.sleep(0.01)
+                self.waiting = ""
                 pace = _Pace(rel, self.cfg.rate)
             self._wait(pace, rel, t0_bag, m.log_time)
             if self.done:
@@ -171,6 +177,12 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             if now >= target:
                 return
             time.sleep(min(target - now, period / 2 if self.clock_pub else 0.05))
+
+    def activity(self) -> Activity:
+        """Messages played; damaged parts of the bags skipped (everything intact is played); an error ends it."""
+        return Activity({"messages": self.published, "damaged": len(self.reader.stopped)}, "messages", ("damaged",),
+                        error=self.error, waiting=self.waiting,
+                        info={"bags": ", ".join(str(p) for p in self.reader.paths), "rate": f"{self.cfg.rate:g}"})
 
     def stop(self) -> None:
         """End the play thread before the node's publishers go (it would publish through destroyed ones)."""

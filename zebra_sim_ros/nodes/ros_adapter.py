@@ -8,12 +8,14 @@ from __future__ import annotations
 
 import importlib
 import sys
+import time
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any, Generic, TypeVar
 
 import numpy as np
 import rclpy
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
@@ -27,6 +29,7 @@ from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import ImageMarker
 
 from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.health import Activity, Health, HealthMonitor
 from zebra_sim_ros.messages import Detections, Stamp
 from zebra_sim_ros.messages import stamp_ns as messages_stamp_ns
 from zebra_sim_ros.params import ROS_BUILTIN_PARAMS, ParamSpec, StageConfig
@@ -71,6 +74,7 @@ def add_ranges(node: Node, specs: Iterable[ParamSpec]) -> None:
 
 
 C = TypeVar("C", bound=StageConfig)
+DIAGNOSTICS_TOPIC = "/diagnostics"  # absolute by convention: one topic for every node, as aggregators expect
 
 
 class ZebraNode(Node, Generic[C]):
@@ -81,11 +85,18 @@ class ZebraNode(Node, Generic[C]):
     Parameters marked ``runtime`` in the stage's config may change while the node runs (``ros2 param set``): the
     new values are validated by the same rules and the new config goes to :meth:`on_config`. Any other change is
     refused with a reason, as is a bad value.
+
+    Every ``diagnostics_period_s`` (a parameter of every node) the node's :meth:`activity` is reported on
+    :data:`DIAGNOSTICS_TOPIC` as one ``diagnostic_msgs/DiagnosticStatus`` named ``<node>: <executable>``
+    (:mod:`zebra_sim_ros.health` says what the levels mean); a node that ends by itself reports once more first.
     """
 
     def __init__(self, name: str, config: type[C], **node_args: Any) -> None:
         super().__init__(name, **node_args)  # node_args: rclpy Node's (context, cli_args, parameter_overrides)
+        self.executable = name
         self.config_class = config
+        self.health: HealthMonitor | None = None
+        self.diagnostics_pub: Any = None
         self.done = False  # set to end the spin
         self.exit_code = 0
         self.cfg: C = config.from_params(declare_and_read(self, config.specs()))
@@ -93,6 +104,35 @@ class ZebraNode(Node, Generic[C]):
         self._warn_unknown_parameters()
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.start()
+        self._start_diagnostics()
+
+    def activity(self) -> Activity | None:
+        """What the node has done since it started, for /diagnostics (None: it reports nothing)."""
+        return None
+
+    def _start_diagnostics(self) -> None:
+        period = float(getattr(self.cfg, "diagnostics_period_s", 0.0))
+        if period <= 0 or self.activity() is None:
+            return
+        self.health = HealthMonitor(time.monotonic())
+        self.diagnostics_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, qos("reliable", 10))
+        self.wall_timer(period, self._diagnostics_tick)
+
+    def _diagnostics_tick(self) -> None:
+        self.publish_diagnostics()
+
+    def publish_diagnostics(self) -> Health | None:
+        """Report the node's health since the last report on /diagnostics; the report (None: diagnostics off)."""
+        act = self.activity()
+        if self.health is None or self.diagnostics_pub is None or act is None:
+            return None
+        h = self.health.report(time.monotonic(), act)
+        status = DiagnosticStatus(level=bytes([int(h.level)]), name=f"{self.get_fully_qualified_name().lstrip('/')}: "
+                                  f"{self.executable}", message=h.message, hardware_id=act.hardware,
+                                  values=[KeyValue(key=k, value=v) for k, v in h.values])
+        self.diagnostics_pub.publish(DiagnosticArray(header=Header(stamp=self.get_clock().now().to_msg()),
+                                                     status=[status]))
+        return h
 
     def _warn_unknown_parameters(self) -> None:
         """A parameter given on the command line or in a params file that this node does not declare is ignored by
@@ -313,6 +353,8 @@ def run_node(name: str, factory: Callable[[], ZebraNode[Any]], argv: list[str] |
                 # rclpy's SIGINT handler shut the context down after the loop's rclpy.ok() and before the wait set
                 # was built, which then fails (RCLError): a Ctrl-C like any other.
                 break
+        if node.done and rclpy.ok() and node.publish_diagnostics() is not None:  # ended by itself: say how
+            flush(node, [node.diagnostics_pub], timeout_s=1.0)
         return node.exit_code
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
@@ -342,10 +384,12 @@ def detection_array_type() -> str:
     raise ZebraSimError(f"none of {DETECTION_TYPES} can be imported: run scripts/build_interfaces.sh")
 
 
-def detection_array_msg(type_name: str, header: Header, dets: Detections) -> Any:
+def detection_array_msg(type_name: str, header: Header, dets: Detections, ids: Sequence[int] = ()) -> Any:
     """``dets`` as a Detection2DArray of ``type_name``: per box one hypothesis (class name, score), the box as
-    centre and size in the image's pixels, ``id`` its rank by score; the image's header on the array and on
-    each detection."""
+    centre and size in the image's pixels, ``id`` its rank by score (or ``ids``' value, where given); the image's
+    header on the array and on each detection."""
+    if ids and len(ids) != len(dets.detections):
+        raise ValueError(f"{len(ids)} ids for {len(dets.detections)} detections")
     pkg = type_name.split("/")[0]
     msg = importlib.import_module(f"{pkg}.msg")
     out = []
@@ -354,5 +398,5 @@ def detection_array_msg(type_name: str, header: Header, dets: Detections) -> Any
         hyp = msg.ObjectHypothesisWithPose(hypothesis=msg.ObjectHypothesis(class_id=d.class_name, score=d.score))
         box = msg.BoundingBox2D(center=msg.Pose2D(position=msg.Point2D(x=(x0 + x1) / 2, y=(y0 + y1) / 2)),
                                 size_x=float(x1 - x0), size_y=float(y1 - y0))
-        out.append(msg.Detection2D(header=header, results=[hyp], bbox=box, id=str(k)))
+        out.append(msg.Detection2D(header=header, results=[hyp], bbox=box, id=str(ids[k] if ids else k)))
     return msg.Detection2DArray(header=header, detections=out)

@@ -15,7 +15,15 @@ from typing import Any
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import MAX_CAMERAS, Intrinsics
-from zebra_sim_ros.params import ParamSpec, StageConfig, names_list, param, reliability_param, same_as
+from zebra_sim_ros.params import (
+    ParamSpec,
+    StageConfig,
+    diagnostics_param,
+    names_list,
+    param,
+    reliability_param,
+    same_as,
+)
 from zebra_sim_ros.placement.cameras import STRATEGIES
 from zebra_sim_ros.placement.sun import DAY_WINDOWS
 from zebra_sim_ros.zebra.skeleton import OTHER_SPECIES
@@ -154,6 +162,7 @@ class PlacerConfig(StageConfig):
     qos_depth: int = param(10, "history depth of the published topics", lo=1, hi=1000)
     qos_reliability: str = reliability_param("QoS reliability of the markers and poses (the scene, /clock and /tf "
                                              "are always reliable)")
+    diagnostics_period_s: float = diagnostics_param()
 
     def check(self) -> None:
         """Cross-parameter rules (each parameter alone was checked by its spec)."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from zebra_sim_ros.errors import ParameterError
-from zebra_sim_ros.params import ParamSpec, StageConfig, is_regex, param
+from zebra_sim_ros.params import ParamSpec, StageConfig, diagnostics_param, is_regex, param
 
 SUMMARY_RESERVE_MB = 0.016  # what a bag's summary and indexes may need beyond its chunks, MB (16 KiB)
 
@@ -42,6 +42,7 @@ class RecorderConfig(StageConfig):
     discovery_period_s: float = param(0.5, "how often new topics are looked for", "s", lo=0.05, hi=60.0)
     stats_period_s: float = param(10.0, "how often statistics are logged (0: never)", "s", lo=0.0, hi=3600.0)
     qos_depth: int = param(100, "history depth of the subscriptions", lo=1, hi=100000)
+    diagnostics_period_s: float = diagnostics_param()
 
     def check(self) -> None:
         """A size cap must leave room for two chunks (the writer keeps them) and the summary."""
@@ -77,6 +78,7 @@ class ReplayConfig(StageConfig):
     clock_rate_hz: float = param(100.0, "how often /clock is published between messages", "Hz", lo=1.0, hi=10000.0)
     wait_for_subscribers_s: float = param(0.0, "wait up to this long, before playing, for every played topic to "
                                           "have a subscriber", "s", lo=0.0, hi=3600.0)
+    diagnostics_period_s: float = diagnostics_param()
 
 
 RECORDER_PARAMS: tuple[ParamSpec, ...] = RecorderConfig.specs()

@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from zebra_sim_ros.geometry.camera import MAX_CAMERAS, Intrinsics
-from zebra_sim_ros.params import ParamSpec, StageConfig, param, reliability_param, same_as
+from zebra_sim_ros.params import ParamSpec, StageConfig, diagnostics_param, param, reliability_param, same_as
 from zebra_sim_ros.rendering.effects import CameraEffects, SensorModel
 from zebra_sim_ros.rendering.renderer import RenderOptions
 
@@ -46,6 +46,7 @@ class CameraConfig(StageConfig):
                                    lo=0.0, hi=3.0)
     qos_reliability: str = reliability_param("QoS reliability of the image topics")
     qos_depth: int = param(5, "history depth of the image topics", lo=1, hi=1000)
+    diagnostics_period_s: float = diagnostics_param()
     ack: bool = param(True, "acknowledge each published frame on zebra_sim/frame_done (placer lockstep)")
     coat_store: bool = param(True, "share baked coats with the other cameras through the cache's coat store "
                              "(each coat baked by one process, read by the rest and by later runs); false: bake "
