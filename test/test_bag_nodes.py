@@ -203,6 +203,39 @@ def test_a_cut_bag_replays_its_first_half_and_says_so(peer: Peer, tmp_path: Path
     assert 50 < len(got) < 401 and got == [f"tick {k}" for k in range(len(got))]
 
 
+def test_a_looping_cut_bag_counts_its_damage_per_pass_and_keeps_recorded_diagnostics_off_the_live_topic(
+        peer: Peer, tmp_path: Path) -> None:
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+
+    w = BagWriter(tmp_path / "full.mcap", chunk_size=4096)
+    w.add_channel("/tick", "std_msgs/msg/String", [profile_dict()])
+    w.add_channel("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", [profile_dict()])
+    for k in range(200):
+        t = 1_000_000_000 + k * 2_000_000
+        w.write("/tick", serialize_message(String(data=f"tick {k}")), t)
+        if k % 20 == 0:  # a recorded node's health, as a recorder writes it
+            old = DiagnosticStatus(level=b"\x01", name="recorded: detector", message="from the bag")
+            w.write("/diagnostics", serialize_message(DiagnosticArray(status=[old])), t)
+    w.close()
+    data = (tmp_path / "full.mcap").read_bytes()
+    (tmp_path / "cut.mcap").write_bytes(data[: len(data) // 2])
+    recorded = collect_diagnostics(peer.node, "recorded: detector")
+    live = collect_diagnostics(peer.node, "replay: replay")
+    ticks: list[str] = []
+    peer.node.create_subscription(String, "/tick", lambda m: ticks.append(m.data), 1000)
+    params = {"bags": [str(tmp_path / "cut.mcap")], "loop": True, "rate": 4.0, "diagnostics_period_s": 0.1,
+              "wait_for_subscribers_s": 20.0}
+    with node_process("replay", params, _domain(peer), tmp_path / "replay.log"):
+        # three passes or more: each skips the cut part once, and the count of damage keeps rising across them
+        assert peer.spin(lambda: bool(live) and int(live[-1]["values"]["damaged"]) >= 3, 60), \
+            (live[-3:], (tmp_path / "replay.log").read_text()[-2000:])
+    damaged = [int(s["values"]["damaged"]) for s in live]
+    assert damaged == sorted(damaged), damaged  # a total: it never goes down when a pass starts again
+    assert any(s["level"] == 1 and "damaged" in s["message"] for s in live), live
+    assert ticks and recorded == []  # the bag's ticks played; its /diagnostics kept off the live topic
+    assert "not playing the recorded /diagnostics" in (tmp_path / "replay.log").read_text()
+
+
 def test_a_full_bag_ends_with_a_finalised_file_and_an_error(peer: Peer, tmp_path: Path) -> None:
     pub = peer.node.create_publisher(Image, "/drone_0/image_raw", 100)
     status = collect_diagnostics(peer.node, "recorder: recorder")

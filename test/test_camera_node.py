@@ -10,8 +10,10 @@ import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from ros_helpers import Peer, fresh_domain_id, node_process, run_node_once, spin_until
-from sensor_msgs.msg import CameraInfo, Image
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from std_msgs.msg import String
+
+from zebra_sim_ros.recording.images import decompress_rgb
 
 pytestmark = pytest.mark.integration
 STEPS = 3
@@ -36,18 +38,24 @@ def test_placer_and_three_cameras_in_lockstep(tmp_path: Path) -> None:
         scenes[d["stamp"]["sec"] * 10**9 + d["stamp"]["nanosec"]] = d
 
     node.create_subscription(String, "/zebra_sim/scene", on_scene, latched)
+    compressed = {1: "png", 2: "jpeg"}  # drone_1 and drone_2 also publish image_raw/compressed
     for i in range(3):
         for topic, typ in (("image_raw", Image), ("depth", Image), ("instances", Image), ("camera_info", CameraInfo)):
             node.create_subscription(typ, f"/drone_{i}/{topic}", keep(f"drone_{i}", topic), 10)
+        if i in compressed:
+            node.create_subscription(CompressedImage, f"/drone_{i}/image_raw/compressed",
+                                     keep(f"drone_{i}", "compressed"), 10)
     try:
         with ExitStack() as stack:
             cams = [stack.enter_context(node_process(
-                "camera", {"drone_index": i, "width": 256, "height": 144, "shadow_size": 512},
+                "camera", {"drone_index": i, "width": 256, "height": 144, "shadow_size": 512,
+                           "compressed": compressed.get(i, "off")},
                 domain, tmp_path / f"camera_{i}.log", name=f"drone_{i}_camera")) for i in range(3)]
             # The images are volatile and the placer's lockstep waits for the cameras only: start it once this
             # test has discovered every camera's publishers, else a camera's first frame may go out before this
             # test's subscription is matched (seen in CI once cameras rendered their first frame in 0.6 s).
             topics = [f"/drone_{i}/{t}" for i in range(3) for t in ("image_raw", "depth", "instances", "camera_info")]
+            topics += [f"/drone_{i}/image_raw/compressed" for i in compressed]
             assert spin_until(node, ex, lambda: all(node.count_publishers(t) for t in topics), 60), "cameras not up"
             spin_until(node, ex, lambda: False, 0.5)
             placer = stack.enter_context(node_process(
@@ -56,7 +64,8 @@ def test_placer_and_three_cameras_in_lockstep(tmp_path: Path) -> None:
 
             def complete() -> bool:
                 return all(len(got.get((f"drone_{i}", t), {})) >= STEPS for i in range(3)
-                           for t in ("image_raw", "depth", "instances", "camera_info"))
+                           for t in ("image_raw", "depth", "instances", "camera_info")) and \
+                    all(len(got.get((f"drone_{i}", "compressed"), {})) >= STEPS for i in compressed)
 
             ok = spin_until(node, ex, complete, 180)
             logs = "\n".join(p.read_text()[-2000:] for p in sorted(tmp_path.glob("*.log")))
@@ -83,6 +92,16 @@ def test_placer_and_three_cameras_in_lockstep(tmp_path: Path) -> None:
                 scene_ids = {z["id"] + 1 for z in scenes[s]["zebras"]}
                 assert set(np.unique(mask)) - {0} <= scene_ids
                 assert info.k[0] == pytest.approx(128 / np.tan(np.radians(40)))  # fx of 80 deg over 256 px
+                if i in compressed:  # the same image: png to the byte, jpeg within its loss
+                    c = got[(name, "compressed")][s]
+                    assert c.header.frame_id == f"{name}/camera_optical"
+                    assert c.format == f"rgb8; {compressed[i]} compressed bgr8"
+                    raw = np.frombuffer(bytes(rgb.data), np.uint8).reshape(144, 256, 3)
+                    back = decompress_rgb(c.format, bytes(c.data))
+                    if compressed[i] == "png":
+                        assert np.array_equal(back, raw)
+                    else:
+                        assert np.abs(back.astype(int) - raw).mean() < 4.0 and len(c.data) < raw.nbytes / 4
     finally:
         peer.close()
 

@@ -17,11 +17,12 @@ from ros_helpers import (
     run_node_once,
     spin_until,
 )
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import Header
 
 from zebra_sim_ros.detection.checkpoint import SHIPPED, save_checkpoint
 from zebra_sim_ros.detection.model import ModelConfig, build_model
+from zebra_sim_ros.recording.images import compress_rgb
 
 pytestmark = pytest.mark.integration
 
@@ -59,10 +60,15 @@ def test_detections_keep_the_image_stamp(tmp_path: Path) -> None:
                              10)
     node.create_subscription(Image, "/drone_0/detections/image", annotated.append, 10)
     pub = node.create_publisher(Image, "/drone_0/image_raw", 10)
+    from_png: list[dict] = []  # drone_1 sends the same pixels as a png CompressedImage
+    node.create_subscription(detection_array_class(), "/drone_1/detections",
+                             lambda m: from_png.append(detections_dict(m)), 10)
+    pub_png = node.create_publisher(CompressedImage, "/drone_1/image_raw/compressed", 10)
     status = collect_diagnostics(node, "detector: detector")
     rgb = np.random.default_rng(0).integers(0, 255, (180, 320, 3), dtype=np.uint8)
     try:
-        params = {"image_topics": ["/drone_0/image_raw"], "weights": _weights(tmp_path), "imgsz": 320,
+        params = {"image_topics": ["/drone_0/image_raw", "/drone_1/image_raw/compressed"],
+                  "weights": _weights(tmp_path), "imgsz": 320, "device": "cpu",
                   "diagnostics_period_s": 0.3}
         with node_process("detector", params, domain, tmp_path / "detector.log") as proc:
             assert spin_until(node, ex, lambda: node.count_subscribers("/drone_0/image_raw") > 0, 60), \
@@ -89,9 +95,13 @@ def test_detections_keep_the_image_stamp(tmp_path: Path) -> None:
                 spin_until(node, ex, lambda k=k: len(got) > k, 30)
             assert spin_until(node, ex, lambda: len(got) >= 3 and len(annotated) >= 3, 30), \
                 (tmp_path / "detector.log").read_text()
+            fmt, data = compress_rgb(rgb, "png")
+            pub_png.publish(CompressedImage(header=Header(stamp=Time(sec=40), frame_id="drone_1/camera_optical"),
+                                            format=fmt, data=data))
+            assert spin_until(node, ex, lambda: len(from_png) >= 1, 30), (tmp_path / "detector.log").read_text()
             assert proc.poll() is None  # the bad image did not stop it
             # ... and is OK again once images are detected without a new problem
-            assert spin_until(node, ex, lambda: status[-1]["level"] == 0 and status[-1]["values"]["images"] == "3",
+            assert spin_until(node, ex, lambda: status[-1]["level"] == 0 and status[-1]["values"]["images"] == "4",
                               10), status[-3:]
         timed = [s for s in status if "seconds per image" in s["values"]]
         assert timed and all(0 < float(s["values"]["seconds per image"]) < 30 for s in timed), status
@@ -103,6 +113,9 @@ def test_detections_keep_the_image_stamp(tmp_path: Path) -> None:
         assert all([x["id"] for x in d["detections"]] == [str(k) for k in range(len(d["detections"]))] for d in got)
         assert all(0 <= x["box_xyxy"][0] <= x["box_xyxy"][2] <= 320 for d in got for x in d["detections"])
         assert _same_detections(got[0]["detections"], got[1]["detections"])  # bgr8 was converted, not misread
+        # the png decoded to the same pixels: the same detections, beside the compressed topic's image_raw
+        assert from_png[0]["stamp"]["sec"] == 40 and from_png[0]["frame_id"] == "drone_1/camera_optical"
+        assert _same_detections(from_png[0]["detections"], got[0]["detections"])
         assert annotated[0].encoding == "rgb8" and annotated[0].header.stamp.sec == 10
         log = (tmp_path / "detector.log").read_text()
         assert "unsupported encoding '16UC1'" in log

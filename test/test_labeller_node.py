@@ -80,6 +80,7 @@ def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
             assert placer.wait(timeout=60) == 0, logs
             # the placer ended by itself and said so on /diagnostics; the labeller reports every frame it labelled
             assert spin_until(node, ex, lambda: bool(health["placer: placer"]) and bool(health["labeller: labeller"])
+                              and health["placer: placer"][-1]["message"].startswith("done")
                               and int(health["labeller: labeller"][-1]["values"]["frames"]) >= STEPS * len(DRONES),
                               10), health
         last = health["placer: placer"][-1]

@@ -81,6 +81,9 @@ def test_bad_values_name_the_parameter_the_value_and_what_is_allowed() -> None:
         DetectorConfig.from_params({"scale": 0.1})
     with pytest.raises(ParameterError, match=r"'camera_width' = 9000 .*16\.\.8192 px"):
         PlacerConfig.from_params({"camera_width": 9000})
+    with pytest.raises(ParameterError, match=r"'image_topics' .*'d/image_raw' and 'd/image_raw/compressed' both "
+                       r"publish d/detections"):
+        DetectorConfig.from_params({"image_topics": ["d/image_raw", "d/image_raw/compressed"]})
     cfg = DetectorConfig().with_changes({"conf": 0.5, "imgsz": 640})
     assert (cfg.conf, cfg.imgsz, cfg.iou) == (0.5, 640, DetectorConfig().iou)
     assert [s.name for s in DetectorConfig.specs() if s.runtime] == ["conf", "iou", "imgsz", "scale"]

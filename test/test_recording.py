@@ -461,3 +461,31 @@ def test_bag_eval_scores_zebras_only(tmp_path: Path) -> None:
     s = score(collect(tmp_path / "o.mcap"))
     assert s["drone_0"]["frames"] == 2
     assert s["drone_0"]["mAP50"] == pytest.approx(1.0) and s["drone_0"]["precision"] == pytest.approx(1.0)
+
+
+def test_compressed_images_read_back_as_image_transport_writes_them() -> None:
+    """CompressedImage data as compressed_image_transport writes and reads it: png to the byte, jpeg within its
+    loss; the bare formats camera drivers send; a clear error for what is not a colour image."""
+    import cv2
+
+    from zebra_sim_ros.recording.images import compress_rgb, decompress_rgb
+
+    yy, xx = np.mgrid[0:90, 0:160]
+    rgb = np.stack([xx * 1.5, yy * 2.5, (xx + yy) % 256], axis=-1).astype(np.uint8)  # smooth, each channel its own
+    fmt, data = compress_rgb(rgb, "png")
+    assert fmt == "rgb8; png compressed bgr8" and np.array_equal(decompress_rgb(fmt, data), rgb)
+    fmt, data = compress_rgb(rgb, "jpeg", 95)
+    assert fmt == "rgb8; jpeg compressed bgr8" and np.abs(decompress_rgb(fmt, data).astype(int) - rgb).mean() < 2.0
+    assert len(compress_rgb(rgb, "jpeg", 30)[1]) < len(data)  # quality is applied
+    bgr_jpeg = cv2.imencode(".jpg", np.ascontiguousarray(rgb[..., ::-1]), [cv2.IMWRITE_JPEG_QUALITY, 95])[1].tobytes()
+    assert np.abs(decompress_rgb("jpeg", bgr_jpeg).astype(int) - rgb).mean() < 2.0  # a driver's bare format
+    grey = cv2.imencode(".png", rgb[..., 0])[1].tobytes()
+    assert np.array_equal(decompress_rgb("mono8; png compressed mono8", grey), np.repeat(rgb[..., :1], 3, axis=2))
+    with pytest.raises(ValueError, match="unsupported compressed format '16UC1; compressedDepth'"):
+        decompress_rgb("16UC1; compressedDepth", data)
+    with pytest.raises(ValueError, match="10 bytes do not decode as png"):
+        decompress_rgb("rgb8; png compressed bgr8", bytes(10))
+    with pytest.raises(ValueError, match="compressed format 'webp'"):
+        compress_rgb(rgb, "webp")
+    with pytest.raises(ValueError, match=r"H x W x 3 uint8 image, not float64 \(90, 160, 3\)"):
+        compress_rgb(rgb.astype(float), "png")

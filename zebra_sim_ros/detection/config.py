@@ -53,7 +53,8 @@ class DetectorConfig(StageConfig):
 
     image_topics: tuple[str, ...] = param(
         ("drone_0/image_raw", "drone_1/image_raw", "drone_2/image_raw"),
-        "sensor_msgs/Image topics to detect on; outputs go beside each (…/detections)",
+        "sensor_msgs/Image topics to detect on (a name ending in /compressed: sensor_msgs/CompressedImage, jpeg or "
+        "png); outputs go beside each (…/detections; image_raw/compressed's where image_raw's would)",
         allowed="a non-empty list of topic names", check=names_list)
     weights: str = param("", "checkpoint file (empty: the shipped weights)", allowed="a path or empty")
     conf: float = param(0.25, "confidence threshold", lo=0.0, hi=1.0, runtime=True)
@@ -92,14 +93,34 @@ class DetectorConfig(StageConfig):
     qos_depth: int = param(5, "history depth", lo=1, hi=1000)
     diagnostics_period_s: float = diagnostics_param()
 
+    def check(self) -> None:
+        """Two image topics may not publish to the same outputs (``x/image_raw`` and ``x/image_raw/compressed``)."""
+        seen: dict[str, str] = {}
+        for topic in self.image_topics:
+            base = output_base(topic)
+            if base in seen:
+                raise ParameterError("image_topics", list(self.image_topics), f"topics with outputs of their own: "
+                                     f"{seen[base]!r} and {topic!r} both publish {base}")
+            seen[base] = topic
+
 
 DETECTOR_PARAMS: tuple[ParamSpec, ...] = DetectorConfig.specs()
 
 
+def is_compressed(image_topic: str) -> bool:
+    """Whether an image topic carries sensor_msgs/CompressedImage: ``image_transport``'s name for it ends in
+    ``/compressed``."""
+    return image_topic.rstrip("/").endswith("/compressed")
+
+
 def output_base(image_topic: str) -> str:
     """Where a topic's outputs go: ``drone_0/image_raw`` -> ``drone_0/detections`` (absolute names stay
-    absolute: ``/drone_0/image_raw`` -> ``/drone_0/detections``; a name without a parent: ``detections``)."""
+    absolute: ``/drone_0/image_raw`` -> ``/drone_0/detections``; a name without a parent: ``detections``); a
+    compressed topic's outputs go where its image's would (``drone_0/image_raw/compressed`` ->
+    ``drone_0/detections``)."""
     topic = image_topic.rstrip("/")
+    if is_compressed(topic):
+        topic = topic[: -len("/compressed")]
     if "/" not in topic.lstrip("/"):
         return "/detections" if topic.startswith("/") else "detections"
     return f"{topic.rsplit('/', 1)[0]}/detections"

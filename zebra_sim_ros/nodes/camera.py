@@ -10,7 +10,10 @@ the scene's stamp and frame_id ``drone_{i}/camera_optical`` (z forward, x right,
 - ``drone_{i}/image_raw`` (sensor_msgs/Image ``rgb8``), gamma-encoded sRGB;
 - ``drone_{i}/depth`` (sensor_msgs/Image ``32FC1``): metres along the optical axis; +inf where only sky (REP 118);
 - ``drone_{i}/instances`` (sensor_msgs/Image ``mono16``): 0 = not a zebra, else the zebra's scene id + 1;
-- ``drone_{i}/camera_info`` (sensor_msgs/CameraInfo): K and P of the ideal pinhole, no distortion.
+- ``drone_{i}/camera_info`` (sensor_msgs/CameraInfo): K and P of the ideal pinhole, no distortion;
+- with ``compressed`` jpeg or png, ``drone_{i}/image_raw/compressed`` (sensor_msgs/CompressedImage): the same
+  image as ``image_transport``'s compressed transport sends it (format ``rgb8; jpeg compressed bgr8``): at 1280x720
+  jpeg 90 is 5% of the raw bytes, png 35% (``benchmarks/bench_compressed.py``), to record or send over a network.
 
 Then, with ``ack`` true, it acknowledges the step on ``zebra_sim/frame_done`` (std_msgs/Header, stamp = the
 scene's, frame_id = ``drone_{i}``) so a lockstep placer can go on. A scene it cannot read is logged, counted
@@ -22,7 +25,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from sensor_msgs.msg import CameraInfo, Image
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from std_msgs.msg import Header, String
 
 from zebra_sim_ros.errors import ZebraSimError
@@ -40,6 +43,7 @@ from zebra_sim_ros.nodes.ros_adapter import (
     run_node,
     stamp,
 )
+from zebra_sim_ros.recording.images import compress_rgb
 from zebra_sim_ros.rendering.config import CAMERA_PARAMS, CameraConfig
 from zebra_sim_ros.rendering.renderer import RenderedView
 from zebra_sim_ros.simulation import Simulator
@@ -76,6 +80,8 @@ class CameraNode(ZebraNode[CameraConfig]):
         self.pub_depth = self.create_publisher(Image, f"{c.name}/depth", out_qos)
         self.pub_ids = self.create_publisher(Image, f"{c.name}/instances", out_qos)
         self.pub_info = self.create_publisher(CameraInfo, f"{c.name}/camera_info", out_qos)
+        self.pub_compressed = self.create_publisher(CompressedImage, f"{c.name}/image_raw/compressed", out_qos) \
+            if c.compressed != "off" else None
         # only when it acknowledges: a lockstep placer starts once an acknowledger publishes on the topic
         self.pub_ack = self.create_publisher(Header, ACK_TOPIC, qos("reliable", 100)) if c.ack else None
         self.create_subscription(String, SCENE_TOPIC, self._on_scene, scene_qos)
@@ -84,7 +90,8 @@ class CameraNode(ZebraNode[CameraConfig]):
             f"{self.effects if self.effects.active else 'off'}; QoS images: {describe_qos(out_qos)}; "
             f"scene: {describe_qos(scene_qos)}; publishing in namespace '{self.get_namespace()}'")
         self.last: tuple[int, Header, RenderedView] | None = None
-        self.frames = 0
+        self.frames = 0  # published, a re-sent step's again
+        self.rendered = 0
         self.skipped = 0
         self.render_seconds = 0.0
         self.store_error: str | None = None
@@ -125,6 +132,7 @@ class CameraNode(ZebraNode[CameraConfig]):
                 rng = np.random.default_rng([scene.seed, scene.step, self.cfg.drone_index])
                 view.rgb = self.effects.apply(view.rgb, rng)
             self.render_seconds += time.perf_counter() - t0
+            self.rendered += 1
         except (ZebraSimError, KeyError, TypeError, ValueError) as exc:
             self.skipped += 1
             self.get_logger().error(f"scene skipped ({self.skipped} so far): {exc}")
@@ -139,6 +147,9 @@ class CameraNode(ZebraNode[CameraConfig]):
         self.pub_depth.publish(image_msg(header, view.depth.astype("<f4"), "32FC1"))
         self.pub_ids.publish(image_msg(header, view.instances.astype("<u2"), "mono16"))
         self.pub_info.publish(camera_info_msg(header, view.K, c.width, c.height))
+        if self.pub_compressed is not None:
+            fmt, data = compress_rgb(view.rgb, c.compressed, c.compressed_quality)
+            self.pub_compressed.publish(CompressedImage(header=header, format=fmt, data=data))
         self.frames += 1
         if self.pub_ack is not None:
             self.pub_ack.publish(Header(stamp=header.stamp, frame_id=c.name))
@@ -150,10 +161,12 @@ class CameraNode(ZebraNode[CameraConfig]):
                                    f"{self.skipped} scenes skipped{coats}")
 
     def activity(self) -> Activity:
-        """Frames published (a re-sent step's too) and scenes skipped; the render time."""
+        """Frames rendered (and the seconds that took), frames published again for a re-sent step, scenes
+        skipped."""
         c = self.cfg
         world = self.world_key[0] if self.world_key else "none loaded yet"
-        return Activity({"frames": self.frames, "skipped": self.skipped}, "frames", ("skipped",),
+        counts = {"frames": self.rendered, "republished": self.frames - self.rendered, "skipped": self.skipped}
+        return Activity(counts, "frames", ("skipped",),
                         busy_s=self.render_seconds, hardware=c.name,
                         info={"world": str(world), "image size": f"{c.width}x{c.height}"})
 

@@ -1,9 +1,11 @@
 """The ``detector`` node: our YOLO on live images (``ros2 run zebra_sim_ros detector``).
 
 Subscribes every topic in ``image_topics`` (sensor_msgs/Image; rgb8, bgr8, rgba8, bgra8 and mono8 are
-converted, other encodings are logged, counted and skipped), detects frames that arrive within
-``batch_window_s`` of each other as one batch, and publishes beside each input topic (``drone_0/image_raw``
--> ``drone_0/detections...``; names are relative, so a namespace moves them), keeping the image's header:
+converted, other encodings are logged, counted and skipped; a topic ending in ``/compressed`` is read as
+sensor_msgs/CompressedImage, jpeg or png, as ``image_transport``'s compressed transport and camera drivers send
+it), detects frames that arrive within ``batch_window_s`` of each other as one batch, and publishes beside each
+input topic (``drone_0/image_raw`` or ``drone_0/image_raw/compressed`` -> ``drone_0/detections...``; names are
+relative, so a namespace moves them), keeping the image's header:
 
 - ``detections`` (vision_msgs/Detection2DArray where vision_msgs can be imported, else
   zebra_sim_msgs/Detection2DArray, the same fields): per box one ``results`` hypothesis (``class_id`` "zebra",
@@ -22,12 +24,12 @@ from typing import Any
 
 import numpy as np
 import torch
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import ImageMarker
 
 from zebra_sim_ros.detection.checkpoint import load_model, select_device
-from zebra_sim_ros.detection.config import DETECTOR_PARAMS, DetectorConfig, output_base
+from zebra_sim_ros.detection.config import DETECTOR_PARAMS, DetectorConfig, is_compressed, output_base
 from zebra_sim_ros.detection.draw import OTHER_COLOUR, draw_boxes
 from zebra_sim_ros.detection.predict import describe_size, detect, detections_message
 from zebra_sim_ros.detection.verify import load_verifier
@@ -46,13 +48,16 @@ from zebra_sim_ros.nodes.ros_adapter import (
     qos,
     run_node,
 )
+from zebra_sim_ros.recording.images import decompress_rgb
 
 _CHANNELS = {"rgb8": (3, None), "bgr8": (3, [2, 1, 0]), "rgba8": (4, [0, 1, 2]), "bgra8": (4, [2, 1, 0]),
              "mono8": (1, [0, 0, 0])}
 
 
-def to_rgb(msg: Image) -> np.ndarray:
-    """An image message as an RGB uint8 array; ValueError for an encoding we do not convert."""
+def to_rgb(msg: Image | CompressedImage) -> np.ndarray:
+    """An image message as an RGB uint8 array; ValueError for an encoding or compressed format we do not convert."""
+    if isinstance(msg, CompressedImage):
+        return decompress_rgb(msg.format, bytes(msg.data))
     spec = _CHANNELS.get(msg.encoding)
     if spec is None:
         raise ValueError(f"unsupported encoding {msg.encoding!r} (converted: {sorted(_CHANNELS)})")
@@ -83,7 +88,7 @@ class DetectorNode(ZebraNode[DetectorConfig]):
         self.verifier = load_verifier(c.verifier, self.device, "verifier")[0] if c.verifier else None
         q = qos(c.qos_reliability, c.qos_depth)
         image_q = qos(c.image_reliability, c.qos_depth)
-        self.pending: dict[str, Image] = {}
+        self.pending: dict[str, Image | CompressedImage] = {}
         self.pubs: dict[str, tuple[Any, Any, Any]] = {}
         self.det_type = detection_array_type()
         det_class = message_class(self.det_type)
@@ -92,7 +97,8 @@ class DetectorNode(ZebraNode[DetectorConfig]):
             self.pubs[topic] = (self.create_publisher(det_class, base, q),
                                 self.create_publisher(Image, f"{base}/image", q),
                                 self.create_publisher(ImageMarker, f"{base}/markers", q))
-            self.create_subscription(Image, topic, self._handler(topic), image_q)
+            kind = CompressedImage if is_compressed(topic) else Image
+            self.create_subscription(kind, topic, self._handler(topic), image_q)
         self.acks = StepAcks(self, c.ack_name, c.image_topics, window=50)
         self.timer = self.wall_timer(c.batch_window_s, self._flush)
         self.stats = {"images": 0, "batches": 0, "skipped": 0}
@@ -111,7 +117,7 @@ class DetectorNode(ZebraNode[DetectorConfig]):
                                f"{describe_size(self.model.cfg, cfg.imgsz, cfg.scale)}")
 
     def _handler(self, topic: str) -> Any:
-        def on_image(msg: Image) -> None:
+        def on_image(msg: Image | CompressedImage) -> None:
             if topic in self.pending:  # a newer frame on the same topic before the batch ran: keep the newest
                 self.stats["skipped"] += 1
             self.pending[topic] = msg
@@ -155,10 +161,10 @@ class DetectorNode(ZebraNode[DetectorConfig]):
         """Say what was detected and what was skipped."""
         print(f"[detector] stopping: {self.stats}", flush=True)  # plain: the ROS context may be shut down already
 
-    def _publish(self, topic: str, msg: Image, img: np.ndarray, dets: np.ndarray) -> None:
+    def _publish(self, topic: str, msg: Image | CompressedImage, img: np.ndarray, dets: np.ndarray) -> None:
         header = msg.header
-        payload = detections_message(Stamp(header.stamp.sec, header.stamp.nanosec), header.frame_id, int(msg.width),
-                                     int(msg.height), dets, self.model.cfg.names)
+        payload = detections_message(Stamp(header.stamp.sec, header.stamp.nanosec), header.frame_id, img.shape[1],
+                                     img.shape[0], dets, self.model.cfg.names)
         det_pub, img_pub, mark_pub = self.pubs[topic]
         det_pub.publish(detection_array_msg(self.det_type, header, payload))
         if self.cfg.publish_image:

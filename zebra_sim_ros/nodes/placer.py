@@ -211,17 +211,20 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             self.published += 1
             self._lockstep_tick()
 
-
     def activity(self) -> Activity:
         """Steps published (in lockstep: acknowledged by all); steps published again for want of an
-        acknowledgement; what it waits for."""
+        acknowledgement; what it waits for: subscribers or an acknowledger before the first step, or the
+        acknowledgements of a step pending for over half ``lockstep_timeout_s`` (before that: its rate)."""
         c = self.cfg
         waiting = ""
+        lockstep = c.mode == "lockstep"
         if self._finished():
             waiting = f"done: {self.published} steps"
         elif not self.started:
             waiting = "waiting for subscribers before the first step"
-        elif self.pending is not None and time.monotonic() - self.sent_at > 1.0:
+        elif lockstep and self.published == 0 and self.pending is None and self.count_publishers(ACK_TOPIC) == 0:
+            waiting = f"waiting for an acknowledger on {ACK_TOPIC} before the first step"
+        elif lockstep and self.pending is not None and time.monotonic() - self.sent_at > c.lockstep_timeout_s / 2:
             missing = sorted(set(c.lockstep_ack_from) - self.acked)
             waiting = (f"step {self.pending.step}: waiting {time.monotonic() - self.sent_at:.1f} s for "
                        f"{', '.join(missing)} to acknowledge")

@@ -21,6 +21,7 @@ from rosgraph_msgs.msg import Clock
 
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.nodes.ros_adapter import (
+    DIAGNOSTICS_TOPIC,
     ZebraNode,
     flush,
     help_text,
@@ -73,6 +74,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         self.clock_pub = self.create_publisher(Clock, "/clock", 10) if c.clock else None
         self.published = 0
         self.error = ""  # why playing failed
+        self.damaged_before = 0  # damaged parts skipped in earlier passes (looping reopens the reader)
         self.waiting = ""  # what the play thread waits for before it plays
         for topic, type_name, metadata in self.reader.channel_list():  # publishers up front: subscribers match
             self._publisher(topic, type_name, metadata)                    # before the first message is played
@@ -98,6 +100,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         if self.cfg.clock and type_name == "rosgraph_msgs/msg/Clock":
             self.get_logger().info(f"not playing the recorded {topic}: this node publishes /clock from the bag's "
                                    "log times (the same times)")
+        elif topic == DIAGNOSTICS_TOPIC and not self.cfg.remap_prefix and topic not in self.topics:
+            self.get_logger().info(f"not playing the recorded {topic} under its own name: live nodes report there "
+                                   "(name it in topics, or give a remap_prefix, to play it)")
         elif self._wanted(topic):
             try:
                 p = replay_profile(from_yaml(metadata.get("offered_qos_profiles", "")))
@@ -114,6 +119,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                 self._play_once()
                 if not self.cfg.loop or self.done:
                     break
+                self.damaged_before += len(self.reader.stopped)
                 self.reader = BagReader.open(self.bags)
         except Exception as exc:  # noqa: BLE001 - reported, and the node ends with an error status
             if self.done or not self.context.ok():  # Ctrl-C: rclpy's handler ended the context under this thread
@@ -180,7 +186,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
 
     def activity(self) -> Activity:
         """Messages played; damaged parts of the bags skipped (everything intact is played); an error ends it."""
-        return Activity({"messages": self.published, "damaged": len(self.reader.stopped)}, "messages", ("damaged",),
+        damaged = self.damaged_before + len(self.reader.stopped)
+        return Activity({"messages": self.published, "damaged": damaged}, "messages", ("damaged",),
                         error=self.error, waiting=self.waiting,
                         info={"bags": ", ".join(str(p) for p in self.reader.paths), "rate": f"{self.cfg.rate:g}"})
 

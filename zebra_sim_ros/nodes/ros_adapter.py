@@ -353,8 +353,13 @@ def run_node(name: str, factory: Callable[[], ZebraNode[Any]], argv: list[str] |
                 # rclpy's SIGINT handler shut the context down after the loop's rclpy.ok() and before the wait set
                 # was built, which then fails (RCLError): a Ctrl-C like any other.
                 break
-        if node.done and rclpy.ok() and node.publish_diagnostics() is not None:  # ended by itself: say how
-            flush(node, [node.diagnostics_pub], timeout_s=1.0)
+        try:
+            if node.done and rclpy.ok() and node.publish_diagnostics() is not None:  # ended by itself: say how
+                flush(node, [node.diagnostics_pub], timeout_s=1.0)
+        except Exception:
+            if rclpy.ok():
+                raise
+            # a Ctrl-C during the last report: rclpy's handler ended the context under it
         return node.exit_code
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0

@@ -1,22 +1,65 @@
-"""Camera images of a bag as detector frames (``zebra-sim predict BAG``): every sensor_msgs/Image of encoding
-rgb8 or bgr8, on every topic or those given, named after the topic and the stamp."""
+"""Camera images in messages: sensor_msgs/CompressedImage as ``image_transport``'s compressed transport writes and
+reads it (:func:`compress_rgb`, :func:`decompress_rgb`), and a bag's images as detector frames (``zebra-sim predict
+BAG``: every sensor_msgs/Image of encoding rgb8 or bgr8, on every topic or those given, named after the topic and
+the stamp)."""
 
 from __future__ import annotations
 
 import re
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from zebra_sim_ros.detection.sources import Frame
+import cv2
+import numpy as np
+
 from zebra_sim_ros.recording.cdr import MALFORMED, rgb_image
 from zebra_sim_ros.recording.reader import BagReader
 
+if TYPE_CHECKING:  # the detector's frames import torch, which the camera node (compress_rgb) does without
+    from zebra_sim_ros.detection.sources import Frame
+
 IMAGE_TYPE = "sensor_msgs/msg/Image"
+COMPRESSED_FORMATS = ("jpeg", "png")  # what compress_rgb writes and decompress_rgb reads
+PNG_LEVEL = 1  # zlib level of the PNGs written: benchmarks/bench_compressed.py
+
+
+def compress_rgb(rgb: np.ndarray, kind: str, quality: int = 90) -> tuple[str, bytes]:
+    """An H x W x 3 RGB uint8 image as a CompressedImage's ``(format, data)``, the way ``compressed_image_transport``
+    writes an rgb8 image: the codec holds BGR and the format says so (``"rgb8; jpeg compressed bgr8"``). ``kind``:
+    jpeg (``quality`` 1-100) or png (lossless)."""
+    if kind not in COMPRESSED_FORMATS:
+        raise ValueError(f"compressed format {kind!r}: want one of {COMPRESSED_FORMATS}")
+    if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
+        raise ValueError(f"an H x W x 3 uint8 image, not {rgb.dtype} {rgb.shape}")
+    params = [cv2.IMWRITE_JPEG_QUALITY, int(quality)] if kind == "jpeg" else [cv2.IMWRITE_PNG_COMPRESSION, PNG_LEVEL]
+    ok, buf = cv2.imencode(".jpg" if kind == "jpeg" else ".png", np.ascontiguousarray(rgb[..., ::-1]), params)
+    if not ok:
+        raise ValueError(f"OpenCV could not encode a {rgb.shape[1]}x{rgb.shape[0]} image as {kind}")
+    return f"rgb8; {kind} compressed bgr8", buf.tobytes()
+
+
+def decompress_rgb(fmt: str, data: bytes) -> np.ndarray:
+    """A CompressedImage's ``(format, data)`` as an H x W x 3 RGB uint8 image. Reads what
+    ``compressed_image_transport`` and camera drivers write: ``"<encoding>; jpeg compressed <codec encoding>"``,
+    or the bare ``jpeg``/``png``; grey images come back as three equal channels. ValueError for another format
+    (``compressedDepth``, video codecs) or bytes that do not decode."""
+    kind = fmt.split(";", 1)[1].split()[0] if ";" in fmt else fmt.strip()
+    kind = {"jpg": "jpeg"}.get(kind.lower(), kind.lower())
+    if kind not in COMPRESSED_FORMATS:
+        raise ValueError(f"unsupported compressed format {fmt!r} (read: {', '.join(COMPRESSED_FORMATS)})")
+    codec = fmt.split("compressed", 1)[1].strip() if "compressed" in fmt else "bgr8"
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    if img is None:
+        raise ValueError(f"{len(data)} bytes do not decode as {kind} ({fmt!r})")
+    return np.ascontiguousarray(img if codec == "rgb8" else img[..., ::-1])
 
 
 def bag_frames(path: Path, topics: tuple[str, ...] = (), skipped: list[str] | None = None) -> Iterator[Frame]:
     """The rgb8/bgr8 images of ``path`` (every Image topic, or ``topics``); images of other encodings (depth,
     masks) and unreadable ones are left out, and noted in ``skipped`` when given."""
+    from zebra_sim_ros.detection.sources import Frame
+
     reader = BagReader.open(path, name="SOURCE")
     for m in reader.messages():
         if m.type_name != IMAGE_TYPE or (topics and m.topic not in topics):

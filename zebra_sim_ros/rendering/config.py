@@ -44,6 +44,10 @@ class CameraConfig(StageConfig):
                                    "vignetting, chromatic aberration, defocus and motion blur, Poisson-Gaussian "
                                    "noise, JPEG) as a multiple of its default ranges (0 = a perfect camera)",
                                    lo=0.0, hi=3.0)
+    compressed: str = param("off", "also publish image_raw/compressed (sensor_msgs/CompressedImage, as "
+                            "image_transport's compressed transport): jpeg (lossy, compressed_quality), png "
+                            "(lossless) or off", choices=("off", "jpeg", "png"))
+    compressed_quality: int = param(90, "JPEG quality of image_raw/compressed", lo=1, hi=100)
     qos_reliability: str = reliability_param("QoS reliability of the image topics")
     qos_depth: int = param(5, "history depth of the image topics", lo=1, hi=1000)
     diagnostics_period_s: float = diagnostics_param()
