@@ -115,3 +115,39 @@ def test_predict_refuses_a_source_it_cannot_read(tmp_path: Path, cli: CliRun) ->
     for src in (tmp_path / "missing.jpg", tmp_path / "notes.txt"):
         run = cli(["predict", src, "--out", tmp_path / "o"])
         assert run.returncode == 2 and "SOURCE" in run.stderr and str(src) in run.stderr, run.stderr
+
+
+def test_predict_a_bag_reads_compressed_images_as_their_pixels(tmp_path: Path, cli: CliRun) -> None:
+    """A bag recorded with the cameras' ``compressed`` option: each png CompressedImage is detected as the image it
+    holds (the same detections as the raw image of the same pixels); a compressed depth image is named as skipped."""
+    from sensor_msgs.msg import CompressedImage
+
+    from zebra_sim_ros.recording.images import compress_rgb
+
+    bag = tmp_path / "c.mcap"
+    w = BagWriter(bag)
+    w.add_channel("/drone_0/image_raw", "sensor_msgs/msg/Image", [profile_dict()])
+    w.add_channel("/drone_1/image_raw/compressed", "sensor_msgs/msg/CompressedImage", [profile_dict()])
+    w.add_channel("/drone_1/depth/compressedDepth", "sensor_msgs/msg/CompressedImage", [profile_dict()])
+    for k in range(2):
+        h = Header()
+        h.stamp.sec = k
+        rgb = _zebra_like(k)
+        w.write("/drone_0/image_raw", serialize_message(Image(header=h, height=96, width=160, encoding="rgb8",
+                                                                step=480, data=rgb.tobytes())), k * 10**9)
+        fmt, data = compress_rgb(rgb, "png")
+        w.write("/drone_1/image_raw/compressed", serialize_message(CompressedImage(header=h, format=fmt, data=data)),
+                k * 10**9)
+    w.write("/drone_1/depth/compressedDepth", serialize_message(CompressedImage(format="16UC1; compressedDepth",
+                                                                                data=bytes(20))), 5 * 10**9)
+    w.close()
+    out = tmp_path / "out"
+    s = _predict(cli, str(bag), "--out", str(out), "--quiet", "--conf", "0.001")
+    assert s["images"] == 4
+    for k in range(2):
+        raw = Detections.from_json((out / "json" / f"drone_0_image_raw_{k * 10**9}.json").read_text())
+        png = Detections.from_json((out / "json" / f"drone_1_image_raw_compressed_{k * 10**9}.json").read_text())
+        assert png.stamp.sec == k and len(png.detections) == len(raw.detections) > 0
+        assert all(a.box_xyxy == pytest.approx(b.box_xyxy, abs=1e-3) and a.score == pytest.approx(b.score, abs=1e-4)
+                   for a, b in zip(png.detections, raw.detections, strict=True))
+    assert any("compressedDepth" in n for n in s.get("skipped", [])), s

@@ -489,3 +489,47 @@ def test_compressed_images_read_back_as_image_transport_writes_them() -> None:
         compress_rgb(rgb, "webp")
     with pytest.raises(ValueError, match=r"H x W x 3 uint8 image, not float64 \(90, 160, 3\)"):
         compress_rgb(rgb.astype(float), "png")
+
+
+def test_eval_reads_compressed_images_and_detects_a_frame_once(tmp_path: Path) -> None:
+    """``bag eval --weights`` on a bag with image_raw/compressed: a drone with only compressed images is detected
+    from them (as the raw image of the same pixels is), and a frame recorded both ways is detected once."""
+    from sensor_msgs.msg import CompressedImage
+
+    from zebra_sim_ros.detection.checkpoint import save_checkpoint
+    from zebra_sim_ros.detection.model import ModelConfig, build_model
+    from zebra_sim_ros.recording.evaluate import ImageDetector
+    from zebra_sim_ros.recording.images import compress_rgb
+
+    save_checkpoint(tmp_path / "w.pt", build_model(ModelConfig(size="n", imgsz=128)).eval())
+    w = BagWriter(tmp_path / "c.mcap")
+    for topic, typ in (("/drone_0/image_raw", "Image"), ("/drone_0/image_raw/compressed", "CompressedImage"),
+                       ("/drone_1/image_raw/compressed", "CompressedImage")):
+        w.add_channel(topic, f"sensor_msgs/msg/{typ}", [profile_dict()])
+    rng = np.random.default_rng(3)
+    for k in range(2):
+        rgb = rng.integers(0, 255, (72, 128, 3), dtype=np.uint8)
+        h = Header(frame_id="c")
+        h.stamp.sec = k
+        w.write("/drone_0/image_raw", serialize_message(Image(header=h, height=72, width=128, encoding="rgb8",
+                                                                step=384, data=rgb.tobytes())), k)
+        fmt, data = compress_rgb(rgb, "png")
+        for d in ("drone_0", "drone_1"):
+            w.write(f"/{d}/image_raw/compressed", serialize_message(CompressedImage(header=h, format=fmt, data=data)),
+                    k)
+    w.close()
+    detector = ImageDetector(tmp_path / "w.pt", device="cpu", batch=8)
+    calls: list[int] = []
+    flush = detector._flush
+
+    def counted() -> None:
+        calls.append(len(detector._pending))
+        flush()
+    detector._flush = counted  # type: ignore[method-assign]
+    got = detector.apply(collect(tmp_path / "c.mcap", each=detector))
+    assert sum(calls) == 4 and detector.skipped == []  # 2 stamps x 2 drones; drone_0's compressed twins skipped
+    for k in range(2):
+        t = k * 10**9  # the header's stamp
+        assert len(got.drones["drone_1"].detections[t]) > 0
+        np.testing.assert_allclose(got.drones["drone_1"].detections[t], got.drones["drone_0"].detections[t],
+                                   atol=1e-3)

@@ -88,6 +88,15 @@ def cdr_image(data: bytes) -> tuple[int, int, int, str, int, bytes]:
     return t, height, width, encoding, step, r.blob()
 
 
+def cdr_compressed_image(data: bytes) -> tuple[int, str, bytes]:
+    """(stamp ns, format, compressed bytes) of a CDR-serialized sensor_msgs/CompressedImage."""
+    r = _Cdr(data)
+    t = _stamp_of(r)
+    r.string()  # frame_id
+    fmt = r.string()
+    return t, fmt, r.blob()
+
+
 def rgb_image(data: bytes) -> tuple[int, np.ndarray] | None:
     """(stamp ns, H x W x 3 RGB array) of a CDR-serialized rgb8 or bgr8 sensor_msgs/Image; None for other
     encodings."""

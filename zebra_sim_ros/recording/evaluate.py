@@ -22,7 +22,8 @@ import numpy as np
 from zebra_sim_ros.detection.scoring import DroneFrames, score_drones
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.messages import Detections, Labels
-from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections, cdr_string, rgb_image
+from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections, cdr_string
+from zebra_sim_ros.recording.images import message_rgb
 from zebra_sim_ros.recording.reader import BagMessage, BagReader
 
 
@@ -81,10 +82,11 @@ def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "dete
 
 
 class ImageDetector:
-    """A :func:`collect` visitor that runs a detector over every ``/<drone>/image_raw`` (rgb8 or bgr8) in batches
-    during the same pass; :meth:`apply` then puts its detections in place of the recorded ones."""
+    """A :func:`collect` visitor that runs a detector over every ``/<drone>/image_raw`` (rgb8 or bgr8) and
+    ``/<drone>/image_raw/compressed`` (jpeg or png) in batches during the same pass; a drone's stamp is detected
+    once, from the first of the two to come; :meth:`apply` then puts its detections in place of the recorded ones."""
 
-    TOPIC = re.compile(r"^(?:/[^/]+)*/(?P<drone>[^/]+)/image_raw$")
+    TOPIC = re.compile(r"^(?:/[^/]+)*/(?P<drone>[^/]+)/image_raw(?:/compressed)?$")
 
     def __init__(self, weights: str | Path | None, device: str = "auto", batch: int = 8, conf: float = 0.001,
                  imgsz: int | None = None, scale: float = 0.0, verifier: str = "", amp: str = "off") -> None:
@@ -99,20 +101,25 @@ class ImageDetector:
         self.detections: dict[str, dict[int, np.ndarray]] = defaultdict(dict)
         self.skipped: list[str] = []
         self._pending: list[tuple[str, int, np.ndarray]] = []
+        self._seen: set[tuple[str, int]] = set()  # (drone, stamp) detected or pending
 
     def __call__(self, m: BagMessage) -> None:
         match = self.TOPIC.match(m.topic)
         if not match:
             return
         try:
-            image = rgb_image(m.data)
+            image = message_rgb(m.type_name, m.data)
         except MALFORMED as exc:
             self.skipped.append(skip_note(m, exc))
             return
         if image is None:
             self.skipped.append(skip_note(m, "not rgb8 or bgr8"))
             return
-        self._pending.append((match.group("drone"), *image))
+        key = (match.group("drone"), image[0])
+        if key in self._seen:  # image_raw and image_raw/compressed of one frame: detected once
+            return
+        self._seen.add(key)
+        self._pending.append((key[0], *image))
         if len(self._pending) >= self.batch:
             self._flush()
 

@@ -1,7 +1,7 @@
 """Camera images in messages: sensor_msgs/CompressedImage as ``image_transport``'s compressed transport writes and
-reads it (:func:`compress_rgb`, :func:`decompress_rgb`), and a bag's images as detector frames (``zebra-sim predict
-BAG``: every sensor_msgs/Image of encoding rgb8 or bgr8, on every topic or those given, named after the topic and
-the stamp)."""
+reads it (:func:`compress_rgb`, :func:`decompress_rgb`), a recorded image as RGB (:func:`message_rgb`), and a bag's
+images as detector frames (``zebra-sim predict BAG``: every sensor_msgs/Image of encoding rgb8 or bgr8 and every
+jpeg or png sensor_msgs/CompressedImage, on every topic or those given, named after the topic and the stamp)."""
 
 from __future__ import annotations
 
@@ -13,13 +13,14 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from zebra_sim_ros.recording.cdr import MALFORMED, rgb_image
+from zebra_sim_ros.recording.cdr import MALFORMED, cdr_compressed_image, rgb_image
 from zebra_sim_ros.recording.reader import BagReader
 
 if TYPE_CHECKING:  # the detector's frames import torch, which the camera node (compress_rgb) does without
     from zebra_sim_ros.detection.sources import Frame
 
 IMAGE_TYPE = "sensor_msgs/msg/Image"
+COMPRESSED_TYPE = "sensor_msgs/msg/CompressedImage"
 COMPRESSED_FORMATS = ("jpeg", "png")  # what compress_rgb writes and decompress_rgb reads
 PNG_LEVEL = 1  # zlib level of the PNGs written: benchmarks/bench_compressed.py
 
@@ -55,17 +56,29 @@ def decompress_rgb(fmt: str, data: bytes) -> np.ndarray:
     return np.ascontiguousarray(img if codec == "rgb8" else img[..., ::-1])
 
 
+def message_rgb(type_name: str, data: bytes) -> tuple[int, np.ndarray] | None:
+    """(stamp ns, H x W x 3 RGB) of a CDR-serialized camera image: a sensor_msgs/Image of encoding rgb8 or bgr8
+    (None for other encodings: depth, masks), or a jpeg or png sensor_msgs/CompressedImage (ValueError for other
+    formats); None for other types. A malformed message raises one of :data:`~zebra_sim_ros.recording.cdr.MALFORMED`."""
+    if type_name == IMAGE_TYPE:
+        return rgb_image(data)
+    if type_name == COMPRESSED_TYPE:
+        t, fmt, blob = cdr_compressed_image(data)
+        return t, decompress_rgb(fmt, blob)
+    return None
+
+
 def bag_frames(path: Path, topics: tuple[str, ...] = (), skipped: list[str] | None = None) -> Iterator[Frame]:
-    """The rgb8/bgr8 images of ``path`` (every Image topic, or ``topics``); images of other encodings (depth,
-    masks) and unreadable ones are left out, and noted in ``skipped`` when given."""
+    """The camera images of ``path`` (:func:`message_rgb`; every image topic, or ``topics``); images of other
+    encodings (depth, masks) are left out, unreadable ones too and noted in ``skipped`` when given."""
     from zebra_sim_ros.detection.sources import Frame
 
     reader = BagReader.open(path, name="SOURCE")
     for m in reader.messages():
-        if m.type_name != IMAGE_TYPE or (topics and m.topic not in topics):
+        if m.type_name not in (IMAGE_TYPE, COMPRESSED_TYPE) or (topics and m.topic not in topics):
             continue
         try:
-            got = rgb_image(m.data)
+            got = message_rgb(m.type_name, m.data)
         except MALFORMED as exc:
             if skipped is not None:
                 skipped.append(f"{m.topic} at {m.log_time}: {exc}")
