@@ -113,6 +113,16 @@ def test_a_cap_under_two_chunks_is_refused_by_name(tmp_path: Path) -> None:
     with pytest.raises(ParameterError, match=r"'max_bytes' = 1500000.*2113536 bytes with chunks of 1048576"):
         BagWriter(tmp_path / "c.mcap", chunk_size=1 << 20, max_bytes=1_500_000)
     assert not (tmp_path / "c.mcap").exists()
+    # the recorder's parameters and the writer hold to one rule: the least cap passes both, a little less neither
+    from zebra_sim_ros.recording.config import MB, RecorderConfig, least_cap
+
+    least = least_cap(MB // 2)
+    assert RecorderConfig.from_params({"chunk_size_mb": 0.5, "max_size_mb": least / MB}).max_size_mb == least / MB
+    BagWriter(tmp_path / "ok.mcap", chunk_size=MB // 2, max_bytes=least).close()
+    with pytest.raises(ParameterError, match="'max_size_mb'"):
+        RecorderConfig.from_params({"chunk_size_mb": 0.5, "max_size_mb": (least - 1024) / MB})
+    with pytest.raises(ParameterError, match="'max_bytes'"):
+        BagWriter(tmp_path / "no.mcap", chunk_size=MB // 2, max_bytes=least - 1)
 
 
 def test_output_names_never_collide_and_an_unwritable_one_is_named(tmp_path: Path) -> None:

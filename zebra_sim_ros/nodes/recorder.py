@@ -25,7 +25,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.nodes.ros_adapter import ZebraNode, describe_qos, help_text, message_class, qos, run_node
-from zebra_sim_ros.recording.config import RECORDER_PARAMS, RecorderConfig
+from zebra_sim_ros.recording.config import MB, RECORDER_PARAMS, RecorderConfig
 from zebra_sim_ros.recording.qos import profile_dict, replay_profile
 from zebra_sim_ros.recording.recorder import RecorderCore
 from zebra_sim_ros.recording.stamps import header_stamp_ns
@@ -51,7 +51,7 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         c = self.cfg
         self.topics = c.topic_list
         self.include, self.exclude = re.compile(c.topic_regex), re.compile(c.exclude_regex)  # checked
-        mb = 1 << 20
+        mb = MB
         reserve = -1 if c.disk_reserve_mb < 0 else int(c.disk_reserve_mb * mb)
         self.writer = BagWriter(c.output, c.compression, int(c.chunk_size_mb * mb),
                                 int(c.split_size_mb * mb), c.split_duration_s, int(c.max_size_mb * mb), reserve)

@@ -7,7 +7,14 @@ from dataclasses import dataclass
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.params import ParamSpec, StageConfig, diagnostics_param, is_regex, param
 
-SUMMARY_RESERVE_MB = 0.016  # what a bag's summary and indexes may need beyond its chunks, MB (16 KiB)
+MB = 1 << 20  # the recorder's sizes are in MiB
+SUMMARY_RESERVE = 16384  # bytes a bag's summary and indexes may need beyond its chunks (16 KiB)
+
+
+def least_cap(chunk_size: int) -> int:
+    """The smallest size cap, in bytes, for a bag of chunks of ``chunk_size`` bytes: the room the writer keeps
+    under its cap (two chunks and the summary; ``BagWriter`` and ``RecorderConfig`` both hold to it)."""
+    return 2 * chunk_size + SUMMARY_RESERVE
 
 
 def _str_list(v: object) -> bool:
@@ -46,7 +53,7 @@ class RecorderConfig(StageConfig):
 
     def check(self) -> None:
         """A size cap must leave room for two chunks (the writer keeps them) and the summary."""
-        least = 2 * self.chunk_size_mb + SUMMARY_RESERVE_MB
+        least = least_cap(int(self.chunk_size_mb * MB)) / MB
         if 0 < self.max_size_mb < least:
             raise ParameterError("max_size_mb", self.max_size_mb, f"0 or more than {least:.3f} (2 x chunk_size_mb "
                                  "+ 16 KiB for the summary)")

@@ -20,6 +20,7 @@ from typing import IO, Any
 from mcap.writer import CompressionType, Writer
 
 from zebra_sim_ros.errors import ParameterError, ZebraSimError
+from zebra_sim_ros.recording.config import least_cap
 from zebra_sim_ros.recording.qos import to_yaml
 from zebra_sim_ros.recording.schemas import schema_text
 
@@ -47,9 +48,9 @@ class BagWriter:
             raise ParameterError("compression", compression, f"one of {sorted(COMPRESSIONS)}")
         if chunk_size < 1024:
             raise ParameterError("chunk_size", chunk_size, ">= 1024 bytes")
-        if 0 < max_bytes < 2 * chunk_size + 16384:  # the room write() keeps under the cap (the recorder checks too)
+        if 0 < max_bytes < least_cap(chunk_size):  # the room write() keeps under the cap (the recorder checks too)
             raise ParameterError("max_bytes", max_bytes, f"0 or at least two chunks and 16 KiB for the summary "
-                                 f"({2 * chunk_size + 16384} bytes with chunks of {chunk_size})")
+                                 f"({least_cap(chunk_size)} bytes with chunks of {chunk_size})")
         self.path = Path(path)
         if self.path.suffix != ".mcap":  # "run.1" -> "run.1.mcap": another name than "run.2" gets, never the same
             self.path = self.path.with_name(self.path.name + ".mcap")
@@ -140,7 +141,7 @@ class BagWriter:
         if self.max_bytes:
             # Room kept for the open chunk, the summary and the indexes, so the finished bag stays under the cap.
             written = self.bytes_written
-            margin = 2 * self.chunk_size + 16384 + written // 25
+            margin = least_cap(self.chunk_size) + written // 25
             if written + len(data) + margin > self.max_bytes:
                 raise BagFullError(f"bag reached its size cap of {self.max_bytes} bytes ({written} written)")
         self._check_free_space(len(data))
