@@ -21,7 +21,7 @@ setup(
         ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE]),
         ("share/" + PACKAGE, ["package.xml"]),
         # Empty globs are fine: setuptools installs an empty list as nothing.
-        ("share/" + PACKAGE + "/config", sorted(glob("config/*.yaml") + glob("config/*.xml"))),
+        ("share/" + PACKAGE + "/config", sorted(glob("config/*.yaml") + glob("config/*.xml") + glob("config/*.rviz"))),
         ("share/" + PACKAGE + "/launch", sorted(glob("launch/*.py"))),
     ],
     install_requires=[

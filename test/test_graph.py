@@ -378,3 +378,22 @@ def test_up_detector_size_follows_the_cameras() -> None:
     assert UpConfig(width=1000, height=500, detect_scale=1.0).detect_imgsz == 1024  # up to a multiple of 32
     assert UpConfig(width=4000, height=3000, detect_scale=2.0).detect_imgsz == 4096  # within the model's range
     assert UpConfig(width=32, height=16, detect_scale=0.25).detect_imgsz == 64
+
+
+def test_the_rviz_config_shows_topics_the_graph_publishes_in_its_fixed_frame() -> None:
+    """config/zebra_sim.rviz (installed with the package): every display's topic is one the graph publishes, with
+    the QoS its publisher offers, and the fixed frame is the placer's ``map``."""
+    import yaml
+
+    from zebra_sim_ros.graph.spec import GLOBAL_TOPICS
+
+    rviz = yaml.safe_load((REPO / "config" / "zebra_sim.rviz").read_text())
+    manager = rviz["Visualization Manager"]
+    assert manager["Global Options"]["Fixed Frame"] == "map"
+    published = {t for s in graph_spec(UpConfig()) for t in s.publishes} | set(GLOBAL_TOPICS)
+    topics = {d["Topic"]["Value"]: d["Topic"] for d in manager["Displays"] if "Topic" in d}
+    assert len(topics) >= 5 and set(topics) <= published, sorted(set(topics) - published)
+    assert all(q["Reliability Policy"] == "Reliable" and q["Durability Policy"] == "Volatile" for q in topics.values())
+    kinds = {d["Class"] for d in manager["Displays"]}
+    assert {"rviz_default_plugins/TF", "rviz_default_plugins/Image", "rviz_default_plugins/MarkerArray"} <= kinds
+    assert "config/*.rviz" in (REPO / "setup.py").read_text()  # installed beside the parameter files
