@@ -54,6 +54,7 @@ setup(
             "detector = zebra_sim_ros.nodes.detector:main",
             "recorder = zebra_sim_ros.nodes.recorder:main",
             "replay = zebra_sim_ros.nodes.replay:main",
+            "scorer = zebra_sim_ros.nodes.scorer:main",
             "zebra-sim = zebra_sim_ros.cli:main",
         ],
     },

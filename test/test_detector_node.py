@@ -96,6 +96,8 @@ def test_detections_keep_the_image_stamp(tmp_path: Path) -> None:
             assert spin_until(node, ex, lambda: len(got) >= 3 and len(annotated) >= 3, 30), \
                 (tmp_path / "detector.log").read_text()
             fmt, data = compress_rgb(rgb, "png")
+            assert spin_until(node, ex, lambda: node.count_subscribers("/drone_1/image_raw/compressed") > 0, 30)
+            spin_until(node, ex, lambda: False, 0.5)  # matched on the node's side too (discovery is not symmetric)
             pub_png.publish(CompressedImage(header=Header(stamp=Time(sec=40), frame_id="drone_1/camera_optical"),
                                             format=fmt, data=data))
             assert spin_until(node, ex, lambda: len(from_png) >= 1, 30), (tmp_path / "detector.log").read_text()
@@ -167,3 +169,13 @@ def test_marker_colours_follow_the_class() -> None:
     assert zebra == ZEBRA_COLOUR and legacy == ZEBRA_COLOUR
     assert (other.r, other.g, other.b) == pytest.approx(tuple(c / 255 for c in OTHER_COLOUR))
     assert other != ZEBRA_COLOUR
+
+
+def test_image_topics_that_resolve_to_the_same_outputs_stop_the_node() -> None:
+    """``drone_0/image_raw`` and ``/drone_0/image_raw/compressed`` differ as written but both publish
+    ``/drone_0/detections`` in the root namespace: refused at start, naming the parameter, before any model loads."""
+    proc = run_node_once("detector", {"image_topics": ["drone_0/image_raw", "/drone_0/image_raw/compressed"]})
+    assert proc.returncode == 2
+    assert "'image_topics'" in proc.stderr + proc.stdout and "/drone_0/detections" in proc.stderr + proc.stdout
+    proc = run_node_once("detector", {"image_topics": ["drone_0/image_raw/"]})
+    assert proc.returncode == 2 and "trailing /" in proc.stderr + proc.stdout

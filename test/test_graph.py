@@ -296,6 +296,21 @@ def test_readme_parameter_tables_equal_the_specs() -> None:
         assert markdown_table(specs) + "\n" in readme, f"README's {executable} table differs from its ParamSpecs"
 
 
+def test_tables_of_nodes_with_the_same_first_parameter_are_found_in_their_own_sections() -> None:
+    """The labeller's and the scorer's tables both start with `drones`: each is found after its node's heading, and
+    two nodes that would find one table are refused, naming the node."""
+    from zebra_sim_ros.errors import ParameterError
+    from zebra_sim_ros.params import markdown_table, replace_tables
+
+    stub = "| parameter | default | meaning (unit) | allowed |\n| --- | --- | --- | --- |\n| `drones` | x | x | x |\n"
+    text = f"### The `labeller` node\n\n{stub}\n### The `scorer` node\n\n{stub}\nend\n"
+    out = replace_tables(text, {"scorer": SPECS["scorer"], "labeller": SPECS["labeller"]})
+    labeller_part, scorer_part = out.split("### The `scorer` node")
+    assert markdown_table(SPECS["labeller"]) in labeller_part and markdown_table(SPECS["scorer"]) in scorer_part
+    with pytest.raises(ParameterError, match="'README table' = 'scorer'.*found labeller's"):
+        replace_tables(f"{stub}\n", {"labeller": SPECS["labeller"], "scorer": SPECS["scorer"]})
+
+
 def test_readme_names_the_other_species_the_asset_bakes_wherever_it_lists_them() -> None:
     """The README lists the other species in prose, a parameter table and the dataset layout: every list that starts
     with the asset's first one (a run of species names, wrapped or not; shorter runs such as the real photos'

@@ -58,3 +58,9 @@ def test_idle_says_since_when() -> None:
 def test_an_activity_must_hold_the_counters_it_names() -> None:
     with pytest.raises(KeyError, match=r"lack \['dropped'\]"):
         Activity({"messages": 1}, "messages", ("dropped",))
+
+
+def test_a_note_follows_the_message_unless_the_node_failed() -> None:
+    mon = HealthMonitor(start_s=0.0)
+    assert mon.report(1.0, _camera(2, note="mAP50 0.7")).message == "2 frames in the last 1.0 s (2/s); mAP50 0.7"
+    assert mon.report(2.0, _camera(2, note="mAP50 0.7", error="bad")).message == "bad"

@@ -119,7 +119,8 @@ def test_predict_refuses_a_source_it_cannot_read(tmp_path: Path, cli: CliRun) ->
 
 def test_predict_a_bag_reads_compressed_images_as_their_pixels(tmp_path: Path, cli: CliRun) -> None:
     """A bag recorded with the cameras' ``compressed`` option: each png CompressedImage is detected as the image it
-    holds (the same detections as the raw image of the same pixels); a compressed depth image is named as skipped."""
+    holds (the same detections as the raw image of the same pixels); a compressed depth image is left out as a raw
+    one is (not camera colour), and a colour image in a format it cannot read is named as skipped."""
     from sensor_msgs.msg import CompressedImage
 
     from zebra_sim_ros.recording.images import compress_rgb
@@ -140,6 +141,8 @@ def test_predict_a_bag_reads_compressed_images_as_their_pixels(tmp_path: Path, c
                 k * 10**9)
     w.write("/drone_1/depth/compressedDepth", serialize_message(CompressedImage(format="16UC1; compressedDepth",
                                                                                 data=bytes(20))), 5 * 10**9)
+    w.write("/drone_1/image_raw/compressed", serialize_message(CompressedImage(format="rgb8; webp compressed bgr8",
+                                                                               data=bytes(20))), 6 * 10**9)
     w.close()
     out = tmp_path / "out"
     s = _predict(cli, str(bag), "--out", str(out), "--quiet", "--conf", "0.001")
@@ -150,4 +153,4 @@ def test_predict_a_bag_reads_compressed_images_as_their_pixels(tmp_path: Path, c
         assert png.stamp.sec == k and len(png.detections) == len(raw.detections) > 0
         assert all(a.box_xyxy == pytest.approx(b.box_xyxy, abs=1e-3) and a.score == pytest.approx(b.score, abs=1e-4)
                    for a, b in zip(png.detections, raw.detections, strict=True))
-    assert any("compressedDepth" in n for n in s.get("skipped", [])), s
+    assert len(s["skipped"]) == 1 and "unsupported compressed format 'rgb8; webp" in s["skipped"][0], s

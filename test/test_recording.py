@@ -493,6 +493,22 @@ def test_compressed_images_read_back_as_image_transport_writes_them() -> None:
     assert np.array_equal(decompress_rgb("mono8; png compressed mono8", grey), np.repeat(rgb[..., :1], 3, axis=2))
     with pytest.raises(ValueError, match="unsupported compressed format '16UC1; compressedDepth'"):
         decompress_rgb("16UC1; compressedDepth", data)
+    with pytest.raises(ValueError, match="not an 8-bit colour or grey image"):  # a depth image through png
+        decompress_rgb("16UC1; png compressed ", data)
+    with pytest.raises(ValueError, match="an empty jpeg image"):
+        decompress_rgb("rgb8; jpeg compressed bgr8", b"")
+    # a codec that held RGB is not turned around
+    rgb_png = cv2.imencode(".png", rgb)[1].tobytes()
+    assert np.array_equal(decompress_rgb("rgb8; png compressed rgb8", rgb_png), rgb)
+    from rclpy.serialization import serialize_message as ser
+    from sensor_msgs.msg import CompressedImage
+
+    from zebra_sim_ros.recording.images import message_rgb
+
+    depth = CompressedImage(format="32FC1; png compressed ", data=data)
+    assert message_rgb("sensor_msgs/msg/CompressedImage", ser(depth)) is None  # not camera colour: left out
+    with pytest.raises(ValueError, match="cut short"):
+        message_rgb("sensor_msgs/msg/CompressedImage", ser(CompressedImage(format=fmt, data=data))[:-10])
     with pytest.raises(ValueError, match="10 bytes do not decode as png"):
         decompress_rgb("rgb8; png compressed bgr8", bytes(10))
     with pytest.raises(ValueError, match="compressed format 'webp'"):
@@ -521,12 +537,15 @@ def test_eval_reads_compressed_images_and_detects_a_frame_once(tmp_path: Path) -
         rgb = rng.integers(0, 255, (72, 128, 3), dtype=np.uint8)
         h = Header(frame_id="c")
         h.stamp.sec = k
-        w.write("/drone_0/image_raw", serialize_message(Image(header=h, height=72, width=128, encoding="rgb8",
-                                                                step=384, data=rgb.tobytes())), k)
+        raw = serialize_message(Image(header=h, height=72, width=128, encoding="rgb8", step=384, data=rgb.tobytes()))
         fmt, data = compress_rgb(rgb, "png")
-        for d in ("drone_0", "drone_1"):
-            w.write(f"/{d}/image_raw/compressed", serialize_message(CompressedImage(header=h, format=fmt, data=data)),
-                    k)
+        other = serialize_message(CompressedImage(header=h, format=fmt, data=compress_rgb(rgb // 2, "png")[1]))
+        # drone_0's compressed copy holds other pixels, before its raw image at stamp 0 and after it at stamp 1:
+        # the raw image is detected either way; drone_1 has the raw pixels as png only
+        for topic, msg in ((("/drone_0/image_raw/compressed", other), ("/drone_0/image_raw", raw)) if k == 0 else
+                           (("/drone_0/image_raw", raw), ("/drone_0/image_raw/compressed", other))):
+            w.write(topic, msg, k)
+        w.write("/drone_1/image_raw/compressed", serialize_message(CompressedImage(header=h, format=fmt, data=data)), k)
     w.close()
     detector = ImageDetector(tmp_path / "w.pt", device="cpu", batch=8)
     calls: list[int] = []
@@ -537,7 +556,7 @@ def test_eval_reads_compressed_images_and_detects_a_frame_once(tmp_path: Path) -
         flush()
     detector._flush = counted  # type: ignore[method-assign]
     got = detector.apply(collect(tmp_path / "c.mcap", each=detector))
-    assert sum(calls) == 4 and detector.skipped == []  # 2 stamps x 2 drones; drone_0's compressed twins skipped
+    assert sum(calls) == 5 and detector.skipped == []  # drone_0's compressed copy detected once (before its raw)
     for k in range(2):
         t = k * 10**9  # the header's stamp
         assert len(got.drones["drone_1"].detections[t]) > 0

@@ -35,7 +35,8 @@ class Activity:
     ``problems`` count what went wrong (a rise of one in a period is a warning); ``busy_s``, the seconds spent
     working, where the node times its work; ``error``, why the node failed (empty: it has not); ``waiting``, what it
     waits for before it starts (empty: it is not waiting); ``info``, fixed facts (weights, device, world);
-    ``hardware``, what it runs on or stands for (a drone, a device), the status's ``hardware_id``."""
+    ``hardware``, what it runs on or stands for (a drone, a device), the status's ``hardware_id``; ``note``, what
+    the node has to say beyond its counts (the scorer's figures), appended to an OK or WARN message."""
 
     counters: Mapping[str, int]
     work: str
@@ -45,6 +46,7 @@ class Activity:
     waiting: str = ""
     info: Mapping[str, str] = field(default_factory=dict)
     hardware: str = ""
+    note: str = ""
 
     def __post_init__(self) -> None:
         missing = [n for n in (self.work, *self.problems) if n not in self.counters]
@@ -111,6 +113,8 @@ class HealthMonitor:
         else:
             since = now_s - (self.last_work_s if self.last_work_s is not None else self.last_s)
             level, message = Level.OK, f"no {act.work} for {_seconds(since)}; {total} in all"
+        if act.note and level is not Level.ERROR:
+            message = f"{message}; {act.note}"
         self.last_s = now_s
         self.last = {k: int(v) for k, v in act.counters.items()}
         if act.busy_s is not None and math.isfinite(act.busy_s):

@@ -352,14 +352,21 @@ def markdown_table(specs: Iterable[ParamSpec]) -> str:
 
 
 def replace_tables(readme: str, tables: Mapping[str, Iterable[ParamSpec]]) -> str:
-    """``readme`` with each node's parameter table (found by its header and first parameter) replaced by
-    :func:`markdown_table` of its specs; ``ParameterError`` names a node whose table is not there."""
+    """``readme`` with each node's parameter table replaced by :func:`markdown_table` of its specs. A table is
+    found by its header and first parameter, after the node's section heading (``### The `<node>` node``) where
+    there is one; ``ParameterError`` names a node whose table is not there, or two nodes that found one table."""
     header = "| parameter | default | meaning (unit) | allowed |\n| --- | --- | --- | --- |\n"
+    taken: dict[int, str] = {}
     for node, specs in tables.items():
         specs = list(specs)
-        start = readme.find(header + f"| `{specs[0].name}` |")
+        section = readme.find(f"### The `{node}` node")
+        start = readme.find(header + f"| `{specs[0].name}` |", max(section, 0))
         if start < 0:
             raise ParameterError("README table", node, f"a table starting with `{specs[0].name}`")
+        if start in taken:
+            raise ParameterError("README table", node, f"a table of its own (found {taken[start]}'s: give the node "
+                                 f"a section '### The `{node}` node')")
+        taken[start] = node
         end = readme.find("\n\n", start)
         end = len(readme) if end < 0 else end
         readme = readme[:start] + markdown_table(specs) + readme[end:]

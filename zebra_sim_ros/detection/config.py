@@ -18,6 +18,7 @@ from zebra_sim_ros.params import (
     names_list,
     param,
     reliability_param,
+    same_as,
 )
 
 NATIVE = -1  # as imgsz: each batch at its frames' own resolution (predict.native_size)
@@ -97,6 +98,9 @@ class DetectorConfig(StageConfig):
         """Two image topics may not publish to the same outputs (``x/image_raw`` and ``x/image_raw/compressed``)."""
         seen: dict[str, str] = {}
         for topic in self.image_topics:
+            if topic.endswith("/"):
+                raise ParameterError("image_topics", list(self.image_topics), f"topic names without a trailing / "
+                                     f"({topic!r})")
             base = output_base(topic)
             if base in seen:
                 raise ParameterError("image_topics", list(self.image_topics), f"topics with outputs of their own: "
@@ -105,6 +109,29 @@ class DetectorConfig(StageConfig):
 
 
 DETECTOR_PARAMS: tuple[ParamSpec, ...] = DetectorConfig.specs()
+
+
+@dataclass(frozen=True)
+class ScorerConfig(StageConfig):
+    """Validated scorer node parameters: which cameras' labels and detections it scores, over how many frames."""
+
+    drones: tuple[str, ...] = param(("drone_0", "drone_1", "drone_2"), "cameras to score (their namespaces: "
+                                    "<drone>/labels against <drone>/<detections>)",
+                                    allowed="a non-empty list of names", check=names_list)
+    detections: str = param("detections", "the detection topic beside each camera's labels (a Detection2DArray, "
+                            "e.g. another detector's remapped output)", allowed="a topic name relative to the drone",
+                            check=lambda v: bool(v) and not v.startswith("/") and not v.endswith("/"))
+    window: int = param(300, "score the last this many frames of each camera (0: every frame since the start)",
+                        lo=0, hi=1_000_000, runtime=True)
+    qos_reliability: str = reliability_param("QoS reliability of the subscriptions (reliable matches the graph's "
+                                             "publishers and loses nothing; best_effort matches any)")
+    qos_depth: int = param(10, "history depth", lo=1, hi=1000)
+    diagnostics_period_s: float = same_as(DetectorConfig, "diagnostics_period_s", lo=0.05,
+                                          help="how often the scores (and the node's health) are published on "
+                                          "/diagnostics (diagnostic_msgs/DiagnosticArray)")
+
+
+SCORER_PARAMS: tuple[ParamSpec, ...] = ScorerConfig.specs()
 
 
 def is_compressed(image_topic: str) -> bool:
@@ -120,7 +147,7 @@ def output_base(image_topic: str) -> str:
     ``drone_0/detections``)."""
     topic = image_topic.rstrip("/")
     if is_compressed(topic):
-        topic = topic[: -len("/compressed")]
+        topic = topic[: -len("/compressed")] or "/"
     if "/" not in topic.lstrip("/"):
         return "/detections" if topic.startswith("/") else "detections"
     return f"{topic.rsplit('/', 1)[0]}/detections"

@@ -52,3 +52,39 @@ def score_drones(drones: dict[str, DroneFrames]) -> dict[str, Any]:
                          "unmatched_detections": len(set(d.detections) - set(stamps)), **m.to_dict()}
     result["all"] = evaluate_detections(all_p, all_g, ignores=all_i).to_dict() if all_g else None
     return result
+
+
+class LiveScores:
+    """Scores of a running graph (the ``scorer`` node): labels and detections as they arrive, per camera, matched by
+    stamp, over the last ``window`` stamps of each camera to arrive (0: every stamp since the start). Detections of
+    a stamp whose labels never come (or the other way round) are counted, not scored."""
+
+    def __init__(self, window: int = 0) -> None:
+        if window < 0:
+            raise ValueError(f"window {window}: 0 (every frame) or a number of frames")
+        self.window = window
+        self.drones: dict[str, DroneFrames] = {}
+        self.order: dict[str, list[int]] = {}  # per camera, its stamps in order of first arrival
+
+    def _frames(self, drone: str, stamp: int) -> DroneFrames:
+        frames = self.drones.setdefault(drone, DroneFrames())
+        order = self.order.setdefault(drone, [])
+        if stamp not in frames.labels and stamp not in frames.detections:
+            order.append(stamp)
+            while self.window and len(order) > self.window:
+                old = order.pop(0)
+                frames.labels.pop(old, None)
+                frames.detections.pop(old, None)
+        return frames
+
+    def add_labels(self, drone: str, labels: Labels) -> None:
+        """A camera's labels (their stamp is the image's)."""
+        self._frames(drone, labels.stamp.ns).labels[labels.stamp.ns] = labels
+
+    def add_detections(self, drone: str, stamp: int, rows: NDArray[np.float64]) -> None:
+        """A camera's zebra detections of the image of ``stamp`` (ns): rows ``[x0, y0, x1, y1, score]``."""
+        self._frames(drone, stamp).detections[stamp] = np.asarray(rows, np.float64).reshape(-1, 5)
+
+    def scores(self) -> dict[str, Any]:
+        """:func:`score_drones` over the window."""
+        return score_drones(self.drones)

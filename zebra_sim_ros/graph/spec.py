@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from zebra_sim_ros.detection.config import DETECTOR_PARAMS
+from zebra_sim_ros.detection.config import DETECTOR_PARAMS, SCORER_PARAMS
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LABELLER_PARAMS
 from zebra_sim_ros.params import ParamSpec, replace_tables, validate, write_config
@@ -31,7 +31,7 @@ GLOBAL_TOPICS = ("/tf", "/tf_static", "/clock")
 BAG_NAME = "zebra_sim.mcap"
 NODE_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
     "placer": PLACER_PARAMS, "camera": CAMERA_PARAMS, "labeller": LABELLER_PARAMS, "detector": DETECTOR_PARAMS,
-    "recorder": RECORDER_PARAMS, "replay": REPLAY_PARAMS}
+    "recorder": RECORDER_PARAMS, "replay": REPLAY_PARAMS, "scorer": SCORER_PARAMS}
 
 
 @dataclass(frozen=True)

@@ -157,7 +157,7 @@ class CameraNode(ZebraNode[CameraConfig]):
             store = self.sim.renderer.coat_store if self.sim is not None else None
             coats = f", coats baked {store.baked} / read {store.read}" if store is not None else ""
             self.get_logger().info(f"step {scene.step}: frame {self.frames}, "
-                                   f"{self.render_seconds / max(self.frames, 1):.2f} s/frame render, "
+                                   f"{self.render_seconds / max(self.rendered, 1):.2f} s/frame render, "
                                    f"{self.skipped} scenes skipped{coats}")
 
     def activity(self) -> Activity:

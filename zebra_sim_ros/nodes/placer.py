@@ -220,10 +220,10 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         lockstep = c.mode == "lockstep"
         if self._finished():
             waiting = f"done: {self.published} steps"
-        elif not self.started:
-            waiting = "waiting for subscribers before the first step"
         elif lockstep and self.published == 0 and self.pending is None and self.count_publishers(ACK_TOPIC) == 0:
             waiting = f"waiting for an acknowledger on {ACK_TOPIC} before the first step"
+        elif not self.started:
+            waiting = "waiting for subscribers before the first step"
         elif lockstep and self.pending is not None and time.monotonic() - self.sent_at > c.lockstep_timeout_s / 2:
             missing = sorted(set(c.lockstep_ack_from) - self.acked)
             waiting = (f"step {self.pending.step}: waiting {time.monotonic() - self.sent_at:.1f} s for "

@@ -75,6 +75,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         self.published = 0
         self.error = ""  # why playing failed
         self.damaged_before = 0  # damaged parts skipped in earlier passes (looping reopens the reader)
+        self.pass_lock = threading.Lock()  # a report never sees a pass counted twice, or not at all
         self.waiting = ""  # what the play thread waits for before it plays
         for topic, type_name, metadata in self.reader.channel_list():  # publishers up front: subscribers match
             self._publisher(topic, type_name, metadata)                    # before the first message is played
@@ -119,8 +120,10 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                 self._play_once()
                 if not self.cfg.loop or self.done:
                     break
-                self.damaged_before += len(self.reader.stopped)
-                self.reader = BagReader.open(self.bags)
+                reader = BagReader.open(self.bags)
+                with self.pass_lock:
+                    self.damaged_before += len(self.reader.stopped)
+                    self.reader = reader
         except Exception as exc:  # noqa: BLE001 - reported, and the node ends with an error status
             if self.done or not self.context.ok():  # Ctrl-C: rclpy's handler ended the context under this thread
                 return
@@ -186,7 +189,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
 
     def activity(self) -> Activity:
         """Messages played; damaged parts of the bags skipped (everything intact is played); an error ends it."""
-        damaged = self.damaged_before + len(self.reader.stopped)
+        with self.pass_lock:
+            damaged = self.damaged_before + len(self.reader.stopped)
         return Activity({"messages": self.published, "damaged": damaged}, "messages", ("damaged",),
                         error=self.error, waiting=self.waiting,
                         info={"bags": ", ".join(str(p) for p in self.reader.paths), "rate": f"{self.cfg.rate:g}"})

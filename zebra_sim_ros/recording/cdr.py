@@ -50,17 +50,19 @@ class _Cdr:
         self.pos += 8
         return float(v)
 
-    def string(self) -> str:
-        n = self.u32()
-        v = self.data[self.pos:self.pos + n - 1].decode("utf-8")
-        self.pos += n
-        return v
-
-    def blob(self) -> bytes:
-        n = self.u32()
+    def _span(self, n: int) -> bytes:
+        if self.pos + n > len(self.data):
+            raise ValueError(f"a field of {n} bytes at byte {self.pos} runs past the message's {len(self.data)}: "
+                             "cut short")
         v = self.data[self.pos:self.pos + n]
         self.pos += n
         return v
+
+    def string(self) -> str:
+        return self._span(self.u32())[:-1].decode("utf-8")
+
+    def blob(self) -> bytes:
+        return self._span(self.u32())
 
 
 def _stamp_of(r: _Cdr) -> int:

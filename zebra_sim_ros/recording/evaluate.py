@@ -83,10 +83,12 @@ def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "dete
 
 class ImageDetector:
     """A :func:`collect` visitor that runs a detector over every ``/<drone>/image_raw`` (rgb8 or bgr8) and
-    ``/<drone>/image_raw/compressed`` (jpeg or png) in batches during the same pass; a drone's stamp is detected
-    once, from the first of the two to come; :meth:`apply` then puts its detections in place of the recorded ones."""
+    ``/<drone>/image_raw/compressed`` (jpeg or png) in batches during the same pass; :meth:`apply` then puts its
+    detections in place of the recorded ones. A drone's stamp recorded both ways is detected from ``image_raw`` (the
+    pixels before compression); an image that comes again on the same topic (a second bag of the same stamps)
+    replaces the first, as a second labels message does."""
 
-    TOPIC = re.compile(r"^(?:/[^/]+)*/(?P<drone>[^/]+)/image_raw(?:/compressed)?$")
+    TOPIC = re.compile(r"^(?:/[^/]+)*/(?P<drone>[^/]+)/image_raw(?P<compressed>/compressed)?$")
 
     def __init__(self, weights: str | Path | None, device: str = "auto", batch: int = 8, conf: float = 0.001,
                  imgsz: int | None = None, scale: float = 0.0, verifier: str = "", amp: str = "off") -> None:
@@ -101,7 +103,7 @@ class ImageDetector:
         self.detections: dict[str, dict[int, np.ndarray]] = defaultdict(dict)
         self.skipped: list[str] = []
         self._pending: list[tuple[str, int, np.ndarray]] = []
-        self._seen: set[tuple[str, int]] = set()  # (drone, stamp) detected or pending
+        self._raw: set[tuple[str, int]] = set()  # (drone, stamp) detected or pending from image_raw
 
     def __call__(self, m: BagMessage) -> None:
         match = self.TOPIC.match(m.topic)
@@ -116,10 +118,12 @@ class ImageDetector:
             self.skipped.append(skip_note(m, "not rgb8 or bgr8"))
             return
         key = (match.group("drone"), image[0])
-        if key in self._seen:  # image_raw and image_raw/compressed of one frame: detected once
-            return
-        self._seen.add(key)
-        self._pending.append((key[0], *image))
+        if match.group("compressed"):
+            if key in self._raw:  # the raw image of this frame is detected: not its compressed copy too
+                return
+        else:
+            self._raw.add(key)
+        self._pending.append((key[0], *image))  # later ones of a key overwrite earlier ones in _flush
         if len(self._pending) >= self.batch:
             self._flush()
 

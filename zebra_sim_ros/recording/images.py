@@ -40,31 +40,51 @@ def compress_rgb(rgb: np.ndarray, kind: str, quality: int = 90) -> tuple[str, by
     return f"rgb8; {kind} compressed bgr8", buf.tobytes()
 
 
+# the encodings of depth images, masks and 16-bit images: not camera colour
+NOT_COLOUR = re.compile(r"^(mono16|(16|32|64)[USF]C\d|8[US]C1|(rgb|bgr|rgba|bgra)16)$")
+
+
+def is_colour(fmt: str) -> bool:
+    """Whether a CompressedImage of this format holds an 8-bit colour or grey image (its encoding, before ``;``,
+    is not a depth, mask or 16-bit one; a bare ``jpeg``/``png`` is taken as colour)."""
+    return not NOT_COLOUR.match(fmt.split(";", 1)[0].strip()) if ";" in fmt else True
+
+
 def decompress_rgb(fmt: str, data: bytes) -> np.ndarray:
     """A CompressedImage's ``(format, data)`` as an H x W x 3 RGB uint8 image. Reads what
     ``compressed_image_transport`` and camera drivers write: ``"<encoding>; jpeg compressed <codec encoding>"``,
-    or the bare ``jpeg``/``png``; grey images come back as three equal channels. ValueError for another format
-    (``compressedDepth``, video codecs) or bytes that do not decode."""
-    kind = fmt.split(";", 1)[1].split()[0] if ";" in fmt else fmt.strip()
-    kind = {"jpg": "jpeg"}.get(kind.lower(), kind.lower())
+    or the bare ``jpeg``/``png``; grey images come back as three equal channels. The decoded channels are turned
+    from BGR to RGB where the format says the codec held BGR (``compressed bgr...``) or says nothing (bare), as
+    ``compressed_image_transport`` does. ValueError for another format (``compressedDepth``, video codecs), a
+    depth, mask or 16-bit image (:func:`is_colour`), or bytes that do not decode."""
+    after = fmt.split(";", 1)[1].split() if ";" in fmt else [fmt.strip()]
+    kind = {"jpg": "jpeg"}.get(after[0].lower(), after[0].lower()) if after else ""
     if kind not in COMPRESSED_FORMATS:
         raise ValueError(f"unsupported compressed format {fmt!r} (read: {', '.join(COMPRESSED_FORMATS)})")
-    codec = fmt.split("compressed", 1)[1].strip() if "compressed" in fmt else "bgr8"
-    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    if not is_colour(fmt):
+        raise ValueError(f"compressed format {fmt!r}: not an 8-bit colour or grey image")
+    if not data:
+        raise ValueError(f"an empty {kind} image ({fmt!r})")
+    try:
+        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    except cv2.error as exc:  # a header that claims more pixels than OpenCV decodes, say
+        raise ValueError(f"{len(data)} bytes do not decode as {kind} ({fmt!r}): {str(exc).strip()[-120:]}") from None
     if img is None:
         raise ValueError(f"{len(data)} bytes do not decode as {kind} ({fmt!r})")
-    return np.ascontiguousarray(img if codec == "rgb8" else img[..., ::-1])
+    bgr = ";" not in fmt or "compressed bgr" in fmt
+    return np.ascontiguousarray(img[..., ::-1] if bgr else img)
 
 
 def message_rgb(type_name: str, data: bytes) -> tuple[int, np.ndarray] | None:
     """(stamp ns, H x W x 3 RGB) of a CDR-serialized camera image: a sensor_msgs/Image of encoding rgb8 or bgr8
-    (None for other encodings: depth, masks), or a jpeg or png sensor_msgs/CompressedImage (ValueError for other
-    formats); None for other types. A malformed message raises one of :data:`~zebra_sim_ros.recording.cdr.MALFORMED`."""
+    (None for other encodings: depth, masks), or a jpeg or png sensor_msgs/CompressedImage (None for a depth, mask
+    or 16-bit one; ValueError for other formats); None for other types. A malformed message raises one of
+    :data:`~zebra_sim_ros.recording.cdr.MALFORMED`."""
     if type_name == IMAGE_TYPE:
         return rgb_image(data)
     if type_name == COMPRESSED_TYPE:
         t, fmt, blob = cdr_compressed_image(data)
-        return t, decompress_rgb(fmt, blob)
+        return (t, decompress_rgb(fmt, blob)) if is_colour(fmt) else None
     return None
 
 

@@ -1,0 +1,95 @@
+"""The scorer node over real DDS: labels and typed detections in, live figures out on /diagnostics."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from ros_helpers import (
+    Peer,
+    collect_diagnostics,
+    detection_array_class,
+    fresh_domain_id,
+    node_process,
+    run_node_once,
+    spin_until,
+)
+from std_msgs.msg import Header, String
+
+from zebra_sim_ros.detection.scoring import LiveScores
+from zebra_sim_ros.messages import Detection, Detections, Labels, Stamp
+from zebra_sim_ros.nodes.ros_adapter import detection_array_msg, detection_array_type, stamp
+
+pytestmark = pytest.mark.integration
+
+
+def _labels(sec: int, boxes: list[list[float]]) -> str:
+    """A labels message with only what scoring reads: kept zebras' visible boxes."""
+    return json.dumps({"schema": "zebra_sim_ros/labels", "version": 1, "stamp": {"sec": sec, "nanosec": 0},
+                       "zebras": [{"id": i, "box_visible": b, "kept": True, "visible_pixels": 900}
+                                  for i, b in enumerate(boxes)]})
+
+
+def _detections(sec: int, rows: list[list[float]]) -> object:
+    dets = Detections(Stamp(sec, 0), "cam", 0, 0, tuple(Detection(tuple(r[:4]), r[4]) for r in rows))  # type: ignore
+    return detection_array_msg(detection_array_type(), Header(stamp=stamp(sec * 10**9), frame_id="cam"), dets)
+
+
+def test_live_scores_keep_a_window_of_each_cameras_latest_frames() -> None:
+    live = LiveScores(window=2)
+    for sec in range(3):
+        live.add_labels("a", Labels.from_json(_labels(sec, [[10.0, 10, 50, 40]])))
+        hit = [10.0, 10, 50, 40, 0.9] if sec else [200.0, 200, 240, 230, 0.9]  # frame 0: a miss and a false box
+        live.add_detections("a", sec * 10**9, np.array([hit]))
+    s = live.scores()
+    assert s["a"]["frames"] == 2 and s["a"]["mAP50"] == pytest.approx(1.0)  # frame 0 fell out of the window
+    live.window = 0
+    live.add_labels("a", Labels.from_json(_labels(3, [[10.0, 10, 50, 40]])))
+    assert live.scores()["a"]["unmatched_labels"] == 1  # labels without detections yet: counted, not scored
+    with pytest.raises(ValueError, match="window -1"):
+        LiveScores(-1)
+
+
+def test_the_scorer_reports_live_figures_per_camera_and_warns_on_a_bad_message(tmp_path: Path) -> None:
+    domain = fresh_domain_id()
+    peer = Peer(domain, "test_scorer")
+    node, ex = peer.node, peer.ex
+    status = collect_diagnostics(node, "scorer: scorer")
+    pubs = {(d, k): node.create_publisher(String if k == "labels" else detection_array_class(), f"/{d}/{k}", 10)
+            for d in ("drone_0", "drone_1") for k in ("labels", "detections")}
+    log = tmp_path / "scorer.log"
+    try:
+        with node_process("scorer", {"drones": ["drone_0", "drone_1"], "diagnostics_period_s": 0.2}, domain, log):
+            assert spin_until(node, ex, lambda: all(node.count_subscribers(f"/{d}/{k}") for d, k in pubs), 60), \
+                log.read_text()
+            spin_until(node, ex, lambda: False, 0.5)  # our publishers matched on the node's side too
+            box = [10.0, 10, 50, 40]
+            for sec in range(3):
+                for d in ("drone_0", "drone_1"):
+                    pubs[(d, "labels")].publish(String(data=_labels(sec, [box, [100.0, 100, 140, 130]])))
+                # drone_0 finds both zebras; drone_1 one of them, and a box on nothing
+                pubs[("drone_0", "detections")].publish(_detections(sec, [[*box, 0.9], [100.0, 100, 140, 130, 0.8]]))
+                pubs[("drone_1", "detections")].publish(_detections(sec, [[*box, 0.9], [300.0, 300, 340, 330, 0.95]]))
+                spin_until(node, ex, lambda: False, 0.05)
+            assert spin_until(node, ex, lambda: bool(status) and status[-1]["values"].get("drone_1 frames") == "3"
+                              and status[-1]["values"].get("drone_0 frames") == "3", 20), (status[-2:],
+                                                                                             log.read_text())
+            last = status[-1]
+            pubs[("drone_0", "labels")].publish(String(data="{not json"))
+            assert spin_until(node, ex, lambda: any(s["level"] == 1 for s in status), 20), status[-2:]
+    finally:
+        peer.close()
+    v = last["values"]
+    assert float(v["drone_0 mAP50"]) == pytest.approx(1.0) and float(v["drone_0 recall"]) == pytest.approx(1.0)
+    assert float(v["drone_1 recall"]) == pytest.approx(0.5) and float(v["drone_1 precision"]) == pytest.approx(0.5)
+    assert 0.5 < float(v["all mAP50"]) < 1.0 and v["frames scored"] == "6"
+    assert last["level"] == 0 and last["message"].endswith("over 6 frames (12 zebras)"), last
+    warn = next(s for s in status if s["level"] == 1)
+    assert "1 bad_messages" in warn["message"] and "drone_0/labels skipped" in log.read_text()
+
+
+def test_a_bad_scorer_parameter_stops_the_node() -> None:
+    proc = run_node_once("scorer", {"detections": "/absolute"})
+    assert proc.returncode == 2 and "'detections'" in proc.stderr + proc.stdout

@@ -1,0 +1,121 @@
+"""The ``scorer`` node: how well the detector does, live, against the labeller's ground truth
+(``ros2 run zebra_sim_ros scorer``).
+
+Subscribes, per camera in ``drones``, ``<drone>/labels`` (the label JSON) and ``<drone>/<detections>``
+(Detection2DArray, the detector's type: vision_msgs or zebra_sim_msgs), matches them by the image's stamp and
+scores the last ``window`` frames of each camera as ``zebra-sim bag eval`` scores a bag
+(:func:`zebra_sim_ros.detection.scoring.score_drones`: COCO mAP50 and mAP50-95, and the precision and recall at the
+best-F1 confidence, with the zebras the labeller saw but dropped as don't-care regions; zebra detections only).
+
+Every ``diagnostics_period_s`` it publishes the figures on ``/diagnostics`` (status ``scorer: scorer``): over all
+cameras in the message and the values (``all mAP50``, ``drone_0 recall``, ...), with the frames scored. A message
+that does not parse is logged, counted and skipped (WARN in its period). Change the detector's ``conf`` with
+``ros2 param set`` and watch the figures follow; ``window`` may change while it runs.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from std_msgs.msg import String
+
+from zebra_sim_ros.detection.config import SCORER_PARAMS, ScorerConfig
+from zebra_sim_ros.detection.scoring import LiveScores
+from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.health import Activity
+from zebra_sim_ros.messages import Labels
+from zebra_sim_ros.nodes.ros_adapter import (
+    ZebraNode,
+    describe_qos,
+    detection_array_type,
+    help_text,
+    message_class,
+    qos,
+    run_node,
+)
+from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections
+
+
+class ScorerNode(ZebraNode[ScorerConfig]):
+    """Thin adapter around :class:`zebra_sim_ros.detection.scoring.LiveScores`."""
+
+    def __init__(self) -> None:
+        super().__init__("scorer", ScorerConfig)
+
+    def start(self) -> None:
+        """Subscribe each camera's labels and detections."""
+        c = self.cfg
+        self.live = LiveScores(c.window)
+        self.counts = {"labels": 0, "detections": 0, "bad_messages": 0}
+        q = qos(c.qos_reliability, c.qos_depth)
+        det_class = message_class(detection_array_type())
+        for d in c.drones:
+            self.create_subscription(String, f"{d}/labels", self._on_labels(d), q)
+            # raw: the CDR bytes read by the same reader as bag eval's (cdr_detections), whichever package's type
+            self.create_subscription(det_class, f"{d}/{c.detections}", self._on_detections(d), q, raw=True)
+        self.figures: dict[str, Any] = {}
+        self.get_logger().info(f"scoring {list(c.drones)}: <drone>/labels against <drone>/{c.detections}, window "
+                               f"{c.window or 'every frame'}; QoS {describe_qos(q)}")
+
+    def on_config(self, cfg: ScorerConfig) -> None:
+        """A new window applies from the next frame on."""
+        self.cfg = cfg
+        self.live.window = cfg.window
+
+    def _bad(self, what: str, exc: BaseException) -> None:
+        self.counts["bad_messages"] += 1
+        self.get_logger().error(f"{what} skipped ({self.counts['bad_messages']} bad so far): "
+                                f"{type(exc).__name__}: {exc}")
+
+    def _on_labels(self, drone: str) -> Any:
+        def on_labels(msg: String) -> None:
+            try:
+                self.live.add_labels(drone, Labels.from_json(msg.data))
+            except (ZebraSimError, *MALFORMED) as exc:
+                self._bad(f"{drone}/labels", exc)
+                return
+            self.counts["labels"] += 1
+        return on_labels
+
+    def _on_detections(self, drone: str) -> Any:
+        def on_detections(data: bytes) -> None:
+            try:
+                dets = cdr_detections(data)
+                rows = np.array([[*x.box_xyxy, x.score] for x in dets.detections if x.class_name == "zebra"],
+                                np.float64)
+                self.live.add_detections(drone, dets.stamp.ns, rows)
+            except (ZebraSimError, *MALFORMED) as exc:
+                self._bad(f"{drone}/{self.cfg.detections}", exc)
+                return
+            self.counts["detections"] += 1
+        return on_detections
+
+    def activity(self) -> Activity:
+        """Frames scored in the window; the figures over all cameras in the message, per camera in the values."""
+        s = self.live.scores()
+        frames = sum(v["frames"] for k, v in s.items() if k != "all")
+        info: dict[str, str] = {}
+        note = "no frame with both labels and detections yet"
+        for key, v in s.items():
+            if v is None or (key != "all" and not v["frames"]):
+                continue
+            for name in ("mAP50", "mAP50-95", "precision", "recall"):
+                info[f"{key} {name}"] = f"{v[name]:.4f}"
+            if key != "all":
+                info[f"{key} frames"] = str(v["frames"])
+        a = s.get("all")
+        if a is not None and frames:
+            note = (f"mAP50 {a['mAP50']:.3f}, mAP50-95 {a['mAP50-95']:.3f}, P {a['precision']:.3f}, "
+                    f"R {a['recall']:.3f} over {frames} frames ({a['instances']} zebras)")
+        return Activity({**self.counts, "frames scored": frames}, "detections", ("bad_messages",),
+                        info=info, note=note)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``ros2 run zebra_sim_ros scorer``; returns the exit status."""
+    return run_node("scorer", ScorerNode, argv, help_text("scorer", __doc__ or "", SCORER_PARAMS))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
