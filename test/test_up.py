@@ -15,7 +15,7 @@ from typing import Any
 import cv2
 import pytest
 from cli_helpers import CliRun
-from ros_helpers import Peer, detection_array_class, fresh_domain_id, node_process, ros_env
+from ros_helpers import Peer, collect_diagnostics, detection_array_class, fresh_domain_id, node_process, ros_env
 
 from zebra_sim_ros.graph.spec import UpConfig, graph_spec
 
@@ -49,9 +49,21 @@ def _last_json(stdout: str) -> dict[str, Any]:
 
 def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tmp_path: Path, cli: CliRun) -> None:
     domain = fresh_domain_id()
-    run = _up(tmp_path / "up", domain)
-    assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-2000:]
+    # a scorer beside the graph scores it live, by the rules up applies to its bag at the end
+    watcher = Peer(domain, "test_up_scorer")
+    scored = collect_diagnostics(watcher.node, "scorer: scorer")
+    try:
+        with node_process("scorer", {"window": 0, "diagnostics_period_s": 0.5}, domain, tmp_path / "scorer.log"):
+            assert watcher.spin(lambda: bool(scored), 60), (tmp_path / "scorer.log").read_text()  # it is up
+            run = _up(tmp_path / "up", domain)
+            assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-2000:]
+            assert watcher.spin(lambda: scored[-1]["values"].get("frames scored") == "9", 30), scored[-1]
+    finally:
+        watcher.close()
     live = _last_json(run.stdout)
+    figures = scored[-1]["values"]
+    for name in ("mAP50", "mAP50-95", "precision", "recall"):
+        assert float(figures[f"all {name}"]) == pytest.approx(live["scores"]["all"][name], abs=2e-4), name
     assert live["steps"] == 3
     assert live["frames"] == {d: {"image_raw": 3, "labels": 3, "detections": 3} for d in DRONES}
     assert all(code == 0 for code in live["exit_status"].values()), live["exit_status"]
