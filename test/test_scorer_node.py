@@ -18,7 +18,7 @@ from ros_helpers import (
 )
 from std_msgs.msg import Header, String
 
-from zebra_sim_ros.detection.scoring import LiveScores
+from zebra_sim_ros.detection.scoring import DroneFrames, LiveScores, score_drones
 from zebra_sim_ros.messages import Detection, Detections, Labels, Stamp
 from zebra_sim_ros.nodes.ros_adapter import detection_array_msg, detection_array_type, stamp
 
@@ -45,11 +45,36 @@ def test_live_scores_keep_a_window_of_each_cameras_latest_frames() -> None:
         live.add_detections("a", sec * 10**9, np.array([hit]))
     s = live.scores()
     assert s["a"]["frames"] == 2 and s["a"]["mAP50"] == pytest.approx(1.0)  # frame 0 fell out of the window
-    live.window = 0
+    assert live.scores() is s  # nothing new: not computed again
+    live.resize(0)
     live.add_labels("a", Labels.from_json(_labels(3, [[10.0, 10, 50, 40]])))
     assert live.scores()["a"]["unmatched_labels"] == 1  # labels without detections yet: counted, not scored
+    live.add_detections("a", 3 * 10**9, np.array([[300.0, 300, 340, 330, 0.95]]))  # a false box, a miss
+    assert live.scores()["a"]["frames"] == 3 and live.scores()["a"]["recall"] == pytest.approx(2 / 3, abs=1e-4)
+    live.resize(1)
+    assert live.scores()["a"]["frames"] == 1 and live.scores()["a"]["recall"] == 0.0
     with pytest.raises(ValueError, match="window -1"):
         LiveScores(-1)
+
+
+def test_live_scores_match_each_frame_once_and_score_as_a_bag_is_scored() -> None:
+    """Frames matched as they come, kept while in the window, give what score_drones gives the same frames at once
+    (the scores of bag eval and up), to the digit."""
+    rng = np.random.default_rng(5)
+    live = LiveScores(window=4)
+    for sec in range(7):
+        for drone in ("a", "b"):
+            xy = rng.uniform(0, 600, (12, 2))
+            boxes = np.c_[xy, xy + rng.uniform(8, 40, (12, 2))]
+            live.add_labels(drone, Labels.from_json(_labels(sec, boxes.tolist())))
+            dets = np.c_[boxes + rng.normal(0, 3, boxes.shape), rng.uniform(0.1, 1, 12)][rng.random(12) < 0.8]
+            live.add_detections(drone, sec * 10**9, dets)
+            if sec % 2:
+                live.scores()  # scored while frames come: the cache grows and drops frames as the window moves
+    fresh = score_drones({d: DroneFrames(dict(f.labels), dict(f.detections)) for d, f in live.drones.items()})
+    assert live.scores() == fresh and fresh["all"]["images"] == 8
+    # matched: exactly the window's frames (the older ones dropped as it moved)
+    assert {d: sorted(m) for d, m in live.matched.items()} == {d: [s * 10**9 for s in range(3, 7)] for d in "ab"}
 
 
 def test_the_scorer_reports_live_figures_per_camera_and_warns_on_a_bad_message(tmp_path: Path) -> None:

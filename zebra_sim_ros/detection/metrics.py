@@ -214,9 +214,14 @@ def evaluate_detections(preds: list[NDArray[np.float64]], gts: list[NDArray[np.f
     whose sqrt(area) in px lies in [lo, hi) count (COCO's area ranges; see :func:`_match_image`). With no ground
     truth at all, AP is 0.
     """
-    matched = match_images(preds, gts, max_det, ignores, size_range)
+    return metrics_of(match_images(preds, gts, max_det, ignores, size_range))
+
+
+def metrics_of(matched: Sequence[MatchedImage]) -> DetectionMetrics:
+    """The metrics of images already matched (:func:`match_images`): any subset of them, without matching again
+    (the ``scorer`` node keeps each frame's match while it stays in its window)."""
     ap, pr, (best_p, best_r, best_conf) = _accumulate(matched)
-    return DetectionMetrics(ap=ap, precision=best_p, recall=best_r, f1_confidence=best_conf, images=len(gts),
+    return DetectionMetrics(ap=ap, precision=best_p, recall=best_r, f1_confidence=best_conf, images=len(matched),
                             instances=sum(m.n_gt for m in matched), pr_curve=pr)
 
 

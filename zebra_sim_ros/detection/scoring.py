@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from zebra_sim_ros.detection.metrics import evaluate_detections
+from zebra_sim_ros.detection.metrics import MatchedImage, match_images, metrics_of
 from zebra_sim_ros.messages import Labels
 
 
@@ -34,23 +34,27 @@ class DroneFrames:
                 np.array([z.box_visible for z in labels.dont_care], np.float64).reshape(-1, 4))
 
 
-def score_drones(drones: dict[str, DroneFrames]) -> dict[str, Any]:
+def score_drones(drones: dict[str, DroneFrames],
+                 cache: dict[str, dict[int, MatchedImage]] | None = None) -> dict[str, Any]:
     """mAP50 and mAP50-95 per camera and over all (``"all"``, None without labelled frames), on the frames that
-    have both labels and detections; unmatched frames are counted."""
+    have both labels and detections; unmatched frames are counted. ``cache``: each camera's frames matched so far,
+    by stamp; a frame found there is not matched again, the others are added (the caller drops a frame whose labels
+    or detections change)."""
     result: dict[str, Any] = {}
-    all_p, all_g, all_i = [], [], []
+    everything: list[MatchedImage] = []
     for drone, d in sorted(drones.items()):
         stamps = sorted(set(d.labels) & set(d.detections))
-        preds = [d.detections[s] for s in stamps]
-        truths = [d.truth(s) for s in stamps]
-        gts, ignores = [g for g, _ in truths], [i for _, i in truths]
-        all_p += preds
-        all_g += gts
-        all_i += ignores
-        m = evaluate_detections(preds, gts, ignores=ignores)
+        known = cache.setdefault(drone, {}) if cache is not None else {}
+        matched = []
+        for s in stamps:
+            if s not in known:
+                gt, ignore = d.truth(s)
+                known[s] = match_images([d.detections[s]], [gt], ignores=[ignore])[0]
+            matched.append(known[s])
+        everything += matched
         result[drone] = {"frames": len(stamps), "unmatched_labels": len(set(d.labels) - set(stamps)),
-                         "unmatched_detections": len(set(d.detections) - set(stamps)), **m.to_dict()}
-    result["all"] = evaluate_detections(all_p, all_g, ignores=all_i).to_dict() if all_g else None
+                         "unmatched_detections": len(set(d.detections) - set(stamps)), **metrics_of(matched).to_dict()}
+    result["all"] = metrics_of(everything).to_dict() if everything else None
     return result
 
 
@@ -65,16 +69,34 @@ class LiveScores:
         self.window = window
         self.drones: dict[str, DroneFrames] = {}
         self.order: dict[str, list[int]] = {}  # per camera, its stamps in order of first arrival
+        self.matched: dict[str, dict[int, MatchedImage]] = {}  # per camera, its frames matched so far
+        self.last: dict[str, Any] | None = None  # the scores, until a frame or the window changes
+
+    def resize(self, window: int) -> None:
+        """Score the last ``window`` frames of each camera from now on (0: every frame kept so far and to come)."""
+        if window < 0:
+            raise ValueError(f"window {window}: 0 (every frame) or a number of frames")
+        self.window, self.last = window, None
+        for drone, order in self.order.items():
+            while window and len(order) > window:
+                old = order.pop(0)
+                self.drones[drone].labels.pop(old, None)
+                self.drones[drone].detections.pop(old, None)
+                self.matched[drone].pop(old, None)
 
     def _frames(self, drone: str, stamp: int) -> DroneFrames:
         frames = self.drones.setdefault(drone, DroneFrames())
         order = self.order.setdefault(drone, [])
+        matched = self.matched.setdefault(drone, {})
+        matched.pop(stamp, None)  # its labels or detections change: matched again when next scored
+        self.last = None
         if stamp not in frames.labels and stamp not in frames.detections:
             order.append(stamp)
             while self.window and len(order) > self.window:
                 old = order.pop(0)
                 frames.labels.pop(old, None)
                 frames.detections.pop(old, None)
+                matched.pop(old, None)
         return frames
 
     def add_labels(self, drone: str, labels: Labels) -> None:
@@ -86,5 +108,8 @@ class LiveScores:
         self._frames(drone, stamp).detections[stamp] = np.asarray(rows, np.float64).reshape(-1, 5)
 
     def scores(self) -> dict[str, Any]:
-        """:func:`score_drones` over the window."""
-        return score_drones(self.drones)
+        """:func:`score_drones` over the window; each frame is matched once, the first time it is scored, and the
+        scores are computed again only after a frame arrived."""
+        if self.last is None:
+            self.last = score_drones(self.drones, self.matched)
+        return self.last

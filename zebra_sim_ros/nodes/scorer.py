@@ -61,7 +61,7 @@ class ScorerNode(ZebraNode[ScorerConfig]):
     def on_config(self, cfg: ScorerConfig) -> None:
         """A new window applies from the next frame on."""
         self.cfg = cfg
-        self.live.window = cfg.window
+        self.live.resize(cfg.window)
 
     def _bad(self, what: str, exc: BaseException) -> None:
         self.counts["bad_messages"] += 1
