@@ -307,7 +307,8 @@ def test_tables_of_nodes_with_the_same_first_parameter_are_found_in_their_own_se
     out = replace_tables(text, {"scorer": SPECS["scorer"], "labeller": SPECS["labeller"]})
     labeller_part, scorer_part = out.split("### The `scorer` node")
     assert markdown_table(SPECS["labeller"]) in labeller_part and markdown_table(SPECS["scorer"]) in scorer_part
-    with pytest.raises(ParameterError, match="'README table' = 'scorer'.*found labeller's"):
+    with pytest.raises(ParameterError, match="'README table' = 'scorer'.*labeller found the same one; give "
+                                             "labeller and scorer a section"):
         replace_tables(f"{stub}\n", {"labeller": SPECS["labeller"], "scorer": SPECS["scorer"]})
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -280,7 +281,7 @@ def test_eval_by_running_a_detector_over_recorded_images(tmp_path: Path, capsys:
     assert len(seen) == 8, "the bag is read once"
     assert sorted(collected.drones["drone_0"].detections) == [0, 10**9, 2 * 10**9]
     assert len(collected.skipped) == 2
-    assert "not rgb8 or bgr8" in collected.skipped[0] and "log time 4 ns" in collected.skipped[1]
+    assert "not a colour image" in collected.skipped[0] and "log time 4 ns" in collected.skipped[1]
     s = score(collected)
     assert s["drone_0"]["frames"] == 3 and 0.0 <= s["drone_0"]["mAP50"] <= 1.0
     # --imgsz: the 128x72 frames at their own size (-1) are the checkpoint's 128 too; 256 differs.
@@ -517,7 +518,8 @@ def test_compressed_images_read_back_as_image_transport_writes_them() -> None:
         compress_rgb(rgb.astype(float), "png")
 
 
-def test_eval_reads_compressed_images_and_detects_a_frame_once(tmp_path: Path) -> None:
+def test_eval_reads_compressed_images_and_detects_a_frame_once(tmp_path: Path,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
     """``bag eval --weights`` on a bag with image_raw/compressed: a drone with only compressed images is detected
     from them (as the raw image of the same pixels is), and a frame recorded both ways is detected once."""
     from sensor_msgs.msg import CompressedImage
@@ -548,17 +550,37 @@ def test_eval_reads_compressed_images_and_detects_a_frame_once(tmp_path: Path) -
         w.write("/drone_1/image_raw/compressed", serialize_message(CompressedImage(header=h, format=fmt, data=data)), k)
     w.close()
     detector = ImageDetector(tmp_path / "w.pt", device="cpu", batch=8)
-    calls: list[int] = []
-    flush = detector._flush
+    import zebra_sim_ros.detection.predict as predict
 
-    def counted() -> None:
-        calls.append(len(detector._pending))
-        flush()
-    detector._flush = counted  # type: ignore[method-assign]
+    calls: list[int] = []
+    detect = predict.detect
+
+    def counted(model: Any, images: list, *args: Any, **kw: Any) -> Any:  # the images the model is given
+        calls.append(len(images))
+        return detect(model, images, *args, **kw)
+    monkeypatch.setattr(predict, "detect", counted)
     got = detector.apply(collect(tmp_path / "c.mcap", each=detector))
-    assert sum(calls) == 5 and detector.skipped == []  # drone_0's compressed copy detected once (before its raw)
+    assert sum(calls) == 4 and detector.skipped == []  # drone_0's compressed copies never (its raw image came)
     for k in range(2):
         t = k * 10**9  # the header's stamp
         assert len(got.drones["drone_1"].detections[t]) > 0
         np.testing.assert_allclose(got.drones["drone_1"].detections[t], got.drones["drone_0"].detections[t],
                                    atol=1e-3)
+
+
+def test_a_report_is_logged_at_the_recorders_clock_not_its_own_stamp() -> None:
+    """Data messages are logged at their header stamp (one time base with the steps); a /diagnostics report carries
+    its node's clock, wall time in a node run without sim time, and is left to the recorder's clock (None)."""
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    from zebra_sim_ros.recording.stamps import header_stamp_ns, log_stamp_ns
+
+    wall = Header()
+    wall.stamp.sec, wall.stamp.nanosec = 1_795_000_000, 5
+    report = serialize_message(DiagnosticArray(header=wall))
+    assert header_stamp_ns("diagnostic_msgs/msg/DiagnosticArray", report) == 1_795_000_000 * 10**9 + 5
+    assert log_stamp_ns("diagnostic_msgs/msg/DiagnosticArray", report) is None
+    step = Header()
+    step.stamp.sec = 3
+    image = serialize_message(Image(header=step, height=1, width=1, encoding="rgb8", step=3, data=bytes(3)))
+    assert log_stamp_ns("sensor_msgs/msg/Image", image) == header_stamp_ns("sensor_msgs/msg/Image", image) == 3 * 10**9

@@ -53,7 +53,7 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     watcher = Peer(domain, "test_up_scorer")
     scored = collect_diagnostics(watcher.node, "scorer: scorer")
     try:
-        with node_process("scorer", {"window": 0, "diagnostics_period_s": 0.5}, domain, tmp_path / "scorer.log"):
+        with node_process("scorer", {"window": 100, "diagnostics_period_s": 0.5}, domain, tmp_path / "scorer.log"):
             assert watcher.spin(lambda: bool(scored), 60), (tmp_path / "scorer.log").read_text()  # it is up
             run = _up(tmp_path / "up", domain)
             assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-2000:]
@@ -133,10 +133,13 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
 def _check_time_base_tf_and_typed_detections(bag: Path, steps: int) -> None:
     """The bag, read by rosbags (an independent reader): /clock once per step, /tf with one transform per drone
     per step (map -> drone_i/base_link) and /tf_static base_link -> camera_optical, typed detections, and every
-    message's log time equal to its header stamp."""
+    message's log time equal to its header stamp, but for /diagnostics: logged at the recorder's (simulated) clock
+    whatever clock its reporter stamped it with (the test's scorer runs on wall time)."""
     from rosbags.highlevel import AnyReader
 
-    clocks, tf, static, stamped, detections = [], [], [], 0, 0
+    from zebra_sim_ros.recording.stamps import REPORT_TYPES
+
+    clocks, tf, static, stamped, detections, reports = [], [], [], 0, 0, []
     with AnyReader([bag]) as reader:
         for conn, t, raw in reader.messages():
             msg = reader.deserialize(raw, conn.msgtype)
@@ -152,10 +155,13 @@ def _check_time_base_tf_and_typed_detections(bag: Path, steps: int) -> None:
                 for d in msg.detections:
                     assert d.results[0].hypothesis.class_id == "zebra" and 0 < d.results[0].hypothesis.score <= 1
             header = getattr(msg, "header", None)
-            if header is not None:
+            if conn.msgtype in REPORT_TYPES:
+                reports.append(t)
+            elif header is not None:
                 assert t == header.stamp.sec * 10**9 + header.stamp.nanosec, (conn.topic, t, header.stamp)
                 stamped += 1
     assert len(clocks) == steps and clocks == sorted(clocks)
+    assert reports and all(0 <= t <= clocks[-1] + 10**9 for t in reports), (min(reports), max(reports), clocks)
     assert [t for t, _ in tf] == clocks
     from mcap.reader import make_reader
 

@@ -354,22 +354,26 @@ def markdown_table(specs: Iterable[ParamSpec]) -> str:
 def replace_tables(readme: str, tables: Mapping[str, Iterable[ParamSpec]]) -> str:
     """``readme`` with each node's parameter table replaced by :func:`markdown_table` of its specs. A table is
     found by its header and first parameter, after the node's section heading (``### The `<node>` node``) where
-    there is one; ``ParameterError`` names a node whose table is not there, or two nodes that found one table."""
+    there is one; ``ParameterError`` names a node whose table is not there, or the nodes that found one table (the
+    one without a heading of its own should get one). Every table is found in the text as given, then replaced."""
     header = "| parameter | default | meaning (unit) | allowed |\n| --- | --- | --- | --- |\n"
-    taken: dict[int, str] = {}
+    found: dict[int, tuple[str, list[ParamSpec]]] = {}
     for node, specs in tables.items():
         specs = list(specs)
         section = readme.find(f"### The `{node}` node")
         start = readme.find(header + f"| `{specs[0].name}` |", max(section, 0))
         if start < 0:
             raise ParameterError("README table", node, f"a table starting with `{specs[0].name}`")
-        if start in taken:
-            raise ParameterError("README table", node, f"a table of its own (found {taken[start]}'s: give the node "
-                                 f"a section '### The `{node}` node')")
-        taken[start] = node
+        if start in found:
+            other = found[start][0]
+            lacking = [n for n in (other, node) if f"### The `{n}` node" not in readme]
+            raise ParameterError("README table", node, f"a table of its own ({other} found the same one; give "
+                                 f"{' and '.join(lacking) or 'them'} a section '### The `<node>` node')")
+        found[start] = (node, specs)
+    for start in sorted(found, reverse=True):  # from the end: the earlier tables' places do not move
         end = readme.find("\n\n", start)
         end = len(readme) if end < 0 else end
-        readme = readme[:start] + markdown_table(specs) + readme[end:]
+        readme = readme[:start] + markdown_table(found[start][1]) + readme[end:]
     return readme
 
 

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -21,6 +22,7 @@ from zebra_sim_ros.params import (
     same_as,
 )
 
+RELATIVE_TOPIC = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*")  # a ROS name, relative
 NATIVE = -1  # as imgsz: each batch at its frames' own resolution (predict.native_size)
 STRIDE = 32  # the largest stride of the model: input sides must be multiples of it
 MIN_IMGSZ, MAX_IMGSZ = 64, 4096
@@ -119,16 +121,23 @@ class ScorerConfig(StageConfig):
                                     "<drone>/labels against <drone>/<detections>)",
                                     allowed="a non-empty list of names", check=names_list)
     detections: str = param("detections", "the detection topic beside each camera's labels (a Detection2DArray, "
-                            "e.g. another detector's remapped output)", allowed="a topic name relative to the drone",
-                            check=lambda v: bool(v) and not v.startswith("/") and not v.endswith("/"))
-    window: int = param(300, "score the last this many frames of each camera (0: every frame since the start)",
-                        lo=0, hi=1_000_000, runtime=True)
+                            "e.g. another detector's remapped output)",
+                            allowed="a topic name relative to the drone (letters, digits, _ and /)",
+                            check=lambda v: bool(RELATIVE_TOPIC.fullmatch(v)))
+    window: int = param(300, "score the last this many frames of each camera (a report over 3 cameras' 300 frames "
+                        "takes about 60 ms, over 2000 about 0.8 s: BENCHMARKS.md)", lo=1, hi=2000, runtime=True)
     qos_reliability: str = reliability_param("QoS reliability of the subscriptions (reliable matches the graph's "
                                              "publishers and loses nothing; best_effort matches any)")
     qos_depth: int = param(10, "history depth", lo=1, hi=1000)
     diagnostics_period_s: float = same_as(DetectorConfig, "diagnostics_period_s", lo=0.05,
                                           help="how often the scores (and the node's health) are published on "
                                           "/diagnostics (diagnostic_msgs/DiagnosticArray)")
+
+
+    def check(self) -> None:
+        """Each camera once (a camera named twice would count every frame twice)."""
+        if len(set(self.drones)) != len(self.drones):
+            raise ParameterError("drones", list(self.drones), "each camera once")
 
 
 SCORER_PARAMS: tuple[ParamSpec, ...] = ScorerConfig.specs()

@@ -61,7 +61,13 @@ def score_drones(drones: dict[str, DroneFrames],
 class LiveScores:
     """Scores of a running graph (the ``scorer`` node): labels and detections as they arrive, per camera, matched by
     stamp, over the last ``window`` stamps of each camera to arrive (0: every stamp since the start). Detections of
-    a stamp whose labels never come (or the other way round) are counted, not scored."""
+    a stamp whose labels never come (or the other way round) are counted, not scored.
+
+    A camera's labels, and its detections, come in the order of their stamps within a run. A stamp older than the
+    last one on the same topic starts a new run (a restarted placer or ``up``, a looping replay: simulated time
+    starts again at 0): that camera's frames so far are dropped (counted in ``restarts``), so no frame of one run is
+    paired with a frame of another. A stamp sent again (a re-sent step) is not older: it replaces its frame's part.
+    """
 
     def __init__(self, window: int = 0) -> None:
         if window < 0:
@@ -70,6 +76,8 @@ class LiveScores:
         self.drones: dict[str, DroneFrames] = {}
         self.order: dict[str, list[int]] = {}  # per camera, its stamps in order of first arrival
         self.matched: dict[str, dict[int, MatchedImage]] = {}  # per camera, its frames matched so far
+        self.latest: dict[tuple[str, str], int] = {}  # (camera, "labels" or "detections"): the last stamp
+        self.restarts = 0
         self.last: dict[str, Any] | None = None  # the scores, until a frame or the window changes
 
     def resize(self, window: int) -> None:
@@ -77,39 +85,45 @@ class LiveScores:
         if window < 0:
             raise ValueError(f"window {window}: 0 (every frame) or a number of frames")
         self.window, self.last = window, None
-        for drone, order in self.order.items():
-            while window and len(order) > window:
-                old = order.pop(0)
-                self.drones[drone].labels.pop(old, None)
-                self.drones[drone].detections.pop(old, None)
-                self.matched[drone].pop(old, None)
+        for drone in self.order:
+            self._trim(drone)
 
-    def _frames(self, drone: str, stamp: int) -> DroneFrames:
+    def _trim(self, drone: str) -> None:
+        order = self.order[drone]
+        while self.window and len(order) > self.window:
+            old = order.pop(0)
+            self.drones[drone].labels.pop(old, None)
+            self.drones[drone].detections.pop(old, None)
+            self.matched[drone].pop(old, None)
+
+    def _frames(self, drone: str, kind: str, stamp: int) -> DroneFrames:
+        if stamp < self.latest.get((drone, kind), stamp):  # a new run on this camera
+            self.restarts += 1
+            for d in (self.drones, self.order, self.matched):
+                d.pop(drone, None)
+            self.latest = {k: v for k, v in self.latest.items() if k[0] != drone}
+        self.latest[(drone, kind)] = stamp
         frames = self.drones.setdefault(drone, DroneFrames())
         order = self.order.setdefault(drone, [])
-        matched = self.matched.setdefault(drone, {})
-        matched.pop(stamp, None)  # its labels or detections change: matched again when next scored
+        self.matched.setdefault(drone, {}).pop(stamp, None)  # its labels or detections change: matched again
         self.last = None
         if stamp not in frames.labels and stamp not in frames.detections:
             order.append(stamp)
-            while self.window and len(order) > self.window:
-                old = order.pop(0)
-                frames.labels.pop(old, None)
-                frames.detections.pop(old, None)
-                matched.pop(old, None)
+            self._trim(drone)
         return frames
 
     def add_labels(self, drone: str, labels: Labels) -> None:
         """A camera's labels (their stamp is the image's)."""
-        self._frames(drone, labels.stamp.ns).labels[labels.stamp.ns] = labels
+        self._frames(drone, "labels", labels.stamp.ns).labels[labels.stamp.ns] = labels
 
     def add_detections(self, drone: str, stamp: int, rows: NDArray[np.float64]) -> None:
         """A camera's zebra detections of the image of ``stamp`` (ns): rows ``[x0, y0, x1, y1, score]``."""
-        self._frames(drone, stamp).detections[stamp] = np.asarray(rows, np.float64).reshape(-1, 5)
+        self._frames(drone, "detections", stamp).detections[stamp] = np.asarray(rows, np.float64).reshape(-1, 5)
 
     def scores(self) -> dict[str, Any]:
         """:func:`score_drones` over the window; each frame is matched once, the first time it is scored, and the
-        scores are computed again only after a frame arrived."""
+        scores are computed again only after a frame arrived (the same dict until then: read it, do not change
+        it)."""
         if self.last is None:
             self.last = score_drones(self.drones, self.matched)
         return self.last

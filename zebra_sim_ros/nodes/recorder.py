@@ -28,7 +28,7 @@ from zebra_sim_ros.nodes.ros_adapter import ZebraNode, describe_qos, help_text, 
 from zebra_sim_ros.recording.config import MB, RECORDER_PARAMS, RecorderConfig
 from zebra_sim_ros.recording.qos import profile_dict, replay_profile
 from zebra_sim_ros.recording.recorder import RecorderCore
-from zebra_sim_ros.recording.stamps import header_stamp_ns
+from zebra_sim_ros.recording.stamps import log_stamp_ns
 from zebra_sim_ros.recording.writer import BagWriter
 
 
@@ -109,11 +109,12 @@ class RecorderNode(ZebraNode[RecorderConfig]):
 
     def _callback(self, topic: str, type_name: str) -> Any:
         """Queue each message with its log time: its header stamp where its type has one (so log times equal the
-        stamps), else the node's clock (simulated time under use_sim_time, as ``up`` runs it)."""
+        stamps), else (and for reports such as /diagnostics: ``stamps.log_stamp_ns``) the node's clock (simulated
+        time under use_sim_time, as ``up`` runs it)."""
         offer, clock = self.core.offer, self.get_clock()
 
         def on_message(data: bytes) -> None:
-            t = header_stamp_ns(type_name, data)
+            t = log_stamp_ns(type_name, data)
             offer(topic, data, clock.now().nanoseconds if t is None else t, time.time_ns())
         return on_message
 

@@ -5,7 +5,9 @@ Subscribes, per camera in ``drones``, ``<drone>/labels`` (the label JSON) and ``
 (Detection2DArray, the detector's type: vision_msgs or zebra_sim_msgs), matches them by the image's stamp and
 scores the last ``window`` frames of each camera as ``zebra-sim bag eval`` scores a bag
 (:func:`zebra_sim_ros.detection.scoring.score_drones`: COCO mAP50 and mAP50-95, and the precision and recall at the
-best-F1 confidence, with the zebras the labeller saw but dropped as don't-care regions; zebra detections only).
+best-F1 confidence, with the zebras the labeller saw but dropped as don't-care regions; zebra detections only). A
+camera's stamp older than the last on its topic starts a new run (a restarted graph): its frames so far are dropped
+and counted in ``restarts``.
 
 Every ``diagnostics_period_s`` it publishes the figures on ``/diagnostics`` (status ``scorer: scorer``): over all
 cameras in the message and the values (``all mAP50``, ``drone_0 recall``, ...), with the frames scored. A message
@@ -49,17 +51,21 @@ class ScorerNode(ZebraNode[ScorerConfig]):
         self.live = LiveScores(c.window)
         self.counts = {"labels": 0, "detections": 0, "bad_messages": 0}
         q = qos(c.qos_reliability, c.qos_depth)
-        det_class = message_class(detection_array_type())
+        self.det_type = detection_array_type()
+        det_class = message_class(self.det_type)
+        self.det_topics = []
         for d in c.drones:
             self.create_subscription(String, f"{d}/labels", self._on_labels(d), q)
-            # raw: the CDR bytes read by the same reader as bag eval's (cdr_detections), whichever package's type
-            self.create_subscription(det_class, f"{d}/{c.detections}", self._on_detections(d), q, raw=True)
+            # raw: the CDR bytes read by the same reader as bag eval's (cdr_detections); DDS still matches publishers
+            # of this type only (activity() says when a topic's publishers offer another)
+            sub = self.create_subscription(det_class, f"{d}/{c.detections}", self._on_detections(d), q, raw=True)
+            self.det_topics.append(sub.topic_name)
         self.figures: dict[str, Any] = {}
         self.get_logger().info(f"scoring {list(c.drones)}: <drone>/labels against <drone>/{c.detections}, window "
                                f"{c.window or 'every frame'}; QoS {describe_qos(q)}")
 
     def on_config(self, cfg: ScorerConfig) -> None:
-        """A new window applies from the next frame on."""
+        """A new window applies at once (a smaller one drops the oldest frames)."""
         self.cfg = cfg
         self.live.resize(cfg.window)
 
@@ -108,8 +114,16 @@ class ScorerNode(ZebraNode[ScorerConfig]):
         if a is not None and frames:
             note = (f"mAP50 {a['mAP50']:.3f}, mAP50-95 {a['mAP50-95']:.3f}, P {a['precision']:.3f}, "
                     f"R {a['recall']:.3f} over {frames} frames ({a['instances']} zebras)")
-        return Activity({**self.counts, "frames scored": frames}, "detections", ("bad_messages",),
-                        info=info, note=note)
+        waiting = ""
+        if not self.counts["detections"]:  # nothing yet: a topic whose publishers offer another type never matches
+            mine = self.det_type.replace("/msg/", "/")
+            other = sorted({(t, i.topic_type) for t in self.det_topics for i in self.get_publishers_info_by_topic(t)
+                            if i.topic_type.replace("/msg/", "/") != mine})
+            if other:
+                waiting = (f"{other[0][0]} is published as {other[0][1]}, which this scorer (reading {self.det_type}) "
+                           "cannot subscribe: build both nodes against the same message package")
+        return Activity({**self.counts, "frames scored": frames, "restarts": self.live.restarts}, "detections",
+                        ("bad_messages",), info=info, note=note, waiting=waiting)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -6,6 +6,12 @@ A CDR message starts with a 4-byte encapsulation header. When a type's first fie
 when the first field is an array of a type that starts with one (``visualization_msgs/MarkerArray``,
 ``tf2_msgs/TFMessage``), the first element's stamp follows the uint32 length, at offset 8. A ``std_msgs/String``
 holding one of our JSON messages (scene, labels, detections) gives the ``stamp`` it carries. Other types: None.
+
+A report's stamp is not a data time: a ``diagnostic_msgs/DiagnosticArray`` is stamped by its node's clock, which
+is wall time in a node run without ``use_sim_time`` (a scorer or a driver beside the graph) and simulated time in
+the graph's nodes. :func:`log_stamp_ns` leaves such types to the recorder's own clock, so one bag keeps one time
+base (a wall-clock stamp among simulated ones put the bag's first message 56 years after its last step, and a
+replay from that start skipped every step).
 """
 
 from __future__ import annotations
@@ -73,6 +79,15 @@ def header_stamp_ns(type_name: str, data: bytes) -> int | None:
         return None
     sec, nanosec = struct.unpack_from(endian + "iI", data, offset)
     return sec * NS_PER_S + nanosec
+
+
+REPORT_TYPES = frozenset({"diagnostic_msgs/msg/DiagnosticArray"})  # stamped on the reporter's clock
+
+
+def log_stamp_ns(type_name: str, data: bytes) -> int | None:
+    """The log time a recorder gives a message: its header stamp (:func:`header_stamp_ns`), except for reports
+    (:data:`REPORT_TYPES`), whose stamp is their node's clock and not a data time: None (the recorder's clock)."""
+    return None if type_name in REPORT_TYPES else header_stamp_ns(type_name, data)
 
 
 def _json_stamp_ns(data: bytes) -> int | None:
