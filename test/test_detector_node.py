@@ -179,5 +179,8 @@ def test_image_topics_that_resolve_to_the_same_outputs_stop_the_node() -> None:
     proc = run_node_once("detector", {"image_topics": ["drone_0/image_raw", "/drone_0/image_raw/compressed"]})
     assert proc.returncode == 2
     assert "'image_topics'" in proc.stderr + proc.stdout and "/drone_0/detections" in proc.stderr + proc.stdout
-    proc = run_node_once("detector", {"image_topics": ["drone_0/image_raw/"]})
-    assert proc.returncode == 2 and "trailing /" in proc.stderr + proc.stdout
+    from zebra_sim_ros.detection.config import DetectorConfig
+    from zebra_sim_ros.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="'image_topics'.*trailing /"):
+        DetectorConfig.from_params({"image_topics": ["drone_0/image_raw/"]})
