@@ -65,17 +65,17 @@ def val_costs(dataset: str, split: str, samples: int) -> dict[str, Any]:
         for quality in (0, 90, 75):
             if quality:
                 copy = Path(tmp) / f"q{quality}"
-                (copy / "images" / split).mkdir(parents=True)
+                (copy / "images" / folder.name).mkdir(parents=True)  # labels are found under labels/<its name>
                 for sub in ("labels", "ignore"):
                     if (root / sub).is_dir():
                         (copy / sub).symlink_to((root / sub).resolve())
-                for f in sorted(folder.iterdir()):
+                for f in sorted(p for p in folder.iterdir() if p.suffix.lower() in (".jpg", ".jpeg", ".png")):
                     bgr = cv2.imread(str(f), cv2.IMREAD_COLOR)
                     if bgr is None:
                         raise SystemExit(f"cannot read {f}")
                     _, data = compress_rgb(np.ascontiguousarray(bgr[..., ::-1]), "jpeg", quality)
-                    (copy / "images" / split / f"{f.stem}.jpg").write_bytes(data)
-                where = copy / "images" / split
+                    (copy / "images" / folder.name / f"{f.stem}.jpg").write_bytes(data)
+                where = copy / "images" / folder.name
             else:
                 where = folder
             m, facts = evaluate(None, where, split)
@@ -84,6 +84,9 @@ def val_costs(dataset: str, split: str, samples: int) -> dict[str, Any]:
             runs.append(facts["per_image"])
             out["runs"][name] = {"mAP50": round(m.map50, 4), "mAP50-95": round(m.map50_95, 4),
                                  "images": m.images, "seconds": facts["seconds"]}
+    stems = [[Path(p.file).stem for p in r] for r in runs]
+    if any(s != stems[0] for s in stems):
+        raise SystemExit("the copies' images do not pair with the set's, image by image")
     groups = [placement(p.file) for p in runs[0]]
     ap = paired_bootstrap([matched(r) for r in runs], groups, samples, 0)
     for k, name in enumerate(names[1:], 1):

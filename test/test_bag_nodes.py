@@ -258,6 +258,13 @@ def test_a_full_bag_ends_with_a_finalised_file_and_an_error(peer: Peer, tmp_path
         "size cap" in status[-1]["message"], status[-1]
     levels = [s["level"] for s in status]
     assert all(x == 2 for x in levels[levels.index(2):]), levels  # once ended, it stays an error to the last
+    # its own reports, stamped on its wall clock, are logged at the latest image stamp once images came (one time
+    # base in the bag: the images' 100..300 s), at its clock only before
+    with open(bag, "rb") as f:
+        order = [(ch.topic, m.log_time) for _, ch, m in make_reader(f).iter_messages(log_time_order=False)]
+    first = next(i for i, (topic, _) in enumerate(order) if topic == "/drone_0/image_raw")
+    later = [t for topic, t in order[first:] if topic == "/diagnostics"]
+    assert later and all(100 * 10**9 <= t < 300 * 10**9 for t in later), later
     assert 5 < int(status[-1]["values"]["messages"]) < 200
     with open(bag, "rb") as f:
         n = make_reader(f, validate_crcs=True).get_summary().statistics.message_count

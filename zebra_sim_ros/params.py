@@ -361,9 +361,12 @@ def replace_tables(readme: str, tables: Mapping[str, Iterable[ParamSpec]]) -> st
     for node, specs in tables.items():
         specs = list(specs)
         section = readme.find(f"### The `{node}` node")
-        start = readme.find(header + f"| `{specs[0].name}` |", max(section, 0))
+        end_of_section = min((i for i in (readme.find("\n### ", section + 1), readme.find("\n## ", section + 1))
+                              if i >= 0), default=len(readme)) if section >= 0 else len(readme)
+        start = readme.find(header + f"| `{specs[0].name}` |", max(section, 0), end_of_section)
         if start < 0:
-            raise ParameterError("README table", node, f"a table starting with `{specs[0].name}`")
+            where = "in its section" if section >= 0 else "(it has no section '### The `<node>` node')"
+            raise ParameterError("README table", node, f"a table starting with `{specs[0].name}` {where}")
         if start in found:
             other = found[start][0]
             lacking = [n for n in (other, node) if f"### The `{n}` node" not in readme]

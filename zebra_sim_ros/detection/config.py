@@ -136,7 +136,7 @@ class ScorerConfig(StageConfig):
 
     def check(self) -> None:
         """Each camera once (a camera named twice would count every frame twice)."""
-        if len(set(self.drones)) != len(self.drones):
+        if len({d.strip("/") for d in self.drones}) != len(self.drones):
             raise ParameterError("drones", list(self.drones), "each camera once")
 
 

@@ -66,7 +66,9 @@ class LiveScores:
     A camera's labels, and its detections, come in the order of their stamps within a run. A stamp older than the
     last one on the same topic starts a new run (a restarted placer or ``up``, a looping replay: simulated time
     starts again at 0): that camera's frames so far are dropped (counted in ``restarts``), so no frame of one run is
-    paired with a frame of another. A stamp sent again (a re-sent step) is not older: it replaces its frame's part.
+    paired with a frame of another. The other topic of that camera may still bring the old run's last frames (a
+    detector behind the labeller): until its stamps step back too, they are dropped as leftovers (counted in
+    ``leftovers``). A stamp sent again (a re-sent step) is not older: it replaces its frame's part.
     """
 
     def __init__(self, window: int = 0) -> None:
@@ -77,7 +79,9 @@ class LiveScores:
         self.order: dict[str, list[int]] = {}  # per camera, its stamps in order of first arrival
         self.matched: dict[str, dict[int, MatchedImage]] = {}  # per camera, its frames matched so far
         self.latest: dict[tuple[str, str], int] = {}  # (camera, "labels" or "detections"): the last stamp
+        self.awaiting: set[tuple[str, str]] = set()  # (camera, topic) whose new run has not begun: old leftovers
         self.restarts = 0
+        self.leftovers = 0
         self.last: dict[str, Any] | None = None  # the scores, until a frame or the window changes
 
     def resize(self, window: int) -> None:
@@ -96,13 +100,22 @@ class LiveScores:
             self.drones[drone].detections.pop(old, None)
             self.matched[drone].pop(old, None)
 
-    def _frames(self, drone: str, kind: str, stamp: int) -> DroneFrames:
-        if stamp < self.latest.get((drone, kind), stamp):  # a new run on this camera
+    def _frames(self, drone: str, kind: str, stamp: int) -> DroneFrames | None:
+        """The camera's frames to put this part in; None for a leftover of a run that has ended (dropped)."""
+        key = (drone, kind)
+        last = self.latest.get(key, stamp)
+        if key in self.awaiting:
+            if stamp >= last:  # the old run goes on on this topic: a leftover
+                self.latest[key] = stamp
+                self.leftovers += 1
+                return None
+            self.awaiting.discard(key)  # this topic's new run begins: the camera has been reset already
+        elif stamp < last:  # a new run on this camera
             self.restarts += 1
             for d in (self.drones, self.order, self.matched):
                 d.pop(drone, None)
-            self.latest = {k: v for k, v in self.latest.items() if k[0] != drone}
-        self.latest[(drone, kind)] = stamp
+            self.awaiting |= {k for k in self.latest if k[0] == drone and k != key}
+        self.latest[key] = stamp
         frames = self.drones.setdefault(drone, DroneFrames())
         order = self.order.setdefault(drone, [])
         self.matched.setdefault(drone, {}).pop(stamp, None)  # its labels or detections change: matched again
@@ -114,11 +127,15 @@ class LiveScores:
 
     def add_labels(self, drone: str, labels: Labels) -> None:
         """A camera's labels (their stamp is the image's)."""
-        self._frames(drone, "labels", labels.stamp.ns).labels[labels.stamp.ns] = labels
+        frames = self._frames(drone, "labels", labels.stamp.ns)
+        if frames is not None:
+            frames.labels[labels.stamp.ns] = labels
 
     def add_detections(self, drone: str, stamp: int, rows: NDArray[np.float64]) -> None:
         """A camera's zebra detections of the image of ``stamp`` (ns): rows ``[x0, y0, x1, y1, score]``."""
-        self._frames(drone, "detections", stamp).detections[stamp] = np.asarray(rows, np.float64).reshape(-1, 5)
+        frames = self._frames(drone, "detections", stamp)
+        if frames is not None:
+            frames.detections[stamp] = np.asarray(rows, np.float64).reshape(-1, 5)
 
     def scores(self) -> dict[str, Any]:
         """:func:`score_drones` over the window; each frame is matched once, the first time it is scored, and the

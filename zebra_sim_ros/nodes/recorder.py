@@ -28,7 +28,7 @@ from zebra_sim_ros.nodes.ros_adapter import ZebraNode, describe_qos, help_text, 
 from zebra_sim_ros.recording.config import MB, RECORDER_PARAMS, RecorderConfig
 from zebra_sim_ros.recording.qos import profile_dict, replay_profile
 from zebra_sim_ros.recording.recorder import RecorderCore
-from zebra_sim_ros.recording.stamps import log_stamp_ns
+from zebra_sim_ros.recording.stamps import REPORT_TYPES, log_stamp_ns
 from zebra_sim_ros.recording.writer import BagWriter
 
 
@@ -57,6 +57,7 @@ class RecorderNode(ZebraNode[RecorderConfig]):
                                 int(c.split_size_mb * mb), c.split_duration_s, int(c.max_size_mb * mb), reserve)
         self.core = RecorderCore(self.writer, c.queue_size)
         self.depth = c.qos_depth
+        self.latest_stamp: int | None = None  # the latest stamp logged (reports are logged at it)
         self.subs: dict[str, Any] = {}
         self.wall_timer(c.discovery_period_s, self._discover)
         if c.stats_period_s > 0:
@@ -109,12 +110,18 @@ class RecorderNode(ZebraNode[RecorderConfig]):
 
     def _callback(self, topic: str, type_name: str) -> Any:
         """Queue each message with its log time: its header stamp where its type has one (so log times equal the
-        stamps), else (and for reports such as /diagnostics: ``stamps.log_stamp_ns``) the node's clock (simulated
-        time under use_sim_time, as ``up`` runs it)."""
+        stamps); a report (/diagnostics: ``stamps.log_stamp_ns``), whose stamp is its reporter's clock, at the latest
+        stamp logged so far (the data's time base, with or without use_sim_time); anything else, and a report before
+        any stamp, at the node's clock (simulated time under use_sim_time, as ``up`` runs it)."""
         offer, clock = self.core.offer, self.get_clock()
+        report = type_name in REPORT_TYPES
 
         def on_message(data: bytes) -> None:
             t = log_stamp_ns(type_name, data)
+            if t is not None:
+                self.latest_stamp = t if self.latest_stamp is None else max(self.latest_stamp, t)
+            elif report:
+                t = self.latest_stamp
             offer(topic, data, clock.now().nanoseconds if t is None else t, time.time_ns())
         return on_message
 

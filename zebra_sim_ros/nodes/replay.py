@@ -142,6 +142,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         for m in self.reader.messages():
             if self.done:
                 return
+            pub = self._publisher(m.topic, m.type_name, m.metadata)
+            if pub is None:  # not played: its log time does not set the start (a report on another clock, say)
+                continue
             if t0_bag is None:
                 t0_bag = m.log_time
             rel = (m.log_time - t0_bag) / 1e9
@@ -149,9 +152,6 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                 continue
             if c.duration_s and rel > c.start_offset_s + c.duration_s:
                 break
-            pub = self._publisher(m.topic, m.type_name, m.metadata)
-            if pub is None:
-                continue
             if pace is None:  # every publisher known so far should have a subscriber (up to wait_for_subscribers_s)
                 while not self.done and time.monotonic() < wait_until and any(
                         p is not None and p.get_subscription_count() == 0 for p in self.pubs.values()):

@@ -59,7 +59,8 @@ class ScorerNode(ZebraNode[ScorerConfig]):
             # raw: the CDR bytes read by the same reader as bag eval's (cdr_detections); DDS still matches publishers
             # of this type only (activity() says when a topic's publishers offer another)
             sub = self.create_subscription(det_class, f"{d}/{c.detections}", self._on_detections(d), q, raw=True)
-            self.det_topics.append(sub.topic_name)
+            self.det_topics.append((d, sub.topic_name))
+        self.per_camera = {d: 0 for d in c.drones}  # detections received per camera
         self.figures: dict[str, Any] = {}
         self.get_logger().info(f"scoring {list(c.drones)}: <drone>/labels against <drone>/{c.detections}, window "
                                f"{c.window or 'every frame'}; QoS {describe_qos(q)}")
@@ -95,6 +96,7 @@ class ScorerNode(ZebraNode[ScorerConfig]):
                 self._bad(f"{drone}/{self.cfg.detections}", exc)
                 return
             self.counts["detections"] += 1
+            self.per_camera[drone] += 1
         return on_detections
 
     def activity(self) -> Activity:
@@ -115,15 +117,16 @@ class ScorerNode(ZebraNode[ScorerConfig]):
             note = (f"mAP50 {a['mAP50']:.3f}, mAP50-95 {a['mAP50-95']:.3f}, P {a['precision']:.3f}, "
                     f"R {a['recall']:.3f} over {frames} frames ({a['instances']} zebras)")
         waiting = ""
-        if not self.counts["detections"]:  # nothing yet: a topic whose publishers offer another type never matches
-            mine = self.det_type.replace("/msg/", "/")
-            other = sorted({(t, i.topic_type) for t in self.det_topics for i in self.get_publishers_info_by_topic(t)
-                            if i.topic_type.replace("/msg/", "/") != mine})
-            if other:
-                waiting = (f"{other[0][0]} is published as {other[0][1]}, which this scorer (reading {self.det_type}) "
-                           "cannot subscribe: build both nodes against the same message package")
-        return Activity({**self.counts, "frames scored": frames, "restarts": self.live.restarts}, "detections",
-                        ("bad_messages",), info=info, note=note, waiting=waiting)
+        # a camera with nothing yet: a topic whose publishers offer another type never matches this subscription
+        mine = self.det_type.replace("/msg/", "/")
+        other = sorted({(t, i.topic_type) for d, t in self.det_topics if not self.per_camera[d]
+                        for i in self.get_publishers_info_by_topic(t) if i.topic_type.replace("/msg/", "/") != mine})
+        if other:
+            waiting = (f"{other[0][0]} is published as {other[0][1]}, which this scorer (reading {self.det_type}) "
+                       "cannot subscribe: build both nodes against the same message package")
+        counts = {**self.counts, "frames scored": frames, "restarts": self.live.restarts,
+                  "leftovers": self.live.leftovers}
+        return Activity(counts, "detections", ("bad_messages",), info=info, note=note, waiting=waiting)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -72,7 +72,8 @@ class ReplayConfig(StageConfig):
                                   allowed="a non-empty list of paths", check=lambda v: _str_list(v) and any(v))
     rate: float = param(1.0, "playback speed (2: twice as fast)", lo=0.01, hi=1000.0, runtime=True)
     loop: bool = param(False, "play again from the start when done")
-    start_offset_s: float = param(0.0, "skip this much of the bag's start", "s", lo=0.0, hi=1e9)
+    start_offset_s: float = param(0.0, "skip this much of the bag's start (its first message played: topics not "
+                                  "played do not count)", "s", lo=0.0, hi=1e9)
     duration_s: float = param(0.0, "play only this much of the bag (0: to the end)", "s", lo=0.0, hi=1e9)
     topics: tuple[str, ...] = param(("",), "play only these topics ([''] = all matching topic_regex)",
                                     allowed="a list of topic names", check=_str_list)

@@ -9,9 +9,9 @@ holding one of our JSON messages (scene, labels, detections) gives the ``stamp``
 
 A report's stamp is not a data time: a ``diagnostic_msgs/DiagnosticArray`` is stamped by its node's clock, which
 is wall time in a node run without ``use_sim_time`` (a scorer or a driver beside the graph) and simulated time in
-the graph's nodes. :func:`log_stamp_ns` leaves such types to the recorder's own clock, so one bag keeps one time
-base (a wall-clock stamp among simulated ones put the bag's first message 56 years after its last step, and a
-replay from that start skipped every step).
+the graph's nodes. :func:`log_stamp_ns` leaves such types to the recorder, which logs them at the latest stamp it
+has logged, so one bag keeps one time base (a wall-clock stamp among simulated ones put the bag's first message
+56 years after its last step, and a replay from that start skipped every step).
 """
 
 from __future__ import annotations
