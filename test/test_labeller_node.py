@@ -112,7 +112,8 @@ def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
                 assert got["frame_id"] == f"{d}/camera_optical"
                 assert [g["id"] for g in got["detections"]] == [str(z["id"]) for z in want]
                 assert [g["class_name"] for g in got["detections"]] == [z.get("species", "zebra") for z in want]
-                assert all(g["score"] == 1.0 and g["box_xyxy"] == pytest.approx(z["box_visible"], abs=1e-6)
+                assert all(g["score"] == pytest.approx(1.0, abs=1e-12)
+                           and g["box_xyxy"] == pytest.approx(z["box_visible"], abs=1e-6)
                            for g, z in zip(got["detections"], want, strict=True))
         assert sum(len(x["detections"]) for d in DRONES for x in truth[d].values()) > 0  # something was checked
     finally:
