@@ -70,6 +70,12 @@ class Health:
         raise KeyError(f"no value {key!r} among {[k for k, _ in self.values]}")
 
 
+def status_name(fqn: str, executable: str) -> str:
+    """The name of a node's status on /diagnostics: ``<full node name without the leading />: <executable>``
+    (``g1/drone_0_camera: camera``); ``zebra-sim up`` finds its nodes' statuses by it."""
+    return f"{fqn.lstrip('/')}: {executable}"
+
+
 def _seconds(s: float) -> str:
     return f"{s:.1f} s" if s < 120 else f"{s / 60:.1f} min"
 

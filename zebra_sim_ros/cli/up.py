@@ -168,6 +168,7 @@ def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, 
     """
     from zebra_sim_ros.graph.spec import command
     from zebra_sim_ros.graph.supervisor import NodeDied, Supervisor
+    from zebra_sim_ros.health import status_name
     from zebra_sim_ros.nodes.graph_watch import GraphWatch
 
     placer, others = specs[-1], specs[:-1]
@@ -180,7 +181,7 @@ def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, 
     sup = Supervisor(out / "logs", env)
     try:
         # domain_id None: rclpy reads ROS_DOMAIN_ID as the nodes do
-        statuses = [f"{s.label}: {s.executable}" for s in specs]
+        statuses = [status_name(s.fqn, s.executable) for s in specs]
         with GraphWatch(placer.overrides["lockstep_ack_from"], domain_id, cfg.namespace, statuses) as watch:
             try:
                 result["ready_s"] = _start_and_wait(sup, watch, others, conf, cfg, t_start)

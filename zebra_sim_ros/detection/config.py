@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -98,16 +99,12 @@ class DetectorConfig(StageConfig):
 
     def check(self) -> None:
         """Two image topics may not publish to the same outputs (``x/image_raw`` and ``x/image_raw/compressed``)."""
-        seen: dict[str, str] = {}
         for topic in self.image_topics:
             if topic.endswith("/"):
                 raise ParameterError("image_topics", list(self.image_topics), f"topic names without a trailing / "
                                      f"({topic!r})")
-            base = output_base(topic)
-            if base in seen:
-                raise ParameterError("image_topics", list(self.image_topics), f"topics with outputs of their own: "
-                                     f"{seen[base]!r} and {topic!r} both publish {base}")
-            seen[base] = topic
+        distinct_outputs(self.image_topics)
+
 
 
 DETECTOR_PARAMS: tuple[ParamSpec, ...] = DetectorConfig.specs()
@@ -141,6 +138,18 @@ class ScorerConfig(StageConfig):
 
 
 SCORER_PARAMS: tuple[ParamSpec, ...] = ScorerConfig.specs()
+
+
+def distinct_outputs(image_topics: Sequence[str], resolve: Callable[[str], str] = lambda t: t) -> None:
+    """Refuse, naming ``image_topics``, two topics whose outputs (:func:`output_base`, then ``resolve``: as written
+    in the config's check, as the node resolves them at start) are the same."""
+    seen: dict[str, str] = {}
+    for topic in image_topics:
+        base = resolve(output_base(topic))
+        if base in seen:
+            raise ParameterError("image_topics", list(image_topics), f"topics with outputs of their own: "
+                                 f"{seen[base]!r} and {topic!r} both publish {base}")
+        seen[base] = topic
 
 
 def is_compressed(image_topic: str) -> bool:

@@ -72,9 +72,7 @@ class LiveScores:
     """
 
     def __init__(self, window: int = 0) -> None:
-        if window < 0:
-            raise ValueError(f"window {window}: 0 (every frame) or a number of frames")
-        self.window = window
+        self.window = 0
         self.drones: dict[str, DroneFrames] = {}
         self.order: dict[str, list[int]] = {}  # per camera, its stamps in order of first arrival
         self.matched: dict[str, dict[int, MatchedImage]] = {}  # per camera, its frames matched so far
@@ -83,6 +81,7 @@ class LiveScores:
         self.restarts = 0
         self.leftovers = 0
         self.last: dict[str, Any] | None = None  # the scores, until a frame or the window changes
+        self.resize(window)
 
     def resize(self, window: int) -> None:
         """Score the last ``window`` frames of each camera from now on (0: every frame kept so far and to come)."""

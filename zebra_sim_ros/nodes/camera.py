@@ -147,7 +147,7 @@ class CameraNode(ZebraNode[CameraConfig]):
         self.pub_depth.publish(image_msg(header, view.depth.astype("<f4"), "32FC1"))
         self.pub_ids.publish(image_msg(header, view.instances.astype("<u2"), "mono16"))
         self.pub_info.publish(camera_info_msg(header, view.K, c.width, c.height))
-        if self.pub_compressed is not None:
+        if self.pub_compressed is not None and self.pub_compressed.get_subscription_count():  # encode for a reader
             fmt, data = compress_rgb(view.rgb, c.compressed, c.compressed_quality)
             self.pub_compressed.publish(CompressedImage(header=header, format=fmt, data=data))
         self.frames += 1

@@ -29,11 +29,16 @@ from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import ImageMarker
 
 from zebra_sim_ros.detection.checkpoint import load_model, select_device
-from zebra_sim_ros.detection.config import DETECTOR_PARAMS, DetectorConfig, is_compressed, output_base
+from zebra_sim_ros.detection.config import (
+    DETECTOR_PARAMS,
+    DetectorConfig,
+    distinct_outputs,
+    is_compressed,
+    output_base,
+)
 from zebra_sim_ros.detection.draw import OTHER_COLOUR, draw_boxes
 from zebra_sim_ros.detection.predict import describe_size, detect, detections_message
 from zebra_sim_ros.detection.verify import load_verifier
-from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Stamp
 from zebra_sim_ros.nodes.ros_adapter import (
@@ -83,13 +88,7 @@ class DetectorNode(ZebraNode[DetectorConfig]):
     def start(self) -> None:
         """Load the model; subscribe every image topic and publish beside each."""
         c = self.cfg
-        resolved: dict[str, str] = {}
-        for topic in c.image_topics:  # the config's check compares names as written; here, as they resolve
-            full = self.resolve_topic_name(output_base(topic))
-            if full in resolved:
-                raise ParameterError("image_topics", list(c.image_topics), f"topics with outputs of their own: "
-                                     f"{resolved[full]!r} and {topic!r} both publish {full}")
-            resolved[full] = topic
+        distinct_outputs(c.image_topics, self.resolve_topic_name)  # the config checked them as written
         torch.set_num_threads(max(1, torch.get_num_threads()))
         self.device = select_device(c.device)
         self.model, ckpt = load_model(c.weights or None, self.device, amp=c.amp, amp_name="amp")

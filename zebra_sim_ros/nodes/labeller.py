@@ -184,7 +184,8 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         labels_pub.publish(String(data=labels.to_json()))
         markers_pub.publish(box_markers(header, labels))
         boxes_pub.publish(boxes3d(header, labels))
-        truth_pub.publish(detection_array_msg(self.det_type, header, *labels.ground_truth()))
+        if truth_pub.get_subscription_count():  # built for a reader only
+            truth_pub.publish(detection_array_msg(self.det_type, header, *labels.ground_truth()))
         self.stats["labelled"] += 1
         self.seconds += time.perf_counter() - t0
         self.acks.part_done(header.stamp, drone)

@@ -51,10 +51,9 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         c = self.cfg
         self.topics = c.topic_list
         self.include, self.exclude = re.compile(c.topic_regex), re.compile(c.exclude_regex)  # checked
-        mb = MB
-        reserve = -1 if c.disk_reserve_mb < 0 else int(c.disk_reserve_mb * mb)
-        self.writer = BagWriter(c.output, c.compression, int(c.chunk_size_mb * mb),
-                                int(c.split_size_mb * mb), c.split_duration_s, int(c.max_size_mb * mb), reserve)
+        reserve = -1 if c.disk_reserve_mb < 0 else int(c.disk_reserve_mb * MB)
+        self.writer = BagWriter(c.output, c.compression, int(c.chunk_size_mb * MB),
+                                int(c.split_size_mb * MB), c.split_duration_s, int(c.max_size_mb * MB), reserve)
         self.core = RecorderCore(self.writer, c.queue_size)
         self.depth = c.qos_depth
         self.latest_stamp: int | None = None  # the latest stamp logged (reports are logged at it)

@@ -29,7 +29,7 @@ from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import ImageMarker
 
 from zebra_sim_ros.errors import ZebraSimError
-from zebra_sim_ros.health import Activity, Health, HealthMonitor
+from zebra_sim_ros.health import Activity, Health, HealthMonitor, status_name
 from zebra_sim_ros.messages import Detections, Stamp
 from zebra_sim_ros.messages import stamp_ns as messages_stamp_ns
 from zebra_sim_ros.params import ROS_BUILTIN_PARAMS, ParamSpec, StageConfig
@@ -127,8 +127,9 @@ class ZebraNode(Node, Generic[C]):
         if self.health is None or self.diagnostics_pub is None or act is None:
             return None
         h = self.health.report(time.monotonic(), act)
-        status = DiagnosticStatus(level=bytes([int(h.level)]), name=f"{self.get_fully_qualified_name().lstrip('/')}: "
-                                  f"{self.executable}", message=h.message, hardware_id=act.hardware,
+        status = DiagnosticStatus(level=bytes([int(h.level)]),
+                                  name=status_name(self.get_fully_qualified_name(), self.executable),
+                                  message=h.message, hardware_id=act.hardware,
                                   values=[KeyValue(key=k, value=v) for k, v in h.values])
         self.diagnostics_pub.publish(DiagnosticArray(header=Header(stamp=self.get_clock().now().to_msg()),
                                                      status=[status]))

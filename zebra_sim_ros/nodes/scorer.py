@@ -60,10 +60,9 @@ class ScorerNode(ZebraNode[ScorerConfig]):
             # of this type only (activity() says when a topic's publishers offer another)
             sub = self.create_subscription(det_class, f"{d}/{c.detections}", self._on_detections(d), q, raw=True)
             self.det_topics.append((d, sub.topic_name))
-        self.per_camera = {d: 0 for d in c.drones}  # detections received per camera
         self.figures: dict[str, Any] = {}
         self.get_logger().info(f"scoring {list(c.drones)}: <drone>/labels against <drone>/{c.detections}, window "
-                               f"{c.window or 'every frame'}; QoS {describe_qos(q)}")
+                               f"{c.window} frames each; QoS {describe_qos(q)}")
 
     def on_config(self, cfg: ScorerConfig) -> None:
         """A new window applies at once (a smaller one drops the oldest frames)."""
@@ -96,7 +95,6 @@ class ScorerNode(ZebraNode[ScorerConfig]):
                 self._bad(f"{drone}/{self.cfg.detections}", exc)
                 return
             self.counts["detections"] += 1
-            self.per_camera[drone] += 1
         return on_detections
 
     def activity(self) -> Activity:
@@ -119,7 +117,8 @@ class ScorerNode(ZebraNode[ScorerConfig]):
         waiting = ""
         # a camera with nothing yet: a topic whose publishers offer another type never matches this subscription
         mine = self.det_type.replace("/msg/", "/")
-        other = sorted({(t, i.topic_type) for d, t in self.det_topics if not self.per_camera[d]
+        other = sorted({(t, i.topic_type) for d, t in self.det_topics
+                        if (d, "detections") not in self.live.latest
                         for i in self.get_publishers_info_by_topic(t) if i.topic_type.replace("/msg/", "/") != mine})
         if other:
             waiting = (f"{other[0][0]} is published as {other[0][1]}, which this scorer (reading {self.det_type}) "

@@ -102,7 +102,7 @@ class ImageDetector:
         self.batch, self.conf, self.imgsz, self.scale = batch, conf, imgsz, scale
         self.detections: dict[str, dict[int, np.ndarray]] = defaultdict(dict)
         self.skipped: list[str] = []
-        self._pending: list[tuple[str, int, np.ndarray, bool]] = []  # drone, stamp, RGB, from a compressed copy
+        self._pending: dict[tuple[str, int], np.ndarray] = {}  # (drone, stamp): the RGB image to detect
         self._raw: set[tuple[str, int]] = set()  # (drone, stamp) detected or pending from image_raw
 
     def __call__(self, m: BagMessage) -> None:
@@ -123,7 +123,7 @@ class ImageDetector:
                 return
         else:
             self._raw.add(key)
-        self._pending.append((key[0], *image, bool(match.group("compressed"))))  # a later one of a key overwrites
+        self._pending[key] = image[1]  # a later image of a key replaces a waiting one; a detected one, in _flush
         if len(self._pending) >= self.batch:
             self._flush()
 
@@ -132,13 +132,11 @@ class ImageDetector:
         from zebra_sim_ros.detection.model import ZEBRA
         from zebra_sim_ros.detection.predict import detect
 
-        # a compressed copy still waiting whose raw image came since: not detected at all
-        self._pending = [p for p in self._pending if not (p[3] and (p[0], p[1]) in self._raw)]
         if not self._pending:
             return
-        dets = detect(self.model, [p[2] for p in self._pending], self.imgsz, conf=self.conf, max_det=MAX_DETECTIONS,
+        dets = detect(self.model, list(self._pending.values()), self.imgsz, conf=self.conf, max_det=MAX_DETECTIONS,
                       scale=self.scale, verifier=self.verifier)
-        for (drone, t, _, _), det in zip(self._pending, dets, strict=True):
+        for (drone, t), det in zip(self._pending, dets, strict=True):
             self.detections[drone][t] = det[det[:, 5] == ZEBRA, :5].astype(np.float64)
         self._pending.clear()
 
