@@ -2,12 +2,13 @@
 
     ros2 launch zebra_sim_ros zebra_sim.launch.py frames:=10 world:=savanna seed:=0
 
-The same processes as ``zebra-sim up`` (three cameras, labeller, detector, recorder, placer), with the same
+The same processes as ``zebra-sim up`` (three cameras, labeller, detector, scorer, recorder, placer), with the same
 names, namespaces, parameter files (share/zebra_sim_ros/config) and overrides; a test compares the two.
 ``zebra-sim up`` adds what launch does not: it waits until every node is ready before the placer's first step,
 stops the graph after the last step and scores the run. Here the placer waits for the recorder through
 ``wait_for_nodes`` (the recorder by name: another subscriber such as RViz does not count) and exits after ``frames``
-steps; stop the rest with Ctrl-C.
+steps; stop the rest with Ctrl-C. The scorer (``score:=false`` leaves it out) publishes the detector's figures on
+``/diagnostics``, status ``scorer: scorer`` (``ros2 topic echo /diagnostics``, or rqt's runtime monitor).
 
 Topic names are relative: wrap this launch file in a group with ``PushRosNamespace`` to move the whole graph (and
 remap ``/tf``, ``/tf_static`` and ``/clock`` into it, as ``zebra-sim up --namespace`` does). The placer is the
@@ -18,6 +19,7 @@ import os
 
 from ament_index_python.packages import get_package_share_directory
 from launch.actions import DeclareLaunchArgument, SetEnvironmentVariable
+from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
@@ -46,6 +48,8 @@ def generate_launch_description():
                               "(off, auto, bf16, fp16; as zebra-sim up --detect-amp)"),
         DeclareLaunchArgument("verifier", default_value="", description="detector crop verifier ('' = off, "
                               "shipped, or a path; as zebra-sim up --verifier)"),
+        DeclareLaunchArgument("score", default_value="true", description="start the scorer node (the detector's "
+                              "figures live on /diagnostics; as zebra-sim up without --no-score)"),
         DeclareLaunchArgument("bag", default_value="out/up/zebra_sim.mcap", description="bag to record"),
     ]
 
@@ -70,6 +74,9 @@ def generate_launch_description():
                                                  "device": arg("device"), "scale": arg("detect_scale", float),
                                                  "amp": arg("detect_amp"), "verifier": arg("verifier"),
                                                  "image_reliability": "reliable", "use_sim_time": True}]),
+        Node(package=PACKAGE, executable="scorer", name="scorer", namespace="", output="screen",
+             parameters=[file("scorer.yaml"), {"use_sim_time": True}],
+             condition=IfCondition(LaunchConfiguration("score"))),
         Node(package=PACKAGE, executable="recorder", name="recorder", namespace="", output="screen",
              parameters=[file("recorder.yaml"), {"output": arg("bag"), "use_sim_time": True}]),
         Node(package=PACKAGE, executable="placer", name="placer", namespace="", output="screen",

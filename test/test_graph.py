@@ -19,6 +19,7 @@ from zebra_sim_ros.cli.up import _graph_environment
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.graph.spec import (
     DDS_PROFILE,
+    DRONES,
     NODE_ENVIRONMENT,
     NODE_PARAMS,
     NodeSpec,
@@ -56,7 +57,12 @@ def test_config_classes_default_as_their_parameter_specs() -> None:
 
 def test_graph_overrides_are_declared_parameters_with_allowed_values(tmp_path: Path) -> None:
     specs = graph_spec(UpConfig(out=str(tmp_path), weights=str(tmp_path / "w.pt")))
-    assert [s.executable for s in specs] == ["camera"] * 3 + ["labeller", "detector", "recorder", "placer"]
+    assert [s.executable for s in specs] == ["camera"] * 3 + ["labeller", "detector", "scorer", "recorder", "placer"]
+    # before the first step the scorer subscribes what it scores, the recorder every topic up to it
+    readers = {s.executable: s.subscribes for s in specs if s.subscribes}
+    assert set(readers) == {"scorer", "recorder"}
+    assert set(readers["scorer"]) == {f"/{d}/{t}" for d in DRONES for t in ("labels", "detections")}
+    assert set(readers["recorder"]) == {t for s in specs[:5] for t in s.publishes} > set(readers["scorer"])
     for s in specs:
         known = {p.name for p in SPECS[s.executable]} | set(ROS_BUILTIN_PARAMS)
         assert set(s.overrides) <= known, (s.label, set(s.overrides) - known)
@@ -79,6 +85,7 @@ def test_a_namespace_moves_every_topic_and_the_global_ones_are_remapped() -> Non
     assert all(dict(s.remaps) == {"/tf": "/g1/tf", "/tf_static": "/g1/tf_static", "/clock": "/g1/clock"} for s in g1)
     for a, b in zip(root, g1, strict=True):
         assert b.publishes == tuple("/g1" + t for t in a.publishes), b.label
+        assert b.subscribes == tuple("/g1" + t for t in a.subscribes), b.label
         assert all(t.startswith("/") for t in a.publishes)
     assert "/tf" in root[-1].publishes and "/clock" in root[-1].publishes
     cmd = command(g1[0], Path("cfg"))
@@ -135,6 +142,10 @@ class _Recorder:
             def __init__(self, name: str) -> None:
                 self.name = name
 
+        class IfCondition:
+            def __init__(self, predicate: Any) -> None:
+                self.predicate = predicate
+
         class ParameterValue:
             def __init__(self, value: Any, value_type: type = str) -> None:
                 self.value, self.value_type = value, value_type
@@ -145,6 +156,7 @@ class _Recorder:
             "launch.actions": {"DeclareLaunchArgument": DeclareLaunchArgument,
                                "SetEnvironmentVariable": SetEnvironmentVariable},
             "launch.substitutions": {"LaunchConfiguration": LaunchConfiguration},
+            "launch.conditions": {"IfCondition": IfCondition},
             "launch_ros": {}, "launch_ros.actions": {"Node": Node},
             "launch_ros.parameter_descriptions": {"ParameterValue": ParameterValue},
             "ament_index_python": {},
@@ -189,6 +201,11 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
             else:
                 assert v == s.overrides[k], (s.label, k)
     assert int(rec.args["frames"]) == UpConfig().frames and rec.args["world"] == UpConfig().world
+    # the scorer, and only it, may be left out: score:=false as up --no-score, on by default in both
+    conditional = [(n["executable"], n["condition"].predicate.name) for n in rec.nodes if "condition" in n]
+    assert conditional == [("scorer", "score")] and rec.args["score"] == "true" and UpConfig().score
+    assert [s.executable for s in graph_spec(UpConfig(score=False))] == [s.executable for s in up
+                                                                          if s.executable != "scorer"]
     share = tmp_path / "share" / "config"
     assert rec.env == {"FASTRTPS_DEFAULT_PROFILES_FILE": str(share / "fastdds.xml"), **NODE_ENVIRONMENT}
     assert NODE_ENVIRONMENT == {"OMP_WAIT_POLICY": "PASSIVE"}

@@ -1,4 +1,4 @@
-"""End to end: ``zebra-sim up`` runs the whole graph over real DDS (seven processes), records it and scores the
+"""End to end: ``zebra-sim up`` runs the whole graph over real DDS (eight processes), records it and scores the
 shipped detector; the bag replayed into a fresh detector scores the same. Also: a node that dies, and Ctrl-C."""
 
 from __future__ import annotations
@@ -15,17 +15,21 @@ from typing import Any
 import cv2
 import pytest
 from cli_helpers import CliRun
-from ros_helpers import Peer, collect_diagnostics, detection_array_class, fresh_domain_id, node_process, ros_env
+from ros_helpers import Peer, detection_array_class, fresh_domain_id, node_process, ros_env
 
 from zebra_sim_ros.graph.spec import UpConfig, graph_spec
 
 DRONES = ("drone_0", "drone_1", "drone_2")
 
 
+def _up_command(out: Path, domain: int, *extra: str) -> list[str]:
+    return [sys.executable, "-m", "zebra_sim_ros.cli", "up", "--frames", "3", "--size", "320x180", "--out", str(out),
+            "--domain-id", str(domain), "--json", *extra]
+
+
 def _up(out: Path, domain: int, *extra: str, timeout: float = 420) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "up", "--frames", "3", "--size", "320x180",
-                           "--out", str(out), "--domain-id", str(domain), "--json", *extra],
-                          env=ros_env(domain), capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(_up_command(out, domain, *extra), env=ros_env(domain), capture_output=True, text=True,
+                          timeout=timeout)
 
 
 def _processes_in(domain: int) -> list[str]:
@@ -48,22 +52,39 @@ def _last_json(stdout: str) -> dict[str, Any]:
 
 
 def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tmp_path: Path, cli: CliRun) -> None:
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+
     domain = fresh_domain_id()
-    # a scorer beside the graph scores it live, by the rules up applies to its bag at the end
-    watcher = Peer(domain, "test_up_scorer")
-    scored = collect_diagnostics(watcher.node, "scorer: scorer")
+    # A node beside the graph reports on /diagnostics stamped on wall time (as a node without use_sim_time does):
+    # the recorder logs its reports on the bag's simulated time all the same (_check_time_base_...).
+    peer = Peer(domain, "test_up_wall_clock")
+    pub = peer.node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+
+    def report() -> None:
+        msg = DiagnosticArray(status=[DiagnosticStatus(name="test: wall clock", message="beside the graph")])
+        msg.header.stamp = peer.node.get_clock().now().to_msg()
+        pub.publish(msg)
+    peer.node.create_timer(0.5, report)
     try:
-        with node_process("scorer", {"window": 100, "diagnostics_period_s": 0.5}, domain, tmp_path / "scorer.log"):
-            assert watcher.spin(lambda: bool(scored), 60), (tmp_path / "scorer.log").read_text()  # it is up
-            run = _up(tmp_path / "up", domain)
-            assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-2000:]
-            assert watcher.spin(lambda: scored[-1]["values"].get("frames scored") == "9", 30), scored[-1]
+        with open(tmp_path / "up.out", "w") as out:
+            proc = subprocess.Popen(_up_command(tmp_path / "up", domain), env=ros_env(domain), stdout=out,
+                                    stderr=subprocess.STDOUT, text=True)
+            try:
+                assert peer.spin(lambda: proc.poll() is not None, 420), "up did not finish"
+            finally:
+                proc.kill()
+                proc.wait()
     finally:
-        watcher.close()
-    live = _last_json(run.stdout)
-    figures = scored[-1]["values"]
+        peer.close()
+    stdout = (tmp_path / "up.out").read_text()
+    assert proc.returncode == 0, stdout[-6000:]
+    live = _last_json(stdout)
+    # the graph's scorer scored every frame live, by the rules up applies to its bag at the end
+    scorer = live["live_scores"]
+    assert scorer["frames"] == 9 and scorer["complete"], scorer
     for name in ("mAP50", "mAP50-95", "precision", "recall"):
-        assert float(figures[f"all {name}"]) == pytest.approx(live["scores"]["all"][name], abs=2e-4), name
+        assert scorer["all"][name] == pytest.approx(live["scores"]["all"][name], abs=2e-4), name
+    assert "the scorer node, live over its last 9 frames:" in stdout
     assert live["steps"] == 3
     assert live["frames"] == {d: {"image_raw": 3, "labels": 3, "detections": 3} for d in DRONES}
     assert all(code == 0 for code in live["exit_status"].values()), live["exit_status"]
@@ -75,7 +96,7 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     assert live["median_ms"]["end_to_end"] > live["median_ms"]["render"] > 0
     preview = cv2.imread(live["preview"])
     assert preview is not None and preview.shape == (180, 960, 3)
-    assert "mAP50" in run.stdout and live["bag"] in run.stdout
+    assert "mAP50" in stdout and live["bag"] in stdout
     # every node reported on /diagnostics, and nothing went wrong (the placer may resend a step on a slow machine)
     health = live["health"]
     assert set(health) == {f"{s.label}: {s.executable}" for s in graph_spec(UpConfig())}, health
@@ -134,12 +155,13 @@ def _check_time_base_tf_and_typed_detections(bag: Path, steps: int) -> None:
     """The bag, read by rosbags (an independent reader): /clock once per step, /tf with one transform per drone
     per step (map -> drone_i/base_link) and /tf_static base_link -> camera_optical, typed detections, and every
     message's log time equal to its header stamp, but for /diagnostics: logged at the recorder's (simulated) clock
-    whatever clock its reporter stamped it with (the test's scorer runs on wall time)."""
+    whatever clock its reporter stamped it with (the test's own reporter runs on wall time)."""
     from rosbags.highlevel import AnyReader
 
     from zebra_sim_ros.recording.stamps import REPORT_TYPES
 
     clocks, tf, static, stamped, detections, reports = [], [], [], 0, 0, []
+    reporters: set[str] = set()
     with AnyReader([bag]) as reader:
         for conn, t, raw in reader.messages():
             msg = reader.deserialize(raw, conn.msgtype)
@@ -157,11 +179,13 @@ def _check_time_base_tf_and_typed_detections(bag: Path, steps: int) -> None:
             header = getattr(msg, "header", None)
             if conn.msgtype in REPORT_TYPES:
                 reports.append(t)
+                reporters.update(x.name for x in msg.status)
             elif header is not None:
                 assert t == header.stamp.sec * 10**9 + header.stamp.nanosec, (conn.topic, t, header.stamp)
                 stamped += 1
     assert len(clocks) == steps and clocks == sorted(clocks)
-    assert reports and all(0 <= t <= clocks[-1] + 10**9 for t in reports), (min(reports), max(reports), clocks)
+    assert "test: wall clock" in reporters and "scorer: scorer" in reporters, reporters
+    assert all(0 <= t <= clocks[-1] + 10**9 for t in reports), (min(reports), max(reports), clocks)
     assert [t for t, _ in tf] == clocks
     from mcap.reader import make_reader
 
@@ -236,15 +260,16 @@ def test_ctrl_c_stops_the_graph_with_a_complete_bag(tmp_path: Path) -> None:
 
 
 def test_two_graphs_in_two_namespaces_share_a_domain_without_crosstalk(tmp_path: Path) -> None:
-    """Two whole graphs on one domain, in /g1 and /g2: each records its own topics only (its /gN/tf, /gN/clock
-    included), each with its own three steps, and each scores its own frames."""
+    """Two whole graphs on one domain, in /g1 and /g2: /g1 records its own topics only (its /g1/tf, /g1/clock
+    included), with its own three steps; each graph's scorer scores its own nine frames. /g2 runs without a
+    recorder: no bag, and the scorer's figures are its scores."""
     from rosbags.highlevel import AnyReader
 
     domain = fresh_domain_id()
     procs = {ns: subprocess.Popen([sys.executable, "-m", "zebra_sim_ros.cli", "up", "--frames", "3", "--size",
                                    "256x144", "--out", str(tmp_path / ns), "--domain-id", str(domain), "--namespace",
-                                   f"/{ns}", "--seed", str(k), "--json"], env=ros_env(domain), text=True,
-                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                                   f"/{ns}", "--seed", str(k), "--json", *(["--no-record"] if ns == "g2" else [])],
+                                  env=ros_env(domain), text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
              for k, ns in enumerate(("g1", "g2"))}
     try:
         outs = {ns: p.communicate(timeout=600) for ns, p in procs.items()}
@@ -255,6 +280,14 @@ def test_two_graphs_in_two_namespaces_share_a_domain_without_crosstalk(tmp_path:
     for ns, (stdout, stderr) in outs.items():
         assert procs[ns].returncode == 0, stdout[-3000:] + stderr[-2000:]
         s = _last_json(stdout)
+        live = s["live_scores"]
+        assert live["frames"] == 9 and live["complete"] and 0 < live["all"]["mAP50"] <= 1, live
+        assert set(s["health"]) == {f"{ns}/{n.label}: {n.executable}" for n in graph_spec(UpConfig(record=ns == "g1"))}
+        if ns == "g2":
+            assert "steps" not in s and not (tmp_path / ns / "zebra_sim.mcap").exists()
+            assert "the scorer node, live over its last 9 frames" in stdout
+            continue
+        assert live["all"]["mAP50"] == pytest.approx(s["scores"]["all"]["mAP50"], abs=2e-4)
         assert s["steps"] == 3 and s["frames"] == {d: {"image_raw": 3, "labels": 3, "detections": 3} for d in DRONES}
         with AnyReader([Path(s["bag"])]) as reader:
             topics = {c.topic for c in reader.connections}

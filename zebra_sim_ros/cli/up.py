@@ -1,11 +1,12 @@
-"""``zebra-sim up``: the whole graph in one command (placer, three cameras, labeller, detector, recorder).
+"""``zebra-sim up``: the whole graph in one command (placer, three cameras, labeller, detector, scorer, recorder).
 
 Starts every node as its own process with the parameter files of the config folder, waits until each one is
-ready (its topics published and recorded), then starts the placer in lockstep: a step ends when the labeller
-and the detector have both acknowledged it, so no frame is skipped. After the last step it stops the graph
-(recorder last), reads the bag back and prints frames per drone, detection scores against the live ground
-truth, throughput and stage times; it writes ``summary.json`` and ``preview.jpg`` beside the bag. If a node
-dies, the rest are stopped and the command says which died and why; Ctrl-C stops everything cleanly too.
+ready (its topics published, recorded and scored), then starts the placer in lockstep: a step ends when the
+labeller and the detector have both acknowledged it, so no frame is skipped. After the last step it stops the graph
+(recorder last), reads the bag back and prints frames per drone, detection scores against the live ground truth
+(and the scorer node's live figures, which agree), throughput and stage times; it writes ``summary.json`` and
+``preview.jpg`` beside the bag. If a node dies, the rest are stopped and the command says which died and why;
+Ctrl-C stops everything cleanly too.
 """
 
 from __future__ import annotations
@@ -53,7 +54,10 @@ def register(sub: Any) -> None:
                    "moves under it, and /tf, /tf_static and /clock become <namespace>/tf, ... (default: the root)")
     p.add_argument("--ready-timeout", type=float, default=180.0, help="longest wait for the nodes to be ready, s")
     p.add_argument("--step-timeout", type=float, default=120.0, help="longest wait for one step, s")
-    p.add_argument("--no-record", action="store_true", help="run without the recorder (no bag, no scores)")
+    p.add_argument("--no-record", action="store_true", help="run without the recorder (no bag; the scores are the "
+                   "scorer node's)")
+    p.add_argument("--no-score", action="store_true", help="run without the scorer node (its live figures on "
+                   "/diagnostics); the bag is still scored at the end")
     add_json_flag(p)
     p.set_defaults(func=cmd_up)
 
@@ -94,6 +98,11 @@ def cmd_up(args: argparse.Namespace) -> Summary:
             result.update(summarize_run(cfg.bag_path, None))
             result["preview_error"] = f"{exc.strerror or exc}: {out / 'preview.jpg'}"
         _print_summary(result, DRONES)
+    if (live := result.get("live_scores")) and "all" in live:
+        a = live["all"]
+        print(f"[up] the scorer node, live over its last {live['frames']} frames"
+              f"{'' if live['complete'] else ' (not every frame of the run: see its log)'}: P {a['precision']:.3f} "
+              f"R {a['recall']:.3f} mAP50 {a['mAP50']:.3f} mAP50-95 {a['mAP50-95']:.3f}", flush=True)
     if result.get("recording_error"):
         result["exit_code"] = result["exit_code"] or 1
     try:
@@ -136,8 +145,8 @@ def _up_config(args: argparse.Namespace) -> UpConfig:
     cfg = UpConfig(frames=args.frames, world=args.world, seed=args.seed, out=args.out, width=w, height=h,
                    weights=args.weights, device=args.device, detect_scale=args.scale, detect_amp=args.amp,
                    strategy=args.strategy, config_dir=args.config, ready_timeout_s=args.ready_timeout,
-                   step_timeout_s=args.step_timeout, record=not args.no_record, namespace=args.namespace,
-                   verifier=args.verifier)
+                   step_timeout_s=args.step_timeout, record=not args.no_record, score=not args.no_score,
+                   namespace=args.namespace, verifier=args.verifier)
     cfg.check()
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         raise ParameterError("--domain-id", args.domain_id, "0..232 (ROS_DOMAIN_ID)")
@@ -166,12 +175,13 @@ def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, 
     The placer is the last of ``specs``. How it ended goes into ``result`` (``exit_code``, ``died``, ``error``,
     ``exit_status``, ``ready_s``); SIGTERM stops it like Ctrl-C.
     """
-    from zebra_sim_ros.graph.spec import command
+    from zebra_sim_ros.graph.spec import DRONES, command
     from zebra_sim_ros.graph.supervisor import NodeDied, Supervisor
     from zebra_sim_ros.health import status_name
     from zebra_sim_ros.nodes.graph_watch import GraphWatch
 
     placer, others = specs[-1], specs[:-1]
+    scorer = next((status_name(s.fqn, s.executable) for s in specs if s.executable == "scorer"), None)
     out = Path(cfg.out)
 
     def on_term(signum: int, frame: Any) -> None:
@@ -188,6 +198,8 @@ def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, 
                 print(f"[up] {len(others)} nodes ready in {result['ready_s']:.1f} s; placer starts "
                       f"{cfg.frames} steps of '{cfg.world}' (seed {cfg.seed}) in lockstep", flush=True)
                 _run_steps(sup, watch, sup.start(placer, command(placer, conf), expected_exit=True), cfg)
+                if scorer is not None:
+                    _await_scores(sup, watch, scorer, watch.steps_done() * len(DRONES))
             except NodeDied as exc:
                 print(f"\n[up] {exc}\n[up] stopping the other nodes", flush=True)
                 result.update(exit_code=1, died=exc.child.label, died_status=exc.code)
@@ -200,6 +212,8 @@ def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, 
             finally:
                 codes = sup.stop([c for c in sup.children if c.spec.executable != "recorder"])  # recorder last
                 result["health"] = watch.health
+                if scorer is not None and scorer in watch.values:
+                    result["live_scores"] = _live_scores(watch.values[scorer], watch.steps_done() * len(DRONES))
                 result["exit_status"] = codes
                 bad = {k: v for k, v in codes.items() if v not in (0, None) and k != result.get("died")}
                 if bad:
@@ -218,7 +232,8 @@ def _start_and_wait(sup: Supervisor, watch: GraphWatch, others: list[NodeSpec], 
         sup.start(s, command(s, conf))
     print(f"[up] started {', '.join(s.label for s in others)}; logs in {out / 'logs'}", flush=True)
     topics = [t for s in others for t in s.publishes]
-    while missing := watch.missing(topics, "recorder" if cfg.record else None):
+    readers = {s.name: s.subscribes for s in others if s.subscribes}
+    while missing := watch.missing(topics, readers):
         sup.check()
         if time.monotonic() - t_start > cfg.ready_timeout_s:
             raise TimeoutError(f"the graph was not ready after {cfg.ready_timeout_s:.0f} s: missing "
@@ -248,6 +263,30 @@ def _run_steps(sup: Supervisor, watch: GraphWatch, pl: Child, cfg: UpConfig) -> 
     if cr:
         print("", flush=True)
     watch.spin(1.0)  # the recorder receives the last detections
+
+
+def _await_scores(sup: Supervisor, watch: GraphWatch, scorer: str, frames: int, timeout_s: float = 10.0) -> None:
+    """Wait until the scorer's report counts ``frames`` labels and detections (every frame of the run scored), at
+    most ``timeout_s`` (it reports once per ``diagnostics_period_s``; with reports off this waits in vain)."""
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        v = watch.values.get(scorer, {})
+        if int(v.get("labels", 0)) >= frames and int(v.get("detections", 0)) >= frames:
+            return
+        sup.check()
+        watch.spin(0.1)
+
+
+def _live_scores(values: dict[str, str], frames: int) -> dict[str, Any]:
+    """The scorer's last report as numbers: ``frames`` scored (its window's), ``complete`` (every one of the run's
+    ``frames`` received), and per key (``all``, ``drone_0``, ...) mAP50, mAP50-95, precision, recall."""
+    out: dict[str, Any] = {"frames": int(values.get("frames scored", 0)),
+                           "complete": min(int(values.get("labels", 0)), int(values.get("detections", 0))) >= frames}
+    for key, value in values.items():
+        who, _, name = key.partition(" ")
+        if name in ("mAP50", "mAP50-95", "precision", "recall"):
+            out.setdefault(who, {})[name] = float(value)
+    return out
 
 
 def _print_summary(r: dict[str, Any], drones: tuple[str, ...]) -> None:

@@ -45,6 +45,7 @@ class NodeSpec:
     overrides: dict[str, Any] = field(default_factory=dict)  # -p name:=value after the file
     publishes: tuple[str, ...] = ()  # absolute topic names this node publishes (readiness and docs)
     remaps: tuple[tuple[str, str], ...] = ()  # -r from:=to (a namespaced graph's /tf, /tf_static, /clock)
+    subscribes: tuple[str, ...] = ()  # absolute topic names it must subscribe before the first step (readiness)
 
     @property
     def fqn(self) -> str:
@@ -74,6 +75,7 @@ class UpConfig:
     ready_timeout_s: float = 180.0
     step_timeout_s: float = 120.0
     record: bool = True
+    score: bool = True  # the scorer node: the detector's figures live on /diagnostics (up keeps its last ones)
     # The detector's input long side as a multiple of the cameras' (0: the checkpoint's rule, the scale its
     # serving size has to its training frames: 1.7 for the shipped weights, 2176 on 1280x720 frames). On 84
     # frames at 1280x720 of the training worlds (seed 777): 1.0 (1280) mAP50 0.797 / mAP50-95 0.533, 1.3 (1664)
@@ -166,9 +168,10 @@ def check_namespace(namespace: str) -> str:
 
 
 def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
-    """The processes of the whole graph, in start order (the placer last: it starts the steps). Every node runs
-    in ``cfg.namespace`` with relative topic names, so the namespace moves the whole graph; the placer is the clock
-    (``/clock``), the others run on its simulated time (``use_sim_time``)."""
+    """The processes of the whole graph, in start order (the placer last: it starts the steps, once the scorer and
+    the recorder subscribe what they need). Every node runs in ``cfg.namespace`` with relative topic names, so the
+    namespace moves the whole graph; the placer is the clock (``/clock``), the others run on its simulated time
+    (``use_sim_time``)."""
     ns = check_namespace(cfg.namespace)
     remaps = tuple((t, f"{ns}{t}") for t in GLOBAL_TOPICS) if ns else ()
     sim = {"use_sim_time": True}
@@ -187,11 +190,15 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
            "verifier": cfg.verifier if cfg.verifier in ("", "shipped") else str(Path(cfg.verifier).resolve()), **sim}
     nodes.append(NodeSpec("detector", "detector", ns, "detector.yaml", det,
                           tuple(f"{ns}/{d}/{t}" for d in DRONES for t in DETECTOR_TOPICS), remaps))
+    if cfg.score:  # every frame scored: subscribed before the first step
+        nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml", dict(sim), (), remaps,
+                              tuple(f"{ns}/{d}/{t}" for d in DRONES for t in ("labels", "detections"))))
     if cfg.record:
         rec = {"output": str(cfg.bag_path.resolve()), **sim}
         if ns:  # this graph's topics only, not another graph's on the same domain
             rec["topic_regex"] = f"^{ns}/"
-        nodes.append(NodeSpec("recorder", "recorder", ns, "recorder.yaml", rec, (), remaps))
+        nodes.append(NodeSpec("recorder", "recorder", ns, "recorder.yaml", rec, (), remaps,
+                              tuple(t for n in nodes for t in n.publishes)))
     nodes.append(NodeSpec("placer", "placer", ns, "placer.yaml", {
         "world": cfg.world, "seed": cfg.seed, "strategy": cfg.strategy, "mode": "lockstep", "max_steps": cfg.frames,
         "lockstep_ack_from": ["labeller", "detector"], "lockstep_timeout_s": cfg.step_timeout_s,

@@ -2,14 +2,14 @@
 
 Not an executable: the supervisor (``zebra_sim_ros.graph``) stays free of rclpy and asks this observer.
 Ready means: every expected topic has a publisher (nodes create their publishers last, after loading
-worlds, assets and weights), and, when recording, the recorder subscribes to each of them.
+worlds, assets and weights), and the nodes that read them (the recorder, the scorer) subscribe to them.
 Progress is read from the acknowledgements on ``zebra_sim/frame_done``; the nodes' health from ``/diagnostics``.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 import rclpy
@@ -40,6 +40,7 @@ class GraphWatch:
         self.node.create_subscription(Header, ACK_TOPIC, self._on_ack, qos("reliable", 100))
         self.statuses = set(statuses)  # the /diagnostics status names of this graph's nodes (others are ignored)
         self.health: dict[str, dict[str, Any]] = {}  # name: level and message of the last report; reports by level
+        self.values: dict[str, dict[str, str]] = {}  # name: the key-value pairs of its last report
         self.changes: list[tuple[str, Level, str]] = []  # (name, new level, message) since take_changes()
         self.node.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, self._on_diagnostics, qos("reliable", 50))
 
@@ -53,6 +54,7 @@ class GraphWatch:
                 self.changes.append((s.name, level, s.message))
             rec["level"], rec["message"] = level.name, s.message
             rec["reports"][level.name] = rec["reports"].get(level.name, 0) + 1
+            self.values[s.name] = {kv.key: kv.value for kv in s.values}
 
     def take_changes(self) -> list[tuple[str, Level, str]]:
         """The changes of level since the last call: (status name, new level, its message)."""
@@ -72,14 +74,15 @@ class GraphWatch:
         while time.monotonic() < end:
             self.executor.spin_once(timeout_sec=min(0.05, max(end - time.monotonic(), 0.0)))
 
-    def missing(self, topics: Iterable[str], recorder: str | None) -> list[str]:
-        """Topics not yet published (or, with ``recorder``, not yet subscribed by it), as readable notes."""
-        out: list[str] = []
-        for t in topics:
-            if not self.node.get_publishers_info_by_topic(t):
-                out.append(f"{t} (no publisher)")
-            elif recorder and not any(i.node_name == recorder for i in self.node.get_subscriptions_info_by_topic(t)):
-                out.append(f"{t} (not recorded yet)")
+    def missing(self, topics: Iterable[str], readers: Mapping[str, Iterable[str]] | None = None) -> list[str]:
+        """Topics not yet published, then topics a reader (node name: the topics it must subscribe) does not
+        subscribe yet although they are published, as readable notes."""
+        out = [f"{t} (no publisher)" for t in topics if not self.node.get_publishers_info_by_topic(t)]
+        for reader, wanted in (readers or {}).items():
+            for t in wanted:
+                if self.node.get_publishers_info_by_topic(t) and not any(
+                        i.node_name == reader for i in self.node.get_subscriptions_info_by_topic(t)):
+                    out.append(f"{t} (not subscribed by the {reader} yet)")
         return out
 
     def close(self) -> None:
