@@ -134,6 +134,19 @@ def test_share_directory_holds_package_xml(lookup: dict[str, str]) -> None:
     assert marker.is_file()
 
 
+def test_package_xml_declares_every_ros_package_the_code_imports() -> None:
+    """rosdep installs what package.xml names: every ROS interface package our code imports must be there (the
+    placer's std_srvs once was not)."""
+    import re
+
+    imported = set()
+    for path in (REPO / PACKAGE).rglob("*.py"):
+        imported |= set(re.findall(r"^\s*(?:from|import) (\w+_(?:msgs|srvs))\b", path.read_text(), re.M))
+    declared = set(re.findall(r"<exec_depend>(\w+)</exec_depend>", (REPO / "package.xml").read_text()))
+    assert {"std_srvs", "diagnostic_msgs", "sensor_msgs"} <= imported
+    assert imported <= declared, sorted(imported - declared)
+
+
 @pytest.mark.parametrize("exe", ["zebra-sim", "placer"])
 def test_installed_script_runs_help(installed: Installed, lookup: dict[str, str], exe: str) -> None:
     script = Path(lookup["prefix"]) / "lib" / PACKAGE / exe

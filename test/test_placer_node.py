@@ -99,6 +99,49 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path, 
         listener.close()
 
 
+def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tmp_path: Path) -> None:
+    """``mode:=service``: each call of ``/placer/step`` (std_srvs/Trigger) publishes one step and answers with its
+    index and stamp; a call while subscribers are still awaited publishes nothing and says so; after ``max_steps``
+    the node ends by itself."""
+    from std_srvs.srv import Trigger
+
+    listener = Listener(domain)
+    second: Listener | None = None
+    client = listener.node.create_client(Trigger, "/placer/step")
+
+    def call() -> Trigger.Response:
+        future = client.call_async(Trigger.Request())
+        assert listener.spin_until(future.done, 30), "no answer"
+        return future.result()
+    try:
+        params = dict(SMALL, mode="service", max_steps=2, seed=9, wait_for_subscribers=2)
+        with node_process("placer", params, domain, tmp_path / "placer.log") as proc:
+            assert listener.spin_until(client.service_is_ready, 60), (tmp_path / "placer.log").read_text()
+            first = call()
+            assert not first.success and "waiting for 2 subscribers" in first.message, first.message
+            listener.spin_until(lambda: False, 1.0)
+            assert listener.scenes == []  # nothing published for it
+            second = Listener(domain, "test_second_listener")
+            answers = [call()]
+            end = time.monotonic() + 30
+            while not answers[-1].success and time.monotonic() < end:  # until the second listener is discovered
+                listener.spin_until(lambda: False, 0.2)
+                answers[-1] = call()
+            answers.append(call())
+            assert [a.success for a in answers] == [True, True], [a.message for a in answers]
+            assert listener.spin_until(lambda: len(listener.scenes) == 2, 30)
+            assert proc.wait(timeout=20) == 0  # ends by itself after max_steps
+        for answer, scene in zip(answers, listener.scenes, strict=True):
+            stamp = f"{scene['stamp']['sec']}.{scene['stamp']['nanosec']:09d}"
+            assert answer.message.startswith(f"step {scene['step']}, stamp {stamp}: {scene['placed']}/"), answer.message
+        assert [s["step"] for s in listener.scenes] == [0, 1]
+        assert "published 2 steps on request; stopping" in (tmp_path / "placer.log").read_text()
+    finally:
+        listener.close()
+        if second is not None:
+            second.close()
+
+
 def test_a_best_effort_placer_still_sends_its_scene_reliable(domain: int, tmp_path: Path) -> None:
     """``qos_reliability:=best_effort`` makes the markers and poses best effort; the scene stays reliable, as the
     cameras and the labeller subscribe it (a best-effort scene used to match none of them, and the graph stalled)."""

@@ -17,7 +17,10 @@ the whole graph, except the conventional ``/tf``, ``/tf_static`` and ``/clock``,
 
 Modes: ``rate`` publishes a step every 1/rate_hz s; ``lockstep`` publishes step k+1 only after every name
 in ``lockstep_ack_from`` has acknowledged step k on ``zebra_sim/frame_done`` (std_msgs/Header: stamp = the
-scene's stamp, frame_id = the acknowledging node's name, e.g. ``drone_0``).
+scene's stamp, frame_id = the acknowledging node's name, e.g. ``drone_0``); ``service`` publishes a step each time
+its ``~/step`` service (std_srvs/Trigger) is called, and answers with the step's index and stamp, the simulated
+time step / rate_hz (``step 3, stamp 3.000000000: 38/40 zebras placed``), or success false and why no step was
+published (subscribers still awaited, ``max_steps`` reached). In every mode the node ends after ``max_steps`` steps.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ import time
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import ColorRGBA, Header, String
+from std_srvs.srv import Trigger
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -103,8 +107,13 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         self.wait_nodes = [n if n.startswith("/") else f"{ns}/{n}" for n in c.wait_for_nodes if n]
         self.started = c.wait_for_subscribers == 0 and not self.wait_nodes
         self.waiting_since = -math.inf  # says what it waits for at once, then every 5 s
+        self.answered_at = -math.inf  # service mode: when the last step was answered
         if c.mode == "rate":
             self.timer = self.wall_timer(1.0 / c.rate_hz, self._publish_next)
+        elif c.mode == "service":
+            self.service = self.create_service(Trigger, "~/step", self._on_step_request)
+            self.get_logger().info(f"service: one step per call of {self.service.srv_name} (std_srvs/Trigger)")
+            self.timer = self.wall_timer(0.1, self._service_tick)
         else:
             ack_qos = qos("reliable", 100)
             self.get_logger().info(f"lockstep: waiting for {list(c.lockstep_ack_from)} on {ACK_TOPIC} "
@@ -178,6 +187,36 @@ class PlacerNode(ZebraNode[PlacerConfig]):
                 scale=Vector3(x=sx, y=sy, z=sz), color=ColorRGBA(r=r, g=g, b=b, a=a)))
         return MarkerArray(markers=markers)
 
+    # -- service ----------------------------------------------------------------------------------
+    def _on_step_request(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        """Publish the next step and say which, or say why not (``success`` false)."""
+        if self._finished():
+            response.success, response.message = False, f"max_steps ({self.cfg.max_steps}) reached: no more steps"
+        elif not self._subscribed():
+            response.success = False
+            response.message = (f"waiting for {self.cfg.wait_for_subscribers} subscribers on every output"
+                                + (f" and for {self.wait_nodes}" if self.wait_nodes else "") + ": call again")
+        else:
+            scene = self.placer.scene(self.step)
+            self._publish(scene)
+            self.step += 1
+            self.published += 1
+            self.answered_at = time.monotonic()
+            response.success = True
+            response.message = (f"step {scene.step}, stamp {scene.stamp.sec}.{scene.stamp.nanosec:09d}: "
+                                f"{scene.placed}/{scene.requested} zebras placed")
+        return response
+
+    def _service_tick(self) -> None:
+        """Say what the first step waits for; after ``max_steps`` steps end, once the last answer has had time to
+        reach its caller."""
+        if not self.started:
+            self._subscribed()
+        elif self._finished() and time.monotonic() - self.answered_at > 0.5:
+            flush(self, [*self.outputs, self.clock_pub])
+            self.get_logger().info(f"published {self.published} steps on request; stopping")
+            self.done = True
+
     # -- lockstep ---------------------------------------------------------------------------------
     def _lockstep_tick(self) -> None:
         c = self.cfg
@@ -213,8 +252,9 @@ class PlacerNode(ZebraNode[PlacerConfig]):
 
     def activity(self) -> Activity:
         """Steps published (in lockstep: acknowledged by all); steps published again for want of an
-        acknowledgement; what it waits for: subscribers or an acknowledger before the first step, or the
-        acknowledgements of a step pending for over half ``lockstep_timeout_s`` (before that: its rate)."""
+        acknowledgement; what it waits for: subscribers or an acknowledger before the first step (or, in service
+        mode, the first call), or the acknowledgements of a step pending for over half ``lockstep_timeout_s``
+        (before that: its rate)."""
         c = self.cfg
         waiting = ""
         lockstep = c.mode == "lockstep"
@@ -224,6 +264,8 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             waiting = f"waiting for an acknowledger on {ACK_TOPIC} before the first step"
         elif not self.started:
             waiting = "waiting for subscribers before the first step"
+        elif c.mode == "service" and self.published == 0:
+            waiting = f"waiting for the first call of {self.service.srv_name}"
         elif lockstep and self.pending is not None and time.monotonic() - self.sent_at > c.lockstep_timeout_s / 2:
             missing = sorted(set(c.lockstep_ack_from) - self.acked)
             waiting = (f"step {self.pending.step}: waiting {time.monotonic() - self.sent_at:.1f} s for "

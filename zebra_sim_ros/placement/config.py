@@ -140,8 +140,9 @@ class PlacerConfig(StageConfig):
                                   "plants, the sun turned to another azimuth (structured domain randomisation for "
                                   "training sets; 0 = as authored)", lo=0.0, hi=1.0)
     latitude_deg: float = param(-2.3, "latitude for the sun's path (Serengeti: -2.3)", "deg", lo=-90.0, hi=90.0)
-    mode: str = param("rate", "rate: publish at rate_hz; lockstep: next step when every acker acknowledged",
-                      choices=("rate", "lockstep"))
+    mode: str = param("rate", "rate: publish at rate_hz; lockstep: next step when every acker acknowledged; "
+                      "service: one step per call of the ~/step service (std_srvs/Trigger)",
+                      choices=("rate", "lockstep", "service"))
     rate_hz: float = param(1.0, "steps per second in rate mode (a step also advances simulated time by 1/rate_hz)",
                            "Hz", lo=0.001, hi=1000.0)
     lockstep_ack_from: tuple[str, ...] = param(
