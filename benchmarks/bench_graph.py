@@ -1,11 +1,12 @@
 """Benchmark: the whole graph (``zebra-sim up``) at 1280x720 on this machine: steps and frames per second, the
 median time of each stage per step and the end-to-end latency from scene to detections.
 
-Runs ``zebra-sim up --frames N`` (seven processes over DDS on a private domain, lockstep, recorder on) and, in
-the same run, the in-process pipeline (``zebra-sim generate``: place, render three views, label, write, no DDS,
-no detector) on the same world, so the graph's cost can be read as a ratio of the plain pipeline's.
+Runs ``zebra-sim up --frames N`` (eight processes over DDS on a private domain, lockstep, recorder and scorer on)
+and, in the same run, the in-process pipeline (``zebra-sim generate``: place, render three views, label, write, no
+DDS, no detector) on the same world, so the graph's cost can be read as a ratio of the plain pipeline's. With
+``--drones 1 3`` the graph runs once per count of cameras (``up --drones``), each read against the pipeline.
 
-    python benchmarks/bench_graph.py [--frames 20] [--size 1280x720] [--detect-scale 0] [--json]
+    python benchmarks/bench_graph.py [--frames 20] [--drones 3] [--size 1280x720] [--detect-scale 0] [--json]
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ def main() -> None:
     ap.add_argument("--world", default="savanna")
     ap.add_argument("--detect-scale", default="0",
                     help="up's --detect-scale (detector size over the cameras'; 0: the checkpoint's rule)")
+    ap.add_argument("--drones", type=int, nargs="+", default=[3], help="up's --drones, one graph run per count")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     w, h = args.size
@@ -39,39 +41,43 @@ def main() -> None:
     try:
         env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
         domain = str(150 + os.getpid() % 50)
-        run = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "up", "--frames", str(args.frames),
-                              "--size", size, "--world", args.world, "--out", str(root / "up"),
-                              "--domain-id", domain, "--detect-scale", args.detect_scale,
-                              "--json"], env=env, capture_output=True, text=True, timeout=3600)
-        if run.returncode != 0:
-            raise SystemExit(f"zebra-sim up failed ({run.returncode}):\n{run.stdout[-3000:]}\n{run.stderr[-2000:]}")
-        up = json.loads(run.stdout.strip().splitlines()[-1])
+        runs = {}
+        for n in args.drones:
+            run = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "up", "--frames", str(args.frames),
+                                  "--drones", str(n), "--size", size, "--world", args.world,
+                                  "--out", str(root / f"up{n}"), "--domain-id", domain,
+                                  "--detect-scale", args.detect_scale, "--json"],
+                                 env=env, capture_output=True, text=True, timeout=3600)
+            if run.returncode != 0:
+                raise SystemExit(f"zebra-sim up --drones {n} failed ({run.returncode}):\n{run.stdout[-3000:]}\n"
+                                 f"{run.stderr[-2000:]}")
+            runs[n] = json.loads(run.stdout.strip().splitlines()[-1])
         gen = generate(GenerateConfig(out=str(root / "gen"), frames=3 * args.frames, strategy="far",
                                       worlds=(args.world,), width=w, height=h, workers=1, depth="none"),
                        progress=lambda *a: None)
         result = {
             "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, {platform.platform()}",
-            "size": size, "detect_imgsz": up["detect_imgsz"], "steps": up["steps"], "frames": up["frames"],
-            "graph": {"seconds": up["seconds"], "steps_per_s": up["steps_per_s"], "frames_per_s": up["frames_per_s"],
-                      "ready_s": up["ready_s"], "median_ms": up["median_ms"],
-                      "scores": up["scores"]["all"]},
+            "size": size, "detect_imgsz": runs[args.drones[0]]["detect_imgsz"],
+            "graphs": {n: {"drones": n, "steps": up["steps"], "seconds": up["seconds"],
+                           "steps_per_s": up["steps_per_s"], "frames_per_s": up["frames_per_s"],
+                           "ready_s": up["ready_s"], "median_ms": up["median_ms"], "scores": up["scores"]["all"],
+                           "graph_over_pipeline_fps": round(up["frames_per_s"] / gen["frames_per_s"], 3)}
+                       for n, up in runs.items()},
             "pipeline_in_process": {"frames_per_s": gen["frames_per_s"], "seconds": gen["seconds"]},
-            "graph_over_pipeline_fps": round(up["frames_per_s"] / gen["frames_per_s"], 3),
         }
     finally:
         shutil.rmtree(root, ignore_errors=True)
     if args.json:
         print(json.dumps(result))
         return
-    g = result["graph"]
     print(f"machine: {result['machine']}")
-    print(f"graph at {size}, detector at {result['detect_imgsz']}: {result['steps']} steps in {g['seconds']} s: "
-          f"{g['steps_per_s']} steps/s, "
-          f"{g['frames_per_s']} frames/s (ready after {g['ready_s']} s)")
-    print(f"median per step (ms): {g['median_ms']}")
-    print(f"in-process pipeline (no DDS, no detector): {result['pipeline_in_process']['frames_per_s']} frames/s; "
-          f"graph / pipeline = {result['graph_over_pipeline_fps']}")
-    print(f"detector vs live ground truth: {g['scores']}")
+    print(f"in-process pipeline (no DDS, no detector): {result['pipeline_in_process']['frames_per_s']} frames/s")
+    for n, g in result["graphs"].items():
+        print(f"graph of {n} drone(s) at {size}, detector at {result['detect_imgsz']}: {g['steps']} steps in "
+              f"{g['seconds']} s: {g['steps_per_s']} steps/s, {g['frames_per_s']} frames/s (ready after "
+              f"{g['ready_s']} s); graph / pipeline = {g['graph_over_pipeline_fps']}")
+        print(f"  median per step (ms): {g['median_ms']}")
+        print(f"  detector vs live ground truth: {g['scores']}")
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """The whole zebra_sim_ros graph for ROS 2 installations:
 
-    ros2 launch zebra_sim_ros zebra_sim.launch.py frames:=10 world:=savanna seed:=0
+    ros2 launch zebra_sim_ros zebra_sim.launch.py frames:=10 world:=savanna seed:=0 drones:=3
 
 The same processes as ``zebra-sim up`` (three cameras, labeller, detector, scorer, recorder, placer), with the same
 names, namespaces, parameter files (share/zebra_sim_ros/config) and overrides; a test compares the two.
@@ -18,7 +18,7 @@ clock (``/clock``, the simulated time of each step); every other node runs with 
 import os
 
 from ament_index_python.packages import get_package_share_directory
-from launch.actions import DeclareLaunchArgument, SetEnvironmentVariable
+from launch.actions import DeclareLaunchArgument, OpaqueFunction, SetEnvironmentVariable
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
@@ -29,15 +29,19 @@ from launch import LaunchDescription
 PACKAGE = "zebra_sim_ros"
 # OpenMP threads that sleep when idle, as zebra-sim up gives its nodes (zebra_sim_ros.graph.spec.NODE_ENVIRONMENT)
 NODE_ENVIRONMENT = {"OMP_WAIT_POLICY": "PASSIVE"}
+MAX_DRONES = 16  # zebra_sim_ros.geometry.camera.MAX_CAMERAS
 
 
 def generate_launch_description():
     config = os.path.join(get_package_share_directory(PACKAGE), "config")
     args = [
         DeclareLaunchArgument("frames", default_value="10", description="steps to run"),
+        DeclareLaunchArgument("drones", default_value="3", description="cameras, drone_0 .. drone_<N-1> (1..16; as "
+                              "zebra-sim up --drones)"),
         DeclareLaunchArgument("world", default_value="savanna", description="world preset or USD terrain"),
         DeclareLaunchArgument("seed", default_value="0", description="placer seed"),
-        DeclareLaunchArgument("strategy", default_value="far", description="far, closeby or mixed"),
+        DeclareLaunchArgument("strategy", default_value="far", description="camera strategy (as zebra-sim up "
+                              "--strategy: far, closeby, mixed, low, nadir, all)"),
         DeclareLaunchArgument("width", default_value="1280", description="image width, px"),
         DeclareLaunchArgument("height", default_value="720", description="image height, px"),
         DeclareLaunchArgument("weights", default_value="", description="detector checkpoint ('' = shipped)"),
@@ -59,36 +63,45 @@ def generate_launch_description():
     def file(name):
         return os.path.join(config, name)
 
-    cameras = [
-        Node(package=PACKAGE, executable="camera", name=f"drone_{i}_camera", namespace="", output="screen",
-             parameters=[file("camera.yaml"), {"drone_index": i, "width": arg("width", int),
-                                               "height": arg("height", int), "ack": False, "use_sim_time": True}])
-        for i in range(3)
-    ]
-    nodes = cameras + [
-        Node(package=PACKAGE, executable="labeller", name="labeller", namespace="", output="screen",
-             parameters=[file("labeller.yaml"), {"ack_name": "labeller", "image_reliability": "reliable",
-                                                 "use_sim_time": True}]),
-        Node(package=PACKAGE, executable="detector", name="detector", namespace="", output="screen",
-             parameters=[file("detector.yaml"), {"ack_name": "detector", "weights": arg("weights"),
-                                                 "device": arg("device"), "scale": arg("detect_scale", float),
-                                                 "amp": arg("detect_amp"), "verifier": arg("verifier"),
-                                                 "image_reliability": "reliable", "use_sim_time": True}]),
-        Node(package=PACKAGE, executable="scorer", name="scorer", namespace="", output="screen",
-             parameters=[file("scorer.yaml"), {"use_sim_time": True}],
-             condition=IfCondition(LaunchConfiguration("score"))),
-        Node(package=PACKAGE, executable="recorder", name="recorder", namespace="", output="screen",
-             parameters=[file("recorder.yaml"), {"output": arg("bag"), "use_sim_time": True}]),
-        Node(package=PACKAGE, executable="placer", name="placer", namespace="", output="screen",
-             parameters=[file("placer.yaml"), {
-                 "world": arg("world"), "seed": arg("seed", int), "strategy": arg("strategy"), "mode": "lockstep",
-                 "max_steps": arg("frames", int), "lockstep_ack_from": ["labeller", "detector"],
-                 "lockstep_timeout_s": 120.0, "camera_width": arg("width", int),
-                 "camera_height": arg("height", int), "wait_for_subscribers": 1, "wait_for_nodes": ["recorder"]}]),
-    ]
+    def nodes(context):
+        """The graph's processes: the number of cameras is the ``drones`` argument's value, read here."""
+        count = LaunchConfiguration("drones").perform(context)
+        if not count.isdigit() or not 1 <= int(count) <= MAX_DRONES:
+            raise ValueError(f"drones:={count}: want 1..{MAX_DRONES}")
+        drones = [f"drone_{i}" for i in range(int(count))]
+        cameras = [
+            Node(package=PACKAGE, executable="camera", name=f"{d}_camera", namespace="", output="screen",
+                 parameters=[file("camera.yaml"), {"drone_index": i, "width": arg("width", int),
+                                                   "height": arg("height", int), "ack": False, "use_sim_time": True}])
+            for i, d in enumerate(drones)
+        ]
+        return cameras + [
+            Node(package=PACKAGE, executable="labeller", name="labeller", namespace="", output="screen",
+                 parameters=[file("labeller.yaml"), {"drones": drones, "ack_name": "labeller",
+                                                     "image_reliability": "reliable", "use_sim_time": True}]),
+            Node(package=PACKAGE, executable="detector", name="detector", namespace="", output="screen",
+                 parameters=[file("detector.yaml"), {"image_topics": [f"{d}/image_raw" for d in drones],
+                                                     "ack_name": "detector", "weights": arg("weights"),
+                                                     "device": arg("device"), "scale": arg("detect_scale", float),
+                                                     "amp": arg("detect_amp"), "verifier": arg("verifier"),
+                                                     "image_reliability": "reliable", "use_sim_time": True}]),
+            Node(package=PACKAGE, executable="scorer", name="scorer", namespace="", output="screen",
+                 parameters=[file("scorer.yaml"), {"drones": drones, "use_sim_time": True}],
+                 condition=IfCondition(LaunchConfiguration("score"))),
+            Node(package=PACKAGE, executable="recorder", name="recorder", namespace="", output="screen",
+                 parameters=[file("recorder.yaml"), {"output": arg("bag"), "use_sim_time": True}]),
+            Node(package=PACKAGE, executable="placer", name="placer", namespace="", output="screen",
+                 parameters=[file("placer.yaml"), {
+                     "world": arg("world"), "seed": arg("seed", int), "strategy": arg("strategy"),
+                     "num_cameras": int(count), "mode": "lockstep", "max_steps": arg("frames", int),
+                     "lockstep_ack_from": ["labeller", "detector"], "lockstep_timeout_s": 120.0,
+                     "camera_width": arg("width", int), "camera_height": arg("height", int),
+                     "wait_for_subscribers": 1, "wait_for_nodes": ["recorder"]}]),
+        ]
+
     # Our Fast DDS profile (100 ms heartbeat: large images that lost a fragment arrive in 0.1 s, not 3 s),
     # as zebra-sim up sets it, unless a profile file is already chosen.
     env = [SetEnvironmentVariable(k, v) for k, v in NODE_ENVIRONMENT.items() if k not in os.environ]
     if not (os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE") or os.environ.get("FASTDDS_DEFAULT_PROFILES_FILE")):
         env.append(SetEnvironmentVariable("FASTRTPS_DEFAULT_PROFILES_FILE", file("fastdds.xml")))
-    return LaunchDescription(args + env + nodes)
+    return LaunchDescription(args + env + [OpaqueFunction(function=nodes)])

@@ -75,6 +75,14 @@ def test_graph_overrides_are_declared_parameters_with_allowed_values(tmp_path: P
     assert placer["mode"] == "lockstep" and placer["wait_for_subscribers"] == 1
     assert set(placer["lockstep_ack_from"]) == {specs[3].overrides["ack_name"], specs[4].overrides["ack_name"]}
     assert not any(s.executable == "recorder" for s in graph_spec(UpConfig(record=False)))
+    for n in (1, 16):  # --drones: that many cameras, every override still allowed by its node
+        specs = graph_spec(UpConfig(drones=n))
+        assert [s.name for s in specs if s.executable == "camera"] == [f"drone_{i}_camera" for i in range(n)]
+        for s in specs:
+            validate(SPECS[s.executable], s.overrides)
+    for bad in (0, 17):
+        with pytest.raises(ParameterError, match="'--drones' = 17|'--drones' = 0"):
+            UpConfig(drones=bad).check()
 
 
 def test_a_namespace_moves_every_topic_and_the_global_ones_are_remapped() -> None:
@@ -122,6 +130,7 @@ class _Recorder:
         self.nodes: list[dict[str, Any]] = []
         self.args: dict[str, str] = {}
         self.env: dict[str, str] = {}
+        self.functions: list[Any] = []  # OpaqueFunction's, called with the arguments' values (launch_configurations)
 
     def modules(self, share: Path) -> dict[str, types.ModuleType]:
         rec = self
@@ -142,6 +151,13 @@ class _Recorder:
             def __init__(self, name: str) -> None:
                 self.name = name
 
+            def perform(self, context: Any) -> str:
+                return str(context.launch_configurations[self.name])
+
+        class OpaqueFunction:
+            def __init__(self, function: Any) -> None:
+                rec.functions.append(function)
+
         class IfCondition:
             def __init__(self, predicate: Any) -> None:
                 self.predicate = predicate
@@ -153,7 +169,7 @@ class _Recorder:
         mods = {}
         for name, attrs in {
             "launch": {"LaunchDescription": lambda items: items},
-            "launch.actions": {"DeclareLaunchArgument": DeclareLaunchArgument,
+            "launch.actions": {"DeclareLaunchArgument": DeclareLaunchArgument, "OpaqueFunction": OpaqueFunction,
                                "SetEnvironmentVariable": SetEnvironmentVariable},
             "launch.substitutions": {"LaunchConfiguration": LaunchConfiguration},
             "launch.conditions": {"IfCondition": IfCondition},
@@ -168,14 +184,18 @@ class _Recorder:
         return mods
 
 
-def _launch(monkeypatch: pytest.MonkeyPatch, share: Path) -> _Recorder:
-    """What the launch file builds in this environment, its package's share folder ``share``."""
+def _launch(monkeypatch: pytest.MonkeyPatch, share: Path, **arguments: str) -> _Recorder:
+    """What the launch file builds in this environment, its package's share folder ``share``, with these launch
+    arguments (``name:=value``; the others at their defaults)."""
     rec = _Recorder()
     for name, mod in rec.modules(share).items():
         monkeypatch.setitem(sys.modules, name, mod)
     ns: dict[str, Any] = {}
     exec(compile((REPO / "launch" / "zebra_sim.launch.py").read_text(), "zebra_sim.launch.py", "exec"), ns)
     ns["generate_launch_description"]()
+    context = types.SimpleNamespace(launch_configurations={**rec.args, **arguments})
+    for function in rec.functions:
+        function(context)
     return rec
 
 
@@ -201,6 +221,18 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
             else:
                 assert v == s.overrides[k], (s.label, k)
     assert int(rec.args["frames"]) == UpConfig().frames and rec.args["world"] == UpConfig().world
+    # drones:=N as up --drones N: N cameras, and the labeller, detector, scorer and placer told of them
+    five = _launch(monkeypatch, tmp_path / "share", drones="5")
+    up5 = graph_spec(UpConfig(drones=5))
+    assert [(n["executable"], n["name"]) for n in five.nodes] == [(s.executable, s.name) for s in up5]
+    for n, s in zip(five.nodes, up5, strict=True):
+        for k in ("drones", "image_topics", "num_cameras", "drone_index"):
+            assert n["parameters"][1].get(k) == s.overrides.get(k), (s.label, k)
+    by = {s.executable: s.overrides for s in up5}
+    assert by["placer"]["num_cameras"] == 5 and by["labeller"]["drones"] == by["scorer"]["drones"] == [
+        f"drone_{i}" for i in range(5)] and by["detector"]["image_topics"][-1] == "drone_4/image_raw"
+    with pytest.raises(ValueError, match="drones:=0"):
+        _launch(monkeypatch, tmp_path / "share", drones="0")
     # the scorer, and only it, may be left out: score:=false as up --no-score, on by default in both
     conditional = [(n["executable"], n["condition"].predicate.name) for n in rec.nodes if "condition" in n]
     assert conditional == [("scorer", "score")] and rec.args["score"] == "true" and UpConfig().score

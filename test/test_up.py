@@ -261,14 +261,15 @@ def test_ctrl_c_stops_the_graph_with_a_complete_bag(tmp_path: Path) -> None:
 
 def test_two_graphs_in_two_namespaces_share_a_domain_without_crosstalk(tmp_path: Path) -> None:
     """Two whole graphs on one domain, in /g1 and /g2: /g1 records its own topics only (its /g1/tf, /g1/clock
-    included), with its own three steps; each graph's scorer scores its own nine frames. /g2 runs without a
-    recorder: no bag, and the scorer's figures are its scores."""
+    included), with its own three steps; each graph's scorer scores its own frames. /g2 runs two drones and no
+    recorder: no bag, and the scorer's figures (six frames) are its scores."""
     from rosbags.highlevel import AnyReader
 
     domain = fresh_domain_id()
     procs = {ns: subprocess.Popen([sys.executable, "-m", "zebra_sim_ros.cli", "up", "--frames", "3", "--size",
                                    "256x144", "--out", str(tmp_path / ns), "--domain-id", str(domain), "--namespace",
-                                   f"/{ns}", "--seed", str(k), "--json", *(["--no-record"] if ns == "g2" else [])],
+                                   f"/{ns}", "--seed", str(k), "--json",
+                                   *(["--no-record", "--drones", "2"] if ns == "g2" else [])],
                                   env=ros_env(domain), text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
              for k, ns in enumerate(("g1", "g2"))}
     try:
@@ -281,11 +282,13 @@ def test_two_graphs_in_two_namespaces_share_a_domain_without_crosstalk(tmp_path:
         assert procs[ns].returncode == 0, stdout[-3000:] + stderr[-2000:]
         s = _last_json(stdout)
         live = s["live_scores"]
-        assert live["frames"] == 9 and live["complete"] and 0 < live["all"]["mAP50"] <= 1, live
-        assert set(s["health"]) == {f"{ns}/{n.label}: {n.executable}" for n in graph_spec(UpConfig(record=ns == "g1"))}
+        cfg = UpConfig(record=ns == "g1", drones=3 if ns == "g1" else 2)
+        assert live["frames"] == 3 * cfg.drones and live["complete"] and 0 < live["all"]["mAP50"] <= 1, live
+        assert set(live) - {"frames", "complete", "all"} == set(cfg.drone_names), live
+        assert set(s["health"]) == {f"{ns}/{n.label}: {n.executable}" for n in graph_spec(cfg)}
         if ns == "g2":
             assert "steps" not in s and not (tmp_path / ns / "zebra_sim.mcap").exists()
-            assert "the scorer node, live over its last 9 frames" in stdout
+            assert "the scorer node, live over its last 6 frames" in stdout
             continue
         assert live["all"]["mAP50"] == pytest.approx(s["scores"]["all"]["mAP50"], abs=2e-4)
         assert s["steps"] == 3 and s["frames"] == {d: {"image_raw": 3, "labels": 3, "detections": 3} for d in DRONES}

@@ -38,6 +38,8 @@ def register(sub: Any) -> None:
     p = sub.add_parser("up", help="run the whole graph for N steps in lockstep, record it and score the detector",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--frames", type=int, default=10, help="steps to run (each gives one frame per drone)")
+    p.add_argument("--drones", type=int, default=3, help="cameras, drone_0 .. drone_<N-1>, each its own camera node "
+                   "(1..16; the paper's three by default)")
     for name in ("world", "seed", "strategy"):
         add_option(p, spec_of(PlacerConfig, name))
     p.add_argument("--size", default="1280x720", help="image size of the cameras, WxH px")
@@ -68,7 +70,7 @@ class _Stop(Exception):
 
 def cmd_up(args: argparse.Namespace) -> Summary:
     """Run the graph; returns the summary (``exit_code`` 0, 1 when a node died, 130 when interrupted)."""
-    from zebra_sim_ros.graph.spec import DRONES, config_dir, graph_spec
+    from zebra_sim_ros.graph.spec import config_dir, graph_spec
     from zebra_sim_ros.zebra.asset import load_library
 
     cfg = _up_config(args)
@@ -97,7 +99,7 @@ def cmd_up(args: argparse.Namespace) -> Summary:
         except OSError as exc:  # a full disk: the scores still come, the preview does not
             result.update(summarize_run(cfg.bag_path, None))
             result["preview_error"] = f"{exc.strerror or exc}: {out / 'preview.jpg'}"
-        _print_summary(result, DRONES)
+        _print_summary(result, cfg.drone_names)
     if (live := result.get("live_scores")) and "all" in live:
         a = live["all"]
         print(f"[up] the scorer node, live over its last {live['frames']} frames"
@@ -142,8 +144,8 @@ def _up_config(args: argparse.Namespace) -> UpConfig:
     from zebra_sim_ros.graph.spec import UpConfig
 
     w, h = parse_size(args.size)
-    cfg = UpConfig(frames=args.frames, world=args.world, seed=args.seed, out=args.out, width=w, height=h,
-                   weights=args.weights, device=args.device, detect_scale=args.scale, detect_amp=args.amp,
+    cfg = UpConfig(frames=args.frames, drones=args.drones, world=args.world, seed=args.seed, out=args.out, width=w,
+                   height=h, weights=args.weights, device=args.device, detect_scale=args.scale, detect_amp=args.amp,
                    strategy=args.strategy, config_dir=args.config, ready_timeout_s=args.ready_timeout,
                    step_timeout_s=args.step_timeout, record=not args.no_record, score=not args.no_score,
                    namespace=args.namespace, verifier=args.verifier)
@@ -175,7 +177,7 @@ def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, 
     The placer is the last of ``specs``. How it ended goes into ``result`` (``exit_code``, ``died``, ``error``,
     ``exit_status``, ``ready_s``); SIGTERM stops it like Ctrl-C.
     """
-    from zebra_sim_ros.graph.spec import DRONES, command
+    from zebra_sim_ros.graph.spec import command
     from zebra_sim_ros.graph.supervisor import NodeDied, Supervisor
     from zebra_sim_ros.health import status_name
     from zebra_sim_ros.nodes.graph_watch import GraphWatch
@@ -199,7 +201,7 @@ def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, 
                       f"{cfg.frames} steps of '{cfg.world}' (seed {cfg.seed}) in lockstep", flush=True)
                 _run_steps(sup, watch, sup.start(placer, command(placer, conf), expected_exit=True), cfg)
                 if scorer is not None:
-                    _await_scores(sup, watch, scorer, watch.steps_done() * len(DRONES))
+                    _await_scores(sup, watch, scorer, watch.steps_done() * cfg.drones)
             except NodeDied as exc:
                 print(f"\n[up] {exc}\n[up] stopping the other nodes", flush=True)
                 result.update(exit_code=1, died=exc.child.label, died_status=exc.code)
@@ -213,7 +215,7 @@ def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, 
                 codes = sup.stop([c for c in sup.children if c.spec.executable != "recorder"])  # recorder last
                 result["health"] = watch.health
                 if scorer is not None and scorer in watch.values:
-                    result["live_scores"] = _live_scores(watch.values[scorer], watch.steps_done() * len(DRONES))
+                    result["live_scores"] = _live_scores(watch.values[scorer], watch.steps_done() * cfg.drones)
                 result["exit_status"] = codes
                 bad = {k: v for k, v in codes.items() if v not in (0, None) and k != result.get("died")}
                 if bad:

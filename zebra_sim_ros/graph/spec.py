@@ -21,11 +21,11 @@ from zebra_sim_ros.recording.config import RECORDER_PARAMS, REPLAY_PARAMS
 from zebra_sim_ros.rendering.config import CAMERA_PARAMS
 
 PACKAGE = "zebra_sim_ros"
-DRONES = ("drone_0", "drone_1", "drone_2")
+DRONES = ("drone_0", "drone_1", "drone_2")  # the default graph's cameras (UpConfig.drones: 3)
 CAMERA_TOPICS = ("image_raw", "depth", "instances", "camera_info")
 LABELLER_TOPICS = ("labels", "labels/markers", "labels/boxes3d", "labels/boxes2d")
 DETECTOR_TOPICS = ("detections", "detections/image", "detections/markers")
-PLACER_TOPICS = ("zebra_sim/scene", "zebra_sim/zebras/markers", *(f"{d}/camera/pose" for d in DRONES))
+PLACER_TOPICS = ("zebra_sim/scene", "zebra_sim/zebras/markers")  # and <drone>/camera/pose for each drone
 # By convention absolute (tf2 listeners and every node's time source use them); a namespaced graph remaps them.
 GLOBAL_TOPICS = ("/tf", "/tf_static", "/clock")
 BAG_NAME = "zebra_sim.mcap"
@@ -63,6 +63,7 @@ class UpConfig:
     """Settings of one ``zebra-sim up`` run."""
 
     frames: int = 10
+    drones: int = 3  # cameras, drone_0 .. drone_<n-1> (the placer's num_cameras)
     world: str = "savanna"
     seed: int = 0
     out: str = "out/up"
@@ -89,6 +90,10 @@ class UpConfig:
         """Raise :class:`ParameterError` naming the first bad setting."""
         if self.frames < 1:
             raise ParameterError("--frames", self.frames, ">= 1")
+        from zebra_sim_ros.geometry.camera import MAX_CAMERAS
+
+        if not 1 <= self.drones <= MAX_CAMERAS:
+            raise ParameterError("--drones", self.drones, f"1..{MAX_CAMERAS}")
         if not (16 <= self.width <= 8192 and 16 <= self.height <= 8192):
             raise ParameterError("--size", f"{self.width}x{self.height}", "WxH with 16..8192 each")
         from zebra_sim_ros.placement.config import STRATEGY_CHOICES
@@ -108,6 +113,11 @@ class UpConfig:
         check_world_source(self.world)
         for node in graph_spec(self):  # each node's own rules, before any process starts
             validate(NODE_PARAMS[node.executable], node.overrides)
+
+    @property
+    def drone_names(self) -> tuple[str, ...]:
+        """The cameras' names, ``drone_0`` .. ``drone_<drones - 1>``: their namespaces and tf frames."""
+        return tuple(f"drone_{i}" for i in range(self.drones))
 
     @property
     def bag_path(self) -> Path:
@@ -175,24 +185,26 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
     ns = check_namespace(cfg.namespace)
     remaps = tuple((t, f"{ns}{t}") for t in GLOBAL_TOPICS) if ns else ()
     sim = {"use_sim_time": True}
+    drones = cfg.drone_names
     nodes: list[NodeSpec] = []
-    for i, d in enumerate(DRONES):
+    for i, d in enumerate(drones):
         nodes.append(NodeSpec("camera", f"{d}_camera", ns, "camera.yaml",
                               {"drone_index": i, "width": cfg.width, "height": cfg.height, "ack": False, **sim},
                               tuple(f"{ns}/{d}/{t}" for t in CAMERA_TOPICS), remaps))
     # The graph's own cameras publish reliably and lockstep waits for every frame: subscribe reliably too.
     nodes.append(NodeSpec("labeller", "labeller", ns, "labeller.yaml",
-                          {"ack_name": "labeller", "image_reliability": "reliable", **sim},
-                          tuple(f"{ns}/{d}/{t}" for d in DRONES for t in LABELLER_TOPICS), remaps))
+                          {"drones": list(drones), "ack_name": "labeller", "image_reliability": "reliable", **sim},
+                          tuple(f"{ns}/{d}/{t}" for d in drones for t in LABELLER_TOPICS), remaps))
     # scale 0: the detector sizes the cameras' frames by the checkpoint's rule (far zebras are a few pixels tall).
-    det = {"ack_name": "detector", "weights": str(Path(cfg.weights).resolve()) if cfg.weights else "",
-           "device": cfg.device, "scale": cfg.detect_scale, "amp": cfg.detect_amp, "image_reliability": "reliable",
+    det = {"image_topics": [f"{d}/image_raw" for d in drones], "ack_name": "detector",
+           "weights": str(Path(cfg.weights).resolve()) if cfg.weights else "", "device": cfg.device,
+           "scale": cfg.detect_scale, "amp": cfg.detect_amp, "image_reliability": "reliable",
            "verifier": cfg.verifier if cfg.verifier in ("", "shipped") else str(Path(cfg.verifier).resolve()), **sim}
     nodes.append(NodeSpec("detector", "detector", ns, "detector.yaml", det,
-                          tuple(f"{ns}/{d}/{t}" for d in DRONES for t in DETECTOR_TOPICS), remaps))
+                          tuple(f"{ns}/{d}/{t}" for d in drones for t in DETECTOR_TOPICS), remaps))
     if cfg.score:  # every frame scored: subscribed before the first step
-        nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml", dict(sim), (), remaps,
-                              tuple(f"{ns}/{d}/{t}" for d in DRONES for t in ("labels", "detections"))))
+        nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml", {"drones": list(drones), **sim}, (), remaps,
+                              tuple(f"{ns}/{d}/{t}" for d in drones for t in ("labels", "detections"))))
     if cfg.record:
         rec = {"output": str(cfg.bag_path.resolve()), **sim}
         if ns:  # this graph's topics only, not another graph's on the same domain
@@ -200,11 +212,13 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
         nodes.append(NodeSpec("recorder", "recorder", ns, "recorder.yaml", rec, (), remaps,
                               tuple(t for n in nodes for t in n.publishes)))
     nodes.append(NodeSpec("placer", "placer", ns, "placer.yaml", {
-        "world": cfg.world, "seed": cfg.seed, "strategy": cfg.strategy, "mode": "lockstep", "max_steps": cfg.frames,
-        "lockstep_ack_from": ["labeller", "detector"], "lockstep_timeout_s": cfg.step_timeout_s,
+        "world": cfg.world, "seed": cfg.seed, "strategy": cfg.strategy, "num_cameras": cfg.drones, "mode": "lockstep",
+        "max_steps": cfg.frames, "lockstep_ack_from": ["labeller", "detector"],
+        "lockstep_timeout_s": cfg.step_timeout_s,
         "camera_width": cfg.width, "camera_height": cfg.height, "wait_for_subscribers": 1 if cfg.record else 0,
         "wait_for_nodes": ["recorder"] if cfg.record else [""]},
-        tuple(f"{ns}/{t}" for t in PLACER_TOPICS) + tuple(f"{ns}{t}" for t in GLOBAL_TOPICS), remaps))
+        tuple(f"{ns}/{t}" for t in (*PLACER_TOPICS, *(f"{d}/camera/pose" for d in drones)))
+        + tuple(f"{ns}{t}" for t in GLOBAL_TOPICS), remaps))
     return nodes
 
 

@@ -28,6 +28,11 @@ _IMAGE_TOPIC = re.compile(r"^(?:/[^/]+)*/(?P<drone>drone_\d+)/image_raw$")
 _SCENE_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/scene$")
 
 
+def _drone_order(name: str) -> tuple[int, str]:
+    """drone_2 before drone_10."""
+    return len(name), name
+
+
 def _median_ms(values: list[float]) -> float | None:
     return round(float(np.median(values)) * 1e3, 1) if values else None
 
@@ -35,7 +40,7 @@ def _median_ms(values: list[float]) -> float | None:
 def _stage_seconds(scenes: dict[int, int], times: dict[str, dict[str, dict[int, int]]]) -> dict[str, list[float]]:
     """Per step, s: render (scene -> its last image), label and detect (image -> its labels, detections; per
     drone) and end to end (scene -> the last detections, where every drone's arrived), from log times by stamp."""
-    drones = sorted(times)
+    drones = sorted(times, key=_drone_order)
     out: dict[str, list[float]] = {"render": [], "label": [], "detect": [], "end_to_end": []}
     for s, t0 in scenes.items():
         imgs = [times[d]["image_raw"][s] for d in drones if s in times[d]["image_raw"]]
@@ -76,7 +81,7 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[st
     collected = collect(bag, each=visit)  # one pass over the bag for the scores and the timings
     for drone, log_times in collected.arrivals.items():
         times[drone].update(log_times)
-    drones = sorted(times)
+    drones = sorted(times, key=_drone_order)
     frames = {d: {k: len(times[d][k]) for k in ("image_raw", "labels", "detections")} for d in drones}
     stages = _stage_seconds(scenes, times)
     ends = [t for d in drones for t in times[d]["detections"].values()]
