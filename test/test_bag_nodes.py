@@ -294,6 +294,7 @@ def test_replay_remap_offset_loop_and_clock(peer: Peer, tmp_path: Path) -> None:
     ("recorder", {"exclude_regex": "(unclosed"}, "'exclude_regex'"),
     ("replay", {"bags": ["/no/such.mcap"]}, "'bags'"),
     ("replay", {"bags": ["x.mcap"], "remap_prefix": "/replay/"}, "'remap_prefix'"),
+    ("replay", {"bags": ["x.mcap"], "exclude_regex": "[a-"}, "'exclude_regex'"),
 ])
 def test_a_bad_parameter_stops_the_node_naming_it(tmp_path: Path, node: str, params: dict[str, object],
                                                    named: str) -> None:
@@ -313,16 +314,23 @@ def test_replay_skips_a_topic_it_cannot_play_and_plays_the_rest(peer: Peer, tmp_
         w.start(profile="ros2", library="test")
         ok = w.register_channel("/tick", "cdr", w.register_schema("std_msgs/msg/String", "ros2msg", b"string data"))
         odd = w.register_channel("/odd", "cdr", w.register_schema("nope_msgs/msg/Thing", "ros2msg", b"int32 x"))
+        left_out = w.register_channel("/tock", "cdr", w.register_schema("std_msgs/msg/String", "ros2msg",
+                                                                         b"string data"))
         for k in range(20):
             t = 10**9 + k * 10**7
             w.add_message(odd, t, b"\x00\x01\x00\x00\x07\x00\x00\x00", t)
             w.add_message(ok, t, serialize_message(String(data=f"tick {k}")), t)
+            w.add_message(left_out, t, serialize_message(String(data=f"tock {k}")), t)
         w.finish()
     got: list[str] = []
+    tocks: list[str] = []
     peer.node.create_subscription(String, "/tick", lambda m: got.append(m.data), 100)
-    with node_process("replay", {"bags": [str(bag)], "wait_for_subscribers_s": 20.0}, _domain(peer),
-                      tmp_path / "replay.log") as proc:
+    peer.node.create_subscription(String, "/tock", lambda m: tocks.append(m.data), 100)
+    with node_process("replay", {"bags": [str(bag)], "wait_for_subscribers_s": 20.0, "exclude_regex": "^/to"},
+                      _domain(peer), tmp_path / "replay.log") as proc:
+        assert peer.spin(lambda: peer.node.count_publishers("/tick") > 0, 30)
+        assert peer.node.count_publishers("/tock") == 0  # excluded: no publisher, nothing played
         assert proc.wait(timeout=60) == 0
         peer.spin(lambda: len(got) == 20, 10)
-    assert got == [f"tick {k}" for k in range(20)]
+    assert got == [f"tick {k}" for k in range(20)] and tocks == []
     assert "cannot play /odd (nope_msgs/msg/Thing)" in (tmp_path / "replay.log").read_text()

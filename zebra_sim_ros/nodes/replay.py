@@ -3,9 +3,9 @@
 Publishes every message as recorded (raw CDR, no deserialisation) on its topic (plus ``remap_prefix``), with
 the QoS its publishers offered when recorded (reliable and transient local only if they all were), keeping the
 recorded spacing of log times divided by ``rate``. ``start_offset_s`` and ``duration_s`` select a window,
-``topics``/``topic_regex`` select topics, ``loop`` plays again, ``clock`` publishes ``/clock`` with the bag's time
-for ``use_sim_time`` consumers. A truncated or corrupt bag plays everything intact, then the node logs where and
-why it stopped. The node exits when done (unless looping).
+``topics``/``topic_regex``/``exclude_regex`` select topics, ``loop`` plays again, ``clock`` publishes ``/clock``
+with the bag's time for ``use_sim_time`` consumers. A truncated or corrupt bag plays everything intact, then the
+node logs where and why it stopped. The node exits when done (unless looping).
 """
 
 from __future__ import annotations
@@ -69,6 +69,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         self.bags: list[str | Path] = [b for b in c.bags if b]
         self.reader = BagReader.open(self.bags, name="bags")  # missing files stop the node here, naming them
         self.regex = re.compile(c.topic_regex)  # checked by its ParamSpec
+        self.exclude = re.compile(c.exclude_regex) if c.exclude_regex else None
         self.topics = {t for t in c.topics if t}
         self.pubs: dict[str, Any] = {}
         self.clock_pub = self.create_publisher(Clock, "/clock", 10) if c.clock else None
@@ -90,7 +91,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         self.cfg = cfg
 
     def _wanted(self, topic: str) -> bool:
-        return (not self.topics or topic in self.topics) and bool(self.regex.search(topic))
+        return ((not self.topics or topic in self.topics) and bool(self.regex.search(topic))
+                and not (self.exclude and self.exclude.search(topic)))
 
     def _publisher(self, topic: str, type_name: str, metadata: dict[str, str]) -> Any:
         """The topic's publisher with its recorded QoS, made once; None for a topic not played or not playable

@@ -79,6 +79,8 @@ class ReplayConfig(StageConfig):
                                     allowed="a list of topic names", check=_str_list)
     topic_regex: str = param(".*", "play topics matching this regular expression", allowed="a regular expression",
                              check=is_regex)
+    exclude_regex: str = param("", "never play topics matching this regular expression ('': none; as ros2 bag "
+                               "play --exclude-regex)", allowed="a regular expression or empty", check=is_regex)
     remap_prefix: str = param("", "prefix added to every topic name (e.g. /replay)",
                               allowed="empty, or starting and not ending with /",
                               check=lambda v: v == "" or (v.startswith("/") and not v.endswith("/")))
