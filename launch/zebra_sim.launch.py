@@ -2,13 +2,14 @@
 
     ros2 launch zebra_sim_ros zebra_sim.launch.py frames:=10 world:=savanna seed:=0 drones:=3
 
-The same processes as ``zebra-sim up`` (three cameras, labeller, detector, scorer, recorder, placer), with the same
-names, namespaces, parameter files (share/zebra_sim_ros/config) and overrides; a test compares the two.
-``zebra-sim up`` adds what launch does not: it waits until every node is ready before the placer's first step,
-stops the graph after the last step and scores the run. Here the placer waits for the recorder through
+The same processes as ``zebra-sim up`` (``drones`` cameras, three by default; labeller, detector, scorer, recorder,
+placer), with the same names, namespaces, parameter files (share/zebra_sim_ros/config) and overrides; a test
+compares the two. ``zebra-sim up`` adds what launch does not: it waits until every node is ready before the placer's
+first step, stops the graph after the last step and scores the run. Here the placer waits for the recorder through
 ``wait_for_nodes`` (the recorder by name: another subscriber such as RViz does not count) and exits after ``frames``
 steps; stop the rest with Ctrl-C. The scorer (``score:=false`` leaves it out) publishes the detector's figures on
-``/diagnostics``, status ``scorer: scorer`` (``ros2 topic echo /diagnostics``, or rqt's runtime monitor).
+``/diagnostics``, status ``scorer: scorer`` (``ros2 topic echo /diagnostics``, or rqt's runtime monitor); nothing
+holds the first step for it, so a scorer that subscribes late scores the steps from then on.
 
 Topic names are relative: wrap this launch file in a group with ``PushRosNamespace`` to move the whole graph (and
 remap ``/tf``, ``/tf_static`` and ``/clock`` into it, as ``zebra-sim up --namespace`` does). The placer is the
@@ -30,6 +31,11 @@ PACKAGE = "zebra_sim_ros"
 # OpenMP threads that sleep when idle, as zebra-sim up gives its nodes (zebra_sim_ros.graph.spec.NODE_ENVIRONMENT)
 NODE_ENVIRONMENT = {"OMP_WAIT_POLICY": "PASSIVE"}
 MAX_DRONES = 16  # zebra_sim_ros.geometry.camera.MAX_CAMERAS
+# What the bag holds of the cameras' images (zebra_sim_ros.graph.spec.BAG_IMAGES and the recorder's exclude_regex)
+BAG_IMAGES = ("raw", "jpeg", "png")
+RECORDER_EXCLUDES = "^/(rosout|parameter_events)$"
+COMPRESSED_BAG_EXCLUDES = "|/image_raw$|/detections/image$"
+SCORE_WINDOW = (300, 2000)  # the scorer's window: every step, 300..2000 (zebra_sim_ros.graph.spec.score_window)
 
 
 def generate_launch_description():
@@ -41,7 +47,7 @@ def generate_launch_description():
         DeclareLaunchArgument("world", default_value="savanna", description="world preset or USD terrain"),
         DeclareLaunchArgument("seed", default_value="0", description="placer seed"),
         DeclareLaunchArgument("strategy", default_value="far", description="camera strategy (as zebra-sim up "
-                              "--strategy: far, closeby, mixed, low, nadir, all)"),
+                              "--strategy: far, closeby, low, nadir, mixed, any)"),
         DeclareLaunchArgument("width", default_value="1280", description="image width, px"),
         DeclareLaunchArgument("height", default_value="720", description="image height, px"),
         DeclareLaunchArgument("weights", default_value="", description="detector checkpoint ('' = shipped)"),
@@ -55,6 +61,8 @@ def generate_launch_description():
         DeclareLaunchArgument("score", default_value="true", description="start the scorer node (the detector's "
                               "figures live on /diagnostics; as zebra-sim up without --no-score)"),
         DeclareLaunchArgument("bag", default_value="out/up/zebra_sim.mcap", description="bag to record"),
+        DeclareLaunchArgument("bag_images", default_value="raw", description="the cameras' images in the bag: raw, "
+                              "or jpeg or png (image_raw/compressed instead; as zebra-sim up --bag-images)"),
     ]
 
     def arg(name, value_type=str):
@@ -69,10 +77,17 @@ def generate_launch_description():
         if not count.isdigit() or not 1 <= int(count) <= MAX_DRONES:
             raise ValueError(f"drones:={count}: want 1..{MAX_DRONES}")
         drones = [f"drone_{i}" for i in range(int(count))]
+        bag_images = LaunchConfiguration("bag_images").perform(context)
+        if bag_images not in BAG_IMAGES:
+            raise ValueError(f"bag_images:={bag_images}: want one of {', '.join(BAG_IMAGES)}")
+        compressed = "off" if bag_images == "raw" else bag_images
+        excludes = RECORDER_EXCLUDES + ("" if bag_images == "raw" else COMPRESSED_BAG_EXCLUDES)
+        window = min(max(int(LaunchConfiguration("frames").perform(context)), SCORE_WINDOW[0]), SCORE_WINDOW[1])
         cameras = [
             Node(package=PACKAGE, executable="camera", name=f"{d}_camera", namespace="", output="screen",
                  parameters=[file("camera.yaml"), {"drone_index": i, "width": arg("width", int),
-                                                   "height": arg("height", int), "ack": False, "use_sim_time": True}])
+                                                   "height": arg("height", int), "ack": False,
+                                                   "compressed": compressed, "use_sim_time": True}])
             for i, d in enumerate(drones)
         ]
         return cameras + [
@@ -86,10 +101,11 @@ def generate_launch_description():
                                                      "amp": arg("detect_amp"), "verifier": arg("verifier"),
                                                      "image_reliability": "reliable", "use_sim_time": True}]),
             Node(package=PACKAGE, executable="scorer", name="scorer", namespace="", output="screen",
-                 parameters=[file("scorer.yaml"), {"drones": drones, "use_sim_time": True}],
+                 parameters=[file("scorer.yaml"), {"drones": drones, "window": window, "use_sim_time": True}],
                  condition=IfCondition(LaunchConfiguration("score"))),
             Node(package=PACKAGE, executable="recorder", name="recorder", namespace="", output="screen",
-                 parameters=[file("recorder.yaml"), {"output": arg("bag"), "use_sim_time": True}]),
+                 parameters=[file("recorder.yaml"), {"output": arg("bag"), "exclude_regex": excludes,
+                                                     "use_sim_time": True}]),
             Node(package=PACKAGE, executable="placer", name="placer", namespace="", output="screen",
                  parameters=[file("placer.yaml"), {
                      "world": arg("world"), "seed": arg("seed", int), "strategy": arg("strategy"),

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Set up (idempotent), then run the main job on the built-in default world (savanna): the whole ROS 2 graph
-# (placer, three cameras, labeller, detector with the shipped weights, recorder) for 10 lockstep steps with
+# (placer, three cameras, labeller, detector with the shipped weights, scorer, recorder) for 10 lockstep steps with
 # `zebra-sim up`, which prints frames per drone, detection scores against the live ground truth, throughput and
 # stage times, and writes the bag, summary.json and a preview (RGB with ground-truth and detected boxes).
 set -euo pipefail

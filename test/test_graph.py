@@ -81,7 +81,7 @@ def test_graph_overrides_are_declared_parameters_with_allowed_values(tmp_path: P
         for s in specs:
             validate(SPECS[s.executable], s.overrides)
     for bad in (0, 17):
-        with pytest.raises(ParameterError, match="'--drones' = 17|'--drones' = 0"):
+        with pytest.raises(ParameterError, match=f"'--drones' = {bad} is invalid: allowed 1..16"):
             UpConfig(drones=bad).check()
 
 
@@ -233,6 +233,29 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
         f"drone_{i}" for i in range(5)] and by["detector"]["image_topics"][-1] == "drone_4/image_raw"
     with pytest.raises(ValueError, match="drones:=0"):
         _launch(monkeypatch, tmp_path / "share", drones="0")
+    # bag_images:=jpeg as up --bag-images jpeg: the cameras publish image_raw/compressed, the recorder keeps that
+    jpeg = _launch(monkeypatch, tmp_path / "share", bag_images="jpeg")
+    for n, s in zip(jpeg.nodes, graph_spec(UpConfig(bag_images="jpeg")), strict=True):
+        for k in ("compressed", "exclude_regex"):
+            assert n["parameters"][1].get(k) == s.overrides.get(k), (s.label, k)
+    recorder = next(s for s in graph_spec(UpConfig(bag_images="jpeg")) if s.executable == "recorder")
+    rec_jpeg = recorder.overrides
+    # up waits for the recorder to subscribe what it records: the compressed images, not the raw ones
+    assert {f"/{d}/image_raw/compressed" for d in DRONES} <= set(recorder.subscribes)
+    assert not {t for t in recorder.subscribes if t.endswith(("/image_raw", "/detections/image"))}
+    assert re.search(rec_jpeg["exclude_regex"], "/drone_0/image_raw") and re.search(
+        rec_jpeg["exclude_regex"], "/drone_0/detections/image") and re.search(rec_jpeg["exclude_regex"], "/rosout")
+    assert not re.search(rec_jpeg["exclude_regex"], "/drone_0/image_raw/compressed")
+    with pytest.raises(ValueError, match="bag_images:=gif"):
+        _launch(monkeypatch, tmp_path / "share", bag_images="gif")
+    with pytest.raises(ParameterError, match="--bag-images"):
+        UpConfig(bag_images="gif").check()
+    # frames:=N: the scorer's window holds the whole run, as up's (300..2000)
+    for frames, window in ((10, 300), (500, 500), (5000, 2000)):
+        scorer = next(n for n in _launch(monkeypatch, tmp_path / "share", frames=str(frames)).nodes
+                      if n["executable"] == "scorer")
+        assert scorer["parameters"][1]["window"] == window == next(
+            s for s in graph_spec(UpConfig(frames=frames)) if s.executable == "scorer").overrides["window"]
     # the scorer, and only it, may be left out: score:=false as up --no-score, on by default in both
     conditional = [(n["executable"], n["condition"].predicate.name) for n in rec.nodes if "condition" in n]
     assert conditional == [("scorer", "score")] and rec.args["score"] == "true" and UpConfig().score
@@ -462,3 +485,32 @@ def test_the_rviz_config_shows_topics_the_graph_publishes_in_its_fixed_frame() -
     kinds = {d["Class"] for d in manager["Displays"]}
     assert {"rviz_default_plugins/TF", "rviz_default_plugins/Image", "rviz_default_plugins/MarkerArray"} <= kinds
     assert "config/*.rviz" in (REPO / "setup.py").read_text()  # installed beside the parameter files
+
+
+def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: Path) -> None:
+    """``--no-score`` and ``--drones`` reach the graph; the scorer's last report becomes ``live_scores``, complete
+    only when it scored every frame of the run (its window's worth); up waits for that report two of the scorer's
+    periods (its config file's) and a second, 10 s at least."""
+    import argparse
+    import shutil
+
+    from zebra_sim_ros.cli import up
+
+    parser = argparse.ArgumentParser()
+    up.register(parser.add_subparsers())
+    cfg = up._up_config(parser.parse_args(["up", "--no-score", "--drones", "2"]))
+    assert not cfg.score and cfg.drones == 2
+    assert [s.executable for s in graph_spec(cfg)] == ["camera"] * 2 + ["labeller", "detector", "recorder", "placer"]
+    assert up._up_config(parser.parse_args(["up"])) == UpConfig()
+    assert up._expected_scored(UpConfig(frames=700), 700) == 2100  # the window holds the whole run
+    assert up._expected_scored(UpConfig(frames=5000, drones=2), 4000) == 4000  # ... up to 2000 steps
+    values = {"frames scored": "9", "labels": "9", "all mAP50": "0.5000", "all recall": "0.2500",
+              "drone_0 mAP50": "0.4000", "drone_0 frames": "3", "detections per second": "1.2"}
+    assert up._live_scores(values, 9) == {"frames": 9, "complete": True, "all": {"mAP50": 0.5, "recall": 0.25},
+                                          "drone_0": {"mAP50": 0.4}}
+    assert not up._live_scores(values, 12)["complete"] and not up._live_scores({}, 0)["complete"]
+    conf = tmp_path / "config"
+    shutil.copytree(REPO / "config", conf)
+    text = (conf / "scorer.yaml").read_text()
+    (conf / "scorer.yaml").write_text(text.replace("diagnostics_period_s: 1.0", "diagnostics_period_s: 30.0"))
+    assert up._scorer_wait_s(REPO / "config") == pytest.approx(10.0) and up._scorer_wait_s(conf) == pytest.approx(61.0)

@@ -584,3 +584,19 @@ def test_a_report_is_logged_at_the_recorders_clock_not_its_own_stamp() -> None:
     step.stamp.sec = 3
     image = serialize_message(Image(header=step, height=1, width=1, encoding="rgb8", step=3, data=bytes(3)))
     assert log_stamp_ns("sensor_msgs/msg/Image", image) == header_stamp_ns("sensor_msgs/msg/Image", image) == 3 * 10**9
+
+
+def test_the_preview_puts_four_drones_to_a_row_in_their_order(tmp_path: Path) -> None:
+    """``up``'s preview: one tile per drone, drone_2 before drone_10, four to a row (a row of 16 large frames would
+    be past JPEG's 65535 px), each tile its drone's frame (a grey level per drone here)."""
+    import cv2
+
+    from zebra_sim_ros.graph.summary import PREVIEW_COLUMNS, write_preview
+
+    images = {f"drone_{k}": (0, np.full((40, 64, 3), 10 * k, np.uint8)) for k in range(11)}
+    sheet = cv2.imread(str(write_preview(tmp_path / "p.png", {}, images)))
+    assert PREVIEW_COLUMNS == 4 and sheet.shape == (3 * 40, 4 * 64, 3)
+    # each tile's bottom right corner, which no legend reaches
+    order = [int(sheet[39 + 40 * (k // 4), 64 * (k % 4) + 63, 0]) // 10 for k in range(11)]
+    assert order == list(range(11))
+    assert not sheet[80:, 3 * 64:].any()  # the last row's empty place is black

@@ -261,15 +261,15 @@ def test_ctrl_c_stops_the_graph_with_a_complete_bag(tmp_path: Path) -> None:
 
 def test_two_graphs_in_two_namespaces_share_a_domain_without_crosstalk(tmp_path: Path) -> None:
     """Two whole graphs on one domain, in /g1 and /g2: /g1 records its own topics only (its /g1/tf, /g1/clock
-    included), with its own three steps; each graph's scorer scores its own frames. /g2 runs two drones and no
-    recorder: no bag, and the scorer's figures (six frames) are its scores."""
+    included), with its own three steps, its images as jpeg (``--bag-images jpeg``); each graph's scorer scores its
+    own frames. /g2 runs two drones and no recorder: no bag, and the scorer's figures (six frames) are its scores."""
     from rosbags.highlevel import AnyReader
 
     domain = fresh_domain_id()
     procs = {ns: subprocess.Popen([sys.executable, "-m", "zebra_sim_ros.cli", "up", "--frames", "3", "--size",
                                    "256x144", "--out", str(tmp_path / ns), "--domain-id", str(domain), "--namespace",
                                    f"/{ns}", "--seed", str(k), "--json",
-                                   *(["--no-record", "--drones", "2"] if ns == "g2" else [])],
+                                   *(["--no-record", "--drones", "2"] if ns == "g2" else ["--bag-images", "jpeg"])],
                                   env=ros_env(domain), text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
              for k, ns in enumerate(("g1", "g2"))}
     try:
@@ -298,6 +298,11 @@ def test_two_graphs_in_two_namespaces_share_a_domain_without_crosstalk(tmp_path:
         assert all(t.startswith(f"/{ns}/") for t in topics), sorted(topics)
         assert {f"/{ns}/tf", f"/{ns}/tf_static", f"/{ns}/zebra_sim/scene", f"/{ns}/drone_0/detections"} <= topics
         assert len(clocks) == 3  # its own steps only: the other graph's clock never reached it
+        # jpeg in the bag, not the raw images nor the detector's annotated copies; the summary reads them
+        assert {f"/{ns}/{d}/image_raw/compressed" for d in DRONES} <= topics
+        assert not {t for t in topics if t.endswith(("/image_raw", "/detections/image"))}, sorted(topics)
+        preview = cv2.imread(s["preview"])
+        assert preview is not None and preview.shape == (144, 768, 3)
     assert _processes_in(domain) == []
 
 

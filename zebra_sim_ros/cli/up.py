@@ -1,12 +1,12 @@
-"""``zebra-sim up``: the whole graph in one command (placer, three cameras, labeller, detector, scorer, recorder).
+"""``zebra-sim up``: the whole graph in one command (placer, cameras, labeller, detector, scorer, recorder).
 
 Starts every node as its own process with the parameter files of the config folder, waits until each one is
 ready (its topics published, recorded and scored), then starts the placer in lockstep: a step ends when the
 labeller and the detector have both acknowledged it, so no frame is skipped. After the last step it stops the graph
 (recorder last), reads the bag back and prints frames per drone, detection scores against the live ground truth
-(and the scorer node's live figures, which agree), throughput and stage times; it writes ``summary.json`` and
-``preview.jpg`` beside the bag. If a node dies, the rest are stopped and the command says which died and why;
-Ctrl-C stops everything cleanly too.
+(and the scorer node's live figures, the same over a run of up to 2000 steps), throughput and stage times; it
+writes ``summary.json`` and ``preview.jpg`` beside the bag. If a node dies, the rest are stopped and the command
+says which died and why; Ctrl-C stops everything cleanly too.
 """
 
 from __future__ import annotations
@@ -56,6 +56,9 @@ def register(sub: Any) -> None:
                    "moves under it, and /tf, /tf_static and /clock become <namespace>/tf, ... (default: the root)")
     p.add_argument("--ready-timeout", type=float, default=180.0, help="longest wait for the nodes to be ready, s")
     p.add_argument("--step-timeout", type=float, default=120.0, help="longest wait for one step, s")
+    p.add_argument("--bag-images", default="raw", help="the cameras' images in the bag: raw, or jpeg or png (each "
+                   "camera also publishes image_raw/compressed, recorded instead of image_raw; the detector's "
+                   "annotated copy, detections/image, is left out): jpeg 90 is about 5%% of a raw frame (default raw)")
     p.add_argument("--no-record", action="store_true", help="run without the recorder (no bag; the scores are the "
                    "scorer node's)")
     p.add_argument("--no-score", action="store_true", help="run without the scorer node (its live figures on "
@@ -74,6 +77,8 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.zebra.asset import load_library
 
     cfg = _up_config(args)
+    if not cfg.record and not cfg.score:
+        print("[up] --no-record --no-score: the run is neither recorded nor scored (no figures at the end)", flush=True)
     detect_imgsz = cfg.detect_imgsz  # reads the checkpoint's serving rule: an unreadable file stops here
     conf = config_dir(cfg.config_dir)
     out = Path(cfg.out)
@@ -81,7 +86,7 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     for old in (cfg.bag_path, out / "summary.json", out / "preview.jpg"):
         old.unlink(missing_ok=True)
     env = _graph_environment(conf, args.domain_id)
-    load_library()  # build the zebra cache once here, not in five nodes at the same time
+    load_library()  # build the zebra cache once here, not in every node at the same time
     specs = graph_spec(cfg)
     result: dict[str, Any] = {"out": str(out), "config": str(conf), "frames_asked": cfg.frames, "exit_code": 0,
                               "detect_imgsz": detect_imgsz}
@@ -148,7 +153,7 @@ def _up_config(args: argparse.Namespace) -> UpConfig:
                    height=h, weights=args.weights, device=args.device, detect_scale=args.scale, detect_amp=args.amp,
                    strategy=args.strategy, config_dir=args.config, ready_timeout_s=args.ready_timeout,
                    step_timeout_s=args.step_timeout, record=not args.no_record, score=not args.no_score,
-                   namespace=args.namespace, verifier=args.verifier)
+                   namespace=args.namespace, verifier=args.verifier, bag_images=args.bag_images)
     cfg.check()
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         raise ParameterError("--domain-id", args.domain_id, "0..232 (ROS_DOMAIN_ID)")
@@ -201,7 +206,8 @@ def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, 
                       f"{cfg.frames} steps of '{cfg.world}' (seed {cfg.seed}) in lockstep", flush=True)
                 _run_steps(sup, watch, sup.start(placer, command(placer, conf), expected_exit=True), cfg)
                 if scorer is not None:
-                    _await_scores(sup, watch, scorer, watch.steps_done() * cfg.drones)
+                    _await_scores(sup, watch, scorer, _expected_scored(cfg, watch.steps_done()),
+                                  _scorer_wait_s(conf))
             except NodeDied as exc:
                 print(f"\n[up] {exc}\n[up] stopping the other nodes", flush=True)
                 result.update(exit_code=1, died=exc.child.label, died_status=exc.code)
@@ -215,7 +221,8 @@ def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, 
                 codes = sup.stop([c for c in sup.children if c.spec.executable != "recorder"])  # recorder last
                 result["health"] = watch.health
                 if scorer is not None and scorer in watch.values:
-                    result["live_scores"] = _live_scores(watch.values[scorer], watch.steps_done() * cfg.drones)
+                    result["live_scores"] = _live_scores(watch.values[scorer],
+                                                         _expected_scored(cfg, watch.steps_done()))
                 result["exit_status"] = codes
                 bad = {k: v for k, v in codes.items() if v not in (0, None) and k != result.get("died")}
                 if bad:
@@ -267,23 +274,42 @@ def _run_steps(sup: Supervisor, watch: GraphWatch, pl: Child, cfg: UpConfig) -> 
     watch.spin(1.0)  # the recorder receives the last detections
 
 
-def _await_scores(sup: Supervisor, watch: GraphWatch, scorer: str, frames: int, timeout_s: float = 10.0) -> None:
-    """Wait until the scorer's report counts ``frames`` labels and detections (every frame of the run scored), at
-    most ``timeout_s`` (it reports once per ``diagnostics_period_s``; with reports off this waits in vain)."""
+def _expected_scored(cfg: UpConfig, steps: int) -> int:
+    """The frames the graph's scorer scores when it has every frame of ``steps`` steps: its window's worth of steps
+    (:func:`~zebra_sim_ros.graph.spec.score_window`), one frame per camera each."""
+    from zebra_sim_ros.graph.spec import score_window
+
+    return min(steps, score_window(cfg.frames)) * cfg.drones
+
+
+def _scorer_wait_s(conf: Path) -> float:
+    """How long to wait for the scorer's report on the last frame: two of its periods (its config file's
+    ``diagnostics_period_s``) and a second, 10 s at least."""
+    from zebra_sim_ros.detection.config import ScorerConfig
+    from zebra_sim_ros.params import load_params_file
+
+    period = float(load_params_file(str(conf / "scorer.yaml"), "scorer").get(
+        "diagnostics_period_s", ScorerConfig().diagnostics_period_s))
+    return max(10.0, 2 * period + 1.0)
+
+
+def _await_scores(sup: Supervisor, watch: GraphWatch, scorer: str, expected: int, timeout_s: float) -> None:
+    """Wait until the scorer reports ``expected`` frames scored (each with its labels and detections), at most
+    ``timeout_s``."""
     end = time.monotonic() + timeout_s
     while time.monotonic() < end:
-        v = watch.values.get(scorer, {})
-        if int(v.get("labels", 0)) >= frames and int(v.get("detections", 0)) >= frames:
+        if int(watch.values.get(scorer, {}).get("frames scored", -1)) == expected:
             return
         sup.check()
         watch.spin(0.1)
 
 
-def _live_scores(values: dict[str, str], frames: int) -> dict[str, Any]:
-    """The scorer's last report as numbers: ``frames`` scored (its window's), ``complete`` (every one of the run's
-    ``frames`` received), and per key (``all``, ``drone_0``, ...) mAP50, mAP50-95, precision, recall."""
-    out: dict[str, Any] = {"frames": int(values.get("frames scored", 0)),
-                           "complete": min(int(values.get("labels", 0)), int(values.get("detections", 0))) >= frames}
+def _live_scores(values: dict[str, str], expected: int) -> dict[str, Any]:
+    """The scorer's last report as numbers: ``frames`` scored, ``complete`` (they are the ``expected`` frames of
+    the run: each camera's every step, up to the scorer's window), and per key (``all``, ``drone_0``, ...) mAP50,
+    mAP50-95, precision, recall."""
+    frames = int(values.get("frames scored", 0))
+    out: dict[str, Any] = {"frames": frames, "complete": expected > 0 and frames == expected}
     for key, value in values.items():
         who, _, name = key.partition(" ")
         if name in ("mAP50", "mAP50-95", "precision", "recall"):

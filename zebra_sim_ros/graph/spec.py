@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,6 +30,11 @@ PLACER_TOPICS = ("zebra_sim/scene", "zebra_sim/zebras/markers")  # and <drone>/c
 # By convention absolute (tf2 listeners and every node's time source use them); a namespaced graph remaps them.
 GLOBAL_TOPICS = ("/tf", "/tf_static", "/clock")
 BAG_NAME = "zebra_sim.mcap"
+# What the bag holds of the cameras' images (up --bag-images): raw records image_raw; jpeg and png make the cameras
+# publish image_raw/compressed and record that instead, leaving out image_raw and the detector's annotated copy
+# (detections/image: the image with the detections, both in the bag). The detector still reads the raw images live.
+BAG_IMAGES = ("raw", "jpeg", "png")
+COMPRESSED_BAG_EXCLUDES = "|/image_raw$|/detections/image$"  # added to the recorder's exclude_regex
 NODE_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
     "placer": PLACER_PARAMS, "camera": CAMERA_PARAMS, "labeller": LABELLER_PARAMS, "detector": DETECTOR_PARAMS,
     "recorder": RECORDER_PARAMS, "replay": REPLAY_PARAMS, "scorer": SCORER_PARAMS}
@@ -77,6 +83,7 @@ class UpConfig:
     step_timeout_s: float = 120.0
     record: bool = True
     score: bool = True  # the scorer node: the detector's figures live on /diagnostics (up keeps its last ones)
+    bag_images: str = "raw"  # the cameras' images in the bag: raw, or jpeg / png (image_raw/compressed; see BAG_IMAGES)
     # The detector's input long side as a multiple of the cameras' (0: the checkpoint's rule, the scale its
     # serving size has to its training frames: 1.7 for the shipped weights, 2176 on 1280x720 frames). On 84
     # frames at 1280x720 of the training worlds (seed 777): 1.0 (1280) mAP50 0.797 / mAP50-95 0.533, 1.3 (1664)
@@ -106,6 +113,8 @@ class UpConfig:
         if self.verifier not in ("", "shipped") and not Path(self.verifier).is_file():
             raise ParameterError("--verifier", self.verifier, "empty, shipped or an existing verifier checkpoint")
         check_namespace(self.namespace)
+        if self.bag_images not in BAG_IMAGES:
+            raise ParameterError("--bag-images", self.bag_images, f"one of {', '.join(BAG_IMAGES)}")
         if self.ready_timeout_s <= 0 or self.step_timeout_s <= 0:
             raise ParameterError("--timeout", min(self.ready_timeout_s, self.step_timeout_s), "> 0 s")
         from zebra_sim_ros.world.world import check_world_source
@@ -170,11 +179,20 @@ def dds_environment(config: Path, environ: dict[str, str]) -> dict[str, str]:
 
 def check_namespace(namespace: str) -> str:
     """``namespace`` if it is "" or an absolute ROS name (``/g1``, ``/site_a/g1``); ParameterError otherwise."""
-    import re
-
     if namespace and not re.fullmatch(r"(/[A-Za-z][A-Za-z0-9_]*)+", namespace):
         raise ParameterError("--namespace", namespace, "empty or /name[/name...] (letters, digits, _; a letter first)")
     return namespace
+
+
+def score_window(frames: int) -> int:
+    """The graph's scorer's ``window``: every step of a run of ``frames`` steps, so that its figures are the run's,
+    as up's from the bag (its default, 300, at least; its most, 2000, at most: a longer run's last 2000)."""
+    from zebra_sim_ros.detection.config import ScorerConfig
+    from zebra_sim_ros.params import spec_of
+
+    most = spec_of(ScorerConfig, "window").hi
+    assert most is not None
+    return int(min(max(frames, ScorerConfig().window), most))
 
 
 def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
@@ -189,8 +207,10 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
     nodes: list[NodeSpec] = []
     for i, d in enumerate(drones):
         nodes.append(NodeSpec("camera", f"{d}_camera", ns, "camera.yaml",
-                              {"drone_index": i, "width": cfg.width, "height": cfg.height, "ack": False, **sim},
-                              tuple(f"{ns}/{d}/{t}" for t in CAMERA_TOPICS), remaps))
+                              {"drone_index": i, "width": cfg.width, "height": cfg.height, "ack": False,
+                               "compressed": "off" if cfg.bag_images == "raw" else cfg.bag_images, **sim},
+                              tuple(f"{ns}/{d}/{t}" for t in CAMERA_TOPICS)
+                              + ((f"{ns}/{d}/image_raw/compressed",) if cfg.bag_images != "raw" else ()), remaps))
     # The graph's own cameras publish reliably and lockstep waits for every frame: subscribe reliably too.
     nodes.append(NodeSpec("labeller", "labeller", ns, "labeller.yaml",
                           {"drones": list(drones), "ack_name": "labeller", "image_reliability": "reliable", **sim},
@@ -202,15 +222,19 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
            "verifier": cfg.verifier if cfg.verifier in ("", "shipped") else str(Path(cfg.verifier).resolve()), **sim}
     nodes.append(NodeSpec("detector", "detector", ns, "detector.yaml", det,
                           tuple(f"{ns}/{d}/{t}" for d in drones for t in DETECTOR_TOPICS), remaps))
-    if cfg.score:  # every frame scored: subscribed before the first step
-        nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml", {"drones": list(drones), **sim}, (), remaps,
+    if cfg.score:  # every frame scored: subscribed before the first step, and the whole run in its window
+        nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml",
+                              {"drones": list(drones), "window": score_window(cfg.frames), **sim}, (), remaps,
                               tuple(f"{ns}/{d}/{t}" for d in drones for t in ("labels", "detections"))))
     if cfg.record:
-        rec = {"output": str(cfg.bag_path.resolve()), **sim}
+        from zebra_sim_ros.recording.config import RecorderConfig
+
+        excludes = RecorderConfig().exclude_regex + ("" if cfg.bag_images == "raw" else COMPRESSED_BAG_EXCLUDES)
+        rec = {"output": str(cfg.bag_path.resolve()), "exclude_regex": excludes, **sim}
         if ns:  # this graph's topics only, not another graph's on the same domain
             rec["topic_regex"] = f"^{ns}/"
         nodes.append(NodeSpec("recorder", "recorder", ns, "recorder.yaml", rec, (), remaps,
-                              tuple(t for n in nodes for t in n.publishes)))
+                              tuple(t for n in nodes for t in n.publishes if not re.search(excludes, t))))
     nodes.append(NodeSpec("placer", "placer", ns, "placer.yaml", {
         "world": cfg.world, "seed": cfg.seed, "strategy": cfg.strategy, "num_cameras": cfg.drones, "mode": "lockstep",
         "max_steps": cfg.frames, "lockstep_ack_from": ["labeller", "detector"],

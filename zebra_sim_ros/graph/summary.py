@@ -20,12 +20,17 @@ import numpy as np
 from zebra_sim_ros.detection.scoring import DroneFrames
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.messages import Scene
-from zebra_sim_ros.recording.cdr import MALFORMED, cdr_string, header_stamp_ns, rgb_image
+from zebra_sim_ros.recording.cdr import MALFORMED, cdr_string, header_stamp_ns
 from zebra_sim_ros.recording.evaluate import collect, score, skip_note
+from zebra_sim_ros.recording.images import message_rgb
 from zebra_sim_ros.recording.reader import BagMessage
 
-_IMAGE_TOPIC = re.compile(r"^(?:/[^/]+)*/(?P<drone>drone_\d+)/image_raw$")
+# a camera's image: raw, or as image_transport's compressed transport sends it (up --bag-images jpeg records that)
+_IMAGE_TOPIC = re.compile(r"^(?:/[^/]+)*/(?P<drone>drone_\d+)/image_raw(?:/compressed)?$")
 _SCENE_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/scene$")
+
+
+PREVIEW_COLUMNS = 4  # drones per row of the preview (a row of 16 4K frames is past JPEG's 65535 px)
 
 
 def _drone_order(name: str) -> tuple[int, str]:
@@ -61,7 +66,7 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[st
     """Summary of the run recorded in ``bag``; writes ``preview`` (one tile per drone) when given."""
     scenes: dict[int, int] = {}  # stamp -> log time
     times: dict[str, dict[str, dict[int, int]]] = defaultdict(lambda: defaultdict(dict))  # drone -> kind -> stamp
-    latest: dict[str, tuple[int, bytes]] = {}  # drone -> (stamp, serialized image): decoded once, at the end
+    latest: dict[str, tuple[int, str, bytes]] = {}  # drone -> (stamp, type, serialized image): decoded at the end
 
     unusable: list[str] = []  # scenes and images that do not parse (collect notes bad labels and detections)
 
@@ -72,9 +77,9 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[st
                 scenes[Scene.from_json(cdr_string(m.data)).stamp.ns] = m.publish_time
             elif match:
                 drone, t = match.group("drone"), header_stamp_ns(m.data)
-                if t >= latest.get(drone, (-1, b""))[0]:
-                    latest[drone] = (t, m.data)
-                times[drone]["image_raw"].setdefault(t, m.publish_time)
+                if t >= latest.get(drone, (-1, "", b""))[0]:
+                    latest[drone] = (t, m.type_name, m.data)
+                times[drone]["image_raw"].setdefault(t, m.publish_time)  # the first of a frame's copies
         except (*MALFORMED, ZebraSimError) as exc:
             unusable.append(skip_note(m, exc))
 
@@ -97,22 +102,22 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[st
         "median_ms": {k: _median_ms(v) for k, v in stages.items()},
     }
     images_rgb = {}
-    for d, (_, data) in latest.items():
+    for d, (_, type_name, data) in latest.items():
         try:
-            if (rgb := rgb_image(data)) is not None:
+            if (rgb := message_rgb(type_name, data)) is not None:
                 images_rgb[d] = rgb
-        except MALFORMED:
-            pass  # its pixels are cut short: no tile for this drone
+        except (*MALFORMED, ValueError):
+            pass  # its pixels are cut short, or do not decode: no tile for this drone
     if preview is not None and images_rgb:
         out["preview"] = str(write_preview(preview, collected.drones, images_rgb))
     return out
 
 
 def write_preview(path: str | Path, c: dict[str, DroneFrames], images: dict[str, tuple[int, np.ndarray]]) -> Path:
-    """One tile per drone: its last RGB frame with ground-truth boxes (green) and detections (red, with score);
-    ``c``: the frames per drone (:func:`~zebra_sim_ros.recording.evaluate.collect`)."""
+    """One tile per drone, :data:`PREVIEW_COLUMNS` to a row: its last RGB frame with ground-truth boxes (green) and
+    detections (red, with score); ``c``: the frames per drone (:func:`~zebra_sim_ros.recording.evaluate.collect`)."""
     tiles = []
-    for drone in sorted(images):
+    for drone in sorted(images, key=_drone_order):
         t, rgb = images[drone]
         bgr = np.ascontiguousarray(rgb[..., ::-1])
         font = max(0.3, bgr.shape[1] / 1280 * 0.5)
@@ -129,7 +134,11 @@ def write_preview(path: str | Path, c: dict[str, DroneFrames], images: dict[str,
         cv2.putText(bgr, legend, (6, round(40 * font)), cv2.FONT_HERSHEY_SIMPLEX, font, (255, 255, 255), 1, cv2.LINE_AA)
         tiles.append(bgr)
     h = min(t.shape[0] for t in tiles)
-    sheet = np.concatenate([cv2.resize(t, (round(t.shape[1] * h / t.shape[0]), h)) for t in tiles], axis=1)
+    tiles = [cv2.resize(t, (round(t.shape[1] * h / t.shape[0]), h)) for t in tiles]
+    rows = [tiles[k:k + PREVIEW_COLUMNS] for k in range(0, len(tiles), PREVIEW_COLUMNS)]  # 16 drones: 4 rows of 4
+    width = sum(t.shape[1] for t in rows[0])
+    sheet = np.concatenate([np.pad(np.concatenate(r, axis=1), ((0, 0), (0, width - sum(t.shape[1] for t in r)), (0, 0)))
+                            for r in rows], axis=0)
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     if not cv2.imwrite(str(p), sheet):

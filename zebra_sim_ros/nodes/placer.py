@@ -20,7 +20,8 @@ in ``lockstep_ack_from`` has acknowledged step k on ``zebra_sim/frame_done`` (st
 scene's stamp, frame_id = the acknowledging node's name, e.g. ``drone_0``); ``service`` publishes a step each time
 its ``~/step`` service (std_srvs/Trigger) is called, and answers with the step's index and stamp, the simulated
 time step / rate_hz (``step 3, stamp 3.000000000: 38/40 zebras placed``), or success false and why no step was
-published (subscribers still awaited, ``max_steps`` reached). In every mode the node ends after ``max_steps`` steps.
+published (subscribers still awaited, ``max_steps`` reached). In every mode a ``max_steps`` > 0 ends the node after
+that many steps (in service mode 0.5 s after the last answer, its service taken down first).
 """
 
 from __future__ import annotations
@@ -128,23 +129,29 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         """The fully qualified names of the nodes subscribed to ``topic``."""
         return {f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in self.get_subscriptions_info_by_topic(topic)}
 
+    def _first_step_wait(self) -> str:
+        """What the first step still waits for: subscribers on which outputs, which named nodes."""
+        short = [p.topic_name for p in self.outputs if p.get_subscription_count() < self.cfg.wait_for_subscribers]
+        wanted = set(self.wait_nodes)
+        absent = sorted(set().union(*(wanted - self._subscribers(p.topic_name) for p in self.outputs))
+                        if wanted else ())
+        parts = ([f"{self.cfg.wait_for_subscribers} subscribers on {short}"] if short else []) + (
+            [f"{absent} to subscribe to every output"] if absent else [])
+        return "waiting for " + " and for ".join(parts) if parts else ""
+
     def _subscribed(self) -> bool:
         """True once every output topic has ``wait_for_subscribers`` subscribers and a subscription of each of
         ``wait_for_nodes`` (logs what it waits for)."""
         if not self.started:
-            short = [p.topic_name for p in self.outputs if p.get_subscription_count() < self.cfg.wait_for_subscribers]
-            wanted = set(self.wait_nodes)
-            absent = sorted(set().union(*(wanted - self._subscribers(p.topic_name) for p in self.outputs))
-                            if wanted else ())
-            if not short and not absent:
+            waiting = self._first_step_wait()
+            if not waiting:
                 self.started = True
                 named = f", {', '.join(self.wait_nodes)} among them" if self.wait_nodes else ""
                 self.get_logger().info(f"every output has {self.cfg.wait_for_subscribers}+ subscribers{named}: "
                                        "starting")
             elif time.monotonic() - self.waiting_since > 5.0:
                 self.waiting_since = time.monotonic()
-                self.get_logger().info(f"waiting for {self.cfg.wait_for_subscribers} subscribers on {short}"
-                                       + (f" and for {absent} to subscribe to every output" if absent else ""))
+                self.get_logger().info(waiting)
         return self.started
 
     def _publish_next(self) -> None:
@@ -194,8 +201,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             response.success, response.message = False, f"max_steps ({self.cfg.max_steps}) reached: no more steps"
         elif not self._subscribed():
             response.success = False
-            response.message = (f"waiting for {self.cfg.wait_for_subscribers} subscribers on every output"
-                                + (f" and for {self.wait_nodes}" if self.wait_nodes else "") + ": call again")
+            response.message = f"{self._first_step_wait()}: call again"
         else:
             scene = self.placer.scene(self.step)
             self._publish(scene)
@@ -213,6 +219,8 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         if not self.started:
             self._subscribed()
         elif self._finished() and time.monotonic() - self.answered_at > 0.5:
+            # no more calls: a caller now finds no service (and waits for one, or times out) instead of no answer
+            self.destroy_service(self.service)
             flush(self, [*self.outputs, self.clock_pub])
             self.get_logger().info(f"published {self.published} steps on request; stopping")
             self.done = True
