@@ -1,7 +1,8 @@
 """Benchmark: the whole graph (``zebra-sim up``) at 1280x720 on this machine: steps and frames per second, the
 median time of each stage per step and the end-to-end latency from scene to detections.
 
-Runs ``zebra-sim up --frames N`` (eight processes over DDS on a private domain, lockstep, recorder and scorer on)
+Runs ``zebra-sim up --frames N`` (a process per camera and five more over DDS on a private domain, lockstep,
+recorder and scorer on)
 and, in the same run, the in-process pipeline (``zebra-sim generate``: place, render as many views, label, write,
 no DDS, no detector) on the same world, so the graph's cost can be read as a ratio of the plain pipeline's. With
 ``--drones 1 3`` both run once per count of cameras (``up --drones``, the placer's ``num_cameras``); with

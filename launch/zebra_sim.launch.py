@@ -33,9 +33,18 @@ NODE_ENVIRONMENT = {"OMP_WAIT_POLICY": "PASSIVE"}
 MAX_DRONES = 16  # zebra_sim_ros.geometry.camera.MAX_CAMERAS
 # What the bag holds of the cameras' images (zebra_sim_ros.graph.spec.BAG_IMAGES and the recorder's exclude_regex)
 BAG_IMAGES = ("raw", "jpeg", "png")
-RECORDER_EXCLUDES = "^/(rosout|parameter_events)$"
-COMPRESSED_BAG_EXCLUDES = "|/image_raw$|/detections/image$"
-SCORE_WINDOW = (300, 2000)  # the scorer's window: every step, 300..2000 (zebra_sim_ros.graph.spec.score_window)
+RECORDER_EXCLUDES = "^/(rosout|parameter_events)$"  # the recorder's default exclude_regex
+BAG_RAW_IMAGES = r"/drone_\d+/(?:image_raw|detections/image)$"  # left out of the bag with jpeg or png
+
+
+def _file_param(path, node, name, default):
+    """A parameter's value in a ROS 2 parameter file (as the node reads it), or ``default`` where the file or the
+    entry is missing."""
+    if not os.path.isfile(path):
+        return default
+    from zebra_sim_ros.params import load_params_file  # light: no rclpy, no torch
+
+    return load_params_file(path, node).get(name, default)
 
 
 def generate_launch_description():
@@ -80,14 +89,16 @@ def generate_launch_description():
         bag_images = LaunchConfiguration("bag_images").perform(context)
         if bag_images not in BAG_IMAGES:
             raise ValueError(f"bag_images:={bag_images}: want one of {', '.join(BAG_IMAGES)}")
-        compressed = "off" if bag_images == "raw" else bag_images
-        excludes = RECORDER_EXCLUDES + ("" if bag_images == "raw" else COMPRESSED_BAG_EXCLUDES)
-        window = min(max(int(LaunchConfiguration("frames").perform(context)), SCORE_WINDOW[0]), SCORE_WINDOW[1])
+        # raw: the parameter files' settings; jpeg, png: the cameras' compressed images recorded, not the raw ones
+        compressed = {} if bag_images == "raw" else {"compressed": bag_images}
+        base = _file_param(file("recorder.yaml"), "recorder", "exclude_regex", RECORDER_EXCLUDES)
+        excludes = {} if bag_images == "raw" else {
+            "exclude_regex": f"(?:{base})|{BAG_RAW_IMAGES}" if base else BAG_RAW_IMAGES}
         cameras = [
             Node(package=PACKAGE, executable="camera", name=f"{d}_camera", namespace="", output="screen",
                  parameters=[file("camera.yaml"), {"drone_index": i, "width": arg("width", int),
-                                                   "height": arg("height", int), "ack": False,
-                                                   "compressed": compressed, "use_sim_time": True}])
+                                                   "height": arg("height", int), "ack": False, **compressed,
+                                                   "use_sim_time": True}])
             for i, d in enumerate(drones)
         ]
         return cameras + [
@@ -101,11 +112,10 @@ def generate_launch_description():
                                                      "amp": arg("detect_amp"), "verifier": arg("verifier"),
                                                      "image_reliability": "reliable", "use_sim_time": True}]),
             Node(package=PACKAGE, executable="scorer", name="scorer", namespace="", output="screen",
-                 parameters=[file("scorer.yaml"), {"drones": drones, "window": window, "use_sim_time": True}],
+                 parameters=[file("scorer.yaml"), {"drones": drones, "use_sim_time": True}],
                  condition=IfCondition(LaunchConfiguration("score"))),
             Node(package=PACKAGE, executable="recorder", name="recorder", namespace="", output="screen",
-                 parameters=[file("recorder.yaml"), {"output": arg("bag"), "exclude_regex": excludes,
-                                                     "use_sim_time": True}]),
+                 parameters=[file("recorder.yaml"), {"output": arg("bag"), **excludes, "use_sim_time": True}]),
             Node(package=PACKAGE, executable="placer", name="placer", namespace="", output="screen",
                  parameters=[file("placer.yaml"), {
                      "world": arg("world"), "seed": arg("seed", int), "strategy": arg("strategy"),

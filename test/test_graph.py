@@ -243,19 +243,17 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
     # up waits for the recorder to subscribe what it records: the compressed images, not the raw ones
     assert {f"/{d}/image_raw/compressed" for d in DRONES} <= set(recorder.subscribes)
     assert not {t for t in recorder.subscribes if t.endswith(("/image_raw", "/detections/image"))}
-    assert re.search(rec_jpeg["exclude_regex"], "/drone_0/image_raw") and re.search(
-        rec_jpeg["exclude_regex"], "/drone_0/detections/image") and re.search(rec_jpeg["exclude_regex"], "/rosout")
-    assert not re.search(rec_jpeg["exclude_regex"], "/drone_0/image_raw/compressed")
+    for topic in ("/drone_0/image_raw", "/g1/drone_12/image_raw", "/drone_0/detections/image", "/rosout"):
+        assert re.search(rec_jpeg["exclude_regex"], topic), topic
+    for topic in ("/drone_0/image_raw/compressed", "/my_cam/image_raw", "/drone_0/depth", "/drone_0/detections"):
+        assert not re.search(rec_jpeg["exclude_regex"], topic), topic
+    # raw (the default): the parameter files decide, up overrides neither
+    raw = {s.executable: s.overrides for s in graph_spec(UpConfig())}
+    assert "compressed" not in raw["camera"] and "exclude_regex" not in raw["recorder"]
     with pytest.raises(ValueError, match="bag_images:=gif"):
         _launch(monkeypatch, tmp_path / "share", bag_images="gif")
     with pytest.raises(ParameterError, match="--bag-images"):
         UpConfig(bag_images="gif").check()
-    # frames:=N: the scorer's window holds the whole run, as up's (300..2000)
-    for frames, window in ((10, 300), (500, 500), (5000, 2000)):
-        scorer = next(n for n in _launch(monkeypatch, tmp_path / "share", frames=str(frames)).nodes
-                      if n["executable"] == "scorer")
-        assert scorer["parameters"][1]["window"] == window == next(
-            s for s in graph_spec(UpConfig(frames=frames)) if s.executable == "scorer").overrides["window"]
     # the scorer, and only it, may be left out: score:=false as up --no-score, on by default in both
     conditional = [(n["executable"], n["condition"].predicate.name) for n in rec.nodes if "condition" in n]
     assert conditional == [("scorer", "score")] and rec.args["score"] == "true" and UpConfig().score
@@ -489,8 +487,8 @@ def test_the_rviz_config_shows_topics_the_graph_publishes_in_its_fixed_frame() -
 
 def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: Path) -> None:
     """``--no-score`` and ``--drones`` reach the graph; the scorer's last report becomes ``live_scores``, complete
-    only when it scored every frame of the run (its window's worth); up waits for that report two of the scorer's
-    periods (its config file's) and a second, 10 s at least."""
+    only when it scored every frame of the run (a run no longer than its window); up waits for that report two of
+    the scorer's periods and a second, 10 s at least. Window and period are the config folder's."""
     import argparse
     import shutil
 
@@ -498,19 +496,34 @@ def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: P
 
     parser = argparse.ArgumentParser()
     up.register(parser.add_subparsers())
-    cfg = up._up_config(parser.parse_args(["up", "--no-score", "--drones", "2"]))
-    assert not cfg.score and cfg.drones == 2
+    cfg = up._up_config(parser.parse_args(["up", "--no-score", "--drones", "2", "--bag-images", "png"]))
+    assert not cfg.score and cfg.drones == 2 and cfg.bag_images == "png"
     assert [s.executable for s in graph_spec(cfg)] == ["camera"] * 2 + ["labeller", "detector", "recorder", "placer"]
     assert up._up_config(parser.parse_args(["up"])) == UpConfig()
-    assert up._expected_scored(UpConfig(frames=700), 700) == 2100  # the window holds the whole run
-    assert up._expected_scored(UpConfig(frames=5000, drones=2), 4000) == 4000  # ... up to 2000 steps
+    shipped = REPO / "config"
+    assert up.ScorerRun.of(shipped, UpConfig(), 10) == up.ScorerRun(30, True, 10.0)
+    assert up.ScorerRun.of(shipped, UpConfig(drones=2), 500) == up.ScorerRun(600, False, 10.0)  # its last 300
+    conf = tmp_path / "config"
+    shutil.copytree(shipped, conf)
+    text = (conf / "scorer.yaml").read_text()
+    (conf / "scorer.yaml").write_text(text.replace("diagnostics_period_s: 1.0", "diagnostics_period_s: 30.0")
+                                      .replace("window: 300", "window: 1000"))
+    assert up.ScorerRun.of(conf, UpConfig(), 500) == up.ScorerRun(1500, True, 61.0)
+    # a config folder whose recorder leaves out the depth images: up waits for the rest only, and with jpeg in the
+    # bag the recorder leaves out both the raw images and what its file says
+    text = (conf / "recorder.yaml").read_text()
+    (conf / "recorder.yaml").write_text(re.sub(r"exclude_regex: .*", "exclude_regex: /depth$", text))
+    for bag_images in ("raw", "jpeg"):
+        rec = next(s for s in graph_spec(UpConfig(config_dir=str(conf), bag_images=bag_images))
+                   if s.executable == "recorder")
+        assert "/drone_0/depth" not in rec.subscribes and "/drone_0/labels" in rec.subscribes
+        assert ("/drone_0/image_raw" in rec.subscribes) == (bag_images == "raw")
+        assert rec.overrides.get("exclude_regex") == (None if bag_images == "raw" else
+                                                      "(?:/depth$)|/drone_\\d+/(?:image_raw|detections/image)$")
     values = {"frames scored": "9", "labels": "9", "all mAP50": "0.5000", "all recall": "0.2500",
               "drone_0 mAP50": "0.4000", "drone_0 frames": "3", "detections per second": "1.2"}
-    assert up._live_scores(values, 9) == {"frames": 9, "complete": True, "all": {"mAP50": 0.5, "recall": 0.25},
-                                          "drone_0": {"mAP50": 0.4}}
-    assert not up._live_scores(values, 12)["complete"] and not up._live_scores({}, 0)["complete"]
-    conf = tmp_path / "config"
-    shutil.copytree(REPO / "config", conf)
-    text = (conf / "scorer.yaml").read_text()
-    (conf / "scorer.yaml").write_text(text.replace("diagnostics_period_s: 1.0", "diagnostics_period_s: 30.0"))
-    assert up._scorer_wait_s(REPO / "config") == pytest.approx(10.0) and up._scorer_wait_s(conf) == pytest.approx(61.0)
+    assert up._live_scores(values, up.ScorerRun(9, True, 10.0)) == {
+        "frames": 9, "complete": True, "all": {"mAP50": 0.5, "recall": 0.25}, "drone_0": {"mAP50": 0.4}}
+    assert not up._live_scores(values, up.ScorerRun(12, True, 10.0))["complete"]  # frames missing
+    assert not up._live_scores(values, up.ScorerRun(9, False, 10.0))["complete"]  # a longer run than its window
+    assert not up._live_scores({}, up.ScorerRun(0, True, 10.0))["complete"]  # no step at all

@@ -4,7 +4,7 @@ Starts every node as its own process with the parameter files of the config fold
 ready (its topics published, recorded and scored), then starts the placer in lockstep: a step ends when the
 labeller and the detector have both acknowledged it, so no frame is skipped. After the last step it stops the graph
 (recorder last), reads the bag back and prints frames per drone, detection scores against the live ground truth
-(and the scorer node's live figures, the same over a run of up to 2000 steps), throughput and stage times; it
+(and the scorer node's live figures, the same for a run no longer than its window), throughput and stage times; it
 writes ``summary.json`` and ``preview.jpg`` beside the bag. If a node dies, the rest are stopped and the command
 says which died and why; Ctrl-C stops everything cleanly too.
 """
@@ -17,6 +17,7 @@ import os
 import signal
 import sys
 import time
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -108,7 +109,8 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     if (live := result.get("live_scores")) and "all" in live:
         a = live["all"]
         print(f"[up] the scorer node, live over its last {live['frames']} frames"
-              f"{'' if live['complete'] else ' (not every frame of the run: see its log)'}: P {a['precision']:.3f} "
+              f"{'' if live['complete'] else ' (not every frame of the run: its window, or a report missed)'}: "
+              f"P {a['precision']:.3f} "
               f"R {a['recall']:.3f} mAP50 {a['mAP50']:.3f} mAP50-95 {a['mAP50-95']:.3f}", flush=True)
     if result.get("recording_error"):
         result["exit_code"] = result["exit_code"] or 1
@@ -206,8 +208,7 @@ def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, 
                       f"{cfg.frames} steps of '{cfg.world}' (seed {cfg.seed}) in lockstep", flush=True)
                 _run_steps(sup, watch, sup.start(placer, command(placer, conf), expected_exit=True), cfg)
                 if scorer is not None:
-                    _await_scores(sup, watch, scorer, _expected_scored(cfg, watch.steps_done()),
-                                  _scorer_wait_s(conf))
+                    _await_scores(sup, watch, scorer, ScorerRun.of(conf, cfg, watch.steps_done()))
             except NodeDied as exc:
                 print(f"\n[up] {exc}\n[up] stopping the other nodes", flush=True)
                 result.update(exit_code=1, died=exc.child.label, died_status=exc.code)
@@ -222,7 +223,7 @@ def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, 
                 result["health"] = watch.health
                 if scorer is not None and scorer in watch.values:
                     result["live_scores"] = _live_scores(watch.values[scorer],
-                                                         _expected_scored(cfg, watch.steps_done()))
+                                                         ScorerRun.of(conf, cfg, watch.steps_done()))
                 result["exit_status"] = codes
                 bad = {k: v for k, v in codes.items() if v not in (0, None) and k != result.get("died")}
                 if bad:
@@ -274,42 +275,43 @@ def _run_steps(sup: Supervisor, watch: GraphWatch, pl: Child, cfg: UpConfig) -> 
     watch.spin(1.0)  # the recorder receives the last detections
 
 
-def _expected_scored(cfg: UpConfig, steps: int) -> int:
-    """The frames the graph's scorer scores when it has every frame of ``steps`` steps: its window's worth of steps
-    (:func:`~zebra_sim_ros.graph.spec.score_window`), one frame per camera each."""
-    from zebra_sim_ros.graph.spec import score_window
+@dataclass(frozen=True)
+class ScorerRun:
+    """What the graph's scorer should report at the end of a run: ``expected`` frames scored (its last ``window``
+    steps' frames, one per camera a step), all of the run's when ``whole``; its report comes within ``wait_s`` (two
+    of its periods and a second, 10 s at least). Window and period are its parameter file's."""
 
-    return min(steps, score_window(cfg.frames)) * cfg.drones
+    expected: int
+    whole: bool
+    wait_s: float
+
+    @staticmethod
+    def of(conf: Path, cfg: UpConfig, steps: int) -> ScorerRun:
+        from zebra_sim_ros.detection.config import ScorerConfig
+        from zebra_sim_ros.params import load_params_file
+
+        params = {**asdict(ScorerConfig()), **load_params_file(str(conf / "scorer.yaml"), "scorer")}
+        window, period = int(params["window"]), float(params["diagnostics_period_s"])
+        return ScorerRun(min(steps, window) * cfg.drones, steps <= window, max(10.0, 2 * period + 1.0))
 
 
-def _scorer_wait_s(conf: Path) -> float:
-    """How long to wait for the scorer's report on the last frame: two of its periods (its config file's
-    ``diagnostics_period_s``) and a second, 10 s at least."""
-    from zebra_sim_ros.detection.config import ScorerConfig
-    from zebra_sim_ros.params import load_params_file
-
-    period = float(load_params_file(str(conf / "scorer.yaml"), "scorer").get(
-        "diagnostics_period_s", ScorerConfig().diagnostics_period_s))
-    return max(10.0, 2 * period + 1.0)
-
-
-def _await_scores(sup: Supervisor, watch: GraphWatch, scorer: str, expected: int, timeout_s: float) -> None:
-    """Wait until the scorer reports ``expected`` frames scored (each with its labels and detections), at most
-    ``timeout_s``."""
-    end = time.monotonic() + timeout_s
+def _await_scores(sup: Supervisor, watch: GraphWatch, scorer: str, run: ScorerRun) -> None:
+    """Wait until the scorer reports the frames it should have scored (each with its labels and detections), at
+    most ``run.wait_s``."""
+    end = time.monotonic() + run.wait_s
     while time.monotonic() < end:
-        if int(watch.values.get(scorer, {}).get("frames scored", -1)) == expected:
+        if int(watch.values.get(scorer, {}).get("frames scored", -1)) == run.expected:
             return
         sup.check()
         watch.spin(0.1)
 
 
-def _live_scores(values: dict[str, str], expected: int) -> dict[str, Any]:
-    """The scorer's last report as numbers: ``frames`` scored, ``complete`` (they are the ``expected`` frames of
-    the run: each camera's every step, up to the scorer's window), and per key (``all``, ``drone_0``, ...) mAP50,
-    mAP50-95, precision, recall."""
+def _live_scores(values: dict[str, str], run: ScorerRun) -> dict[str, Any]:
+    """The scorer's last report as numbers: ``frames`` scored, ``complete`` (they are every frame of the run: it
+    was no longer than the scorer's window, and each camera's every step was scored), and per key (``all``,
+    ``drone_0``, ...) mAP50, mAP50-95, precision, recall."""
     frames = int(values.get("frames scored", 0))
-    out: dict[str, Any] = {"frames": frames, "complete": expected > 0 and frames == expected}
+    out: dict[str, Any] = {"frames": frames, "complete": run.whole and run.expected > 0 and frames == run.expected}
     for key, value in values.items():
         who, _, name = key.partition(" ")
         if name in ("mAP50", "mAP50-95", "precision", "recall"):

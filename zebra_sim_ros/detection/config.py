@@ -122,7 +122,7 @@ class ScorerConfig(StageConfig):
                             allowed="a topic name relative to the drone (letters, digits, _ and /)",
                             check=lambda v: bool(RELATIVE_TOPIC.fullmatch(v)))
     window: int = param(300, "score the last this many frames of each camera (a report over 3 cameras' 300 frames "
-                        "takes about 60 ms, over 2000 about 0.8 s: BENCHMARKS.md)", lo=1, hi=2000, runtime=True)
+                        "takes about 60 ms, over 2000 about 0.5 s: BENCHMARKS.md)", lo=1, hi=2000, runtime=True)
     qos_reliability: str = reliability_param("QoS reliability of the subscriptions (reliable matches the graph's "
                                              "publishers and loses nothing; best_effort matches any)")
     qos_depth: int = param(10, "history depth", lo=1, hi=1000)

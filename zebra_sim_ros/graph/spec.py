@@ -34,7 +34,15 @@ BAG_NAME = "zebra_sim.mcap"
 # publish image_raw/compressed and record that instead, leaving out image_raw and the detector's annotated copy
 # (detections/image: the image with the detections, both in the bag). The detector still reads the raw images live.
 BAG_IMAGES = ("raw", "jpeg", "png")
-COMPRESSED_BAG_EXCLUDES = "|/image_raw$|/detections/image$"  # added to the recorder's exclude_regex
+BAG_RAW_IMAGES = r"/drone_\d+/(?:image_raw|detections/image)$"  # what the recorder leaves out then (exclude_regex)
+
+
+def bag_excludes(base: str, bag_images: str) -> str:
+    """The recorder's ``exclude_regex`` for ``bag_images``: its own (``base``, from its parameter file) with raw,
+    and also the cameras' raw images and the detector's annotated copies with jpeg or png."""
+    if bag_images == "raw":
+        return base
+    return f"(?:{base})|{BAG_RAW_IMAGES}" if base else BAG_RAW_IMAGES
 NODE_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
     "placer": PLACER_PARAMS, "camera": CAMERA_PARAMS, "labeller": LABELLER_PARAMS, "detector": DETECTOR_PARAMS,
     "recorder": RECORDER_PARAMS, "replay": REPLAY_PARAMS, "scorer": SCORER_PARAMS}
@@ -184,17 +192,6 @@ def check_namespace(namespace: str) -> str:
     return namespace
 
 
-def score_window(frames: int) -> int:
-    """The graph's scorer's ``window``: every step of a run of ``frames`` steps, so that its figures are the run's,
-    as up's from the bag (its default, 300, at least; its most, 2000, at most: a longer run's last 2000)."""
-    from zebra_sim_ros.detection.config import ScorerConfig
-    from zebra_sim_ros.params import spec_of
-
-    most = spec_of(ScorerConfig, "window").hi
-    assert most is not None
-    return int(min(max(frames, ScorerConfig().window), most))
-
-
 def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
     """The processes of the whole graph, in start order (the placer last: it starts the steps, once the scorer and
     the recorder subscribe what they need). Every node runs in ``cfg.namespace`` with relative topic names, so the
@@ -206,9 +203,10 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
     drones = cfg.drone_names
     nodes: list[NodeSpec] = []
     for i, d in enumerate(drones):
+        compressed = {} if cfg.bag_images == "raw" else {"compressed": cfg.bag_images}  # raw: the file's setting
         nodes.append(NodeSpec("camera", f"{d}_camera", ns, "camera.yaml",
-                              {"drone_index": i, "width": cfg.width, "height": cfg.height, "ack": False,
-                               "compressed": "off" if cfg.bag_images == "raw" else cfg.bag_images, **sim},
+                              {"drone_index": i, "width": cfg.width, "height": cfg.height, "ack": False, **compressed,
+                               **sim},
                               tuple(f"{ns}/{d}/{t}" for t in CAMERA_TOPICS)
                               + ((f"{ns}/{d}/image_raw/compressed",) if cfg.bag_images != "raw" else ()), remaps))
     # The graph's own cameras publish reliably and lockstep waits for every frame: subscribe reliably too.
@@ -222,19 +220,24 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
            "verifier": cfg.verifier if cfg.verifier in ("", "shipped") else str(Path(cfg.verifier).resolve()), **sim}
     nodes.append(NodeSpec("detector", "detector", ns, "detector.yaml", det,
                           tuple(f"{ns}/{d}/{t}" for d in drones for t in DETECTOR_TOPICS), remaps))
-    if cfg.score:  # every frame scored: subscribed before the first step, and the whole run in its window
-        nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml",
-                              {"drones": list(drones), "window": score_window(cfg.frames), **sim}, (), remaps,
+    if cfg.score:  # every frame scored: subscribed before the first step
+        nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml", {"drones": list(drones), **sim}, (), remaps,
                               tuple(f"{ns}/{d}/{t}" for d in drones for t in ("labels", "detections"))))
     if cfg.record:
+        from zebra_sim_ros.params import load_params_file
         from zebra_sim_ros.recording.config import RecorderConfig
 
-        excludes = RecorderConfig().exclude_regex + ("" if cfg.bag_images == "raw" else COMPRESSED_BAG_EXCLUDES)
-        rec = {"output": str(cfg.bag_path.resolve()), "exclude_regex": excludes, **sim}
+        base = load_params_file(str(config_dir(cfg.config_dir) / "recorder.yaml"), "recorder").get(
+            "exclude_regex", RecorderConfig().exclude_regex)  # what the recorder leaves out (up waits for the rest)
+        excludes = bag_excludes(str(base), cfg.bag_images)
+        rec = {"output": str(cfg.bag_path.resolve()), **sim}
+        if cfg.bag_images != "raw":
+            rec["exclude_regex"] = excludes
         if ns:  # this graph's topics only, not another graph's on the same domain
             rec["topic_regex"] = f"^{ns}/"
         nodes.append(NodeSpec("recorder", "recorder", ns, "recorder.yaml", rec, (), remaps,
-                              tuple(t for n in nodes for t in n.publishes if not re.search(excludes, t))))
+                              tuple(t for n in nodes for t in n.publishes
+                                    if not (excludes and re.search(excludes, t)))))
     nodes.append(NodeSpec("placer", "placer", ns, "placer.yaml", {
         "world": cfg.world, "seed": cfg.seed, "strategy": cfg.strategy, "num_cameras": cfg.drones, "mode": "lockstep",
         "max_steps": cfg.frames, "lockstep_ack_from": ["labeller", "detector"],

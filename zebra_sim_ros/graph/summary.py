@@ -4,7 +4,9 @@ ground truth, throughput, time per stage and end-to-end latency, and a preview i
 Times are the recorder's receive times (each message's ``publish_time``, wall clock; log times are the simulated
 stamps) of the messages of one step, matched by the scene's
 stamp: render = scene -> last ``image_raw`` of the step, label = ``image_raw`` -> ``labels``, detect =
-``image_raw`` -> ``detections`` (per drone), end to end = scene -> last ``detections`` of the step.
+``image_raw`` -> ``detections`` (per drone), end to end = scene -> last ``detections`` of the step. A bag with
+``image_raw/compressed`` instead (``up --bag-images jpeg``) times its images by that copy, which the camera
+publishes after the raw image, depth, masks and its encoding: render reads longer, label and detect shorter.
 """
 
 from __future__ import annotations
@@ -79,7 +81,8 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[st
                 drone, t = match.group("drone"), header_stamp_ns(m.data)
                 if t >= latest.get(drone, (-1, "", b""))[0]:
                     latest[drone] = (t, m.type_name, m.data)
-                times[drone]["image_raw"].setdefault(t, m.publish_time)  # the first of a frame's copies
+                seen = times[drone]["image_raw"]
+                seen[t] = min(seen.get(t, m.publish_time), m.publish_time)  # the earliest of a frame's copies
         except (*MALFORMED, ZebraSimError) as exc:
             unusable.append(skip_note(m, exc))
 
@@ -136,7 +139,7 @@ def write_preview(path: str | Path, c: dict[str, DroneFrames], images: dict[str,
     h = min(t.shape[0] for t in tiles)
     tiles = [cv2.resize(t, (round(t.shape[1] * h / t.shape[0]), h)) for t in tiles]
     rows = [tiles[k:k + PREVIEW_COLUMNS] for k in range(0, len(tiles), PREVIEW_COLUMNS)]  # 16 drones: 4 rows of 4
-    width = sum(t.shape[1] for t in rows[0])
+    width = max(sum(t.shape[1] for t in r) for r in rows)
     sheet = np.concatenate([np.pad(np.concatenate(r, axis=1), ((0, 0), (0, width - sum(t.shape[1] for t in r)), (0, 0)))
                             for r in rows], axis=0)
     p = Path(path)

@@ -199,10 +199,12 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         """Publish the next step and say which, or say why not (``success`` false)."""
         if self._finished():
             response.success, response.message = False, f"max_steps ({self.cfg.max_steps}) reached: no more steps"
-        elif not self._subscribed():
-            response.success = False
-            response.message = f"{self._first_step_wait()}: call again"
+        elif not self.started and (waiting := self._first_step_wait()):
+            response.success, response.message = False, f"{waiting}: call again"
         else:
+            if not self.started:
+                self.started = True
+                self.get_logger().info("every output has its subscribers: starting on request")
             scene = self.placer.scene(self.step)
             self._publish(scene)
             self.step += 1
