@@ -600,3 +600,51 @@ def test_the_preview_puts_four_drones_to_a_row_in_their_order(tmp_path: Path) ->
     order = [int(sheet[39 + 40 * (k // 4), 64 * (k % 4) + 63, 0]) // 10 for k in range(11)]
     assert order == list(range(11))
     assert not sheet[80:, 3 * 64:].any()  # the last row's empty place is black
+
+
+def test_bag_export_pairs_images_with_labels_as_a_yolo_set(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``bag export``: each image with the labels of its stamp, the kept zebras as YOLO lines and the ones seen but
+    not kept as don't-care boxes, the pixels as recorded (bgr8 here, written as png); an image without labels,
+    labels without an image, a mask-like image and a message that does not parse are counted or noted, not written."""
+    import cv2
+
+    from zebra_sim_ros.cli import main
+    from zebra_sim_ros.dataset.bag_export import ExportConfig, export_bag
+
+    w = BagWriter(tmp_path / "x.mcap")
+    w.add_channel("/drone_0/image_raw", "sensor_msgs/msg/Image", [profile_dict()])
+    w.add_channel("/drone_0/labels", "std_msgs/msg/String", [profile_dict()])
+    zebras = [{"box_visible": [10.0, 10, 30, 20], "kept": True, "visible_pixels": 150},
+              {"box_visible": [64.0, 36, 68, 39], "kept": False, "visible_pixels": 8}]
+    for k in range(3):
+        img = Image(header=Header(frame_id="c"), height=72, width=128, encoding="bgr8", step=384,
+                    data=bytes([10 + k, 20, 30]) * (72 * 128))
+        img.header.stamp.sec = k
+        w.write("/drone_0/image_raw", serialize_message(img), k)
+        if k < 2:  # step 2 has no labels
+            lab = {**_labels({"sec": k, "nanosec": 0}, zebras), "width": 128, "height": 72}
+            w.write("/drone_0/labels", serialize_message(String(data=json.dumps(lab))), k)
+    lost = {**_labels({"sec": 5, "nanosec": 0}, zebras), "width": 128, "height": 72}  # no image comes
+    w.write("/drone_0/labels", serialize_message(String(data=json.dumps(lost))), 5)
+    w.write("/drone_0/labels", serialize_message(String(data="{not json")), 6)
+    mono = Image(header=Header(frame_id="c"), height=2, width=2, encoding="mono8", step=2, data=bytes(4))
+    mono.header.stamp.sec = 7
+    w.write("/drone_0/image_raw", serialize_message(mono), 7)
+    w.write("/drone_0/labels", serialize_message(String(data=json.dumps(
+        {**_labels({"sec": 7, "nanosec": 0}, zebras), "width": 2, "height": 2}))), 7)
+    w.close()
+    s = export_bag(ExportConfig((str(tmp_path / "x.mcap"),), str(tmp_path / "set"), "png", val_fraction=0.0))
+    assert s["frames"] == {"train": 2, "val": 0} and s["zebras_labelled"] == 2
+    assert s["images_without_labels"] == 1 and s["labels_without_image"] == 1
+    assert len(s["skipped"]) == 2 and "not JSON" in s["skipped"][0] and "rgb8 or bgr8" in s["skipped"][1]
+    names = sorted(p.stem for p in (tmp_path / "set" / "images" / "train").glob("*.png"))
+    assert names == ["x_drone_0_0", "x_drone_0_1000000000"]
+    second = cv2.imread(str(tmp_path / "set" / "images" / "train" / "x_drone_0_1000000000.png"))
+    assert second.shape == (72, 128, 3) and second[5, 5].tolist() == [11, 20, 30]  # B, G, R as recorded
+    label = (tmp_path / "set" / "labels" / "train" / "x_drone_0_0.txt").read_text().split()
+    assert [float(v) for v in label] == pytest.approx([0, 20 / 128, 15 / 72, 20 / 128, 10 / 72], abs=1e-6)
+    ignore = (tmp_path / "set" / "ignore" / "train" / "x_drone_0_0.txt").read_text().split()
+    assert [float(v) for v in ignore] == pytest.approx([0, 66 / 128, 37.5 / 72, 4 / 128, 3 / 72], abs=1e-6)
+    assert "train: images/train" in (tmp_path / "set" / "dataset.yaml").read_text()
+    assert main(["bag", "export", str(tmp_path / "x.mcap"), "--out", str(tmp_path / "y"), "--format", "gif"]) == 2
+    assert "'--format' = 'gif'" in capsys.readouterr().err and not (tmp_path / "y").exists()

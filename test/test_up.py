@@ -103,6 +103,20 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     assert all(h["reports"].get("OK", 0) > 0 for h in health.values()), health
     assert all(set(h["reports"]) == {"OK"} for n, h in health.items() if n != "placer: placer"), health
     _check_time_base_tf_and_typed_detections(Path(live["bag"]), steps=3)
+    # the run as a YOLO dataset (lossless PNG): val on it gives the live scores, its labels those of the bag
+    ex = cli(["bag", "export", live["bag"], "--out", str(tmp_path / "exported"), "--format", "png",
+              "--val-fraction", "0", "--json"])
+    assert ex.returncode == 0, ex.stderr
+    exported = _last_json(ex.stdout)
+    assert exported["frames"] == {"train": 9, "val": 0} and exported["images_without_labels"] == 0
+    assert len(list((tmp_path / "exported" / "images" / "train").glob("*.png"))) == 9
+    from zebra_sim_ros.detection.evaluate import evaluate
+
+    # at the live detector's threshold (val's own, 0.001, would score more of the curve than it published)
+    m, facts = evaluate(None, tmp_path / "exported" / "dataset.yaml", split="train", device="cpu", conf=0.25)
+    assert facts["imgsz"] == 544 and m.images == 9
+    assert m.instances == live["scores"]["all"]["instances"] == exported["zebras_labelled"]
+    assert abs(m.map50 - live["scores"]["all"]["mAP50"]) <= 0.01, (m.to_dict(), live["scores"]["all"])
 
     # Replay the recorded images (and labels) into a fresh detector with the live one's settings (the checkpoint's
     # rule: the shipped weights serve 640 px frames at 1088, so 320 px frames at 544); record its detections.
@@ -303,6 +317,21 @@ def test_two_graphs_in_two_namespaces_share_a_domain_without_crosstalk(tmp_path:
         assert not {t for t in topics if t.endswith(("/image_raw", "/detections/image"))}, sorted(topics)
         preview = cv2.imread(s["preview"])
         assert preview is not None and preview.shape == (144, 768, 3)
+        # exported as recorded (the jpeg bytes), a step's three frames in one split
+        ex = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "bag", "export", s["bag"], "--out",
+                             str(tmp_path / "ex"), "--val-fraction", "0.5", "--seed", "3", "--json"],
+                            capture_output=True, text=True, timeout=120)
+        assert ex.returncode == 0, ex.stderr
+        assert sum(_last_json(ex.stdout)["frames"].values()) == 9
+        files = sorted((tmp_path / "ex" / "images").glob("*/*.jpg"))
+        with AnyReader([Path(s["bag"])]) as reader:
+            payloads = {bytes(reader.deserialize(raw, c.msgtype).data) for c, _, raw in reader.messages()
+                        if c.topic.endswith("/image_raw/compressed")}
+        assert len(files) == 9 and {f.read_bytes() for f in files} == payloads
+        split_of_step: dict[str, set[str]] = {}
+        for f in files:
+            split_of_step.setdefault(f.stem.rsplit("_", 1)[1], set()).add(f.parent.name)
+        assert len(split_of_step) == 3 and all(len(v) == 1 for v in split_of_step.values()), split_of_step
     assert _processes_in(domain) == []
 
 

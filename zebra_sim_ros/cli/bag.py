@@ -1,4 +1,4 @@
-"""``zebra-sim bag ...``: info, recover and eval of MCAP bags."""
+"""``zebra-sim bag ...``: info, recover, eval and export of MCAP bags."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from zebra_sim_ros.errors import ParameterError
 
 def register(sub: Any) -> None:
     """Add the ``bag`` subcommand group."""
-    p = sub.add_parser("bag", help="MCAP bags: info, recover, eval")
+    p = sub.add_parser("bag", help="MCAP bags: info, recover, eval, export")
     bsub = p.add_subparsers(dest="bag_command", required=True, metavar="ACTION")
     i = bsub.add_parser("info", help="duration, message counts and types per topic (like ros2 bag info)")
     i.add_argument("bag", nargs="+", type=Path, help="bag files, or folders of split files")
@@ -35,6 +35,18 @@ def register(sub: Any) -> None:
     detector_options(e)  # with --weights
     add_json_flag(e)
     e.set_defaults(func=cmd_eval)
+    x = bsub.add_parser("export", help="a recorded run as a YOLO dataset: each camera image with its labels, for "
+                        "train and val")
+    x.add_argument("bag", nargs="+", type=Path, help="bag files, or folders of split files")
+    x.add_argument("--out", required=True, type=Path, help="dataset folder (images/, labels/, ignore/, dataset.yaml)")
+    x.add_argument("--format", default="jpg", help="how raw images are written: jpg or png (compressed ones are "
+                   "written as recorded; default jpg)")
+    x.add_argument("--jpeg-quality", type=int, default=95, help="JPEG quality of raw images written as jpg (1..100)")
+    x.add_argument("--val-fraction", type=float, default=0.2, help="share of the steps in val (each step's frames "
+                   "together)")
+    x.add_argument("--seed", type=int, default=0, help="seed of the split (recorded in the output)")
+    add_json_flag(x)
+    x.set_defaults(func=cmd_export)
 
 
 def cmd_info(args: argparse.Namespace) -> Summary:
@@ -95,3 +107,21 @@ def cmd_eval(args: argparse.Namespace) -> Summary:
     for note in s["damaged"]:
         print(f"damaged: {note}")
     return s
+
+
+def cmd_export(args: argparse.Namespace) -> Summary:
+    """Write a recorded run as a YOLO dataset."""
+    from zebra_sim_ros.dataset.bag_export import ExportConfig, export_bag
+
+    s = export_bag(ExportConfig(tuple(str(b) for b in args.bag), str(args.out), args.format, args.jpeg_quality,
+                                args.val_fraction, args.seed))
+    print(f"wrote {s['frames']['train']} train and {s['frames']['val']} val frames ({s['zebras_labelled']} zebras "
+          f"labelled) to {s['out']}; dataset.yaml for zebra-sim train / val (seed {args.seed})")
+    if s["images_without_labels"] or s["labels_without_image"]:
+        print(f"not written: {s['images_without_labels']} image(s) without labels, {s['labels_without_image']} "
+              "labels without an image")
+    if s["skipped"]:
+        print(f"skipped {len(s['skipped'])} unusable message(s), first: {s['skipped'][0]}")
+    for note in s["damaged"]:
+        print(f"damaged: {note}")
+    return {**s, "seed": args.seed}
