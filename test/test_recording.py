@@ -645,6 +645,96 @@ def test_bag_export_pairs_images_with_labels_as_a_yolo_set(tmp_path: Path, capsy
     assert [float(v) for v in label] == pytest.approx([0, 20 / 128, 15 / 72, 20 / 128, 10 / 72], abs=1e-6)
     ignore = (tmp_path / "set" / "ignore" / "train" / "x_drone_0_0.txt").read_text().split()
     assert [float(v) for v in ignore] == pytest.approx([0, 66 / 128, 37.5 / 72, 4 / 128, 3 / 72], abs=1e-6)
-    assert "train: images/train" in (tmp_path / "set" / "dataset.yaml").read_text()
+    from zebra_sim_ros.detection.data import resolve_splits
+
+    # no val step drawn (--val-fraction 0): val reads the train split, so train and val both start
+    assert s["val_is_train"] and resolve_splits(tmp_path / "set" / "dataset.yaml", "val") == resolve_splits(
+        tmp_path / "set" / "dataset.yaml", "train") == [tmp_path / "set" / "images" / "train"]
     assert main(["bag", "export", str(tmp_path / "x.mcap"), "--out", str(tmp_path / "y"), "--format", "gif"]) == 2
     assert "'--format' = 'gif'" in capsys.readouterr().err and not (tmp_path / "y").exists()
+
+
+def test_bag_export_keeps_runs_bags_and_colours_apart(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Two bags of one name, a namespaced camera, a run that starts again at the same stamps, raw and jpeg copies of
+    a frame, jpeg whose codec holds RGB, a depth image in compressedDepth, a size that is not the labels': each frame
+    written once with its own run's labels and its recorded colours; both splits hold a step; and a folder that
+    already holds files, or is a file, is refused."""
+    import cv2
+    from sensor_msgs.msg import CompressedImage
+
+    from zebra_sim_ros.dataset.bag_export import ExportConfig, export_bag
+    from zebra_sim_ros.errors import ParameterError
+
+    def labels(sec: int, x0: float, w: int = 64, h: int = 48) -> bytes:
+        z = [{"box_visible": [x0, 10.0, x0 + 20, 20.0], "kept": True, "visible_pixels": 150}]
+        return serialize_message(String(data=json.dumps({**_labels({"sec": sec, "nanosec": 0}, z), "width": w,
+                                                         "height": h})))
+
+    def compressed(sec: int, fmt: str, data: bytes) -> bytes:
+        msg = CompressedImage(format=fmt, data=data)
+        msg.header.stamp.sec = sec
+        return serialize_message(msg)
+
+    bgr = np.zeros((48, 64, 3), np.uint8)
+    bgr[...] = (200, 100, 0)  # blue
+    jpeg = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 100])[1].tobytes()
+    swapped = cv2.imencode(".jpg", bgr[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 100])[1].tobytes()  # codec holds RGB
+    cam = "/g1/drone_0"
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        w = BagWriter(tmp_path / folder / "run.mcap")
+        w.add_channel(f"{cam}/image_raw", "sensor_msgs/msg/Image", [profile_dict()])
+        w.add_channel(f"{cam}/image_raw/compressed", "sensor_msgs/msg/CompressedImage", [profile_dict()])
+        w.add_channel(f"{cam}/labels", "std_msgs/msg/String", [profile_dict()])
+        log = 0
+        for run, x0 in ((0, 5.0), (1, 30.0)):  # the second run's zebra elsewhere: its labels must not pair back
+            for sec in range(4):
+                log += 1
+                if sec in (0, 2):  # raw, and at 0 a jpeg copy too: the raw one is written
+                    img = Image(header=Header(frame_id="c"), height=48, width=64, encoding="bgr8", step=192,
+                                data=bgr.tobytes())
+                    img.header.stamp.sec = sec
+                    w.write(f"{cam}/image_raw", serialize_message(img), log)
+                    if sec == 0:
+                        w.write(f"{cam}/image_raw/compressed", compressed(sec, "bgr8; jpeg compressed bgr8", jpeg),
+                                log)
+                elif sec == 1:
+                    fmt, data = ("bgr8; jpeg compressed bgr8", jpeg) if run == 0 else ("rgb8; jpeg compressed rgb8",
+                                                                                        swapped)
+                    w.write(f"{cam}/image_raw/compressed", compressed(sec, fmt, data), log)
+                else:
+                    w.write(f"{cam}/image_raw/compressed", compressed(sec, "16UC1; compressedDepth png", b"x"), log)
+                w.write(f"{cam}/labels", labels(sec, x0), log)
+        w.close()
+    (tmp_path / "c").mkdir()
+    w = BagWriter(tmp_path / "c" / "odd.mcap")  # an image of another size than its labels say
+    w.add_channel("/drone_0/image_raw/compressed", "sensor_msgs/msg/CompressedImage", [profile_dict()])
+    w.add_channel("/drone_0/labels", "std_msgs/msg/String", [profile_dict()])
+    w.write("/drone_0/image_raw/compressed", compressed(0, "jpeg", jpeg), 1)
+    w.write("/drone_0/labels", labels(0, 5.0, 640, 480), 1)
+    w.close()
+    bags = tuple(str(tmp_path / f) for f in ("a/run.mcap", "b/run.mcap", "c/odd.mcap"))
+    s = export_bag(ExportConfig(bags, str(tmp_path / "set"), val_fraction=0.5, seed=1))
+    files = {p.stem: p for p in (tmp_path / "set" / "images").glob("*/*")}
+    # per bag (prefixes run0, run1), per run: stamps 0 to 2 (stamp 3 is depth: skipped, as is the odd size)
+    assert sorted(files) == sorted(f"run{b}_g1_drone_0_{sec * 10**9}{'_r1' if r else ''}"
+                                   for b in (0, 1) for r in (0, 1) for sec in (0, 1, 2))
+    assert sum(s["frames"].values()) == 12 and min(s["frames"].values()) > 0 and not s["val_is_train"]
+    assert s["images_without_labels"] == 0 and s["labels_without_image"] == 0  # the jpeg copy of a raw frame too
+    assert len(s["skipped"]) == 5 and sum("compressedDepth" in n for n in s["skipped"]) == 4
+    assert "64x48 px with labels of a 640x480 image" in s["skipped"][-1]
+    for stem, path in files.items():
+        x0 = 30.0 if stem.endswith("_r1") else 5.0
+        label = (path.parent.parent.parent / "labels" / path.parent.name / f"{stem}.txt").read_text().split()
+        assert float(label[1]) == pytest.approx((x0 + 10) / 64), stem  # its own run's labels
+        pixel = cv2.imread(str(path))[24, 32].tolist()
+        assert abs(pixel[0] - 200) <= 3 and abs(pixel[1] - 100) <= 3 and pixel[2] <= 3, (stem, pixel)  # blue
+    assert files["run0_g1_drone_0_1000000000"].read_bytes() == jpeg  # a BGR codec's jpeg: the recorded bytes
+    assert files["run0_g1_drone_0_0"].suffix == ".jpg"  # raw, encoded
+    with pytest.raises(ParameterError, match="'--out'"):  # it holds the export now
+        export_bag(ExportConfig(bags, str(tmp_path / "set")))
+    with pytest.raises(ParameterError, match="'--out'"):
+        export_bag(ExportConfig(bags, bags[0]))
+    # one step only, or no val drawn: val is the train split, and dataset.yaml says so
+    one = export_bag(ExportConfig((bags[2],), str(tmp_path / "one"), val_fraction=0.5))
+    assert one["val_is_train"] and "val: images/train" in (tmp_path / "one" / "dataset.yaml").read_text()

@@ -38,9 +38,10 @@ def register(sub: Any) -> None:
     x = bsub.add_parser("export", help="a recorded run as a YOLO dataset: each camera image with its labels, for "
                         "train and val")
     x.add_argument("bag", nargs="+", type=Path, help="bag files, or folders of split files")
-    x.add_argument("--out", required=True, type=Path, help="dataset folder (images/, labels/, ignore/, dataset.yaml)")
-    x.add_argument("--format", default="jpg", help="how raw images are written: jpg or png (compressed ones are "
-                   "written as recorded; default jpg)")
+    x.add_argument("--out", required=True, type=Path, help="a new or empty dataset folder (images/, labels/, ignore/, "
+                   "dataset.yaml)")
+    x.add_argument("--format", default="jpg", help="how raw images are written: jpg or png (compressed ones as "
+                   "recorded where the file keeps their colours; default jpg)")
     x.add_argument("--jpeg-quality", type=int, default=95, help="JPEG quality of raw images written as jpg (1..100)")
     x.add_argument("--val-fraction", type=float, default=0.2, help="share of the steps in val (each step's frames "
                    "together)")
@@ -117,6 +118,8 @@ def cmd_export(args: argparse.Namespace) -> Summary:
                                 args.val_fraction, args.seed))
     print(f"wrote {s['frames']['train']} train and {s['frames']['val']} val frames ({s['zebras_labelled']} zebras "
           f"labelled) to {s['out']}; dataset.yaml for zebra-sim train / val (seed {args.seed})")
+    if s["val_is_train"]:
+        print("no step drawn for val (one step, or --val-fraction 0): dataset.yaml's val is the train split")
     if s["images_without_labels"] or s["labels_without_image"]:
         print(f"not written: {s['images_without_labels']} image(s) without labels, {s['labels_without_image']} "
               "labels without an image")
