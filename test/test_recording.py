@@ -686,25 +686,25 @@ def test_bag_export_keeps_runs_bags_and_colours_apart(tmp_path: Path, capsys: py
         w.add_channel(f"{cam}/image_raw", "sensor_msgs/msg/Image", [profile_dict()])
         w.add_channel(f"{cam}/image_raw/compressed", "sensor_msgs/msg/CompressedImage", [profile_dict()])
         w.add_channel(f"{cam}/labels", "std_msgs/msg/String", [profile_dict()])
-        log = 0
         for run, x0 in ((0, 5.0), (1, 30.0)):  # the second run's zebra elsewhere: its labels must not pair back
             for sec in range(4):
-                log += 1
+                log = 100 * run + sec  # log and receive times, s: the second run 100 s after the first
                 if sec in (0, 2):  # raw, and at 0 a jpeg copy too: the raw one is written
                     img = Image(header=Header(frame_id="c"), height=48, width=64, encoding="bgr8", step=192,
                                 data=bgr.tobytes())
                     img.header.stamp.sec = sec
-                    w.write(f"{cam}/image_raw", serialize_message(img), log)
+                    w.write(f"{cam}/image_raw", serialize_message(img), log, log * 10**9)
                     if sec == 0:
                         w.write(f"{cam}/image_raw/compressed", compressed(sec, "bgr8; jpeg compressed bgr8", jpeg),
-                                log)
+                                log, log * 10**9)
                 elif sec == 1:
                     fmt, data = ("bgr8; jpeg compressed bgr8", jpeg) if run == 0 else ("rgb8; jpeg compressed rgb8",
                                                                                         swapped)
-                    w.write(f"{cam}/image_raw/compressed", compressed(sec, fmt, data), log)
+                    w.write(f"{cam}/image_raw/compressed", compressed(sec, fmt, data), log, log * 10**9)
                 else:
-                    w.write(f"{cam}/image_raw/compressed", compressed(sec, "16UC1; compressedDepth png", b"x"), log)
-                w.write(f"{cam}/labels", labels(sec, x0), log)
+                    w.write(f"{cam}/image_raw/compressed", compressed(sec, "16UC1; compressedDepth png", b"x"), log,
+                            log * 10**9)
+                w.write(f"{cam}/labels", labels(sec, x0), log, log * 10**9 + 3 * 10**8)  # 0.3 s after its image
         w.close()
     (tmp_path / "c").mkdir()
     w = BagWriter(tmp_path / "c" / "odd.mcap")  # an image of another size than its labels say
@@ -717,7 +717,7 @@ def test_bag_export_keeps_runs_bags_and_colours_apart(tmp_path: Path, capsys: py
     s = export_bag(ExportConfig(bags, str(tmp_path / "set"), val_fraction=0.5, seed=1))
     files = {p.stem: p for p in (tmp_path / "set" / "images").glob("*/*")}
     # per bag (prefixes run0, run1), per run: stamps 0 to 2 (stamp 3 is depth: skipped, as is the odd size)
-    assert sorted(files) == sorted(f"run{b}_g1_drone_0_{sec * 10**9}{'_r1' if r else ''}"
+    assert sorted(files) == sorted(f"b{b}_run_g1_drone_0_{sec * 10**9}{'_r1' if r else ''}"
                                    for b in (0, 1) for r in (0, 1) for sec in (0, 1, 2))
     assert sum(s["frames"].values()) == 12 and min(s["frames"].values()) > 0 and not s["val_is_train"]
     assert s["images_without_labels"] == 0 and s["labels_without_image"] == 0  # the jpeg copy of a raw frame too
@@ -729,8 +729,8 @@ def test_bag_export_keeps_runs_bags_and_colours_apart(tmp_path: Path, capsys: py
         assert float(label[1]) == pytest.approx((x0 + 10) / 64), stem  # its own run's labels
         pixel = cv2.imread(str(path))[24, 32].tolist()
         assert abs(pixel[0] - 200) <= 3 and abs(pixel[1] - 100) <= 3 and pixel[2] <= 3, (stem, pixel)  # blue
-    assert files["run0_g1_drone_0_1000000000"].read_bytes() == jpeg  # a BGR codec's jpeg: the recorded bytes
-    assert files["run0_g1_drone_0_0"].suffix == ".jpg"  # raw, encoded
+    assert files["b0_run_g1_drone_0_1000000000"].read_bytes() == jpeg  # a BGR codec's jpeg: the recorded bytes
+    assert files["b0_run_g1_drone_0_0"].suffix == ".jpg"  # raw, encoded
     with pytest.raises(ParameterError, match="'--out'"):  # it holds the export now
         export_bag(ExportConfig(bags, str(tmp_path / "set")))
     with pytest.raises(ParameterError, match="'--out'"):
@@ -738,3 +738,47 @@ def test_bag_export_keeps_runs_bags_and_colours_apart(tmp_path: Path, capsys: py
     # one step only, or no val drawn: val is the train split, and dataset.yaml says so
     one = export_bag(ExportConfig((bags[2],), str(tmp_path / "one"), val_fraction=0.5))
     assert one["val_is_train"] and "val: images/train" in (tmp_path / "one" / "dataset.yaml").read_text()
+
+
+def test_bag_export_pairs_by_arrival_so_late_labels_and_a_run_without_labels_pair_right(tmp_path: Path) -> None:
+    """Labels arriving out of order (steps 0, 2, 1) still pair with their images; a run of images the labeller
+    missed (restarted later) is counted, not paired with the next run's labels; a step sent again with the same
+    labels is one frame."""
+    from zebra_sim_ros.dataset.bag_export import ExportConfig, export_bag
+
+    def labels(sec: int, x0: float) -> bytes:
+        z = [{"box_visible": [x0, 10.0, x0 + 20, 20.0], "kept": True, "visible_pixels": 150}]
+        return serialize_message(String(data=json.dumps({**_labels({"sec": sec, "nanosec": 0}, z), "width": 64,
+                                                         "height": 48})))
+
+    def image(sec: int, level: int) -> bytes:
+        img = Image(header=Header(frame_id="c"), height=48, width=64, encoding="bgr8", step=192,
+                    data=bytes([level]) * (48 * 192))
+        img.header.stamp.sec = sec
+        return serialize_message(img)
+
+    w = BagWriter(tmp_path / "lag.mcap")
+    w.add_channel("/drone_0/image_raw", "sensor_msgs/msg/Image", [profile_dict()])
+    w.add_channel("/drone_0/labels", "std_msgs/msg/String", [profile_dict()])
+    s = 10**9
+    for sec in range(3):  # run 0, level 10: images at 0, 1, 2 s; labels of 0, then 2, then 1 (and 1 sent again)
+        w.write("/drone_0/image_raw", image(sec, 10), sec, sec * s)
+    for sec, at in ((0, 0.3), (2, 2.3), (1, 2.4), (1, 2.5)):
+        w.write("/drone_0/labels", labels(sec, 5.0), sec, int(at * s))
+    for sec in range(3):  # run 1, level 50, 100 s later: no labeller yet
+        w.write("/drone_0/image_raw", image(sec, 50), sec, (100 + sec) * s)
+    for sec in range(3):  # run 2, level 90, 200 s later: labels with the zebra elsewhere
+        w.write("/drone_0/image_raw", image(sec, 90), sec, (200 + sec) * s)
+        w.write("/drone_0/labels", labels(sec, 30.0), sec, (200 + sec) * s + 3 * 10**8)
+    w.close()
+    out = export_bag(ExportConfig((str(tmp_path / "lag.mcap"),), str(tmp_path / "set"), "png", val_fraction=0.0))
+    assert out["frames"] == {"train": 6, "val": 0} and out["images_without_labels"] == 3
+    assert out["labels_without_image"] == 0 and out["not_written"] == 0
+    import cv2
+
+    for sec in range(3):
+        for suffix, level, x0 in (("", 10, 5.0), ("_r1", 90, 30.0)):  # run 1's images (level 50) are in neither
+            name = f"lag_drone_0_{sec * s}{suffix}"
+            assert cv2.imread(str(tmp_path / "set" / "images" / "train" / f"{name}.png"))[0, 0, 0] == level, name
+            label = (tmp_path / "set" / "labels" / "train" / f"{name}.txt").read_text().split()
+            assert float(label[1]) == pytest.approx((x0 + 10) / 64), name

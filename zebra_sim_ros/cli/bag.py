@@ -127,4 +127,6 @@ def cmd_export(args: argparse.Namespace) -> Summary:
         print(f"skipped {len(s['skipped'])} unusable message(s), first: {s['skipped'][0]}")
     for note in s["damaged"]:
         print(f"damaged: {note}")
+    if s.get("exit_code"):
+        print("error: no frame written: no image had labels of its stamp (give a split recording as its folder)")
     return {**s, "seed": args.seed}
