@@ -45,7 +45,7 @@ from zebra_sim_ros.errors import ParameterError, ZebraSimError
 from zebra_sim_ros.messages import Labels
 from zebra_sim_ros.recording.cdr import MALFORMED, cdr_compressed_image, cdr_string, header_stamp_ns, rgb_image
 from zebra_sim_ros.recording.evaluate import skip_note
-from zebra_sim_ros.recording.images import COMPRESSED_TYPE, IMAGE_TYPE, decompress_rgb
+from zebra_sim_ros.recording.images import COMPRESSED_TYPE, IMAGE_TYPE, codec_holds_bgr, decompress_rgb
 from zebra_sim_ros.recording.reader import BagMessage, BagReader
 
 _TOPIC = re.compile(r"^(?P<camera>(?:/[^/]+)*/[^/]+)/(?P<kind>image_raw(?:/compressed)?|labels)$")
@@ -227,7 +227,7 @@ class _Writer:
             _, fmt, blob = cdr_compressed_image(data)
             rgb = decompress_rgb(fmt, blob)  # ValueError for what our readers cannot take (depth, other codecs)
             size = (rgb.shape[1], rgb.shape[0])
-            as_read = ";" not in fmt or re.search(r"compressed (bgr|mono)", fmt)  # the file's colours are ours
+            as_read = codec_holds_bgr(fmt) or "compressed mono" in fmt  # a file reads back in these colours
             for ext, magic in _MAGIC.items():
                 if as_read and blob.startswith(magic):
                     return ext, blob, size

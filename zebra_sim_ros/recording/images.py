@@ -50,6 +50,12 @@ def is_colour(fmt: str) -> bool:
     return not NOT_COLOUR.match(fmt.split(";", 1)[0].strip()) if ";" in fmt else True
 
 
+def codec_holds_bgr(fmt: str) -> bool:
+    """Whether a CompressedImage's codec holds BGR, as OpenCV writes and reads files: the format says so
+    (``compressed bgr...``) or says nothing (bare ``jpeg``/``png``), as ``compressed_image_transport`` takes it."""
+    return ";" not in fmt or "compressed bgr" in fmt
+
+
 def decompress_rgb(fmt: str, data: bytes) -> np.ndarray:
     """A CompressedImage's ``(format, data)`` as an H x W x 3 RGB uint8 image. Reads what
     ``compressed_image_transport`` and camera drivers write: ``"<encoding>; jpeg compressed <codec encoding>"``,
@@ -71,8 +77,7 @@ def decompress_rgb(fmt: str, data: bytes) -> np.ndarray:
         raise ValueError(f"{len(data)} bytes do not decode as {kind} ({fmt!r}): {str(exc).strip()[-120:]}") from None
     if img is None:
         raise ValueError(f"{len(data)} bytes do not decode as {kind} ({fmt!r})")
-    bgr = ";" not in fmt or "compressed bgr" in fmt
-    return np.ascontiguousarray(img[..., ::-1] if bgr else img)
+    return np.ascontiguousarray(img[..., ::-1] if codec_holds_bgr(fmt) else img)
 
 
 def message_rgb(type_name: str, data: bytes) -> tuple[int, np.ndarray] | None:
