@@ -27,24 +27,10 @@ from launch_ros.parameter_descriptions import ParameterValue
 
 from launch import LaunchDescription
 
-PACKAGE = "zebra_sim_ros"
-# OpenMP threads that sleep when idle, as zebra-sim up gives its nodes (zebra_sim_ros.graph.spec.NODE_ENVIRONMENT)
-NODE_ENVIRONMENT = {"OMP_WAIT_POLICY": "PASSIVE"}
-MAX_DRONES = 16  # zebra_sim_ros.geometry.camera.MAX_CAMERAS
-# What the bag holds of the cameras' images (zebra_sim_ros.graph.spec.BAG_IMAGES and the recorder's exclude_regex)
-BAG_IMAGES = ("raw", "jpeg", "png")
-RECORDER_EXCLUDES = "^/(rosout|parameter_events)$"  # the recorder's default exclude_regex
-BAG_RAW_IMAGES = r"/drone_\d+/(?:image_raw|detections/image)$"  # left out of the bag with jpeg or png
-
-
-def _file_param(path, node, name, default):
-    """A parameter's value in a ROS 2 parameter file (as the node reads it), or ``default`` where the file or the
-    entry is missing."""
-    if not os.path.isfile(path):
-        return default
-    from zebra_sim_ros.params import load_params_file  # light: no rclpy, no torch
-
-    return load_params_file(path, node).get(name, default)
+# up's own rules (light: numpy and OpenCV, no rclpy, no torch): the camera cap, what the bag may hold of the images
+# and the recorder's exclude_regex for it, and the environment every node gets (OpenMP threads that sleep when idle)
+from zebra_sim_ros.geometry.camera import MAX_CAMERAS
+from zebra_sim_ros.graph.spec import BAG_IMAGES, NODE_ENVIRONMENT, PACKAGE, recorder_excludes
 
 
 def generate_launch_description():
@@ -83,17 +69,15 @@ def generate_launch_description():
     def nodes(context):
         """The graph's processes: the number of cameras is the ``drones`` argument's value, read here."""
         count = LaunchConfiguration("drones").perform(context)
-        if not count.isdigit() or not 1 <= int(count) <= MAX_DRONES:
-            raise ValueError(f"drones:={count}: want 1..{MAX_DRONES}")
+        if not count.isdigit() or not 1 <= int(count) <= MAX_CAMERAS:
+            raise ValueError(f"drones:={count}: want 1..{MAX_CAMERAS}")
         drones = [f"drone_{i}" for i in range(int(count))]
         bag_images = LaunchConfiguration("bag_images").perform(context)
         if bag_images not in BAG_IMAGES:
             raise ValueError(f"bag_images:={bag_images}: want one of {', '.join(BAG_IMAGES)}")
         # raw: the parameter files' settings; jpeg, png: the cameras' compressed images recorded, not the raw ones
         compressed = {} if bag_images == "raw" else {"compressed": bag_images}
-        base = _file_param(file("recorder.yaml"), "recorder", "exclude_regex", RECORDER_EXCLUDES)
-        excludes = {} if bag_images == "raw" else {
-            "exclude_regex": f"(?:{base})|{BAG_RAW_IMAGES}" if base else BAG_RAW_IMAGES}
+        excludes = {} if bag_images == "raw" else {"exclude_regex": recorder_excludes(config, bag_images)}
         cameras = [
             Node(package=PACKAGE, executable="camera", name=f"{d}_camera", namespace="", output="screen",
                  parameters=[file("camera.yaml"), {"drone_index": i, "width": arg("width", int),

@@ -16,9 +16,9 @@ from typing import Any
 from zebra_sim_ros.detection.config import DETECTOR_PARAMS, SCORER_PARAMS
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LABELLER_PARAMS
-from zebra_sim_ros.params import ParamSpec, replace_tables, validate, write_config
+from zebra_sim_ros.params import ParamSpec, load_params_file, replace_tables, validate, write_config
 from zebra_sim_ros.placement.config import PLACER_PARAMS
-from zebra_sim_ros.recording.config import RECORDER_PARAMS, REPLAY_PARAMS
+from zebra_sim_ros.recording.config import RECORDER_PARAMS, REPLAY_PARAMS, RecorderConfig
 from zebra_sim_ros.rendering.config import CAMERA_PARAMS
 
 PACKAGE = "zebra_sim_ros"
@@ -37,12 +37,20 @@ BAG_IMAGES = ("raw", "jpeg", "png")
 BAG_RAW_IMAGES = r"/drone_\d+/(?:image_raw|detections/image)$"  # what the recorder leaves out then (exclude_regex)
 
 
-def bag_excludes(base: str, bag_images: str) -> str:
-    """The recorder's ``exclude_regex`` for ``bag_images``: its own (``base``, from its parameter file) with raw,
-    and also the cameras' raw images and the detector's annotated copies with jpeg or png."""
+def recorder_excludes(config: Path, bag_images: str) -> str:
+    """The recorder's ``exclude_regex`` in a graph whose bag holds ``bag_images``: its own (``config``/recorder.yaml's,
+    the node's default where the file or the entry is missing) with raw, and also the cameras' raw images and the
+    detector's annotated copies (:data:`BAG_RAW_IMAGES`) with jpeg or png. ``zebra-sim up`` and the launch file both
+    ask here."""
+    path = Path(config) / "recorder.yaml"
+    base = RecorderConfig().exclude_regex
+    if path.is_file():
+        base = str(load_params_file(str(path), "recorder").get("exclude_regex", base))
     if bag_images == "raw":
         return base
     return f"(?:{base})|{BAG_RAW_IMAGES}" if base else BAG_RAW_IMAGES
+
+
 NODE_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
     "placer": PLACER_PARAMS, "camera": CAMERA_PARAMS, "labeller": LABELLER_PARAMS, "detector": DETECTOR_PARAMS,
     "recorder": RECORDER_PARAMS, "replay": REPLAY_PARAMS, "scorer": SCORER_PARAMS}
@@ -171,7 +179,7 @@ DDS_PROFILE = "fastdds.xml"
 # sleep when they have no work instead of spinning. Spinning, they took the CPU the cameras and the labeller of the
 # same graph needed: on 2 cores the detector's median step took 0.50 s against 0.20 on 320x180 frames, and the
 # graph ran 1.07-1.12x the steps per second at 1280x720 (BENCHMARKS.md, "OpenMP threads that wait passively").
-# The launch file holds a copy (it imports nothing of ours); test_graph checks that the two agree.
+# The launch file imports it.
 NODE_ENVIRONMENT = {"OMP_WAIT_POLICY": "PASSIVE"}
 _PROFILE_VARS = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
 
@@ -224,12 +232,7 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
         nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml", {"drones": list(drones), **sim}, (), remaps,
                               tuple(f"{ns}/{d}/{t}" for d in drones for t in ("labels", "detections"))))
     if cfg.record:
-        from zebra_sim_ros.params import load_params_file
-        from zebra_sim_ros.recording.config import RecorderConfig
-
-        base = load_params_file(str(config_dir(cfg.config_dir) / "recorder.yaml"), "recorder").get(
-            "exclude_regex", RecorderConfig().exclude_regex)  # what the recorder leaves out (up waits for the rest)
-        excludes = bag_excludes(str(base), cfg.bag_images)
+        excludes = recorder_excludes(config_dir(cfg.config_dir), cfg.bag_images)  # up waits for the rest
         rec = {"output": str(cfg.bag_path.resolve()), **sim}
         if cfg.bag_images != "raw":
             rec["exclude_regex"] = excludes
