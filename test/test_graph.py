@@ -501,14 +501,23 @@ def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: P
     assert [s.executable for s in graph_spec(cfg)] == ["camera"] * 2 + ["labeller", "detector", "recorder", "placer"]
     assert up._up_config(parser.parse_args(["up"])) == UpConfig()
     shipped = REPO / "config"
-    assert up.ScorerRun.of(shipped, UpConfig(), 10) == up.ScorerRun(30, True, 10.0)
-    assert up.ScorerRun.of(shipped, UpConfig(drones=2), 500) == up.ScorerRun(600, False, 10.0)  # its last 300
+    run = up.ScorerRun.read(shipped, UpConfig())
+    assert run == up.ScorerRun(300, 1.0, 3) and run.expected(10) == 30 and run.whole(10) and run.wait_s == 10.0
+    two = up.ScorerRun.read(shipped, UpConfig(drones=2))
+    assert two.expected(500) == 600 and not two.whole(500)  # its last 300 steps of two cameras
     conf = tmp_path / "config"
     shutil.copytree(shipped, conf)
     text = (conf / "scorer.yaml").read_text()
     (conf / "scorer.yaml").write_text(text.replace("diagnostics_period_s: 1.0", "diagnostics_period_s: 30.0")
                                       .replace("window: 300", "window: 1000"))
-    assert up.ScorerRun.of(conf, UpConfig(), 500) == up.ScorerRun(1500, True, 61.0)
+    run = up.ScorerRun.read(conf, UpConfig())
+    assert run.expected(500) == 1500 and run.whole(500) and run.wait_s == pytest.approx(61.0)
+    # a bad value in the scorer's file is refused by name, as the node would refuse it (up reads it before any
+    # node starts)
+    (conf / "scorer.yaml").write_text(text.replace("window: 300", "window: 0"))
+    with pytest.raises(ParameterError, match="window"):
+        up.ScorerRun.read(conf, UpConfig())
+    (conf / "scorer.yaml").write_text(text)
     # a config folder whose recorder leaves out the depth images: up waits for the rest only, and with jpeg in the
     # bag the recorder leaves out both the raw images and what its file says
     text = (conf / "recorder.yaml").read_text()
@@ -522,10 +531,10 @@ def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: P
                                                       "(?:/depth$)|/drone_\\d+/(?:image_raw|detections/image)$")
     values = {"frames scored": "9", "labels": "9", "all mAP50": "0.5000", "all recall": "0.2500",
               "drone_0 mAP50": "0.4000", "drone_0 frames": "3", "detections per second": "1.2"}
-    live = up._live_scores(values, up.ScorerRun(9, True, 10.0))
+    live = up._live_scores(values, up.ScorerRun(300, 1.0, 3), 3)
     assert live["frames"] == 9 and live["complete"] and set(live) == {"frames", "complete", "all", "drone_0"}
     assert live["all"] == pytest.approx({"mAP50": 0.5, "recall": 0.25}) and live["drone_0"] == pytest.approx(
         {"mAP50": 0.4})
-    assert not up._live_scores(values, up.ScorerRun(12, True, 10.0))["complete"]  # frames missing
-    assert not up._live_scores(values, up.ScorerRun(9, False, 10.0))["complete"]  # a longer run than its window
-    assert not up._live_scores({}, up.ScorerRun(0, True, 10.0))["complete"]  # no step at all
+    assert not up._live_scores(values, up.ScorerRun(300, 1.0, 3), 4)["complete"]  # frames missing
+    assert not up._live_scores(values, up.ScorerRun(3, 1.0, 3), 4)["complete"]  # a longer run than its window
+    assert not up._live_scores({}, up.ScorerRun(300, 1.0, 3), 0)["complete"]  # no step at all

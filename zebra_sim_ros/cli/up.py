@@ -17,7 +17,7 @@ import os
 import signal
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -82,6 +82,7 @@ def cmd_up(args: argparse.Namespace) -> Summary:
         print("[up] --no-record --no-score: the run is neither recorded nor scored (no figures at the end)", flush=True)
     detect_imgsz = cfg.detect_imgsz  # reads the checkpoint's serving rule: an unreadable file stops here
     conf = config_dir(cfg.config_dir)
+    scoring = ScorerRun.read(conf, cfg) if cfg.score else None  # a bad scorer.yaml stops here
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
     for old in (cfg.bag_path, out / "summary.json", out / "preview.jpg"):
@@ -92,7 +93,7 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     result: dict[str, Any] = {"out": str(out), "config": str(conf), "frames_asked": cfg.frames, "exit_code": 0,
                               "detect_imgsz": detect_imgsz}
     t_start = time.monotonic()
-    _run_graph(cfg, specs, conf, env, args.domain_id, result, t_start)
+    _run_graph(cfg, specs, conf, env, args.domain_id, result, t_start, scoring)
     result["wall_s"] = round(time.monotonic() - t_start, 2)
     recorder_log = out / "logs" / (next((s.label for s in specs if s.executable == "recorder"), "recorder")
                                    .replace("/", "_") + ".log")
@@ -178,11 +179,12 @@ def _graph_environment(conf: Path, domain_id: int | None) -> dict[str, str]:
 
 
 def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, str], domain_id: int | None,
-               result: dict[str, Any], t_start: float) -> None:
+               result: dict[str, Any], t_start: float, scoring: ScorerRun | None) -> None:
     """Start the nodes, wait until ready, run the placer's steps and stop the graph (recorder last).
 
     The placer is the last of ``specs``. How it ended goes into ``result`` (``exit_code``, ``died``, ``error``,
-    ``exit_status``, ``ready_s``); SIGTERM stops it like Ctrl-C.
+    ``exit_status``, ``ready_s``, and the scorer's last figures as ``live_scores``: ``scoring`` is the scorer's
+    settings, None when the graph has none); SIGTERM stops it like Ctrl-C.
     """
     from zebra_sim_ros.graph.spec import command
     from zebra_sim_ros.graph.supervisor import NodeDied, Supervisor
@@ -207,8 +209,8 @@ def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, 
                 print(f"[up] {len(others)} nodes ready in {result['ready_s']:.1f} s; placer starts "
                       f"{cfg.frames} steps of '{cfg.world}' (seed {cfg.seed}) in lockstep", flush=True)
                 _run_steps(sup, watch, sup.start(placer, command(placer, conf), expected_exit=True), cfg)
-                if scorer is not None:
-                    _await_scores(sup, watch, scorer, ScorerRun.of(conf, cfg, watch.steps_done()))
+                if scorer is not None and scoring is not None:
+                    _await_scores(sup, watch, scorer, scoring, watch.steps_done())
             except NodeDied as exc:
                 print(f"\n[up] {exc}\n[up] stopping the other nodes", flush=True)
                 result.update(exit_code=1, died=exc.child.label, died_status=exc.code)
@@ -221,9 +223,8 @@ def _run_graph(cfg: UpConfig, specs: list[NodeSpec], conf: Path, env: dict[str, 
             finally:
                 codes = sup.stop([c for c in sup.children if c.spec.executable != "recorder"])  # recorder last
                 result["health"] = watch.health
-                if scorer is not None and scorer in watch.values:
-                    result["live_scores"] = _live_scores(watch.values[scorer],
-                                                         ScorerRun.of(conf, cfg, watch.steps_done()))
+                if scorer is not None and scoring is not None and scorer in watch.values:
+                    result["live_scores"] = _live_scores(watch.values[scorer], scoring, watch.steps_done())
                 result["exit_status"] = codes
                 bad = {k: v for k, v in codes.items() if v not in (0, None) and k != result.get("died")}
                 if bad:
@@ -277,41 +278,57 @@ def _run_steps(sup: Supervisor, watch: GraphWatch, pl: Child, cfg: UpConfig) -> 
 
 @dataclass(frozen=True)
 class ScorerRun:
-    """What the graph's scorer should report at the end of a run: ``expected`` frames scored (its last ``window``
-    steps' frames, one per camera a step), all of the run's when ``whole``; its report comes within ``wait_s`` (two
-    of its periods and a second, 10 s at least). Window and period are its parameter file's."""
+    """The graph's scorer as ``up`` waits for it: each of its ``drones`` cameras' last ``window`` frames scored, a
+    report every ``period_s``. Read from its parameter file with up's overrides, validated as the node validates
+    them."""
 
-    expected: int
-    whole: bool
-    wait_s: float
+    window: int
+    period_s: float
+    drones: int
 
     @staticmethod
-    def of(conf: Path, cfg: UpConfig, steps: int) -> ScorerRun:
+    def read(conf: Path, cfg: UpConfig) -> ScorerRun:
+        """The scorer's settings in a graph of ``cfg`` with the parameter files in ``conf`` (``ParameterError``
+        naming a bad value)."""
         from zebra_sim_ros.detection.config import ScorerConfig
         from zebra_sim_ros.params import load_params_file
 
-        params = {**asdict(ScorerConfig()), **load_params_file(str(conf / "scorer.yaml"), "scorer")}
-        window, period = int(params["window"]), float(params["diagnostics_period_s"])
-        return ScorerRun(min(steps, window) * cfg.drones, steps <= window, max(10.0, 2 * period + 1.0))
+        sc = ScorerConfig.from_params({**load_params_file(str(conf / "scorer.yaml"), "scorer"),
+                                       "drones": list(cfg.drone_names)})
+        return ScorerRun(sc.window, sc.diagnostics_period_s, len(sc.drones))
+
+    def expected(self, steps: int) -> int:
+        """The frames its report holds after ``steps`` steps: the last ``window`` steps' frames of every camera."""
+        return min(steps, self.window) * self.drones
+
+    def whole(self, steps: int) -> bool:
+        """Whether that report holds every frame of a run of ``steps`` steps."""
+        return steps <= self.window
+
+    @property
+    def wait_s(self) -> float:
+        """How long its report may take after the last step: two of its periods and a second, 10 s at least."""
+        return max(10.0, 2 * self.period_s + 1.0)
 
 
-def _await_scores(sup: Supervisor, watch: GraphWatch, scorer: str, run: ScorerRun) -> None:
-    """Wait until the scorer reports the frames it should have scored (each with its labels and detections), at
-    most ``run.wait_s``."""
+def _await_scores(sup: Supervisor, watch: GraphWatch, scorer: str, run: ScorerRun, steps: int) -> None:
+    """Wait until the scorer reports the frames it should have scored after ``steps`` steps (each with its labels
+    and detections), at most ``run.wait_s``."""
     end = time.monotonic() + run.wait_s
     while time.monotonic() < end:
-        if int(watch.values.get(scorer, {}).get("frames scored", -1)) == run.expected:
+        if int(watch.values.get(scorer, {}).get("frames scored", -1)) == run.expected(steps):
             return
         sup.check()
         watch.spin(0.1)
 
 
-def _live_scores(values: dict[str, str], run: ScorerRun) -> dict[str, Any]:
-    """The scorer's last report as numbers: ``frames`` scored, ``complete`` (they are every frame of the run: it
-    was no longer than the scorer's window, and each camera's every step was scored), and per key (``all``,
-    ``drone_0``, ...) mAP50, mAP50-95, precision, recall."""
+def _live_scores(values: dict[str, str], run: ScorerRun, steps: int) -> dict[str, Any]:
+    """The scorer's last report after ``steps`` steps as numbers: ``frames`` scored, ``complete`` (they are every
+    frame of the run: it was no longer than the scorer's window, and each camera's every step was scored), and per
+    key (``all``, ``drone_0``, ...) mAP50, mAP50-95, precision, recall."""
     frames = int(values.get("frames scored", 0))
-    out: dict[str, Any] = {"frames": frames, "complete": run.whole and run.expected > 0 and frames == run.expected}
+    expected = run.expected(steps)
+    out: dict[str, Any] = {"frames": frames, "complete": run.whole(steps) and expected > 0 and frames == expected}
     for key, value in values.items():
         who, _, name = key.partition(" ")
         if name in ("mAP50", "mAP50-95", "precision", "recall"):
