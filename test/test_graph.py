@@ -485,6 +485,54 @@ def test_the_rviz_config_shows_topics_the_graph_publishes_in_its_fixed_frame() -
     assert "config/*.rviz" in (REPO / "setup.py").read_text()  # installed beside the parameter files
 
 
+def test_the_rviz_config_is_drawn_again_for_each_graphs_drones_and_namespace(tmp_path: Path) -> None:
+    """``up`` writes the package's RViz file for its own graph: a detection image per camera (five here), drone_0's
+    other displays and the world's kept, every topic in the namespace and published by that graph with the QoS the
+    file asked; the default graph gets the package file's displays back, in its order. The command remaps RViz's
+    TF and clock into the namespace."""
+    import yaml
+
+    from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_command, rviz_config, write_rviz
+    from zebra_sim_ros.graph.spec import GLOBAL_TOPICS
+
+    base = yaml.safe_load((REPO / "config" / RVIZ_FILE).read_text())
+    same = rviz_config(base, UpConfig().drone_names)
+    assert same == base  # the file is drawn for the default graph
+    cfg = UpConfig(drones=5, namespace="/g1")
+    path = write_rviz(REPO / "config", tmp_path / RVIZ_FILE, cfg.drone_names, cfg.namespace)
+    assert path == tmp_path / RVIZ_FILE
+    displays = yaml.safe_load(path.read_text())["Visualization Manager"]["Displays"]
+    topics = [d["Topic"]["Value"] for d in displays if "Topic" in d]
+    published = {t for s in graph_spec(cfg) for t in s.publishes}
+    assert set(topics) <= published and len(topics) == len(set(topics)), sorted(set(topics) - published)
+    assert [t for t in topics if t.endswith("/detections/image")] == [
+        f"/g1/drone_{i}/detections/image" for i in range(5)]
+    assert {"/g1/drone_0/labels/boxes3d", "/g1/drone_0/image_raw", "/g1/zebra_sim/zebras/markers"} <= set(topics)
+    by_topic = {d["Topic"]["Value"]: d for d in displays if "Topic" in d}
+    assert by_topic["/g1/drone_4/detections/image"]["Name"] == "drone_4 detections (detector)"
+    assert by_topic["/g1/drone_4/detections/image"]["Enabled"] and not by_topic["/g1/drone_0/image_raw"]["Enabled"]
+    assert [d["Class"] for d in displays][:2] == ["rviz_default_plugins/Grid", "rviz_default_plugins/TF"]
+    assert yaml.safe_load(path.read_text())["Visualization Manager"]["Global Options"]["Fixed Frame"] == "map"
+    assert write_rviz(tmp_path / "no_rviz_here", tmp_path / "x.rviz", cfg.drone_names) is None
+    assert rviz_command(path, "/g1").endswith(" ".join(f"-r {t}:=/g1{t}" for t in GLOBAL_TOPICS))
+    assert rviz_command(path) == f"rviz2 -d {path} --ros-args -p use_sim_time:=true"
+    one = rviz_config(base, UpConfig(drones=1).drone_names)["Visualization Manager"]["Displays"]
+    assert [d["Topic"]["Value"] for d in one if "Topic" in d and "detections" in d["Topic"]["Value"]] == [
+        "/drone_0/detections/image"]
+    # a display of one drone alone (here drone_2's depth, added) stays where the graph has that drone
+    extra = {"Class": "rviz_default_plugins/Image", "Name": "drone_2 depth", "Enabled": False,
+             "Topic": {"Value": "/drone_2/depth"}}
+    with_depth = {**base, "Visualization Manager": {**base["Visualization Manager"], "Displays": [
+        *base["Visualization Manager"]["Displays"], extra]}}
+    for n, kept in ((3, True), (5, True), (2, False)):
+        got = rviz_config(with_depth, UpConfig(drones=n).drone_names)["Visualization Manager"]["Displays"]
+        assert (extra in got) == kept and sum("/detections/image" in d.get("Topic", {}).get("Value", "")
+                                              for d in got) == n
+    with pytest.raises(ValueError, match="no drone"):
+        rviz_config({"Visualization Manager": {"Displays": [d for d in base["Visualization Manager"]["Displays"]
+                                                            if "Topic" not in d]}}, cfg.drone_names)
+
+
 def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: Path) -> None:
     """``--no-score`` and ``--drones`` reach the graph; the scorer's last report becomes ``live_scores``, complete
     only when it scored every frame of the run (a run no longer than its window); up waits for that report two of

@@ -14,6 +14,7 @@ from typing import Any
 
 import cv2
 import pytest
+import yaml
 from cli_helpers import CliRun
 from ros_helpers import Peer, detection_array_class, fresh_domain_id, node_process, ros_env
 
@@ -300,6 +301,11 @@ def test_two_graphs_in_two_namespaces_share_a_domain_without_crosstalk(tmp_path:
         assert live["frames"] == 3 * cfg.drones and live["complete"] and 0 < live["all"]["mAP50"] <= 1, live
         assert set(live) - {"frames", "complete", "all"} == set(cfg.drone_names), live
         assert set(s["health"]) == {f"{ns}/{n.label}: {n.executable}" for n in graph_spec(cfg)}
+        # the RViz file written for this graph: its own drones' detection images, in its namespace
+        rviz = yaml.safe_load(Path(s["rviz"]).read_text())["Visualization Manager"]["Displays"]
+        images = [t for d in rviz if (t := d.get("Topic", {}).get("Value", "")).endswith("/detections/image")]
+        assert images == [f"/{ns}/{d}/detections/image" for d in cfg.drone_names], images
+        assert f"-r /tf:=/{ns}/tf" in stdout and s["rviz"] in stdout  # the command that opens it
         if ns == "g2":
             assert "steps" not in s and not (tmp_path / ns / "zebra_sim.mcap").exists()
             assert "the scorer node, live over its last 6 frames" in stdout

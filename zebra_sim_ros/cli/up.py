@@ -5,8 +5,9 @@ ready (its topics published, recorded and scored), then starts the placer in loc
 labeller and the detector have both acknowledged it, so no frame is skipped. After the last step it stops the graph
 (recorder last), reads the bag back and prints frames per drone, detection scores against the live ground truth
 (and the scorer node's live figures, the same for a run no longer than its window), throughput and stage times; it
-writes ``summary.json`` and ``preview.jpg`` beside the bag. If a node dies, the rest are stopped and the command
-says which died and why; Ctrl-C stops everything cleanly too.
+writes ``summary.json`` and ``preview.jpg`` beside the bag, and at the start ``zebra_sim.rviz``, the package's RViz
+configuration for this graph's drones and namespace (the command that opens it is printed). If a node dies, the rest
+are stopped and the command says which died and why; Ctrl-C stops everything cleanly too.
 """
 
 from __future__ import annotations
@@ -50,7 +51,8 @@ def register(sub: Any) -> None:
                "weights at 1.7 x the cameras' long side; 1.0: native resolution")
     add_option(p, spec_of(DetectorConfig, "amp"), "--detect-amp")
     add_option(p, spec_of(DetectorConfig, "verifier"))
-    p.add_argument("--out", default="out/up", help="folder for the bag, logs, summary.json and preview.jpg")
+    p.add_argument("--out", default="out/up", help="folder for the bag, logs, summary.json, preview.jpg and "
+                   "zebra_sim.rviz")
     p.add_argument("--config", default="", help="folder of the parameter files (default: the installed config/)")
     p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID for the graph (default: inherited)")
     p.add_argument("--namespace", default="", help="run the whole graph in this namespace (e.g. /g1): every topic "
@@ -74,6 +76,7 @@ class _Stop(Exception):
 
 def cmd_up(args: argparse.Namespace) -> Summary:
     """Run the graph; returns the summary (``exit_code`` 0, 1 when a node died, 130 when interrupted)."""
+    from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_command, write_rviz
     from zebra_sim_ros.graph.spec import config_dir, graph_spec
     from zebra_sim_ros.zebra.asset import load_library
 
@@ -85,13 +88,17 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     scoring = ScorerRun.read(conf, cfg) if cfg.score else None  # a bad scorer.yaml stops here
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
-    for old in (cfg.bag_path, out / "summary.json", out / "preview.jpg"):
+    for old in (cfg.bag_path, out / "summary.json", out / "preview.jpg", out / RVIZ_FILE):
         old.unlink(missing_ok=True)
     env = _graph_environment(conf, args.domain_id)
     load_library()  # build the zebra cache once here, not in every node at the same time
     specs = graph_spec(cfg)
     result: dict[str, Any] = {"out": str(out), "config": str(conf), "frames_asked": cfg.frames, "exit_code": 0,
                               "detect_imgsz": detect_imgsz}
+    rviz = write_rviz(conf, out / RVIZ_FILE, cfg.drone_names, cfg.namespace)  # this graph's drones and namespace
+    if rviz is not None:
+        result["rviz"] = str(rviz)
+        print(f"[up] to watch it: {rviz_command(rviz, cfg.namespace)}", flush=True)
     t_start = time.monotonic()
     _run_graph(cfg, specs, conf, env, args.domain_id, result, t_start, scoring)
     result["wall_s"] = round(time.monotonic() - t_start, 2)
