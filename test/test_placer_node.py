@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 import rclpy
@@ -16,6 +17,8 @@ from ros_helpers import fresh_domain_id, node_process, run_node_once, spin_until
 from std_msgs.msg import Header, String
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
+
+from zebra_sim_ros.nodes.ros_adapter import detection3d_array_type, message_class
 
 pytestmark = pytest.mark.integration
 SMALL = {"count_max": 40, "world": "savanna"}
@@ -43,6 +46,9 @@ class Listener:
             self.node.create_subscription(PoseStamped, f"/{name}/camera/pose",
                                           lambda m, n=name: self.poses[n].append(m), stream)
         self.node.create_subscription(MarkerArray, "/zebra_sim/zebras/markers", self.markers.append, stream)
+        self.animals: list[Any] = []  # Detection3DArray, vision_msgs' or ours
+        self.node.create_subscription(message_class(detection3d_array_type()), "/zebra_sim/zebras",
+                                      self.animals.append, stream)
         self.node.create_subscription(TFMessage, "/tf", self.tf.append, 100)
         self.ack_pub = self.node.create_publisher(Header, "/zebra_sim/frame_done", 100)
 
@@ -86,6 +92,29 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path, 
                 assert pose.pose.position.x == pytest.approx(cam["position"][0])
                 assert pose.pose.orientation.w == pytest.approx(cam["orientation_xyzw"][3])
         assert listener.markers and len(listener.markers[-1].markers) == listener.scenes[-1]["placed"] + 1
+        # the placed animals, typed: one Detection3DArray per step in map, each animal of the scene's JSON with
+        # its species, pose, oriented box and id
+        assert listener.spin_until(lambda: len(listener.animals) >= 5, 10)
+        animals = {(m.header.stamp.sec, m.header.stamp.nanosec): m for m in listener.animals}
+        species = set()
+        for s in listener.scenes:
+            msg = animals[(s["stamp"]["sec"], s["stamp"]["nanosec"])]
+            assert msg.header.frame_id == "map" and len(msg.detections) == len(s["zebras"]) > 0
+            for d, z in zip(msg.detections, s["zebras"], strict=True):
+                hyp = d.results[0]
+                assert d.id == str(z["id"]) and hyp.hypothesis.class_id == z.get("species", "zebra")
+                assert hyp.hypothesis.score == 1.0 and d.header == msg.header
+                p, b = hyp.pose.pose, d.bbox
+                assert [p.position.x, p.position.y, p.position.z] == pytest.approx(z["position"], abs=1e-9)
+                assert [p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] == pytest.approx(
+                    z["orientation_xyzw"], abs=1e-9)
+                assert [b.center.position.x, b.center.position.y, b.center.position.z] == pytest.approx(
+                    z["box"]["center"], abs=1e-9)
+                assert [b.size.x, b.size.y, b.size.z] == pytest.approx(z["box"]["size"], abs=1e-9)
+                assert [b.center.orientation.x, b.center.orientation.y, b.center.orientation.z,
+                        b.center.orientation.w] == pytest.approx(z["box"]["orientation_xyzw"], abs=1e-9)
+                species.add(hyp.hypothesis.class_id)
+        assert "zebra" in species
         # /tf from the first step on: one map -> drone_i/base_link per drone, stamped as the scene.
         tf_stamps = [(m.transforms[0].header.stamp.sec, m.transforms[0].header.stamp.nanosec) for m in listener.tf]
         assert tf_stamps == [(s["stamp"]["sec"], s["stamp"]["nanosec"]) for s in listener.scenes]

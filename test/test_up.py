@@ -168,14 +168,15 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
 
 def _check_time_base_tf_and_typed_detections(bag: Path, steps: int) -> None:
     """The bag, read by rosbags (an independent reader): /clock once per step, /tf with one transform per drone
-    per step (map -> drone_i/base_link) and /tf_static base_link -> camera_optical, typed detections, and every
+    per step (map -> drone_i/base_link) and /tf_static base_link -> camera_optical, typed detections, the placed
+    animals' typed 3D boxes once per step, and every
     message's log time equal to its header stamp, but for /diagnostics: logged at the recorder's (simulated) clock
     whatever clock its reporter stamped it with (the test's own reporter runs on wall time)."""
     from rosbags.highlevel import AnyReader
 
     from zebra_sim_ros.recording.stamps import REPORT_TYPES
 
-    clocks, tf, static, stamped, detections, reports = [], [], [], 0, 0, []
+    clocks, tf, static, stamped, detections, reports, animals = [], [], [], 0, 0, [], []
     reporters: set[str] = set()
     with AnyReader([bag]) as reader:
         for conn, t, raw in reader.messages():
@@ -186,6 +187,9 @@ def _check_time_base_tf_and_typed_detections(bag: Path, steps: int) -> None:
             elif conn.topic in ("/tf", "/tf_static"):
                 assert conn.msgtype == "tf2_msgs/msg/TFMessage"
                 (tf if conn.topic == "/tf" else static).append((t, msg))
+            elif conn.topic == "/zebra_sim/zebras":  # the placed animals, typed, in map
+                assert conn.msgtype.endswith("/msg/Detection3DArray"), conn.msgtype
+                animals.append(msg)
             elif conn.topic.endswith("/detections"):
                 assert conn.msgtype.endswith("/msg/Detection2DArray"), conn.msgtype
                 detections += 1
@@ -214,6 +218,11 @@ def _check_time_base_tf_and_typed_detections(bag: Path, steps: int) -> None:
     links = {(x.header.frame_id, x.child_frame_id) for _, m in static for x in m.transforms}
     assert links == {(f"{d}/base_link", f"{d}/camera_optical") for d in DRONES}
     assert detections == steps * len(DRONES) and stamped > 20
+    assert len(animals) == steps and all(m.header.frame_id == "map" and m.detections for m in animals)
+    zebras = [d for m in animals for d in m.detections if d.results[0].hypothesis.class_id == "zebra"]
+    # longer than wide, and the box's centre above the animal's origin on the ground
+    assert zebras and all(d.bbox.size.x > d.bbox.size.y > 0 and d.bbox.size.z > 0.3 and
+                          d.bbox.center.position.z > d.results[0].pose.pose.position.z for d in zebras)
 
 
 def test_up_stops_everything_and_names_the_node_that_died(tmp_path: Path) -> None:

@@ -26,7 +26,7 @@ DRONES = ("drone_0", "drone_1", "drone_2")  # the default graph's cameras (UpCon
 CAMERA_TOPICS = ("image_raw", "depth", "instances", "camera_info")
 LABELLER_TOPICS = ("labels", "labels/markers", "labels/boxes3d", "labels/boxes2d")
 DETECTOR_TOPICS = ("detections", "detections/image", "detections/markers")
-PLACER_TOPICS = ("zebra_sim/scene", "zebra_sim/zebras/markers")  # and <drone>/camera/pose for each drone
+PLACER_TOPICS = ("zebra_sim/scene", "zebra_sim/zebras", "zebra_sim/zebras/markers")  # and each <drone>/camera/pose
 # By convention absolute (tf2 listeners and every node's time source use them); a namespaced graph remaps them.
 GLOBAL_TOPICS = ("/tf", "/tf_static", "/clock")
 BAG_NAME = "zebra_sim.mcap"

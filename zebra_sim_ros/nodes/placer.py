@@ -5,6 +5,9 @@ the whole graph, except the conventional ``/tf``, ``/tf_static`` and ``/clock``,
 
 - ``zebra_sim/scene`` (std_msgs/String): the scene JSON (schema in ``zebra_sim_ros.placement.scene``);
   reliable, transient local, so a camera that starts late still gets the current step.
+- ``zebra_sim/zebras`` (vision_msgs/Detection3DArray where installed, else zebra_sim_msgs/Detection3DArray, the
+  same fields): every placed animal's species, pose and oriented 3D box, ``id`` its scene id (the typed ground
+  truth in 3D, for trackers and counters).
 - ``zebra_sim/zebras/markers`` (visualization_msgs/MarkerArray): the zebras' oriented 3D boxes.
 - ``drone_{i}/camera/pose`` (geometry_msgs/PoseStamped): pose of ``drone_{i}/camera_optical`` in ``map``.
 - ``/tf`` (tf2_msgs/TFMessage): ``map -> drone_{i}/base_link`` of every drone, each step (REP 105);
@@ -43,10 +46,13 @@ from zebra_sim_ros.nodes.ros_adapter import (
     ACK_TOPIC,
     ZebraNode,
     describe_qos,
+    detection3d_array_type,
     flush,
     help_text,
+    message_class,
     qos,
     run_node,
+    scene_animals_msg,
     stamp,
     stamp_ns,
 )
@@ -57,6 +63,7 @@ from zebra_sim_ros.zebra.asset import load_library
 
 SCENE_TOPIC = "zebra_sim/scene"
 MARKER_TOPIC = "zebra_sim/zebras/markers"
+ANIMALS_TOPIC = "zebra_sim/zebras"
 CLOCK_TOPIC, TF_TOPIC, TF_STATIC_TOPIC = "/clock", "/tf", "/tf_static"
 _MORPH_RGBA = {"plains": (0.95, 0.85, 0.2, 0.5), "grevy": (0.3, 0.7, 1.0, 0.5), "foal": (1.0, 0.4, 0.6, 0.5)}
 
@@ -80,9 +87,12 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         # every step; a best-effort scene would match none of them
         latched = qos("reliable", 1, transient_local=True)
         stream = qos(c.qos_reliability, c.qos_depth)
-        self.get_logger().info(f"QoS {SCENE_TOPIC}: {describe_qos(latched)}; markers and poses: {describe_qos(stream)}")
+        self.get_logger().info(f"QoS {SCENE_TOPIC}: {describe_qos(latched)}; animals, markers and poses: "
+                               f"{describe_qos(stream)}")
         self.scene_pub = self.create_publisher(String, SCENE_TOPIC, latched)
         self.marker_pub = self.create_publisher(MarkerArray, MARKER_TOPIC, stream)
+        self.animals_type = detection3d_array_type()
+        self.animals_pub = self.create_publisher(message_class(self.animals_type), ANIMALS_TOPIC, stream)
         self.pose_pubs = [self.create_publisher(PoseStamped, f"{n}/camera/pose", stream)
                           for n in self.placer.camera_names]
         # Transient local, depth 1: a reader that matches late (a recorder whose /clock reader matched after its /tf
@@ -97,7 +107,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             for n in self.placer.camera_names]))
         # What wait_for_subscribers waits for. /tf too: a recorder that matched the markers but not yet /tf would
         # miss the first step's transforms. /clock is latched instead (above).
-        self.outputs = [self.scene_pub, self.marker_pub, *self.pose_pubs, self.tf_pub]
+        self.outputs = [self.scene_pub, self.animals_pub, self.marker_pub, *self.pose_pubs, self.tf_pub]
         self.step = c.start_step
         self.published = 0
         self.resent = 0  # lockstep steps published again for want of an acknowledgement
@@ -174,6 +184,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             _transform(header, base_frame(cam.name), cam.position, body_orientation(cam.orientation_xyzw))
             for cam in scene.cameras]))
         self.scene_pub.publish(String(data=scene.to_json()))
+        self.animals_pub.publish(scene_animals_msg(self.animals_type, header, scene.zebras))
         self.marker_pub.publish(self._markers(scene, header))
         for pub, cam in zip(self.pose_pubs, scene.cameras, strict=True):
             x, y, z, w = cam.orientation_xyzw

@@ -16,7 +16,7 @@ import numpy as np
 import rclpy
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Point
+from geometry_msgs.msg import Point, Pose, PoseWithCovariance, Quaternion, Vector3
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
@@ -30,7 +30,7 @@ from visualization_msgs.msg import ImageMarker
 
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.health import Activity, Health, HealthMonitor, status_name
-from zebra_sim_ros.messages import Detections, Stamp
+from zebra_sim_ros.messages import Detections, SceneZebra, Stamp
 from zebra_sim_ros.messages import stamp_ns as messages_stamp_ns
 from zebra_sim_ros.params import ROS_BUILTIN_PARAMS, ParamSpec, StageConfig
 
@@ -379,15 +379,49 @@ def run_node(name: str, factory: Callable[[], ZebraNode[Any]], argv: list[str] |
 DETECTION_TYPES = ("vision_msgs/msg/Detection2DArray", "zebra_sim_msgs/msg/Detection2DArray")
 
 
-def detection_array_type() -> str:
-    """The Detection2DArray type this machine can publish (the first of :data:`DETECTION_TYPES` that imports)."""
-    for name in DETECTION_TYPES:
+# The placed animals in 3D: vision_msgs/Detection3DArray where installed; else ours, with the same fields.
+DETECTION3D_TYPES = ("vision_msgs/msg/Detection3DArray", "zebra_sim_msgs/msg/Detection3DArray")
+
+
+def _first_importable(names: Sequence[str]) -> str:
+    for name in names:
         try:
             message_class(name)
             return name
         except (ImportError, AttributeError):
             continue
-    raise ZebraSimError(f"none of {DETECTION_TYPES} can be imported: run scripts/build_interfaces.sh")
+    raise ZebraSimError(f"none of {tuple(names)} can be imported: run scripts/build_interfaces.sh")
+
+
+def detection_array_type() -> str:
+    """The Detection2DArray type this machine can publish (the first of :data:`DETECTION_TYPES` that imports)."""
+    return _first_importable(DETECTION_TYPES)
+
+
+def detection3d_array_type() -> str:
+    """The Detection3DArray type this machine can publish (the first of :data:`DETECTION3D_TYPES` that imports)."""
+    return _first_importable(DETECTION3D_TYPES)
+
+
+def scene_animals_msg(type_name: str, header: Header, animals: Sequence[SceneZebra]) -> Any:
+    """A scene's placed ``animals`` as a Detection3DArray of ``type_name`` in ``header``'s frame (the scene's
+    ``map``): per animal one hypothesis, its species (``zebra``, ``elephant`` ...) with score 1 and the animal's own
+    pose (its origin on the ground, its heading), its oriented box (centre pose and size: length, width, height in
+    m) and ``id`` the scene's id (the instance masks' id - 1); the header on the array and on each detection."""
+    pkg = type_name.split("/")[0]
+    msg = importlib.import_module(f"{pkg}.msg")
+    out = []
+    for z in animals:
+        c, size, (bx, by, bz, bw) = z.box.center, z.box.size, z.box.orientation_xyzw
+        (px, py, pz), (qx, qy, qz, qw) = z.position, z.orientation_xyzw
+        pose = PoseWithCovariance(pose=Pose(position=Point(x=px, y=py, z=pz),
+                                            orientation=Quaternion(x=qx, y=qy, z=qz, w=qw)))
+        hyp = msg.ObjectHypothesisWithPose(hypothesis=msg.ObjectHypothesis(class_id=z.species, score=1.0), pose=pose)
+        box = msg.BoundingBox3D(center=Pose(position=Point(x=c[0], y=c[1], z=c[2]),
+                                            orientation=Quaternion(x=bx, y=by, z=bz, w=bw)),
+                                size=Vector3(x=size[0], y=size[1], z=size[2]))
+        out.append(msg.Detection3D(header=header, results=[hyp], bbox=box, id=str(z.id)))
+    return msg.Detection3DArray(header=header, detections=out)
 
 
 def detection_array_msg(type_name: str, header: Header, dets: Detections, ids: Sequence[int] = ()) -> Any:

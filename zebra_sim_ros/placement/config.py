@@ -150,19 +150,19 @@ class PlacerConfig(StageConfig):
         allowed="a non-empty list of names", check=names_list)
     lockstep_timeout_s: float = param(30.0, "warn and re-publish when a step is not acknowledged within this", "s",
                                       lo=0.1, hi=3600.0)
-    wait_for_subscribers: int = param(0, "publish the first step only when each output topic (scene, markers, "
-                                      "camera poses, /tf) has at least this many subscribers, e.g. 1 so a recorder "
-                                      "misses nothing (0: start at once)", lo=0, hi=1000)
+    wait_for_subscribers: int = param(0, "publish the first step only when each output topic (scene, animals, "
+                                      "markers, camera poses, /tf) has at least this many subscribers, e.g. 1 so a "
+                                      "recorder misses nothing (0: start at once)", lo=0, hi=1000)
     wait_for_nodes: tuple[str, ...] = param(
         ("",), "publish the first step only when each of these nodes subscribes to every output topic (scene, "
-        "markers, camera poses, /tf), e.g. [recorder], so that another subscriber (RViz) cannot start the run "
-        "early; a name without a leading / is in the placer's namespace ([''] (empty): none)",
+        "animals, markers, camera poses, /tf), e.g. [recorder], so that another subscriber (RViz) cannot start the "
+        "run early; a name without a leading / is in the placer's namespace ([''] (empty): none)",
         allowed="[''] or a list of node names", check=_node_names)
     max_steps: int = param(0, "stop after this many steps (0: never)", lo=0, hi=2**31)
     start_step: int = param(0, "first step index (to resume or reproduce a step alone)", lo=0, hi=2**31)
     qos_depth: int = param(10, "history depth of the published topics", lo=1, hi=1000)
-    qos_reliability: str = reliability_param("QoS reliability of the markers and poses (the scene, /clock and /tf "
-                                             "are always reliable)")
+    qos_reliability: str = reliability_param("QoS reliability of the animals' 3D boxes, the markers and the poses "
+                                             "(the scene, /clock and /tf are always reliable)")
     diagnostics_period_s: float = diagnostics_param()
 
     def check(self) -> None:
