@@ -14,9 +14,15 @@ holds the first step for it, so a scorer that subscribes late scores the steps f
 Topic names are relative: wrap this launch file in a group with ``PushRosNamespace`` to move the whole graph (and
 remap ``/tf``, ``/tf_static`` and ``/clock`` into it, as ``zebra-sim up --namespace`` does). The placer is the
 clock (``/clock``, the simulated time of each step); every other node runs with ``use_sim_time``.
+
+``rviz:=true`` also starts RViz (a desktop install's rviz2) on the package's view drawn for ``drones`` cameras, as
+``zebra-sim up`` writes it; its topics are the graph's without a namespace (a graph moved into one needs up's view,
+``up --namespace``, or RViz's own remaps).
 """
 
 import os
+import tempfile
+from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory
 from launch.actions import DeclareLaunchArgument, OpaqueFunction, SetEnvironmentVariable
@@ -28,8 +34,10 @@ from launch_ros.parameter_descriptions import ParameterValue
 from launch import LaunchDescription
 
 # up's own rules (light: numpy and OpenCV, no rclpy, no torch): the camera cap, what the bag may hold of the images
-# and the recorder's exclude_regex for it, and the environment every node gets (OpenMP threads that sleep when idle)
+# and the recorder's exclude_regex for it, the environment every node gets (OpenMP threads that sleep when idle),
+# and the RViz view drawn for the drones
 from zebra_sim_ros.geometry.camera import MAX_CAMERAS
+from zebra_sim_ros.graph.rviz import RVIZ_FILE, write_rviz
 from zebra_sim_ros.graph.spec import BAG_IMAGES, NODE_ENVIRONMENT, PACKAGE, recorder_excludes
 
 
@@ -56,6 +64,8 @@ def generate_launch_description():
         DeclareLaunchArgument("score", default_value="true", description="start the scorer node (the detector's "
                               "figures live on /diagnostics; as zebra-sim up without --no-score)"),
         DeclareLaunchArgument("bag", default_value="out/up/zebra_sim.mcap", description="bag to record"),
+        DeclareLaunchArgument("rviz", default_value="false", description="also start RViz (rviz2: a ROS 2 desktop "
+                              "install) on the package's view drawn for these drones, as zebra-sim up writes it"),
         DeclareLaunchArgument("bag_images", default_value="raw", description="the cameras' images in the bag: raw, "
                               "or jpeg or png (image_raw/compressed instead; as zebra-sim up --bag-images)"),
     ]
@@ -78,6 +88,16 @@ def generate_launch_description():
         # raw: the parameter files' settings; jpeg, png: the cameras' compressed images recorded, not the raw ones
         compressed = {} if bag_images == "raw" else {"compressed": bag_images}
         excludes = {} if bag_images == "raw" else {"exclude_regex": recorder_excludes(config, bag_images)}
+        rviz = LaunchConfiguration("rviz").perform(context).lower()
+        if rviz not in ("true", "false"):
+            raise ValueError(f"rviz:={rviz}: want true or false")
+        viewer = []
+        if rviz == "true":  # the package's view, one detection image per drone, in a folder of its own
+            view = write_rviz(config, Path(tempfile.mkdtemp(prefix="zebra_sim_rviz_")) / RVIZ_FILE, drones)
+            if view is None:
+                raise ValueError(f"rviz:=true: no {RVIZ_FILE} in {config}")
+            viewer = [Node(package="rviz2", executable="rviz2", name="rviz", output="screen",
+                           arguments=["-d", str(view)], parameters=[{"use_sim_time": True}])]
         cameras = [
             Node(package=PACKAGE, executable="camera", name=f"{d}_camera", namespace="", output="screen",
                  parameters=[file("camera.yaml"), {"drone_index": i, "width": arg("width", int),
@@ -107,7 +127,7 @@ def generate_launch_description():
                      "lockstep_ack_from": ["labeller", "detector"], "lockstep_timeout_s": 120.0,
                      "camera_width": arg("width", int), "camera_height": arg("height", int),
                      "wait_for_subscribers": 1, "wait_for_nodes": ["recorder"]}]),
-        ]
+        ] + viewer
 
     # Our Fast DDS profile (100 ms heartbeat: large images that lost a fragment arrive in 0.1 s, not 3 s),
     # as zebra-sim up sets it, unless a profile file is already chosen.

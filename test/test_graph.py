@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import textwrap
 import time
 import types
@@ -14,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 
 from zebra_sim_ros.cli.up import _graph_environment
 from zebra_sim_ros.errors import ParameterError
@@ -252,6 +255,23 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
     assert "compressed" not in raw["camera"] and "exclude_regex" not in raw["recorder"]
     with pytest.raises(ValueError, match="bag_images:=gif"):
         _launch(monkeypatch, tmp_path / "share", bag_images="gif")
+    # rviz:=true adds RViz on the package's view drawn for the drones (here five), nothing else changes
+    assert not [n for n in rec.nodes if n["package"] == "rviz2"] and rec.args["rviz"] == "false"
+    with pytest.raises(ValueError, match=f"no zebra_sim.rviz in {tmp_path / 'share' / 'config'}"):
+        _launch(monkeypatch, tmp_path / "share", rviz="true")
+    (tmp_path / "share" / "config").mkdir(parents=True)
+    shutil.copy(REPO / "config" / "zebra_sim.rviz", tmp_path / "share" / "config")
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # the view's folder, made by the launch file
+    viewed = _launch(monkeypatch, tmp_path / "share", rviz="true", drones="5")
+    (viewer,) = [n for n in viewed.nodes if n["package"] == "rviz2"]
+    assert [(n["executable"], n["name"]) for n in viewed.nodes if n is not viewer] == [(s.executable, s.name)
+                                                                                      for s in up5]
+    assert viewer["arguments"][0] == "-d" and viewer["parameters"] == [{"use_sim_time": True}]
+    view = yaml.safe_load(Path(viewer["arguments"][1]).read_text())["Visualization Manager"]["Displays"]
+    assert [t for d in view if (t := d.get("Topic", {}).get("Value", "")).endswith("/detections/image")] == [
+        f"/drone_{i}/detections/image" for i in range(5)]
+    with pytest.raises(ValueError, match="rviz:=maybe"):
+        _launch(monkeypatch, tmp_path / "share", rviz="maybe")
     with pytest.raises(ParameterError, match="--bag-images"):
         UpConfig(bag_images="gif").check()
     # the scorer, and only it, may be left out: score:=false as up --no-score, on by default in both
