@@ -93,9 +93,9 @@ def generate_launch_description():
             raise ValueError(f"rviz:={rviz}: want true or false")
         viewer = []
         if rviz == "true":  # the package's view, one detection image per drone, in a folder of its own
-            view = write_rviz(config, Path(tempfile.mkdtemp(prefix="zebra_sim_rviz_")) / RVIZ_FILE, drones)
-            if view is None:
+            if not os.path.isfile(file(RVIZ_FILE)):
                 raise ValueError(f"rviz:=true: no {RVIZ_FILE} in {config}")
+            view = write_rviz(config, Path(tempfile.mkdtemp(prefix="zebra_sim_rviz_")) / RVIZ_FILE, drones)
             viewer = [Node(package="rviz2", executable="rviz2", name="rviz", output="screen",
                            arguments=["-d", str(view)], parameters=[{"use_sim_time": True}])]
         cameras = [

@@ -257,11 +257,13 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
         _launch(monkeypatch, tmp_path / "share", bag_images="gif")
     # rviz:=true adds RViz on the package's view drawn for the drones (here five), nothing else changes
     assert not [n for n in rec.nodes if n["package"] == "rviz2"] and rec.args["rviz"] == "false"
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))  # the view's folder, made by the launch file
+    (tmp_path / "tmp").mkdir()
     with pytest.raises(ValueError, match=f"no zebra_sim.rviz in {tmp_path / 'share' / 'config'}"):
         _launch(monkeypatch, tmp_path / "share", rviz="true")
+    assert not list((tmp_path / "tmp").iterdir())  # refused before anything is written
     (tmp_path / "share" / "config").mkdir(parents=True)
     shutil.copy(REPO / "config" / "zebra_sim.rviz", tmp_path / "share" / "config")
-    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # the view's folder, made by the launch file
     viewed = _launch(monkeypatch, tmp_path / "share", rviz="true", drones="5")
     (viewer,) = [n for n in viewed.nodes if n["package"] == "rviz2"]
     assert [(n["executable"], n["name"]) for n in viewed.nodes if n is not viewer] == [(s.executable, s.name)
