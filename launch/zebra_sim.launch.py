@@ -15,18 +15,17 @@ Topic names are relative: wrap this launch file in a group with ``PushRosNamespa
 remap ``/tf``, ``/tf_static`` and ``/clock`` into it, as ``zebra-sim up --namespace`` does). The placer is the
 clock (``/clock``, the simulated time of each step); every other node runs with ``use_sim_time``.
 
-``rviz:=true`` also starts RViz (a desktop install's rviz2) on the package's view drawn for ``drones`` cameras, as
-``zebra-sim up`` writes it; its topics are the graph's without a namespace (a graph moved into one needs up's view,
-``up --namespace``, or RViz's own remaps).
+``rviz:=true`` also starts RViz (a desktop install's rviz2) on the package's view drawn for ``drones`` cameras,
+written beside the bag (``zebra_sim.rviz``) as ``zebra-sim up`` writes it; its topics are the graph's without a
+namespace (a graph moved into one needs up's view, ``up --namespace``, or RViz's own remaps).
 """
 
 import os
-import tempfile
 from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory
 from launch.actions import DeclareLaunchArgument, OpaqueFunction, SetEnvironmentVariable
-from launch.conditions import IfCondition
+from launch.conditions import IfCondition, evaluate_condition_expression
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
@@ -37,7 +36,7 @@ from launch import LaunchDescription
 # and the recorder's exclude_regex for it, the environment every node gets (OpenMP threads that sleep when idle),
 # and the RViz view drawn for the drones
 from zebra_sim_ros.geometry.camera import MAX_CAMERAS
-from zebra_sim_ros.graph.rviz import RVIZ_FILE, write_rviz
+from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_view, write_rviz
 from zebra_sim_ros.graph.spec import BAG_IMAGES, NODE_ENVIRONMENT, PACKAGE, recorder_excludes
 
 
@@ -88,16 +87,15 @@ def generate_launch_description():
         # raw: the parameter files' settings; jpeg, png: the cameras' compressed images recorded, not the raw ones
         compressed = {} if bag_images == "raw" else {"compressed": bag_images}
         excludes = {} if bag_images == "raw" else {"exclude_regex": recorder_excludes(config, bag_images)}
-        rviz = LaunchConfiguration("rviz").perform(context).lower()
-        if rviz not in ("true", "false"):
-            raise ValueError(f"rviz:={rviz}: want true or false")
         viewer = []
-        if rviz == "true":  # the package's view, one detection image per drone, in a folder of its own
-            if not os.path.isfile(file(RVIZ_FILE)):
+        if evaluate_condition_expression(context, [LaunchConfiguration("rviz")]):  # true, 1, false, 0, as score
+            # the package's view, one detection image per drone, written beside the bag as up writes it
+            view = rviz_view(config, drones)
+            if view is None:
                 raise ValueError(f"rviz:=true: no {RVIZ_FILE} in {config}")
-            view = write_rviz(config, Path(tempfile.mkdtemp(prefix="zebra_sim_rviz_")) / RVIZ_FILE, drones)
+            path = write_rviz(view, Path(LaunchConfiguration("bag").perform(context)).parent / RVIZ_FILE)
             viewer = [Node(package="rviz2", executable="rviz2", name="rviz", output="screen",
-                           arguments=["-d", str(view)], parameters=[{"use_sim_time": True}])]
+                           arguments=["-d", str(path.resolve())], parameters=[{"use_sim_time": True}])]
         cameras = [
             Node(package=PACKAGE, executable="camera", name=f"{d}_camera", namespace="", output="screen",
                  parameters=[file("camera.yaml"), {"drone_index": i, "width": arg("width", int),

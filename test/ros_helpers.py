@@ -57,11 +57,14 @@ def run_node_once(executable: str, params: dict[str, Any], domain: int | None = 
 def node_process(module: str, params: dict[str, Any], domain: int, log: Path,
                  ns: str | None = None, name: str | None = None) -> Iterator[subprocess.Popen[bytes]]:
     """Run ``python -m zebra_sim_ros.nodes.<module>`` with parameters (and a namespace, a node name); always killed
-    at the end."""
+    at the end, and by the parent-death signal when the test process itself is killed outright."""
+    from zebra_sim_ros.graph.supervisor import child_setup
+
     args = param_args(params) + (["-r", f"__ns:={ns}"] if ns else []) + (["-r", f"__node:={name}"] if name else [])
     with open(log, "wb") as out:
         proc = subprocess.Popen([sys.executable, "-m", f"zebra_sim_ros.nodes.{module}", *args],
-                                env=ros_env(domain), stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
+                                env=ros_env(domain), stdout=out, stderr=subprocess.STDOUT, start_new_session=True,
+                                preexec_fn=child_setup)
         try:
             yield proc
         finally:

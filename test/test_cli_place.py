@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 from cli_helpers import CliRun
@@ -51,3 +53,21 @@ def test_a_closed_pipe_ends_quietly_and_options_are_never_abbreviated(cli: CliRu
     assert proc.wait(timeout=120) == 141 and "Traceback" not in err and "BrokenPipe" not in err, err
     bad = cli(["place", "--step", "2"])
     assert bad.returncode == 2 and "unrecognized arguments: --step 2" in bad.stderr, bad.stderr
+
+
+def test_sigusr1_prints_the_stacks_and_the_command_goes_on() -> None:
+    """``kill -USR1``: every thread's Python stack on stderr (where a run is), and the command carries on."""
+    proc = subprocess.Popen([sys.executable, "-m", "zebra_sim_ros.cli", "place", "--seed", "1", "--steps", "100000"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        first = proc.stdout.readline()  # a scene written: the handler is in place, the loop is running
+        assert json.loads(first)["step"] == 0
+        proc.send_signal(signal.SIGUSR1)
+        time.sleep(1.0)
+        more = proc.stdout.readline()
+        assert proc.poll() is None and json.loads(more)["step"] >= 1  # still going
+    finally:
+        proc.kill()
+        _, err = proc.communicate(timeout=30)
+    assert "most recent call first" in err and "zebra_sim_ros/cli/place.py" in err, err[-2000:]

@@ -8,7 +8,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import tempfile
 import textwrap
 import time
 import types
@@ -165,6 +164,13 @@ class _Recorder:
             def __init__(self, predicate: Any) -> None:
                 self.predicate = predicate
 
+        def evaluate_condition_expression(context: Any, expression: list[Any]) -> bool:
+            """launch's rule: true or 1, false or 0, any case, spaces around ignored; anything else refused."""
+            text = "".join(e.perform(context) for e in expression).strip().lower()
+            if text not in ("true", "1", "false", "0"):
+                raise ValueError(f"invalid condition expression {text!r}: want true, 1, false or 0")
+            return text in ("true", "1")
+
         class ParameterValue:
             def __init__(self, value: Any, value_type: type = str) -> None:
                 self.value, self.value_type = value, value_type
@@ -175,7 +181,8 @@ class _Recorder:
             "launch.actions": {"DeclareLaunchArgument": DeclareLaunchArgument, "OpaqueFunction": OpaqueFunction,
                                "SetEnvironmentVariable": SetEnvironmentVariable},
             "launch.substitutions": {"LaunchConfiguration": LaunchConfiguration},
-            "launch.conditions": {"IfCondition": IfCondition},
+            "launch.conditions": {"IfCondition": IfCondition,
+                                  "evaluate_condition_expression": evaluate_condition_expression},
             "launch_ros": {}, "launch_ros.actions": {"Node": Node},
             "launch_ros.parameter_descriptions": {"ParameterValue": ParameterValue},
             "ament_index_python": {},
@@ -255,24 +262,27 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
     assert "compressed" not in raw["camera"] and "exclude_regex" not in raw["recorder"]
     with pytest.raises(ValueError, match="bag_images:=gif"):
         _launch(monkeypatch, tmp_path / "share", bag_images="gif")
-    # rviz:=true adds RViz on the package's view drawn for the drones (here five), nothing else changes
+    # rviz:=true adds RViz on the package's view drawn for the drones (here five), written beside the bag; nothing
+    # else changes
     assert not [n for n in rec.nodes if n["package"] == "rviz2"] and rec.args["rviz"] == "false"
-    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))  # the view's folder, made by the launch file
-    (tmp_path / "tmp").mkdir()
+    bag = tmp_path / "run" / "zebra_sim.mcap"
     with pytest.raises(ValueError, match=f"no zebra_sim.rviz in {tmp_path / 'share' / 'config'}"):
-        _launch(monkeypatch, tmp_path / "share", rviz="true")
-    assert not list((tmp_path / "tmp").iterdir())  # refused before anything is written
+        _launch(monkeypatch, tmp_path / "share", rviz="true", bag=str(bag))
+    assert not bag.parent.exists()  # refused before anything is written
     (tmp_path / "share" / "config").mkdir(parents=True)
     shutil.copy(REPO / "config" / "zebra_sim.rviz", tmp_path / "share" / "config")
-    viewed = _launch(monkeypatch, tmp_path / "share", rviz="true", drones="5")
-    (viewer,) = [n for n in viewed.nodes if n["package"] == "rviz2"]
-    assert [(n["executable"], n["name"]) for n in viewed.nodes if n is not viewer] == [(s.executable, s.name)
-                                                                                      for s in up5]
-    assert viewer["arguments"][0] == "-d" and viewer["parameters"] == [{"use_sim_time": True}]
-    view = yaml.safe_load(Path(viewer["arguments"][1]).read_text())["Visualization Manager"]["Displays"]
+    for flag in ("true", "1", " True"):  # launch's own spellings of true, as score:= takes them
+        viewed = _launch(monkeypatch, tmp_path / "share", rviz=flag, drones="5", bag=str(bag))
+        (viewer,) = [n for n in viewed.nodes if n["package"] == "rviz2"]
+        assert [(n["executable"], n["name"]) for n in viewed.nodes if n is not viewer] == [
+            (s.executable, s.name) for s in up5]
+        assert viewer["arguments"] == ["-d", str(bag.parent / "zebra_sim.rviz")]
+        assert viewer["parameters"] == [{"use_sim_time": True}]
+    view = yaml.safe_load((bag.parent / "zebra_sim.rviz").read_text())["Visualization Manager"]["Displays"]
     assert [t for d in view if (t := d.get("Topic", {}).get("Value", "")).endswith("/detections/image")] == [
         f"/drone_{i}/detections/image" for i in range(5)]
-    with pytest.raises(ValueError, match="rviz:=maybe"):
+    assert not [n for n in _launch(monkeypatch, tmp_path / "share", rviz="0").nodes if n["package"] == "rviz2"]
+    with pytest.raises(ValueError, match="'maybe'"):
         _launch(monkeypatch, tmp_path / "share", rviz="maybe")
     with pytest.raises(ParameterError, match="--bag-images"):
         UpConfig(bag_images="gif").check()
@@ -510,19 +520,22 @@ def test_the_rviz_config_shows_topics_the_graph_publishes_in_its_fixed_frame() -
 def test_the_rviz_config_is_drawn_again_for_each_graphs_drones_and_namespace(tmp_path: Path) -> None:
     """``up`` writes the package's RViz file for its own graph: a detection image per camera (five here), drone_0's
     other displays and the world's kept, every topic in the namespace and published by that graph with the QoS the
-    file asked; the default graph gets the package file's displays back, in its order. The command remaps RViz's
-    TF and clock into the namespace."""
-    import yaml
+    file asked; the default graph gets the package file's displays back, in its order. Displays of two classes on
+    one topic are both drawn per drone; relative and empty topics, a display with no topic, a file with no drone's
+    display are handled; a file that is not an RViz configuration is refused by name. The command remaps RViz's TF
+    and clock into the namespace, its path quoted for a shell."""
+    import shlex
 
-    from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_command, rviz_config, write_rviz
+    from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_command, rviz_config, rviz_view, write_rviz
     from zebra_sim_ros.graph.spec import GLOBAL_TOPICS
 
     base = yaml.safe_load((REPO / "config" / RVIZ_FILE).read_text())
-    same = rviz_config(base, UpConfig().drone_names)
-    assert same == base  # the file is drawn for the default graph
+    assert rviz_config(base, UpConfig().drone_names) == base  # the file is drawn for the default graph
     cfg = UpConfig(drones=5, namespace="/g1")
-    path = write_rviz(REPO / "config", tmp_path / RVIZ_FILE, cfg.drone_names, cfg.namespace)
-    assert path == tmp_path / RVIZ_FILE
+    view = rviz_view(REPO / "config", cfg.drone_names, cfg.namespace)
+    assert view is not None
+    path = write_rviz(view, tmp_path / "new" / RVIZ_FILE)
+    assert path == tmp_path / "new" / RVIZ_FILE
     displays = yaml.safe_load(path.read_text())["Visualization Manager"]["Displays"]
     topics = [d["Topic"]["Value"] for d in displays if "Topic" in d]
     published = {t for s in graph_spec(cfg) for t in s.publishes}
@@ -535,24 +548,55 @@ def test_the_rviz_config_is_drawn_again_for_each_graphs_drones_and_namespace(tmp
     assert by_topic["/g1/drone_4/detections/image"]["Enabled"] and not by_topic["/g1/drone_0/image_raw"]["Enabled"]
     assert [d["Class"] for d in displays][:2] == ["rviz_default_plugins/Grid", "rviz_default_plugins/TF"]
     assert yaml.safe_load(path.read_text())["Visualization Manager"]["Global Options"]["Fixed Frame"] == "map"
-    assert write_rviz(tmp_path / "no_rviz_here", tmp_path / "x.rviz", cfg.drone_names) is None
+    assert rviz_view(tmp_path / "no_rviz_here", cfg.drone_names) is None
     assert rviz_command(path, "/g1").endswith(" ".join(f"-r {t}:=/g1{t}" for t in GLOBAL_TOPICS))
     assert rviz_command(path) == f"rviz2 -d {path} --ros-args -p use_sim_time:=true"
+    spaced = tmp_path / "my run" / RVIZ_FILE
+    assert shlex.split(rviz_command(spaced))[:3] == ["rviz2", "-d", str(spaced)]
     one = rviz_config(base, UpConfig(drones=1).drone_names)["Visualization Manager"]["Displays"]
     assert [d["Topic"]["Value"] for d in one if "Topic" in d and "detections" in d["Topic"]["Value"]] == [
         "/drone_0/detections/image"]
+
+    def with_displays(*extra: dict[str, Any]) -> dict[str, Any]:
+        return {**base, "Visualization Manager": {**base["Visualization Manager"], "Displays": [
+            *base["Visualization Manager"]["Displays"], *extra]}}
+
+    def drawn(config: dict[str, Any], drones: int, namespace: str = "") -> list[dict[str, Any]]:
+        return rviz_config(config, UpConfig(drones=drones).drone_names, namespace)["Visualization Manager"][
+            "Displays"]
+
     # a display of one drone alone (here drone_2's depth, added) stays where the graph has that drone
-    extra = {"Class": "rviz_default_plugins/Image", "Name": "drone_2 depth", "Enabled": False,
+    depth = {"Class": "rviz_default_plugins/Image", "Name": "drone_2 depth", "Enabled": False,
              "Topic": {"Value": "/drone_2/depth"}}
-    with_depth = {**base, "Visualization Manager": {**base["Visualization Manager"], "Displays": [
-        *base["Visualization Manager"]["Displays"], extra]}}
     for n, kept in ((3, True), (5, True), (2, False)):
-        got = rviz_config(with_depth, UpConfig(drones=n).drone_names)["Visualization Manager"]["Displays"]
-        assert (extra in got) == kept and sum("/detections/image" in d.get("Topic", {}).get("Value", "")
+        got = drawn(with_displays(depth), n)
+        assert (depth in got) == kept and sum("/detections/image" in d.get("Topic", {}).get("Value", "")
                                               for d in got) == n
-    with pytest.raises(ValueError, match="no drone"):
-        rviz_config({"Visualization Manager": {"Displays": [d for d in base["Visualization Manager"]["Displays"]
-                                                            if "Topic" not in d]}}, cfg.drone_names)
+    # a second class on the same topics (a Camera display beside each Image display): both drawn for each drone
+    cameras = [{"Class": "rviz_default_plugins/Camera", "Name": f"drone_{i} camera view",
+                "Topic": {"Value": f"/drone_{i}/detections/image"}} for i in range(3)]
+    got = drawn(with_displays(*cameras), 4)
+    assert [d["Topic"]["Value"] for d in got if d["Class"] == "rviz_default_plugins/Camera"] == [
+        f"/drone_{i}/detections/image" for i in range(4)]
+    assert sum(d["Class"] == "rviz_default_plugins/Image" and "detections" in d["Topic"]["Value"] for d in got) == 4
+    # relative and empty topics, and a display with a Topic but no Value, under a namespace
+    odd = [{"Class": "rviz_default_plugins/MarkerArray", "Name": "relative", "Topic": {"Value": "zebra_sim/zebras"}},
+           {"Class": "rviz_default_plugins/MarkerArray", "Name": "empty", "Topic": {"Value": ""}},
+           {"Class": "rviz_default_plugins/MarkerArray", "Name": "none", "Topic": {"Depth": 5}}]
+    got = {d["Name"]: d["Topic"] for d in drawn(with_displays(*odd), 3, "/g1") if d["Name"] in ("relative", "empty",
+                                                                                                 "none")}
+    assert got == {"relative": {"Value": "/g1/zebra_sim/zebras"}, "empty": {"Value": ""}, "none": {"Depth": 5}}
+    # no drone's display at all: the world's displays, namespaced
+    world = {**base, "Visualization Manager": {**base["Visualization Manager"], "Displays": [
+        d for d in base["Visualization Manager"]["Displays"] if not d.get("Topic", {}).get("Value", "").startswith(
+            "/drone_")]}}
+    assert [d["Topic"]["Value"] for d in drawn(world, 2, "/g1") if "Topic" in d] == ["/g1/zebra_sim/zebras/markers"]
+    # not an RViz configuration: refused, the file named
+    (tmp_path / "bad").mkdir()
+    for text in ("Panels: []\n", "Visualization Manager: [1, 2\n"):
+        (tmp_path / "bad" / RVIZ_FILE).write_text(text)
+        with pytest.raises(ValueError, match=str(tmp_path / "bad" / RVIZ_FILE)):
+            rviz_view(tmp_path / "bad", cfg.drone_names)
 
 
 def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: Path) -> None:
@@ -585,7 +629,7 @@ def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: P
     # a bad value in the scorer's file is refused by name, as the node would refuse it (up reads it before any
     # node starts)
     (conf / "scorer.yaml").write_text(text.replace("window: 300", "window: 0"))
-    with pytest.raises(ParameterError, match="window"):
+    with pytest.raises(ParameterError, match=re.escape(f"{conf / 'scorer.yaml'}: window")):
         up.ScorerRun.read(conf, UpConfig())
     (conf / "scorer.yaml").write_text(text)
     # a config folder whose recorder leaves out the depth images: up waits for the rest only, and with jpeg in the

@@ -75,7 +75,8 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path, 
     try:
         # Poses, markers and /tf are volatile: the placer waits until this listener is matched on each, else the
         # first steps may go out before discovery (CI: 5 steps published, fewer received).
-        params = dict(SMALL, mode="rate", rate_hz=4.0, max_steps=5, seed=9, wait_for_subscribers=1)
+        params = dict(SMALL, mode="rate", rate_hz=4.0, max_steps=5, seed=9, wait_for_subscribers=1,
+                      other_animals_max=6)  # other species too, in the typed 3D boxes by their own names
         with node_process("placer", params, domain, tmp_path / "placer.log") as proc:
             assert listener.spin_until(lambda: len(listener.scenes) >= 5 and len(listener.tf) >= 5 and
                                        all(len(p) >= 5 for p in listener.poses.values()), 60), \
@@ -114,14 +115,15 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path, 
                 assert [b.center.orientation.x, b.center.orientation.y, b.center.orientation.z,
                         b.center.orientation.w] == pytest.approx(z["box"]["orientation_xyzw"], abs=1e-9)
                 species.add(hyp.hypothesis.class_id)
-        assert "zebra" in species
+        assert "zebra" in species and len(species) > 1, species
         # /tf from the first step on: one map -> drone_i/base_link per drone, stamped as the scene.
         tf_stamps = [(m.transforms[0].header.stamp.sec, m.transforms[0].header.stamp.nanosec) for m in listener.tf]
         assert tf_stamps == [(s["stamp"]["sec"], s["stamp"]["nanosec"]) for s in listener.scenes]
         assert all(sorted(t.child_frame_id for t in m.transforms) == [f"drone_{i}/base_link" for i in range(3)]
                    for m in listener.tf)
         # The node's scenes are exactly the command line's (same parameters, no ROS).
-        placed = cli(["place", "--steps", "2", "--set", "count_max=40", "--set", "rate_hz=4.0", "--seed", "9"])
+        placed = cli(["place", "--steps", "2", "--set", "count_max=40", "--set", "rate_hz=4.0", "--set",
+                      "other_animals_max=6", "--seed", "9"])
         assert placed.returncode == 0, placed.stderr
         assert [json.loads(line) for line in placed.stdout.splitlines()[:2]] == listener.scenes[:2]
     finally:
@@ -178,13 +180,20 @@ def test_a_best_effort_placer_still_sends_its_scene_reliable(domain: int, tmp_pa
     try:
         params = dict(SMALL, mode="rate", rate_hz=4.0, max_steps=3, seed=9, wait_for_subscribers=1,
                       qos_reliability="best_effort")
+        offered: list[ReliabilityPolicy] = []  # the animals' boxes as the placer offers them, seen while it runs
+
+        def seen() -> bool:
+            if not offered:
+                offered.extend(i.qos_profile.reliability
+                               for i in listener.node.get_publishers_info_by_topic("/zebra_sim/zebras"))
+            return len(listener.scenes) >= 3 and all(listener.poses.values()) and bool(listener.animals)
         with node_process("placer", params, domain, tmp_path / "placer.log") as proc:
-            assert listener.spin_until(lambda: len(listener.scenes) >= 3 and all(listener.poses.values()), 60), \
-                (tmp_path / "placer.log").read_text()
+            assert listener.spin_until(seen, 60), (tmp_path / "placer.log").read_text()
             assert proc.wait(timeout=20) == 0
         log = (tmp_path / "placer.log").read_text()
         assert "zebra_sim/scene: reliability=reliable" in log, log[-1500:]
-        assert "markers and poses: reliability=best_effort" in log, log[-1500:]
+        assert "animals, markers and poses: reliability=best_effort" in log, log[-1500:]
+        assert offered == [ReliabilityPolicy.BEST_EFFORT]  # the animals' boxes follow qos_reliability too
         assert [s["step"] for s in listener.scenes] == [0, 1, 2]
     finally:
         listener.close()
@@ -201,7 +210,9 @@ def test_the_first_step_waits_for_the_named_node_not_for_any_subscriber(domain: 
         with node_process("placer", params, domain, tmp_path / "placer.log") as proc:
             assert not bystander.spin_until(lambda: bool(bystander.scenes or bystander.tf), 8.0), \
                 "the placer started with only a bystander subscribed"
-            assert "late_recorder" in (tmp_path / "placer.log").read_text()  # it says what it waits for
+            # it says what it waits for: the node, and the outputs it has not subscribed yet
+            assert "waiting for /late_recorder to subscribe to ['/zebra_sim/scene', '/zebra_sim/zebras'" in (
+                tmp_path / "placer.log").read_text()
             recorder = Listener(domain, "late_recorder")
             assert recorder.spin_until(lambda: len(recorder.scenes) >= 3 and len(recorder.tf) >= 3 and
                                        len(recorder.markers) >= 3 and

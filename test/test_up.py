@@ -297,7 +297,16 @@ def test_two_graphs_in_two_namespaces_share_a_domain_without_crosstalk(tmp_path:
                                   env=ros_env(domain), text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
              for k, ns in enumerate(("g1", "g2"))}
     try:
-        outs = {ns: p.communicate(timeout=600) for ns, p in procs.items()}
+        outs = {}
+        for ns, p in procs.items():
+            try:
+                outs[ns] = p.communicate(timeout=300)
+            except subprocess.TimeoutExpired:  # where it is stuck: its threads' stacks (SIGUSR1), then its output
+                p.send_signal(signal.SIGUSR1)
+                time.sleep(2)
+                p.kill()
+                stdout, stderr = p.communicate()
+                pytest.fail(f"up in /{ns} did not end in 300 s:\n{stdout[-3000:]}\n{stderr[-6000:]}")
     finally:
         for p in procs.values():
             if p.poll() is None:

@@ -8,8 +8,10 @@ a summary may carry its own ``exit_code`` (``up``: 1 when a node died, 130 when 
 from __future__ import annotations
 
 import argparse
+import faulthandler
 import json
 import os
+import signal
 import sys
 from collections.abc import Sequence
 from typing import Any
@@ -53,7 +55,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``zebra-sim`` console script; returns the exit status. A reader that closes the pipe
-    early (``zebra-sim bag info x.mcap | head``) ends it quietly, as Unix tools do."""
+    early (``zebra-sim bag info x.mcap | head``) ends it quietly, as Unix tools do. ``kill -USR1 <pid>`` prints
+    every thread's Python stack on stderr and lets the command go on (where is a long or stuck run)."""
+    faulthandler.register(signal.SIGUSR1, all_threads=True, chain=False)
     try:
         return _main(argv)
     except BrokenPipeError:

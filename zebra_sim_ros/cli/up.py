@@ -76,7 +76,7 @@ class _Stop(Exception):
 
 def cmd_up(args: argparse.Namespace) -> Summary:
     """Run the graph; returns the summary (``exit_code`` 0, 1 when a node died, 130 when interrupted)."""
-    from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_command, write_rviz
+    from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_command, rviz_view, write_rviz
     from zebra_sim_ros.graph.spec import config_dir, graph_spec
     from zebra_sim_ros.zebra.asset import load_library
 
@@ -86,6 +86,11 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     detect_imgsz = cfg.detect_imgsz  # reads the checkpoint's serving rule: an unreadable file stops here
     conf = config_dir(cfg.config_dir)
     scoring = ScorerRun.read(conf, cfg) if cfg.score else None  # a bad scorer.yaml stops here
+    try:  # the package's RViz view drawn for this graph's drones and namespace; a view that cannot be is no reason
+        view = rviz_view(conf, cfg.drone_names, cfg.namespace)  # to stop the run
+    except ValueError as exc:
+        view = None
+        print(f"[up] warning: no RViz view for this graph ({exc})", flush=True)
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
     for old in (cfg.bag_path, out / "summary.json", out / "preview.jpg", out / RVIZ_FILE):
@@ -95,10 +100,12 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     specs = graph_spec(cfg)
     result: dict[str, Any] = {"out": str(out), "config": str(conf), "frames_asked": cfg.frames, "exit_code": 0,
                               "detect_imgsz": detect_imgsz}
-    rviz = write_rviz(conf, out / RVIZ_FILE, cfg.drone_names, cfg.namespace)  # this graph's drones and namespace
-    if rviz is not None:
-        result["rviz"] = str(rviz)
-        print(f"[up] to watch it: {rviz_command(rviz, cfg.namespace)}", flush=True)
+    if view is not None:
+        try:
+            result["rviz"] = str(write_rviz(view, out / RVIZ_FILE))
+            print(f"[up] to watch it: {rviz_command(out / RVIZ_FILE, cfg.namespace)}", flush=True)
+        except OSError as exc:  # a full disk: the run goes on without its view
+            print(f"[up] warning: cannot write {out / RVIZ_FILE}: {exc.strerror or exc}", flush=True)
     t_start = time.monotonic()
     _run_graph(cfg, specs, conf, env, args.domain_id, result, t_start, scoring)
     result["wall_s"] = round(time.monotonic() - t_start, 2)
@@ -300,8 +307,13 @@ class ScorerRun:
         from zebra_sim_ros.detection.config import ScorerConfig
         from zebra_sim_ros.params import load_params_file
 
-        sc = ScorerConfig.from_params({**load_params_file(str(conf / "scorer.yaml"), "scorer"),
-                                       "drones": list(cfg.drone_names)})
+        path = conf / "scorer.yaml"
+        try:
+            sc = ScorerConfig.from_params({**load_params_file(str(path), "scorer"), "drones": list(cfg.drone_names)})
+        except ParameterError as exc:  # named by its file: qos_depth, diagnostics_period_s are in every node's
+            if exc.name == "params_file":
+                raise
+            raise ParameterError(f"{path}: {exc.name}", exc.value, exc.allowed) from None
         return ScorerRun(sc.window, sc.diagnostics_period_s, len(sc.drones))
 
     def expected(self, steps: int) -> int:

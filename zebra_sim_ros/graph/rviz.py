@@ -2,18 +2,21 @@
 namespace) rewritten for the graph's cameras and namespace, so that ``rviz2 -d`` shows every drone of a ``zebra-sim up
 --drones N --namespace /g1`` run.
 
-The package file's displays are of three kinds, told apart by their topics: the world's (no drone in the topic: the
-grid, TF, the placed zebras), those drawn for every drone (a topic of each of drone_0, drone_1 and drone_2: the
-detection images), and those drawn for the first drone only (drone_0's labelled 3D boxes and raw image, off until
-ticked). The world's and the first drone's are kept, the every-drone ones are drawn again from drone_0's for each
-camera, and every topic is moved into the namespace. RViz's TF display and its clock read ``/tf``, ``/tf_static`` and
-``/clock``, which a namespaced graph remaps: :func:`rviz_command` says how to start RViz on them.
+The file's displays are of three kinds, told apart by their topics: the world's (no drone in the topic: the grid,
+TF, the placed zebras), those drawn for every drone (the same class and topic, less the drone, for each drone the
+file shows: the detection images), and those of one drone only (drone_0's labelled 3D boxes and raw image, off until
+ticked). The world's are kept; an every-drone display is drawn once per camera of the graph where its first copy
+stood; a one-drone display is kept where the graph has that drone; every topic is moved into the namespace (a
+relative one too). Displays inside a group (``rviz_common/Group``) are kept as they are. RViz's TF display and its
+clock read ``/tf``, ``/tf_static`` and ``/clock``, which a namespaced graph remaps: :func:`rviz_command` says how to
+start RViz on them.
 """
 
 from __future__ import annotations
 
 import copy
 import re
+import shlex
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -24,66 +27,92 @@ RVIZ_FILE = "zebra_sim.rviz"  # in the config folder, installed as share/zebra_s
 _DRONE = re.compile(r"^/drone_(\d+)/")
 
 
+def _topic(display: dict[str, Any]) -> str:
+    """The topic a display shows ("" when it has none)."""
+    topic = display.get("Topic")
+    value = topic.get("Value", "") if isinstance(topic, dict) else ""
+    return value if isinstance(value, str) else ""
+
+
 def _drone_of(display: dict[str, Any]) -> int | None:
     """The drone whose topic a display shows (``/drone_2/...``: 2), or None for the world's displays."""
-    topic = display.get("Topic", {}).get("Value", "")
-    m = _DRONE.match(topic) if isinstance(topic, str) else None
+    m = _DRONE.match(_topic(display))
     return int(m.group(1)) if m else None
+
+
+def _kind(display: dict[str, Any]) -> tuple[str, str, str]:
+    """What a display of a drone shows whichever drone it is: its class, its topic and its name less the drone."""
+    k = _drone_of(display)
+    return (str(display.get("Class", "")), _DRONE.sub("/", _topic(display)),
+            str(display.get("Name", "")).replace(f"drone_{k}", "drone_*"))
 
 
 def rviz_config(base: dict[str, Any], drones: Sequence[str], namespace: str = "") -> dict[str, Any]:
     """``base`` (the package file, parsed) for a graph of ``drones`` (``drone_0``, ``drone_1`` ...) in ``namespace``
     ("" or ``/g1``): each every-drone display drawn once per camera, in drone order, where the file's first copy
     stood (the others dropped); a display of one drone kept where the graph has that drone; the rest in the file's
-    order; every topic moved into the namespace. ``base`` is left as it is."""
-    out = copy.deepcopy(base)
-    displays: list[dict[str, Any]] = out["Visualization Manager"]["Displays"]
+    order; every topic moved into the namespace. ``base`` is left as it is; ValueError when it is not an RViz
+    configuration (no ``Visualization Manager`` with a list of ``Displays``)."""
+    manager = base.get("Visualization Manager") if isinstance(base, dict) else None
+    displays = manager.get("Displays") if isinstance(manager, dict) else None
+    if not isinstance(displays, list) or not all(isinstance(d, dict) for d in displays):
+        raise ValueError("not an RViz configuration: no 'Visualization Manager' with a list of 'Displays'")
     shown = {_drone_of(d) for d in displays} - {None}
-    if not shown:
-        raise ValueError("the RViz file shows no drone's topic (/drone_N/...): nothing to draw for each camera")
-    # the displays whose topic (less the drone) every drone the file shows has: drawn for each camera
-    suffix = {id(d): _DRONE.sub("/", d["Topic"]["Value"]) for d in displays if _drone_of(d) is not None}
-    per_drone_suffixes = {s for s in suffix.values()
-                          if all(any(_drone_of(d) == k and suffix[id(d)] == s for d in displays) for k in shown)}
+    # the kinds every drone the file shows has: drawn for each camera
+    every = {_kind(d) for d in displays if _drone_of(d) is not None}
+    every = {k for k in every if all(any(_drone_of(d) == n and _kind(d) == k for d in displays) for n in shown)}
     new: list[dict[str, Any]] = []
-    drawn: set[str] = set()
-    for d in displays:  # in the file's order; an every-drone display becomes one per camera where its first stood
-        k = _drone_of(d)
-        if k is None:
+    drawn: set[tuple[str, str, str]] = set()
+    for d in displays:
+        n = _drone_of(d)
+        if n is None:
             new.append(copy.deepcopy(d))
-        elif suffix[id(d)] not in per_drone_suffixes:
-            if k < len(drones):  # one drone's own display, kept where this graph has that drone
+        elif _kind(d) not in every:
+            if n < len(drones):  # one drone's own display, kept where this graph has that drone
                 new.append(copy.deepcopy(d))
-        elif suffix[id(d)] not in drawn:
-            drawn.add(suffix[id(d)])
+        elif _kind(d) not in drawn:
+            drawn.add(_kind(d))
             for name in drones:
                 c = copy.deepcopy(d)
-                c["Name"] = str(c.get("Name", "")).replace(f"drone_{k}", name)
-                c["Topic"]["Value"] = f"/{name}{suffix[id(d)]}"
+                c["Name"] = str(c.get("Name", "")).replace(f"drone_{n}", name)
+                c["Topic"]["Value"] = _DRONE.sub(f"/{name}/", _topic(d))
                 new.append(c)
     if namespace:
         for d in new:
-            if "Topic" in d:
-                d["Topic"]["Value"] = f"{namespace}{d['Topic']['Value']}"
+            topic = _topic(d)
+            if topic:
+                d["Topic"]["Value"] = f"{namespace}{topic}" if topic.startswith("/") else f"{namespace}/{topic}"
+    out = copy.deepcopy(base)
     out["Visualization Manager"]["Displays"] = new
     return out
 
 
-def write_rviz(config: Path, dest: Path, drones: Sequence[str], namespace: str = "") -> Path | None:
-    """Write :func:`rviz_config` of ``config``/zebra_sim.rviz to ``dest``; None (nothing written) when the config
-    folder has no RViz file."""
+def rviz_view(config: Path, drones: Sequence[str], namespace: str = "") -> dict[str, Any] | None:
+    """:func:`rviz_config` of ``config``/zebra_sim.rviz; None when the config folder has none. ValueError naming the
+    file when it cannot be read or is not an RViz configuration."""
     import yaml
 
     src = Path(config) / RVIZ_FILE
     if not src.is_file():
         return None
-    base = yaml.safe_load(src.read_text())
-    dest.write_text(yaml.safe_dump(rviz_config(base, drones, namespace), sort_keys=False))
+    try:
+        return rviz_config(yaml.safe_load(src.read_text()), drones, namespace)
+    except (OSError, UnicodeDecodeError, yaml.YAMLError, ValueError) as exc:
+        raise ValueError(f"{src}: {exc}") from exc
+
+
+def write_rviz(view: dict[str, Any], dest: Path) -> Path:
+    """Write a view (:func:`rviz_view`) to ``dest`` (its folder made if needed)."""
+    import yaml
+
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    dest.write_text(yaml.safe_dump(view, sort_keys=False))
     return dest
 
 
 def rviz_command(path: Path, namespace: str = "") -> str:
     """The command line that starts RViz on ``path`` for a graph in ``namespace``: on the graph's simulated time,
-    with its ``/tf``, ``/tf_static`` and ``/clock`` remapped into the namespace when it has one."""
+    with its ``/tf``, ``/tf_static`` and ``/clock`` remapped into the namespace when it has one (a shell's quoting,
+    an absolute path)."""
     remaps = "".join(f" -r {t}:={namespace}{t}" for t in GLOBAL_TOPICS) if namespace else ""
-    return f"rviz2 -d {path} --ros-args -p use_sim_time:=true{remaps}"
+    return f"rviz2 -d {shlex.quote(str(Path(path).resolve()))} --ros-args -p use_sim_time:=true{remaps}"

@@ -23,7 +23,9 @@ from zebra_sim_ros.graph.spec import NodeSpec
 _PR_SET_PDEATHSIG = 1
 
 
-def _child_setup() -> None:  # runs in the child between fork and exec
+def child_setup() -> None:
+    """``preexec_fn`` of a node process (runs in the child between fork and exec): SIGINT and SIGTERM at their
+    defaults, and SIGTERM when its parent dies, so that no node outlives the process that started it."""
     # SIGINT is how the supervisor asks a node to finish; a supervisor started as a background job of a
     # non-interactive shell inherits SIGINT ignored, and an ignored disposition would survive exec.
     signal.signal(signal.SIGINT, signal.SIG_DFL)
@@ -80,7 +82,7 @@ class Supervisor:
         path = self.logs / (spec.label.replace("/", "_") + ".log")
         log = open(path, "wb")  # noqa: SIM115 (closed in stop())
         proc = subprocess.Popen(list(args), env=self.env, stdout=log, stderr=subprocess.STDOUT,
-                                stdin=subprocess.DEVNULL, start_new_session=True, preexec_fn=_child_setup)
+                                stdin=subprocess.DEVNULL, start_new_session=True, preexec_fn=child_setup)
         child = Child(spec, proc, path, log, expected_exit)
         self.children.append(child)
         return child

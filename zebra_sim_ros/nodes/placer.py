@@ -142,11 +142,10 @@ class PlacerNode(ZebraNode[PlacerConfig]):
     def _first_step_wait(self) -> str:
         """What the first step still waits for: subscribers on which outputs, which named nodes."""
         short = [p.topic_name for p in self.outputs if p.get_subscription_count() < self.cfg.wait_for_subscribers]
-        wanted = set(self.wait_nodes)
-        absent = sorted(set().union(*(wanted - self._subscribers(p.topic_name) for p in self.outputs))
-                        if wanted else ())
-        parts = ([f"{self.cfg.wait_for_subscribers} subscribers on {short}"] if short else []) + (
-            [f"{absent} to subscribe to every output"] if absent else [])
+        readers = {p.topic_name: self._subscribers(p.topic_name) for p in self.outputs} if self.wait_nodes else {}
+        lacking = {n: [t for t, subs in readers.items() if n not in subs] for n in self.wait_nodes}
+        parts = ([f"{self.cfg.wait_for_subscribers} subscribers on {short}"] if short else []) + [
+            f"{n} to subscribe to {topics}" for n, topics in sorted(lacking.items()) if topics]
         return "waiting for " + " and for ".join(parts) if parts else ""
 
     def _subscribed(self) -> bool:

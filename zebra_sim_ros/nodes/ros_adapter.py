@@ -406,7 +406,7 @@ def detection3d_array_type() -> str:
 def scene_animals_msg(type_name: str, header: Header, animals: Sequence[SceneZebra]) -> Any:
     """A scene's placed ``animals`` as a Detection3DArray of ``type_name`` in ``header``'s frame (the scene's
     ``map``): per animal one hypothesis, its species (``zebra``, ``elephant`` ...) with score 1 and the animal's own
-    pose (its origin on the ground, its heading), its oriented box (centre pose and size: length, width, height in
+    pose (its origin on the ground, its orientation), its oriented box (centre pose and size: length, width, height in
     m) and ``id`` the scene's id (the instance masks' id - 1); the header on the array and on each detection."""
     pkg = type_name.split("/")[0]
     msg = importlib.import_module(f"{pkg}.msg")
