@@ -53,7 +53,7 @@ def main() -> None:
     for others in args.others:
         placer = Placer(PlacerConfig(seed=5, other_animals_max=others), world, library)
         for step in range(args.steps):
-            scene = placer.scene(step)
+            scene = placer.scene(step * placer.cfg.camera_rerolls)  # a new placement each (a step is a reroll)
             header = Header(frame_id="map")
             typed = _median_s(lambda s=scene, h=header: serialize_message(scene_animals_msg(type_name, h, s.zebras)),
                               args.repeats)

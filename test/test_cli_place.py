@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -71,3 +72,7 @@ def test_sigusr1_prints_the_stacks_and_the_command_goes_on() -> None:
         proc.kill()
         _, err = proc.communicate(timeout=30)
     assert "most recent call first" in err and "zebra_sim_ros/cli/place.py" in err, err[-2000:]
+    # a zebra-sim started with its stderr closed runs all the same
+    closed = subprocess.run([sys.executable, "-m", "zebra_sim_ros.cli", "world", "list"], stdout=subprocess.PIPE,
+                            stderr=subprocess.DEVNULL, text=True, timeout=60, preexec_fn=lambda: os.close(2))
+    assert closed.returncode == 0 and "savanna" in closed.stdout

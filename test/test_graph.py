@@ -565,6 +565,10 @@ def test_the_rviz_config_is_drawn_again_for_each_graphs_drones_and_namespace(tmp
         return rviz_config(config, UpConfig(drones=drones).drone_names, namespace)["Visualization Manager"][
             "Displays"]
 
+    def drawn_names(config: dict[str, Any], drones: int) -> list[tuple[str, str]]:
+        return [(d["Name"], d["Topic"]["Value"]) for d in drawn(config, drones)
+                if d.get("Topic", {}).get("Value", "").endswith("/depth")]
+
     # a display of one drone alone (here drone_2's depth, added) stays where the graph has that drone
     depth = {"Class": "rviz_default_plugins/Image", "Name": "drone_2 depth", "Enabled": False,
              "Topic": {"Value": "/drone_2/depth"}}
@@ -591,6 +595,21 @@ def test_the_rviz_config_is_drawn_again_for_each_graphs_drones_and_namespace(tmp
         d for d in base["Visualization Manager"]["Displays"] if not d.get("Topic", {}).get("Value", "").startswith(
             "/drone_")]}}
     assert [d["Topic"]["Value"] for d in drawn(world, 2, "/g1") if "Topic" in d] == ["/g1/zebra_sim/zebras/markers"]
+    # names that do not follow drone_N, relative drone topics: still one per camera; a name naming two drones keeps
+    # the other; displays inside a group are moved into the namespace
+    free = [{"Class": "rviz_default_plugins/Image", "Name": name, "Topic": {"Value": f"drone_{i}/depth"}}
+            for i, name in enumerate(("Camera zero", "drone_1 (beside drone_12)", "depth of drone_2"))]
+    group = {"Class": "rviz_common/Group", "Name": "group", "Displays": [
+        {"Class": "rviz_default_plugins/Image", "Name": "in a group", "Topic": {"Value": "/drone_0/image_raw"}}]}
+    got = drawn(with_displays(*free, group), 4, "/g1")
+    depths = [(d["Name"], d["Topic"]["Value"]) for d in got if d.get("Topic", {}).get("Value", "").endswith("/depth")]
+    assert [t for _, t in depths] == [f"/g1/drone_{i}/depth" for i in range(4)]
+    assert depths[0][0] == "Camera zero"  # the first copy's name, no drone in it to change
+    grouped = next(d for d in got if d["Name"] == "group")["Displays"]
+    assert grouped[0]["Topic"]["Value"] == "/g1/drone_0/image_raw"
+    named = [n for n, _ in drawn_names(with_displays(*[{**f, "Name": f"drone_{i} (beside drone_12)"}
+                                                       for i, f in enumerate(free)]), 2)]
+    assert named == ["drone_0 (beside drone_12)", "drone_1 (beside drone_12)"]
     # not an RViz configuration: refused, the file named
     (tmp_path / "bad").mkdir()
     for text in ("Panels: []\n", "Visualization Manager: [1, 2\n"):

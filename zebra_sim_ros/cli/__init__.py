@@ -57,10 +57,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``zebra-sim`` console script; returns the exit status. A reader that closes the pipe
     early (``zebra-sim bag info x.mcap | head``) ends it quietly, as Unix tools do. ``kill -USR1 <pid>`` prints
     every thread's Python stack on stderr and lets the command go on (where is a long or stuck run)."""
-    try:
-        faulthandler.register(signal.SIGUSR1, all_threads=True, chain=False)
-    except (ValueError, OSError, AttributeError):  # a stderr without a file descriptor (called in-process, captured)
-        pass
+    if sys.__stderr__ is not None:  # the process's own stderr, not a capture of it (the CLI called in-process)
+        try:
+            faulthandler.register(signal.SIGUSR1, file=sys.__stderr__, all_threads=True, chain=False)
+        except (ValueError, OSError, RuntimeError):  # no file descriptor behind it
+            pass
     try:
         return _main(argv)
     except BrokenPipeError:

@@ -6,10 +6,11 @@ The file's displays are of three kinds, told apart by their topics: the world's 
 TF, the placed zebras), those drawn for every drone (the same class and topic, less the drone, for each drone the
 file shows: the detection images), and those of one drone only (drone_0's labelled 3D boxes and raw image, off until
 ticked). The world's are kept; an every-drone display is drawn once per camera of the graph where its first copy
-stood; a one-drone display is kept where the graph has that drone; every topic is moved into the namespace (a
-relative one too). Displays inside a group (``rviz_common/Group``) are kept as they are. RViz's TF display and its
-clock read ``/tf``, ``/tf_static`` and ``/clock``, which a namespaced graph remaps: :func:`rviz_command` says how to
-start RViz on them.
+stood (its name's ``drone_N`` made the camera's); a one-drone display is kept where the graph has that drone; every
+topic is moved into the namespace, a relative one too (``drone_0/...`` counts as drone 0's). Displays inside a group
+(``rviz_common/Group``) are moved into the namespace but not drawn per drone. RViz's TF display and its clock read
+``/tf``, ``/tf_static`` and ``/clock``, which a namespaced graph remaps: :func:`rviz_command` says how to start RViz
+on them.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from typing import Any
 from zebra_sim_ros.graph.spec import GLOBAL_TOPICS
 
 RVIZ_FILE = "zebra_sim.rviz"  # in the config folder, installed as share/zebra_sim_ros/config/zebra_sim.rviz
-_DRONE = re.compile(r"^/drone_(\d+)/")
+_DRONE = re.compile(r"^(/?)drone_(\d+)/")
 
 
 def _topic(display: dict[str, Any]) -> str:
@@ -37,14 +38,23 @@ def _topic(display: dict[str, Any]) -> str:
 def _drone_of(display: dict[str, Any]) -> int | None:
     """The drone whose topic a display shows (``/drone_2/...``: 2), or None for the world's displays."""
     m = _DRONE.match(_topic(display))
-    return int(m.group(1)) if m else None
+    return int(m.group(2)) if m else None
 
 
-def _kind(display: dict[str, Any]) -> tuple[str, str, str]:
-    """What a display of a drone shows whichever drone it is: its class, its topic and its name less the drone."""
-    k = _drone_of(display)
-    return (str(display.get("Class", "")), _DRONE.sub("/", _topic(display)),
-            str(display.get("Name", "")).replace(f"drone_{k}", "drone_*"))
+def _kind(display: dict[str, Any]) -> tuple[str, str]:
+    """What a display of a drone shows whichever drone it is: its class and its topic less the drone."""
+    return str(display.get("Class", "")), _DRONE.sub(r"\1drone_*/", _topic(display))
+
+
+def _namespaced(displays: list[dict[str, Any]], namespace: str) -> None:
+    """Every topic of ``displays`` (those inside groups too) moved into ``namespace``, in place."""
+    for d in displays:
+        topic = _topic(d)
+        if topic:
+            d["Topic"]["Value"] = f"{namespace}{topic}" if topic.startswith("/") else f"{namespace}/{topic}"
+        inner = d.get("Displays")
+        if isinstance(inner, list):
+            _namespaced([x for x in inner if isinstance(x, dict)], namespace)
 
 
 def rviz_config(base: dict[str, Any], drones: Sequence[str], namespace: str = "") -> dict[str, Any]:
@@ -62,7 +72,7 @@ def rviz_config(base: dict[str, Any], drones: Sequence[str], namespace: str = ""
     every = {_kind(d) for d in displays if _drone_of(d) is not None}
     every = {k for k in every if all(any(_drone_of(d) == n and _kind(d) == k for d in displays) for n in shown)}
     new: list[dict[str, Any]] = []
-    drawn: set[tuple[str, str, str]] = set()
+    drawn: set[tuple[str, str]] = set()
     for d in displays:
         n = _drone_of(d)
         if n is None:
@@ -74,14 +84,11 @@ def rviz_config(base: dict[str, Any], drones: Sequence[str], namespace: str = ""
             drawn.add(_kind(d))
             for name in drones:
                 c = copy.deepcopy(d)
-                c["Name"] = str(c.get("Name", "")).replace(f"drone_{n}", name)
-                c["Topic"]["Value"] = _DRONE.sub(f"/{name}/", _topic(d))
+                c["Name"] = re.sub(rf"\bdrone_{n}\b", name, str(c.get("Name", "")))
+                c["Topic"]["Value"] = _DRONE.sub(rf"\g<1>{name}/", _topic(d))
                 new.append(c)
     if namespace:
-        for d in new:
-            topic = _topic(d)
-            if topic:
-                d["Topic"]["Value"] = f"{namespace}{topic}" if topic.startswith("/") else f"{namespace}/{topic}"
+        _namespaced(new, namespace)
     out = copy.deepcopy(base)
     out["Visualization Manager"]["Displays"] = new
     return out
