@@ -650,6 +650,11 @@ def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: P
     (conf / "scorer.yaml").write_text(text.replace("window: 300", "window: 0"))
     with pytest.raises(ParameterError, match=re.escape(f"{conf / 'scorer.yaml'}: window")):
         up.ScorerRun.read(conf, UpConfig())
+    # another graph's section is not this graph's: /g2's bad window stops /g2 only, as its node would refuse it
+    (conf / "scorer.yaml").write_text(text + "/g2/scorer:\n  ros__parameters:\n    window: 0\n")
+    assert up.ScorerRun.read(conf, UpConfig(namespace="/g1")).window == 300
+    with pytest.raises(ParameterError, match="window"):
+        up.ScorerRun.read(conf, UpConfig(namespace="/g2"))
     (conf / "scorer.yaml").write_text(text)
     # a config folder whose recorder leaves out the depth images: up waits for the rest only, and with jpeg in the
     # bag the recorder leaves out both the raw images and what its file says

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import re
+import textwrap
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
@@ -20,6 +21,7 @@ from zebra_sim_ros.params import (
     config_yaml,
     declaration,
     load_params_file,
+    node_pattern,
     param,
     write_config,
     yaml_header,
@@ -50,6 +52,51 @@ def test_written_config_reads_back_as_the_defaults_and_keeps_its_header(tmp_path
         values = load_params_file(str(tmp_path / f"{executable}.yaml"), executable)
         assert values == {s.name: s.default for s in specs}
         assert all(type(values[s.name]) is type(s.default) for s in specs), executable  # 1.0 stays a float
+
+
+def test_a_parameter_files_sections_apply_to_a_node_as_ros_applies_them(tmp_path: Path) -> None:
+    """Sections are matched against the node's fully qualified name (``/**`` and ``/**/name`` everywhere, ``*`` one
+    namespace, a key without a leading slash in the root namespace only, another namespace's section never), every
+    matching one in file order, the later overriding: what rclpy itself gives a node of that name for the file."""
+    import rclpy
+    from ros_helpers import fresh_domain_id
+
+    (tmp_path / "scorer.yaml").write_text(textwrap.dedent("""\
+        /g1/scorer:
+          ros__parameters: {window: 11, qos_depth: 7}
+        /**:
+          ros__parameters: {window: 1, qos_depth: 1, diagnostics_period_s: 2.0}
+        /g2/scorer:
+          ros__parameters: {window: 0}
+        /**/scorer:
+          ros__parameters: {window: 3, qos_depth: 3}
+        /g1/*:
+          ros__parameters: {qos_depth: 4}
+        scorer:
+          ros__parameters: {window: 2}
+        /g1/labeller:
+          ros__parameters: {window: 99}
+        """))
+    path = str(tmp_path / "scorer.yaml")
+    expected = {"/g1/scorer": {"window": 3, "qos_depth": 4, "diagnostics_period_s": 2.0},
+                "/scorer": {"window": 2, "qos_depth": 3, "diagnostics_period_s": 2.0},
+                "/g3/deep/scorer": {"window": 3, "qos_depth": 3, "diagnostics_period_s": 2.0},
+                "/g1/recorder": {"window": 1, "qos_depth": 4, "diagnostics_period_s": 2.0}}
+    for fqn, want in expected.items():
+        assert load_params_file(path, fqn) == want, fqn
+        ns, name = fqn.rsplit("/", 1)
+        ctx = rclpy.Context()
+        rclpy.init(args=["--ros-args", "--params-file", path, "-r", f"__ns:={ns or '/'}"], context=ctx,
+                   domain_id=fresh_domain_id())
+        try:
+            node = rclpy.create_node(name, context=ctx, automatically_declare_parameters_from_overrides=True)
+            ros = {k: node.get_parameter(k).value for k in want}
+            node.destroy_node()
+        finally:
+            rclpy.shutdown(context=ctx)
+        assert ros == want, (fqn, ros)  # rclpy's own reading of the same file
+    assert load_params_file(path, "scorer") == expected["/scorer"]  # no leading slash: the root namespace
+    assert node_pattern("/**").fullmatch("/a/b/c") and not node_pattern("/g1/*").fullmatch("/g1/a/b")
 
 
 def test_every_number_has_its_range_as_data_and_validation_keeps_to_it() -> None:

@@ -307,12 +307,21 @@ def add_option(parser: argparse.ArgumentParser, spec: ParamSpec, flag: str = "",
                         help=text.replace("%", "%%"))
 
 
-def load_params_file(path: str, node_name: str) -> dict[str, Any]:
-    """Parameters for ``node_name`` from a ROS 2 YAML file (``/**:`` or ``<node>:`` with ``ros__parameters``).
+def node_pattern(key: str) -> re.Pattern[str]:
+    """A parameter file's node key as ROS 2 matches it against a node's fully qualified name: a leading ``/`` added
+    where it has none, ``*`` one name, ``**`` any number of names (``/**`` every node, ``/**/scorer`` a scorer in
+    any namespace)."""
+    parts = str(key).strip("/").split("/")
+    regex = "".join("(?:/[^/]+)*" if t == "**" else "/[^/]+" if t == "*" else "/" + re.escape(t) for t in parts)
+    return re.compile(regex)
 
-    Entries under ``/**`` apply to every node; a section named after the node (with or without a leading
-    slash or namespace) overrides them, as ``ros2 run ... --params-file`` does.
-    """
+
+def load_params_file(path: str, node_name: str) -> dict[str, Any]:
+    """Parameters for the node ``node_name`` from a ROS 2 YAML file (sections of ``ros__parameters`` under node
+    keys), as ``ros2 run ... --params-file`` gives them to it: ``node_name`` is its fully qualified name
+    (``/g1/scorer``; a name without a leading slash is in the root namespace); every section whose key matches it
+    (:func:`node_pattern`) applies, in file order, a later one overriding an earlier one (rclpy's own overrides
+    for the same file and name: a test compares the two)."""
     import yaml
 
     try:
@@ -324,11 +333,10 @@ def load_params_file(path: str, node_name: str) -> dict[str, Any]:
         raise ParameterError("params_file", path, f"valid YAML ({exc})") from exc
     if not isinstance(doc, dict):
         raise ParameterError("params_file", path, "a mapping of node names to ros__parameters")
+    fqn = node_name if node_name.startswith("/") else f"/{node_name}"
     out: dict[str, Any] = {}
-    for key in sorted(doc, key=lambda k: k != "/**"):  # wildcard first, specific sections override
-        section = doc[key]
-        name = str(key).rsplit("/", 1)[-1]
-        if key == "/**" or name == node_name:
+    for key, section in doc.items():  # file order: a later section overrides an earlier one, as in ROS
+        if node_pattern(key).fullmatch(fqn):
             params = section.get("ros__parameters", {}) if isinstance(section, dict) else {}
             out.update(params or {})
     return out

@@ -309,7 +309,8 @@ class ScorerRun:
 
         path = conf / "scorer.yaml"
         try:
-            sc = ScorerConfig.from_params({**load_params_file(str(path), "scorer"), "drones": list(cfg.drone_names)})
+            sc = ScorerConfig.from_params({**load_params_file(str(path), f"{cfg.namespace}/scorer"),
+                                           "drones": list(cfg.drone_names)})
         except ParameterError as exc:  # named by its file: qos_depth, diagnostics_period_s are in every node's
             if exc.name == "params_file":
                 raise

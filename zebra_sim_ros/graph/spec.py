@@ -37,15 +37,15 @@ BAG_IMAGES = ("raw", "jpeg", "png")
 BAG_RAW_IMAGES = r"/drone_\d+/(?:image_raw|detections/image)$"  # what the recorder leaves out then (exclude_regex)
 
 
-def recorder_excludes(config: Path, bag_images: str) -> str:
-    """The recorder's ``exclude_regex`` in a graph whose bag holds ``bag_images``: its own (``config``/recorder.yaml's,
-    the node's default where the file or the entry is missing) with raw, and also the cameras' raw images and the
-    detector's annotated copies (:data:`BAG_RAW_IMAGES`) with jpeg or png. ``zebra-sim up`` and the launch file both
-    ask here."""
+def recorder_excludes(config: Path, bag_images: str, node: str = "/recorder") -> str:
+    """The recorder's ``exclude_regex`` in a graph whose bag holds ``bag_images``: its own (``config``/recorder.yaml's
+    for the recorder ``node``, its fully qualified name; the node's default where the file or the entry is missing)
+    with raw, and also the cameras' raw images and the detector's annotated copies (:data:`BAG_RAW_IMAGES`) with
+    jpeg or png. ``zebra-sim up`` and the launch file both ask here."""
     path = Path(config) / "recorder.yaml"
     base = RecorderConfig().exclude_regex
     if path.is_file():
-        base = str(load_params_file(str(path), "recorder").get("exclude_regex", base))
+        base = str(load_params_file(str(path), node).get("exclude_regex", base))
     if bag_images == "raw":
         return base
     return f"(?:{base})|{BAG_RAW_IMAGES}" if base else BAG_RAW_IMAGES
@@ -232,7 +232,8 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
         nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml", {"drones": list(drones), **sim}, (), remaps,
                               tuple(f"{ns}/{d}/{t}" for d in drones for t in ("labels", "detections"))))
     if cfg.record:
-        excludes = recorder_excludes(config_dir(cfg.config_dir), cfg.bag_images)  # up waits for the rest
+        # what the recorder leaves out (up waits for the rest)
+        excludes = recorder_excludes(config_dir(cfg.config_dir), cfg.bag_images, f"{ns}/recorder")
         rec = {"output": str(cfg.bag_path.resolve()), **sim}
         if cfg.bag_images != "raw":
             rec["exclude_regex"] = excludes
