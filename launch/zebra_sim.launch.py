@@ -86,7 +86,10 @@ def generate_launch_description():
             raise ValueError(f"bag_images:={bag_images}: want one of {', '.join(BAG_IMAGES)}")
         # raw: the parameter files' settings; jpeg, png: the cameras' compressed images recorded, not the raw ones
         compressed = {} if bag_images == "raw" else {"compressed": bag_images}
-        excludes = {} if bag_images == "raw" else {"exclude_regex": recorder_excludes(config, bag_images)}
+        # the recorder's own sections of its file: in the namespace a PushRosNamespace around this file gives it
+        ns = "/" + str(context.launch_configurations.get("ros_namespace", "")).strip("/")
+        recorder = f"{ns.rstrip('/')}/recorder"
+        excludes = {} if bag_images == "raw" else {"exclude_regex": recorder_excludes(config, bag_images, recorder)}
         viewer = []
         if evaluate_condition_expression(context, [LaunchConfiguration("rviz")]):  # true, 1, false, 0, as score
             # the package's view, one detection image per drone, written beside the bag as up writes it

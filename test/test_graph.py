@@ -20,6 +20,7 @@ import yaml
 from zebra_sim_ros.cli.up import _graph_environment
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.graph.spec import (
+    BAG_RAW_IMAGES,
     DDS_PROFILE,
     DRONES,
     NODE_ENVIRONMENT,
@@ -284,6 +285,14 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
     assert not [n for n in _launch(monkeypatch, tmp_path / "share", rviz="0").nodes if n["package"] == "rviz2"]
     with pytest.raises(ValueError, match="'maybe'"):
         _launch(monkeypatch, tmp_path / "share", rviz="maybe")
+    # in a namespace (PushRosNamespace around the file), the recorder's own section of its file is read
+    (tmp_path / "share" / "config" / "recorder.yaml").write_text(
+        "/**:\n  ros__parameters:\n    exclude_regex: /rosout$\n"
+        "/g1/recorder:\n  ros__parameters:\n    exclude_regex: /depth$\n")
+    for ns, base in (("/g1", "/depth$"), ("", "/rosout$"), ("/g2", "/rosout$")):
+        moved = _launch(monkeypatch, tmp_path / "share", bag_images="jpeg", **({"ros_namespace": ns} if ns else {}))
+        (recorder_node,) = [n for n in moved.nodes if n["executable"] == "recorder"]
+        assert recorder_node["parameters"][1]["exclude_regex"] == f"(?:{base})|{BAG_RAW_IMAGES}", ns
     with pytest.raises(ParameterError, match="--bag-images"):
         UpConfig(bag_images="gif").check()
     # the scorer, and only it, may be left out: score:=false as up --no-score, on by default in both

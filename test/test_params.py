@@ -96,6 +96,38 @@ def test_a_parameter_files_sections_apply_to_a_node_as_ros_applies_them(tmp_path
             rclpy.shutdown(context=ctx)
         assert ros == want, (fqn, ros)  # rclpy's own reading of the same file
     assert load_params_file(path, "scorer") == expected["/scorer"]  # no leading slash: the root namespace
+    # the nested form (a namespace holding node names), as rclpy reads it
+    (tmp_path / "nested.yaml").write_text(textwrap.dedent("""\
+        /**:
+          scorer:
+            ros__parameters: {window: 5}
+        g1:
+          scorer:
+            ros__parameters: {qos_depth: 9}
+          "*":
+            ros__parameters: {diagnostics_period_s: 3.0}
+        """))
+    nested = str(tmp_path / "nested.yaml")
+    assert load_params_file(nested, "/g1/scorer") == {"window": 5, "qos_depth": 9, "diagnostics_period_s": 3.0}
+    ctx = rclpy.Context()
+    rclpy.init(args=["--ros-args", "--params-file", nested, "-r", "__ns:=/g1"], context=ctx,
+               domain_id=fresh_domain_id())
+    try:
+        node = rclpy.create_node("scorer", context=ctx, automatically_declare_parameters_from_overrides=True)
+        ros = {k: node.get_parameter(k).value for k in ("window", "qos_depth", "diagnostics_period_s")}
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=ctx)
+    assert ros == load_params_file(nested, "/g1/scorer")
+    # what ROS refuses is refused, named, whichever node asks
+    for bad in ("/**/:\n  ros__parameters: {a: 1}\n", "//scorer:\n  ros__parameters: {a: 1}\n",
+                "/g*/scorer:\n  ros__parameters: {a: 1}\n", "/g1/scorer: 5\n",
+                "/**:\n  ros__parameters: [1, 2]\n", "/**:\n  ros__parameters: {a: 1}\n  other: {b: 2}\n"):
+        (tmp_path / "bad.yaml").write_text(bad)
+        with pytest.raises(ParameterError, match="params_file"):
+            load_params_file(str(tmp_path / "bad.yaml"), "/recorder")
+    with pytest.raises(ParameterError, match="'node'"):
+        load_params_file(path, "/g1/scorer/")
     assert node_pattern("/**").fullmatch("/a/b/c") and not node_pattern("/g1/*").fullmatch("/g1/a/b")
 
 

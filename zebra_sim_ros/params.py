@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import re
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Self
@@ -307,21 +307,52 @@ def add_option(parser: argparse.ArgumentParser, spec: ParamSpec, flag: str = "",
                         help=text.replace("%", "%%"))
 
 
+_NAME_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def _key_tokens(key: str) -> list[str] | None:
+    """The names of a node key (``/g1/scorer``: ``g1``, ``scorer``), or None when ROS would refuse it: an empty
+    name (``//``, a trailing ``/``), or a name neither a ROS name nor ``*`` or ``**``."""
+    parts = (key[1:] if key.startswith("/") else key).split("/")
+    ok = all(t in ("*", "**") or _NAME_TOKEN.fullmatch(t) for t in parts)
+    return parts if ok else None
+
+
 def node_pattern(key: str) -> re.Pattern[str]:
     """A parameter file's node key as ROS 2 matches it against a node's fully qualified name: a leading ``/`` added
     where it has none, ``*`` one name, ``**`` any number of names (``/**`` every node, ``/**/scorer`` a scorer in
-    any namespace)."""
-    parts = str(key).strip("/").split("/")
+    any namespace). ValueError for a key ROS refuses (:func:`_key_tokens`)."""
+    parts = _key_tokens(str(key))
+    if parts is None:
+        raise ValueError(f"node key {key!r}: want /name/..., each name letters, digits and _ (or * or **)")
     regex = "".join("(?:/[^/]+)*" if t == "**" else "/[^/]+" if t == "*" else "/" + re.escape(t) for t in parts)
     return re.compile(regex)
 
 
+def _sections(doc: dict[Any, Any], prefix: str, path: str) -> Iterator[tuple[str, dict[str, Any]]]:
+    """A parameter file's ``(node key, ros__parameters)`` pairs in file order, nested keys joined (``/g1:`` holding
+    ``scorer:`` is ``/g1/scorer``, as ROS reads it); ParameterError naming what ROS would refuse."""
+    for raw, section in doc.items():
+        key = f"{prefix}/{str(raw).lstrip('/')}" if prefix else str(raw)
+        if not isinstance(section, dict) or not section:
+            raise ParameterError("params_file", path, f"under {key!r} a mapping: ros__parameters, or node names")
+        if "ros__parameters" in section:
+            params = section["ros__parameters"]
+            if len(section) > 1 or not isinstance(params, dict):
+                raise ParameterError("params_file", path, f"under {key!r} ros__parameters alone, a mapping of "
+                                     "parameter names to values")
+            yield key, params
+        else:
+            yield from _sections(section, key, path)
+
+
 def load_params_file(path: str, node_name: str) -> dict[str, Any]:
     """Parameters for the node ``node_name`` from a ROS 2 YAML file (sections of ``ros__parameters`` under node
-    keys), as ``ros2 run ... --params-file`` gives them to it: ``node_name`` is its fully qualified name
-    (``/g1/scorer``; a name without a leading slash is in the root namespace); every section whose key matches it
-    (:func:`node_pattern`) applies, in file order, a later one overriding an earlier one (rclpy's own overrides
-    for the same file and name: a test compares the two)."""
+    keys, nested keys joined: ``/g1:`` holding ``scorer:`` is ``/g1/scorer``), as ``ros2 run ... --params-file``
+    gives them to it: ``node_name`` is its fully qualified name (``/g1/scorer``; without a leading slash, from the
+    root); every section whose key matches it (:func:`node_pattern`) applies, in file order, a later one overriding
+    an earlier one (rclpy's own overrides for the same file and name: a test compares the two). A file ROS would
+    refuse (a malformed key or section) is refused, named, whatever node asks."""
     import yaml
 
     try:
@@ -334,11 +365,16 @@ def load_params_file(path: str, node_name: str) -> dict[str, Any]:
     if not isinstance(doc, dict):
         raise ParameterError("params_file", path, "a mapping of node names to ros__parameters")
     fqn = node_name if node_name.startswith("/") else f"/{node_name}"
+    if _key_tokens(fqn) is None or "*" in fqn:
+        raise ParameterError("node", node_name, "a node's fully qualified name, /name/...")
     out: dict[str, Any] = {}
-    for key, section in doc.items():  # file order: a later section overrides an earlier one, as in ROS
-        if node_pattern(key).fullmatch(fqn):
-            params = section.get("ros__parameters", {}) if isinstance(section, dict) else {}
-            out.update(params or {})
+    for key, params in _sections(doc, "", path):  # file order: a later section overrides an earlier one, as in ROS
+        try:
+            pattern = node_pattern(key)
+        except ValueError as exc:
+            raise ParameterError("params_file", path, str(exc)) from None
+        if pattern.fullmatch(fqn):
+            out.update(params)
     return out
 
 
