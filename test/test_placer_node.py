@@ -27,8 +27,10 @@ SMALL = {"count_max": 40, "world": "savanna"}
 class Listener:
     """A test-side node collecting what the placer publishes."""
 
-    def __init__(self, domain: int, name: str = "test_listener", stream: QoSProfile | int = 10) -> None:
-        """``stream``: the QoS of its pose and marker subscriptions (the scene's is reliable, as a camera's)."""
+    def __init__(self, domain: int, name: str = "test_listener", stream: QoSProfile | int = 10,
+                 animals: bool = True) -> None:
+        """``stream``: the QoS of its pose and marker subscriptions (the scene's is reliable, as a camera's);
+        ``animals``: it subscribes the typed 3D boxes too."""
         self.context = rclpy.Context()
         rclpy.init(context=self.context, domain_id=domain)
         self.node = rclpy.create_node(name, context=self.context)
@@ -47,8 +49,9 @@ class Listener:
                                           lambda m, n=name: self.poses[n].append(m), stream)
         self.node.create_subscription(MarkerArray, "/zebra_sim/zebras/markers", self.markers.append, stream)
         self.animals: list[Any] = []  # Detection3DArray, vision_msgs' or ours
-        self.node.create_subscription(message_class(detection3d_array_type()), "/zebra_sim/zebras",
-                                      self.animals.append, stream)
+        if animals:
+            self.node.create_subscription(message_class(detection3d_array_type()), "/zebra_sim/zebras",
+                                          self.animals.append, stream)
         self.node.create_subscription(TFMessage, "/tf", self.tf.append, 100)
         self.ack_pub = self.node.create_publisher(Header, "/zebra_sim/frame_done", 100)
 
@@ -286,3 +289,26 @@ def test_an_unknown_parameter_is_named_in_a_warning() -> None:
     assert proc.returncode == 0, proc.stdout + proc.stderr
     out = proc.stdout + proc.stderr
     assert "unknown parameter(s) ignored: ['rate_hzz']" in out and "use_sim_time" not in out.split("ignored:")[1][:40]
+
+
+def test_publish_animals_false_leaves_the_typed_boxes_out_of_the_outputs_and_the_wait(domain: int,
+                                                                                    tmp_path: Path) -> None:
+    """``publish_animals:=false``: no zebra_sim/zebras publisher, and a named node that does not subscribe it (a
+    recorder that leaves it out) starts the run all the same."""
+    recorder = Listener(domain, "picky_recorder", animals=False)
+    try:
+        params = dict(SMALL, mode="rate", rate_hz=4.0, max_steps=2, seed=9, wait_for_subscribers=1,
+                      wait_for_nodes=["picky_recorder"], publish_animals=False)
+        seen: dict[str, int] = {}  # publishers per topic, looked at while the placer runs
+
+        def done() -> bool:
+            for topic in ("/zebra_sim/scene", "/zebra_sim/zebras"):
+                seen[topic] = max(seen.get(topic, 0), len(recorder.node.get_publishers_info_by_topic(topic)))
+            return len(recorder.scenes) >= 2
+        with node_process("placer", params, domain, tmp_path / "placer.log") as proc:
+            assert recorder.spin_until(done, 60), (tmp_path / "placer.log").read_text()
+            assert proc.wait(timeout=20) == 0
+        assert seen == {"/zebra_sim/scene": 1, "/zebra_sim/zebras": 0}
+        assert [s["step"] for s in recorder.scenes] == [0, 1]
+    finally:
+        recorder.close()

@@ -7,7 +7,7 @@ the whole graph, except the conventional ``/tf``, ``/tf_static`` and ``/clock``,
   reliable, transient local, so a camera that starts late still gets the current step.
 - ``zebra_sim/zebras`` (vision_msgs/Detection3DArray where installed, else zebra_sim_msgs/Detection3DArray, the
   same fields): every placed animal's species, pose and oriented 3D box, ``id`` its scene id (the typed ground
-  truth in 3D, for trackers and counters).
+  truth in 3D, for trackers and counters); ``publish_animals:=false`` leaves it out.
 - ``zebra_sim/zebras/markers`` (visualization_msgs/MarkerArray): the zebras' oriented 3D boxes.
 - ``drone_{i}/camera/pose`` (geometry_msgs/PoseStamped): pose of ``drone_{i}/camera_optical`` in ``map``.
 - ``/tf`` (tf2_msgs/TFMessage): ``map -> drone_{i}/base_link`` of every drone, each step (REP 105);
@@ -91,8 +91,9 @@ class PlacerNode(ZebraNode[PlacerConfig]):
                                f"{describe_qos(stream)}")
         self.scene_pub = self.create_publisher(String, SCENE_TOPIC, latched)
         self.marker_pub = self.create_publisher(MarkerArray, MARKER_TOPIC, stream)
-        self.animals_type = detection3d_array_type()
-        self.animals_pub = self.create_publisher(message_class(self.animals_type), ANIMALS_TOPIC, stream)
+        self.animals_type = detection3d_array_type() if c.publish_animals else ""
+        self.animals_pub = (self.create_publisher(message_class(self.animals_type), ANIMALS_TOPIC, stream)
+                            if c.publish_animals else None)
         self.pose_pubs = [self.create_publisher(PoseStamped, f"{n}/camera/pose", stream)
                           for n in self.placer.camera_names]
         # Transient local, depth 1: a reader that matches late (a recorder whose /clock reader matched after its /tf
@@ -107,7 +108,8 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             for n in self.placer.camera_names]))
         # What wait_for_subscribers waits for. /tf too: a recorder that matched the markers but not yet /tf would
         # miss the first step's transforms. /clock is latched instead (above).
-        self.outputs = [self.scene_pub, self.animals_pub, self.marker_pub, *self.pose_pubs, self.tf_pub]
+        self.outputs = [self.scene_pub, *([self.animals_pub] if self.animals_pub else []), self.marker_pub,
+                        *self.pose_pubs, self.tf_pub]
         self.step = c.start_step
         self.published = 0
         self.resent = 0  # lockstep steps published again for want of an acknowledgement
@@ -183,7 +185,8 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             _transform(header, base_frame(cam.name), cam.position, body_orientation(cam.orientation_xyzw))
             for cam in scene.cameras]))
         self.scene_pub.publish(String(data=scene.to_json()))
-        self.animals_pub.publish(scene_animals_msg(self.animals_type, header, scene.zebras))
+        if self.animals_pub is not None:
+            self.animals_pub.publish(scene_animals_msg(self.animals_type, header, scene.zebras))
         self.marker_pub.publish(self._markers(scene, header))
         for pub, cam in zip(self.pose_pubs, scene.cameras, strict=True):
             x, y, z, w = cam.orientation_xyzw

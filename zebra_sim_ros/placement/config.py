@@ -158,6 +158,9 @@ class PlacerConfig(StageConfig):
         "animals, markers, camera poses, /tf), e.g. [recorder], so that another subscriber (RViz) cannot start the "
         "run early; a name without a leading / is in the placer's namespace ([''] (empty): none)",
         allowed="[''] or a list of node names", check=_node_names)
+    publish_animals: bool = param(True, "publish zebra_sim/zebras, every placed animal's species, pose and 3D box "
+                                  "(a Detection3DArray); false: neither published nor waited on (a recorder that "
+                                  "leaves it out, or cannot load its type)")
     max_steps: int = param(0, "stop after this many steps (0: never)", lo=0, hi=2**31)
     start_step: int = param(0, "first step index (to resume or reproduce a step alone)", lo=0, hi=2**31)
     qos_depth: int = param(10, "history depth of the published topics", lo=1, hi=1000)
