@@ -27,6 +27,7 @@ from pathlib import Path
 
 from zebra_sim_ros.cli import size_arg
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
+from zebra_sim_ros.graph.spec import BAG_NAME
 
 
 def main() -> None:
@@ -59,7 +60,7 @@ def main() -> None:
                     raise SystemExit(f"zebra-sim up --drones {n} --bag-images {kind} failed ({run.returncode}):\n"
                                      f"{run.stdout[-3000:]}\n{run.stderr[-2000:]}")
                 runs[n, kind] = json.loads(run.stdout.strip().splitlines()[-1])
-                runs[n, kind]["bag_mb"] = (out / "zebra_sim.mcap").stat().st_size / 1e6
+                runs[n, kind]["bag_mb"] = (out / BAG_NAME).stat().st_size / 1e6
         gens = {n: generate(GenerateConfig(out=str(root / f"gen{n}"), frames=n * args.frames, strategy="far",
                                            worlds=(args.world,), width=w, height=h, workers=1, depth="none",
                                            placer={"num_cameras": n}), progress=lambda *a: None)

@@ -627,6 +627,11 @@ def test_the_rviz_config_is_drawn_again_for_each_graphs_drones_and_namespace(tmp
             rviz_view(tmp_path / "bad", cfg.drone_names)
 
 
+def _scorer(cfg: UpConfig) -> NodeSpec:
+    """The scorer of ``cfg``'s graph, as up starts it."""
+    return next(s for s in graph_spec(cfg) if s.executable == "scorer")
+
+
 def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: Path) -> None:
     """``--no-score`` and ``--drones`` reach the graph; the scorer's last report becomes ``live_scores``, complete
     only when it scored every frame of the run (a run no longer than its window); up waits for that report two of
@@ -643,27 +648,28 @@ def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: P
     assert [s.executable for s in graph_spec(cfg)] == ["camera"] * 2 + ["labeller", "detector", "recorder", "placer"]
     assert up._up_config(parser.parse_args(["up"])) == UpConfig()
     shipped = REPO / "config"
-    run = up.ScorerRun.read(shipped, UpConfig())
-    assert run == up.ScorerRun(300, 1.0, 3) and run.expected(10) == 30 and run.whole(10) and run.wait_s == 10.0
-    two = up.ScorerRun.read(shipped, UpConfig(drones=2))
+    run = up.ScorerRun.read(shipped, _scorer(UpConfig()))
+    assert (run.window, run.drones) == (300, 3) and run.period_s == pytest.approx(1.0)
+    assert run.expected(10) == 30 and run.whole(10) and run.wait_s == pytest.approx(10.0)
+    two = up.ScorerRun.read(shipped, _scorer(UpConfig(drones=2)))
     assert two.expected(500) == 600 and not two.whole(500)  # its last 300 steps of two cameras
     conf = tmp_path / "config"
     shutil.copytree(shipped, conf)
     text = (conf / "scorer.yaml").read_text()
     (conf / "scorer.yaml").write_text(text.replace("diagnostics_period_s: 1.0", "diagnostics_period_s: 30.0")
                                       .replace("window: 300", "window: 1000"))
-    run = up.ScorerRun.read(conf, UpConfig())
+    run = up.ScorerRun.read(conf, _scorer(UpConfig()))
     assert run.expected(500) == 1500 and run.whole(500) and run.wait_s == pytest.approx(61.0)
     # a bad value in the scorer's file is refused by name, as the node would refuse it (up reads it before any
     # node starts)
     (conf / "scorer.yaml").write_text(text.replace("window: 300", "window: 0"))
     with pytest.raises(ParameterError, match=re.escape(f"{conf / 'scorer.yaml'}: window")):
-        up.ScorerRun.read(conf, UpConfig())
+        up.ScorerRun.read(conf, _scorer(UpConfig()))
     # another graph's section is not this graph's: /g2's bad window stops /g2 only, as its node would refuse it
     (conf / "scorer.yaml").write_text(text + "/g2/scorer:\n  ros__parameters:\n    window: 0\n")
-    assert up.ScorerRun.read(conf, UpConfig(namespace="/g1")).window == 300
+    assert up.ScorerRun.read(conf, _scorer(UpConfig(namespace="/g1"))).window == 300
     with pytest.raises(ParameterError, match="window"):
-        up.ScorerRun.read(conf, UpConfig(namespace="/g2"))
+        up.ScorerRun.read(conf, _scorer(UpConfig(namespace="/g2")))
     (conf / "scorer.yaml").write_text(text)
     # a config folder whose recorder leaves out the depth images: up waits for the rest only, and with jpeg in the
     # bag the recorder leaves out both the raw images and what its file says

@@ -83,7 +83,7 @@ def test_a_parameter_files_sections_apply_to_a_node_as_ros_applies_them(tmp_path
                 "/g3/deep/scorer": {"window": 3, "qos_depth": 3, "diagnostics_period_s": 2.0},
                 "/g1/recorder": {"window": 1, "qos_depth": 4, "diagnostics_period_s": 2.0}}
     for fqn, want in expected.items():
-        assert load_params_file(path, fqn) == want, fqn
+        assert load_params_file(path, fqn) == pytest.approx(want), fqn
         ns, name = fqn.rsplit("/", 1)
         ctx = rclpy.Context()
         rclpy.init(args=["--ros-args", "--params-file", path, "-r", f"__ns:={ns or '/'}"], context=ctx,
@@ -94,8 +94,9 @@ def test_a_parameter_files_sections_apply_to_a_node_as_ros_applies_them(tmp_path
             node.destroy_node()
         finally:
             rclpy.shutdown(context=ctx)
-        assert ros == want, (fqn, ros)  # rclpy's own reading of the same file
-    assert load_params_file(path, "scorer") == expected["/scorer"]  # no leading slash: the root namespace
+        assert ros == pytest.approx(want), (fqn, ros)  # rclpy's own reading of the same file
+    # no leading slash: the root namespace
+    assert load_params_file(path, "scorer") == pytest.approx(expected["/scorer"])
     # the nested form (a namespace holding node names), as rclpy reads it
     (tmp_path / "nested.yaml").write_text(textwrap.dedent("""\
         /**:
@@ -108,7 +109,8 @@ def test_a_parameter_files_sections_apply_to_a_node_as_ros_applies_them(tmp_path
             ros__parameters: {diagnostics_period_s: 3.0}
         """))
     nested = str(tmp_path / "nested.yaml")
-    assert load_params_file(nested, "/g1/scorer") == {"window": 5, "qos_depth": 9, "diagnostics_period_s": 3.0}
+    assert load_params_file(nested, "/g1/scorer") == pytest.approx({"window": 5, "qos_depth": 9,
+                                                                    "diagnostics_period_s": 3.0})
     ctx = rclpy.Context()
     rclpy.init(args=["--ros-args", "--params-file", nested, "-r", "__ns:=/g1"], context=ctx,
                domain_id=fresh_domain_id())
@@ -118,7 +120,7 @@ def test_a_parameter_files_sections_apply_to_a_node_as_ros_applies_them(tmp_path
         node.destroy_node()
     finally:
         rclpy.shutdown(context=ctx)
-    assert ros == load_params_file(nested, "/g1/scorer")
+    assert ros == pytest.approx(load_params_file(nested, "/g1/scorer"))
     # what ROS refuses is refused, named, whichever node asks
     for bad in ("/**/:\n  ros__parameters: {a: 1}\n", "//scorer:\n  ros__parameters: {a: 1}\n",
                 "/g*/scorer:\n  ros__parameters: {a: 1}\n", "/g1/scorer: 5\n",

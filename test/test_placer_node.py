@@ -107,7 +107,7 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path, 
             for d, z in zip(msg.detections, s["zebras"], strict=True):
                 hyp = d.results[0]
                 assert d.id == str(z["id"]) and hyp.hypothesis.class_id == z.get("species", "zebra")
-                assert hyp.hypothesis.score == 1.0 and d.header == msg.header
+                assert hyp.hypothesis.score == pytest.approx(1.0) and d.header == msg.header
                 p, b = hyp.pose.pose, d.bbox
                 assert [p.position.x, p.position.y, p.position.z] == pytest.approx(z["position"], abs=1e-9)
                 assert [p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] == pytest.approx(

@@ -129,4 +129,4 @@ def cmd_export(args: argparse.Namespace) -> Summary:
         print(f"damaged: {note}")
     if s.get("exit_code"):
         print("error: no frame written: no image had labels of its stamp (give a split recording as its folder)")
-    return {**s, "seed": args.seed}
+    return s

@@ -85,7 +85,9 @@ def cmd_up(args: argparse.Namespace) -> Summary:
         print("[up] --no-record --no-score: the run is neither recorded nor scored (no figures at the end)", flush=True)
     detect_imgsz = cfg.detect_imgsz  # reads the checkpoint's serving rule: an unreadable file stops here
     conf = config_dir(cfg.config_dir)
-    scoring = ScorerRun.read(conf, cfg) if cfg.score else None  # a bad scorer.yaml stops here
+    specs = graph_spec(cfg)
+    scorer = next((s for s in specs if s.executable == "scorer"), None)
+    scoring = ScorerRun.read(conf, scorer) if scorer is not None else None  # a bad scorer.yaml stops here
     try:  # the package's RViz view drawn for this graph's drones and namespace; a view that cannot be is no reason
         view = rviz_view(conf, cfg.drone_names, cfg.namespace)  # to stop the run
     except ValueError as exc:
@@ -97,7 +99,6 @@ def cmd_up(args: argparse.Namespace) -> Summary:
         old.unlink(missing_ok=True)
     env = _graph_environment(conf, args.domain_id)
     load_library()  # build the zebra cache once here, not in every node at the same time
-    specs = graph_spec(cfg)
     result: dict[str, Any] = {"out": str(out), "config": str(conf), "frames_asked": cfg.frames, "exit_code": 0,
                               "detect_imgsz": detect_imgsz}
     if view is not None:
@@ -301,16 +302,15 @@ class ScorerRun:
     drones: int
 
     @staticmethod
-    def read(conf: Path, cfg: UpConfig) -> ScorerRun:
-        """The scorer's settings in a graph of ``cfg`` with the parameter files in ``conf`` (``ParameterError``
-        naming a bad value)."""
+    def read(conf: Path, spec: NodeSpec) -> ScorerRun:
+        """The settings of the graph's scorer ``spec`` (its name, parameter file and overrides, as ``up`` starts it)
+        with the parameter files in ``conf`` (``ParameterError`` naming a bad value)."""
         from zebra_sim_ros.detection.config import ScorerConfig
         from zebra_sim_ros.params import load_params_file
 
-        path = conf / "scorer.yaml"
+        path = conf / spec.params_file
         try:
-            sc = ScorerConfig.from_params({**load_params_file(str(path), f"{cfg.namespace}/scorer"),
-                                           "drones": list(cfg.drone_names)})
+            sc = ScorerConfig.from_params({**load_params_file(str(path), spec.fqn), **spec.overrides})
         except ParameterError as exc:  # named by its file: qos_depth, diagnostics_period_s are in every node's
             if exc.name == "params_file":
                 raise

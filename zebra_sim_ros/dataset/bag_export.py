@@ -30,7 +30,6 @@ COCO file: the masks are not in the bag. ``--out`` must be new or empty: remove 
 from __future__ import annotations
 
 import hashlib
-import json
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -38,9 +37,8 @@ from pathlib import Path
 from typing import Any
 
 import cv2
-import numpy as np
 
-from zebra_sim_ros.dataset.coco import yolo_lines
+from zebra_sim_ros.dataset.coco import encode_frame, write_dataset_yaml, yolo_lines
 from zebra_sim_ros.errors import ParameterError, ZebraSimError
 from zebra_sim_ros.messages import Labels
 from zebra_sim_ros.recording.cdr import MALFORMED, cdr_compressed_image, cdr_string, header_stamp_ns, rgb_image
@@ -239,11 +237,10 @@ class _Writer:
             size = (rgb.shape[1], rgb.shape[0])
         if 0 in size:
             raise ValueError(f"an empty image ({size[0]}x{size[1]})")
-        params = [cv2.IMWRITE_JPEG_QUALITY, self.cfg.jpeg_quality] if self.cfg.image_format == "jpg" else []
-        ok, buf = cv2.imencode(f".{self.cfg.image_format}", np.ascontiguousarray(rgb[..., ::-1]), params)
-        if not ok:
+        encoded = encode_frame(rgb, self.cfg.image_format, self.cfg.jpeg_quality)
+        if encoded is None:
             raise ValueError(f"OpenCV could not encode it as {self.cfg.image_format}")
-        return self.cfg.image_format, buf.tobytes(), size
+        return self.cfg.image_format, encoded, size
 
 
 def export_bag(cfg: ExportConfig) -> dict[str, Any]:
@@ -272,13 +269,11 @@ def export_bag(cfg: ExportConfig) -> dict[str, Any]:
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
     val = "images/val" if frames["val"] else "images/train"  # no val step: val is the train split
-    quoted = json.dumps(str(out.resolve()))
-    (out / "dataset.yaml").write_text(f"# zebra_sim_ros: frames of {', '.join(cfg.bags)} (YOLO format)"
-                                      + ("" if frames["val"] else "; no step drawn for val: val is train")
-                                      + f"\npath: {quoted}\ntrain: images/train\nval: {val}\nnc: 1\nnames:\n"
-                                      "  0: zebra\n")
+    write_dataset_yaml(out, f"zebra_sim_ros: frames of {', '.join(cfg.bags)} (YOLO format)"
+                       + ("" if frames["val"] else "; no step drawn for val: val is train"), val)
     written = sum(frames.values())
-    return {"out": str(out), "frames": frames, "val_is_train": not frames["val"], "zebras_labelled": writer.zebras,
+    return {"out": str(out), "seed": cfg.seed, "frames": frames, "val_is_train": not frames["val"],
+            "zebras_labelled": writer.zebras,
             "images_without_labels": scan.images_without_labels, "labels_without_image": scan.labels_without_image,
             "skipped": skipped, "not_written": len(scan.labels) - written, "damaged": scan.damaged,
             **({} if written else {"exit_code": 1})}

@@ -8,7 +8,9 @@ reads. Extra per-annotation fields: ``zebra_id``, ``bbox_full`` (amodal, clipped
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -115,3 +117,21 @@ def yolo_lines(labels: Labels, box: str = "visible", dont_care: bool = False) ->
         x0, y0, x1, y1 = z.box_visible if box == "visible" else z.box_full
         lines.append(f"0 {(x0 + x1) / 2 / w:.6f} {(y0 + y1) / 2 / h:.6f} {(x1 - x0) / w:.6f} {(y1 - y0) / h:.6f}")
     return lines
+
+
+def encode_frame(rgb: NDArray[np.uint8], image_format: str, jpeg_quality: int) -> bytes | None:
+    """An RGB frame as a dataset's image file: ``jpg`` at ``jpeg_quality``, or ``png`` at OpenCV's default level
+    (``generate`` and ``bag export`` write the same bytes for the same pixels); None where OpenCV cannot."""
+    import cv2
+
+    params = [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality] if image_format == "jpg" else []
+    ok, buf = cv2.imencode(f".{image_format}", np.ascontiguousarray(rgb[..., ::-1]), params)
+    return buf.tobytes() if ok else None
+
+
+def write_dataset_yaml(out: Path, comment: str, val: str = "images/val") -> None:
+    """A YOLO dataset's ``dataset.yaml`` in ``out``: its absolute path (quoted: a folder named "set #2" or "a: b"
+    is still one YAML string), the train and ``val`` image folders, one class, zebra."""
+    quoted = json.dumps(str(out.resolve()))
+    (out / "dataset.yaml").write_text(f"# {comment}\npath: {quoted}\ntrain: images/train\nval: {val}\nnc: 1\n"
+                                      "names:\n  0: zebra\n")

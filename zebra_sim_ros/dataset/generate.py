@@ -49,8 +49,10 @@ from zebra_sim_ros.dataset.coco import (
     CATEGORY,
     SPECIES_CATEGORIES,
     crowd_annotation,
+    encode_frame,
     rle_encode_all,
     species_annotation,
+    write_dataset_yaml,
     yolo_lines,
     zebra_annotation,
 )
@@ -266,14 +268,11 @@ class _Pipeline:
 
         c = self.cfg
         name = frame_name(job, v.name)
-        if c.image_format == "jpg":
-            ok, img = cv2.imencode(".jpg", v.rgb[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, c.jpeg_quality])
-        else:
-            ok, img = cv2.imencode(".png", v.rgb[..., ::-1])
+        img = encode_frame(v.rgb, c.image_format, c.jpeg_quality)
         ok_m, mask_png = cv2.imencode(".png", v.instances)
-        if not (ok and ok_m):
+        if img is None or not ok_m:
             raise ParameterError("--format", c.image_format, "a format OpenCV can encode")
-        _write_atomic(self.out / "images" / split / f"{name}.{c.image_format}", img.tobytes())
+        _write_atomic(self.out / "images" / split / f"{name}.{c.image_format}", img)
         _write_atomic(self.out / "masks" / f"{name}.png", mask_png.tobytes())
         if c.depth != "none":
             buf = io.BytesIO()
@@ -554,10 +553,7 @@ def finalize(out: Path, cfg: GenerateConfig | None = None) -> dict[str, Any]:
                 "categories": [CATEGORY, *SPECIES_CATEGORIES], "images": images[split], "annotations": anns[split]}
         (out / "coco" / f"{split}.json").write_text(json.dumps(coco, separators=(",", ":")))
         (out / f"{split}.txt").write_text("".join(f"./{im['file_name']}\n" for im in images[split]))
-    quoted = json.dumps(str(out.resolve()))  # quoted: a folder named "set #2" or "a: b" is still one YAML string
-    yaml_text = (f"# zebra_sim_ros synthetic dataset (YOLO format); COCO in coco/\n"
-                 f"path: {quoted}\ntrain: images/train\nval: images/val\nnc: 1\nnames:\n  0: zebra\n")
-    (out / "dataset.yaml").write_text(yaml_text)
+    write_dataset_yaml(out, "zebra_sim_ros synthetic dataset (YOLO format); COCO in coco/")
     return {"images_train": len(images["train"]), "images_val": len(images["val"]), "zebras_labelled": kept,
             "other_species_labelled": dict(sorted(others.items())),
             "box_sizes_px": box_size_histogram([v for vs in sizes.values() for v in vs]),

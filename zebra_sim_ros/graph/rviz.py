@@ -22,7 +22,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from zebra_sim_ros.graph.spec import GLOBAL_TOPICS
+from zebra_sim_ros.graph.spec import global_remaps
 
 RVIZ_FILE = "zebra_sim.rviz"  # in the config folder, installed as share/zebra_sim_ros/config/zebra_sim.rviz
 _DRONE = re.compile(r"^(/?)drone_(\d+)/")
@@ -121,5 +121,5 @@ def rviz_command(path: Path, namespace: str = "") -> str:
     """The command line that starts RViz on ``path`` for a graph in ``namespace``: on the graph's simulated time,
     with its ``/tf``, ``/tf_static`` and ``/clock`` remapped into the namespace when it has one (a shell's quoting,
     an absolute path)."""
-    remaps = "".join(f" -r {t}:={namespace}{t}" for t in GLOBAL_TOPICS) if namespace else ""
+    remaps = "".join(f" -r {src}:={dst}" for src, dst in global_remaps(namespace))
     return f"rviz2 -d {shlex.quote(str(Path(path).resolve()))} --ros-args -p use_sim_time:=true{remaps}"

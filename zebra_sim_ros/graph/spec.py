@@ -193,6 +193,12 @@ def dds_environment(config: Path, environ: dict[str, str]) -> dict[str, str]:
     return env
 
 
+def global_remaps(namespace: str) -> tuple[tuple[str, str], ...]:
+    """``/tf``, ``/tf_static`` and ``/clock`` moved into ``namespace`` (none without one): what every node of a
+    namespaced graph, and a viewer of it, remaps."""
+    return tuple((t, f"{namespace}{t}") for t in GLOBAL_TOPICS) if namespace else ()
+
+
 def check_namespace(namespace: str) -> str:
     """``namespace`` if it is "" or an absolute ROS name (``/g1``, ``/site_a/g1``); ParameterError otherwise."""
     if namespace and not re.fullmatch(r"(/[A-Za-z][A-Za-z0-9_]*)+", namespace):
@@ -206,7 +212,7 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
     namespace moves the whole graph; the placer is the clock (``/clock``), the others run on its simulated time
     (``use_sim_time``)."""
     ns = check_namespace(cfg.namespace)
-    remaps = tuple((t, f"{ns}{t}") for t in GLOBAL_TOPICS) if ns else ()
+    remaps = global_remaps(ns)
     sim = {"use_sim_time": True}
     drones = cfg.drone_names
     nodes: list[NodeSpec] = []

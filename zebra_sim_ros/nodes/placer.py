@@ -91,9 +91,10 @@ class PlacerNode(ZebraNode[PlacerConfig]):
                                f"{describe_qos(stream)}")
         self.scene_pub = self.create_publisher(String, SCENE_TOPIC, latched)
         self.marker_pub = self.create_publisher(MarkerArray, MARKER_TOPIC, stream)
-        self.animals_type = detection3d_array_type() if c.publish_animals else ""
-        self.animals_pub = (self.create_publisher(message_class(self.animals_type), ANIMALS_TOPIC, stream)
-                            if c.publish_animals else None)
+        self.animals_type, self.animals_pub = "", None  # publish_animals:=false: neither published nor awaited
+        if c.publish_animals:
+            self.animals_type = detection3d_array_type()
+            self.animals_pub = self.create_publisher(message_class(self.animals_type), ANIMALS_TOPIC, stream)
         self.pose_pubs = [self.create_publisher(PoseStamped, f"{n}/camera/pose", stream)
                           for n in self.placer.camera_names]
         # Transient local, depth 1: a reader that matches late (a recorder whose /clock reader matched after its /tf
@@ -108,8 +109,8 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             for n in self.placer.camera_names]))
         # What wait_for_subscribers waits for. /tf too: a recorder that matched the markers but not yet /tf would
         # miss the first step's transforms. /clock is latched instead (above).
-        self.outputs = [self.scene_pub, *([self.animals_pub] if self.animals_pub else []), self.marker_pub,
-                        *self.pose_pubs, self.tf_pub]
+        self.outputs = [p for p in (self.scene_pub, self.animals_pub, self.marker_pub, *self.pose_pubs, self.tf_pub)
+                        if p is not None]
         self.step = c.start_step
         self.published = 0
         self.resent = 0  # lockstep steps published again for want of an acknowledgement
