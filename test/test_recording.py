@@ -17,7 +17,15 @@ from std_msgs.msg import Header, String
 from zebra_sim_ros.recording.cdr import cdr_string
 from zebra_sim_ros.recording.evaluate import collect, score
 from zebra_sim_ros.recording.qos import from_yaml, profile_dict, replay_profile, to_yaml
-from zebra_sim_ros.recording.reader import BagMessage, BagReader, recover, summarize
+from zebra_sim_ros.recording.reader import (
+    CAMERA_IMAGES,
+    BagMessage,
+    BagReader,
+    last_name,
+    recover,
+    summarize,
+    topic_owner,
+)
 from zebra_sim_ros.recording.schemas import schema_text
 from zebra_sim_ros.recording.writer import BagFullError, BagWriter
 
@@ -180,6 +188,17 @@ def test_cut_bag_reads_what_is_intact_and_recovers(tmp_path: Path) -> None:
     assert rec["messages"] == len(got)
     with open(tmp_path / "rec.mcap", "rb") as f:
         assert make_reader(f, validate_crcs=True).get_summary().statistics.message_count == len(got)
+
+
+def test_a_cameras_topics_are_told_apart_under_any_namespace() -> None:
+    assert topic_owner("/drone_0/image_raw", CAMERA_IMAGES) == ("/drone_0", "image_raw")
+    assert topic_owner("/g1/sub/drone_12/image_raw/compressed", CAMERA_IMAGES) == ("/g1/sub/drone_12",
+                                                                                   "image_raw/compressed")
+    assert topic_owner("/g1/drone_2/labels", ("labels", "detections")) == ("/g1/drone_2", "labels")
+    for other in ("/image_raw", "drone_0/image_raw", "/drone_0/image_raw/theora", "/drone_0/depth",
+                  "//image_raw", "/drone_0/image_rawx", "/drone_0/labels/markers"):
+        assert topic_owner(other, (*CAMERA_IMAGES, "labels")) is None, other
+    assert last_name("/g1/drone_3") == "drone_3" and last_name("drone_3") == "drone_3"
 
 
 def test_qos_yaml_and_replay_profile() -> None:

@@ -307,7 +307,10 @@ def add_option(parser: argparse.ArgumentParser, spec: ParamSpec, flag: str = "",
                         help=text.replace("%", "%%"))
 
 
-_NAME_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+NAME_TOKEN = r"[A-Za-z_][A-Za-z0-9_]*"  # one name of a ROS name: letters, digits and _, not a digit first
+RELATIVE_NAME = re.compile(rf"{NAME_TOKEN}(?:/{NAME_TOKEN})*")  # a relative ROS name (topic, node): a/b/c
+ROS_NAME = re.compile(rf"/?{RELATIVE_NAME.pattern}")  # a relative or absolute ROS name: /a/b/c
+_NAME_TOKEN = re.compile(NAME_TOKEN)
 
 
 def _key_tokens(key: str) -> list[str] | None:

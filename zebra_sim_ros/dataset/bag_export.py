@@ -44,10 +44,10 @@ from zebra_sim_ros.messages import Labels
 from zebra_sim_ros.recording.cdr import MALFORMED, cdr_compressed_image, cdr_string, header_stamp_ns, rgb_image
 from zebra_sim_ros.recording.evaluate import skip_note
 from zebra_sim_ros.recording.images import COMPRESSED_TYPE, IMAGE_TYPE, codec_holds_bgr, decompress_rgb
-from zebra_sim_ros.recording.reader import BagMessage, BagReader
+from zebra_sim_ros.recording.reader import CAMERA_IMAGES, BagMessage, BagReader, topic_owner
 
-_TOPIC = re.compile(r"^(?P<camera>(?:/[^/]+)*/[^/]+)/(?P<kind>image_raw(?:/compressed)?|labels)$")
-_IMAGE_KINDS = (("image_raw", IMAGE_TYPE), ("image_raw/compressed", COMPRESSED_TYPE))
+_KINDS = (*CAMERA_IMAGES, "labels")  # a camera's topics that bag export reads
+_IMAGE_KINDS = ((CAMERA_IMAGES[0], IMAGE_TYPE), (CAMERA_IMAGES[1], COMPRESSED_TYPE))
 FORMATS = ("jpg", "png")
 _MAGIC = {"jpg": b"\xff\xd8\xff", "png": b"\x89PNG\r\n\x1a\n"}
 # How much later than its labels the recorder may receive an image of the same frame (a large image's fragments
@@ -143,10 +143,10 @@ def _scan(cfg: ExportConfig) -> _Scan:
         labels: dict[tuple[str, int], list[tuple[int, Labels]]] = {}
         images: dict[tuple[str, int], list[tuple[int, str]]] = {}
         for m in _messages(path, scan.damaged):
-            match = _TOPIC.match(m.topic)
-            if not match:
+            owner = topic_owner(m.topic, _KINDS)
+            if not owner:
                 continue
-            camera, kind = match.group("camera"), match.group("kind")
+            camera, kind = owner
             try:
                 if kind == "labels" and m.type_name == "std_msgs/msg/String":
                     lab = Labels.from_json(cdr_string(m.data))
@@ -254,11 +254,11 @@ def export_bag(cfg: ExportConfig) -> dict[str, Any]:
     skipped, ignored = list(scan.skipped), list[str]()
     for i, path in enumerate(cfg.bags):
         for m in _messages(path, ignored):  # its damage was noted by the first pass
-            match = _TOPIC.match(m.topic)
-            if not match or (match.group("kind"), m.type_name) not in _IMAGE_KINDS:
+            owner = topic_owner(m.topic, _KINDS)
+            if not owner or (owner[1], m.type_name) not in _IMAGE_KINDS:
                 continue
             try:
-                frame = scan.chosen.get((i, match.group("camera"), header_stamp_ns(m.data), m.type_name,
+                frame = scan.chosen.get((i, owner[0], header_stamp_ns(m.data), m.type_name,
                                          m.publish_time))
                 if frame is not None:
                     writer.write(frame, m.type_name, m.data)

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
@@ -13,6 +12,7 @@ from typing import Any
 from zebra_sim_ros.detection.metrics import MAX_DETECTIONS
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.params import (
+    RELATIVE_NAME,
     ParamSpec,
     StageConfig,
     diagnostics_param,
@@ -23,7 +23,6 @@ from zebra_sim_ros.params import (
     same_as,
 )
 
-RELATIVE_TOPIC = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*")  # a ROS name, relative
 NATIVE = -1  # as imgsz: each batch at its frames' own resolution (predict.native_size)
 STRIDE = 32  # the largest stride of the model: input sides must be multiples of it
 MIN_IMGSZ, MAX_IMGSZ = 64, 4096
@@ -120,7 +119,7 @@ class ScorerConfig(StageConfig):
     detections: str = param("detections", "the detection topic beside each camera's labels (a Detection2DArray, "
                             "e.g. another detector's remapped output)",
                             allowed="a topic name relative to the drone (letters, digits, _ and /)",
-                            check=lambda v: bool(RELATIVE_TOPIC.fullmatch(v)))
+                            check=lambda v: bool(RELATIVE_NAME.fullmatch(v)))
     window: int = param(300, "score the last this many frames of each camera (a report over 3 cameras' 300 frames "
                         "takes about 60 ms, over 2000 about 0.5 s: BENCHMARKS.md)", lo=1, hi=2000, runtime=True)
     qos_reliability: str = reliability_param("QoS reliability of the subscriptions (reliable matches the graph's "

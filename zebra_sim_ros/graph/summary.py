@@ -25,10 +25,9 @@ from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.recording.cdr import MALFORMED, cdr_string, header_stamp_ns
 from zebra_sim_ros.recording.evaluate import collect, score, skip_note
 from zebra_sim_ros.recording.images import message_rgb
-from zebra_sim_ros.recording.reader import BagMessage
+from zebra_sim_ros.recording.reader import CAMERA_IMAGES, BagMessage, last_name, topic_owner
 
-# a camera's image: raw, or as image_transport's compressed transport sends it (up --bag-images jpeg records that)
-_IMAGE_TOPIC = re.compile(r"^(?:/[^/]+)*/(?P<drone>drone_\d+)/image_raw(?:/compressed)?$")
+_DRONE = re.compile(r"drone_\d+")  # a camera of the graph (up's drone_0 ... drone_N-1), under any namespace
 _SCENE_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/scene$")
 
 
@@ -73,12 +72,13 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[st
     unusable: list[str] = []  # scenes and images that do not parse (collect notes bad labels and detections)
 
     def visit(m: BagMessage) -> None:  # scenes and images; collect itself parses labels and detections
-        match = _IMAGE_TOPIC.match(m.topic)
+        image = topic_owner(m.topic, CAMERA_IMAGES)
+        drone = last_name(image[0]) if image else ""
         try:
             if _SCENE_TOPIC.match(m.topic):
                 scenes[Scene.from_json(cdr_string(m.data)).stamp.ns] = m.publish_time
-            elif match:
-                drone, t = match.group("drone"), header_stamp_ns(m.data)
+            elif _DRONE.fullmatch(drone):
+                t = header_stamp_ns(m.data)
                 if t >= latest.get(drone, (-1, "", b""))[0]:
                     latest[drone] = (t, m.type_name, m.data)
                 seen = times[drone]["image_raw"]

@@ -9,13 +9,13 @@ three cameras re-randomised three times per placement, 5..20 m above the zebras,
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 from typing import Any
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import MAX_CAMERAS, Intrinsics
 from zebra_sim_ros.params import (
+    ROS_NAME,
     ParamSpec,
     StageConfig,
     diagnostics_param,
@@ -37,12 +37,11 @@ def _nonneg_list(n: int) -> Any:
     return lambda v: len(v) == n and all(isinstance(x, int | float) and x >= 0 for x in v) and sum(v) > 0
 
 
-_NODE_NAME = re.compile(r"/?([A-Za-z_][A-Za-z0-9_]*/)*[A-Za-z_][A-Za-z0-9_]*")
 
 
 def _node_names(v: Any) -> bool:
     """Check: [''] (none) or a list of ROS node names, each relative or absolute (``recorder``, ``/g1/recorder``)."""
-    return tuple(v) == ("",) or (len(v) > 0 and all(isinstance(x, str) and _NODE_NAME.fullmatch(x) for x in v))
+    return tuple(v) == ("",) or (len(v) > 0 and all(isinstance(x, str) and ROS_NAME.fullmatch(x) for x in v))
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,6 @@ detector over the recorded images in the same pass.
 
 from __future__ import annotations
 
-import re
 from collections import defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -24,7 +23,7 @@ from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.messages import Detections, Labels
 from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections, cdr_string
 from zebra_sim_ros.recording.images import message_rgb
-from zebra_sim_ros.recording.reader import BagMessage, BagReader
+from zebra_sim_ros.recording.reader import CAMERA_IMAGES, BagMessage, BagReader, last_name, topic_owner
 
 
 def skip_note(m: BagMessage, why: str | BaseException) -> str:
@@ -54,17 +53,17 @@ def collect(paths: list[str | Path] | str | Path, detections_suffix: str = "dete
     itself is in ``damaged``."""
     reader = BagReader.open(paths)
     out = Collected()
-    pat = re.compile(rf"^(?:/[^/]+)*/(?P<drone>[^/]+)/(?P<kind>labels|{re.escape(detections_suffix)})$")
+    kinds = ("labels", detections_suffix)
     for m in reader.messages():
         if each is not None:
             each(m)
-        match = pat.match(m.topic)
+        owner = topic_owner(m.topic, kinds)
         typed = m.type_name.endswith("/msg/Detection2DArray")
-        if not match or not (typed or m.type_name == "std_msgs/msg/String"):
+        if not owner or not (typed or m.type_name == "std_msgs/msg/String"):
             continue
-        drone = match.group("drone")
+        drone = last_name(owner[0])
         try:
-            if match.group("kind") == "labels":
+            if owner[1] == "labels":
                 kind, labels = "labels", Labels.from_json(cdr_string(m.data))
                 t = labels.stamp.ns
                 out.drones[drone].labels[t] = labels
@@ -88,8 +87,6 @@ class ImageDetector:
     pixels before compression); an image that comes again on the same topic (a second bag of the same stamps)
     replaces the first, as a second labels message does."""
 
-    TOPIC = re.compile(r"^(?:/[^/]+)*/(?P<drone>[^/]+)/image_raw(?P<compressed>/compressed)?$")
-
     def __init__(self, weights: str | Path | None, device: str = "auto", batch: int = 8, conf: float = 0.001,
                  imgsz: int | None = None, scale: float = 0.0, verifier: str = "", amp: str = "off") -> None:
         from zebra_sim_ros.detection.checkpoint import load_model, select_device
@@ -106,8 +103,8 @@ class ImageDetector:
         self._raw: set[tuple[str, int]] = set()  # (drone, stamp) detected or pending from image_raw
 
     def __call__(self, m: BagMessage) -> None:
-        match = self.TOPIC.match(m.topic)
-        if not match:
+        owner = topic_owner(m.topic, CAMERA_IMAGES)
+        if not owner:
             return
         try:
             image = message_rgb(m.type_name, m.data)
@@ -117,8 +114,8 @@ class ImageDetector:
         if image is None:
             self.skipped.append(skip_note(m, "not a colour image (rgb8 or bgr8; jpeg or png compressed)"))
             return
-        key = (match.group("drone"), image[0])
-        if match.group("compressed"):
+        key = (last_name(owner[0]), image[0])
+        if owner[1] != "image_raw":  # image_raw/compressed
             if key in self._raw:  # the raw image of this frame is detected: not its compressed copy too
                 return
         else:

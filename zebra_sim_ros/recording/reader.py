@@ -7,6 +7,7 @@ schema; when a record cannot be read it stops and keeps where and why in ``stopp
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 from collections.abc import Iterator
@@ -20,6 +21,29 @@ from mcap.summary import Summary
 from mcap.writer import CompressionType, Writer
 
 from zebra_sim_ros.errors import ParameterError
+
+# a camera's image: raw, or as image_transport's compressed transport sends it (up --bag-images jpeg records that)
+CAMERA_IMAGES = ("image_raw", "image_raw/compressed")
+
+
+@functools.cache
+def _topic_pattern(kinds: tuple[str, ...]) -> re.Pattern[str]:
+    alternatives = "|".join(re.escape(k) for k in kinds)
+    return re.compile(rf"^(?P<owner>(?:/[^/]+)+)/(?P<kind>{alternatives})$")
+
+
+def topic_owner(topic: str, kinds: tuple[str, ...]) -> tuple[str, str] | None:
+    """``(owner, kind)`` of a recorded topic ``<owner>/<kind>`` with ``kind`` one of ``kinds`` and the owner one
+    name or more (a camera under any namespace: ``/g1/drone_0/image_raw/compressed`` is ``("/g1/drone_0",
+    "image_raw/compressed")`` for :data:`CAMERA_IMAGES`); None for any other topic. The owner's last name
+    (:func:`last_name`) is the drone that bag scores and summaries group by."""
+    match = _topic_pattern(kinds).match(topic)
+    return (match.group("owner"), match.group("kind")) if match else None
+
+
+def last_name(name: str) -> str:
+    """The last name of a ROS name: ``/g1/drone_0`` is ``drone_0``."""
+    return name.rsplit("/", 1)[-1]
 
 
 @dataclass(frozen=True)
