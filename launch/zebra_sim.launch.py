@@ -37,7 +37,7 @@ from launch import LaunchDescription
 # and the RViz view drawn for the drones
 from zebra_sim_ros.geometry.camera import MAX_CAMERAS
 from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_view, write_rviz
-from zebra_sim_ros.graph.spec import BAG_IMAGES, NODE_ENVIRONMENT, PACKAGE, recorder_excludes
+from zebra_sim_ros.graph.spec import BAG_IMAGES, NODE_ENVIRONMENT, PACKAGE, bag_image_overrides, recorder_excludes
 
 
 def generate_launch_description():
@@ -84,12 +84,10 @@ def generate_launch_description():
         bag_images = LaunchConfiguration("bag_images").perform(context)
         if bag_images not in BAG_IMAGES:
             raise ValueError(f"bag_images:={bag_images}: want one of {', '.join(BAG_IMAGES)}")
-        # raw: the parameter files' settings; jpeg, png: the cameras' compressed images recorded, not the raw ones
-        compressed = {} if bag_images == "raw" else {"compressed": bag_images}
         # the recorder's own sections of its file: in the namespace a PushRosNamespace around this file gives it
         ns = "/" + str(context.launch_configurations.get("ros_namespace", "")).strip("/")
-        recorder = f"{ns.rstrip('/')}/recorder"
-        excludes = {} if bag_images == "raw" else {"exclude_regex": recorder_excludes(config, bag_images, recorder)}
+        compressed, excludes = bag_image_overrides(
+            bag_images, recorder_excludes(config, bag_images, f"{ns.rstrip('/')}/recorder"))
         viewer = []
         if evaluate_condition_expression(context, [LaunchConfiguration("rviz")]):  # true, 1, false, 0, as score
             # the package's view, one detection image per drone, written beside the bag as up writes it

@@ -643,10 +643,10 @@ def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: P
 
     parser = argparse.ArgumentParser()
     up.register(parser.add_subparsers())
-    cfg = up._up_config(parser.parse_args(["up", "--no-score", "--drones", "2", "--bag-images", "png"]))
-    assert not cfg.score and cfg.drones == 2 and cfg.bag_images == "png"
-    assert [s.executable for s in graph_spec(cfg)] == ["camera"] * 2 + ["labeller", "detector", "recorder", "placer"]
-    assert up._up_config(parser.parse_args(["up"])) == UpConfig()
+    cfg, specs = up._up_config(parser.parse_args(["up", "--no-score", "--drones", "2", "--bag-images", "png"]))
+    assert not cfg.score and cfg.drones == 2 and cfg.bag_images == "png" and specs == graph_spec(cfg)
+    assert [s.executable for s in specs] == ["camera"] * 2 + ["labeller", "detector", "recorder", "placer"]
+    assert up._up_config(parser.parse_args(["up"])) == (UpConfig(), graph_spec(UpConfig()))
     shipped = REPO / "config"
     run = up.ScorerRun.read(shipped, _scorer(UpConfig()))
     assert (run.window, run.drones) == (300, 3) and run.period_s == pytest.approx(1.0)

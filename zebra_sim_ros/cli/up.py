@@ -77,15 +77,14 @@ class _Stop(Exception):
 def cmd_up(args: argparse.Namespace) -> Summary:
     """Run the graph; returns the summary (``exit_code`` 0, 1 when a node died, 130 when interrupted)."""
     from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_command, rviz_view, write_rviz
-    from zebra_sim_ros.graph.spec import config_dir, graph_spec
+    from zebra_sim_ros.graph.spec import config_dir
     from zebra_sim_ros.zebra.asset import load_library
 
-    cfg = _up_config(args)
+    cfg, specs = _up_config(args)
     if not cfg.record and not cfg.score:
         print("[up] --no-record --no-score: the run is neither recorded nor scored (no figures at the end)", flush=True)
     detect_imgsz = cfg.detect_imgsz  # reads the checkpoint's serving rule: an unreadable file stops here
     conf = config_dir(cfg.config_dir)
-    specs = graph_spec(cfg)
     scorer = next((s for s in specs if s.executable == "scorer"), None)
     scoring = ScorerRun.read(conf, scorer) if scorer is not None else None  # a bad scorer.yaml stops here
     try:  # the package's RViz view drawn for this graph's drones and namespace; a view that cannot be is no reason
@@ -162,8 +161,9 @@ def _recorder_report(log: Path) -> dict[str, Any]:
     return out
 
 
-def _up_config(args: argparse.Namespace) -> UpConfig:
-    """The run's :class:`~zebra_sim_ros.graph.spec.UpConfig` from the options, checked (``ParameterError``)."""
+def _up_config(args: argparse.Namespace) -> tuple[UpConfig, list[NodeSpec]]:
+    """The run's :class:`~zebra_sim_ros.graph.spec.UpConfig` from the options, checked (``ParameterError``), and its
+    graph's nodes."""
     from zebra_sim_ros.graph.spec import UpConfig
 
     w, h = parse_size(args.size)
@@ -172,12 +172,12 @@ def _up_config(args: argparse.Namespace) -> UpConfig:
                    strategy=args.strategy, config_dir=args.config, ready_timeout_s=args.ready_timeout,
                    step_timeout_s=args.step_timeout, record=not args.no_record, score=not args.no_score,
                    namespace=args.namespace, verifier=args.verifier, bag_images=args.bag_images)
-    cfg.check()
+    specs = cfg.check()
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         raise ParameterError("--domain-id", args.domain_id, "0..232 (ROS_DOMAIN_ID)")
     if args.weights and not Path(args.weights).is_file():
         raise ParameterError("--weights", args.weights, "an existing checkpoint file")
-    return cfg
+    return cfg, specs
 
 
 def _graph_environment(conf: Path, domain_id: int | None) -> dict[str, str]:

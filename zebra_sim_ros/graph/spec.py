@@ -51,6 +51,16 @@ def recorder_excludes(config: Path, bag_images: str, node: str = "/recorder") ->
     return f"(?:{base})|{BAG_RAW_IMAGES}" if base else BAG_RAW_IMAGES
 
 
+def bag_image_overrides(bag_images: str, excludes: str) -> tuple[dict[str, str], dict[str, str]]:
+    """What a graph whose bag holds ``bag_images`` sets on top of the parameter files: the cameras' overrides and the
+    recorder's. Raw sets nothing (the files' settings hold); jpeg or png make the cameras publish
+    image_raw/compressed in that format and the recorder leave out ``excludes`` (:func:`recorder_excludes`, which
+    adds the raw images). ``zebra-sim up`` and the launch file both ask here."""
+    if bag_images == "raw":
+        return {}, {}
+    return {"compressed": bag_images}, {"exclude_regex": excludes}
+
+
 NODE_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
     "placer": PLACER_PARAMS, "camera": CAMERA_PARAMS, "labeller": LABELLER_PARAMS, "detector": DETECTOR_PARAMS,
     "recorder": RECORDER_PARAMS, "replay": REPLAY_PARAMS, "scorer": SCORER_PARAMS}
@@ -109,8 +119,9 @@ class UpConfig:
     verifier: str = ""  # the detector's crop verifier ("" off, "shipped" or a path): for photographs, off by default
     namespace: str = ""  # the graph's namespace ("" = the root): every topic moves under it
 
-    def check(self) -> None:
-        """Raise :class:`ParameterError` naming the first bad setting."""
+    def check(self) -> list[NodeSpec]:
+        """Raise :class:`ParameterError` naming the first bad setting; the graph's nodes (:func:`graph_spec`), each
+        checked by its own parameters' rules, when there is none."""
         if self.frames < 1:
             raise ParameterError("--frames", self.frames, ">= 1")
         from zebra_sim_ros.geometry.camera import MAX_CAMERAS
@@ -136,8 +147,10 @@ class UpConfig:
         from zebra_sim_ros.world.world import check_world_source
 
         check_world_source(self.world)
-        for node in graph_spec(self):  # each node's own rules, before any process starts
+        nodes = graph_spec(self)
+        for node in nodes:  # each node's own rules, before any process starts
             validate(NODE_PARAMS[node.executable], node.overrides)
+        return nodes
 
     @property
     def drone_names(self) -> tuple[str, ...]:
@@ -216,10 +229,12 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
     sim = {"use_sim_time": True}
     drones = cfg.drone_names
     nodes: list[NodeSpec] = []
+    # what the recorder leaves out (up waits for the rest)
+    excludes = recorder_excludes(config_dir(cfg.config_dir), cfg.bag_images, f"{ns}/recorder")
+    camera_bag, recorder_bag = bag_image_overrides(cfg.bag_images, excludes)
     for i, d in enumerate(drones):
-        compressed = {} if cfg.bag_images == "raw" else {"compressed": cfg.bag_images}  # raw: the file's setting
         nodes.append(NodeSpec("camera", f"{d}_camera", ns, "camera.yaml",
-                              {"drone_index": i, "width": cfg.width, "height": cfg.height, "ack": False, **compressed,
+                              {"drone_index": i, "width": cfg.width, "height": cfg.height, "ack": False, **camera_bag,
                                **sim},
                               tuple(f"{ns}/{d}/{t}" for t in CAMERA_TOPICS)
                               + ((f"{ns}/{d}/image_raw/compressed",) if cfg.bag_images != "raw" else ()), remaps))
@@ -238,11 +253,7 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
         nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml", {"drones": list(drones), **sim}, (), remaps,
                               tuple(f"{ns}/{d}/{t}" for d in drones for t in ("labels", "detections"))))
     if cfg.record:
-        # what the recorder leaves out (up waits for the rest)
-        excludes = recorder_excludes(config_dir(cfg.config_dir), cfg.bag_images, f"{ns}/recorder")
-        rec = {"output": str(cfg.bag_path.resolve()), **sim}
-        if cfg.bag_images != "raw":
-            rec["exclude_regex"] = excludes
+        rec = {"output": str(cfg.bag_path.resolve()), **recorder_bag, **sim}
         if ns:  # this graph's topics only, not another graph's on the same domain
             rec["topic_regex"] = f"^{ns}/"
         nodes.append(NodeSpec("recorder", "recorder", ns, "recorder.yaml", rec, (), remaps,
