@@ -8,6 +8,7 @@ Progress is read from the acknowledgements on ``zebra_sim/frame_done``; the node
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Iterable, Mapping
 from typing import Any
@@ -77,10 +78,11 @@ class GraphWatch:
     def missing(self, topics: Iterable[str], readers: Mapping[str, Iterable[str]] | None = None) -> list[str]:
         """Topics not yet published, then topics a reader (node name: the topics it must subscribe) does not
         subscribe yet although they are published, as readable notes."""
-        out = [f"{t} (no publisher)" for t in topics if not self.node.get_publishers_info_by_topic(t)]
+        published = functools.cache(lambda t: bool(self.node.get_publishers_info_by_topic(t)))  # once a topic
+        out = [f"{t} (no publisher)" for t in topics if not published(t)]
         for reader, wanted in (readers or {}).items():
             for t in wanted:
-                if self.node.get_publishers_info_by_topic(t) and not any(
+                if published(t) and not any(
                         i.node_name == reader for i in self.node.get_subscriptions_info_by_topic(t)):
                     out.append(f"{t} (not subscribed by the {reader} yet)")
         return out

@@ -151,19 +151,26 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             f"{n} to subscribe to {topics}" for n, topics in sorted(lacking.items()) if topics]
         return "waiting for " + " and for ".join(parts) if parts else ""
 
+    def _start_wait(self, how: str = "") -> str:
+        """What the first step still waits for (:meth:`_first_step_wait`), "" once it may start: then ``started``
+        is set and the start logged, once (``how``: " on request" in service mode)."""
+        if self.started:
+            return ""
+        waiting = self._first_step_wait()
+        if not waiting:
+            self.started = True
+            named = f", {', '.join(self.wait_nodes)} among them" if self.wait_nodes else ""
+            self.get_logger().info(f"every output has {self.cfg.wait_for_subscribers}+ subscribers{named}: "
+                                   f"starting{how}")
+        return waiting
+
     def _subscribed(self) -> bool:
         """True once every output topic has ``wait_for_subscribers`` subscribers and a subscription of each of
-        ``wait_for_nodes`` (logs what it waits for)."""
-        if not self.started:
-            waiting = self._first_step_wait()
-            if not waiting:
-                self.started = True
-                named = f", {', '.join(self.wait_nodes)} among them" if self.wait_nodes else ""
-                self.get_logger().info(f"every output has {self.cfg.wait_for_subscribers}+ subscribers{named}: "
-                                       "starting")
-            elif time.monotonic() - self.waiting_since > 5.0:
-                self.waiting_since = time.monotonic()
-                self.get_logger().info(waiting)
+        ``wait_for_nodes`` (logs what it waits for, every 5 s)."""
+        waiting = self._start_wait()
+        if waiting and time.monotonic() - self.waiting_since > 5.0:
+            self.waiting_since = time.monotonic()
+            self.get_logger().info(waiting)
         return self.started
 
     def _publish_next(self) -> None:
@@ -213,12 +220,9 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         """Publish the next step and say which, or say why not (``success`` false)."""
         if self._finished():
             response.success, response.message = False, f"max_steps ({self.cfg.max_steps}) reached: no more steps"
-        elif not self.started and (waiting := self._first_step_wait()):
+        elif waiting := self._start_wait(" on request"):
             response.success, response.message = False, f"{waiting}: call again"
         else:
-            if not self.started:
-                self.started = True
-                self.get_logger().info("every output has its subscribers: starting on request")
             scene = self.placer.scene(self.step)
             self._publish(scene)
             self.step += 1
