@@ -517,6 +517,13 @@ def test_compressed_images_read_back_as_image_transport_writes_them() -> None:
         decompress_rgb("16UC1; png compressed ", data)
     with pytest.raises(ValueError, match="an empty jpeg image"):
         decompress_rgb("rgb8; jpeg compressed bgr8", b"")
+    from zebra_sim_ros.recording.images import CompressedFormat
+
+    parsed = {f: CompressedFormat.parse(f) for f in ("rgb8; jpeg compressed bgr8", "JPG", "16UC1; png compressed ",
+                                                    "mono8; png compressed mono8", "bgr8; jpeg compressed rgb8")}
+    assert [(p.encoding, p.codec, p.codec_encoding, p.colour, p.holds_bgr) for p in parsed.values()] == [
+        ("rgb8", "jpeg", "bgr8", True, True), ("", "jpeg", "", True, True), ("16UC1", "png", "", False, False),
+        ("mono8", "png", "mono8", True, False), ("bgr8", "jpeg", "rgb8", True, False)]
     # a codec that held RGB is not turned around
     rgb_png = cv2.imencode(".png", rgb)[1].tobytes()
     assert np.array_equal(decompress_rgb("rgb8; png compressed rgb8", rgb_png), rgb)

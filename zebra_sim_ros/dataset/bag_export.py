@@ -43,7 +43,7 @@ from zebra_sim_ros.errors import ParameterError, ZebraSimError
 from zebra_sim_ros.messages import Labels
 from zebra_sim_ros.recording.cdr import MALFORMED, cdr_compressed_image, cdr_string, header_stamp_ns, rgb_image
 from zebra_sim_ros.recording.evaluate import skip_note
-from zebra_sim_ros.recording.images import COMPRESSED_TYPE, IMAGE_TYPE, codec_holds_bgr, decompress_rgb
+from zebra_sim_ros.recording.images import COMPRESSED_TYPE, IMAGE_TYPE, CompressedFormat, decompress_rgb
 from zebra_sim_ros.recording.reader import CAMERA_IMAGES, BagMessage, BagReader, topic_owner
 
 _KINDS = (*CAMERA_IMAGES, "labels")  # a camera's topics that bag export reads
@@ -167,6 +167,15 @@ class _Writer:
         self.prefixes = stems if len(set(stems)) == len(stems) else [f"b{i}_{s}" for i, s in enumerate(stems)]
         self.steps: dict[tuple[int, int, int], list[tuple[str, str]]] = {}  # step: its frames' (split, file name)
         self.zebras = 0
+        self._folders: set[Path] = set()  # the folders made so far
+
+    def folder(self, kind: str, split: str) -> Path:
+        """``<out>/<kind>/<split>``, made on first use."""
+        path = self.out / kind / split
+        if path not in self._folders:
+            path.mkdir(parents=True, exist_ok=True)
+            self._folders.add(path)
+        return path
 
     def split_of(self, step: tuple[int, int, int]) -> str:
         return "val" if step_draw(self.cfg.seed, step) < self.cfg.val_fraction else "train"
@@ -184,14 +193,11 @@ class _Writer:
         step = (bag, stamp, k)
         split = self.split_of(step)
         name = f"{self.prefixes[bag]}_{camera.strip('/').replace('/', '_')}_{stamp}" + (f"_r{k}" if k else "")
-        for folder in ("images", "labels"):
-            (self.out / folder / split).mkdir(parents=True, exist_ok=True)
-        (self.out / "images" / split / f"{name}.{ext}").write_bytes(blob)
+        (self.folder("images", split) / f"{name}.{ext}").write_bytes(blob)
         kept = yolo_lines(labels)
-        (self.out / "labels" / split / f"{name}.txt").write_text("".join(f"{line}\n" for line in kept))
+        (self.folder("labels", split) / f"{name}.txt").write_text("".join(f"{line}\n" for line in kept))
         if dont_care := yolo_lines(labels, dont_care=True):
-            (self.out / "ignore" / split).mkdir(parents=True, exist_ok=True)
-            (self.out / "ignore" / split / f"{name}.txt").write_text("".join(f"{line}\n" for line in dont_care))
+            (self.folder("ignore", split) / f"{name}.txt").write_text("".join(f"{line}\n" for line in dont_care))
         self.steps.setdefault(step, []).append((split, f"{name}.{ext}"))
         self.zebras += len(kept)
 
@@ -208,8 +214,7 @@ class _Writer:
             for folder, name in (("images", file), ("labels", f"{stem}.txt"), ("ignore", f"{stem}.txt")):
                 src = self.out / folder / split / name
                 if src.exists():
-                    (self.out / folder / to).mkdir(parents=True, exist_ok=True)
-                    src.replace(self.out / folder / to / name)
+                    src.replace(self.folder(folder, to) / name)
         self.steps[step] = [(to, file) for _, file in self.steps[step]]
 
     def frames(self) -> dict[str, int]:
@@ -225,7 +230,8 @@ class _Writer:
             _, fmt, blob = cdr_compressed_image(data)
             rgb = decompress_rgb(fmt, blob)  # ValueError for what our readers cannot take (depth, other codecs)
             size = (rgb.shape[1], rgb.shape[0])
-            as_read = codec_holds_bgr(fmt) or "compressed mono" in fmt  # a file reads back in these colours
+            held = CompressedFormat.parse(fmt)
+            as_read = held.holds_bgr or held.codec_encoding.startswith("mono")  # a file reads back in these colours
             for ext, magic in _MAGIC.items():
                 if as_read and blob.startswith(magic):
                     return ext, blob, size

@@ -8,7 +8,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import cv2
 import numpy as np
@@ -44,16 +44,33 @@ def compress_rgb(rgb: np.ndarray, kind: str, quality: int = 90) -> tuple[str, by
 NOT_COLOUR = re.compile(r"^(mono16|(16|32|64)[USF]C\d|8[US]C1|(rgb|bgr|rgba|bgra)16)$")
 
 
-def is_colour(fmt: str) -> bool:
-    """Whether a CompressedImage of this format holds an 8-bit colour or grey image (its encoding, before ``;``,
-    is not a depth, mask or 16-bit one; a bare ``jpeg``/``png`` is taken as colour)."""
-    return not NOT_COLOUR.match(fmt.split(";", 1)[0].strip()) if ";" in fmt else True
+class CompressedFormat(NamedTuple):
+    """A CompressedImage's ``format``, read once: ``"<encoding>; <codec> compressed <codec encoding>"`` as
+    ``compressed_image_transport`` writes it, or a bare ``jpeg``/``png`` (``encoding`` "")."""
 
+    encoding: str  # the image's own encoding (rgb8, mono8, 16UC1, ...); "" for a bare format
+    codec: str  # jpeg, png, ... (lower case; jpg read as jpeg); "" when none is named
+    codec_encoding: str  # what the codec holds (bgr8, rgb8, mono8); "" when the format does not say
+    bare: bool  # no "<encoding>;" part: a bare jpeg or png
 
-def codec_holds_bgr(fmt: str) -> bool:
-    """Whether a CompressedImage's codec holds BGR, as OpenCV writes and reads files: the format says so
-    (``compressed bgr...``) or says nothing (bare ``jpeg``/``png``), as ``compressed_image_transport`` takes it."""
-    return ";" not in fmt or "compressed bgr" in fmt
+    @classmethod
+    def parse(cls, fmt: str) -> CompressedFormat:
+        encoding, after = (p.strip() for p in fmt.split(";", 1)) if ";" in fmt else ("", fmt.strip())
+        words = after.split()
+        codec = {"jpg": "jpeg"}.get(words[0].lower(), words[0].lower()) if words else ""
+        held = words[2] if len(words) > 2 and words[1] == "compressed" else ""
+        return cls(encoding, codec, held, ";" not in fmt)
+
+    @property
+    def colour(self) -> bool:
+        """An 8-bit colour or grey image: its encoding is not a depth, mask or 16-bit one (bare: colour)."""
+        return not NOT_COLOUR.match(self.encoding)
+
+    @property
+    def holds_bgr(self) -> bool:
+        """The codec holds BGR, as OpenCV writes and reads files: the format says so (``compressed bgr...``) or
+        says nothing (bare), as ``compressed_image_transport`` takes it."""
+        return self.bare or self.codec_encoding.startswith("bgr")
 
 
 def decompress_rgb(fmt: str, data: bytes) -> np.ndarray:
@@ -62,12 +79,12 @@ def decompress_rgb(fmt: str, data: bytes) -> np.ndarray:
     or the bare ``jpeg``/``png``; grey images come back as three equal channels. The decoded channels are turned
     from BGR to RGB where the format says the codec held BGR (``compressed bgr...``) or says nothing (bare), as
     ``compressed_image_transport`` does. ValueError for another format (``compressedDepth``, video codecs), a
-    depth, mask or 16-bit image (:func:`is_colour`), or bytes that do not decode."""
-    after = fmt.split(";", 1)[1].split() if ";" in fmt else [fmt.strip()]
-    kind = {"jpg": "jpeg"}.get(after[0].lower(), after[0].lower()) if after else ""
+    depth, mask or 16-bit image (:attr:`CompressedFormat.colour`), or bytes that do not decode."""
+    parsed = CompressedFormat.parse(fmt)
+    kind = parsed.codec
     if kind not in COMPRESSED_FORMATS:
         raise ValueError(f"unsupported compressed format {fmt!r} (read: {', '.join(COMPRESSED_FORMATS)})")
-    if not is_colour(fmt):
+    if not parsed.colour:
         raise ValueError(f"compressed format {fmt!r}: not an 8-bit colour or grey image")
     if not data:
         raise ValueError(f"an empty {kind} image ({fmt!r})")
@@ -77,7 +94,7 @@ def decompress_rgb(fmt: str, data: bytes) -> np.ndarray:
         raise ValueError(f"{len(data)} bytes do not decode as {kind} ({fmt!r}): {str(exc).strip()[-120:]}") from None
     if img is None:
         raise ValueError(f"{len(data)} bytes do not decode as {kind} ({fmt!r})")
-    return np.ascontiguousarray(img[..., ::-1] if codec_holds_bgr(fmt) else img)
+    return np.ascontiguousarray(img[..., ::-1] if parsed.holds_bgr else img)
 
 
 def message_rgb(type_name: str, data: bytes) -> tuple[int, np.ndarray] | None:
@@ -89,7 +106,7 @@ def message_rgb(type_name: str, data: bytes) -> tuple[int, np.ndarray] | None:
         return rgb_image(data)
     if type_name == COMPRESSED_TYPE:
         t, fmt, blob = cdr_compressed_image(data)
-        return (t, decompress_rgb(fmt, blob)) if is_colour(fmt) else None
+        return (t, decompress_rgb(fmt, blob)) if CompressedFormat.parse(fmt).colour else None
     return None
 
 
