@@ -8,6 +8,7 @@ zebras the labeller saw but dropped are don't-care regions (a detection on one i
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -74,7 +75,7 @@ class LiveScores:
     def __init__(self, window: int = 0) -> None:
         self.window = 0
         self.drones: dict[str, DroneFrames] = {}
-        self.order: dict[str, list[int]] = {}  # per camera, its stamps in order of first arrival
+        self.order: dict[str, deque[int]] = {}  # per camera, its stamps in order of first arrival
         self.matched: dict[str, dict[int, MatchedImage]] = {}  # per camera, its frames matched so far
         self.latest: dict[tuple[str, str], int] = {}  # (camera, "labels" or "detections"): the last stamp
         self.awaiting: set[tuple[str, str]] = set()  # (camera, topic) whose new run has not begun: old leftovers
@@ -94,7 +95,7 @@ class LiveScores:
     def _trim(self, drone: str) -> None:
         order = self.order[drone]
         while self.window and len(order) > self.window:
-            old = order.pop(0)
+            old = order.popleft()
             self.drones[drone].labels.pop(old, None)
             self.drones[drone].detections.pop(old, None)
             self.matched[drone].pop(old, None)
@@ -116,7 +117,7 @@ class LiveScores:
             self.awaiting |= {k for k in self.latest if k[0] == drone and k != key}
         self.latest[key] = stamp
         frames = self.drones.setdefault(drone, DroneFrames())
-        order = self.order.setdefault(drone, [])
+        order = self.order.setdefault(drone, deque())
         self.matched.setdefault(drone, {}).pop(stamp, None)  # its labels or detections change: matched again
         self.last = None
         if stamp not in frames.labels and stamp not in frames.detections:

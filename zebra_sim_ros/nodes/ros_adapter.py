@@ -106,13 +106,14 @@ class ZebraNode(Node, Generic[C]):
         self.start()
         self._start_diagnostics()
 
-    def activity(self) -> Activity | None:
-        """What the node has done since it started, for /diagnostics (None: it reports nothing)."""
-        return None
+    def activity(self) -> Activity:
+        """What the node has done since it started, for /diagnostics: every node whose config has a
+        ``diagnostics_period_s`` says."""
+        raise NotImplementedError(f"{type(self).__name__} reports diagnostics but does not say its activity")
 
     def _start_diagnostics(self) -> None:
-        period = float(getattr(self.cfg, "diagnostics_period_s", 0.0))
-        if period <= 0 or self.activity() is None:
+        period = float(getattr(self.cfg, "diagnostics_period_s", 0.0))  # 0, or a config without it: no reports
+        if period <= 0:
             return
         self.health = HealthMonitor(time.monotonic())
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, qos("reliable", 10))
@@ -123,9 +124,9 @@ class ZebraNode(Node, Generic[C]):
 
     def publish_diagnostics(self) -> Health | None:
         """Report the node's health since the last report on /diagnostics; the report (None: diagnostics off)."""
-        act = self.activity()
-        if self.health is None or self.diagnostics_pub is None or act is None:
+        if self.health is None or self.diagnostics_pub is None:
             return None
+        act = self.activity()
         h = self.health.report(time.monotonic(), act)
         status = DiagnosticStatus(level=bytes([int(h.level)]),
                                   name=status_name(self.get_fully_qualified_name(), self.executable),
