@@ -594,22 +594,30 @@ def test_eval_reads_compressed_images_and_detects_a_frame_once(tmp_path: Path,
                                    atol=1e-3)
 
 
-def test_a_report_is_logged_at_the_recorders_clock_not_its_own_stamp() -> None:
+def test_a_report_is_logged_at_the_latest_data_stamp_not_its_own() -> None:
     """Data messages are logged at their header stamp (one time base with the steps); a /diagnostics report carries
-    its node's clock, wall time in a node run without sim time, and is left to the recorder's clock (None)."""
+    its node's clock, wall time in a node run without sim time, and is logged at the latest stamp given so far, or
+    at the recorder's clock before any; a message without a stamp at the recorder's clock."""
     from diagnostic_msgs.msg import DiagnosticArray
 
-    from zebra_sim_ros.recording.stamps import header_stamp_ns, log_stamp_ns
+    from zebra_sim_ros.recording.stamps import LogTimes, header_stamp_ns
 
     wall = Header()
     wall.stamp.sec, wall.stamp.nanosec = 1_795_000_000, 5
     report = serialize_message(DiagnosticArray(header=wall))
     assert header_stamp_ns("diagnostic_msgs/msg/DiagnosticArray", report) == 1_795_000_000 * 10**9 + 5
-    assert log_stamp_ns("diagnostic_msgs/msg/DiagnosticArray", report) is None
-    step = Header()
-    step.stamp.sec = 3
-    image = serialize_message(Image(header=step, height=1, width=1, encoding="rgb8", step=3, data=bytes(3)))
-    assert log_stamp_ns("sensor_msgs/msg/Image", image) == header_stamp_ns("sensor_msgs/msg/Image", image) == 3 * 10**9
+
+    def image(sec: int) -> bytes:
+        step = Header()
+        step.stamp.sec = sec
+        return serialize_message(Image(header=step, height=1, width=1, encoding="rgb8", step=3, data=bytes(3)))
+
+    log_time, clock = LogTimes(), iter(range(100, 110))
+    times = [log_time(t, data, lambda: next(clock)) for t, data in (
+        ("diagnostic_msgs/msg/DiagnosticArray", report), ("sensor_msgs/msg/Image", image(3)),
+        ("diagnostic_msgs/msg/DiagnosticArray", report), ("sensor_msgs/msg/Image", image(2)),
+        ("diagnostic_msgs/msg/DiagnosticArray", report), ("std_msgs/msg/String", serialize_message(String(data="x"))))]
+    assert times == [100, 3 * 10**9, 3 * 10**9, 2 * 10**9, 3 * 10**9, 101]
 
 
 def test_the_preview_puts_four_drones_to_a_row_in_their_order(tmp_path: Path) -> None:

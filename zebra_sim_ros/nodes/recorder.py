@@ -28,7 +28,7 @@ from zebra_sim_ros.nodes.ros_adapter import ZebraNode, describe_qos, help_text, 
 from zebra_sim_ros.recording.config import MB, RECORDER_PARAMS, RecorderConfig
 from zebra_sim_ros.recording.qos import profile_dict, replay_profile
 from zebra_sim_ros.recording.recorder import RecorderCore
-from zebra_sim_ros.recording.stamps import REPORT_TYPES, log_stamp_ns
+from zebra_sim_ros.recording.stamps import LogTimes
 from zebra_sim_ros.recording.writer import BagWriter
 
 
@@ -56,7 +56,7 @@ class RecorderNode(ZebraNode[RecorderConfig]):
                                 int(c.split_size_mb * MB), c.split_duration_s, int(c.max_size_mb * MB), reserve)
         self.core = RecorderCore(self.writer, c.queue_size)
         self.depth = c.qos_depth
-        self.latest_stamp: int | None = None  # the latest stamp logged (reports are logged at it)
+        self.log_times = LogTimes()  # each message's log time: its stamp, reports at the latest one
         self.subs: dict[str, Any] = {}
         self.wall_timer(c.discovery_period_s, self._discover)
         if c.stats_period_s > 0:
@@ -108,20 +108,16 @@ class RecorderNode(ZebraNode[RecorderConfig]):
             self.get_logger().info(f"recording {topic} ({type_name}), QoS {describe_qos(q)}")
 
     def _callback(self, topic: str, type_name: str) -> Any:
-        """Queue each message with its log time: its header stamp where its type has one (so log times equal the
-        stamps); a report (/diagnostics: ``stamps.log_stamp_ns``), whose stamp is its reporter's clock, at the latest
-        stamp logged so far (the data's time base, with or without use_sim_time); anything else, and a report before
-        any stamp, at the node's clock (simulated time under use_sim_time, as ``up`` runs it)."""
-        offer, clock = self.core.offer, self.get_clock()
-        report = type_name in REPORT_TYPES
+        """Queue each message with its log time (:class:`~zebra_sim_ros.recording.stamps.LogTimes`: its header
+        stamp, a /diagnostics report at the latest stamp logged, anything else at the node's clock: simulated time
+        under use_sim_time, as ``up`` runs it)."""
+        offer, log_time, clock = self.core.offer, self.log_times, self.get_clock()
+
+        def now() -> int:
+            return int(clock.now().nanoseconds)
 
         def on_message(data: bytes) -> None:
-            t = log_stamp_ns(type_name, data)
-            if t is not None:
-                self.latest_stamp = t if self.latest_stamp is None else max(self.latest_stamp, t)
-            elif report:
-                t = self.latest_stamp
-            offer(topic, data, clock.now().nanoseconds if t is None else t, time.time_ns())
+            offer(topic, data, log_time(type_name, data, now), time.time_ns())
         return on_message
 
     def _log_stats(self) -> None:

@@ -9,15 +9,16 @@ holding one of our JSON messages (scene, labels, detections) gives the ``stamp``
 
 A report's stamp is not a data time: a ``diagnostic_msgs/DiagnosticArray`` is stamped by its node's clock, which
 is wall time in a node run without ``use_sim_time`` (a scorer or a driver beside the graph) and simulated time in
-the graph's nodes. :func:`log_stamp_ns` leaves such types to the recorder, which logs them at the latest stamp it
-has logged, so one bag keeps one time base (a wall-clock stamp among simulated ones put the bag's first message
-56 years after its last step, and a replay from that start skipped every step).
+the graph's nodes. :class:`LogTimes` logs them at the latest stamp it has given, so one bag keeps one time base (a
+wall-clock stamp among simulated ones put the bag's first message 56 years after its last step, and a replay from
+that start skipped every step).
 """
 
 from __future__ import annotations
 
 import re
 import struct
+from collections.abc import Callable
 from functools import lru_cache
 
 from zebra_sim_ros.recording.schemas import SchemaError, msg_text
@@ -84,10 +85,21 @@ def header_stamp_ns(type_name: str, data: bytes) -> int | None:
 REPORT_TYPES = frozenset({"diagnostic_msgs/msg/DiagnosticArray"})  # stamped on the reporter's clock
 
 
-def log_stamp_ns(type_name: str, data: bytes) -> int | None:
-    """The log time a recorder gives a message: its header stamp (:func:`header_stamp_ns`), except for reports
-    (:data:`REPORT_TYPES`), whose stamp is their node's clock and not a data time: None (the recorder's clock)."""
-    return None if type_name in REPORT_TYPES else header_stamp_ns(type_name, data)
+class LogTimes:
+    """The log time a recorder gives each message, so one bag keeps one time base: its header stamp
+    (:func:`header_stamp_ns`), so log times equal the stamps; a report (:data:`REPORT_TYPES`), whose stamp is its
+    node's clock and not a data time, the latest stamp given so far (the data's time base, with or without
+    use_sim_time); anything else, and a report before any stamp, ``now()``: the recorder's clock."""
+
+    def __init__(self) -> None:
+        self.latest: int | None = None  # the latest header stamp given
+
+    def __call__(self, type_name: str, data: bytes, now: Callable[[], int]) -> int:
+        if type_name in REPORT_TYPES:
+            t = self.latest
+        elif (t := header_stamp_ns(type_name, data)) is not None:
+            self.latest = t if self.latest is None else max(self.latest, t)
+        return now() if t is None else t
 
 
 def _json_stamp_ns(data: bytes) -> int | None:
