@@ -141,6 +141,28 @@ def _pycocotools_stats(preds: list[np.ndarray], gts: list[np.ndarray], crowds: l
     return np.asarray(ev.stats)
 
 
+def test_a_count_is_the_detections_at_the_threshold_off_dont_care_zebras() -> None:
+    """count_errors: per image, the detections at conf or above that are not on a don't-care zebra against the
+    zebras that count; mean absolute and signed error per image, and the whole count's relative error."""
+    from zebra_sim_ros.detection.metrics import count_errors, match_images
+
+    gt = [np.array([[0.0, 0, 20, 20], [40, 40, 60, 60], [80, 80, 100, 100]]), np.zeros((0, 4))]
+    ignore = [np.array([[200.0, 200, 220, 220]]), np.zeros((0, 4))]
+    preds = [np.array([[0.0, 0, 20, 20, 0.9], [41, 41, 61, 61, 0.8],  # two of three zebras found
+                       [300, 300, 320, 320, 0.3],  # a box on nothing, over the threshold
+                       [80, 80, 100, 100, 0.1],  # the third zebra, under it
+                       [200, 200, 220, 220, 0.95]]),  # on the don't-care zebra: neither counted nor missed
+             np.array([[5.0, 5, 25, 25, 0.5]])]  # a box in an image of no zebra
+    matched = match_images(preds, gt, ignores=ignore)
+    c = count_errors(matched, 0.25)
+    assert c == pytest.approx({"conf": 0.25, "images": 2, "true": 3, "counted": 4, "mae": 0.5, "bias": 0.5,
+                               "relative": 1 / 3}, abs=1e-4)
+    assert count_errors(matched, 0.05)["counted"] == 5 and count_errors(matched, 0.99)["counted"] == 0
+    assert count_errors(matched[1:], 0.25)["relative"] is None  # no zebra to count against
+    with pytest.raises(ParameterError, match="count_conf"):
+        count_errors(matched, 1.5)
+
+
 @pytest.mark.parametrize("seed", [3, 4])
 def test_metrics_agree_with_pycocotools(seed: int) -> None:
     preds, gts = _random_eval_set(seed)
@@ -562,6 +584,8 @@ def test_validation_serves_each_image_as_detect_does(tmp_path: Path, capsys: pyt
         assert out["imgsz"] == sizes, extra
         assert out["ms_per_image"] > 0 and f"{out['ms_per_image']} ms per image on cpu" in text  # the serving cost
         assert set(out["ap_by_size"]) == {"<8", "8-16", "16-32", "32-96", ">=96", "small", "medium", "large"}
+        assert out["count"]["conf"] == pytest.approx(0.25) and out["count"]["images"] == 2  # the detector's conf
+        assert f"count at conf 0.25: {out['count']['counted']} of {out['count']['true']} zebras" in text
         assert all(cv2.imread(out["plots"][k]) is not None for k in ("pr_curve", "predictions"))
         if "--bootstrap" in extra:  # two images, each its own placement; nothing labelled, so AP 0 in every draw
             assert out["bootstrap"] == {"samples": 20, "seed": 0, "placements": 2, "mAP50 95%": [0.0, 0.0],

@@ -204,6 +204,7 @@ MIRRORED = [
     ("val", "--imgsz", "detector", "imgsz"),
     ("val", "--iou", "detector", "iou"),
     ("val", "--amp", "detector", "amp"),
+    ("val", "--count-conf", "scorer", "count_conf"),
     ("up", "--detect-amp", "detector", "amp"),
 ]
 

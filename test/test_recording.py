@@ -246,6 +246,13 @@ def test_eval_from_recorded_labels_and_detections(tmp_path: Path) -> None:
     assert s["drone_1"]["mAP50"] == pytest.approx(0.0, abs=1e-6)  # shifted by 30 px: IoU 0.14
     # both drones' step-3 false positives rank first, then drone_0's 4 true positives: 4/6 up to recall 4/8
     assert s["all"]["mAP50"] == pytest.approx(51 / 101 * 4 / 6, abs=0.01)
+    # counted at the detector's threshold: the don't-care hit is neither counted nor missed, step 3's extra box is
+    # one too many on each drone (a count cannot tell drone_1's misplaced boxes from hits: mAP does)
+    want = {"conf": 0.25, "images": 4, "true": 4, "counted": 5, "mae": 0.25, "bias": 0.25, "relative": 0.25}
+    assert s["drone_0"]["count"] == pytest.approx(want) and s["drone_1"]["count"] == pytest.approx(want)
+    assert s["all"]["count"] == pytest.approx({**want, "images": 8, "true": 8, "counted": 10})
+    high = score(collect(tmp_path / "e.mcap"), count_conf=0.95)["drone_0"]["count"]  # only step 3's 0.99 box
+    assert high == pytest.approx({**want, "conf": 0.95, "counted": 1, "mae": 0.75, "bias": -0.75, "relative": -0.75})
     assert cdr_string(serialize_message(String(data="héllo"))) == "héllo"
 
 

@@ -111,8 +111,12 @@ def test_live_scores_match_each_frame_once_and_score_as_a_bag_is_scored() -> Non
             live.add_detections(drone, sec * 10**9, dets)
             if sec % 2:
                 live.scores()  # scored while frames come: the cache grows and drops frames as the window moves
-    fresh = score_drones({d: DroneFrames(dict(f.labels), dict(f.detections)) for d, f in live.drones.items()})
+    frames = {d: DroneFrames(dict(f.labels), dict(f.detections)) for d, f in live.drones.items()}
+    fresh = score_drones(frames)
     assert live.scores() == fresh and fresh["all"]["images"] == 8
+    live.recount(0.6)  # a new count threshold: the same matches, counted again
+    assert live.scores() == score_drones(frames, count_conf=0.6) != fresh
+    assert live.scores()["all"]["count"]["counted"] < fresh["all"]["count"]["counted"]
     # matched: exactly the window's frames (the older ones dropped as it moved)
     assert {d: sorted(m) for d, m in live.matched.items()} == {d: [s * 10**9 for s in range(3, 7)] for d in "ab"}
 
@@ -126,7 +130,8 @@ def test_the_scorer_reports_live_figures_per_camera_and_warns_on_a_bad_message(t
             for d in ("drone_0", "drone_1") for k in ("labels", "detections")}
     log = tmp_path / "scorer.log"
     try:
-        with node_process("scorer", {"drones": ["drone_0", "drone_1"], "diagnostics_period_s": 0.2}, domain, log):
+        with node_process("scorer", {"drones": ["drone_0", "drone_1"], "diagnostics_period_s": 0.2,
+                                     "count_conf": 0.92}, domain, log):
             assert spin_until(node, ex, lambda: all(node.count_subscribers(f"/{d}/{k}") for d, k in pubs), 60), \
                 log.read_text()
             box = [10.0, 10, 50, 40]
@@ -161,7 +166,11 @@ def test_the_scorer_reports_live_figures_per_camera_and_warns_on_a_bad_message(t
     assert float(v["drone_0 mAP50"]) == pytest.approx(1.0) and float(v["drone_0 recall"]) == pytest.approx(1.0)
     assert float(v["drone_1 recall"]) == pytest.approx(0.5) and float(v["drone_1 precision"]) == pytest.approx(0.5)
     assert 0.5 < float(v["all mAP50"]) < 1.0 and v["frames scored"] == "6"
-    assert last["level"] == 0 and last["message"].endswith("over 6 frames (12 zebras)"), last
+    # counted at 0.92: none of drone_0's boxes (0.9, 0.8), drone_1's box on nothing (0.95) of its two a frame
+    assert (v["drone_0 count"], v["drone_1 count"], v["all count"]) == ("0/6", "3/6", "3/12")
+    assert float(v["all count MAE"]) == pytest.approx(1.5)
+    assert last["level"] == 0 and last["message"].endswith(
+        "over 6 frames (12 zebras); counted 3 at conf 0.92, mean absolute error 1.50 a frame"), last
     warn = next(s for s in status if s["level"] == 1)
     assert "bad_messages" in warn["message"] and "drone_0/labels skipped" in log.read_text()
 

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from zebra_sim_ros.cli.common import Summary, add_json_flag, detector_options
+from zebra_sim_ros.cli.common import Summary, add_json_flag, count_option, detector_options
 from zebra_sim_ros.errors import ParameterError
 
 
@@ -33,6 +33,7 @@ def register(sub: Any) -> None:
     e.add_argument("--weights", default=None,
                    help="run this detector over the recorded /<drone>/image_raw instead of using recorded detections")
     detector_options(e)  # with --weights
+    count_option(e)
     add_json_flag(e)
     e.set_defaults(func=cmd_eval)
     x = bsub.add_parser("export", help="a recorded run as a YOLO dataset: each camera image with its labels, for "
@@ -81,6 +82,7 @@ def cmd_recover(args: argparse.Namespace) -> Summary:
 
 def cmd_eval(args: argparse.Namespace) -> Summary:
     """Score recorded detections against recorded labels."""
+    from zebra_sim_ros.detection.metrics import count_line
     from zebra_sim_ros.recording.evaluate import ImageDetector, collect, score
 
     if args.weights:
@@ -96,13 +98,14 @@ def cmd_eval(args: argparse.Namespace) -> Summary:
     collected = collect(args.bag, args.detections, each=detector)  # one pass, with or without a detector
     if detector is not None:
         collected = detector.apply(collected)
-    s = score(collected)
+    s = score(collected, args.count_conf)
     for drone, m in s.items():
         if drone not in ("all", "damaged", "skipped") and m:
             print(f"{drone}: {m['frames']} frames, P {m['precision']:.3f} R {m['recall']:.3f} mAP50 {m['mAP50']:.3f} "
-                  f"mAP50-95 {m['mAP50-95']:.3f}")
+                  f"mAP50-95 {m['mAP50-95']:.3f}; counted {m['count']['counted']} of {m['count']['true']}")
     if s["all"]:
-        print(f"all: mAP50 {s['all']['mAP50']:.3f} mAP50-95 {s['all']['mAP50-95']:.3f}")
+        a = s["all"]
+        print(f"all: mAP50 {a['mAP50']:.3f} mAP50-95 {a['mAP50-95']:.3f}; {count_line(a['count'])}")
     if s["skipped"]:
         print(f"skipped {len(s['skipped'])} unusable message(s), first: {s['skipped'][0]}")
     for note in s["damaged"]:

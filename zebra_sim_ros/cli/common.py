@@ -49,3 +49,12 @@ def detector_options(p: argparse.ArgumentParser) -> None:
 
     for name in ("device", "imgsz", "scale", "verifier", "amp"):
         add_option(p, spec_of(DetectorConfig, name))
+
+
+def count_option(p: argparse.ArgumentParser) -> None:
+    """``--count-conf``, mirroring the scorer node's ``count_conf`` (``val``, ``bag eval``): the zebras are
+    counted with the detections at it or above."""
+    from zebra_sim_ros.detection.config import ScorerConfig
+    from zebra_sim_ros.params import add_option, spec_of
+
+    add_option(p, spec_of(ScorerConfig, "count_conf"))

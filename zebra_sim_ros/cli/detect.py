@@ -8,7 +8,7 @@ from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
-from zebra_sim_ros.cli.common import Summary, add_json_flag, detector_options
+from zebra_sim_ros.cli.common import Summary, add_json_flag, count_option, detector_options
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.params import add_option, spec_of
 
@@ -140,6 +140,7 @@ def register(sub: Any) -> None:
     add_option(v, spec_of(DetectorConfig, "conf"), default=0.001, note="val counts every detection above it into AP")
     add_option(v, spec_of(DetectorConfig, "iou"))
     add_option(v, spec_of(DetectorConfig, "max_det"), note="detections per image that count into AP, by score")
+    count_option(v)
     v.add_argument("--bootstrap", type=int, default=0, help="also give 95%% intervals of mAP50 and mAP50-95 over "
                    "this many resamples of the set's placements (a placement's views drawn together; 0: none)")
     v.add_argument("--bootstrap-seed", type=int, default=0, help="seed of the resamples (recorded in the output)")
@@ -249,7 +250,7 @@ def cmd_val(args: argparse.Namespace) -> Summary:
     """Validate."""
     from zebra_sim_ros.detection.checkpoint import check_imgsz, check_scale
     from zebra_sim_ros.detection.evaluate import evaluate
-    from zebra_sim_ros.detection.metrics import pr_curve_png
+    from zebra_sim_ros.detection.metrics import count_line, pr_curve_png
 
     args.imgsz = args.imgsz or None  # 0: the checkpoint's rule
     check_imgsz("--imgsz", args.imgsz)
@@ -265,7 +266,8 @@ def cmd_val(args: argparse.Namespace) -> Summary:
             raise ParameterError(name, value, "0..1")
 
     m, facts = evaluate(args.weights, args.data, args.split, args.imgsz, args.batch, args.device, args.conf, args.iou,
-                        scale=args.scale, max_det=args.max_det, verifier=args.verifier or None, amp=args.amp)
+                        scale=args.scale, max_det=args.max_det, verifier=args.verifier or None, amp=args.amp,
+                        count_conf=args.count_conf)
     per_image = facts.pop("per_image")
     print(f"inference size: {facts['imgsz']} ({facts['imgsz_rule']}); {facts['ms_per_image']} ms per image on "
           f"{facts['device']}, features in {facts['amp']} (reading, letterbox, network, NMS"
@@ -276,6 +278,7 @@ def cmd_val(args: argparse.Namespace) -> Summary:
           f"{d['mAP50-95']:>10.3f}")
     print("by box size (sqrt of area, px):" + "".join(
         f"  {k} {v['mAP50']:.3f}/{v['mAP50-95']:.3f} ({v['instances']})" for k, v in facts["ap_by_size"].items()))
+    print(count_line(facts["count"]))
     if args.bootstrap:
         from zebra_sim_ros.detection.evaluate import bootstrap_interval
 

@@ -366,6 +366,9 @@ def _print_summary(r: dict[str, Any], drones: tuple[str, ...]) -> None:
         print(f"[up] detector at imgsz {r['detect_imgsz']} against the live ground truth (all drones, "
               f"{a['images']} images, {a['instances']} zebras): P {a['precision']:.3f} R {a['recall']:.3f} "
               f"mAP50 {a['mAP50']:.3f} mAP50-95 {a['mAP50-95']:.3f}", flush=True)
+        from zebra_sim_ros.detection.metrics import count_line
+
+        print(f"[up] {count_line(a['count'])}", flush=True)
     ms = r["median_ms"]
     if r.get("steps_per_s"):
         print(f"[up] throughput: {r['steps']} steps in {r['seconds']:.1f} s = {r['steps_per_s']:.2f} steps/s, "

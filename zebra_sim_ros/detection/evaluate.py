@@ -26,13 +26,16 @@ from zebra_sim_ros.detection.metrics import (
     DetectionMetrics,
     MatchedImage,
     ap_by_size,
+    count_errors,
     evaluate_detections,
     interval95,
     match_images,
+    metrics_of,
     paired_bootstrap,
 )
 from zebra_sim_ros.detection.model import ZEBRA, Detector
 from zebra_sim_ros.detection.predict import describe_size, inference_size, unletterbox
+from zebra_sim_ros.detection.scoring import COUNT_CONF
 
 if TYPE_CHECKING:
     from zebra_sim_ros.detection.verify import Verifier
@@ -154,12 +157,13 @@ def bootstrap_interval(per_image: Sequence[ImagePredictions], samples: int, seed
 def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", imgsz: int | None = None,
              batch: int = 8, device: str = "auto", conf: float = 0.001, iou: float = 0.7,
              workers: int = 0, scale: float = 0.0, max_det: int = MAX_DETECTIONS, verifier: str | None = None,
-             amp: str = "off") -> tuple[DetectionMetrics, dict[str, Any]]:
+             amp: str = "off", count_conf: float = COUNT_CONF) -> tuple[DetectionMetrics, dict[str, Any]]:
     """Open the checkpoint and the set, validate; returns the metrics and facts about the run. Each image is
     served at :func:`~zebra_sim_ros.detection.predict.inference_size` under ``imgsz`` and ``scale`` (default:
     the checkpoint's rule), as the detector node and ``bag eval`` serve it; ``verifier`` ('shipped' or a path)
     rescores the zebra boxes as the node's ``verifier`` parameter does; ``amp`` serves the features in mixed
-    precision as its ``amp`` parameter does."""
+    precision as its ``amp`` parameter does; the zebras are counted with the detections at ``count_conf`` or above
+    (facts' ``count``: :func:`~zebra_sim_ros.detection.metrics.count_errors`)."""
     dev = select_device(device)
     model, ckpt = load_model(weights, dev, amp=amp)
     net = None
@@ -172,12 +176,13 @@ def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", i
     t0 = time.perf_counter()
     batches: list[tuple[float, int]] = []
     per_image = predictions(model, loader, conf, iou, max_det, verifier=net, batch_seconds=batches)
-    m = score(per_image, max_det)
+    matches = matched(per_image, max_det)
+    m = metrics_of(matches)
     sizes = sorted({p.imgsz for p in per_image})
     by_size = ap_by_size([p.detections for p in per_image], [p.labels for p in per_image], max_det,
                          ignores=[p.ignore for p in per_image])
     return m, {"weights": str(weights or "shipped"), "verifier": verifier or None, "data": str(folder),
-               "ap_by_size": by_size,
+               "ap_by_size": by_size, "count": count_errors(matches, count_conf),
                "per_image": per_image,
                "imgsz": sizes[0] if len(sizes) == 1 else sizes, "imgsz_rule": describe_size(model.cfg, imgsz, scale),
                "device": str(dev), "amp": model.serve_precision,

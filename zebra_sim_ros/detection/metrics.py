@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Hashable, Sequence
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -223,6 +223,32 @@ def metrics_of(matched: Sequence[MatchedImage]) -> DetectionMetrics:
     ap, pr, (best_p, best_r, best_conf) = _accumulate(matched)
     return DetectionMetrics(ap=ap, precision=best_p, recall=best_r, f1_confidence=best_conf, images=len(matched),
                             instances=sum(m.n_gt for m in matched), pr_curve=pr)
+
+
+def count_errors(matched: Sequence[MatchedImage], conf: float) -> dict[str, float | int | None]:
+    """How well the detections at ``conf`` or above count the zebras, image by image, as an aerial census counts
+    them: ``counted`` (detections not on a don't-care region: a zebra the labels drop is neither counted nor
+    missed) against ``true`` (the zebras that count) over ``images``; ``mae`` and ``bias``, the mean absolute and
+    signed error of an image's count (counted - true); ``relative``, the error of the whole count over the true
+    total (None without zebras). A count says nothing of where: a miss and a false detection in one image cancel
+    (mAP and recall tell them apart)."""
+    if not 0.0 <= conf <= 1.0:
+        raise ParameterError("count_conf", conf, "0..1")
+    counted = np.array([int(np.sum((m.scores >= conf) & ~m.ignored[0])) for m in matched], np.int64)
+    true = np.array([m.n_gt for m in matched], np.int64)
+    err = counted - true
+    total = int(true.sum())
+    return {"conf": conf, "images": len(matched), "true": total, "counted": int(counted.sum()),
+            "mae": round(float(np.abs(err).mean()), 4) if len(err) else 0.0,
+            "bias": round(float(err.mean()), 4) if len(err) else 0.0,
+            "relative": round(float(err.sum() / total), 4) if total else None}
+
+
+def count_line(c: dict[str, Any]) -> str:
+    """One line of :func:`count_errors`' figures."""
+    rel = f" ({c['relative']:+.1%})" if c["relative"] is not None else ""
+    return (f"count at conf {c['conf']:g}: {c['counted']} of {c['true']} zebras{rel}, per image mean absolute error "
+            f"{c['mae']:.2f}, bias {c['bias']:+.2f}")
 
 
 def interval95(draws: NDArray[np.float64]) -> tuple[float, float]:

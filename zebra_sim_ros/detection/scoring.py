@@ -15,8 +15,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from zebra_sim_ros.detection.metrics import MatchedImage, match_images, metrics_of
+from zebra_sim_ros.detection.config import DetectorConfig
+from zebra_sim_ros.detection.metrics import MatchedImage, count_errors, match_images, metrics_of
 from zebra_sim_ros.messages import Labels
+
+COUNT_CONF = DetectorConfig().conf  # counted as the detector publishes: at its threshold
 
 
 @dataclass
@@ -35,12 +38,13 @@ class DroneFrames:
                 np.array([z.box_visible for z in labels.dont_care], np.float64).reshape(-1, 4))
 
 
-def score_drones(drones: dict[str, DroneFrames],
-                 cache: dict[str, dict[int, MatchedImage]] | None = None) -> dict[str, Any]:
+def score_drones(drones: dict[str, DroneFrames], cache: dict[str, dict[int, MatchedImage]] | None = None,
+                 count_conf: float = COUNT_CONF) -> dict[str, Any]:
     """mAP50 and mAP50-95 per camera and over all (``"all"``, None without labelled frames), on the frames that
-    have both labels and detections; unmatched frames are counted. ``cache``: each camera's frames matched so far,
-    by stamp; a frame found there is not matched again, the others are added (the caller drops a frame whose labels
-    or detections change)."""
+    have both labels and detections, and how well the detections at ``count_conf`` or above count the zebras
+    (``count``: :func:`~zebra_sim_ros.detection.metrics.count_errors`); unmatched frames are counted. ``cache``:
+    each camera's frames matched so far, by stamp; a frame found there is not matched again, the others are added
+    (the caller drops a frame whose labels or detections change)."""
     result: dict[str, Any] = {}
     everything: list[MatchedImage] = []
     for drone, d in sorted(drones.items()):
@@ -54,8 +58,10 @@ def score_drones(drones: dict[str, DroneFrames],
             matched.append(known[s])
         everything += matched
         result[drone] = {"frames": len(stamps), "unmatched_labels": len(set(d.labels) - set(stamps)),
-                         "unmatched_detections": len(set(d.detections) - set(stamps)), **metrics_of(matched).to_dict()}
-    result["all"] = metrics_of(everything).to_dict() if everything else None
+                         "unmatched_detections": len(set(d.detections) - set(stamps)), **metrics_of(matched).to_dict(),
+                         "count": count_errors(matched, count_conf)}
+    result["all"] = ({**metrics_of(everything).to_dict(), "count": count_errors(everything, count_conf)}
+                     if everything else None)
     return result
 
 
@@ -72,8 +78,9 @@ class LiveScores:
     ``leftovers``). A stamp sent again (a re-sent step) is not older: it replaces its frame's part.
     """
 
-    def __init__(self, window: int = 0) -> None:
+    def __init__(self, window: int = 0, count_conf: float = COUNT_CONF) -> None:
         self.window = 0
+        self.count_conf = count_conf  # zebras counted with the detections at this score or above
         self.drones: dict[str, DroneFrames] = {}
         self.order: dict[str, deque[int]] = {}  # per camera, its stamps in order of first arrival
         self.matched: dict[str, dict[int, MatchedImage]] = {}  # per camera, its frames matched so far
@@ -91,6 +98,10 @@ class LiveScores:
         self.window, self.last = window, None
         for drone in self.order:
             self._trim(drone)
+
+    def recount(self, count_conf: float) -> None:
+        """Count the zebras with the detections at ``count_conf`` or above from now on."""
+        self.count_conf, self.last = count_conf, None
 
     def _trim(self, drone: str) -> None:
         order = self.order[drone]
@@ -142,5 +153,5 @@ class LiveScores:
         scores are computed again only after a frame arrived (the same dict until then: read it, do not change
         it)."""
         if self.last is None:
-            self.last = score_drones(self.drones, self.matched)
+            self.last = score_drones(self.drones, self.matched, self.count_conf)
         return self.last

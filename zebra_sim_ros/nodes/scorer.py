@@ -5,14 +5,17 @@ Subscribes, per camera in ``drones``, ``<drone>/labels`` (the label JSON) and ``
 (Detection2DArray, the detector's type: vision_msgs or zebra_sim_msgs), matches them by the image's stamp and
 scores the last ``window`` frames of each camera as ``zebra-sim bag eval`` scores a bag
 (:func:`zebra_sim_ros.detection.scoring.score_drones`: COCO mAP50 and mAP50-95, and the precision and recall at the
-best-F1 confidence, with the zebras the labeller saw but dropped as don't-care regions; zebra detections only). A
+best-F1 confidence, with the zebras the labeller saw but dropped as don't-care regions; zebra detections only),
+and counts the zebras with the detections at ``count_conf`` or above, as an aerial census would (counted against
+true, the mean absolute and signed error of a frame's count: :func:`zebra_sim_ros.detection.metrics.count_errors`). A
 camera's stamp older than the last on its topic starts a new run (a restarted graph): its frames so far are dropped
 and counted in ``restarts``.
 
 Every ``diagnostics_period_s`` it publishes the figures on ``/diagnostics`` (status ``scorer: scorer``): over all
-cameras in the message and the values (``all mAP50``, ``drone_0 recall``, ...), with the frames scored. A message
-that does not parse is logged, counted and skipped (WARN in its period). Change the detector's ``conf`` with
-``ros2 param set`` and watch the figures follow; ``window`` may change while it runs.
+cameras in the message and the values (``all mAP50``, ``drone_0 recall``, ``all count``, ...), with the frames
+scored. A message that does not parse is logged, counted and skipped (WARN in its period). Change the detector's
+``conf`` with ``ros2 param set`` and watch the figures follow; ``window`` and ``count_conf`` may change while it
+runs.
 """
 
 from __future__ import annotations
@@ -48,7 +51,7 @@ class ScorerNode(ZebraNode[ScorerConfig]):
     def start(self) -> None:
         """Subscribe each camera's labels and detections."""
         c = self.cfg
-        self.live = LiveScores(c.window)
+        self.live = LiveScores(c.window, c.count_conf)
         self.counts = {"labels": 0, "detections": 0, "bad_messages": 0}
         q = qos(c.qos_reliability, c.qos_depth)
         self.det_type = detection_array_type()
@@ -65,9 +68,10 @@ class ScorerNode(ZebraNode[ScorerConfig]):
                                f"{c.window} frames each; QoS {describe_qos(q)}")
 
     def on_config(self, cfg: ScorerConfig) -> None:
-        """A new window applies at once (a smaller one drops the oldest frames)."""
+        """A new window or count threshold applies at once (a smaller window drops the oldest frames)."""
         self.cfg = cfg
         self.live.resize(cfg.window)
+        self.live.recount(cfg.count_conf)
 
     def _bad(self, what: str, exc: BaseException) -> None:
         self.counts["bad_messages"] += 1
@@ -108,12 +112,17 @@ class ScorerNode(ZebraNode[ScorerConfig]):
                 continue
             for name in ("mAP50", "mAP50-95", "precision", "recall"):
                 info[f"{key} {name}"] = f"{v[name]:.4f}"
+            count = v["count"]
+            info[f"{key} count"] = f"{count['counted']}/{count['true']}"
+            info[f"{key} count MAE"] = f"{count['mae']:.4f}"
             if key != "all":
                 info[f"{key} frames"] = str(v["frames"])
         a = s.get("all")
         if a is not None and frames:
             note = (f"mAP50 {a['mAP50']:.3f}, mAP50-95 {a['mAP50-95']:.3f}, P {a['precision']:.3f}, "
-                    f"R {a['recall']:.3f} over {frames} frames ({a['instances']} zebras)")
+                    f"R {a['recall']:.3f} over {frames} frames ({a['instances']} zebras); counted "
+                    f"{a['count']['counted']} at conf {self.live.count_conf:g}, mean absolute error "
+                    f"{a['count']['mae']:.2f} a frame")
         waiting = ""
         # a camera with nothing yet: a topic whose publishers offer another type never matches this subscription
         mine = self.det_type.replace("/msg/", "/")

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from zebra_sim_ros.detection.scoring import DroneFrames, score_drones
+from zebra_sim_ros.detection.scoring import COUNT_CONF, DroneFrames, score_drones
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.messages import Detections, Labels
 from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections, cdr_string
@@ -149,7 +149,9 @@ class ImageDetector:
         return collected
 
 
-def score(collected: Collected) -> dict[str, Any]:
-    """mAP50 and mAP50-95 per drone and over all drones (:func:`~zebra_sim_ros.detection.scoring.score_drones`),
-    with what was damaged or skipped."""
-    return {**score_drones(collected.drones), "damaged": collected.damaged, "skipped": collected.skipped}
+def score(collected: Collected, count_conf: float = COUNT_CONF) -> dict[str, Any]:
+    """mAP50 and mAP50-95 per drone and over all drones, and the zebras counted with the detections at
+    ``count_conf`` or above (:func:`~zebra_sim_ros.detection.scoring.score_drones`), with what was damaged or
+    skipped."""
+    return {**score_drones(collected.drones, count_conf=count_conf), "damaged": collected.damaged,
+            "skipped": collected.skipped}
