@@ -683,9 +683,11 @@ def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: P
         assert rec.overrides.get("exclude_regex") == (None if bag_images == "raw" else
                                                       "(?:/depth$)|/drone_\\d+/(?:image_raw|detections/image)$")
     values = {"frames scored": "9", "labels": "9", "all mAP50": "0.5000", "all recall": "0.2500",
-              "drone_0 mAP50": "0.4000", "drone_0 frames": "3", "detections per second": "1.2"}
+              "drone_0 mAP50": "0.4000", "drone_0 frames": "3", "detections per second": "1.2",
+              "all count": "40/52", "all count MAE": "1.3333"}
     live = up._live_scores(values, up.ScorerRun(300, 1.0, 3), 3)
     assert live["frames"] == 9 and live["complete"] and set(live) == {"frames", "complete", "all", "drone_0"}
+    assert live["all"].pop("count") == pytest.approx({"counted": 40, "true": 52, "mae": 1.3333})
     assert live["all"] == pytest.approx({"mAP50": 0.5, "recall": 0.25}) and live["drone_0"] == pytest.approx(
         {"mAP50": 0.4})
     assert not up._live_scores(values, up.ScorerRun(300, 1.0, 3), 4)["complete"]  # frames missing

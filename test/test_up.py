@@ -85,6 +85,10 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     assert scorer["frames"] == 9 and scorer["complete"], scorer
     for name in ("mAP50", "mAP50-95", "precision", "recall"):
         assert scorer["all"][name] == pytest.approx(live["scores"]["all"][name], abs=2e-4), name
+    count = live["scores"]["all"]["count"]  # the same zebras counted live and from the bag
+    assert {k: scorer["all"]["count"][k] for k in ("counted", "true")} == {k: count[k] for k in ("counted", "true")}
+    assert scorer["all"]["count"]["mae"] == pytest.approx(count["mae"], abs=2e-4)
+    assert count["true"] == live["scores"]["all"]["instances"] and "[up] count at conf 0.25: " in stdout
     assert "the scorer node, live over its last 9 frames:" in stdout
     assert live["steps"] == 3
     assert live["frames"] == {d: {"image_raw": 3, "labels": 3, "detections": 3} for d in DRONES}

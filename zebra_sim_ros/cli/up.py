@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import signal
 import sys
 import time
@@ -126,7 +127,9 @@ def cmd_up(args: argparse.Namespace) -> Summary:
         print(f"[up] the scorer node, live over its last {live['frames']} frames"
               f"{'' if live['complete'] else ' (not every frame of the run: its window, or a report missed)'}: "
               f"P {a['precision']:.3f} "
-              f"R {a['recall']:.3f} mAP50 {a['mAP50']:.3f} mAP50-95 {a['mAP50-95']:.3f}", flush=True)
+              f"R {a['recall']:.3f} mAP50 {a['mAP50']:.3f} mAP50-95 {a['mAP50-95']:.3f}"
+              + (f"; counted {c['counted']} of {c['true']}" if (c := a.get("count", {})).keys() >= {"counted", "true"}
+                 else ""), flush=True)
     if result.get("recording_error"):
         result["exit_code"] = result["exit_code"] or 1
     try:
@@ -147,8 +150,6 @@ def cmd_up(args: argparse.Namespace) -> Summary:
 
 def _recorder_report(log: Path) -> dict[str, Any]:
     """What the recorder said of its bag: the messages it wrote (its last line) and why it stopped early, if it did."""
-    import re
-
     try:
         text = log.read_text(errors="replace")
     except OSError:
@@ -345,7 +346,8 @@ def _await_scores(sup: Supervisor, watch: GraphWatch, scorer: str, run: ScorerRu
 def _live_scores(values: dict[str, str], run: ScorerRun, steps: int) -> dict[str, Any]:
     """The scorer's last report after ``steps`` steps as numbers: ``frames`` scored, ``complete`` (they are every
     frame of the run: it was no longer than the scorer's window, and each camera's every step was scored), and per
-    key (``all``, ``drone_0``, ...) mAP50, mAP50-95, precision, recall."""
+    key (``all``, ``drone_0``, ...) mAP50, mAP50-95, precision, recall, and the count (``count``: ``counted``,
+    ``true``, ``mae``)."""
     frames = int(values.get("frames scored", 0))
     expected = run.expected(steps)
     out: dict[str, Any] = {"frames": frames, "complete": run.whole(steps) and expected > 0 and frames == expected}
@@ -353,6 +355,10 @@ def _live_scores(values: dict[str, str], run: ScorerRun, steps: int) -> dict[str
         who, _, name = key.partition(" ")
         if name in ("mAP50", "mAP50-95", "precision", "recall"):
             out.setdefault(who, {})[name] = float(value)
+        elif name == "count" and (m := re.fullmatch(r"(\d+)/(\d+)", value)):
+            out.setdefault(who, {}).setdefault("count", {}).update(counted=int(m[1]), true=int(m[2]))
+        elif name == "count MAE":
+            out.setdefault(who, {}).setdefault("count", {})["mae"] = float(value)
     return out
 
 
