@@ -528,6 +528,8 @@ def test_compressed_images_read_back_as_image_transport_writes_them() -> None:
 
     parsed = {f: CompressedFormat.parse(f) for f in ("rgb8; jpeg compressed bgr8", "JPG", "16UC1; png compressed ",
                                                     "mono8; png compressed mono8", "bgr8; jpeg compressed rgb8")}
+    with pytest.raises(ValueError, match="unsupported compressed format"):  # bare: the whole string is the codec
+        decompress_rgb("jpeg compressed rgb8", data)
     assert [(p.encoding, p.codec, p.codec_encoding, p.colour, p.holds_bgr) for p in parsed.values()] == [
         ("rgb8", "jpeg", "bgr8", True, True), ("", "jpeg", "", True, True), ("16UC1", "png", "", False, False),
         ("mono8", "png", "mono8", True, False), ("bgr8", "jpeg", "rgb8", True, False)]

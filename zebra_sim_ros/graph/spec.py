@@ -229,8 +229,8 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
     sim = {"use_sim_time": True}
     drones = cfg.drone_names
     nodes: list[NodeSpec] = []
-    # what the recorder leaves out (up waits for the rest)
-    excludes = recorder_excludes(config_dir(cfg.config_dir), cfg.bag_images, f"{ns}/recorder")
+    # what the recorder leaves out (up waits for the rest); its file is read only where a recorder runs
+    excludes = recorder_excludes(config_dir(cfg.config_dir), cfg.bag_images, f"{ns}/recorder") if cfg.record else ""
     camera_bag, recorder_bag = bag_image_overrides(cfg.bag_images, excludes)
     for i, d in enumerate(drones):
         nodes.append(NodeSpec("camera", f"{d}_camera", ns, "camera.yaml",

@@ -55,11 +55,14 @@ class CompressedFormat(NamedTuple):
 
     @classmethod
     def parse(cls, fmt: str) -> CompressedFormat:
-        encoding, after = (p.strip() for p in fmt.split(";", 1)) if ";" in fmt else ("", fmt.strip())
+        if ";" not in fmt:  # bare: the whole of it names the codec ("jpeg compressed rgb8" names none we read)
+            bare = fmt.strip().lower()
+            return cls("", {"jpg": "jpeg"}.get(bare, bare), "", True)
+        encoding, after = (p.strip() for p in fmt.split(";", 1))
         words = after.split()
         codec = {"jpg": "jpeg"}.get(words[0].lower(), words[0].lower()) if words else ""
         held = words[2] if len(words) > 2 and words[1] == "compressed" else ""
-        return cls(encoding, codec, held, ";" not in fmt)
+        return cls(encoding, codec, held, False)
 
     @property
     def colour(self) -> bool:
