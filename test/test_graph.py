@@ -650,6 +650,7 @@ def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: P
     shipped = REPO / "config"
     run = up.ScorerRun.read(shipped, _scorer(UpConfig()))
     assert (run.window, run.drones) == (300, 3) and run.period_s == pytest.approx(1.0)
+    assert run.count_conf == pytest.approx(0.25)  # the bag's summary counts the zebras at the scorer's threshold
     assert run.expected(10) == 30 and run.whole(10) and run.wait_s == pytest.approx(10.0)
     two = up.ScorerRun.read(shipped, _scorer(UpConfig(drones=2)))
     assert two.expected(500) == 600 and not two.whole(500)  # its last 300 steps of two cameras
@@ -657,9 +658,11 @@ def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: P
     shutil.copytree(shipped, conf)
     text = (conf / "scorer.yaml").read_text()
     (conf / "scorer.yaml").write_text(text.replace("diagnostics_period_s: 1.0", "diagnostics_period_s: 30.0")
-                                      .replace("window: 300", "window: 1000"))
+                                      .replace("window: 300", "window: 1000").replace("count_conf: 0.25",
+                                                                                      "count_conf: 0.4"))
     run = up.ScorerRun.read(conf, _scorer(UpConfig()))
     assert run.expected(500) == 1500 and run.whole(500) and run.wait_s == pytest.approx(61.0)
+    assert run.count_conf == pytest.approx(0.4)
     # a bad value in the scorer's file is refused by name, as the node would refuse it (up reads it before any
     # node starts)
     (conf / "scorer.yaml").write_text(text.replace("window: 300", "window: 0"))
@@ -685,11 +688,11 @@ def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: P
     values = {"frames scored": "9", "labels": "9", "all mAP50": "0.5000", "all recall": "0.2500",
               "drone_0 mAP50": "0.4000", "drone_0 frames": "3", "detections per second": "1.2",
               "all count": "40/52", "all count MAE": "1.3333"}
-    live = up._live_scores(values, up.ScorerRun(300, 1.0, 3), 3)
+    live = up._live_scores(values, up.ScorerRun(300, 1.0, 3, 0.25), 3)
     assert live["frames"] == 9 and live["complete"] and set(live) == {"frames", "complete", "all", "drone_0"}
     assert live["all"].pop("count") == pytest.approx({"counted": 40, "true": 52, "mae": 1.3333})
     assert live["all"] == pytest.approx({"mAP50": 0.5, "recall": 0.25}) and live["drone_0"] == pytest.approx(
         {"mAP50": 0.4})
-    assert not up._live_scores(values, up.ScorerRun(300, 1.0, 3), 4)["complete"]  # frames missing
-    assert not up._live_scores(values, up.ScorerRun(3, 1.0, 3), 4)["complete"]  # a longer run than its window
-    assert not up._live_scores({}, up.ScorerRun(300, 1.0, 3), 0)["complete"]  # no step at all
+    assert not up._live_scores(values, up.ScorerRun(300, 1.0, 3, 0.25), 4)["complete"]  # frames missing
+    assert not up._live_scores(values, up.ScorerRun(3, 1.0, 3, 0.25), 4)["complete"]  # a longer run than its window
+    assert not up._live_scores({}, up.ScorerRun(300, 1.0, 3, 0.25), 0)["complete"]  # no step at all

@@ -114,12 +114,14 @@ def cmd_up(args: argparse.Namespace) -> Summary:
                                    .replace("/", "_") + ".log")
     result.update(_recorder_report(recorder_log))
     if cfg.record and cfg.bag_path.is_file():
+        from zebra_sim_ros.detection.scoring import COUNT_CONF
         from zebra_sim_ros.graph.summary import summarize_run
 
+        count_conf = scoring.count_conf if scoring is not None else COUNT_CONF  # as the scorer counts them live
         try:
-            result.update(summarize_run(cfg.bag_path, out / "preview.jpg"))
+            result.update(summarize_run(cfg.bag_path, out / "preview.jpg", count_conf))
         except OSError as exc:  # a full disk: the scores still come, the preview does not
-            result.update(summarize_run(cfg.bag_path, None))
+            result.update(summarize_run(cfg.bag_path, None, count_conf))
             result["preview_error"] = f"{exc.strerror or exc}: {out / 'preview.jpg'}"
         _print_summary(result, cfg.drone_names)
     if (live := result.get("live_scores")) and "all" in live:
@@ -301,6 +303,7 @@ class ScorerRun:
     window: int
     period_s: float
     drones: int
+    count_conf: float  # the zebras counted at it (the bag's summary counts at it too)
 
     @staticmethod
     def read(conf: Path, spec: NodeSpec) -> ScorerRun:
@@ -316,7 +319,7 @@ class ScorerRun:
             if exc.name == "params_file":
                 raise
             raise ParameterError(f"{path}: {exc.name}", exc.value, exc.allowed) from None
-        return ScorerRun(sc.window, sc.diagnostics_period_s, len(sc.drones))
+        return ScorerRun(sc.window, sc.diagnostics_period_s, len(sc.drones), sc.count_conf)
 
     def expected(self, steps: int) -> int:
         """The frames its report holds after ``steps`` steps: the last ``window`` steps' frames of every camera."""

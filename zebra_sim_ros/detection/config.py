@@ -123,7 +123,8 @@ class ScorerConfig(StageConfig):
     window: int = param(300, "score the last this many frames of each camera (a report over 3 cameras' 300 frames "
                         "takes about 60 ms, over 2000 about 0.5 s: BENCHMARKS.md)", lo=1, hi=2000, runtime=True)
     count_conf: float = same_as(DetectorConfig, "conf", help="count the zebras with the detections at this confidence "
-                                "or above (the detector's own default threshold: it publishes none under its conf)")
+                                "or above (the detector's default threshold; it publishes none under its own conf, so "
+                                "a lower count_conf counts at that)")
     qos_reliability: str = reliability_param("QoS reliability of the subscriptions (reliable matches the graph's "
                                              "publishers and loses nothing; best_effort matches any)")
     qos_depth: int = param(10, "history depth", lo=1, hi=1000)

@@ -162,8 +162,9 @@ def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", i
     served at :func:`~zebra_sim_ros.detection.predict.inference_size` under ``imgsz`` and ``scale`` (default:
     the checkpoint's rule), as the detector node and ``bag eval`` serve it; ``verifier`` ('shipped' or a path)
     rescores the zebra boxes as the node's ``verifier`` parameter does; ``amp`` serves the features in mixed
-    precision as its ``amp`` parameter does; the zebras are counted with the detections at ``count_conf`` or above
-    (facts' ``count``: :func:`~zebra_sim_ros.detection.metrics.count_errors`)."""
+    precision as its ``amp`` parameter does; the zebras are counted with the detections at ``count_conf`` or above,
+    or at ``conf`` where it is higher: nothing under it is kept (facts' ``count``:
+    :func:`~zebra_sim_ros.detection.metrics.count_errors`)."""
     dev = select_device(device)
     model, ckpt = load_model(weights, dev, amp=amp)
     net = None
@@ -182,7 +183,7 @@ def evaluate(weights: str | Path | None, data: str | Path, split: str = "val", i
     by_size = ap_by_size([p.detections for p in per_image], [p.labels for p in per_image], max_det,
                          ignores=[p.ignore for p in per_image])
     return m, {"weights": str(weights or "shipped"), "verifier": verifier or None, "data": str(folder),
-               "ap_by_size": by_size, "count": count_errors(matches, count_conf),
+               "ap_by_size": by_size, "count": count_errors(matches, max(count_conf, conf)),
                "per_image": per_image,
                "imgsz": sizes[0] if len(sizes) == 1 else sizes, "imgsz_rule": describe_size(model.cfg, imgsz, scale),
                "device": str(dev), "amp": model.serve_precision,

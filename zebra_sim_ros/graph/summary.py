@@ -19,7 +19,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from zebra_sim_ros.detection.scoring import DroneFrames
+from zebra_sim_ros.detection.scoring import COUNT_CONF, DroneFrames
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.recording.cdr import MALFORMED, cdr_string, header_stamp_ns
@@ -63,8 +63,9 @@ def _stage_seconds(scenes: dict[int, int], times: dict[str, dict[str, dict[int, 
     return out
 
 
-def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[str, Any]:
-    """Summary of the run recorded in ``bag``; writes ``preview`` (one tile per drone) when given."""
+def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf: float = COUNT_CONF) -> dict[str, Any]:
+    """Summary of the run recorded in ``bag``, the zebras counted at ``count_conf`` (the scorer's); writes
+    ``preview`` (one tile per drone) when given."""
     scenes: dict[int, int] = {}  # stamp -> log time
     times: dict[str, dict[str, dict[int, int]]] = defaultdict(lambda: defaultdict(dict))  # drone -> kind -> stamp
     latest: dict[str, tuple[int, str, bytes]] = {}  # drone -> (stamp, type, serialized image): decoded at the end
@@ -95,7 +96,7 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None) -> dict[st
     ends = [t for d in drones for t in times[d]["detections"].values()]
     span = (max(ends) - min(scenes.values())) / 1e9 if ends and scenes else 0.0
     images = sum(f["detections"] for f in frames.values())
-    scores = score(collected)
+    scores = score(collected, count_conf)
     out: dict[str, Any] = {
         "bag": str(bag), "steps": len(scenes), "frames": frames,
         "scores": {k: v for k, v in scores.items() if k not in ("damaged", "skipped")}, "damaged": scores["damaged"],

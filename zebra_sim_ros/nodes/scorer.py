@@ -7,7 +7,8 @@ scores the last ``window`` frames of each camera as ``zebra-sim bag eval`` score
 (:func:`zebra_sim_ros.detection.scoring.score_drones`: COCO mAP50 and mAP50-95, and the precision and recall at the
 best-F1 confidence, with the zebras the labeller saw but dropped as don't-care regions; zebra detections only),
 and counts the zebras with the detections at ``count_conf`` or above, as an aerial census would (counted against
-true, the mean absolute and signed error of a frame's count: :func:`zebra_sim_ros.detection.metrics.count_errors`). A
+true, and the mean absolute error of a frame's count: :func:`zebra_sim_ros.detection.metrics.count_errors`; a
+detector publishes nothing under its own ``conf``, so a count at a lower ``count_conf`` is a count at that). A
 camera's stamp older than the last on its topic starts a new run (a restarted graph): its frames so far are dropped
 and counted in ``restarts``.
 
