@@ -585,7 +585,7 @@ def test_validation_serves_each_image_as_detect_does(tmp_path: Path, capsys: pyt
         assert out["ms_per_image"] > 0 and f"{out['ms_per_image']} ms per image on cpu" in text  # the serving cost
         assert set(out["ap_by_size"]) == {"<8", "8-16", "16-32", "32-96", ">=96", "small", "medium", "large"}
         assert out["count"]["conf"] == pytest.approx(0.25) and out["count"]["images"] == 2  # the detector's conf
-        assert f"count at conf 0.25: {out['count']['counted']} of {out['count']['true']} zebras" in text
+        assert f"count at conf 0.25: {out['count']['counted']} counted for {out['count']['true']} zebras" in text
         assert all(cv2.imread(out["plots"][k]) is not None for k in ("pr_curve", "predictions"))
         if "--bootstrap" in extra:  # two images, each its own placement; nothing labelled, so AP 0 in every draw
             assert out["bootstrap"] == {"samples": 20, "seed": 0, "placements": 2, "mAP50 95%": [0.0, 0.0],

@@ -247,8 +247,8 @@ def count_errors(matched: Sequence[MatchedImage], conf: float) -> dict[str, floa
 def count_line(c: dict[str, Any]) -> str:
     """One line of :func:`count_errors`' figures."""
     rel = f" ({c['relative']:+.1%})" if c["relative"] is not None else ""
-    return (f"count at conf {c['conf']:g}: {c['counted']} of {c['true']} zebras{rel}, per image mean absolute error "
-            f"{c['mae']:.2f}, bias {c['bias']:+.2f}")
+    return (f"count at conf {c['conf']:g}: {c['counted']} counted for {c['true']} zebras{rel}, per image mean absolute "
+            f"error {c['mae']:.2f}, bias {c['bias']:+.2f}")
 
 
 def interval95(draws: NDArray[np.float64]) -> tuple[float, float]:
