@@ -87,7 +87,8 @@ class ReplayConfig(StageConfig):
     clock: bool = param(False, "publish /clock (rosgraph_msgs/Clock) with the bag's time, for use_sim_time")
     clock_rate_hz: float = param(100.0, "how often /clock is published between messages", "Hz", lo=1.0, hi=10000.0)
     wait_for_subscribers_s: float = param(0.0, "wait up to this long, before playing, for every played topic to "
-                                          "have a subscriber", "s", lo=0.0, hi=3600.0)
+                                          "have a subscriber (after a wait, 0.3 s more: the new subscribers' side "
+                                          "of the match)", "s", lo=0.0, hi=3600.0)
     diagnostics_period_s: float = diagnostics_param()
 
 
