@@ -55,6 +55,7 @@ setup(
             "recorder = zebra_sim_ros.nodes.recorder:main",
             "replay = zebra_sim_ros.nodes.replay:main",
             "scorer = zebra_sim_ros.nodes.scorer:main",
+            "locator = zebra_sim_ros.nodes.locator:main",
             "zebra-sim = zebra_sim_ros.cli:main",
         ],
     },

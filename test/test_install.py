@@ -19,7 +19,7 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 PACKAGE = "zebra_sim_ros"
-EXECUTABLES = ["placer", "camera", "labeller", "detector", "recorder", "replay", "scorer", "zebra-sim"]
+EXECUTABLES = ["placer", "camera", "labeller", "detector", "recorder", "replay", "scorer", "locator", "zebra-sim"]
 # What the package's source tree contributes to a colcon build; anything else (the .venv,
 # out/, datasets) must not leak into the copy.
 SOURCE_ITEMS = ["package.xml", "setup.py", "setup.cfg", "resource", "config", "launch", PACKAGE]

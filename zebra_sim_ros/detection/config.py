@@ -142,6 +142,35 @@ class ScorerConfig(StageConfig):
 SCORER_PARAMS: tuple[ParamSpec, ...] = ScorerConfig.specs()
 
 
+@dataclass(frozen=True)
+class LocatorConfig(StageConfig):
+    """Validated locator node parameters: which cameras' detections it places on the map, and how."""
+
+    drones: tuple[str, ...] = same_as(ScorerConfig, "drones", help="cameras whose detections to place (their "
+                                      "namespaces: <drone>/<detections>, depth, camera_info and camera/pose)")
+    detections: str = same_as(ScorerConfig, "detections")
+    output: str = param("detections/located", "the placed detections' topic under each camera (a Detection3DArray "
+                        "in map)", allowed="a topic name relative to the drone (letters, digits, _ and /)",
+                        check=lambda v: bool(RELATIVE_NAME.fullmatch(v)))
+    core: float = param(0.5, "share of each box's width and height, about its centre, whose median depth places it "
+                        "(the body, not the legs and the ground between them)", lo=0.05, hi=1.0, runtime=True)
+    sync_window: int = param(20, "frames kept while waiting for a stamp's missing inputs", lo=1, hi=1000)
+    qos_reliability: str = reliability_param("QoS reliability of the detections' subscription and the output")
+    image_reliability: str = image_reliability_param()
+    qos_depth: int = param(10, "history depth", lo=1, hi=1000)
+    diagnostics_period_s: float = diagnostics_param()
+
+    def check(self) -> None:
+        """Each camera once; an output that is not the input."""
+        if len({d.strip("/") for d in self.drones}) != len(self.drones):
+            raise ParameterError("drones", list(self.drones), "each camera once")
+        if self.output == self.detections:
+            raise ParameterError("output", self.output, f"another topic than detections ({self.detections})")
+
+
+LOCATOR_PARAMS: tuple[ParamSpec, ...] = LocatorConfig.specs()
+
+
 def distinct_outputs(image_topics: Sequence[str], resolve: Callable[[str], str] = lambda t: t) -> None:
     """Refuse, naming ``image_topics``, two topics whose outputs (:func:`output_base`, then ``resolve``: as written
     in the config's check, as the node resolves them at start) are the same."""

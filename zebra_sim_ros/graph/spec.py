@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from zebra_sim_ros.detection.config import DETECTOR_PARAMS, SCORER_PARAMS
+from zebra_sim_ros.detection.config import DETECTOR_PARAMS, LOCATOR_PARAMS, SCORER_PARAMS
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LABELLER_PARAMS
 from zebra_sim_ros.params import ParamSpec, load_params_file, replace_tables, validate, write_config
@@ -63,7 +63,7 @@ def bag_image_overrides(bag_images: str, excludes: str) -> tuple[dict[str, str],
 
 NODE_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
     "placer": PLACER_PARAMS, "camera": CAMERA_PARAMS, "labeller": LABELLER_PARAMS, "detector": DETECTOR_PARAMS,
-    "recorder": RECORDER_PARAMS, "replay": REPLAY_PARAMS, "scorer": SCORER_PARAMS}
+    "recorder": RECORDER_PARAMS, "replay": REPLAY_PARAMS, "scorer": SCORER_PARAMS, "locator": LOCATOR_PARAMS}
 
 
 @dataclass(frozen=True)

@@ -41,25 +41,13 @@ from zebra_sim_ros.nodes.ros_adapter import (
     detection_array_msg,
     detection_array_type,
     help_text,
+    image_array,
     message_class,
     qos,
     run_node,
     stamp_ns,
 )
 from zebra_sim_ros.zebra.asset import load_library
-
-_ENCODING = {"mono16": "<u2", "16UC1": "<u2", "32SC1": "<i4", "32FC1": "<f4"}
-
-
-def image_array(msg: Image) -> np.ndarray:
-    """A single-channel image message as a 2D array; raises ValueError for encodings we do not read."""
-    dtype = _ENCODING.get(msg.encoding)
-    if dtype is None:
-        raise ValueError(f"unsupported encoding {msg.encoding!r} (want one of {sorted(_ENCODING)})")
-    dt = np.dtype(dtype).newbyteorder(">" if msg.is_bigendian else "<")
-    row = msg.width * dt.itemsize
-    buf = np.frombuffer(bytes(msg.data), dtype=np.uint8).reshape(msg.height, msg.step)[:, :row]
-    return np.ascontiguousarray(buf).view(dt).reshape(msg.height, msg.width).astype(dt.newbyteorder("="))
 
 
 def box_markers(header: Header, labels: Labels) -> ImageMarker:

@@ -425,6 +425,20 @@ def scene_animals_msg(type_name: str, header: Header, animals: Sequence[SceneZeb
     return msg.Detection3DArray(header=header, detections=out)
 
 
+_ENCODING = {"mono16": "<u2", "16UC1": "<u2", "32SC1": "<i4", "32FC1": "<f4"}
+
+
+def image_array(msg: Image) -> np.ndarray:
+    """A single-channel image message as a 2D array; raises ValueError for encodings we do not read."""
+    dtype = _ENCODING.get(msg.encoding)
+    if dtype is None:
+        raise ValueError(f"unsupported encoding {msg.encoding!r} (want one of {sorted(_ENCODING)})")
+    dt = np.dtype(dtype).newbyteorder(">" if msg.is_bigendian else "<")
+    row = msg.width * dt.itemsize
+    buf = np.frombuffer(bytes(msg.data), dtype=np.uint8).reshape(msg.height, msg.step)[:, :row]
+    return np.ascontiguousarray(buf).view(dt).reshape(msg.height, msg.width).astype(dt.newbyteorder("="))
+
+
 def detection_array_msg(type_name: str, header: Header, dets: Detections, ids: Sequence[int] = ()) -> Any:
     """``dets`` as a Detection2DArray of ``type_name``: per box one hypothesis (class name, score), the box as
     centre and size in the image's pixels, ``id`` its rank by score (or ``ids``' value, where given); the image's

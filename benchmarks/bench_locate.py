@@ -1,0 +1,90 @@
+"""Benchmark: how well and how fast the locator places boxes on the map (``geometry.locate.locate_boxes``).
+
+Renders ``--steps`` steps of the default world (the placer's defaults, three cameras, ``--size``), takes every
+labelled zebra's visible box of at least ``--min-pixels`` pixels as a perfect detection, places it with the
+rendered depth and the camera's pose, and compares the point with the zebra's own 3D box centre (``box3d_map``):
+the distance (3D and on the ground), by the camera's distance to the zebra. Also the milliseconds per frame of the
+placing against the milliseconds of that frame's render, measured in the same run.
+
+    python benchmarks/bench_locate.py [--steps 3] [--size 1280x720] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import time
+from typing import Any
+
+import numpy as np
+
+from zebra_sim_ros.geometry.locate import locate_boxes
+from zebra_sim_ros.placement.config import PlacerConfig
+from zebra_sim_ros.placement.placer import Placer
+from zebra_sim_ros.rendering.config import CameraConfig
+from zebra_sim_ros.simulation import Simulator
+from zebra_sim_ros.world.world import load_world
+from zebra_sim_ros.zebra.asset import load_library
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--steps", type=int, default=3)
+    ap.add_argument("--size", default="1280x720")
+    ap.add_argument("--min-pixels", type=int, default=150)
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    w, h = (int(v) for v in args.size.split("x"))
+    pc, cc = PlacerConfig(), CameraConfig(width=w, height=h)
+    world = load_world(pc.world, pc.terrain_prim, pc.world_seed)
+    lib = load_library()
+    placer = Placer(pc, world, lib)
+    sim = Simulator(world, lib, cc.render_options())
+    err3d: list[float] = []
+    err_ground: list[float] = []
+    ranges: list[float] = []
+    render_ms: list[float] = []
+    locate_ms: list[float] = []
+    try:
+        for step in range(args.steps):
+            scene = placer.scene(step)
+            for cam in scene.cameras:
+                t0 = time.perf_counter()
+                frame = sim.simulate(scene, [cam.name])[0]
+                render_ms.append((time.perf_counter() - t0) * 1e3)
+                zebras = [z for z in frame.labels.kept if z.visible_pixels >= args.min_pixels]
+                boxes = np.array([z.box_visible for z in zebras], np.float64).reshape(-1, 4)
+                t0 = time.perf_counter()
+                got = locate_boxes(boxes, frame.view.depth, sim.renderer.camera.K, np.array(cam.position),
+                                   np.array(cam.orientation_xyzw))
+                locate_ms.append((time.perf_counter() - t0) * 1e3)
+                centres = np.array([z.box3d_map.center for z in zebras], np.float64).reshape(-1, 3)
+                ok = got.valid
+                d = got.points[ok] - centres[ok]
+                err3d += np.linalg.norm(d, axis=1).tolist()
+                err_ground += np.linalg.norm(d[:, :2], axis=1).tolist()
+                ranges += np.linalg.norm(centres[ok] - np.array(cam.position), axis=1).tolist()
+    finally:
+        sim.release()
+    e3, eg, rg = np.array(err3d), np.array(err_ground), np.array(ranges)
+    out: dict[str, Any] = {
+        "date": time.strftime("%Y-%m-%d"), "machine": f"{platform.processor() or platform.machine()}, "
+        f"{os.cpu_count()} cores", "steps": args.steps, "size": args.size, "zebras": len(e3),
+        "range_m": [round(float(np.percentile(rg, q)), 1) for q in (5, 50, 95)] if len(rg) else [],
+        "error_3d_m": {f"p{q}": round(float(np.percentile(e3, q)), 3) for q in (50, 90, 99)} if len(e3) else {},
+        "error_ground_m": {f"p{q}": round(float(np.percentile(eg, q)), 3) for q in (50, 90, 99)} if len(eg) else {},
+        "locate_ms_per_frame": round(statistics.median(locate_ms), 2),
+        "render_ms_per_frame": round(statistics.median(render_ms), 1),
+        "locate_over_render": round(statistics.median(a / b for a, b in zip(locate_ms, render_ms, strict=True)), 4)}
+    if len(rg):
+        near = rg <= np.median(rg)
+        out["error_3d_m_by_range"] = {"near half": round(float(np.median(e3[near])), 3),
+                                      "far half": round(float(np.median(e3[~near])), 3)}
+    print(json.dumps(out, indent=1) if args.json else "\n".join(f"{k}: {v}" for k, v in out.items()))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,85 @@
+"""Where a detected animal is: a box in a camera's image, that image's metric depth and the camera's pose give the
+box's position in ``map``.
+
+An aerial survey counts and maps animals, and three drones that see one herd see each animal up to three times: a
+position on the map is what lets their detections be told apart, joined or compared with the placed animals
+(``zebra_sim/zebras``). Boxes are in pixel-edge coordinates (the labeller's and the detector's: the left edge of
+the first pixel is 0); the intrinsic matrix in pixel-centre ones, as ``sensor_msgs/CameraInfo`` has it; depth is
+metres along the optical axis (REP 118: +inf, NaN or 0 where nothing is measured). Pure numpy, no ROS.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.geometry.rotations import quat_to_matrix
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Located:
+    """Boxes placed in ``map``: per box its point (the box centre's ray at the box's depth; NaN where no depth was
+    measured in it), that depth along the optical axis, and the box's width and height in metres at that depth."""
+
+    points: FloatArray  # (N, 3) map coordinates, m
+    depth: FloatArray  # (N,) m along the optical axis; NaN: none
+    size: FloatArray  # (N, 2) width, height, m
+
+    @property
+    def valid(self) -> NDArray[np.bool_]:
+        """Boxes with a depth (and so a point)."""
+        return np.isfinite(self.depth)
+
+
+def box_depths(depth: NDArray[np.floating], boxes: FloatArray, core: float = 0.5) -> FloatArray:
+    """The median measured depth (finite, above 0) in the central ``core`` share of each box (0.5: the middle half
+    of its width and of its height, where an animal's body is and its legs, and the ground between them, are not),
+    clipped to the image and at least one pixel; NaN for a box with no measured pixel there. ``boxes``: (N, 4) xyxy
+    in pixel-edge coordinates."""
+    if not 0.0 < core <= 1.0:
+        raise ParameterError("core", core, "0 < core <= 1")
+    depth = np.asarray(depth)
+    if depth.ndim != 2:
+        raise ValueError(f"a depth image of H x W, not {depth.shape}")
+    h, w = depth.shape
+    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    out = np.full(len(boxes), np.nan)
+    for i, (x0, y0, x1, y1) in enumerate(boxes):
+        if not np.all(np.isfinite((x0, y0, x1, y1))):
+            continue
+        cx, cy, hw, hh = (x0 + x1) / 2, (y0 + y1) / 2, abs(x1 - x0) * core / 2, abs(y1 - y0) * core / 2
+        c0 = int(np.clip(np.floor(cx - hw), 0, w - 1))
+        r0 = int(np.clip(np.floor(cy - hh), 0, h - 1))
+        c1 = int(np.clip(np.ceil(cx + hw), c0 + 1, w))
+        r1 = int(np.clip(np.ceil(cy + hh), r0 + 1, h))
+        patch = depth[r0:r1, c0:c1]
+        measured = patch[np.isfinite(patch) & (patch > 0)]
+        if measured.size:
+            out[i] = float(np.median(measured))
+    return out
+
+
+def locate_boxes(boxes: FloatArray, depth: NDArray[np.floating], k: FloatArray, position: FloatArray,
+                 orientation_xyzw: FloatArray, core: float = 0.5) -> Located:
+    """Each box's point in ``map``: the ray through its centre, at its depth (:func:`box_depths`), from a camera
+    whose optical frame (z forward, x right, y down) is at ``position`` with ``orientation_xyzw`` in ``map`` (the
+    placer's ``<drone>/camera/pose``), ``k`` its 3x3 intrinsic matrix (CameraInfo ``k``)."""
+    k = np.asarray(k, dtype=np.float64).reshape(3, 3)
+    if not (k[0, 0] > 0 and k[1, 1] > 0):
+        raise ValueError(f"an intrinsic matrix with positive focal lengths, not fx={k[0, 0]}, fy={k[1, 1]}")
+    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    d = box_depths(depth, boxes, core)
+    u = (boxes[:, 0] + boxes[:, 2]) / 2 - 0.5  # pixel-edge to pixel-centre coordinates
+    v = (boxes[:, 1] + boxes[:, 3]) / 2 - 0.5
+    optical = np.stack([(u - k[0, 2]) / k[0, 0] * d, (v - k[1, 2]) / k[1, 1] * d, d], axis=-1)
+    x, y, z, w = np.asarray(orientation_xyzw, dtype=np.float64)
+    r = quat_to_matrix(np.array([w, x, y, z]))  # optical to map
+    points = optical @ r.T + np.asarray(position, dtype=np.float64).reshape(1, 3)
+    size = np.stack([np.abs(boxes[:, 2] - boxes[:, 0]) * d / k[0, 0], np.abs(boxes[:, 3] - boxes[:, 1]) * d / k[1, 1]],
+                    axis=-1)
+    return Located(points.reshape(-1, 3), d, size.reshape(-1, 2))

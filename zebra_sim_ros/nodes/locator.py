@@ -1,0 +1,198 @@
+"""The ``locator`` node: where each detected animal is on the map (``ros2 run zebra_sim_ros locator``).
+
+Subscribes, per camera in ``drones``, ``<drone>/<detections>`` (the detector's Detection2DArray),
+``<drone>/depth`` (metres along the optical axis: 32FC1, or 16UC1 in millimetres, as REP 118 has them),
+``<drone>/camera_info`` and ``<drone>/camera/pose``
+(the optical frame's pose in ``map``, from the placer or a drone's own localisation); matches them by stamp (a
+stamp whose inputs do not all arrive before ``sync_window`` other stamps have arrived after it is dropped and
+counted; the latest camera_info serves every frame) and publishes, with the image's stamp:
+
+- ``<drone>/<output>`` (Detection3DArray, ``map``; vision_msgs where installed, else zebra_sim_msgs): per
+  detection, its class and score at the point where the ray through its box's centre meets the median depth of the
+  box's central ``core`` (:func:`zebra_sim_ros.geometry.locate.locate_boxes`), and its box at that depth in the
+  camera's image plane (orientation the optical frame's; size: width and height in metres, depth 0); ``id`` its
+  index in the detections message. A box with no measured depth in its core (sky, a cut image) is left out and
+  counted (``unplaced``). A camera's frames before its first camera_info wait for it (within ``sync_window``).
+
+With the placer's ``zebra_sim/zebras`` (the placed animals, the same message type) this is what an aerial survey
+compares: where the detector put each animal, and where it stood. Three drones that see one herd see an animal up
+to three times; on the map their detections can be joined.
+"""
+
+from __future__ import annotations
+
+import importlib
+import time
+from typing import Any
+
+import numpy as np
+from geometry_msgs.msg import Point, Pose, PoseStamped, PoseWithCovariance, Quaternion, Vector3
+from sensor_msgs.msg import CameraInfo, Image
+from std_msgs.msg import Header
+
+from zebra_sim_ros.detection.config import LOCATOR_PARAMS, LocatorConfig
+from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.geometry.locate import Located, locate_boxes
+from zebra_sim_ros.health import Activity
+from zebra_sim_ros.messages import Detections
+from zebra_sim_ros.nodes.ros_adapter import (
+    RecentStamps,
+    ZebraNode,
+    describe_qos,
+    detection3d_array_type,
+    detection_array_type,
+    help_text,
+    image_array,
+    message_class,
+    qos,
+    run_node,
+    stamp,
+    stamp_ns,
+)
+from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections
+
+_PARTS = ("detections", "depth", "pose")  # what each stamp of a camera needs (camera_info: the latest)
+_MILLIMETRES = ("16UC1", "mono16")  # depth encodings in millimetres (REP 118); 32FC1 is in metres
+
+
+def located_msg(type_name: str, header: Header, dets: Detections, where: Located,
+                orientation_xyzw: tuple[float, float, float, float]) -> Any:
+    """The detections placed on the map as a Detection3DArray of ``type_name`` in ``header``'s frame: per placed
+    detection one hypothesis (class name, score) at its point, its box in the image plane at its depth (the
+    optical frame's ``orientation_xyzw``, size width x height x 0 m), ``id`` its index in ``dets``."""
+    msg = importlib.import_module(f"{type_name.split('/')[0]}.msg")
+    qx, qy, qz, qw = (float(v) for v in orientation_xyzw)
+    out = []
+    for i, (det, point, size, ok) in enumerate(zip(dets.detections, where.points, where.size, where.valid,
+                                                   strict=True)):
+        if not ok:
+            continue
+        px, py, pz = (float(v) for v in point)
+        at = Pose(position=Point(x=px, y=py, z=pz), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))
+        hyp = msg.ObjectHypothesisWithPose(hypothesis=msg.ObjectHypothesis(class_id=det.class_name,
+                                                                           score=float(det.score)),
+                                           pose=PoseWithCovariance(pose=at))
+        box = msg.BoundingBox3D(center=at, size=Vector3(x=float(size[0]), y=float(size[1]), z=0.0))
+        out.append(msg.Detection3D(header=header, results=[hyp], bbox=box, id=str(i)))
+    return msg.Detection3DArray(header=header, detections=out)
+
+
+class LocatorNode(ZebraNode[LocatorConfig]):
+    """Synchronises each camera's detections, depth and pose by stamp; thin adapter around ``locate_boxes``."""
+
+    def __init__(self) -> None:
+        super().__init__("locator", LocatorConfig)
+
+    def start(self) -> None:
+        """Subscribe every camera's inputs and publish its placed detections."""
+        c = self.cfg
+        q = qos(c.qos_reliability, c.qos_depth)
+        image_q = qos(c.image_reliability, c.qos_depth)
+        self.out_type = detection3d_array_type()
+        out_class = message_class(self.out_type)
+        self.pending: RecentStamps[dict[str, dict[str, Any]]] = RecentStamps(c.sync_window)  # stamp: drone: part
+        self.info: dict[str, np.ndarray] = {}  # drone: its latest K (3x3)
+        self.stats = {"frames": 0, "placed": 0, "unplaced": 0, "unmatched": 0, "bad_messages": 0}
+        self.seconds = 0.0
+        self.pubs: dict[str, Any] = {}
+        det_class = message_class(detection_array_type())
+        for d in c.drones:
+            # raw: the CDR bytes read by the scorer's and bag eval's reader (cdr_detections)
+            self.create_subscription(det_class, f"{d}/{c.detections}", self._on_detections(d), q, raw=True)
+            self.create_subscription(Image, f"{d}/depth", self._on_part(d, "depth"), image_q)
+            self.create_subscription(PoseStamped, f"{d}/camera/pose", self._on_part(d, "pose"), q)
+            self.create_subscription(CameraInfo, f"{d}/camera_info", self._on_info(d), image_q)
+            self.pubs[d] = self.create_publisher(out_class, f"{d}/{c.output}", q)
+        self.get_logger().info(f"placing {list(c.drones)}' <drone>/{c.detections} in map as <drone>/{c.output} "
+                               f"({self.out_type}); QoS images: {describe_qos(image_q)}, others: {describe_qos(q)}")
+
+    def _bad(self, what: str, exc: BaseException) -> None:
+        self.stats["bad_messages"] += 1
+        self.get_logger().error(f"{what} skipped ({self.stats['bad_messages']} bad so far): "
+                                f"{type(exc).__name__}: {exc}")
+
+    def _on_info(self, drone: str) -> Any:
+        def on_info(msg: CameraInfo) -> None:
+            k = np.asarray(msg.k, dtype=np.float64).reshape(3, 3)
+            if not (k[0, 0] > 0 and k[1, 1] > 0 and np.all(np.isfinite(k))):
+                self._bad(f"{drone}/camera_info", ValueError(f"K = {k.ravel().tolist()}: not a calibrated camera"))
+                return
+            first = drone not in self.info
+            self.info[drone] = k
+            if first:  # the frames that waited for it
+                for t in list(self.pending.items):
+                    self._try(drone, t)
+        return on_info
+
+    def _on_detections(self, drone: str) -> Any:
+        def on_detections(data: bytes) -> None:
+            try:
+                dets = cdr_detections(data)
+            except (ZebraSimError, *MALFORMED) as exc:
+                self._bad(f"{drone}/{self.cfg.detections}", exc)
+                return
+            self._put(drone, "detections", dets.stamp.ns, dets)
+        return on_detections
+
+    def _on_part(self, drone: str, part: str) -> Any:
+        def on_part(msg: Any) -> None:
+            self._put(drone, part, stamp_ns(msg.header.stamp), msg)
+        return on_part
+
+    def _put(self, drone: str, part: str, t: int, value: Any) -> None:
+        by_drone, dropped = self.pending.touch(t, dict)
+        by_drone.setdefault(drone, {})[part] = value
+        for old, drones in dropped:  # stamps pushed out of the window of the latest to arrive: never complete
+            for d in drones:
+                self.stats["unmatched"] += 1
+                self.get_logger().warning(f"{d}: inputs of stamp {old} never all arrived; dropped "
+                                          f"({self.stats['unmatched']} so far)")
+        self._try(drone, t)
+
+    def _try(self, drone: str, t: int) -> None:
+        by_drone = self.pending.get(t) or {}
+        got = by_drone.get(drone, {})
+        if any(p not in got for p in _PARTS) or drone not in self.info:
+            return
+        del by_drone[drone]
+        if not by_drone:
+            self.pending.pop(t)
+        t0 = time.perf_counter()
+        dets: Detections = got["detections"]
+        pose: PoseStamped = got["pose"]
+        p, o = pose.pose.position, pose.pose.orientation
+        orientation = (o.x, o.y, o.z, o.w)
+        try:
+            depth = image_array(got["depth"])
+            if got["depth"].encoding in _MILLIMETRES:  # REP 118: 16-bit depth in millimetres, 0 unmeasured
+                depth = depth.astype(np.float32) / 1000.0
+            boxes = np.array([x.box_xyxy for x in dets.detections], np.float64).reshape(-1, 4)
+            where = locate_boxes(boxes, depth, self.info[drone], np.array([p.x, p.y, p.z]), np.array(orientation),
+                                 self.cfg.core)
+        except (ZebraSimError, ValueError, TypeError, IndexError, ArithmeticError) as exc:
+            self._bad(f"{drone} stamp {t}", exc)
+            return
+        self.pubs[drone].publish(located_msg(self.out_type, Header(stamp=stamp(t), frame_id=pose.header.frame_id),
+                                             dets, where, orientation))
+        placed = int(where.valid.sum())
+        self.stats["frames"] += 1
+        self.stats["placed"] += placed
+        self.stats["unplaced"] += len(dets.detections) - placed
+        self.seconds += time.perf_counter() - t0
+
+    def activity(self) -> Activity:
+        """Frames placed; detections placed and not (no depth in the box); frames whose inputs never all arrived
+        (unmatched) and bad messages skipped. Waits for a camera's camera_info before it places its frames."""
+        missing = [d for d in self.cfg.drones if d not in self.info]
+        waiting = f"waiting for camera_info of {', '.join(missing)}" if missing else ""
+        return Activity(dict(self.stats), "frames", ("unmatched", "bad_messages"), busy_s=self.seconds,
+                        waiting=waiting, info={"drones": ", ".join(self.cfg.drones), "output": self.cfg.output})
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``ros2 run zebra_sim_ros locator``; returns the exit status."""
+    return run_node("locator", LocatorNode, argv, help_text("locator", __doc__ or "", LOCATOR_PARAMS))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
