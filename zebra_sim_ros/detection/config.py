@@ -121,7 +121,7 @@ class ScorerConfig(StageConfig):
                             allowed="a topic name relative to the drone (letters, digits, _ and /)",
                             check=lambda v: bool(RELATIVE_NAME.fullmatch(v)))
     window: int = param(300, "score the last this many frames of each camera (a report over 3 cameras' 300 frames "
-                        "takes about 60 ms, over 2000 about 0.5 s: BENCHMARKS.md)", lo=1, hi=2000, runtime=True)
+                        "takes about 80 ms, over 2000 about 0.6 s: BENCHMARKS.md)", lo=1, hi=2000, runtime=True)
     count_conf: float = same_as(DetectorConfig, "conf", help="count the zebras with the detections at this confidence "
                                 "or above (the detector's default threshold; it publishes none under its own conf, so "
                                 "a lower count_conf counts at that)")
