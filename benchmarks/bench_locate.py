@@ -4,9 +4,12 @@ Renders ``--steps`` steps of the default world (the placer's defaults, three cam
 labelled zebra's visible box of at least ``--min-pixels`` pixels as a perfect detection, places it with the
 rendered depth and the camera's pose, and compares the point with the zebra's own 3D box centre (``box3d_map``):
 the distance (3D and on the ground), by the camera's distance to the zebra. Also the milliseconds per frame of the
-placing against the milliseconds of that frame's render, measured in the same run.
+placing against the milliseconds of that frame's render, measured in the same run. With ``--detector``, the
+shipped weights' boxes (conf 0.25, as the node serves them) are placed as well, each against the nearest placed
+zebra's box centre on the map (the placer's ``zebra_sim/zebras``): how far the whole chain, detector included,
+puts an animal from where it stands.
 
-    python benchmarks/bench_locate.py [--steps 3] [--size 1280x720] [--json]
+    python benchmarks/bench_locate.py [--steps 3] [--size 1280x720] [--detector] [--json]
 """
 
 from __future__ import annotations
@@ -35,8 +38,14 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=3)
     ap.add_argument("--size", default="1280x720")
     ap.add_argument("--min-pixels", type=int, default=150)
+    ap.add_argument("--detector", action="store_true", help="also place the shipped detector's boxes")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
+    model = None
+    if args.detector:
+        from zebra_sim_ros.detection.checkpoint import load_model, select_device
+
+        model, _ = load_model(None, select_device("cpu"))
     w, h = (int(v) for v in args.size.split("x"))
     pc, cc = PlacerConfig(), CameraConfig(width=w, height=h)
     world = load_world(pc.world, pc.terrain_prim, pc.world_seed)
@@ -48,6 +57,8 @@ def main() -> None:
     ranges: list[float] = []
     render_ms: list[float] = []
     locate_ms: list[float] = []
+    det_err: list[float] = []
+    det_counts = {"placed": 0, "unplaced": 0}
     try:
         for step in range(args.steps):
             scene = placer.scene(step)
@@ -67,6 +78,20 @@ def main() -> None:
                 err3d += np.linalg.norm(d, axis=1).tolist()
                 err_ground += np.linalg.norm(d[:, :2], axis=1).tolist()
                 ranges += np.linalg.norm(centres[ok] - np.array(cam.position), axis=1).tolist()
+                if model is not None:
+                    from zebra_sim_ros.detection.predict import detect
+
+                    every = np.array([a.box.center for a in scene.zebras if a.species == "zebra"],
+                                     np.float64).reshape(-1, 3)  # every placed zebra, seen or not
+                    found = detect(model, [frame.view.rgb])[0]
+                    found = found[found[:, 5] == 0] if found.shape[1] > 5 else found  # zebras
+                    placed = locate_boxes(found[:, :4].astype(np.float64), frame.view.depth,
+                                          sim.renderer.camera.K, np.array(cam.position), np.array(cam.orientation_xyzw))
+                    det_counts["placed"] += int(placed.valid.sum())
+                    det_counts["unplaced"] += int((~placed.valid).sum())
+                    if len(every):
+                        gaps = np.linalg.norm(placed.points[placed.valid][:, None] - every[None], axis=2)
+                        det_err += gaps.min(axis=1).tolist()
     finally:
         sim.release()
     e3, eg, rg = np.array(err3d), np.array(err_ground), np.array(ranges)
@@ -79,6 +104,12 @@ def main() -> None:
         "locate_ms_per_frame": round(statistics.median(locate_ms), 2),
         "render_ms_per_frame": round(statistics.median(render_ms), 1),
         "locate_over_render": round(statistics.median(a / b for a, b in zip(locate_ms, render_ms, strict=True)), 4)}
+    if det_err:
+        de = np.array(det_err)
+        out["detector"] = {**det_counts, "nearest_zebra_m": {f"p{q}": round(float(np.percentile(de, q)), 3)
+                                                             for q in (50, 90, 99)},
+                           "within_0.5_m": round(float(np.mean(de <= 0.5)), 3),
+                           "within_1_m": round(float(np.mean(de <= 1.0)), 3)}
     if len(rg):
         near = rg <= np.median(rg)
         out["error_3d_m_by_range"] = {"near half": round(float(np.median(e3[near])), 3),
