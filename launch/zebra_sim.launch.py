@@ -62,6 +62,8 @@ def generate_launch_description():
                               "shipped, or a path; as zebra-sim up --verifier)"),
         DeclareLaunchArgument("score", default_value="true", description="start the scorer node (the detector's "
                               "figures live on /diagnostics; as zebra-sim up without --no-score)"),
+        DeclareLaunchArgument("locate", default_value="false", description="start the locator node (each drone's "
+                              "detections placed on the map, <drone>/detections/located; as zebra-sim up --locate)"),
         DeclareLaunchArgument("bag", default_value="out/up/zebra_sim.mcap", description="bag to record"),
         DeclareLaunchArgument("rviz", default_value="false", description="also start RViz (rviz2: a ROS 2 desktop "
                               "install) on the package's view drawn for these drones, as zebra-sim up writes it"),
@@ -114,6 +116,10 @@ def generate_launch_description():
                                                      "device": arg("device"), "scale": arg("detect_scale", float),
                                                      "amp": arg("detect_amp"), "verifier": arg("verifier"),
                                                      "image_reliability": "reliable", "use_sim_time": True}]),
+            Node(package=PACKAGE, executable="locator", name="locator", namespace="", output="screen",
+                 parameters=[file("locator.yaml"), {"drones": drones, "image_reliability": "reliable",
+                                                    "pose_transient_local": True, "use_sim_time": True}],
+                 condition=IfCondition(LaunchConfiguration("locate"))),
             Node(package=PACKAGE, executable="scorer", name="scorer", namespace="", output="screen",
                  parameters=[file("scorer.yaml"), {"drones": drones, "use_sim_time": True}],
                  condition=IfCondition(LaunchConfiguration("score"))),

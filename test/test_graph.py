@@ -214,7 +214,7 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
     for var in ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE", *NODE_ENVIRONMENT):
         monkeypatch.delenv(var, raising=False)
     rec = _launch(monkeypatch, tmp_path / "share")
-    up = graph_spec(UpConfig())
+    up = graph_spec(UpConfig(locate=True))  # the launch file holds the nodes that its arguments may leave out
     launched = [(n["executable"], n["name"], "/" + n["namespace"] if n["namespace"] else "",
                  Path(n["parameters"][0]).name, Path(n["parameters"][0]).parent, set(n["parameters"][1]))
                 for n in rec.nodes]
@@ -234,19 +234,20 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
     assert int(rec.args["frames"]) == UpConfig().frames and rec.args["world"] == UpConfig().world
     # drones:=N as up --drones N: N cameras, and the labeller, detector, scorer and placer told of them
     five = _launch(monkeypatch, tmp_path / "share", drones="5")
-    up5 = graph_spec(UpConfig(drones=5))
+    up5 = graph_spec(UpConfig(drones=5, locate=True))
     assert [(n["executable"], n["name"]) for n in five.nodes] == [(s.executable, s.name) for s in up5]
     for n, s in zip(five.nodes, up5, strict=True):
         for k in ("drones", "image_topics", "num_cameras", "drone_index"):
             assert n["parameters"][1].get(k) == s.overrides.get(k), (s.label, k)
     by = {s.executable: s.overrides for s in up5}
-    assert by["placer"]["num_cameras"] == 5 and by["labeller"]["drones"] == by["scorer"]["drones"] == [
-        f"drone_{i}" for i in range(5)] and by["detector"]["image_topics"][-1] == "drone_4/image_raw"
+    assert by["placer"]["num_cameras"] == 5 and by["detector"]["image_topics"][-1] == "drone_4/image_raw"
+    assert by["labeller"]["drones"] == by["scorer"]["drones"] == by["locator"]["drones"] == [
+        f"drone_{i}" for i in range(5)]
     with pytest.raises(ValueError, match="drones:=0"):
         _launch(monkeypatch, tmp_path / "share", drones="0")
     # bag_images:=jpeg as up --bag-images jpeg: the cameras publish image_raw/compressed, the recorder keeps that
     jpeg = _launch(monkeypatch, tmp_path / "share", bag_images="jpeg")
-    for n, s in zip(jpeg.nodes, graph_spec(UpConfig(bag_images="jpeg")), strict=True):
+    for n, s in zip(jpeg.nodes, graph_spec(UpConfig(bag_images="jpeg", locate=True)), strict=True):
         for k in ("compressed", "exclude_regex"):
             assert n["parameters"][1].get(k) == s.overrides.get(k), (s.label, k)
     recorder = next(s for s in graph_spec(UpConfig(bag_images="jpeg")) if s.executable == "recorder")
@@ -295,11 +296,14 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
         assert recorder_node["parameters"][1]["exclude_regex"] == f"(?:{base})|{BAG_RAW_IMAGES}", ns
     with pytest.raises(ParameterError, match="--bag-images"):
         UpConfig(bag_images="gif").check()
-    # the scorer, and only it, may be left out: score:=false as up --no-score, on by default in both
+    # the locator and the scorer, and only they, may be left out: locate:=true as up --locate (off by default in
+    # both), score:=false as up --no-score (on by default in both)
     conditional = [(n["executable"], n["condition"].predicate.name) for n in rec.nodes if "condition" in n]
-    assert conditional == [("scorer", "score")] and rec.args["score"] == "true" and UpConfig().score
-    assert [s.executable for s in graph_spec(UpConfig(score=False))] == [s.executable for s in up
-                                                                          if s.executable != "scorer"]
+    assert conditional == [("locator", "locate"), ("scorer", "score")]
+    assert rec.args["score"] == "true" and UpConfig().score and rec.args["locate"] == "false" and not UpConfig().locate
+    assert [s.executable for s in graph_spec(UpConfig(score=False, locate=True))] == [s.executable for s in up
+                                                                                       if s.executable != "scorer"]
+    assert [s.executable for s in graph_spec(UpConfig())] == [s.executable for s in up if s.executable != "locator"]
     share = tmp_path / "share" / "config"
     assert rec.env == {"FASTRTPS_DEFAULT_PROFILES_FILE": str(share / "fastdds.xml"), **NODE_ENVIRONMENT}
     assert NODE_ENVIRONMENT == {"OMP_WAIT_POLICY": "PASSIVE"}

@@ -3,6 +3,7 @@ real DDS."""
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
 from typing import Any
 
@@ -184,3 +185,32 @@ def test_a_bad_locator_parameter_stops_the_node() -> None:
             LocatorConfig.from_params(bad)
     proc = run_node_once("locator", {"core": 2.0})  # the node stops at start, naming it
     assert proc.returncode == 2 and "'core'" in proc.stderr + proc.stdout, proc.stderr[-500:]
+
+
+def test_placed_detections_are_read_back_from_the_bag_and_scored_against_the_nearest_zebra() -> None:
+    """The bag's Detection3DArray (the placer's animals, the locator's output) read by our CDR reader as rclpy wrote
+    it; the distances to the nearest placed zebra and their figures."""
+    from geometry_msgs.msg import Point, Pose
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import Header
+
+    from zebra_sim_ros.geometry.locate import nearest_distances, placing_figures
+    from zebra_sim_ros.nodes.ros_adapter import detection3d_array_type, stamp
+    from zebra_sim_ros.recording.cdr import cdr_detections3d
+
+    msg = importlib.import_module(detection3d_array_type().split("/")[0] + ".msg")
+    dets = [msg.Detection3D(results=[msg.ObjectHypothesisWithPose(hypothesis=msg.ObjectHypothesis(class_id=c,
+                                                                                                   score=s))],
+                            bbox=msg.BoundingBox3D(center=Pose(position=Point(x=x, y=y, z=1.0))), id=str(k))
+            for k, (c, s, x, y) in enumerate((("zebra", 0.9, 1.0, 2.0), ("elephant", 1.0, -5.0, 0.5)))]
+    data = serialize_message(msg.Detection3DArray(header=Header(stamp=stamp(7 * 10**9 + 5), frame_id="map"),
+                                                  detections=dets))
+    t, got = cdr_detections3d(data)
+    assert t == 7 * 10**9 + 5 and [(c, round(s, 6), p) for c, s, p in got] == [
+        ("zebra", 0.9, (1.0, 2.0, 1.0)), ("elephant", 1.0, (-5.0, 0.5, 1.0))]
+    d = nearest_distances(np.array([[0.0, 0, 0], [3, 4, 0]]), np.array([[0.0, 0, 0.5], [3, 4.5, 0]]))
+    assert d == pytest.approx([0.5, 0.5])
+    assert np.isinf(nearest_distances(np.zeros((2, 3)), np.zeros((0, 3)))).all()
+    figures = placing_figures(np.array([0.1, 0.2, 0.3, 2.0]))
+    assert figures["detections"] == 4 and figures["median_m"] == pytest.approx(0.25)
+    assert figures["within_1_m"] == pytest.approx(0.75) and placing_figures(np.zeros(0))["median_m"] is None

@@ -68,7 +68,7 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     peer.node.create_timer(0.5, report)
     try:
         with open(tmp_path / "up.out", "w") as out:
-            proc = subprocess.Popen(_up_command(tmp_path / "up", domain), env=ros_env(domain), stdout=out,
+            proc = subprocess.Popen(_up_command(tmp_path / "up", domain, "--locate"), env=ros_env(domain), stdout=out,
                                     stderr=subprocess.STDOUT, text=True)
             try:
                 assert peer.spin(lambda: proc.poll() is not None, 420), "up did not finish"
@@ -102,9 +102,16 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     preview = cv2.imread(live["preview"])
     assert preview is not None and preview.shape == (180, 960, 3)
     assert "mAP50" in stdout and live["bag"] in stdout
+    # --locate: every frame's zebra detections placed on the map, near the zebras the placer put there
+    located = live["located"]
+    assert located["frames"] == located["frames_with_placed"] == 9, located
+    # every published zebra box but those with no depth in their core; the count leaves out boxes on don't-care zebras
+    assert located["detections"] >= 0.9 * a["count"]["counted"] > 0, (located, a["count"])
+    assert located["median_m"] < 1.0 and located["within_1_m"] > 0.5, located
+    assert "[up] locator: " in stdout
     # every node reported on /diagnostics, and nothing went wrong (the placer may resend a step on a slow machine)
     health = live["health"]
-    assert set(health) == {f"{s.label}: {s.executable}" for s in graph_spec(UpConfig())}, health
+    assert set(health) == {f"{s.label}: {s.executable}" for s in graph_spec(UpConfig(locate=True))}, health
     assert all(h["reports"].get("OK", 0) > 0 for h in health.values()), health
     assert all(set(h["reports"]) == {"OK"} for n, h in health.items() if n != "placer: placer"), health
     _check_time_base_tf_and_typed_detections(Path(live["bag"]), steps=3)

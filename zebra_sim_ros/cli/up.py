@@ -67,6 +67,9 @@ def register(sub: Any) -> None:
                    "scorer node's)")
     p.add_argument("--no-score", action="store_true", help="run without the scorer node (its live figures on "
                    "/diagnostics); the bag is still scored at the end")
+    p.add_argument("--locate", action="store_true", help="also run the locator node: each drone's detections placed "
+                   "on the map (<drone>/detections/located, Detection3DArray in map), scored at the end against the "
+                   "placed zebras")
     add_json_flag(p)
     p.set_defaults(func=cmd_up)
 
@@ -174,7 +177,7 @@ def _up_config(args: argparse.Namespace) -> tuple[UpConfig, list[NodeSpec]]:
                    height=h, weights=args.weights, device=args.device, detect_scale=args.scale, detect_amp=args.amp,
                    strategy=args.strategy, config_dir=args.config, ready_timeout_s=args.ready_timeout,
                    step_timeout_s=args.step_timeout, record=not args.no_record, score=not args.no_score,
-                   namespace=args.namespace, verifier=args.verifier, bag_images=args.bag_images)
+                   namespace=args.namespace, verifier=args.verifier, bag_images=args.bag_images, locate=args.locate)
     specs = cfg.check()
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         raise ParameterError("--domain-id", args.domain_id, "0..232 (ROS_DOMAIN_ID)")
@@ -378,6 +381,15 @@ def _print_summary(r: dict[str, Any], drones: tuple[str, ...]) -> None:
         from zebra_sim_ros.detection.metrics import count_line
 
         print(f"[up] {count_line(a['count'])}", flush=True)
+    if loc := r.get("located"):
+        where = ""
+        if loc["median_m"] is not None:
+            where = (f", {loc['median_m']:.2f} m from the nearest placed zebra (median; 90th percentile "
+                     f"{loc['p90_m']:.2f} m), {loc['within_1_m']:.0%} within 1 m")
+        elif not loc["frames_with_placed"]:
+            where = " (no placed zebras in the bag to compare with: zebra_sim/zebras not recorded)"
+        print(f"[up] locator: {loc['detections']} zebra detections placed on the map in {loc['frames']} frames"
+              f"{where}", flush=True)
     ms = r["median_ms"]
     if r.get("steps_per_s"):
         print(f"[up] throughput: {r['steps']} steps in {r['seconds']:.1f} s = {r['steps_per_s']:.2f} steps/s, "

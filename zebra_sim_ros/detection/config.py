@@ -155,6 +155,9 @@ class LocatorConfig(StageConfig):
     core: float = param(0.5, "share of each box's width and height, about its centre, whose median depth places it "
                         "(the body, not the legs and the ground between them)", lo=0.05, hi=1.0, runtime=True)
     sync_window: int = param(20, "frames kept while waiting for a stamp's missing inputs", lo=1, hi=1000)
+    pose_transient_local: bool = param(False, "subscribe camera/pose transient local: a locator that matches its "
+                                       "publisher late still gets the last qos_depth poses (the publisher must be "
+                                       "transient local too, as the placer's is; zebra-sim up sets it)")
     qos_reliability: str = reliability_param("QoS reliability of the detections' subscription and the output")
     image_reliability: str = image_reliability_param()
     qos_depth: int = param(10, "history depth", lo=1, hi=1000)

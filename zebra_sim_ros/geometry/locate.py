@@ -83,3 +83,25 @@ def locate_boxes(boxes: FloatArray, depth: NDArray[np.floating], k: FloatArray, 
     size = np.stack([np.abs(boxes[:, 2] - boxes[:, 0]) * d / k[0, 0], np.abs(boxes[:, 3] - boxes[:, 1]) * d / k[1, 1]],
                     axis=-1)
     return Located(points.reshape(-1, 3), d, size.reshape(-1, 2))
+
+
+def nearest_distances(points: FloatArray, targets: FloatArray) -> FloatArray:
+    """Each point's distance to the nearest of ``targets`` ((N, 3) and (M, 3)); inf where there is no target."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    targets = np.asarray(targets, dtype=np.float64).reshape(-1, 3)
+    if not len(targets):
+        return np.full(len(points), np.inf)
+    if not len(points):
+        return np.zeros(0)
+    return np.asarray(np.linalg.norm(points[:, None] - targets[None], axis=2).min(axis=1))
+
+
+def placing_figures(distances: FloatArray, within_m: float = 1.0) -> dict[str, float | int | None]:
+    """How far placed detections are from the nearest placed animal: how many, the median and 90th percentile
+    distance (m) and the share within ``within_m`` (None with no detection)."""
+    d = np.asarray(distances, dtype=np.float64)
+    if not len(d):
+        return {"detections": 0, "median_m": None, "p90_m": None, f"within_{within_m:g}_m": None}
+    return {"detections": int(len(d)), "median_m": round(float(np.median(d)), 3),
+            "p90_m": round(float(np.percentile(d, 90)), 3),
+            f"within_{within_m:g}_m": round(float(np.mean(d <= within_m)), 4)}

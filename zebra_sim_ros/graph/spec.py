@@ -26,6 +26,7 @@ DRONES = ("drone_0", "drone_1", "drone_2")  # the default graph's cameras (UpCon
 CAMERA_TOPICS = ("image_raw", "depth", "instances", "camera_info")
 LABELLER_TOPICS = ("labels", "labels/markers", "labels/boxes3d", "labels/boxes2d")
 DETECTOR_TOPICS = ("detections", "detections/image", "detections/markers")
+LOCATOR_TOPICS = ("detections/located",)  # up --locate: the detections placed on the map
 PLACER_TOPICS = ("zebra_sim/scene", "zebra_sim/zebras", "zebra_sim/zebras/markers")  # and each <drone>/camera/pose
 # By convention absolute (tf2 listeners and every node's time source use them); a namespaced graph remaps them.
 GLOBAL_TOPICS = ("/tf", "/tf_static", "/clock")
@@ -109,6 +110,7 @@ class UpConfig:
     step_timeout_s: float = 120.0
     record: bool = True
     score: bool = True  # the scorer node: the detector's figures live on /diagnostics (up keeps its last ones)
+    locate: bool = False  # the locator node: each drone's detections placed on the map (detections/located)
     bag_images: str = "raw"  # the cameras' images in the bag: raw, or jpeg / png (image_raw/compressed; see BAG_IMAGES)
     # The detector's input long side as a multiple of the cameras' (0: the checkpoint's rule, the scale its
     # serving size has to its training frames: 1.7 for the shipped weights, 2176 on 1280x720 frames). On 84
@@ -249,6 +251,13 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
            "verifier": cfg.verifier if cfg.verifier in ("", "shipped") else str(Path(cfg.verifier).resolve()), **sim}
     nodes.append(NodeSpec("detector", "detector", ns, "detector.yaml", det,
                           tuple(f"{ns}/{d}/{t}" for d in drones for t in DETECTOR_TOPICS), remaps))
+    if cfg.locate:  # every frame placed: subscribed before the first step
+        nodes.append(NodeSpec("locator", "locator", ns, "locator.yaml",
+                              {"drones": list(drones), "image_reliability": "reliable", "pose_transient_local": True,
+                               **sim},
+                              tuple(f"{ns}/{d}/{t}" for d in drones for t in LOCATOR_TOPICS), remaps,
+                              tuple(f"{ns}/{d}/{t}" for d in drones
+                                    for t in ("detections", "depth", "camera_info", "camera/pose"))))
     if cfg.score:  # every frame scored: subscribed before the first step
         nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml", {"drones": list(drones), **sim}, (), remaps,
                               tuple(f"{ns}/{d}/{t}" for d in drones for t in ("labels", "detections"))))

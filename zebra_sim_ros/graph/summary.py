@@ -21,14 +21,17 @@ import numpy as np
 
 from zebra_sim_ros.detection.scoring import COUNT_CONF, DroneFrames
 from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.geometry.locate import nearest_distances, placing_figures
+from zebra_sim_ros.graph.spec import LOCATOR_TOPICS
 from zebra_sim_ros.messages import Scene
-from zebra_sim_ros.recording.cdr import MALFORMED, cdr_string, header_stamp_ns
+from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections3d, cdr_string, header_stamp_ns
 from zebra_sim_ros.recording.evaluate import collect, score, skip_note
 from zebra_sim_ros.recording.images import message_rgb
 from zebra_sim_ros.recording.reader import CAMERA_IMAGES, BagMessage, last_name, topic_owner
 
 _DRONE = re.compile(r"drone_\d+")  # a camera of the graph (up's drone_0 ... drone_N-1), under any namespace
 _SCENE_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/scene$")
+_ANIMALS_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/zebras$")  # the placed animals (Detection3DArray)
 
 
 PREVIEW_COLUMNS = 4  # drones per row of the preview (a row of 16 4K frames is past JPEG's 65535 px)
@@ -71,6 +74,8 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
     latest: dict[str, tuple[int, str, bytes]] = {}  # drone -> (stamp, type, serialized image): decoded at the end
 
     unusable: list[str] = []  # scenes and images that do not parse (collect notes bad labels and detections)
+    placed: dict[int, np.ndarray] = {}  # stamp -> the placed zebras' box centres (zebra_sim/zebras)
+    located: dict[tuple[str, int], np.ndarray] = {}  # (drone, stamp) -> its detections placed on the map
 
     def visit(m: BagMessage) -> None:  # scenes and images; collect itself parses labels and detections
         image = topic_owner(m.topic, CAMERA_IMAGES)
@@ -78,6 +83,13 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
         try:
             if _SCENE_TOPIC.match(m.topic):
                 scenes[Scene.from_json(cdr_string(m.data)).stamp.ns] = m.publish_time
+            elif _ANIMALS_TOPIC.match(m.topic):
+                t, animals = cdr_detections3d(m.data)
+                placed[t] = np.array([c for name, _, c in animals if name == "zebra"], np.float64).reshape(-1, 3)
+            elif owner := topic_owner(m.topic, LOCATOR_TOPICS):
+                t, dets = cdr_detections3d(m.data)
+                located[(last_name(owner[0]), t)] = np.array([c for name, _, c in dets if name == "zebra"],
+                                                             np.float64).reshape(-1, 3)
             elif _DRONE.fullmatch(drone):
                 t = header_stamp_ns(m.data)
                 if t >= latest.get(drone, (-1, "", b""))[0]:
@@ -112,6 +124,10 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
                 images_rgb[d] = rgb
         except (*MALFORMED, ValueError):
             pass  # its pixels are cut short, or do not decode: no tile for this drone
+    if located:  # up --locate: each zebra detection on the map against the nearest zebra placed in its step
+        gaps = [nearest_distances(p, placed[t]) for (_, t), p in located.items() if t in placed]
+        out["located"] = {"frames": len(located), "frames_with_placed": len(gaps),
+                          **placing_figures(np.concatenate(gaps) if gaps else np.zeros(0))}
     if preview is not None and images_rgb:
         out["preview"] = str(write_preview(preview, collected.drones, images_rgb))
     return out

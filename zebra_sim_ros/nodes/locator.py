@@ -88,6 +88,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         c = self.cfg
         q = qos(c.qos_reliability, c.qos_depth)
         image_q = qos(c.image_reliability, c.qos_depth)
+        pose_q = qos(c.qos_reliability, c.qos_depth, transient_local=c.pose_transient_local)
         self.out_type = detection3d_array_type()
         out_class = message_class(self.out_type)
         self.pending: RecentStamps[dict[str, dict[str, Any]]] = RecentStamps(c.sync_window)  # stamp: drone: part
@@ -100,11 +101,12 @@ class LocatorNode(ZebraNode[LocatorConfig]):
             # raw: the CDR bytes read by the scorer's and bag eval's reader (cdr_detections)
             self.create_subscription(det_class, f"{d}/{c.detections}", self._on_detections(d), q, raw=True)
             self.create_subscription(Image, f"{d}/depth", self._on_part(d, "depth"), image_q)
-            self.create_subscription(PoseStamped, f"{d}/camera/pose", self._on_part(d, "pose"), q)
+            self.create_subscription(PoseStamped, f"{d}/camera/pose", self._on_part(d, "pose"), pose_q)
             self.create_subscription(CameraInfo, f"{d}/camera_info", self._on_info(d), image_q)
             self.pubs[d] = self.create_publisher(out_class, f"{d}/{c.output}", q)
         self.get_logger().info(f"placing {list(c.drones)}' <drone>/{c.detections} in map as <drone>/{c.output} "
-                               f"({self.out_type}); QoS images: {describe_qos(image_q)}, others: {describe_qos(q)}")
+                               f"({self.out_type}); QoS images: {describe_qos(image_q)}, poses: "
+                               f"{describe_qos(pose_q)}, others: {describe_qos(q)}")
 
     def _bad(self, what: str, exc: BaseException) -> None:
         self.stats["bad_messages"] += 1

@@ -87,15 +87,18 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         # every step; a best-effort scene would match none of them
         latched = qos("reliable", 1, transient_local=True)
         stream = qos(c.qos_reliability, c.qos_depth)
-        self.get_logger().info(f"QoS {SCENE_TOPIC}: {describe_qos(latched)}; animals, markers and poses: "
-                               f"{describe_qos(stream)}")
+        # the cameras' poses kept for late readers (the last qos_depth steps): a node that subscribes as the first
+        # step goes out may match the placer only after its first pose has gone; volatile readers match too
+        poses = qos(c.qos_reliability, c.qos_depth, transient_local=True)
+        self.get_logger().info(f"QoS {SCENE_TOPIC}: {describe_qos(latched)}; animals and markers: "
+                               f"{describe_qos(stream)}; poses: {describe_qos(poses)}")
         self.scene_pub = self.create_publisher(String, SCENE_TOPIC, latched)
         self.marker_pub = self.create_publisher(MarkerArray, MARKER_TOPIC, stream)
         self.animals_type, self.animals_pub = "", None  # publish_animals:=false: neither published nor awaited
         if c.publish_animals:
             self.animals_type = detection3d_array_type()
             self.animals_pub = self.create_publisher(message_class(self.animals_type), ANIMALS_TOPIC, stream)
-        self.pose_pubs = [self.create_publisher(PoseStamped, f"{n}/camera/pose", stream)
+        self.pose_pubs = [self.create_publisher(PoseStamped, f"{n}/camera/pose", poses)
                           for n in self.placer.camera_names]
         # Transient local, depth 1: a reader that matches late (a recorder whose /clock reader matched after its /tf
         # one) still gets the current step's time. /clock cannot be waited on by count: every use_sim_time node

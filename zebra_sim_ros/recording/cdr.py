@@ -109,6 +109,30 @@ def rgb_image(data: bytes) -> tuple[int, np.ndarray] | None:
     return t, np.ascontiguousarray(a[..., ::-1] if encoding == "bgr8" else a)
 
 
+def cdr_detections3d(data: bytes) -> tuple[int, list[tuple[str, float, tuple[float, float, float]]]]:
+    """A CDR-serialized ``vision_msgs/Detection3DArray`` (or ``zebra_sim_msgs/``'s, the same layout): its stamp (ns)
+    and per detection its best hypothesis' class and score and its box's centre (in the array's frame)."""
+    r = _Cdr(data)
+    t = _stamp_of(r)
+    r.string()  # frame_id
+    out = []
+    for _ in range(r.u32()):
+        _stamp_of(r)
+        r.string()  # the detection's own header
+        best = ("", -1.0)
+        for _ in range(r.u32()):
+            class_id, score = r.string(), r.f64()
+            for _ in range(7 + 36):  # the hypothesis' pose and its covariance: the box's centre is used
+                r.f64()
+            best = max(best, (class_id, score), key=lambda h: h[1])
+        x, y, z = r.f64(), r.f64(), r.f64()
+        for _ in range(4 + 3):  # the box's orientation and size
+            r.f64()
+        r.string()  # id
+        out.append((best[0], best[1], (x, y, z)))
+    return t, out
+
+
 def cdr_detections(data: bytes) -> Detections:
     """A CDR-serialized ``vision_msgs/Detection2DArray`` (or ``zebra_sim_msgs/``'s, the same layout) as our typed
     :class:`~zebra_sim_ros.messages.Detections` (boxes back to [x0, y0, x1, y1]; each detection's best hypothesis;
