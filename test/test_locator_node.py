@@ -39,6 +39,11 @@ def test_a_box_is_placed_on_its_ray_at_its_depth() -> None:
     got = locate_boxes(boxes, depth, CAMERA.K, position, _xyzw(r))
     assert got.depth[:2] == pytest.approx([77.5, 80.0]) and np.isnan(got.depth[2]) and got.depth[3] == pytest.approx(80)
     assert got.valid.tolist() == [True, True, False, True] and np.all(np.isnan(got.points[2]))
+    outside = box_depths(depth, np.array([[-100.0, -100, -50, -50], [400, 200, 500, 300]]))  # wholly outside
+    assert np.all(np.isnan(outside))
+    for bad_position, bad_quat in ((np.array([np.nan, 0, 0]), _xyzw(r)), (position, np.zeros(4))):
+        with pytest.raises(ValueError, match="camera pose"):
+            locate_boxes(boxes, depth, CAMERA.K, bad_position, bad_quat)
     ok = got.valid
     optical = map_to_optical(got.points[ok], position, r)
     uv, front = CAMERA.project(optical)
@@ -89,9 +94,10 @@ def _depth_msg(depth: np.ndarray, stamp_msg: Any, encoding: str = "32FC1") -> An
     from sensor_msgs.msg import Image
     from std_msgs.msg import Header
 
+    pixels = (np.nan_to_num(depth, nan=0.0) * 1000).astype("<u2") if encoding == "16UC1" else depth.astype("<f4")
     return Image(header=Header(stamp=stamp_msg, frame_id="drone_0/camera_optical"), height=depth.shape[0],
-                 width=depth.shape[1], encoding=encoding, is_bigendian=0, step=depth.shape[1] * 4,
-                 data=depth.astype("<f4").tobytes())
+                 width=depth.shape[1], encoding=encoding, is_bigendian=0, step=depth.shape[1] * pixels.itemsize,
+                 data=pixels.tobytes())
 
 
 @pytest.mark.integration
@@ -131,7 +137,7 @@ def test_the_locator_places_a_cameras_detections_over_dds(tmp_path: Path) -> Non
             "pose": node.create_publisher(PoseStamped, "/drone_0/camera/pose", 10)}
     log = tmp_path / "locator.log"
 
-    def send(sec: int, info: bool = True, encoding: str = "32FC1") -> None:
+    def send(sec: int, info: bool = True, encoding: str = "32FC1", image: np.ndarray | None = None) -> None:
         t = stamp(sec * 10**9)
         if info:
             pubs["info"].publish(CameraInfo(header=Header(stamp=t), width=CAMERA.width, height=CAMERA.height,
@@ -139,7 +145,7 @@ def test_the_locator_places_a_cameras_detections_over_dds(tmp_path: Path) -> Non
         pubs["pose"].publish(PoseStamped(header=Header(stamp=t, frame_id="map"), pose=Pose(
             position=Point(x=position[0], y=position[1], z=position[2]), orientation=Quaternion(x=qx, y=qy, z=qz,
                                                                                                  w=qw))))
-        pubs["depth"].publish(_depth_msg(depth, t, encoding))
+        pubs["depth"].publish(_depth_msg(depth if image is None else image, t, encoding))
         dets = Detections(Stamp(sec, 0), "drone_0/camera_optical", CAMERA.width, CAMERA.height,
                           tuple(Detection(tuple(b[:4]), b[4]) for b in boxes))  # type: ignore[arg-type]
         pubs["det"].publish(detection_array_msg(detection_array_type(), Header(stamp=t), dets))
@@ -149,19 +155,25 @@ def test_the_locator_places_a_cameras_detections_over_dds(tmp_path: Path) -> Non
                                       "image_reliability": "reliable"}, domain, log):
             assert peer.spin(lambda: all(node.count_subscribers(p.topic_name) for p in pubs.values())
                              and node.count_publishers("/drone_0/detections/located"), 60), log.read_text()
-            send(1, info=False)  # no camera_info yet: the frame waits
+            # Step 1 without camera_info: it waits. Sent a few times (the same frame again to the node), as what is
+            # sent before the node's side has matched our publishers is lost.
+            for _ in range(5):
+                send(1, info=False)
+                peer.spin(lambda: False, 0.3)
             assert peer.spin(lambda: any("waiting for camera_info of drone_0" in s["message"] for s in status), 20), \
                 status[-2:]
-            for sec in range(2, 12):  # sent again until the node has matched our publishers
-                send(sec)
-                if peer.spin(lambda: len(got) > 0, 1.0):
-                    break
-            assert got, log.read_text()
+            assert not got  # nothing placed without the camera's intrinsics
+            send(2)  # with camera_info: step 2 placed, and step 1, which waited for it
+            assert peer.spin(lambda: {m.header.stamp.sec for m in got} >= {1, 2}, 20), log.read_text()
+            send(3, encoding="16UC1")  # REP 118's millimetres: the same point to the millimetre
+            assert peer.spin(lambda: any(m.header.stamp.sec == 3 for m in got), 20), log.read_text()
             send(20, encoding="rgb8")  # an encoding the locator cannot read: logged, counted, skipped
-            assert peer.spin(lambda: any(s["values"].get("bad_messages") == "1" for s in status), 20), status[-2:]
+            send(21, image=depth[:90])  # a depth image of another size than camera_info's
+            assert peer.spin(lambda: any(s["values"].get("bad_messages") == "2" for s in status), 20), status[-2:]
     finally:
         peer.close()
-    msg = got[0]
+    assert sorted(m.header.stamp.sec for m in got) == [1, 2, 3]  # neither bad frame placed
+    msg = next(m for m in got if m.header.stamp.sec == 1)
     assert msg.header.frame_id == "map" and len(msg.detections) == 1
     det = msg.detections[0]
     hyp = det.results[0]
@@ -171,9 +183,12 @@ def test_the_locator_places_a_cameras_detections_over_dds(tmp_path: Path) -> Non
     assert [p.x, p.y, p.z] == pytest.approx(want.points[0].tolist(), abs=1e-4)
     assert p.z == pytest.approx(40.0 - 38.6, abs=1e-3)  # the body 1.4 m above the ground under a nadir camera
     assert (det.bbox.size.x, det.bbox.size.y) == pytest.approx(tuple(want.size[0]), abs=1e-4)
+    mm = next(m for m in got if m.header.stamp.sec == 3).detections[0].bbox.center.position
+    assert [mm.x, mm.y, mm.z] == pytest.approx([p.x, p.y, p.z], abs=2e-3)
     values = status[-1]["values"]
-    assert int(values["unplaced"]) >= 1 and int(values["placed"]) >= 1 and int(values["frames"]) >= 2, values
-    assert "rgb8" in log.read_text()
+    assert (values["frames"], values["placed"], values["unplaced"]) == ("3", "3", "3"), values  # 1 of 2 each
+    text = log.read_text()
+    assert "rgb8" in text and "a depth image of 320x90 px with camera_info of 320x180" in text
 
 
 def test_a_bad_locator_parameter_stops_the_node() -> None:
@@ -212,5 +227,7 @@ def test_placed_detections_are_read_back_from_the_bag_and_scored_against_the_nea
     assert d == pytest.approx([0.5, 0.5])
     assert np.isinf(nearest_distances(np.zeros((2, 3)), np.zeros((0, 3)))).all()
     figures = placing_figures(np.array([0.1, 0.2, 0.3, 2.0]))
-    assert figures["detections"] == 4 and figures["median_m"] == pytest.approx(0.25)
+    assert figures["scored"] == 4 and figures["median_m"] == pytest.approx(0.25)
     assert figures["within_1_m"] == pytest.approx(0.75) and placing_figures(np.zeros(0))["median_m"] is None
+    no_zebra = placing_figures(nearest_distances(np.zeros((2, 3)), np.zeros((0, 3))))  # a step with none placed
+    assert no_zebra == {"scored": 2, "median_m": None, "p90_m": None, "within_1_m": 0.0}

@@ -154,11 +154,14 @@ class LocatorConfig(StageConfig):
                         check=lambda v: bool(RELATIVE_NAME.fullmatch(v)))
     core: float = param(0.5, "share of each box's width and height, about its centre, whose median depth places it "
                         "(the body, not the legs and the ground between them)", lo=0.05, hi=1.0, runtime=True)
-    sync_window: int = param(20, "frames kept while waiting for a stamp's missing inputs", lo=1, hi=1000)
+    sync_window: int = param(20, "stamps kept while waiting for their missing inputs (all cameras' together)",
+                             lo=1, hi=1000)
     pose_transient_local: bool = param(False, "subscribe camera/pose transient local: a locator that matches its "
                                        "publisher late still gets the last qos_depth poses (the publisher must be "
-                                       "transient local too, as the placer's is; zebra-sim up sets it)")
-    qos_reliability: str = reliability_param("QoS reliability of the detections' subscription and the output")
+                                       "transient local too, as the placer's is, or no pose arrives; zebra-sim up "
+                                       "sets it)")
+    qos_reliability: str = reliability_param("QoS reliability of the detections' and poses' subscriptions and the "
+                                             "output")
     image_reliability: str = image_reliability_param()
     qos_depth: int = param(10, "history depth", lo=1, hi=1000)
     diagnostics_period_s: float = diagnostics_param()
@@ -167,8 +170,9 @@ class LocatorConfig(StageConfig):
         """Each camera once; an output that is not the input."""
         if len({d.strip("/") for d in self.drones}) != len(self.drones):
             raise ParameterError("drones", list(self.drones), "each camera once")
-        if self.output == self.detections:
-            raise ParameterError("output", self.output, f"another topic than detections ({self.detections})")
+        inputs = (self.detections, "depth", "camera_info", "camera/pose", "image_raw")
+        if self.output in inputs:
+            raise ParameterError("output", self.output, f"another topic than the camera's inputs {list(inputs)}")
 
 
 LOCATOR_PARAMS: tuple[ParamSpec, ...] = LocatorConfig.specs()

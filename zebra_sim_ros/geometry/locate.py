@@ -53,6 +53,8 @@ def box_depths(depth: NDArray[np.floating], boxes: FloatArray, core: float = 0.5
         if not np.all(np.isfinite((x0, y0, x1, y1))):
             continue
         cx, cy, hw, hh = (x0 + x1) / 2, (y0 + y1) / 2, abs(x1 - x0) * core / 2, abs(y1 - y0) * core / 2
+        if cx + hw < 0 or cx - hw > w or cy + hh < 0 or cy - hh > h:  # the core is outside the image: no depth
+            continue
         c0 = int(np.clip(np.floor(cx - hw), 0, w - 1))
         r0 = int(np.clip(np.floor(cy - hh), 0, h - 1))
         c1 = int(np.clip(np.ceil(cx + hw), c0 + 1, w))
@@ -68,18 +70,25 @@ def locate_boxes(boxes: FloatArray, depth: NDArray[np.floating], k: FloatArray, 
                  orientation_xyzw: FloatArray, core: float = 0.5) -> Located:
     """Each box's point in ``map``: the ray through its centre, at its depth (:func:`box_depths`), from a camera
     whose optical frame (z forward, x right, y down) is at ``position`` with ``orientation_xyzw`` in ``map`` (the
-    placer's ``<drone>/camera/pose``), ``k`` its 3x3 intrinsic matrix (CameraInfo ``k``)."""
+    placer's ``<drone>/camera/pose``), ``k`` its 3x3 intrinsic matrix (CameraInfo ``k``; skew and lens distortion
+    are not modelled: the placer's cameras are ideal pinholes). ValueError for a K without positive focal lengths
+    or a pose that is not finite."""
     k = np.asarray(k, dtype=np.float64).reshape(3, 3)
     if not (k[0, 0] > 0 and k[1, 1] > 0):
         raise ValueError(f"an intrinsic matrix with positive focal lengths, not fx={k[0, 0]}, fy={k[1, 1]}")
+    position = np.asarray(position, dtype=np.float64).reshape(3)
+    quat = np.asarray(orientation_xyzw, dtype=np.float64).reshape(4)
+    if not (np.all(np.isfinite(position)) and np.all(np.isfinite(quat)) and np.linalg.norm(quat) > 1e-6):
+        raise ValueError(f"a camera pose with a finite position and a unit quaternion, not {position.tolist()} "
+                         f"{quat.tolist()}")
     boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
     d = box_depths(depth, boxes, core)
     u = (boxes[:, 0] + boxes[:, 2]) / 2 - 0.5  # pixel-edge to pixel-centre coordinates
     v = (boxes[:, 1] + boxes[:, 3]) / 2 - 0.5
     optical = np.stack([(u - k[0, 2]) / k[0, 0] * d, (v - k[1, 2]) / k[1, 1] * d, d], axis=-1)
-    x, y, z, w = np.asarray(orientation_xyzw, dtype=np.float64)
-    r = quat_to_matrix(np.array([w, x, y, z]))  # optical to map
-    points = optical @ r.T + np.asarray(position, dtype=np.float64).reshape(1, 3)
+    x, y, z, w = quat
+    r = quat_to_matrix(np.array([w, x, y, z]))  # optical to map (normalised)
+    points = optical @ r.T + position.reshape(1, 3)
     size = np.stack([np.abs(boxes[:, 2] - boxes[:, 0]) * d / k[0, 0], np.abs(boxes[:, 3] - boxes[:, 1]) * d / k[1, 1]],
                     axis=-1)
     return Located(points.reshape(-1, 3), d, size.reshape(-1, 2))
@@ -97,11 +106,16 @@ def nearest_distances(points: FloatArray, targets: FloatArray) -> FloatArray:
 
 
 def placing_figures(distances: FloatArray, within_m: float = 1.0) -> dict[str, float | int | None]:
-    """How far placed detections are from the nearest placed animal: how many, the median and 90th percentile
-    distance (m) and the share within ``within_m`` (None with no detection)."""
+    """How far placed detections are from the nearest placed animal: how many were scored, the median and 90th
+    percentile distance (m; None where it is no finite distance: no animal to compare with) and the share within
+    ``within_m`` (None with no detection)."""
     d = np.asarray(distances, dtype=np.float64)
     if not len(d):
-        return {"detections": 0, "median_m": None, "p90_m": None, f"within_{within_m:g}_m": None}
-    return {"detections": int(len(d)), "median_m": round(float(np.median(d)), 3),
-            "p90_m": round(float(np.percentile(d, 90)), 3),
+        return {"scored": 0, "median_m": None, "p90_m": None, f"within_{within_m:g}_m": None}
+
+    def finite(v: float) -> float | None:
+        return round(v, 3) if np.isfinite(v) else None
+
+    return {"scored": int(len(d)), "median_m": finite(float(np.median(d))),
+            "p90_m": finite(float(np.percentile(d, 90, method="higher"))),
             f"within_{within_m:g}_m": round(float(np.mean(d <= within_m)), 4)}

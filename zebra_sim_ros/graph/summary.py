@@ -126,7 +126,8 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
             pass  # its pixels are cut short, or do not decode: no tile for this drone
     if located:  # up --locate: each zebra detection on the map against the nearest zebra placed in its step
         gaps = [nearest_distances(p, placed[t]) for (_, t), p in located.items() if t in placed]
-        out["located"] = {"frames": len(located), "frames_with_placed": len(gaps),
+        out["located"] = {"frames": len(located), "detections": sum(len(p) for p in located.values()),
+                          "frames_with_placed": len(gaps),
                           **placing_figures(np.concatenate(gaps) if gaps else np.zeros(0))}
     if preview is not None and images_rgb:
         out["preview"] = str(write_preview(preview, collected.drones, images_rgb))

@@ -2,17 +2,20 @@
 
 Subscribes, per camera in ``drones``, ``<drone>/<detections>`` (the detector's Detection2DArray),
 ``<drone>/depth`` (metres along the optical axis: 32FC1, or 16UC1 in millimetres, as REP 118 has them),
-``<drone>/camera_info`` and ``<drone>/camera/pose``
-(the optical frame's pose in ``map``, from the placer or a drone's own localisation); matches them by stamp (a
-stamp whose inputs do not all arrive before ``sync_window`` other stamps have arrived after it is dropped and
-counted; the latest camera_info serves every frame) and publishes, with the image's stamp:
+``<drone>/camera_info`` and ``<drone>/camera/pose`` (the optical frame's pose in ``map``, from the placer or a
+drone's own localisation); matches them by stamp, exactly (the image's: a pose source must stamp a pose per image,
+as the placer does; a stamp whose inputs do not all arrive before ``sync_window`` other stamps have arrived after
+it is dropped and counted; the latest camera_info serves every frame, its size the depth image's) and publishes,
+with the image's stamp:
 
-- ``<drone>/<output>`` (Detection3DArray, ``map``; vision_msgs where installed, else zebra_sim_msgs): per
-  detection, its class and score at the point where the ray through its box's centre meets the median depth of the
-  box's central ``core`` (:func:`zebra_sim_ros.geometry.locate.locate_boxes`), and its box at that depth in the
-  camera's image plane (orientation the optical frame's; size: width and height in metres, depth 0); ``id`` its
-  index in the detections message. A box with no measured depth in its core (sky, a cut image) is left out and
-  counted (``unplaced``). A camera's frames before its first camera_info wait for it (within ``sync_window``).
+- ``<drone>/<output>`` (Detection3DArray in the pose's frame, ``map``; vision_msgs where installed, else
+  zebra_sim_msgs): per detection, its class and score at the point where the ray through its box's centre meets
+  the median depth of the box's central ``core`` (:func:`zebra_sim_ros.geometry.locate.locate_boxes`), and its box
+  at that depth in the camera's image plane (orientation the optical frame's; size: width and height in metres,
+  depth 0); ``id`` its index in the detections message. A box with no measured depth in its core (sky, outside
+  the image) is left out and counted (``unplaced``). A camera's frames before its first camera_info wait for it
+  (within ``sync_window``); a pose that is not finite, or a depth image of another size than camera_info's, is a
+  bad message.
 
 With the placer's ``zebra_sim/zebras`` (the placed animals, the same message type) this is what an aerial survey
 compares: where the detector put each animal, and where it stood. Three drones that see one herd see an animal up
@@ -92,7 +95,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         self.out_type = detection3d_array_type()
         out_class = message_class(self.out_type)
         self.pending: RecentStamps[dict[str, dict[str, Any]]] = RecentStamps(c.sync_window)  # stamp: drone: part
-        self.info: dict[str, np.ndarray] = {}  # drone: its latest K (3x3)
+        self.info: dict[str, tuple[np.ndarray, int, int]] = {}  # drone: its latest K (3x3), width, height
         self.stats = {"frames": 0, "placed": 0, "unplaced": 0, "unmatched": 0, "bad_messages": 0}
         self.seconds = 0.0
         self.pubs: dict[str, Any] = {}
@@ -120,7 +123,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
                 self._bad(f"{drone}/camera_info", ValueError(f"K = {k.ravel().tolist()}: not a calibrated camera"))
                 return
             first = drone not in self.info
-            self.info[drone] = k
+            self.info[drone] = (k, int(msg.width), int(msg.height))
             if first:  # the frames that waited for it
                 for t in list(self.pending.items):
                     self._try(drone, t)
@@ -165,11 +168,15 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         p, o = pose.pose.position, pose.pose.orientation
         orientation = (o.x, o.y, o.z, o.w)
         try:
+            k, width, height = self.info[drone]
             depth = image_array(got["depth"])
+            if depth.shape != (height, width):
+                raise ValueError(f"a depth image of {depth.shape[1]}x{depth.shape[0]} px with camera_info of "
+                                 f"{width}x{height}")
             if got["depth"].encoding in _MILLIMETRES:  # REP 118: 16-bit depth in millimetres, 0 unmeasured
                 depth = depth.astype(np.float32) / 1000.0
             boxes = np.array([x.box_xyxy for x in dets.detections], np.float64).reshape(-1, 4)
-            where = locate_boxes(boxes, depth, self.info[drone], np.array([p.x, p.y, p.z]), np.array(orientation),
+            where = locate_boxes(boxes, depth, k, np.array([p.x, p.y, p.z]), np.array(orientation),
                                  self.cfg.core)
         except (ZebraSimError, ValueError, TypeError, IndexError, ArithmeticError) as exc:
             self._bad(f"{drone} stamp {t}", exc)
