@@ -118,8 +118,7 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         try:
             scene = Scene.from_json(msg.data)
         except ZebraSimError as exc:
-            self.stats["bad_messages"] += 1
-            self.get_logger().error(f"bad scene skipped ({self.stats['bad_messages']} bad so far): {exc}")
+            self.skip_bad(self.stats, "a scene", exc)
             return
         t = scene.stamp.ns
         self.scenes.put(t, scene)
@@ -164,8 +163,7 @@ class LabellerNode(ZebraNode[LabellerConfig]):
             labeller = self._labeller(int(info.width), int(info.height), float(info.k[0]))
             labels = labeller.label(scene, drone, image_array(got["instances"]), image_array(got["depth"]))
         except (ZebraSimError, KeyError, ValueError, TypeError, IndexError, ArithmeticError) as exc:
-            self.stats["bad_messages"] += 1  # an instance image with inf in it (32FC1), say
-            self.get_logger().error(f"{drone} stamp {t}: frame skipped ({type(exc).__name__}: {exc})")
+            self.skip_bad(self.stats, f"{drone} stamp {t}: a frame", exc)  # an instance image with inf (32FC1), say
             return
         header = got["instances"].header
         labels_pub, markers_pub, boxes_pub, truth_pub = self.pubs[drone]

@@ -111,16 +111,12 @@ class LocatorNode(ZebraNode[LocatorConfig]):
                                f"({self.out_type}); QoS images: {describe_qos(image_q)}, poses: "
                                f"{describe_qos(pose_q)}, others: {describe_qos(q)}")
 
-    def _bad(self, what: str, exc: BaseException) -> None:
-        self.stats["bad_messages"] += 1
-        self.get_logger().error(f"{what} skipped ({self.stats['bad_messages']} bad so far): "
-                                f"{type(exc).__name__}: {exc}")
-
     def _on_info(self, drone: str) -> Any:
         def on_info(msg: CameraInfo) -> None:
             k = np.asarray(msg.k, dtype=np.float64).reshape(3, 3)
             if not (k[0, 0] > 0 and k[1, 1] > 0 and np.all(np.isfinite(k))):
-                self._bad(f"{drone}/camera_info", ValueError(f"K = {k.ravel().tolist()}: not a calibrated camera"))
+                why = ValueError(f"K = {k.ravel().tolist()}: not a calibrated camera")
+                self.skip_bad(self.stats, f"{drone}/camera_info", why)
                 return
             first = drone not in self.info
             self.info[drone] = (k, int(msg.width), int(msg.height))
@@ -134,7 +130,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
             try:
                 dets = cdr_detections(data)
             except (ZebraSimError, *MALFORMED) as exc:
-                self._bad(f"{drone}/{self.cfg.detections}", exc)
+                self.skip_bad(self.stats, f"{drone}/{self.cfg.detections}", exc)
                 return
             self._put(drone, "detections", dets.stamp.ns, dets)
         return on_detections
@@ -179,7 +175,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
             where = locate_boxes(boxes, depth, k, np.array([p.x, p.y, p.z]), np.array(orientation),
                                  self.cfg.core)
         except (ZebraSimError, ValueError, TypeError, IndexError, ArithmeticError) as exc:
-            self._bad(f"{drone} stamp {t}", exc)
+            self.skip_bad(self.stats, f"{drone} stamp {t}", exc)
             return
         self.pubs[drone].publish(located_msg(self.out_type, Header(stamp=stamp(t), frame_id=pose.header.frame_id),
                                              dets, where, orientation))

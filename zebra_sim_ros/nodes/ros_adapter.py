@@ -146,6 +146,11 @@ class ZebraNode(Node, Generic[C]):
             self.get_logger().warning(f"unknown parameter(s) ignored: {unknown}; {self.get_name()} declares "
                                       f"{sorted(known - set(ROS_BUILTIN_PARAMS))}")
 
+    def skip_bad(self, counts: dict[str, int], what: str, exc: BaseException) -> None:
+        """A message that cannot be used: counted in ``counts["bad_messages"]`` and logged with why, then skipped."""
+        counts["bad_messages"] = counts.get("bad_messages", 0) + 1
+        self.get_logger().error(f"{what} skipped ({counts['bad_messages']} bad so far): {type(exc).__name__}: {exc}")
+
     def wall_timer(self, period_s: float, callback: Callable[[], None]) -> Any:
         """A timer on the steady wall clock. rclpy's timers follow the node's clock, which under ``use_sim_time``
         stands still between two ``/clock`` messages: a recorder's topic discovery or a detector's batch window

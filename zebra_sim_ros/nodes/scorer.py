@@ -74,17 +74,12 @@ class ScorerNode(ZebraNode[ScorerConfig]):
         self.live.resize(cfg.window)
         self.live.recount(cfg.count_conf)
 
-    def _bad(self, what: str, exc: BaseException) -> None:
-        self.counts["bad_messages"] += 1
-        self.get_logger().error(f"{what} skipped ({self.counts['bad_messages']} bad so far): "
-                                f"{type(exc).__name__}: {exc}")
-
     def _on_labels(self, drone: str) -> Any:
         def on_labels(msg: String) -> None:
             try:
                 self.live.add_labels(drone, Labels.from_json(msg.data))
             except (ZebraSimError, *MALFORMED) as exc:
-                self._bad(f"{drone}/labels", exc)
+                self.skip_bad(self.counts, f"{drone}/labels", exc)
                 return
             self.counts["labels"] += 1
         return on_labels
@@ -97,7 +92,7 @@ class ScorerNode(ZebraNode[ScorerConfig]):
                                 np.float64)
                 self.live.add_detections(drone, dets.stamp.ns, rows)
             except (ZebraSimError, *MALFORMED) as exc:
-                self._bad(f"{drone}/{self.cfg.detections}", exc)
+                self.skip_bad(self.counts, f"{drone}/{self.cfg.detections}", exc)
                 return
             self.counts["detections"] += 1
         return on_detections
