@@ -9,7 +9,8 @@ first step, stops the graph after the last step and scores the run. Here the pla
 ``wait_for_nodes`` (the recorder by name: another subscriber such as RViz does not count) and exits after ``frames``
 steps; stop the rest with Ctrl-C. The scorer (``score:=false`` leaves it out) publishes the detector's figures on
 ``/diagnostics``, status ``scorer: scorer`` (``ros2 topic echo /diagnostics``, or rqt's runtime monitor); nothing
-holds the first step for it, so a scorer that subscribes late scores the steps from then on.
+holds the first step for it, so a scorer that subscribes late scores the steps from then on. ``locate:=true`` adds
+the locator (each drone's detections placed on the map, ``<drone>/detections/located``), as ``up --locate``.
 
 Topic names are relative: wrap this launch file in a group with ``PushRosNamespace`` to move the whole graph (and
 remap ``/tf``, ``/tf_static`` and ``/clock`` into it, as ``zebra-sim up --namespace`` does). The placer is the

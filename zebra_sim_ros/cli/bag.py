@@ -102,7 +102,7 @@ def cmd_eval(args: argparse.Namespace) -> Summary:
     for drone, m in s.items():
         if drone not in ("all", "damaged", "skipped") and m:
             print(f"{drone}: {m['frames']} frames, P {m['precision']:.3f} R {m['recall']:.3f} mAP50 {m['mAP50']:.3f} "
-                  f"mAP50-95 {m['mAP50-95']:.3f}; counted {m['count']['counted']} of {m['count']['true']}")
+                  f"mAP50-95 {m['mAP50-95']:.3f}; counted {m['count']['counted']} for {m['count']['true']} zebras")
     if s["all"]:
         a = s["all"]
         print(f"all: mAP50 {a['mAP50']:.3f} mAP50-95 {a['mAP50-95']:.3f}; {count_line(a['count'])}")

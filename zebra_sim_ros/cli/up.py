@@ -133,8 +133,8 @@ def cmd_up(args: argparse.Namespace) -> Summary:
               f"{'' if live['complete'] else ' (not every frame of the run: its window, or a report missed)'}: "
               f"P {a['precision']:.3f} "
               f"R {a['recall']:.3f} mAP50 {a['mAP50']:.3f} mAP50-95 {a['mAP50-95']:.3f}"
-              + (f"; counted {c['counted']} of {c['true']}" if (c := a.get("count", {})).keys() >= {"counted", "true"}
-                 else ""), flush=True)
+              + (f"; counted {c['counted']} for {c['true']} zebras"
+                 if (c := a.get("count", {})).keys() >= {"counted", "true"} else ""), flush=True)
     if result.get("recording_error"):
         result["exit_code"] = result["exit_code"] or 1
     try:
@@ -383,9 +383,10 @@ def _print_summary(r: dict[str, Any], drones: tuple[str, ...]) -> None:
         print(f"[up] {count_line(a['count'])}", flush=True)
     if loc := r.get("located"):
         where = ""
-        if loc["median_m"] is not None:
-            where = (f", {loc['median_m']:.2f} m from the nearest placed zebra (median; 90th percentile "
-                     f"{loc['p90_m']:.2f} m), {loc['within_1_m']:.0%} within 1 m")
+        if loc["median_m"] is not None:  # the 90th percentile may be past every placed zebra (a step without any)
+            p90 = f"{loc['p90_m']:.2f} m" if loc["p90_m"] is not None else "none placed near"
+            where = (f", {loc['median_m']:.2f} m from the nearest placed zebra (median; 90th percentile {p90}), "
+                     f"{loc['within_1_m']:.0%} within 1 m")
         elif not loc["frames_with_placed"]:
             where = " (no placed zebras in the bag to compare with: zebra_sim/zebras not recorded)"
         print(f"[up] locator: {loc['detections']} zebra detections placed on the map in {loc['frames']} frames"

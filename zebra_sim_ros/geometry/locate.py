@@ -71,16 +71,16 @@ def locate_boxes(boxes: FloatArray, depth: NDArray[np.floating], k: FloatArray, 
     """Each box's point in ``map``: the ray through its centre, at its depth (:func:`box_depths`), from a camera
     whose optical frame (z forward, x right, y down) is at ``position`` with ``orientation_xyzw`` in ``map`` (the
     placer's ``<drone>/camera/pose``), ``k`` its 3x3 intrinsic matrix (CameraInfo ``k``; skew and lens distortion
-    are not modelled: the placer's cameras are ideal pinholes). ValueError for a K without positive focal lengths
-    or a pose that is not finite."""
+    are not modelled: the placer's cameras are ideal pinholes). ValueError for a K without positive focal lengths,
+    a pose that is not finite or a zero quaternion (others are normalised)."""
     k = np.asarray(k, dtype=np.float64).reshape(3, 3)
     if not (k[0, 0] > 0 and k[1, 1] > 0):
         raise ValueError(f"an intrinsic matrix with positive focal lengths, not fx={k[0, 0]}, fy={k[1, 1]}")
     position = np.asarray(position, dtype=np.float64).reshape(3)
     quat = np.asarray(orientation_xyzw, dtype=np.float64).reshape(4)
     if not (np.all(np.isfinite(position)) and np.all(np.isfinite(quat)) and np.linalg.norm(quat) > 1e-6):
-        raise ValueError(f"a camera pose with a finite position and a unit quaternion, not {position.tolist()} "
-                         f"{quat.tolist()}")
+        raise ValueError(f"a camera pose with a finite position and a finite, non-zero quaternion, not "
+                         f"{position.tolist()} {quat.tolist()}")
     boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
     d = box_depths(depth, boxes, core)
     u = (boxes[:, 0] + boxes[:, 2]) / 2 - 0.5  # pixel-edge to pixel-centre coordinates

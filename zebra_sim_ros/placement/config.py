@@ -37,8 +37,6 @@ def _nonneg_list(n: int) -> Any:
     return lambda v: len(v) == n and all(isinstance(x, int | float) and x >= 0 for x in v) and sum(v) > 0
 
 
-
-
 def _node_names(v: Any) -> bool:
     """Check: [''] (none) or a list of ROS node names, each relative or absolute (``recorder``, ``/g1/recorder``)."""
     return tuple(v) == ("",) or (len(v) > 0 and all(isinstance(x, str) and ROS_NAME.fullmatch(x) for x in v))
