@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from zebra_sim_ros.detection.config import DETECTOR_PARAMS, LOCATOR_PARAMS, SCORER_PARAMS
+from zebra_sim_ros.detection.config import DETECTOR_PARAMS, LOCATOR_PARAMS, SCORER_PARAMS, LocatorConfig
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LABELLER_PARAMS
 from zebra_sim_ros.params import ParamSpec, load_params_file, replace_tables, validate, write_config
@@ -26,7 +26,7 @@ DRONES = ("drone_0", "drone_1", "drone_2")  # the default graph's cameras (UpCon
 CAMERA_TOPICS = ("image_raw", "depth", "instances", "camera_info")
 LABELLER_TOPICS = ("labels", "labels/markers", "labels/boxes3d", "labels/boxes2d")
 DETECTOR_TOPICS = ("detections", "detections/image", "detections/markers")
-LOCATOR_TOPICS = ("detections/located",)  # up --locate: the detections placed on the map
+LOCATOR_TOPICS = (LocatorConfig().output,)  # up --locate: the detections placed on the map
 PLACER_TOPICS = ("zebra_sim/scene", "zebra_sim/zebras", "zebra_sim/zebras/markers")  # and each <drone>/camera/pose
 # By convention absolute (tf2 listeners and every node's time source use them); a namespaced graph remaps them.
 GLOBAL_TOPICS = ("/tf", "/tf_static", "/clock")

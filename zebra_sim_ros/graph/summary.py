@@ -19,10 +19,10 @@ from typing import Any
 import cv2
 import numpy as np
 
+from zebra_sim_ros.detection.config import LocatorConfig
 from zebra_sim_ros.detection.scoring import COUNT_CONF, DroneFrames
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.locate import nearest_distances, placing_figures
-from zebra_sim_ros.graph.spec import LOCATOR_TOPICS
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections3d, cdr_string, header_stamp_ns
 from zebra_sim_ros.recording.evaluate import collect, score, skip_note
@@ -32,6 +32,7 @@ from zebra_sim_ros.recording.reader import CAMERA_IMAGES, BagMessage, last_name,
 _DRONE = re.compile(r"drone_\d+")  # a camera of the graph (up's drone_0 ... drone_N-1), under any namespace
 _SCENE_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/scene$")
 _ANIMALS_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/zebras$")  # the placed animals (Detection3DArray)
+_LOCATED = (LocatorConfig().output,)  # a camera's detections placed on the map by the locator (up --locate)
 
 
 PREVIEW_COLUMNS = 4  # drones per row of the preview (a row of 16 4K frames is past JPEG's 65535 px)
@@ -86,7 +87,7 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
             elif _ANIMALS_TOPIC.match(m.topic):
                 t, animals = cdr_detections3d(m.data)
                 placed[t] = np.array([c for name, _, c in animals if name == "zebra"], np.float64).reshape(-1, 3)
-            elif owner := topic_owner(m.topic, LOCATOR_TOPICS):
+            elif owner := topic_owner(m.topic, _LOCATED):
                 t, dets = cdr_detections3d(m.data)
                 located[(last_name(owner[0]), t)] = np.array([c for name, _, c in dets if name == "zebra"],
                                                              np.float64).reshape(-1, 3)

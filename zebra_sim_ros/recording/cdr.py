@@ -109,6 +109,20 @@ def rgb_image(data: bytes) -> tuple[int, np.ndarray] | None:
     return t, np.ascontiguousarray(a[..., ::-1] if encoding == "bgr8" else a)
 
 
+def _detection_head(r: _Cdr) -> tuple[str, float]:
+    """A vision_msgs Detection2D's or Detection3D's header and hypotheses, read up to its box: its best
+    hypothesis' class and score (the hypotheses' poses and covariances are not used)."""
+    _stamp_of(r)
+    r.string()  # the detection's own header: its array's
+    best = ("", -1.0)
+    for _ in range(r.u32()):
+        class_id, score = r.string(), r.f64()
+        for _ in range(7 + 36):  # the pose (position, orientation) and its covariance
+            r.f64()
+        best = max(best, (class_id, score), key=lambda h: h[1])
+    return best
+
+
 def cdr_detections3d(data: bytes) -> tuple[int, list[tuple[str, float, tuple[float, float, float]]]]:
     """A CDR-serialized ``vision_msgs/Detection3DArray`` (or ``zebra_sim_msgs/``'s, the same layout): its stamp (ns)
     and per detection its best hypothesis' class and score and its box's centre (in the array's frame)."""
@@ -117,19 +131,12 @@ def cdr_detections3d(data: bytes) -> tuple[int, list[tuple[str, float, tuple[flo
     r.string()  # frame_id
     out = []
     for _ in range(r.u32()):
-        _stamp_of(r)
-        r.string()  # the detection's own header
-        best = ("", -1.0)
-        for _ in range(r.u32()):
-            class_id, score = r.string(), r.f64()
-            for _ in range(7 + 36):  # the hypothesis' pose and its covariance: the box's centre is used
-                r.f64()
-            best = max(best, (class_id, score), key=lambda h: h[1])
+        class_id, score = _detection_head(r)
         x, y, z = r.f64(), r.f64(), r.f64()
         for _ in range(4 + 3):  # the box's orientation and size
             r.f64()
         r.string()  # id
-        out.append((best[0], best[1], (x, y, z)))
+        out.append((class_id, score, (x, y, z)))
     return t, out
 
 
@@ -142,15 +149,8 @@ def cdr_detections(data: bytes) -> Detections:
     frame_id = r.string()
     out = []
     for _ in range(r.u32()):
-        _stamp_of(r)
-        r.string()  # the detection's own header: the image's
-        best = ("", -1.0)
-        for _ in range(r.u32()):
-            class_id, score = r.string(), r.f64()
-            for _ in range(7 + 36):  # the pose (position, orientation) and its covariance: unused
-                r.f64()
-            best = max(best, (class_id, score), key=lambda h: h[1])
+        class_id, score = _detection_head(r)
         cx, cy, _theta, w, h = (r.f64() for _ in range(5))
         r.string()  # id
-        out.append(Detection((cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2), best[1], 0, best[0] or "zebra"))
+        out.append(Detection((cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2), score, 0, class_id or "zebra"))
     return Detections(Stamp.from_ns(t), frame_id, 0, 0, tuple(out))
