@@ -195,7 +195,9 @@ def test_a_bad_locator_parameter_stops_the_node() -> None:
     from zebra_sim_ros.detection.config import LocatorConfig
 
     for bad, name in (({"output": "detections"}, "'output'"), ({"output": "/abs"}, "'output'"),
-                      ({"core": 0.0}, "'core'"), ({"drones": ["drone_0", "drone_0"]}, "'drones'")):
+                      ({"core": 0.0}, "'core'"), ({"drones": ["drone_0", "drone_0"]}, "'drones'"),
+                      ({"pose_transient_local": 3}, r"'pose_transient_local' = 3 is invalid: allowed true or false$"),
+                      ({"output": "depth"}, "'output'"), ({"sync_window": 0}, "'sync_window'")):
         with pytest.raises(ParameterError, match=name):
             LocatorConfig.from_params(bad)
     proc = run_node_once("locator", {"core": 2.0})  # the node stops at start, naming it

@@ -231,7 +231,8 @@ def _coerce(spec: ParamSpec, value: Any) -> Any:
     d = spec.default
     if isinstance(d, bool):
         if not isinstance(value, bool):
-            raise ParameterError(spec.name, value, f"true or false ({spec.allowed})")
+            allowed = spec.allowed if spec.allowed == "true or false" else f"true or false ({spec.allowed})"
+            raise ParameterError(spec.name, value, allowed)
         return value
     if isinstance(d, int):
         if isinstance(value, bool) or not isinstance(value, int):
