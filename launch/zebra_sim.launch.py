@@ -10,7 +10,8 @@ first step, stops the graph after the last step and scores the run. Here the pla
 steps; stop the rest with Ctrl-C. The scorer (``score:=false`` leaves it out) publishes the detector's figures on
 ``/diagnostics``, status ``scorer: scorer`` (``ros2 topic echo /diagnostics``, or rqt's runtime monitor); nothing
 holds the first step for it, so a scorer that subscribes late scores the steps from then on. ``locate:=true`` adds
-the locator (each drone's detections placed on the map, ``<drone>/detections/located``), as ``up --locate``.
+the locator (each drone's detections placed on the map, ``<drone>/detections/located``, and each step's animals
+counted once across the drones, ``census/animals``), as ``up --locate``.
 
 Topic names are relative: wrap this launch file in a group with ``PushRosNamespace`` to move the whole graph (and
 remap ``/tf``, ``/tf_static`` and ``/clock`` into it, as ``zebra-sim up --namespace`` does). The placer is the
@@ -64,7 +65,8 @@ def generate_launch_description():
         DeclareLaunchArgument("score", default_value="true", description="start the scorer node (the detector's "
                               "figures live on /diagnostics; as zebra-sim up without --no-score)"),
         DeclareLaunchArgument("locate", default_value="false", description="start the locator node (each drone's "
-                              "detections placed on the map, <drone>/detections/located; as zebra-sim up --locate)"),
+                              "detections placed on the map, <drone>/detections/located, and the census, "
+                              "census/animals; as zebra-sim up --locate)"),
         DeclareLaunchArgument("bag", default_value="out/up/zebra_sim.mcap", description="bag to record"),
         DeclareLaunchArgument("rviz", default_value="false", description="also start RViz (rviz2: a ROS 2 desktop "
                               "install) on the package's view drawn for these drones, as zebra-sim up writes it"),

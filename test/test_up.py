@@ -109,6 +109,10 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     assert located["detections"] >= 0.9 * a["count"]["counted"] > 0, (located, a["count"])
     assert located["median_m"] < 1.0 and located["within_1_m"] > 0.5, located
     assert "[up] locator: " in stdout
+    # the census: each step's zebras counted once across the three drones; joining never adds, and the drones overlap
+    census = live["census"]
+    assert census["steps"] == 3 and census["true"] > 0 and 0 < census["animals"] < census["summed"], census
+    assert census["summed"] == located["detections"] and "[up] census: " in stdout
     # every node reported on /diagnostics, and nothing went wrong (the placer may resend a step on a slow machine)
     health = live["health"]
     assert set(health) == {f"{s.label}: {s.executable}" for s in graph_spec(UpConfig(locate=True))}, health

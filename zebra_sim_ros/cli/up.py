@@ -68,8 +68,9 @@ def register(sub: Any) -> None:
     p.add_argument("--no-score", action="store_true", help="run without the scorer node (its live figures on "
                    "/diagnostics); the bag is still scored at the end")
     p.add_argument("--locate", action="store_true", help="also run the locator node: each drone's detections placed "
-                   "on the map (<drone>/detections/located, Detection3DArray in map), scored at the end against the "
-                   "placed zebras")
+                   "on the map (<drone>/detections/located, Detection3DArray in map) and each step's zebras counted "
+                   "once across the drones (census/animals), scored at the end against the placed and the labelled "
+                   "zebras")
     add_json_flag(p)
     p.set_defaults(func=cmd_up)
 
@@ -391,6 +392,10 @@ def _print_summary(r: dict[str, Any], drones: tuple[str, ...]) -> None:
             where = " (no placed zebras in the bag to compare with: zebra_sim/zebras not recorded)"
         print(f"[up] locator: {loc['detections']} zebra detections placed on the map in {loc['frames']} frames"
               f"{where}", flush=True)
+    if (cen := r.get("census")) and cen["error"] is not None:
+        print(f"[up] census: {cen['animals']} zebras counted once across the drones for {cen['true']} distinct "
+              f"zebras labelled ({cen['error']:+.1%}; summed over the drones {cen['summed']}, "
+              f"{cen['summed_error']:+.1%}) in {cen['steps']} steps", flush=True)
     ms = r["median_ms"]
     if r.get("steps_per_s"):
         print(f"[up] throughput: {r['steps']} steps in {r['seconds']:.1f} s = {r['steps_per_s']:.2f} steps/s, "

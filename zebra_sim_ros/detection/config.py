@@ -11,6 +11,8 @@ from typing import Any
 
 from zebra_sim_ros.detection.metrics import MAX_DETECTIONS
 from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.geometry.census import CENSUS_ACROSS_M, CENSUS_ALONG_M, CENSUS_GATE
+from zebra_sim_ros.geometry.locate import DEPTH_WINDOW_M
 from zebra_sim_ros.params import (
     RELATIVE_NAME,
     ParamSpec,
@@ -152,8 +154,23 @@ class LocatorConfig(StageConfig):
     output: str = param("detections/located", "the placed detections' topic under each camera (a Detection3DArray "
                         "in map)", allowed="a topic name relative to the drone (letters, digits, _ and /)",
                         check=lambda v: bool(RELATIVE_NAME.fullmatch(v)))
-    core: float = param(0.5, "share of each box's width and height, about its centre, whose median depth places it "
-                        "(the body, not the legs and the ground between them)", lo=0.05, hi=1.0, runtime=True)
+    core: float = param(1.0, "share of each box's width and height, about its centre, whose depths place it (1: "
+                        "the whole box)", lo=0.05, hi=1.0, runtime=True)
+    depth_window: float = param(DEPTH_WINDOW_M, "a box's depth is the median of the densest span of its depths this "
+                                "deep (the animal, not the ground behind it or another animal in front); 0: the "
+                                "median of all", "m", lo=0.0, hi=100.0, runtime=True)
+    census: bool = param(True, "also join the cameras' detections of each stamp into animals, each counted once "
+                         "(published on census_output once every camera's frame of the stamp is placed)")
+    census_output: str = param("census/animals", "the census's topic (a Detection3DArray in map: one detection per "
+                               "animal)", allowed="a topic name relative to the node's namespace (letters, digits, _ "
+                               "and /)", check=lambda v: bool(RELATIVE_NAME.fullmatch(v)))
+    census_along: float = param(CENSUS_ALONG_M, "how far a placed detection is taken to be off along its camera's "
+                                "ray, seen from above (one standard deviation: its depth's error)", "m", lo=0.01,
+                                hi=100.0, runtime=True)
+    census_across: float = param(CENSUS_ACROSS_M, "how far a placed detection is taken to be off across its camera's "
+                                 "ray (one standard deviation: its box's error)", "m", lo=0.01, hi=100.0, runtime=True)
+    census_gate: float = param(CENSUS_GATE, "join two cameras' detections into one animal only when they are less "
+                               "than this many standard deviations apart", lo=0.1, hi=100.0, runtime=True)
     sync_window: int = param(20, "stamps kept while waiting for their missing inputs (all cameras' together)",
                              lo=1, hi=1000)
     pose_transient_local: bool = param(False, "subscribe camera/pose transient local: a locator that matches its "
@@ -167,12 +184,14 @@ class LocatorConfig(StageConfig):
     diagnostics_period_s: float = diagnostics_param()
 
     def check(self) -> None:
-        """Each camera once; an output that is not the input."""
+        """Each camera once; an output that is not an input; the census outside the cameras' namespaces."""
         if len({d.strip("/") for d in self.drones}) != len(self.drones):
             raise ParameterError("drones", list(self.drones), "each camera once")
         inputs = (self.detections, "depth", "camera_info", "camera/pose", "image_raw")
         if self.output in inputs:
             raise ParameterError("output", self.output, f"another topic than the camera's inputs {list(inputs)}")
+        if self.census_output.split("/")[0] in {d.strip("/").split("/")[-1] for d in self.drones}:
+            raise ParameterError("census_output", self.census_output, "a topic outside the cameras' namespaces")
 
 
 LOCATOR_PARAMS: tuple[ParamSpec, ...] = LocatorConfig.specs()

@@ -255,7 +255,8 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
         nodes.append(NodeSpec("locator", "locator", ns, "locator.yaml",
                               {"drones": list(drones), "image_reliability": "reliable", "pose_transient_local": True,
                                **sim},
-                              tuple(f"{ns}/{d}/{t}" for d in drones for t in LOCATOR_TOPICS), remaps,
+                              tuple(f"{ns}/{d}/{t}" for d in drones for t in LOCATOR_TOPICS)
+                              + (f"{ns}/{LocatorConfig().census_output}",), remaps,
                               tuple(f"{ns}/{d}/{t}" for d in drones
                                     for t in ("detections", "depth", "camera_info", "camera/pose"))))
     if cfg.score:  # every frame scored: subscribed before the first step

@@ -33,6 +33,7 @@ _DRONE = re.compile(r"drone_\d+")  # a camera of the graph (up's drone_0 ... dro
 _SCENE_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/scene$")
 _ANIMALS_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/zebras$")  # the placed animals (Detection3DArray)
 _LOCATED = (LocatorConfig().output,)  # a camera's detections placed on the map by the locator (up --locate)
+_CENSUS_TOPIC = re.compile(rf"^(?:/[^/]+)*/{re.escape(LocatorConfig().census_output)}$")  # the locator's census
 
 
 PREVIEW_COLUMNS = 4  # drones per row of the preview (a row of 16 4K frames is past JPEG's 65535 px)
@@ -77,6 +78,7 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
     unusable: list[str] = []  # scenes and images that do not parse (collect notes bad labels and detections)
     placed: dict[int, np.ndarray] = {}  # stamp -> the placed zebras' box centres (zebra_sim/zebras)
     located: dict[tuple[str, int], np.ndarray] = {}  # (drone, stamp) -> its detections placed on the map
+    census: dict[int, int] = {}  # stamp -> the zebras the locator's census counted in it
 
     def visit(m: BagMessage) -> None:  # scenes and images; collect itself parses labels and detections
         image = topic_owner(m.topic, CAMERA_IMAGES)
@@ -87,6 +89,9 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
             elif _ANIMALS_TOPIC.match(m.topic):
                 t, animals = cdr_detections3d(m.data)
                 placed[t] = np.array([c for name, _, c in animals if name == "zebra"], np.float64).reshape(-1, 3)
+            elif _CENSUS_TOPIC.match(m.topic):
+                t, animals = cdr_detections3d(m.data)
+                census[t] = sum(1 for name, _, _ in animals if name == "zebra")
             elif owner := topic_owner(m.topic, _LOCATED):
                 t, dets = cdr_detections3d(m.data)
                 located[(last_name(owner[0]), t)] = np.array([c for name, _, c in dets if name == "zebra"],
@@ -130,9 +135,29 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
         out["located"] = {"frames": len(located), "detections": sum(len(p) for p in located.values()),
                           "frames_with_placed": len(gaps),
                           **placing_figures(np.concatenate(gaps) if gaps else np.zeros(0))}
+    if census:  # the zebras counted once across the drones against the distinct zebras labelled by any of them
+        out["census"] = census_figures(census, collected.drones, located)
     if preview is not None and images_rgb:
         out["preview"] = str(write_preview(preview, collected.drones, images_rgb))
     return out
+
+
+def census_figures(census: dict[int, int], drones: dict[str, DroneFrames],
+                   located: dict[tuple[str, int], np.ndarray]) -> dict[str, Any]:
+    """The locator's census against the truth, over the stamps every camera labelled: the zebras it counted
+    (``animals``), the distinct zebras the cameras' labels keep (``true``: one seen by three drones is one), the
+    zebra detections placed by all cameras (``summed``: the count without joining), and the relative errors."""
+    stamps = [t for t in sorted(census) if drones and all(t in d.labels for d in drones.values())]
+    true = sum(len({z.id for d in drones.values() for z in d.labels[t].kept}) for t in stamps)
+    animals = sum(census[t] for t in stamps)
+    kept = set(stamps)
+    summed = sum(len(p) for (_, t), p in located.items() if t in kept)
+
+    def error(n: int) -> float | None:
+        return round((n - true) / true, 4) if true else None
+
+    return {"steps": len(stamps), "animals": animals, "true": true, "error": error(animals), "summed": summed,
+            "summed_error": error(summed)}
 
 
 def write_preview(path: str | Path, c: dict[str, DroneFrames], images: dict[str, tuple[int, np.ndarray]]) -> Path:

@@ -10,16 +10,26 @@ with the image's stamp:
 
 - ``<drone>/<output>`` (Detection3DArray in the pose's frame, ``map``; vision_msgs where installed, else
   zebra_sim_msgs): per detection, its class and score at the point where the ray through its box's centre meets
-  the median depth of the box's central ``core`` (:func:`zebra_sim_ros.geometry.locate.locate_boxes`), and its box
+  the box's depth (of the depths in its central ``core``, the median of the densest span ``depth_window`` deep:
+  :func:`zebra_sim_ros.geometry.locate.locate_boxes`), and its box
   at that depth in the camera's image plane (orientation the optical frame's; size: width and height in metres,
   depth 0); ``id`` its index in the detections message. A box with no measured depth in its core (sky, outside
   the image) is left out and counted (``unplaced``). A camera's frames before its first camera_info wait for it
   (within ``sync_window``); a pose that is not finite, or a depth image of another size than camera_info's, is a
   bad message.
 
+- ``<census_output>`` (with ``census``; Detection3DArray in ``map``), once every camera in ``drones`` has a frame of
+  the stamp placed: the animals of that instant, each counted once. Three drones that see one herd see an animal up
+  to three times; per class, the cameras' placed detections are joined view by view in ``drones``' order
+  (:func:`zebra_sim_ros.geometry.census.join_views`: an optimal assignment on the ground, each detection taken to be
+  off by ``census_along`` along its camera's ray and ``census_across`` across it, joined under ``census_gate``
+  standard deviations). Per animal: its class and the highest score of its detections, its position (where their
+  rays cross, weighed), a box as wide and long as its largest detection's larger side (height 0) and ``id`` the
+  detections it joins (``drone_0:3,drone_2:7``: camera and index in that camera's detections message). A stamp
+  that some camera never completes gets no census (counted ``census_incomplete``).
+
 With the placer's ``zebra_sim/zebras`` (the placed animals, the same message type) this is what an aerial survey
-compares: where the detector put each animal, and where it stood. Three drones that see one herd see an animal up
-to three times; on the map their detections can be joined.
+compares: where the detector put each animal, and where it stood, and how many there were.
 """
 
 from __future__ import annotations
@@ -35,6 +45,7 @@ from std_msgs.msg import Header
 
 from zebra_sim_ros.detection.config import LOCATOR_PARAMS, LocatorConfig
 from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.geometry.census import Census, join_views
 from zebra_sim_ros.geometry.locate import Located, locate_boxes
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Detections
@@ -80,6 +91,37 @@ def located_msg(type_name: str, header: Header, dets: Detections, where: Located
     return msg.Detection3DArray(header=header, detections=out)
 
 
+def census_msg(type_name: str, header: Header, views: dict[str, tuple[Detections, Located]], names: list[str],
+               classes: list[str], joined: list[Census]) -> Any:
+    """The animals of one stamp as a Detection3DArray of ``type_name`` in ``header``'s frame (``map``): for each
+    class in ``classes`` its :class:`Census` over the cameras ``names`` (``joined``, the same order), whose points
+    are that class's placed detections of each camera in ``views``; per animal one hypothesis (the class, the
+    highest score of its detections) at its position (identity orientation), a box as wide and long as its
+    largest detection's larger side, and ``id`` the detections it joins (``camera:index``)."""
+    msg = importlib.import_module(f"{type_name.split('/')[0]}.msg")
+    out = []
+    for cls, census in zip(classes, joined, strict=True):
+        index = {d: _class_rows(views[d][0], views[d][1], cls) for d in names}
+        for position, row in zip(census.positions, census.members, strict=True):
+            parts = [(d, int(index[d][j])) for d, j in zip(names, row.tolist(), strict=True) if j >= 0]
+            score = max(views[d][0].detections[i].score for d, i in parts)
+            side = max(float(views[d][1].size[i].max()) for d, i in parts)
+            px, py, pz = (float(v) for v in position)
+            at = Pose(position=Point(x=px, y=py, z=pz), orientation=Quaternion(w=1.0))
+            hyp = msg.ObjectHypothesisWithPose(hypothesis=msg.ObjectHypothesis(class_id=cls, score=float(score)),
+                                               pose=PoseWithCovariance(pose=at))
+            box = msg.BoundingBox3D(center=at, size=Vector3(x=side, y=side, z=0.0))
+            out.append(msg.Detection3D(header=header, results=[hyp], bbox=box,
+                                       id=",".join(f"{d}:{i}" for d, i in parts)))
+    return msg.Detection3DArray(header=header, detections=out)
+
+
+def _class_rows(dets: Detections, where: Located, cls: str) -> np.ndarray:
+    """The indices of ``cls``'s placed detections."""
+    return np.array([i for i, (d, ok) in enumerate(zip(dets.detections, where.valid, strict=True))
+                     if ok and d.class_name == cls], np.int64)
+
+
 class LocatorNode(ZebraNode[LocatorConfig]):
     """Synchronises each camera's detections, depth and pose by stamp; thin adapter around ``locate_boxes``."""
 
@@ -96,7 +138,12 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         out_class = message_class(self.out_type)
         self.pending: RecentStamps[dict[str, dict[str, Any]]] = RecentStamps(c.sync_window)  # stamp: drone: part
         self.info: dict[str, tuple[np.ndarray, int, int]] = {}  # drone: its latest K (3x3), width, height
-        self.stats = {"frames": 0, "placed": 0, "unplaced": 0, "unmatched": 0, "bad_messages": 0}
+        self.stats = {"frames": 0, "placed": 0, "unplaced": 0, "unmatched": 0, "bad_messages": 0, "census": 0,
+                      "animals": 0, "census_incomplete": 0}
+        self.last_count = ""  # the latest census: animals per class
+        # stamp: camera: (its detections, placed, the camera's position) until every camera's frame is placed
+        self.census_pending: RecentStamps[dict[str, tuple[Detections, Located, np.ndarray]]] = RecentStamps(
+            c.sync_window)
         self.seconds = 0.0
         self.pubs: dict[str, Any] = {}
         det_class = message_class(detection_array_type())
@@ -107,6 +154,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
             self.create_subscription(PoseStamped, f"{d}/camera/pose", self._on_part(d, "pose"), pose_q)
             self.create_subscription(CameraInfo, f"{d}/camera_info", self._on_info(d), image_q)
             self.pubs[d] = self.create_publisher(out_class, f"{d}/{c.output}", q)
+        self.census_pub = self.create_publisher(out_class, c.census_output, q) if c.census else None
         self.get_logger().info(f"placing {list(c.drones)}' <drone>/{c.detections} in map as <drone>/{c.output} "
                                f"({self.out_type}); QoS images: {describe_qos(image_q)}, poses: "
                                f"{describe_qos(pose_q)}, others: {describe_qos(q)}")
@@ -173,25 +221,54 @@ class LocatorNode(ZebraNode[LocatorConfig]):
                 depth = depth.astype(np.float32) / 1000.0
             boxes = np.array([x.box_xyxy for x in dets.detections], np.float64).reshape(-1, 4)
             where = locate_boxes(boxes, depth, k, np.array([p.x, p.y, p.z]), np.array(orientation),
-                                 self.cfg.core)
+                                 self.cfg.core, self.cfg.depth_window)
         except (ZebraSimError, ValueError, TypeError, IndexError, ArithmeticError) as exc:
             self.skip_bad(self.stats, f"{drone} stamp {t}", exc)
             return
         self.pubs[drone].publish(located_msg(self.out_type, Header(stamp=stamp(t), frame_id=pose.header.frame_id),
                                              dets, where, orientation))
+        if self.census_pub is not None:
+            self._census(t, drone, dets, where, np.array([p.x, p.y, p.z]), pose.header.frame_id)
         placed = int(where.valid.sum())
         self.stats["frames"] += 1
         self.stats["placed"] += placed
         self.stats["unplaced"] += len(dets.detections) - placed
         self.seconds += time.perf_counter() - t0
 
+    def _census(self, t: int, drone: str, dets: Detections, where: Located, origin: np.ndarray, frame: str) -> None:
+        """Hold this camera's placed frame; with every camera's frame of stamp ``t``, count its animals once."""
+        views, dropped = self.census_pending.touch(t, dict)
+        views[drone] = (dets, where, origin)
+        self.stats["census_incomplete"] += len(dropped)
+        if any(d not in views for d in self.cfg.drones):
+            return
+        self.census_pending.pop(t)
+        c = self.cfg
+        names = list(c.drones)
+        classes = sorted({x.class_name for d in names for x, ok in zip(views[d][0].detections, views[d][1].valid,
+                                                                      strict=True) if ok})
+        joined = [join_views([views[d][1].points[_class_rows(views[d][0], views[d][1], cls)] for d in names],
+                             [views[d][2] for d in names], c.census_along, c.census_across, c.census_gate)
+                  for cls in classes]
+        header = Header(stamp=stamp(t), frame_id=frame)
+        assert self.census_pub is not None
+        self.census_pub.publish(census_msg(self.out_type, header, {d: views[d][:2] for d in names}, names, classes,
+                                           joined))
+        self.stats["census"] += 1
+        self.stats["animals"] += sum(j.count for j in joined)
+        self.last_count = ", ".join(f"{j.count} {cls}" for cls, j in zip(classes, joined, strict=True)) or "none"
+
     def activity(self) -> Activity:
         """Frames placed; detections placed and not (no depth in the box); frames whose inputs never all arrived
-        (unmatched) and bad messages skipped. Waits for a camera's camera_info before it places its frames."""
+        (unmatched) and bad messages skipped; stamps counted (census), the animals in them, and stamps some camera
+        never completed (census_incomplete). Waits for a camera's camera_info before it places its frames."""
         missing = [d for d in self.cfg.drones if d not in self.info]
         waiting = f"waiting for camera_info of {', '.join(missing)}" if missing else ""
-        return Activity(dict(self.stats), "frames", ("unmatched", "bad_messages"), busy_s=self.seconds,
-                        waiting=waiting, info={"drones": ", ".join(self.cfg.drones), "output": self.cfg.output})
+        info = {"drones": ", ".join(self.cfg.drones), "output": self.cfg.output}
+        if self.cfg.census:
+            info.update({"census_output": self.cfg.census_output, "last census": self.last_count or "none yet"})
+        return Activity(dict(self.stats), "frames", ("unmatched", "bad_messages", "census_incomplete"),
+                        busy_s=self.seconds, waiting=waiting, info=info)
 
 
 def main(argv: list[str] | None = None) -> int:
