@@ -4,16 +4,19 @@ Renders ``--steps`` steps of the default world (the placer's defaults, its three
 on the map (``geometry.locate.locate_boxes``, the rendered depth, each camera's pose) two kinds of boxes:
 
 - perfect ones: every labelled zebra's visible box (each knows its zebra);
-- with ``--detector``, the shipped weights' zebra boxes at conf 0.25 (as the node serves them), each given the zebra
+- with ``--detector``, the shipped weights' zebra boxes at the detector node's defaults (conf 0.25, the checkpoint's
+  scale rule; the graph's detector finds fewer on the same scenes, BENCHMARKS.md "The census"), each given the zebra
   whose visible box it overlaps most (IoU 0.5 or more; any zebra seen, labelled or not), or none (a false box).
 
-Per step the three views' points are joined into animals at each ``--gates`` distance, and scored against the zebras
-the boxes came from: the animals counted against the distinct zebras among them (the true count); the zebras split
-over two or more animals (counted twice); the animals that join two zebras (one lost); and for the detector the
-animals made of false boxes only. The sum of the three cameras' boxes is the count without joining. Also the
-milliseconds a step's joining takes, against its three renders, measured in the same run.
+Per step the three views' points are joined into animals at each ``--gates`` (standard deviations) and
+``--separations`` (one camera's points closer than this on the ground are one animal; 0: never), and scored against
+the zebras the boxes came from: the animals counted against the distinct zebras among them (the true count); the
+zebras split over two or more animals (counted twice); the animals that join two zebras (one lost); and for the
+detector the animals made of false boxes only. The sum of the three cameras' boxes is the count without joining.
+Also the milliseconds a step's joining takes, against its three renders, measured in the same run.
 
-    python benchmarks/bench_census.py [--steps 10] [--size 1280x720] [--detector] [--gates 0.5 1 1.5 2] [--json]
+    python benchmarks/bench_census.py [--steps 10] [--first 0] [--size 1280x720] [--detector] [--gates 4]
+        [--separations 0 0.5] [--json]
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from zebra_sim_ros.geometry.census import join_views
+from zebra_sim_ros.geometry.census import CENSUS_GATE, CENSUS_SEPARATION_M, join_views
 from zebra_sim_ros.geometry.locate import locate_boxes
 from zebra_sim_ros.placement.config import PlacerConfig
 from zebra_sim_ros.placement.placer import Placer
@@ -38,10 +41,12 @@ from zebra_sim_ros.simulation import Simulator
 from zebra_sim_ros.world.world import load_world
 from zebra_sim_ros.zebra.asset import load_library
 
-View = tuple[np.ndarray, np.ndarray, np.ndarray]  # (N, 3) points on the map, (N,) zebra ids (-1: none), the camera
+# (N, 3) points on the map, (N,) zebra ids (-1: none), the camera's position, (N,) scores (the labels' all 1)
+View = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
-def views_of_steps(steps: int, size: str, detector: bool) -> tuple[list[dict[str, list[View]]], list[float]]:
+def views_of_steps(steps: int, size: str, detector: bool, first: int = 0) -> tuple[list[dict[str, list[View]]],
+                                                                                 list[float]]:
     """Per step, per kind of box ("labels", and "detector" with it), the three cameras' placed points and ids;
     and the milliseconds of each render."""
     model = None
@@ -58,7 +63,7 @@ def views_of_steps(steps: int, size: str, detector: bool) -> tuple[list[dict[str
     out: list[dict[str, list[View]]] = []
     render_ms: list[float] = []
     try:
-        for step in range(steps):
+        for step in range(first, first + steps):
             scene = placer.scene(step)
             kinds: dict[str, list[View]] = {"labels": [], "detector": []}
             for cam in scene.cameras:
@@ -70,7 +75,7 @@ def views_of_steps(steps: int, size: str, detector: bool) -> tuple[list[dict[str
                 boxes = np.array([z.box_visible for z in kept], np.float64).reshape(-1, 4)
                 got = locate_boxes(boxes, frame.view.depth, *pose)
                 ids = np.array([z.id for z in kept], np.int64)
-                kinds["labels"].append((got.points[got.valid], ids[got.valid], pose[1]))
+                kinds["labels"].append((got.points[got.valid], ids[got.valid], pose[1], np.ones(int(got.valid.sum()))))
                 if model is not None:
                     from zebra_sim_ros.detection.metrics import iou_matrix
                     from zebra_sim_ros.detection.predict import detect
@@ -85,35 +90,37 @@ def views_of_steps(steps: int, size: str, detector: bool) -> tuple[list[dict[str
                         hit = iou.max(axis=1) >= 0.5
                         ids[hit] = np.array([seen[int(j)].id for j in best[hit]], np.int64)
                     placed = locate_boxes(found[:, :4], frame.view.depth, *pose)
-                    kinds["detector"].append((placed.points[placed.valid], ids[placed.valid], pose[1]))
+                    ok = placed.valid
+                    kinds["detector"].append((placed.points[ok], ids[ok], pose[1], found[ok, 4]))
             out.append(kinds)
     finally:
         sim.release()
     return out, render_ms
 
 
-def score_census(views_by_step: list[list[View]], gate: float) -> dict[str, Any]:
-    """The census of every step at ``gate`` against the zebras its boxes came from (module docstring)."""
+def score_census(views_by_step: list[list[View]], gate: float, separation: float) -> dict[str, Any]:
+    """The census of every step at ``gate`` and ``separation`` against the zebras its boxes came from (module
+    docstring)."""
     tally: Counter[str] = Counter()
     join_ms: list[float] = []
     for views in views_by_step:
         t0 = time.perf_counter()
-        census = join_views([p for p, _, _ in views], [o for _, _, o in views], gate=gate)
+        census = join_views([v[0] for v in views], [v[2] for v in views], gate=gate, separation_m=separation,
+                            scores=[v[3] for v in views])
         join_ms.append((time.perf_counter() - t0) * 1e3)
-        ids = np.stack([np.where(census.members[:, v] >= 0,
-                                 views[v][1][np.maximum(census.members[:, v], 0)] if len(views[v][1]) else -1, -2)
-                        for v in range(len(views))], axis=1)  # -2: no point of this view; -1: a false box
-        truth = {int(i) for _, zid, _ in views for i in zid if i >= 0}
-        animal_ids = [{int(i) for i in row if i >= 0} for row in ids]
+        truth = {int(i) for v in views for i in v[1] if i >= 0}
+        animal_ids = [{int(views[v][1][i]) for v, i in census.points_of(a) if views[v][1][i] >= 0}
+                      for a in range(census.count)]
         holders = Counter(i for s in animal_ids for i in s)
-        tally["boxes"] += sum(len(p) for p, _, _ in views)
+        tally["boxes"] += sum(len(v[0]) for v in views)
         tally["animals"] += census.count
         tally["true"] += len(truth)
         tally["split"] += sum(n - 1 for n in holders.values())
         tally["merged"] += sum(len(s) - 1 for s in animal_ids if len(s) > 1)
         tally["false_only"] += sum(1 for s in animal_ids if not s)
     true = max(tally["true"], 1)
-    return {"gate_m": gate, **dict(tally), "error": round((tally["animals"] - tally["true"]) / true, 4),
+    return {"gate": gate, "separation_m": separation, **dict(tally),
+            "error": round((tally["animals"] - tally["true"]) / true, 4),
             "summed_error": round((tally["boxes"] - tally["true"]) / true, 4),
             "join_ms_per_step": round(statistics.median(join_ms), 2) if join_ms else None}
 
@@ -121,18 +128,21 @@ def score_census(views_by_step: list[list[View]], gate: float) -> dict[str, Any]
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=10)
+    ap.add_argument("--first", type=int, default=0, help="the first step (the defaults were chosen on steps 0-9)")
     ap.add_argument("--size", default="1280x720")
     ap.add_argument("--detector", action="store_true", help="also count the shipped detector's boxes")
-    ap.add_argument("--gates", type=float, nargs="+", default=[0.5, 1.0, 1.5, 2.0])
+    ap.add_argument("--gates", type=float, nargs="+", default=[CENSUS_GATE], help="in standard deviations")
+    ap.add_argument("--separations", type=float, nargs="+", default=[0.0, CENSUS_SEPARATION_M],
+                    help="one camera's points closer than this on the ground are one animal, m")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    steps, render_ms = views_of_steps(args.steps, args.size, args.detector)
+    steps, render_ms = views_of_steps(args.steps, args.size, args.detector, args.first)
     out: dict[str, Any] = {
         "date": time.strftime("%Y-%m-%d"), "machine": f"{platform.processor() or platform.machine()}, "
-        f"{os.cpu_count()} cores", "steps": args.steps, "size": args.size,
+        f"{os.cpu_count()} cores", "steps": args.steps, "first": args.first, "size": args.size,
         "render_ms_per_step": round(statistics.median(render_ms) * 3, 1)}
     for kind in ("labels", "detector") if args.detector else ("labels",):
-        out[kind] = [score_census([s[kind] for s in steps], g) for g in args.gates]
+        out[kind] = [score_census([s[kind] for s in steps], g, sep) for sep in args.separations for g in args.gates]
     if args.json:
         print(json.dumps(out, indent=1))
         return

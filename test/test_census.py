@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from zebra_sim_ros.errors import ParameterError
-from zebra_sim_ros.geometry.census import _hungarian, assign, join_views
+from zebra_sim_ros.geometry.census import _hungarian, assign, join_views, one_per_place
 from zebra_sim_ros.geometry.locate import box_depths
 
 
@@ -50,8 +50,8 @@ def test_the_assignment_is_optimal() -> None:
 
 
 def test_the_assignment_beats_greedy_in_a_packed_pair() -> None:
-    """Two animals 1 m apart, the second view's points shifted 0.6 m: greedy nearest joins a to b's point and
-    leaves a's alone; the assignment joins each to its own."""
+    """Two animals 1.1 m apart, the second view's points 0.6 m off, a's towards b: greedy nearest joins a to b's
+    point (0.5 m) and leaves b and a's own point alone; the assignment joins each to its own (0.6 + 0.6 < 0.5 + 1)."""
     d = np.array([[0.6, 0.5], [1.6, 0.6]])  # rows: the first view's a, b; columns: the second view's a, b
     rows, cols = assign(d, 1.0)
     assert list(zip(rows.tolist(), cols.tolist(), strict=True)) == [(0, 0), (1, 1)]
@@ -100,9 +100,10 @@ def test_three_views_of_a_herd_count_each_animal_once() -> None:
     census = join_views(points, list(cameras))
     truth = set(np.concatenate(ids).tolist())
     assert abs(census.count - len(truth)) <= 3, (census.count, len(truth))
-    animals = [{int(ids[v][j]) for v, j in enumerate(row) if j >= 0} for row in census.members]
+    animals = [{int(ids[v][j]) for v, j in census.points_of(a)} for a in range(census.count)]
     assert sum(len(a) > 1 for a in animals) <= 6, animals  # animals that join two (0-5 over 60 seeds)
-    assert census.views_per_animal.sum() == sum(len(p) for p in points)  # every point in one animal
+    every = sorted(p for a in range(census.count) for p in census.points_of(a))
+    assert every == [(v, j) for v, p in enumerate(points) for j in range(len(p))]  # every point in one animal
     pure = [i for i, a in enumerate(animals) if len(a) == 1 and census.views_per_animal[i] >= 2]
     own = herd[[next(iter(animals[i])) for i in pure]]
     fused = np.linalg.norm(census.positions[pure, :2] - own[:, :2], axis=1)
@@ -110,7 +111,7 @@ def test_three_views_of_a_herd_count_each_animal_once() -> None:
     assert len(pure) > 30 and np.median(fused) < np.median(single), (np.median(fused), np.median(single))
     circle = join_views(points, list(cameras), along_m=0.15, across_m=0.15)
     assert circle.count - len(truth) > abs(census.count - len(truth)), (circle.count, census.count, len(truth))
-    assert sum(len(p) for p in points) > 1.8 * len(truth)
+    assert sum(len(p) for p in points) > 1.8 * len(truth)  # the scene itself: what summing the views would count
 
 
 def test_join_views_edges() -> None:
@@ -124,8 +125,27 @@ def test_join_views_edges() -> None:
     assert census.positions[0] == pytest.approx([0.0, 0.0, 0.05], abs=0.05)
     with pytest.raises(ParameterError, match="along_m"):
         join_views(points, [np.zeros(3)] * 2, along_m=0.0)
-    with pytest.raises(ValueError, match="one camera position per view"):
+    with pytest.raises(ValueError, match="one camera position"):
         join_views(points, [np.zeros(3)])
+
+
+def test_one_animal_boxed_twice_by_one_camera_is_one_animal() -> None:
+    """One view's points closer than the separation are one animal, the higher score standing for them (the
+    nearest kept one where two are near); farther ones stay apart; separation 0 never joins; the animal's points
+    list every box."""
+    pts = np.array([[0.0, 0, 0], [0.3, 0, 0], [0.9, 0, 0], [1.15, 0, 0]])
+    assert one_per_place(pts, np.array([1, 0, 2, 3]), 0.5).tolist() == [1, 1, 2, 2]
+    assert one_per_place(pts, np.array([0, 1, 2, 3]), 0.0).tolist() == [0, 1, 2, 3]
+    other = np.array([[0.25, 0.05, 0], [1.0, 0.05, 0]])
+    census = join_views([pts, other], [np.array([0.0, -60, 50]), np.array([60.0, 0, 50])],
+                        scores=[np.array([0.3, 0.9, 0.8, 0.5]), np.array([0.7, 0.6])])
+    assert census.count == 2
+    assert sorted(sorted(census.points_of(a)) for a in range(2)) == [[(0, 0), (0, 1), (1, 0)], [(0, 2), (0, 3), (1, 1)]]
+    assert join_views([pts, other], [np.array([0.0, -60, 50]), np.array([60.0, 0, 50])], separation_m=0.0).count >= 3
+    with pytest.raises(ValueError, match="3 scores for 4 points"):
+        join_views([pts], [np.zeros(3)], scores=[np.ones(3)])
+    with pytest.raises(ParameterError, match="separation_m"):
+        join_views([pts], [np.zeros(3)], separation_m=-1.0)
 
 
 def test_a_box_depth_is_its_animal_not_the_ground_behind_it() -> None:

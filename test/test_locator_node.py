@@ -195,9 +195,9 @@ def test_the_locator_places_a_cameras_detections_over_dds(tmp_path: Path) -> Non
 
 @pytest.mark.integration
 def test_the_locators_census_counts_an_animal_seen_by_two_cameras_once(tmp_path: Path) -> None:
-    """Two nadir cameras 3 m apart see the same two animals: each camera's detections are placed, and the census
-    joins them into two animals, each naming the two detections it joins, at the animals' positions; stamps that
-    one camera never completes get no census and are counted."""
+    """Two nadir cameras 3 m apart see the same two animals, one camera boxing the first twice: each camera's
+    detections are placed, and the census joins them into two animals, each naming the detections it joins, at the
+    animals' positions; stamps that one camera never completes get no census and are counted."""
     from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion
     from sensor_msgs.msg import CameraInfo, Image
     from std_msgs.msg import Header
@@ -225,6 +225,8 @@ def test_the_locators_census_counts_an_animal_seen_by_two_cameras_once(tmp_path:
             (u0, u1), (v0, v1) = np.sort(uv[:, 0]) + 0.5, np.sort(uv[:, 1]) + 0.5  # pixel-edge coordinates
             depth[int(round(v0)):int(round(v1)), int(round(u0)):int(round(u1))] = position[2] - a[2]
             boxes.append([round(u0), round(v0), round(u1), round(v1)])
+        if d == "drone_0":  # a second, lower-scored box on the first animal, a pixel aside: one animal boxed twice
+            boxes.append([b + 1 if k % 2 == 0 else b for k, b in enumerate(boxes[0])])
         frames[d] = (depth, boxes)
     domain = fresh_domain_id()
     peer = Peer(domain, "test_census")
@@ -271,8 +273,8 @@ def test_the_locators_census_counts_an_animal_seen_by_two_cameras_once(tmp_path:
     msg = got[0]
     assert msg.header.stamp.sec == 1 and msg.header.frame_id == "map" and len(got) == 1
     by_id = {det.id: det for det in msg.detections}
-    assert set(by_id) == {"drone_0:0,drone_1:0", "drone_0:1,drone_1:1"}, by_id.keys()
-    for i, key in enumerate(("drone_0:0,drone_1:0", "drone_0:1,drone_1:1")):
+    assert set(by_id) == {"drone_0:0,drone_0:2,drone_1:0", "drone_0:1,drone_1:1"}, by_id.keys()
+    for i, key in enumerate(("drone_0:0,drone_0:2,drone_1:0", "drone_0:1,drone_1:1")):
         det = by_id[key]
         p = det.bbox.center.position
         assert [p.x, p.y, p.z] == pytest.approx(animals[i].tolist(), abs=0.15), (key, p)  # a pixel is 0.17 m

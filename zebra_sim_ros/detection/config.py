@@ -11,8 +11,8 @@ from typing import Any
 
 from zebra_sim_ros.detection.metrics import MAX_DETECTIONS
 from zebra_sim_ros.errors import ParameterError
-from zebra_sim_ros.geometry.census import CENSUS_ACROSS_M, CENSUS_ALONG_M, CENSUS_GATE
-from zebra_sim_ros.geometry.locate import DEPTH_WINDOW_M
+from zebra_sim_ros.geometry.census import CENSUS_ACROSS_M, CENSUS_ALONG_M, CENSUS_GATE, CENSUS_SEPARATION_M
+from zebra_sim_ros.geometry.locate import CORE, DEPTH_WINDOW_M
 from zebra_sim_ros.params import (
     RELATIVE_NAME,
     ParamSpec,
@@ -154,7 +154,7 @@ class LocatorConfig(StageConfig):
     output: str = param("detections/located", "the placed detections' topic under each camera (a Detection3DArray "
                         "in map)", allowed="a topic name relative to the drone (letters, digits, _ and /)",
                         check=lambda v: bool(RELATIVE_NAME.fullmatch(v)))
-    core: float = param(1.0, "share of each box's width and height, about its centre, whose depths place it (1: "
+    core: float = param(CORE, "share of each box's width and height, about its centre, whose depths place it (1: "
                         "the whole box)", lo=0.05, hi=1.0, runtime=True)
     depth_window: float = param(DEPTH_WINDOW_M, "a box's depth is the median of the densest span of its depths this "
                                 "deep (the animal, not the ground behind it or another animal in front); 0: the "
@@ -170,7 +170,10 @@ class LocatorConfig(StageConfig):
     census_across: float = param(CENSUS_ACROSS_M, "how far a placed detection is taken to be off across its camera's "
                                  "ray (one standard deviation: its box's error)", "m", lo=0.01, hi=100.0, runtime=True)
     census_gate: float = param(CENSUS_GATE, "join two cameras' detections into one animal only when they are less "
-                               "than this many standard deviations apart", lo=0.1, hi=100.0, runtime=True)
+                               "than this many standard deviations apart", lo=0.1, hi=20.0, runtime=True)
+    census_separation: float = param(CENSUS_SEPARATION_M, "one camera's detections closer than this on the ground "
+                                     "are one animal boxed twice (the higher score stands for them; 0: never)", "m",
+                                     lo=0.0, hi=100.0, runtime=True)
     sync_window: int = param(20, "stamps kept while waiting for their missing inputs (all cameras' together)",
                              lo=1, hi=1000)
     pose_transient_local: bool = param(False, "subscribe camera/pose transient local: a locator that matches its "
@@ -190,7 +193,8 @@ class LocatorConfig(StageConfig):
         inputs = (self.detections, "depth", "camera_info", "camera/pose", "image_raw")
         if self.output in inputs:
             raise ParameterError("output", self.output, f"another topic than the camera's inputs {list(inputs)}")
-        if self.census_output.split("/")[0] in {d.strip("/").split("/")[-1] for d in self.drones}:
+        out = self.census_output.strip("/")
+        if any(out == ns or out.startswith(ns + "/") for ns in (d.strip("/") for d in self.drones)):
             raise ParameterError("census_output", self.census_output, "a topic outside the cameras' namespaces")
 
 

@@ -3,12 +3,13 @@
 
 Drones that overlap see an animal up to once each; summing their counts counts it up to that many times (the
 double counting of every aerial survey with overlapping images). Here the cameras' points of one instant are joined
-view by view: each new view's points are assigned to the animals found so far by an optimal assignment (least total
-distance on the ground, the map's x and y: an animal's placed height is its visible surface's, which differs by
-view), a pair joined only within ``gate_m``; a point left over is an animal no earlier view saw. An animal holds at
-most one point of each view (one camera does not see one animal twice), which greedy nearest-neighbour joining
-breaks in a herd packed a metre or two apart: one wrong join there pushes the right point out, and it is counted
-again. Pure numpy, no ROS.
+view by view: each new view's points are assigned to the animals found so far by an optimal assignment (the least
+total Mahalanobis distance on the ground, the map's x and y: a placed point is off mostly along its camera's ray,
+and its height is its visible surface's, which differs by view), a pair joined only under ``gate`` standard
+deviations; a point left over is an animal no earlier view saw. An animal holds at most one point of each view (one
+camera does not see one animal twice: a view's points closer than ``separation_m`` are first taken as one), which
+greedy nearest-neighbour joining breaks in a herd packed a metre or two apart: one wrong join there pushes the right
+point out, and it is counted again. Pure numpy, no ROS.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ IntArray = NDArray[np.int64]
 # A placed detection's error on the ground, one standard deviation along its camera's ray and across it, and the
 # join's gate in standard deviations (BENCHMARKS.md, "The census")
 CENSUS_ALONG_M, CENSUS_ACROSS_M, CENSUS_GATE = 0.5, 0.15, 4.0
+CENSUS_SEPARATION_M = 0.5  # one view's detections closer than this on the ground are one animal
 
 
 def _hungarian(cost: FloatArray) -> IntArray:
@@ -137,6 +139,9 @@ class Census:
 
     positions: FloatArray  # (A, 3)
     members: IntArray  # (A, V)
+    # per view, each point's representative: the point of the same place that joined (itself, another within
+    # ``separation_m``: :func:`one_per_place`; -1: a non-finite point, left out)
+    representative: tuple[IntArray, ...] = ()
 
     @property
     def count(self) -> int:
@@ -147,6 +152,37 @@ class Census:
     def views_per_animal(self) -> IntArray:
         """How many views saw each animal."""
         return np.asarray((self.members >= 0).sum(axis=1), np.int64)
+
+    def points_of(self, animal: int) -> list[tuple[int, int]]:
+        """Every point of ``animal``, as (view, index): per view its representative and the points it stands for."""
+        out: list[tuple[int, int]] = []
+        for v, j in enumerate(self.members[animal].tolist()):
+            if j < 0:
+                continue
+            if v < len(self.representative):
+                out += [(v, int(i)) for i in np.flatnonzero(self.representative[v] == j)]
+            else:
+                out.append((v, j))
+        return out
+
+
+def one_per_place(points: FloatArray, order: IntArray, separation_m: float) -> IntArray:
+    """Per point of one view (``(N, 3)``, finite), its representative: taken in ``order`` (best first), a point
+    closer than ``separation_m`` on the ground to one already kept stands for the nearest of those, else for
+    itself. One camera sees an animal once: two of its detections that close are one animal boxed twice (a detector
+    whose non-maximum suppression kept a second, partial box), not two animals."""
+    reps = np.full(len(points), -1, np.int64)
+    kept: list[int] = []
+    for i in np.asarray(order, np.int64).tolist():
+        if kept and separation_m > 0:
+            gaps = np.linalg.norm(points[kept, :2] - points[i, :2], axis=1)
+            j = int(np.argmin(gaps))
+            if gaps[j] < separation_m:
+                reps[i] = kept[j]
+                continue
+        reps[i] = i
+        kept.append(i)
+    return reps
 
 
 def _information(points: FloatArray, origin: FloatArray, along_m: float, across_m: float) -> FloatArray:
@@ -164,10 +200,13 @@ def _information(points: FloatArray, origin: FloatArray, along_m: float, across_
 
 
 def join_views(points: Sequence[FloatArray], origins: Sequence[FloatArray], along_m: float = CENSUS_ALONG_M,
-               across_m: float = CENSUS_ACROSS_M, gate: float = CENSUS_GATE) -> Census:
+               across_m: float = CENSUS_ACROSS_M, gate: float = CENSUS_GATE,
+               separation_m: float = CENSUS_SEPARATION_M, scores: Sequence[FloatArray] | None = None) -> Census:
     """The animals that ``points`` (per view, ``(N_v, 3)`` map coordinates of one instant; rows with a non-finite
     coordinate are left out) seen from ``origins`` (per view, its camera's position in ``map``) show, joined view by
-    view in the given order (module docstring).
+    view in the given order (module docstring). First, a view's points closer than ``separation_m`` on the ground
+    are one animal (:func:`one_per_place`, the higher of their ``scores`` standing for them; without scores, the
+    earlier; 0: never).
 
     A point placed from depth is off mostly along its camera's ray (the depth of a small or partly hidden animal's
     box mixes in what lies behind or in front of it), little across it: on the ground each point is taken to be off
@@ -178,16 +217,31 @@ def join_views(points: Sequence[FloatArray], origins: Sequence[FloatArray], alon
     for name, value in (("along_m", along_m), ("across_m", across_m), ("gate", gate)):
         if not (np.isfinite(value) and value > 0):
             raise ParameterError(name, value, "above 0")
-    if len(origins) != len(points):
-        raise ValueError(f"one camera position per view: {len(points)} views, {len(origins)} positions")
+    if not (np.isfinite(separation_m) and separation_m >= 0):
+        raise ParameterError("separation_m", separation_m, "0 (never) or more, in metres")
+    if len(origins) != len(points) or (scores is not None and len(scores) != len(points)):
+        raise ValueError(f"one camera position (and one score array, if any) per view: {len(points)} views, "
+                         f"{len(origins)} positions, {'no' if scores is None else len(scores)} score arrays")
     n_views = len(points)
     info = np.zeros((0, 2, 2))  # per animal: the sum of its points' information
     weighted = np.zeros((0, 2))  # per animal: the sum of information x point
     heights = np.zeros(0)
     members = np.zeros((0, n_views), np.int64)
+    representative = []
     for v, (pts, origin) in enumerate(zip(points, origins, strict=True)):
         pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
-        idx = np.flatnonzero(np.all(np.isfinite(pts), axis=1))
+        finite = np.flatnonzero(np.all(np.isfinite(pts), axis=1))
+        if scores is not None:
+            score = np.asarray(scores[v], dtype=np.float64).reshape(-1)
+            if len(score) != len(pts):
+                raise ValueError(f"view {v}: {len(score)} scores for {len(pts)} points")
+            order = np.argsort(-score[finite], kind="stable")
+        else:
+            order = np.arange(len(finite))
+        rep = np.full(len(pts), -1, np.int64)
+        rep[finite] = finite[one_per_place(pts[finite], order, separation_m)]
+        representative.append(rep)
+        idx = np.flatnonzero(rep == np.arange(len(pts)))  # the representatives, in the view's order
         pts = pts[idx]
         w = _information(pts, origin, along_m, across_m)
         cov = np.linalg.inv(w) if len(pts) else np.zeros((0, 2, 2))
@@ -214,4 +268,4 @@ def join_views(points: Sequence[FloatArray], origins: Sequence[FloatArray], alon
         heights = np.concatenate([heights, pts[alone, 2]])
     ground = np.einsum("aij,aj->ai", np.linalg.inv(info), weighted) if len(info) else np.zeros((0, 2))
     seen = np.maximum((members >= 0).sum(axis=1), 1)
-    return Census(np.column_stack([ground, heights / seen]).reshape(-1, 3), members)
+    return Census(np.column_stack([ground, heights / seen]).reshape(-1, 3), members, tuple(representative))

@@ -20,6 +20,7 @@ from zebra_sim_ros.geometry.rotations import quat_to_matrix
 
 FloatArray = NDArray[np.float64]
 DEPTH_WINDOW_M = 1.5  # how deep a span of a box's depths is taken as its animal (about a zebra's length and a half)
+CORE = 1.0  # the share of a box's width and height, about its centre, whose depths place it: the whole box
 
 
 @dataclass(frozen=True)
@@ -45,7 +46,7 @@ def _densest(values: FloatArray, window: float) -> float:
     return float(np.median(srt[first:ends[first]]))
 
 
-def box_depths(depth: NDArray[np.floating], boxes: FloatArray, core: float = 1.0,
+def box_depths(depth: NDArray[np.floating], boxes: FloatArray, core: float = CORE,
                window_m: float = DEPTH_WINDOW_M) -> FloatArray:
     """Each box's depth: of the measured depths (finite, above 0) in its central ``core`` share (1: the whole box;
     0.5: the middle half of its width and of its height), clipped to the image and at least one pixel, the median
@@ -84,7 +85,7 @@ def box_depths(depth: NDArray[np.floating], boxes: FloatArray, core: float = 1.0
 
 
 def locate_boxes(boxes: FloatArray, depth: NDArray[np.floating], k: FloatArray, position: FloatArray,
-                 orientation_xyzw: FloatArray, core: float = 1.0, window_m: float = DEPTH_WINDOW_M) -> Located:
+                 orientation_xyzw: FloatArray, core: float = CORE, window_m: float = DEPTH_WINDOW_M) -> Located:
     """Each box's point in ``map``: the ray through its centre, at its depth (:func:`box_depths`), from a camera
     whose optical frame (z forward, x right, y down) is at ``position`` with ``orientation_xyzw`` in ``map`` (the
     placer's ``<drone>/camera/pose``), ``k`` its 3x3 intrinsic matrix (CameraInfo ``k``; skew and lens distortion

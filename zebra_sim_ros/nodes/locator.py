@@ -23,10 +23,12 @@ with the image's stamp:
   to three times; per class, the cameras' placed detections are joined view by view in ``drones``' order
   (:func:`zebra_sim_ros.geometry.census.join_views`: an optimal assignment on the ground, each detection taken to be
   off by ``census_along`` along its camera's ray and ``census_across`` across it, joined under ``census_gate``
-  standard deviations). Per animal: its class and the highest score of its detections, its position (where their
+  standard deviations; first, one camera's detections closer than ``census_separation`` on the ground are one
+  animal boxed twice). Per animal: its class and the highest score of its detections, its position (where their
   rays cross, weighed), a box as wide and long as its largest detection's larger side (height 0) and ``id`` the
-  detections it joins (``drone_0:3,drone_2:7``: camera and index in that camera's detections message). A stamp
-  that some camera never completes gets no census (counted ``census_incomplete``).
+  detections it joins (``drone_0:3,drone_0:5,drone_2:7``: camera and index in that camera's detections message).
+  Each stamp is counted once (a frame sent again after its census is placed, not counted again); a stamp that some
+  camera has not completed when ``sync_window`` later stamps have arrived gets no census (``census_incomplete``).
 
 With the placer's ``zebra_sim/zebras`` (the placed animals, the same message type) this is what an aerial survey
 compares: where the detector put each animal, and where it stood, and how many there were.
@@ -101,9 +103,9 @@ def census_msg(type_name: str, header: Header, views: dict[str, tuple[Detections
     msg = importlib.import_module(f"{type_name.split('/')[0]}.msg")
     out = []
     for cls, census in zip(classes, joined, strict=True):
-        index = {d: _class_rows(views[d][0], views[d][1], cls) for d in names}
-        for position, row in zip(census.positions, census.members, strict=True):
-            parts = [(d, int(index[d][j])) for d, j in zip(names, row.tolist(), strict=True) if j >= 0]
+        index = [_class_rows(views[d][0], views[d][1], cls) for d in names]
+        for a, position in enumerate(census.positions):
+            parts = [(names[v], int(index[v][j])) for v, j in census.points_of(a)]
             score = max(views[d][0].detections[i].score for d, i in parts)
             side = max(float(views[d][1].size[i].max()) for d, i in parts)
             px, py, pz = (float(v) for v in position)
@@ -144,6 +146,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         # stamp: camera: (its detections, placed, the camera's position) until every camera's frame is placed
         self.census_pending: RecentStamps[dict[str, tuple[Detections, Located, np.ndarray]]] = RecentStamps(
             c.sync_window)
+        self.census_done: RecentStamps[bool] = RecentStamps(max(c.sync_window, 100))  # stamps counted
         self.seconds = 0.0
         self.pubs: dict[str, Any] = {}
         det_class = message_class(detection_array_type())
@@ -237,19 +240,30 @@ class LocatorNode(ZebraNode[LocatorConfig]):
 
     def _census(self, t: int, drone: str, dets: Detections, where: Located, origin: np.ndarray, frame: str) -> None:
         """Hold this camera's placed frame; with every camera's frame of stamp ``t``, count its animals once."""
+        if t in self.census_done:  # a frame again (a placer's resent step): counted once already
+            return
         views, dropped = self.census_pending.touch(t, dict)
         views[drone] = (dets, where, origin)
-        self.stats["census_incomplete"] += len(dropped)
+        for old, got in dropped:
+            self.stats["census_incomplete"] += 1
+            self.get_logger().warning(f"census of stamp {old}: only {', '.join(got)} of {len(self.cfg.drones)} "
+                                      f"cameras placed; not counted ({self.stats['census_incomplete']} so far)")
         if any(d not in views for d in self.cfg.drones):
             return
         self.census_pending.pop(t)
+        self.census_done.put(t, True)
         c = self.cfg
         names = list(c.drones)
         classes = sorted({x.class_name for d in names for x, ok in zip(views[d][0].detections, views[d][1].valid,
                                                                       strict=True) if ok})
-        joined = [join_views([views[d][1].points[_class_rows(views[d][0], views[d][1], cls)] for d in names],
-                             [views[d][2] for d in names], c.census_along, c.census_across, c.census_gate)
-                  for cls in classes]
+        joined = []
+        for cls in classes:
+            rows = [_class_rows(views[d][0], views[d][1], cls) for d in names]
+            joined.append(join_views([views[d][1].points[r] for d, r in zip(names, rows, strict=True)],
+                                     [views[d][2] for d in names], c.census_along, c.census_across, c.census_gate,
+                                     c.census_separation,
+                                     [np.array([views[d][0].detections[i].score for i in r], np.float64)
+                                      for d, r in zip(names, rows, strict=True)]))
         header = Header(stamp=stamp(t), frame_id=frame)
         assert self.census_pub is not None
         self.census_pub.publish(census_msg(self.out_type, header, {d: views[d][:2] for d in names}, names, classes,
