@@ -1,11 +1,12 @@
 """Benchmark: one herd counted once across the drones (``geometry.census.join_views``), and how fast.
 
-Renders ``--steps`` steps of the default world (the placer's defaults, its three cameras, ``--size``) and places
+Renders ``--steps`` steps of the default world (the placer's defaults, its three cameras, ``--size``, the camera
+node's photographic sensor) and places
 on the map (``geometry.locate.locate_boxes``, the rendered depth, each camera's pose) two kinds of boxes:
 
 - perfect ones: every labelled zebra's visible box (each knows its zebra);
 - with ``--detector``, the shipped weights' zebra boxes at the detector node's defaults (conf 0.25, the checkpoint's
-  scale rule; the graph's detector finds fewer on the same scenes, BENCHMARKS.md "The census"), each given the zebra
+  scale rule), each given the zebra
   whose visible box it overlaps most (IoU 0.5 or more; any zebra seen, labelled or not), or none (a false box).
 
 Per step the three views' points are joined into animals at each ``--gates`` (standard deviations) and
@@ -59,7 +60,7 @@ def views_of_steps(steps: int, size: str, detector: bool, first: int = 0) -> tup
     world = load_world(pc.world, pc.terrain_prim, pc.world_seed)
     lib = load_library()
     placer = Placer(pc, world, lib)
-    sim = Simulator(world, lib, cc.render_options())
+    sim = Simulator(world, lib, cc.render_options(), sensor=cc.sensor_model())  # as the camera node renders
     out: list[dict[str, list[View]]] = []
     render_ms: list[float] = []
     try:

@@ -1,6 +1,7 @@
 """Benchmark: how well and how fast the locator places boxes on the map (``geometry.locate.locate_boxes``).
 
-Renders ``--steps`` steps of the default world (the placer's defaults, three cameras, ``--size``), takes every
+Renders ``--steps`` steps of the default world (the placer's defaults, three cameras, ``--size``, the camera node's
+photographic sensor), takes every
 labelled zebra's visible box of at least ``--min-pixels`` pixels as a perfect detection, places it with the
 rendered depth and the camera's pose, and compares the point with the zebra's own 3D box centre (``box3d_map``):
 the distance (3D and on the ground), by the camera's distance to the zebra. Also the milliseconds per frame of the
@@ -53,7 +54,7 @@ def main() -> None:
     world = load_world(pc.world, pc.terrain_prim, pc.world_seed)
     lib = load_library()
     placer = Placer(pc, world, lib)
-    sim = Simulator(world, lib, cc.render_options())
+    sim = Simulator(world, lib, cc.render_options(), sensor=cc.sensor_model())  # as the camera node renders
     err3d: list[float] = []
     err_ground: list[float] = []
     ranges: list[float] = []
