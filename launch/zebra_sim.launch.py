@@ -39,7 +39,14 @@ from launch import LaunchDescription
 # and the RViz view drawn for the drones
 from zebra_sim_ros.geometry.camera import MAX_CAMERAS
 from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_view, write_rviz
-from zebra_sim_ros.graph.spec import BAG_IMAGES, NODE_ENVIRONMENT, PACKAGE, bag_image_overrides, recorder_excludes
+from zebra_sim_ros.graph.spec import (
+    BAG_IMAGES,
+    CENSUS_TOPICS,
+    NODE_ENVIRONMENT,
+    PACKAGE,
+    bag_image_overrides,
+    recorder_excludes,
+)
 
 
 def generate_launch_description():
@@ -96,7 +103,8 @@ def generate_launch_description():
         viewer = []
         if evaluate_condition_expression(context, [LaunchConfiguration("rviz")]):  # true, 1, false, 0, as score
             # the package's view, one detection image per drone, written beside the bag as up writes it
-            view = rviz_view(config, drones)
+            locate = evaluate_condition_expression(context, [LaunchConfiguration("locate")])
+            view = rviz_view(config, drones, off=() if locate else CENSUS_TOPICS)  # census: only with the locator
             if view is None:
                 raise ValueError(f"rviz:=true: no {RVIZ_FILE} in {config}")
             path = write_rviz(view, Path(LaunchConfiguration("bag").perform(context)).parent / RVIZ_FILE)

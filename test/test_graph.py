@@ -512,8 +512,8 @@ def test_up_detector_size_follows_the_cameras() -> None:
 
 
 def test_the_rviz_config_shows_topics_the_graph_publishes_in_its_fixed_frame() -> None:
-    """config/zebra_sim.rviz (installed with the package): every display's topic is one the graph publishes, with
-    the QoS its publisher offers, and the fixed frame is the placer's ``map``."""
+    """config/zebra_sim.rviz (installed with the package): every display's topic is one the graph publishes (with
+    ``--locate``: the census), with the QoS its publisher offers, and the fixed frame is the placer's ``map``."""
     import yaml
 
     from zebra_sim_ros.graph.spec import GLOBAL_TOPICS
@@ -521,7 +521,7 @@ def test_the_rviz_config_shows_topics_the_graph_publishes_in_its_fixed_frame() -
     rviz = yaml.safe_load((REPO / "config" / "zebra_sim.rviz").read_text())
     manager = rviz["Visualization Manager"]
     assert manager["Global Options"]["Fixed Frame"] == "map"
-    published = {t for s in graph_spec(UpConfig()) for t in s.publishes} | set(GLOBAL_TOPICS)
+    published = {t for s in graph_spec(UpConfig(locate=True)) for t in s.publishes} | set(GLOBAL_TOPICS)
     topics = {d["Topic"]["Value"]: d["Topic"] for d in manager["Displays"] if "Topic" in d}
     assert len(topics) >= 5 and set(topics) <= published, sorted(set(topics) - published)
     assert all(q["Reliability Policy"] == "Reliable" and q["Durability Policy"] == "Volatile" for q in topics.values())
@@ -540,11 +540,11 @@ def test_the_rviz_config_is_drawn_again_for_each_graphs_drones_and_namespace(tmp
     import shlex
 
     from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_command, rviz_config, rviz_view, write_rviz
-    from zebra_sim_ros.graph.spec import GLOBAL_TOPICS
+    from zebra_sim_ros.graph.spec import CENSUS_TOPICS, GLOBAL_TOPICS
 
     base = yaml.safe_load((REPO / "config" / RVIZ_FILE).read_text())
     assert rviz_config(base, UpConfig().drone_names) == base  # the file is drawn for the default graph
-    cfg = UpConfig(drones=5, namespace="/g1")
+    cfg = UpConfig(drones=5, namespace="/g1", locate=True)
     view = rviz_view(REPO / "config", cfg.drone_names, cfg.namespace)
     assert view is not None
     path = write_rviz(view, tmp_path / "new" / RVIZ_FILE)
@@ -559,6 +559,14 @@ def test_the_rviz_config_is_drawn_again_for_each_graphs_drones_and_namespace(tmp
     by_topic = {d["Topic"]["Value"]: d for d in displays if "Topic" in d}
     assert by_topic["/g1/drone_4/detections/image"]["Name"] == "drone_4 detections (detector)"
     assert by_topic["/g1/drone_4/detections/image"]["Enabled"] and not by_topic["/g1/drone_0/image_raw"]["Enabled"]
+    # the census's display is on where the graph has the locator, off where it has not (up, launch without locate)
+    assert by_topic["/g1/census/animals/markers"]["Enabled"]
+    off = rviz_view(REPO / "config", cfg.drone_names, cfg.namespace, CENSUS_TOPICS)
+    assert off is not None
+    changed = [(a["Name"], b["Enabled"]) for a, b in zip(view["Visualization Manager"]["Displays"],
+                                                          off["Visualization Manager"]["Displays"], strict=True)
+               if a != b]
+    assert len(changed) == 1 and "census" in changed[0][0] and changed[0][1] is False, changed
     assert [d["Class"] for d in displays][:2] == ["rviz_default_plugins/Grid", "rviz_default_plugins/TF"]
     assert yaml.safe_load(path.read_text())["Visualization Manager"]["Global Options"]["Fixed Frame"] == "map"
     assert rviz_view(tmp_path / "no_rviz_here", cfg.drone_names) is None
@@ -607,7 +615,8 @@ def test_the_rviz_config_is_drawn_again_for_each_graphs_drones_and_namespace(tmp
     world = {**base, "Visualization Manager": {**base["Visualization Manager"], "Displays": [
         d for d in base["Visualization Manager"]["Displays"] if not d.get("Topic", {}).get("Value", "").startswith(
             "/drone_")]}}
-    assert [d["Topic"]["Value"] for d in drawn(world, 2, "/g1") if "Topic" in d] == ["/g1/zebra_sim/zebras/markers"]
+    assert [d["Topic"]["Value"] for d in drawn(world, 2, "/g1") if "Topic" in d] == [
+        "/g1/zebra_sim/zebras/markers", "/g1/census/animals/markers"]
     # names that do not follow drone_N, relative drone topics: still one per camera; a name naming two drones keeps
     # the other; displays inside a group are moved into the namespace
     free = [{"Class": "rviz_default_plugins/Image", "Name": name, "Topic": {"Value": f"drone_{i}/depth"}}

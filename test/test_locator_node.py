@@ -201,6 +201,7 @@ def test_the_locators_census_counts_an_animal_seen_by_two_cameras_once(tmp_path:
     from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion
     from sensor_msgs.msg import CameraInfo, Image
     from std_msgs.msg import Header
+    from visualization_msgs.msg import Marker, MarkerArray
 
     from zebra_sim_ros.messages import Detection, Detections, Stamp
     from zebra_sim_ros.nodes.ros_adapter import (
@@ -234,6 +235,8 @@ def test_the_locators_census_counts_an_animal_seen_by_two_cameras_once(tmp_path:
     status = collect_diagnostics(node, "locator: locator")
     got: list[Any] = []
     node.create_subscription(message_class(detection3d_array_type()), "/census/animals", got.append, 10)
+    markers: list[Any] = []
+    node.create_subscription(MarkerArray, "/census/animals/markers", markers.append, 10)
     pubs = {(d, k): node.create_publisher(t, f"/{d}/{k}", 10) for d in cameras
             for k, t in (("detections", detection_array_class()), ("depth", Image), ("camera_info", CameraInfo),
                          ("camera/pose", PoseStamped))}
@@ -263,7 +266,7 @@ def test_the_locators_census_counts_an_animal_seen_by_two_cameras_once(tmp_path:
                     send(1, d)
                 if peer.spin(lambda: bool(got), 2):
                     break
-            assert got, log.read_text()
+            assert got and peer.spin(lambda: bool(markers), 10), log.read_text()
             for sec in (2, 3, 4, 5):  # drone_1 never sends these: the oldest falls out of the window of 3
                 send(sec, "drone_0")
             assert peer.spin(lambda: any(s["values"].get("census_incomplete") == "1" for s in status), 20), \
@@ -283,6 +286,17 @@ def test_the_locators_census_counts_an_animal_seen_by_two_cameras_once(tmp_path:
         assert det.bbox.size.x == pytest.approx(1.6, abs=0.4)  # the larger side of its largest detection
     values = status[-1]["values"]
     assert (values["census"], values["animals"]) == ("1", "2") and values["last census"] == "2 zebra", values
+    # and for RViz: what the last census showed deleted, a cylinder per animal where it is, coloured by its two
+    # cameras, and the count
+    (shown,) = markers
+    assert (shown.markers[0].ns, shown.markers[0].action) == ("census", Marker.DELETEALL)
+    cylinders = [m for m in shown.markers if m.type == Marker.CYLINDER]
+    assert len(cylinders) == 2 and all(m.ns == "zebra" and m.header.frame_id == "map" for m in cylinders)
+    where = sorted((m.pose.position.x, m.pose.position.y) for m in cylinders)
+    assert np.array(where) == pytest.approx(animals[:, :2], abs=0.15)
+    assert all((m.color.r, m.color.g) == pytest.approx((0.95, 0.9)) for m in cylinders)  # two cameras: yellow
+    (text,) = [m for m in shown.markers if m.type == Marker.TEXT_VIEW_FACING]
+    assert text.text == "2 zebra"
 
 
 def test_a_bad_locator_parameter_stops_the_node() -> None:

@@ -82,7 +82,7 @@ class _Stop(Exception):
 def cmd_up(args: argparse.Namespace) -> Summary:
     """Run the graph; returns the summary (``exit_code`` 0, 1 when a node died, 130 when interrupted)."""
     from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_command, rviz_view, write_rviz
-    from zebra_sim_ros.graph.spec import config_dir
+    from zebra_sim_ros.graph.spec import CENSUS_TOPICS, config_dir
     from zebra_sim_ros.zebra.asset import load_library
 
     cfg, specs = _up_config(args)
@@ -93,7 +93,8 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     scorer = next((s for s in specs if s.executable == "scorer"), None)
     scoring = ScorerRun.read(conf, scorer) if scorer is not None else None  # a bad scorer.yaml stops here
     try:  # the package's RViz view drawn for this graph's drones and namespace; a view that cannot be is no reason
-        view = rviz_view(conf, cfg.drone_names, cfg.namespace)  # to stop the run
+        # to stop the run; the census display off without the locator
+        view = rviz_view(conf, cfg.drone_names, cfg.namespace, () if cfg.locate else CENSUS_TOPICS)
     except ValueError as exc:
         view = None
         print(f"[up] warning: no RViz view for this graph ({exc})", flush=True)

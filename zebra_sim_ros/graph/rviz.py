@@ -18,7 +18,7 @@ from __future__ import annotations
 import copy
 import re
 import shlex
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -57,11 +57,13 @@ def _namespaced(displays: list[dict[str, Any]], namespace: str) -> None:
             _namespaced([x for x in inner if isinstance(x, dict)], namespace)
 
 
-def rviz_config(base: dict[str, Any], drones: Sequence[str], namespace: str = "") -> dict[str, Any]:
+def rviz_config(base: dict[str, Any], drones: Sequence[str], namespace: str = "",
+                off: Collection[str] = ()) -> dict[str, Any]:
     """``base`` (the package file, parsed) for a graph of ``drones`` (``drone_0``, ``drone_1`` ...) in ``namespace``
     ("" or ``/g1``): each every-drone display drawn once per camera, in drone order, where the file's first copy
     stood (the others dropped); a display of one drone kept where the graph has that drone; the rest in the file's
-    order; every topic moved into the namespace. ``base`` is left as it is; ValueError when it is not an RViz
+    order; the displays of the topics ``off`` (as the file names them: those of a node this graph leaves out)
+    switched off; every topic moved into the namespace. ``base`` is left as it is; ValueError when it is not an RViz
     configuration (no ``Visualization Manager`` with a list of ``Displays``)."""
     manager = base.get("Visualization Manager") if isinstance(base, dict) else None
     displays = manager.get("Displays") if isinstance(manager, dict) else None
@@ -87,6 +89,9 @@ def rviz_config(base: dict[str, Any], drones: Sequence[str], namespace: str = ""
                 c["Name"] = re.sub(rf"\bdrone_{n}\b", name, str(c.get("Name", "")))
                 c["Topic"]["Value"] = _DRONE.sub(rf"\g<1>{name}/", _topic(d))
                 new.append(c)
+    for d in new:
+        if _topic(d) in off:
+            d["Enabled"] = False
     if namespace:
         _namespaced(new, namespace)
     out = copy.deepcopy(base)
@@ -94,7 +99,8 @@ def rviz_config(base: dict[str, Any], drones: Sequence[str], namespace: str = ""
     return out
 
 
-def rviz_view(config: Path, drones: Sequence[str], namespace: str = "") -> dict[str, Any] | None:
+def rviz_view(config: Path, drones: Sequence[str], namespace: str = "",
+              off: Collection[str] = ()) -> dict[str, Any] | None:
     """:func:`rviz_config` of ``config``/zebra_sim.rviz; None when the config folder has none. ValueError naming the
     file when it cannot be read or is not an RViz configuration."""
     import yaml
@@ -103,7 +109,7 @@ def rviz_view(config: Path, drones: Sequence[str], namespace: str = "") -> dict[
     if not src.is_file():
         return None
     try:
-        return rviz_config(yaml.safe_load(src.read_text()), drones, namespace)
+        return rviz_config(yaml.safe_load(src.read_text()), drones, namespace, off)
     except (OSError, UnicodeDecodeError, yaml.YAMLError, ValueError) as exc:
         raise ValueError(f"{src}: {exc}") from exc
 

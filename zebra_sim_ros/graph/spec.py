@@ -27,6 +27,8 @@ CAMERA_TOPICS = ("image_raw", "depth", "instances", "camera_info")
 LABELLER_TOPICS = ("labels", "labels/markers", "labels/boxes3d", "labels/boxes2d")
 DETECTOR_TOPICS = ("detections", "detections/image", "detections/markers")
 LOCATOR_TOPICS = (LocatorConfig().output,)  # up --locate: the detections placed on the map
+# up --locate: the census, under the graph's namespace (the RViz view's census display is off without the locator)
+CENSUS_TOPICS = (f"/{LocatorConfig().census_output}", f"/{LocatorConfig().census_output}/markers")
 PLACER_TOPICS = ("zebra_sim/scene", "zebra_sim/zebras", "zebra_sim/zebras/markers")  # and each <drone>/camera/pose
 # By convention absolute (tf2 listeners and every node's time source use them); a namespaced graph remaps them.
 GLOBAL_TOPICS = ("/tf", "/tf_static", "/clock")
@@ -256,7 +258,7 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
                               {"drones": list(drones), "image_reliability": "reliable", "pose_transient_local": True,
                                **sim},
                               tuple(f"{ns}/{d}/{t}" for d in drones for t in LOCATOR_TOPICS)
-                              + (f"{ns}/{LocatorConfig().census_output}",), remaps,
+                              + tuple(f"{ns}{t}" for t in CENSUS_TOPICS), remaps,
                               tuple(f"{ns}/{d}/{t}" for d in drones
                                     for t in ("detections", "depth", "camera_info", "camera/pose"))))
     if cfg.score:  # every frame scored: subscribed before the first step

@@ -29,6 +29,8 @@ with the image's stamp:
   detections it joins (``drone_0:3,drone_0:5,drone_2:7``: camera and index in that camera's detections message).
   Each stamp is counted once (a frame sent again after its census is placed, not counted again); a stamp that some
   camera has not completed when ``sync_window`` later stamps have arrived gets no census (``census_incomplete``).
+- ``<census_output>/markers`` (with ``census``; visualization_msgs/MarkerArray in ``map``): the census for RViz, a
+  cylinder per animal coloured by how many cameras saw it (one orange, two yellow, three green) and the count.
 
 With the placer's ``zebra_sim/zebras`` (the placed animals, the same message type) this is what an aerial survey
 compares: where the detector put each animal, and where it stood, and how many there were.
@@ -43,7 +45,8 @@ from typing import Any
 import numpy as np
 from geometry_msgs.msg import Point, Pose, PoseStamped, PoseWithCovariance, Quaternion, Vector3
 from sensor_msgs.msg import CameraInfo, Image
-from std_msgs.msg import Header
+from std_msgs.msg import ColorRGBA, Header
+from visualization_msgs.msg import Marker, MarkerArray
 
 from zebra_sim_ros.detection.config import LOCATOR_PARAMS, LocatorConfig
 from zebra_sim_ros.errors import ZebraSimError
@@ -118,6 +121,36 @@ def census_msg(type_name: str, header: Header, views: dict[str, tuple[Detections
     return msg.Detection3DArray(header=header, detections=out)
 
 
+# an animal's marker by how many cameras saw it: one (orange), two (yellow), three or more (green)
+_VIEWS_RGBA = ((1.0, 0.55, 0.0, 0.7), (0.95, 0.9, 0.1, 0.7), (0.2, 0.85, 0.3, 0.7))
+MARKER_HEIGHT_M = 1.5  # an animal's cylinder, standing on its placed point's ground
+
+
+def census_markers(header: Header, classes: list[str], joined: list[Census], sides: list[list[float]]) -> MarkerArray:
+    """The census for RViz (visualization_msgs/MarkerArray in ``header``'s frame): what the last one showed deleted;
+    per animal a cylinder at its position, as wide as its box (``sides``, per class), coloured by how many cameras
+    saw it (:data:`_VIEWS_RGBA`), ``ns`` its class, ``id`` its index; and a text over the animals: the count per
+    class."""
+    out = [Marker(header=header, ns="census", action=Marker.DELETEALL)]
+    every = []
+    for cls, census, side in zip(classes, joined, sides, strict=True):
+        views = census.views_per_animal
+        for a, (x, y, z) in enumerate(census.positions.tolist()):
+            r, g, b, alpha = _VIEWS_RGBA[min(int(views[a]), len(_VIEWS_RGBA)) - 1]
+            out.append(Marker(header=header, ns=cls, id=a, type=Marker.CYLINDER, action=Marker.ADD,
+                              pose=Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(w=1.0)),
+                              scale=Vector3(x=side[a], y=side[a], z=MARKER_HEIGHT_M),
+                              color=ColorRGBA(r=r, g=g, b=b, a=alpha)))
+        every.append(census.positions)
+    points = np.concatenate(every) if every else np.zeros((0, 3))
+    x, y, z = (points.mean(axis=0) + [0.0, 0.0, 8.0]).tolist() if len(points) else (0.0, 0.0, 8.0)
+    text = ", ".join(f"{j.count} {cls}" for cls, j in zip(classes, joined, strict=True)) or "no animals"
+    out.append(Marker(header=header, ns="census", id=0, type=Marker.TEXT_VIEW_FACING, action=Marker.ADD,
+                      pose=Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(w=1.0)),
+                      scale=Vector3(z=3.0), color=ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0), text=text))
+    return MarkerArray(markers=out)
+
+
 def _class_rows(dets: Detections, where: Located, cls: str) -> np.ndarray:
     """The indices of ``cls``'s placed detections."""
     return np.array([i for i, (d, ok) in enumerate(zip(dets.detections, where.valid, strict=True))
@@ -158,6 +191,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
             self.create_subscription(CameraInfo, f"{d}/camera_info", self._on_info(d), image_q)
             self.pubs[d] = self.create_publisher(out_class, f"{d}/{c.output}", q)
         self.census_pub = self.create_publisher(out_class, c.census_output, q) if c.census else None
+        self.marker_pub = self.create_publisher(MarkerArray, f"{c.census_output}/markers", q) if c.census else None
         self.get_logger().info(f"placing {list(c.drones)}' <drone>/{c.detections} in map as <drone>/{c.output} "
                                f"({self.out_type}); QoS images: {describe_qos(image_q)}, poses: "
                                f"{describe_qos(pose_q)}, others: {describe_qos(q)}")
@@ -265,9 +299,14 @@ class LocatorNode(ZebraNode[LocatorConfig]):
                                      [np.array([views[d][0].detections[i].score for i in r], np.float64)
                                       for d, r in zip(names, rows, strict=True)]))
         header = Header(stamp=stamp(t), frame_id=frame)
-        assert self.census_pub is not None
-        self.census_pub.publish(census_msg(self.out_type, header, {d: views[d][:2] for d in names}, names, classes,
-                                           joined))
+        assert self.census_pub is not None and self.marker_pub is not None
+        msg = census_msg(self.out_type, header, {d: views[d][:2] for d in names}, names, classes, joined)
+        self.census_pub.publish(msg)
+        sides, k = [], 0
+        for j in joined:  # the census's detections are its animals, class by class
+            sides.append([float(det.bbox.size.x) for det in msg.detections[k:k + j.count]])
+            k += j.count
+        self.marker_pub.publish(census_markers(header, classes, joined, sides))
         self.stats["census"] += 1
         self.stats["animals"] += sum(j.count for j in joined)
         self.last_count = ", ".join(f"{j.count} {cls}" for cls, j in zip(classes, joined, strict=True)) or "none"
