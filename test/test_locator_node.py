@@ -9,12 +9,24 @@ from typing import Any
 
 import numpy as np
 import pytest
+from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion
 from ros_helpers import Peer, collect_diagnostics, detection_array_class, fresh_domain_id, node_process, run_node_once
+from sensor_msgs.msg import CameraInfo, Image
+from std_msgs.msg import Header
+from visualization_msgs.msg import Marker, MarkerArray
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical, optical_rotation
 from zebra_sim_ros.geometry.locate import box_depths, locate_boxes
 from zebra_sim_ros.geometry.rotations import matrix_to_quat
+from zebra_sim_ros.messages import Detection, Detections, Stamp
+from zebra_sim_ros.nodes.ros_adapter import (
+    detection3d_array_type,
+    detection_array_msg,
+    detection_array_type,
+    message_class,
+    stamp,
+)
 
 CAMERA = PinholeCamera(320, 180, 70.0)
 
@@ -93,9 +105,6 @@ def test_located_zebras_of_a_real_render_are_where_they_were_placed() -> None:
 
 
 def _depth_msg(depth: np.ndarray, stamp_msg: Any, encoding: str = "32FC1") -> Any:
-    from sensor_msgs.msg import Image
-    from std_msgs.msg import Header
-
     pixels = (np.nan_to_num(depth, nan=0.0) * 1000).astype("<u2") if encoding == "16UC1" else depth.astype("<f4")
     return Image(header=Header(stamp=stamp_msg, frame_id="drone_0/camera_optical"), height=depth.shape[0],
                  width=depth.shape[1], encoding=encoding, is_bigendian=0, step=depth.shape[1] * pixels.itemsize,
@@ -107,19 +116,6 @@ def test_the_locator_places_a_cameras_detections_over_dds(tmp_path: Path) -> Non
     """Detections, depth, camera_info and pose in; Detection3DArray in map out, each detection where the geometry
     puts it; a box with no depth left out and counted; a frame before any camera_info waits for it; a depth image
     it cannot read is logged, counted and skipped."""
-    from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion
-    from sensor_msgs.msg import CameraInfo, Image
-    from std_msgs.msg import Header
-
-    from zebra_sim_ros.messages import Detection, Detections, Stamp
-    from zebra_sim_ros.nodes.ros_adapter import (
-        detection3d_array_type,
-        detection_array_msg,
-        detection_array_type,
-        message_class,
-        stamp,
-    )
-
     r = optical_rotation(0.0, np.radians(-90.0), 0.0)  # nadir
     position = np.array([5.0, 7.0, 40.0])
     qx, qy, qz, qw = _xyzw(r)
@@ -198,20 +194,6 @@ def test_the_locators_census_counts_an_animal_seen_by_two_cameras_once(tmp_path:
     """Two nadir cameras 3 m apart see the same two animals, one camera boxing the first twice: each camera's
     detections are placed, and the census joins them into two animals, each naming the detections it joins, at the
     animals' positions; stamps that one camera never completes get no census and are counted."""
-    from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion
-    from sensor_msgs.msg import CameraInfo, Image
-    from std_msgs.msg import Header
-    from visualization_msgs.msg import Marker, MarkerArray
-
-    from zebra_sim_ros.messages import Detection, Detections, Stamp
-    from zebra_sim_ros.nodes.ros_adapter import (
-        detection3d_array_type,
-        detection_array_msg,
-        detection_array_type,
-        message_class,
-        stamp,
-    )
-
     r = optical_rotation(0.0, np.radians(-90.0), 0.0)  # nadir
     qx, qy, qz, qw = _xyzw(r)
     cameras = {"drone_0": np.array([5.0, 7.0, 40.0]), "drone_1": np.array([8.0, 6.0, 40.0])}
@@ -318,12 +300,9 @@ def test_a_bad_locator_parameter_stops_the_node() -> None:
 def test_placed_detections_are_read_back_from_the_bag_and_scored_against_the_nearest_zebra() -> None:
     """The bag's Detection3DArray (the placer's animals, the locator's output) read by our CDR reader as rclpy wrote
     it; the distances to the nearest placed zebra and their figures."""
-    from geometry_msgs.msg import Point, Pose
     from rclpy.serialization import serialize_message
-    from std_msgs.msg import Header
 
     from zebra_sim_ros.geometry.locate import nearest_distances, placing_figures
-    from zebra_sim_ros.nodes.ros_adapter import detection3d_array_type, stamp
     from zebra_sim_ros.recording.cdr import cdr_detections3d
 
     msg = importlib.import_module(detection3d_array_type().split("/")[0] + ".msg")
