@@ -19,7 +19,8 @@ clock (``/clock``, the simulated time of each step); every other node runs with 
 
 ``rviz:=true`` also starts RViz (a desktop install's rviz2) on the package's view drawn for ``drones`` cameras,
 written beside the bag (``zebra_sim.rviz``) as ``zebra-sim up`` writes it; its topics are the graph's without a
-namespace (a graph moved into one needs up's view, ``up --namespace``, or RViz's own remaps).
+namespace (a graph moved into one needs up's view, ``up --namespace``, or RViz's own remaps); the census display is
+off without ``locate:=true``.
 """
 
 import os

@@ -50,7 +50,7 @@ def test_the_assignment_is_optimal() -> None:
 
 
 def test_the_assignment_beats_greedy_in_a_packed_pair() -> None:
-    """Two animals 1.1 m apart, the second view's points 0.6 m off, a's towards b: greedy nearest joins a to b's
+    """Two animals 1.1 m apart, the second view's points 0.6 m off, b's towards a: greedy nearest joins a to b's
     point (0.5 m) and leaves b and a's own point alone; the assignment joins each to its own (0.6 + 0.6 < 0.5 + 1)."""
     d = np.array([[0.6, 0.5], [1.6, 0.6]])  # rows: the first view's a, b; columns: the second view's a, b
     rows, cols = assign(d, 1.0)
@@ -136,12 +136,15 @@ def test_one_animal_boxed_twice_by_one_camera_is_one_animal() -> None:
     pts = np.array([[0.0, 0, 0], [0.3, 0, 0], [0.9, 0, 0], [1.15, 0, 0]])
     assert one_per_place(pts, np.array([1, 0, 2, 3]), 0.5).tolist() == [1, 1, 2, 2]
     assert one_per_place(pts, np.array([0, 1, 2, 3]), 0.0).tolist() == [0, 1, 2, 3]
+    between = np.array([[0.0, 0, 0], [0.6, 0, 0], [0.35, 0, 0]])  # the last near both kept ones: the nearer
+    assert one_per_place(between, np.array([0, 1, 2]), 0.5).tolist() == [0, 1, 1]
     other = np.array([[0.25, 0.05, 0], [1.0, 0.05, 0]])
     census = join_views([pts, other], [np.array([0.0, -60, 50]), np.array([60.0, 0, 50])],
                         scores=[np.array([0.3, 0.9, 0.8, 0.5]), np.array([0.7, 0.6])])
-    assert census.count == 2
+    assert census.count == 2 and census.representative[0].tolist() == [1, 1, 2, 2]  # the higher scores stand
     assert sorted(sorted(census.points_of(a)) for a in range(2)) == [[(0, 0), (0, 1), (1, 0)], [(0, 2), (0, 3), (1, 1)]]
-    assert join_views([pts, other], [np.array([0.0, -60, 50]), np.array([60.0, 0, 50])], separation_m=0.0).count >= 3
+    apart = join_views([pts, other], [np.array([0.0, -60, 50]), np.array([60.0, 0, 50])], separation_m=0.0)
+    assert apart.count == 4 and apart.representative[0].tolist() == [0, 1, 2, 3]
     with pytest.raises(ValueError, match="3 scores for 4 points"):
         join_views([pts], [np.zeros(3)], scores=[np.ones(3)])
     with pytest.raises(ParameterError, match="separation_m"):

@@ -559,7 +559,8 @@ def test_the_rviz_config_is_drawn_again_for_each_graphs_drones_and_namespace(tmp
     by_topic = {d["Topic"]["Value"]: d for d in displays if "Topic" in d}
     assert by_topic["/g1/drone_4/detections/image"]["Name"] == "drone_4 detections (detector)"
     assert by_topic["/g1/drone_4/detections/image"]["Enabled"] and not by_topic["/g1/drone_0/image_raw"]["Enabled"]
-    # the census's display is on where the graph has the locator, off where it has not (up, launch without locate)
+    # the census's display is on where the graph has the locator, off where it has not (as up and the launch file
+    # ask without the locator)
     assert by_topic["/g1/census/animals/markers"]["Enabled"]
     off = rviz_view(REPO / "config", cfg.drone_names, cfg.namespace, CENSUS_TOPICS)
     assert off is not None
@@ -617,6 +618,18 @@ def test_the_rviz_config_is_drawn_again_for_each_graphs_drones_and_namespace(tmp
             "/drone_")]}}
     assert [d["Topic"]["Value"] for d in drawn(world, 2, "/g1") if "Topic" in d] == [
         "/g1/zebra_sim/zebras/markers", "/g1/census/animals/markers"]
+    # the census switched off as the file spells it or relative, inside a group too; nothing else
+    spelled = [{"Class": "rviz_default_plugins/MarkerArray", "Name": "census relative", "Enabled": True,
+                "Topic": {"Value": "census/animals/markers"}},
+               {"Class": "rviz_common/Group", "Name": "census group", "Enabled": True, "Displays": [
+                   {"Class": "rviz_default_plugins/MarkerArray", "Name": "census in a group", "Enabled": True,
+                    "Topic": {"Value": "/census/animals/markers"}}]}]
+    got = rviz_config(with_displays(*spelled), UpConfig().drone_names, "/g1", CENSUS_TOPICS)
+    shown = got["Visualization Manager"]["Displays"]
+    by_name = {d["Name"]: d for d in shown} | {d["Name"]: d for d in shown[-1]["Displays"]}
+    assert not by_name["census relative"]["Enabled"] and not by_name["census in a group"]["Enabled"]
+    assert by_name["census group"]["Enabled"] and by_name["census in a group"]["Topic"]["Value"] == (
+        "/g1/census/animals/markers")
     # names that do not follow drone_N, relative drone topics: still one per camera; a name naming two drones keeps
     # the other; displays inside a group are moved into the namespace
     free = [{"Class": "rviz_default_plugins/Image", "Name": name, "Topic": {"Value": f"drone_{i}/depth"}}

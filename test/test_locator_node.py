@@ -29,6 +29,7 @@ from zebra_sim_ros.nodes.ros_adapter import (
 )
 
 CAMERA = PinholeCamera(320, 180, 70.0)
+SCORES = (0.8, 0.7, 0.85)  # the census test's boxes: drone_0's third box is a second one on its first animal
 
 
 def _xyzw(r: np.ndarray) -> np.ndarray:
@@ -208,7 +209,7 @@ def test_the_locators_census_counts_an_animal_seen_by_two_cameras_once(tmp_path:
             (u0, u1), (v0, v1) = np.sort(uv[:, 0]) + 0.5, np.sort(uv[:, 1]) + 0.5  # pixel-edge coordinates
             depth[int(round(v0)):int(round(v1)), int(round(u0)):int(round(u1))] = position[2] - a[2]
             boxes.append([round(u0), round(v0), round(u1), round(v1)])
-        if d == "drone_0":  # a second, lower-scored box on the first animal, a pixel aside: one animal boxed twice
+        if d == "drone_0":  # a second, higher-scored box on the first animal, a pixel aside: one animal boxed twice
             boxes.append([b + 1 if k % 2 == 0 else b for k, b in enumerate(boxes[0])])
         frames[d] = (depth, boxes)
     domain = fresh_domain_id()
@@ -234,7 +235,7 @@ def test_the_locators_census_counts_an_animal_seen_by_two_cameras_once(tmp_path:
             position=Point(x=x, y=y, z=z), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))))
         pubs[(d, "depth")].publish(_depth_msg(depth, t))
         dets = Detections(Stamp(sec, 0), f"{d}/camera_optical", CAMERA.width, CAMERA.height,
-                          tuple(Detection(tuple(float(v) for v in b), 0.8 - 0.1 * i)  # type: ignore[arg-type]
+                          tuple(Detection(tuple(float(v) for v in b), SCORES[i])  # type: ignore[arg-type]
                                 for i, b in enumerate(boxes)))
         pubs[(d, "detections")].publish(detection_array_msg(detection_array_type(), Header(stamp=t), dets))
 
@@ -249,6 +250,10 @@ def test_the_locators_census_counts_an_animal_seen_by_two_cameras_once(tmp_path:
                 if peer.spin(lambda: bool(got), 2):
                     break
             assert got and peer.spin(lambda: bool(markers), 10), log.read_text()
+            before = len(got)  # stamp 1 again from both cameras (a resent step): published again, not counted again
+            for d in cameras:
+                send(1, d)
+            assert peer.spin(lambda: len(got) > before, 20), log.read_text()
             for sec in (2, 3, 4, 5):  # drone_1 never sends these: the oldest falls out of the window of 3
                 send(sec, "drone_0")
             assert peer.spin(lambda: any(s["values"].get("census_incomplete") == "1" for s in status), 20), \
@@ -256,7 +261,8 @@ def test_the_locators_census_counts_an_animal_seen_by_two_cameras_once(tmp_path:
     finally:
         peer.close()
     msg = got[0]
-    assert msg.header.stamp.sec == 1 and msg.header.frame_id == "map" and len(got) == 1
+    assert msg.header.stamp.sec == 1 and msg.header.frame_id == "map"
+    assert [[d.id for d in m.detections] for m in got[1:]] == [[d.id for d in msg.detections]] * (len(got) - 1)
     by_id = {det.id: det for det in msg.detections}
     assert set(by_id) == {"drone_0:0,drone_0:2,drone_1:0", "drone_0:1,drone_1:1"}, by_id.keys()
     for i, key in enumerate(("drone_0:0,drone_0:2,drone_1:0", "drone_0:1,drone_1:1")):
@@ -264,14 +270,15 @@ def test_the_locators_census_counts_an_animal_seen_by_two_cameras_once(tmp_path:
         p = det.bbox.center.position
         assert [p.x, p.y, p.z] == pytest.approx(animals[i].tolist(), abs=0.15), (key, p)  # a pixel is 0.17 m
         hyp = det.results[0].hypothesis
-        assert hyp.class_id == "zebra" and hyp.score == pytest.approx(0.8 - 0.1 * i)
+        assert hyp.class_id == "zebra" and hyp.score == pytest.approx((0.85, 0.7)[i])  # its boxes' highest
         assert det.bbox.size.x == pytest.approx(1.6, abs=0.4)  # the larger side of its largest detection
     values = status[-1]["values"]
     assert (values["census"], values["animals"]) == ("1", "2") and values["last census"] == "2 zebra", values
+    assert int(values["census_repeated"]) >= 1, values
     # and for RViz: what the last census showed deleted, a cylinder per animal where it is, coloured by its two
     # cameras, and the count
-    (shown,) = markers
-    assert (shown.markers[0].ns, shown.markers[0].action) == ("census", Marker.DELETEALL)
+    shown = markers[0]
+    assert (shown.markers[0].ns, shown.markers[0].action) == ("", Marker.DELETEALL)  # every namespace's markers
     cylinders = [m for m in shown.markers if m.type == Marker.CYLINDER]
     assert len(cylinders) == 2 and all(m.ns == "zebra" and m.header.frame_id == "map" for m in cylinders)
     where = sorted((m.pose.position.x, m.pose.position.y) for m in cylinders)
@@ -290,9 +297,13 @@ def test_a_bad_locator_parameter_stops_the_node() -> None:
                       ({"output": "depth"}, "'output'"), ({"sync_window": 0}, "'sync_window'"),
                       ({"depth_window": -1.0}, "'depth_window'"), ({"census_gate": 0.0}, "'census_gate'"),
                       ({"census_output": "drone_1/animals"}, "'census_output'"),
-                      ({"census_output": "/abs"}, "'census_output'"), ({"census_across": 0.0}, "'census_across'")):
+                      ({"census_output": "/abs"}, "'census_output'"), ({"census_across": 0.0}, "'census_across'"),
+                      ({"census_separation": -1.0}, "'census_separation'"),
+                      ({"drones": ["uav/drone_0"], "census_output": "uav/drone_0/animals"}, "'census_output'")):
         with pytest.raises(ParameterError, match=name):
             LocatorConfig.from_params(bad)
+    # outside a nested camera's namespace, whatever its last name
+    assert LocatorConfig.from_params({"drones": ["uav/drone_0"], "census_output": "drone_0/animals"}).census
     proc = run_node_once("locator", {"core": 2.0})  # the node stops at start, naming it
     assert proc.returncode == 2 and "'core'" in proc.stderr + proc.stdout, proc.stderr[-500:]
 

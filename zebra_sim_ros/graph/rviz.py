@@ -57,6 +57,16 @@ def _namespaced(displays: list[dict[str, Any]], namespace: str) -> None:
             _namespaced([x for x in inner if isinstance(x, dict)], namespace)
 
 
+def _switch_off(displays: list[dict[str, Any]], off: set[str]) -> None:
+    """The displays (those inside groups too) of the topics ``off`` (absolute) switched off, in place."""
+    for d in displays:
+        if (topic := _topic(d)) and "/" + topic.lstrip("/") in off:
+            d["Enabled"] = False
+        inner = d.get("Displays")
+        if isinstance(inner, list):
+            _switch_off([x for x in inner if isinstance(x, dict)], off)
+
+
 def rviz_config(base: dict[str, Any], drones: Sequence[str], namespace: str = "",
                 off: Collection[str] = ()) -> dict[str, Any]:
     """``base`` (the package file, parsed) for a graph of ``drones`` (``drone_0``, ``drone_1`` ...) in ``namespace``
@@ -89,9 +99,7 @@ def rviz_config(base: dict[str, Any], drones: Sequence[str], namespace: str = ""
                 c["Name"] = re.sub(rf"\bdrone_{n}\b", name, str(c.get("Name", "")))
                 c["Topic"]["Value"] = _DRONE.sub(rf"\g<1>{name}/", _topic(d))
                 new.append(c)
-    for d in new:
-        if _topic(d) in off:
-            d["Enabled"] = False
+    _switch_off(new, {"/" + t.lstrip("/") for t in off})
     if namespace:
         _namespaced(new, namespace)
     out = copy.deepcopy(base)

@@ -27,8 +27,10 @@ with the image's stamp:
   animal boxed twice). Per animal: its class and the highest score of its detections, its position (where their
   rays cross, weighed), a box as wide and long as its largest detection's larger side (height 0) and ``id`` the
   detections it joins (``drone_0:3,drone_0:5,drone_2:7``: camera and index in that camera's detections message).
-  Each stamp is counted once (a frame sent again after its census is placed, not counted again); a stamp that some
-  camera has not completed when ``sync_window`` later stamps have arrived gets no census (``census_incomplete``).
+  Each stamp is counted once: when every camera sends a counted stamp's frame again (a placer's resent step, a
+  looping replay), its census is published again and counted in ``census_repeated``, not in ``census``; a stamp
+  that some camera has not completed when ``sync_window`` later stamps have arrived gets no census
+  (``census_incomplete``).
 - ``<census_output>/markers`` (with ``census``; visualization_msgs/MarkerArray in ``map``): the census for RViz, a
   cylinder per animal coloured by how many cameras saw it (one orange, two yellow, three green) and the count.
 
@@ -123,7 +125,7 @@ def census_msg(type_name: str, header: Header, views: dict[str, tuple[Detections
 
 # an animal's marker by how many cameras saw it: one (orange), two (yellow), three or more (green)
 _VIEWS_RGBA = ((1.0, 0.55, 0.0, 0.7), (0.95, 0.9, 0.1, 0.7), (0.2, 0.85, 0.3, 0.7))
-MARKER_HEIGHT_M = 1.5  # an animal's cylinder, standing on its placed point's ground
+MARKER_HEIGHT_M = 1.5  # an animal's cylinder, centred on its placed point (its visible back)
 
 
 def census_markers(header: Header, classes: list[str], joined: list[Census], sides: list[list[float]]) -> MarkerArray:
@@ -131,7 +133,7 @@ def census_markers(header: Header, classes: list[str], joined: list[Census], sid
     per animal a cylinder at its position, as wide as its box (``sides``, per class), coloured by how many cameras
     saw it (:data:`_VIEWS_RGBA`), ``ns`` its class, ``id`` its index; and a text over the animals: the count per
     class."""
-    out = [Marker(header=header, ns="census", action=Marker.DELETEALL)]
+    out = [Marker(header=header, ns="", action=Marker.DELETEALL)]  # every namespace's: the classes' and the count
     every = []
     for cls, census, side in zip(classes, joined, sides, strict=True):
         views = census.views_per_animal
@@ -174,12 +176,14 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         self.pending: RecentStamps[dict[str, dict[str, Any]]] = RecentStamps(c.sync_window)  # stamp: drone: part
         self.info: dict[str, tuple[np.ndarray, int, int]] = {}  # drone: its latest K (3x3), width, height
         self.stats = {"frames": 0, "placed": 0, "unplaced": 0, "unmatched": 0, "bad_messages": 0, "census": 0,
-                      "animals": 0, "census_incomplete": 0}
+                      "animals": 0, "census_incomplete": 0, "census_repeated": 0}
         self.last_count = ""  # the latest census: animals per class
         # stamp: camera: (its detections, placed, the camera's position) until every camera's frame is placed
         self.census_pending: RecentStamps[dict[str, tuple[Detections, Located, np.ndarray]]] = RecentStamps(
             c.sync_window)
-        self.census_done: RecentStamps[bool] = RecentStamps(max(c.sync_window, 100))  # stamps counted
+        # stamps counted: the cameras whose frames came again since (a resent step, a looping replay)
+        self.census_done: RecentStamps[dict[str, tuple[Detections, Located, np.ndarray]]] = RecentStamps(
+            max(c.sync_window, 100))
         self.seconds = 0.0
         self.pubs: dict[str, Any] = {}
         det_class = message_class(detection_array_type())
@@ -273,8 +277,15 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         self.seconds += time.perf_counter() - t0
 
     def _census(self, t: int, drone: str, dets: Detections, where: Located, origin: np.ndarray, frame: str) -> None:
-        """Hold this camera's placed frame; with every camera's frame of stamp ``t``, count its animals once."""
-        if t in self.census_done:  # a frame again (a placer's resent step): counted once already
+        """Hold this camera's placed frame; with every camera's frame of stamp ``t``, count its animals once. A
+        counted stamp whose every camera sends its frame again (a placer's resent step, a looping replay) is
+        published again, not counted again (``census_repeated``); a partial repeat is not a missing census."""
+        if (again := self.census_done.get(t)) is not None:
+            again[drone] = (dets, where, origin)
+            if all(d in again for d in self.cfg.drones):
+                self.census_done.put(t, {})
+                self.stats["census_repeated"] += 1
+                self._publish_census(t, again, frame)
             return
         views, dropped = self.census_pending.touch(t, dict)
         views[drone] = (dets, where, origin)
@@ -285,7 +296,15 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         if any(d not in views for d in self.cfg.drones):
             return
         self.census_pending.pop(t)
-        self.census_done.put(t, True)
+        self.census_done.put(t, {})
+        joined = self._publish_census(t, views, frame)
+        self.stats["census"] += 1
+        self.stats["animals"] += sum(j.count for j in joined.values())
+        self.last_count = ", ".join(f"{j.count} {cls}" for cls, j in joined.items()) or "none"
+
+    def _publish_census(self, t: int, views: dict[str, tuple[Detections, Located, np.ndarray]],
+                        frame: str) -> dict[str, Census]:
+        """Join every camera's placed frame of stamp ``t`` per class and publish the census and its markers."""
         c = self.cfg
         names = list(c.drones)
         classes = sorted({x.class_name for d in names for x, ok in zip(views[d][0].detections, views[d][1].valid,
@@ -307,14 +326,13 @@ class LocatorNode(ZebraNode[LocatorConfig]):
             sides.append([float(det.bbox.size.x) for det in msg.detections[k:k + j.count]])
             k += j.count
         self.marker_pub.publish(census_markers(header, classes, joined, sides))
-        self.stats["census"] += 1
-        self.stats["animals"] += sum(j.count for j in joined)
-        self.last_count = ", ".join(f"{j.count} {cls}" for cls, j in zip(classes, joined, strict=True)) or "none"
+        return dict(zip(classes, joined, strict=True))
 
     def activity(self) -> Activity:
         """Frames placed; detections placed and not (no depth in the box); frames whose inputs never all arrived
-        (unmatched) and bad messages skipped; stamps counted (census), the animals in them, and stamps some camera
-        never completed (census_incomplete). Waits for a camera's camera_info before it places its frames."""
+        (unmatched) and bad messages skipped; stamps counted (census), the animals in them, stamps some camera
+        never completed (census_incomplete) and counted stamps published again (census_repeated). Waits for a
+        camera's camera_info before it places its frames."""
         missing = [d for d in self.cfg.drones if d not in self.info]
         waiting = f"waiting for camera_info of {', '.join(missing)}" if missing else ""
         info = {"drones": ", ".join(self.cfg.drones), "output": self.cfg.output}
