@@ -113,6 +113,16 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     census = live["census"]
     assert census["steps"] == 3 and census["true"] > 0 and 0 < census["animals"] < census["summed"], census
     assert census["summed"] == located["detections"] and "[up] census: " in stdout
+    # counted again from the bag by the locator's rule: the census it recorded, to the animal; without the
+    # separation, one camera's two boxes on a zebra count twice; a rule out of range is refused by name
+    again = cli(["bag", "census", live["bag"], "--json"])
+    assert again.returncode == 0, again.stderr
+    recount = _last_json(again.stdout)
+    assert recount["recounted"] == recount["recorded"] == census and recount["stamps_counted"] == 3, recount
+    apart = cli(["bag", "census", live["bag"], "--census-separation", "0", "--json"])
+    assert _last_json(apart.stdout)["recounted"]["animals"] >= census["animals"]
+    refused = cli(["bag", "census", live["bag"], "--census-gate", "0"])
+    assert refused.returncode != 0 and "--census-gate" in refused.stderr
     # every node reported on /diagnostics, and nothing went wrong (the placer may resend a step on a slow machine)
     health = live["health"]
     assert set(health) == {f"{s.label}: {s.executable}" for s in graph_spec(UpConfig(locate=True))}, health

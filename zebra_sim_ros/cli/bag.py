@@ -1,4 +1,4 @@
-"""``zebra-sim bag ...``: info, recover, eval and export of MCAP bags."""
+"""``zebra-sim bag ...``: info, recover, eval, census and export of MCAP bags."""
 
 from __future__ import annotations
 
@@ -6,13 +6,13 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from zebra_sim_ros.cli.common import Summary, add_json_flag, count_option, detector_options
+from zebra_sim_ros.cli.common import Summary, add_json_flag, census_options, count_option, detector_options
 from zebra_sim_ros.errors import ParameterError
 
 
 def register(sub: Any) -> None:
     """Add the ``bag`` subcommand group."""
-    p = sub.add_parser("bag", help="MCAP bags: info, recover, eval, export")
+    p = sub.add_parser("bag", help="MCAP bags: info, recover, eval, census, export")
     bsub = p.add_subparsers(dest="bag_command", required=True, metavar="ACTION")
     i = bsub.add_parser("info", help="duration, message counts and types per topic (like ros2 bag info)")
     i.add_argument("bag", nargs="+", type=Path, help="bag files, or folders of split files")
@@ -36,6 +36,12 @@ def register(sub: Any) -> None:
     count_option(e)
     add_json_flag(e)
     e.set_defaults(func=cmd_eval)
+    c = bsub.add_parser("census", help="count a recorded run's zebras again across the drones (its placed "
+                        "detections, up --locate) with the census's parameters, against the distinct labelled zebras")
+    c.add_argument("bag", nargs="+", type=Path, help="bag files, or folders of split files")
+    census_options(c)
+    add_json_flag(c)
+    c.set_defaults(func=cmd_census)
     x = bsub.add_parser("export", help="a recorded run as a YOLO dataset: each camera image with its labels, for "
                         "train and val")
     x.add_argument("bag", nargs="+", type=Path, help="bag files, or folders of split files")
@@ -106,6 +112,32 @@ def cmd_eval(args: argparse.Namespace) -> Summary:
     if s["all"]:
         a = s["all"]
         print(f"all: mAP50 {a['mAP50']:.3f} mAP50-95 {a['mAP50-95']:.3f}; {count_line(a['count'])}")
+    if s["skipped"]:
+        print(f"skipped {len(s['skipped'])} unusable message(s), first: {s['skipped'][0]}")
+    for note in s["damaged"]:
+        print(f"damaged: {note}")
+    return s
+
+
+def cmd_census(args: argparse.Namespace) -> Summary:
+    """Count a recorded run's zebras again across the drones."""
+    from zebra_sim_ros.detection.config import LocatorConfig
+    from zebra_sim_ros.recording.census import CENSUS_RULE, bag_census
+
+    s = bag_census(args.bag, LocatorConfig.from_params({k: getattr(args, k) for k in CENSUS_RULE}))
+
+    def line(f: dict[str, Any]) -> str:
+        if f["error"] is None:
+            return f"{f['animals']} zebras in {f['steps']} steps (no labelled zebras to compare with)"
+        return (f"{f['animals']} zebras for {f['true']} distinct zebras labelled ({f['error']:+.1%}; summed over the "
+                f"drones {f['summed']}, {f['summed_error']:+.1%}) in {f['steps']} steps")
+
+    rule = ", ".join(f"{k} {v:g}" for k, v in s["rule"].items())
+    print(f"cameras {', '.join(s['cameras'])}: {s['stamps_counted']} of {s['stamps_placed']} placed stamps with "
+          f"every camera's frame and pose")
+    print(f"recounted ({rule}): {line(s['recounted'])}")
+    print(f"recorded (the locator's census/animals): {line(s['recorded'])}" if s["recorded"] else
+          "recorded: no census/animals in the bag")
     if s["skipped"]:
         print(f"skipped {len(s['skipped'])} unusable message(s), first: {s['skipped'][0]}")
     for note in s["damaged"]:

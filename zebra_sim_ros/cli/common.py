@@ -58,3 +58,14 @@ def count_option(p: argparse.ArgumentParser) -> None:
     from zebra_sim_ros.params import add_option, spec_of
 
     add_option(p, spec_of(ScorerConfig, "count_conf"))
+
+
+def census_options(p: argparse.ArgumentParser) -> None:
+    """``--census-along``, ``--census-across``, ``--census-gate`` and ``--census-separation``, mirroring the locator
+    node's census parameters (``bag census``): the same names, ranges and defaults."""
+    from zebra_sim_ros.detection.config import LocatorConfig
+    from zebra_sim_ros.params import add_option, spec_of
+    from zebra_sim_ros.recording.census import CENSUS_RULE
+
+    for name in CENSUS_RULE:
+        add_option(p, spec_of(LocatorConfig, name))

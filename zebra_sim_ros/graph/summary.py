@@ -25,6 +25,7 @@ from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.locate import nearest_distances, placing_figures
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections3d, cdr_string, header_stamp_ns
+from zebra_sim_ros.recording.census import CENSUS_TOPIC, census_figures
 from zebra_sim_ros.recording.evaluate import collect, score, skip_note
 from zebra_sim_ros.recording.images import message_rgb
 from zebra_sim_ros.recording.reader import CAMERA_IMAGES, BagMessage, last_name, topic_owner
@@ -33,7 +34,6 @@ _DRONE = re.compile(r"drone_\d+")  # a camera of the graph (up's drone_0 ... dro
 _SCENE_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/scene$")
 _ANIMALS_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/zebras$")  # the placed animals (Detection3DArray)
 _LOCATED = (LocatorConfig().output,)  # a camera's detections placed on the map by the locator (up --locate)
-_CENSUS_TOPIC = re.compile(rf"^(?:/[^/]+)*/{re.escape(LocatorConfig().census_output)}$")  # the locator's census
 
 
 PREVIEW_COLUMNS = 4  # drones per row of the preview (a row of 16 4K frames is past JPEG's 65535 px)
@@ -89,7 +89,7 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
             elif _ANIMALS_TOPIC.match(m.topic):
                 t, animals = cdr_detections3d(m.data)
                 placed[t] = np.array([c for name, _, c in animals if name == "zebra"], np.float64).reshape(-1, 3)
-            elif _CENSUS_TOPIC.match(m.topic):
+            elif CENSUS_TOPIC.match(m.topic):
                 t, animals = cdr_detections3d(m.data)
                 census[t] = sum(1 for name, _, _ in animals if name == "zebra")
             elif owner := topic_owner(m.topic, _LOCATED):
@@ -140,24 +140,6 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
     if preview is not None and images_rgb:
         out["preview"] = str(write_preview(preview, collected.drones, images_rgb))
     return out
-
-
-def census_figures(census: dict[int, int], drones: dict[str, DroneFrames],
-                   located: dict[tuple[str, int], np.ndarray]) -> dict[str, Any]:
-    """The locator's census against the truth, over the stamps every camera labelled: the zebras it counted
-    (``animals``), the distinct zebras the cameras' labels keep (``true``: one seen by three drones is one), the
-    zebra detections placed by all cameras (``summed``: the count without joining), and the relative errors."""
-    stamps = [t for t in sorted(census) if drones and all(t in d.labels for d in drones.values())]
-    true = sum(len({z.id for d in drones.values() for z in d.labels[t].kept}) for t in stamps)
-    animals = sum(census[t] for t in stamps)
-    kept = set(stamps)
-    summed = sum(len(p) for (_, t), p in located.items() if t in kept)
-
-    def error(n: int) -> float | None:
-        return round((n - true) / true, 4) if true else None
-
-    return {"steps": len(stamps), "animals": animals, "true": true, "error": error(animals), "summed": summed,
-            "summed_error": error(summed)}
 
 
 def write_preview(path: str | Path, c: dict[str, DroneFrames], images: dict[str, tuple[int, np.ndarray]]) -> Path:

@@ -140,6 +140,14 @@ def cdr_detections3d(data: bytes) -> tuple[int, list[tuple[str, float, tuple[flo
     return t, out
 
 
+def cdr_pose_position(data: bytes) -> tuple[int, tuple[float, float, float]]:
+    """The stamp (ns) and position of a CDR-serialized ``geometry_msgs/PoseStamped`` (a camera's pose in ``map``)."""
+    r = _Cdr(data)
+    t = _stamp_of(r)
+    r.string()  # frame_id
+    return t, (r.f64(), r.f64(), r.f64())
+
+
 def cdr_detections(data: bytes) -> Detections:
     """A CDR-serialized ``vision_msgs/Detection2DArray`` (or ``zebra_sim_msgs/``'s, the same layout) as our typed
     :class:`~zebra_sim_ros.messages.Detections` (boxes back to [x0, y0, x1, y1]; each detection's best hypothesis;
