@@ -38,14 +38,15 @@ from launch import LaunchDescription
 # up's own rules (light: numpy and OpenCV, no rclpy, no torch): the camera cap, what the bag may hold of the images
 # and the recorder's exclude_regex for it, the environment every node gets (OpenMP threads that sleep when idle),
 # and the RViz view drawn for the drones
-from zebra_sim_ros.geometry.camera import MAX_CAMERAS
+from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_view, write_rviz
 from zebra_sim_ros.graph.spec import (
-    BAG_IMAGES,
     CENSUS_TOPICS,
     NODE_ENVIRONMENT,
     PACKAGE,
     bag_image_overrides,
+    check_bag_images,
+    check_drones,
     recorder_excludes,
 )
 
@@ -91,12 +92,10 @@ def generate_launch_description():
     def nodes(context):
         """The graph's processes: the number of cameras is the ``drones`` argument's value, read here."""
         count = LaunchConfiguration("drones").perform(context)
-        if not count.isdigit() or not 1 <= int(count) <= MAX_CAMERAS:
-            raise ValueError(f"drones:={count}: want 1..{MAX_CAMERAS}")
-        drones = [f"drone_{i}" for i in range(int(count))]
-        bag_images = LaunchConfiguration("bag_images").perform(context)
-        if bag_images not in BAG_IMAGES:
-            raise ValueError(f"bag_images:={bag_images}: want one of {', '.join(BAG_IMAGES)}")
+        if not count.isdigit():
+            raise ParameterError("drones", count, "a number of cameras")
+        drones = [f"drone_{i}" for i in range(check_drones(int(count), "drones"))]
+        bag_images = check_bag_images(LaunchConfiguration("bag_images").perform(context), "bag_images")
         # the recorder's own sections of its file: in the namespace a PushRosNamespace around this file gives it
         ns = "/" + str(context.launch_configurations.get("ros_namespace", "")).strip("/")
         compressed, excludes = bag_image_overrides(

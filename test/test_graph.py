@@ -243,8 +243,10 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
     assert by["placer"]["num_cameras"] == 5 and by["detector"]["image_topics"][-1] == "drone_4/image_raw"
     assert by["labeller"]["drones"] == by["scorer"]["drones"] == by["locator"]["drones"] == [
         f"drone_{i}" for i in range(5)]
-    with pytest.raises(ValueError, match="drones:=0"):
+    with pytest.raises(ValueError, match="'drones' = 0 is invalid: allowed 1..16"):
         _launch(monkeypatch, tmp_path / "share", drones="0")
+    with pytest.raises(ValueError, match="'drones' = 'two' is invalid: allowed a number of cameras"):
+        _launch(monkeypatch, tmp_path / "share", drones="two")
     # bag_images:=jpeg as up --bag-images jpeg: the cameras publish image_raw/compressed, the recorder keeps that
     jpeg = _launch(monkeypatch, tmp_path / "share", bag_images="jpeg")
     for n, s in zip(jpeg.nodes, graph_spec(UpConfig(bag_images="jpeg", locate=True)), strict=True):
@@ -262,7 +264,7 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
     # raw (the default): the parameter files decide, up overrides neither
     raw = {s.executable: s.overrides for s in graph_spec(UpConfig())}
     assert "compressed" not in raw["camera"] and "exclude_regex" not in raw["recorder"]
-    with pytest.raises(ValueError, match="bag_images:=gif"):
+    with pytest.raises(ValueError, match="'bag_images' = 'gif' is invalid: allowed one of raw, jpeg, png"):
         _launch(monkeypatch, tmp_path / "share", bag_images="gif")
     # rviz:=true adds RViz on the package's view drawn for the drones (here five), written beside the bag; nothing
     # else changes

@@ -128,10 +128,7 @@ class UpConfig:
         checked by its own parameters' rules, when there is none."""
         if self.frames < 1:
             raise ParameterError("--frames", self.frames, ">= 1")
-        from zebra_sim_ros.geometry.camera import MAX_CAMERAS
-
-        if not 1 <= self.drones <= MAX_CAMERAS:
-            raise ParameterError("--drones", self.drones, f"1..{MAX_CAMERAS}")
+        check_drones(self.drones)
         if not (16 <= self.width <= 8192 and 16 <= self.height <= 8192):
             raise ParameterError("--size", f"{self.width}x{self.height}", "WxH with 16..8192 each")
         from zebra_sim_ros.placement.config import STRATEGY_CHOICES
@@ -144,8 +141,7 @@ class UpConfig:
         if self.verifier not in ("", "shipped") and not Path(self.verifier).is_file():
             raise ParameterError("--verifier", self.verifier, "empty, shipped or an existing verifier checkpoint")
         check_namespace(self.namespace)
-        if self.bag_images not in BAG_IMAGES:
-            raise ParameterError("--bag-images", self.bag_images, f"one of {', '.join(BAG_IMAGES)}")
+        check_bag_images(self.bag_images)
         if self.ready_timeout_s <= 0 or self.step_timeout_s <= 0:
             raise ParameterError("--timeout", min(self.ready_timeout_s, self.step_timeout_s), "> 0 s")
         from zebra_sim_ros.world.world import check_world_source
@@ -214,6 +210,23 @@ def global_remaps(namespace: str) -> tuple[tuple[str, str], ...]:
     """``/tf``, ``/tf_static`` and ``/clock`` moved into ``namespace`` (none without one): what every node of a
     namespaced graph, and a viewer of it, remaps."""
     return tuple((t, f"{namespace}{t}") for t in GLOBAL_TOPICS) if namespace else ()
+
+
+def check_drones(count: int, name: str = "--drones") -> int:
+    """``count`` if it is a number of cameras the graph can run (1..MAX_CAMERAS); ParameterError naming ``name``
+    (up's option, the launch file's argument) otherwise."""
+    from zebra_sim_ros.geometry.camera import MAX_CAMERAS
+
+    if not 1 <= count <= MAX_CAMERAS:
+        raise ParameterError(name, count, f"1..{MAX_CAMERAS}")
+    return count
+
+
+def check_bag_images(value: str, name: str = "--bag-images") -> str:
+    """``value`` if it is one of :data:`BAG_IMAGES`; ParameterError naming ``name`` otherwise."""
+    if value not in BAG_IMAGES:
+        raise ParameterError(name, value, f"one of {', '.join(BAG_IMAGES)}")
+    return value
 
 
 def check_namespace(namespace: str) -> str:
