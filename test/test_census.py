@@ -4,7 +4,6 @@ against herds whose every point is known."""
 from __future__ import annotations
 
 import itertools
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -162,19 +161,3 @@ def test_a_box_depth_is_its_animal_not_the_ground_behind_it() -> None:
     assert box_depths(depth, box, window_m=0.0)[0] > 52.0  # 2 m off
     with pytest.raises(ParameterError, match="window_m"):
         box_depths(depth, box, window_m=-1.0)
-
-
-def test_a_bag_without_placed_detections_has_no_census_to_count_again(tmp_path: Path) -> None:
-    """``bag census`` of a bag recorded without the locator: refused, naming the bag and what it lacks."""
-    from rclpy.serialization import serialize_message
-    from std_msgs.msg import String
-
-    from zebra_sim_ros.recording.census import bag_census
-    from zebra_sim_ros.recording.writer import BagWriter
-
-    w = BagWriter(tmp_path / "plain.mcap")
-    w.add_channel("/zebra_sim/scene", "std_msgs/msg/String", [])
-    w.write("/zebra_sim/scene", serialize_message(String(data="{}")), 1_000_000_000)
-    (path,) = w.close()
-    with pytest.raises(ParameterError, match="'bag'.*placed detections"):
-        bag_census(path)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -338,6 +339,102 @@ def test_cdr_image_reader_matches_rclpy() -> None:
                 data=bytes(range(45)))
     img.header.stamp.sec, img.header.stamp.nanosec = 1234, 5678
     assert cdr_image(serialize_message(img)) == (1234 * 10**9 + 5678, 3, 5, "bgr8", 15, bytes(range(45)))
+
+
+def test_pose_reader_matches_rclpy() -> None:
+    """A PoseStamped's stamp and position, whatever the frame name's length does to the alignment."""
+    from geometry_msgs.msg import Point, Pose, PoseStamped
+
+    from zebra_sim_ros.recording.cdr import cdr_pose_position
+
+    for frame in ("", "m", "ma", "map", "mapx", "drone_0", "drone_0/camera_optical"):
+        msg = PoseStamped(header=Header(frame_id=frame), pose=Pose(position=Point(x=1.5, y=-2.25, z=60.125)))
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 7, 11
+        assert cdr_pose_position(serialize_message(msg)) == (7 * 10**9 + 11, (1.5, -2.25, 60.125)), frame
+
+
+def _census_bag(path: Path, views: dict[str, dict[int, np.ndarray]], poses: bool = True,
+                recorded: dict[int, int] | None = None, ns: str = "") -> Path:
+    """A bag as up --locate records it, less the images: per camera and stamp its placed zebras (a
+    Detection3DArray, scores 0.9, 0.8 ...) and its pose (the camera 60 m up, 80 m from the origin along its
+    name's order), and the locator's census of some stamps."""
+    from geometry_msgs.msg import Point, Pose, PoseStamped
+
+    from zebra_sim_ros.nodes.ros_adapter import detection3d_array_type, message_class, stamp
+    from zebra_sim_ros.recording.writer import BagWriter
+
+    kind = detection3d_array_type()
+    msg = __import__(kind.split("/")[0] + ".msg", fromlist=["Detection3D"])
+    w = BagWriter(path)
+    for i, (cam, by_stamp) in enumerate(views.items()):
+        w.add_channel(f"{ns}/{cam}/detections/located", kind, [])
+        w.add_channel(f"{ns}/{cam}/camera/pose", "geometry_msgs/msg/PoseStamped", [])
+        for t, pts in by_stamp.items():
+            h = Header(stamp=stamp(t), frame_id="map")
+            dets = [msg.Detection3D(header=h, results=[msg.ObjectHypothesisWithPose(
+                hypothesis=msg.ObjectHypothesis(class_id="zebra", score=0.9 - 0.1 * k))],
+                bbox=msg.BoundingBox3D(center=Pose(position=Point(x=x, y=y, z=z)))) for k, (x, y, z) in enumerate(pts)]
+            w.write(f"{ns}/{cam}/detections/located", serialize_message(message_class(kind)(header=h, detections=dets)),
+                    t)
+            if poses:
+                angle = 2.1 * i
+                w.write(f"{ns}/{cam}/camera/pose", serialize_message(PoseStamped(header=h, pose=Pose(position=Point(
+                    x=80 * np.cos(angle), y=80 * np.sin(angle), z=60.0)))), t)
+    if recorded:
+        w.add_channel(f"{ns}/census/animals", kind, [])
+        for t, n in recorded.items():
+            h = Header(stamp=stamp(t), frame_id="map")
+            dets = [msg.Detection3D(header=h, results=[msg.ObjectHypothesisWithPose(
+                hypothesis=msg.ObjectHypothesis(class_id="zebra", score=0.9))]) for _ in range(n)]
+            w.write(f"{ns}/census/animals", serialize_message(message_class(kind)(header=h, detections=dets)), t)
+    (out,) = w.close()
+    return out
+
+
+def test_a_recorded_census_is_counted_again_from_the_bag(tmp_path: Path) -> None:
+    """``bag census`` on a bag of cameras not named drone_N and without labels (a real flight's): each stamp every
+    camera placed and posed joined as ``join_views`` joins it, in the order asked; a stamp one camera lacks is not
+    counted; the recorded census scored on the same stamps; bags it cannot count are refused by name."""
+    from zebra_sim_ros.errors import ParameterError
+    from zebra_sim_ros.geometry.census import join_views
+    from zebra_sim_ros.recording.census import bag_census
+
+    rng = np.random.default_rng(5)
+    herd = np.column_stack([rng.uniform(-10, 10, (12, 2)), np.full(12, 0.7)])
+    s1, s2 = 10**9, 2 * 10**9
+    views = {cam: {s1: herd[rng.permutation(12)[:9]] + [*rng.normal(0, 0.1, 2), 0.0]} for cam in ("north", "south",
+                                                                                                    "east")}
+    views["north"][s2] = herd[:5]  # north alone has stamp 2: never counted
+    bag = _census_bag(tmp_path / "flight.mcap", views, recorded={s1: 11, s2: 4})
+    got = bag_census(bag)
+    assert got["cameras"] == ["east", "north", "south"] and (got["stamps_placed"], got["stamps_counted"]) == (2, 1)
+    origins = {cam: np.array([80 * np.cos(2.1 * i), 80 * np.sin(2.1 * i), 60.0]) for i, cam in enumerate(views)}
+
+    def joined(order: list[str]) -> int:
+        return join_views([views[c][s1] for c in order], [origins[c] for c in order],
+                          scores=[0.9 - 0.1 * np.arange(9)] * 3).count
+
+    assert got["recounted"] == {"steps": 1, "animals": joined(["east", "north", "south"]), "true": None,
+                                "error": None, "summed": 27, "summed_error": None}  # north's stamp 2 left out
+    assert 9 <= got["recounted"]["animals"] <= 12
+    assert got["recorded"]["animals"] == 11 and got["recorded_stamps"] == 2  # scored on stamp 1 only
+    ordered = bag_census(bag, drones=["south", "north", "east"])
+    assert ordered["cameras"] == ["south", "north", "east"]
+    assert ordered["recounted"]["animals"] == joined(["south", "north", "east"])
+    with pytest.raises(ParameterError, match="'drones'.*the bag's cameras"):
+        bag_census(bag, drones=["north", "south"])
+    no_poses = _census_bag(tmp_path / "no_poses.mcap", views, poses=False)
+    with pytest.raises(ParameterError, match="camera/pose"):
+        bag_census(no_poses)
+    two = _census_bag(tmp_path / "g1.mcap", {"drone_0": views["north"]}, ns="/g1")
+    other = _census_bag(tmp_path / "g2.mcap", {"drone_0": views["south"]}, ns="/g2")
+    with pytest.raises(ParameterError, match="2 namespaces: /g1, /g2"):
+        bag_census([two, other])
+    plain = tmp_path / "plain"
+    plain.mkdir()
+    [path] = _write(plain / "plain.mcap", n=3)
+    with pytest.raises(ParameterError, match=f"{re.escape(str(path))}.*placed detections"):
+        bag_census(path)
 
 
 def test_a_damaged_chunk_in_the_middle_loses_only_that_chunk(tmp_path: Path) -> None:

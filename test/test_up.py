@@ -118,9 +118,9 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     again = cli(["bag", "census", live["bag"], "--json"])
     assert again.returncode == 0, again.stderr
     recount = _last_json(again.stdout)
-    assert recount["recounted"] == recount["recorded"] == census and recount["stamps_counted"] == 3, recount
+    assert recount["recounted"] == census and recount["recorded"] == census and recount["stamps_counted"] == 3
     apart = cli(["bag", "census", live["bag"], "--census-separation", "0", "--json"])
-    assert _last_json(apart.stdout)["recounted"]["animals"] >= census["animals"]
+    assert _last_json(apart.stdout)["recounted"]["animals"] > census["animals"]
     refused = cli(["bag", "census", live["bag"], "--census-gate", "0"])
     assert refused.returncode != 0 and "--census-gate" in refused.stderr
     # every node reported on /diagnostics, and nothing went wrong (the placer may resend a step on a slow machine)

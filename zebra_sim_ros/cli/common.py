@@ -61,11 +61,12 @@ def count_option(p: argparse.ArgumentParser) -> None:
 
 
 def census_options(p: argparse.ArgumentParser) -> None:
-    """``--census-along``, ``--census-across``, ``--census-gate`` and ``--census-separation``, mirroring the locator
-    node's census parameters (``bag census``): the same names, ranges and defaults."""
-    from zebra_sim_ros.detection.config import LocatorConfig
+    """``--census-along``, ``--census-across``, ``--census-gate``, ``--census-separation`` and ``--drones``, mirroring
+    the locator node's census parameters (``bag census``): the same names, ranges and defaults."""
+    from zebra_sim_ros.detection.config import CENSUS_RULE, LocatorConfig
     from zebra_sim_ros.params import add_option, spec_of
-    from zebra_sim_ros.recording.census import CENSUS_RULE
 
     for name in CENSUS_RULE:
         add_option(p, spec_of(LocatorConfig, name))
+    add_option(p, spec_of(LocatorConfig, "drones"), default=None,
+               note="here: the bag's cameras, joined in this order (not given: drone_0, drone_1 ... as up has them)")

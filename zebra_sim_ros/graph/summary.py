@@ -25,7 +25,7 @@ from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.locate import nearest_distances, placing_figures
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections3d, cdr_string, header_stamp_ns
-from zebra_sim_ros.recording.census import CENSUS_TOPIC, census_figures
+from zebra_sim_ros.recording.census import CENSUS_TOPIC, census_figures, drone_order, zebra_points
 from zebra_sim_ros.recording.evaluate import collect, score, skip_note
 from zebra_sim_ros.recording.images import message_rgb
 from zebra_sim_ros.recording.reader import CAMERA_IMAGES, BagMessage, last_name, topic_owner
@@ -39,11 +39,6 @@ _LOCATED = (LocatorConfig().output,)  # a camera's detections placed on the map 
 PREVIEW_COLUMNS = 4  # drones per row of the preview (a row of 16 4K frames is past JPEG's 65535 px)
 
 
-def _drone_order(name: str) -> tuple[int, str]:
-    """drone_2 before drone_10."""
-    return len(name), name
-
-
 def _median_ms(values: list[float]) -> float | None:
     return round(float(np.median(values)) * 1e3, 1) if values else None
 
@@ -51,7 +46,7 @@ def _median_ms(values: list[float]) -> float | None:
 def _stage_seconds(scenes: dict[int, int], times: dict[str, dict[str, dict[int, int]]]) -> dict[str, list[float]]:
     """Per step, s: render (scene -> its last image), label and detect (image -> its labels, detections; per
     drone) and end to end (scene -> the last detections, where every drone's arrived), from log times by stamp."""
-    drones = sorted(times, key=_drone_order)
+    drones = sorted(times, key=drone_order)
     out: dict[str, list[float]] = {"render": [], "label": [], "detect": [], "end_to_end": []}
     for s, t0 in scenes.items():
         imgs = [times[d]["image_raw"][s] for d in drones if s in times[d]["image_raw"]]
@@ -88,14 +83,13 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
                 scenes[Scene.from_json(cdr_string(m.data)).stamp.ns] = m.publish_time
             elif _ANIMALS_TOPIC.match(m.topic):
                 t, animals = cdr_detections3d(m.data)
-                placed[t] = np.array([c for name, _, c in animals if name == "zebra"], np.float64).reshape(-1, 3)
+                placed[t] = zebra_points(animals)
             elif CENSUS_TOPIC.match(m.topic):
                 t, animals = cdr_detections3d(m.data)
-                census[t] = sum(1 for name, _, _ in animals if name == "zebra")
+                census[t] = len(zebra_points(animals))
             elif owner := topic_owner(m.topic, _LOCATED):
                 t, dets = cdr_detections3d(m.data)
-                located[(last_name(owner[0]), t)] = np.array([c for name, _, c in dets if name == "zebra"],
-                                                             np.float64).reshape(-1, 3)
+                located[(last_name(owner[0]), t)] = zebra_points(dets)
             elif _DRONE.fullmatch(drone):
                 t = header_stamp_ns(m.data)
                 if t >= latest.get(drone, (-1, "", b""))[0]:
@@ -108,7 +102,7 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
     collected = collect(bag, each=visit)  # one pass over the bag for the scores and the timings
     for drone, log_times in collected.arrivals.items():
         times[drone].update(log_times)
-    drones = sorted(times, key=_drone_order)
+    drones = sorted(times, key=drone_order)
     frames = {d: {k: len(times[d][k]) for k in ("image_raw", "labels", "detections")} for d in drones}
     stages = _stage_seconds(scenes, times)
     ends = [t for d in drones for t in times[d]["detections"].values()]
@@ -146,7 +140,7 @@ def write_preview(path: str | Path, c: dict[str, DroneFrames], images: dict[str,
     """One tile per drone, :data:`PREVIEW_COLUMNS` to a row: its last RGB frame with ground-truth boxes (green) and
     detections (red, with score); ``c``: the frames per drone (:func:`~zebra_sim_ros.recording.evaluate.collect`)."""
     tiles = []
-    for drone in sorted(images, key=_drone_order):
+    for drone in sorted(images, key=drone_order):
         t, rgb = images[drone]
         bgr = np.ascontiguousarray(rgb[..., ::-1])
         font = max(0.3, bgr.shape[1] / 1280 * 0.5)

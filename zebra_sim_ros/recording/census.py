@@ -1,21 +1,22 @@
 """The census of a recorded run, counted again (``zebra-sim bag census``): each step's detections placed on the map
-by the locator (``<drone>/detections/located``, recorded by ``up --locate``) joined across the drones with census
-parameters given here (:func:`zebra_sim_ros.geometry.census.join_views`, the locator node's rule), against the
-distinct zebras the drones' labels keep; beside it the census the locator recorded (``census/animals``), where it
-did. A survey flown once can so be counted again with other parameters, and a change to the rule measured on the
-same detections.
+by the locator (``<drone>/detections/located`` and ``<drone>/camera/pose``, recorded by ``up --locate``) joined
+across the cameras with census parameters given here (:func:`zebra_sim_ros.geometry.census.join_views`, the
+locator node's rule, in its ``drones`` order), against the distinct zebras the cameras' labels keep where the bag
+has labels; beside it the census the locator recorded (``census/animals``), where it did. A run recorded once can
+so be counted again with other parameters, and a change to the rule measured on the same detections.
 """
 
 from __future__ import annotations
 
 import re
 from collections import defaultdict
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from zebra_sim_ros.detection.config import LocatorConfig
+from zebra_sim_ros.detection.config import CENSUS_RULE, LocatorConfig
 from zebra_sim_ros.detection.scoring import DroneFrames
 from zebra_sim_ros.errors import ParameterError, ZebraSimError
 from zebra_sim_ros.geometry.census import join_views
@@ -31,12 +32,14 @@ CENSUS_TOPIC = re.compile(rf"^(?:/[^/]+)*/{re.escape(LocatorConfig().census_outp
 
 def census_figures(census: dict[int, int], drones: dict[str, DroneFrames],
                    located: dict[tuple[str, int], np.ndarray]) -> dict[str, Any]:
-    """A census (zebras counted per stamp) against the truth, over the stamps every camera labelled: the zebras it
+    """A census (zebras counted per stamp) against the truth: over the stamps every camera labelled, the zebras it
     counted (``animals``), the distinct zebras the cameras' labels keep (``true``: one seen by three drones is one),
     the zebra detections placed by all cameras (``summed``: the count without joining; ``located``: per camera and
-    stamp, its placed zebra detections), and the relative errors."""
-    stamps = [t for t in sorted(census) if drones and all(t in d.labels for d in drones.values())]
-    true = sum(len({z.id for d in drones.values() for z in d.labels[t].kept}) for t in stamps)
+    stamp, its placed zebra detections) and the relative errors. Where no camera has labels (a real flight), over
+    every stamp of the census, with ``true`` and the errors None."""
+    labelled = bool(drones) and any(d.labels for d in drones.values())
+    stamps = [t for t in sorted(census) if not labelled or all(t in d.labels for d in drones.values())]
+    true = sum(len({z.id for d in drones.values() for z in d.labels[t].kept}) for t in stamps) if labelled else None
     animals = sum(census[t] for t in stamps)
     kept = set(stamps)
     summed = sum(len(p) for (_, t), p in located.items() if t in kept)
@@ -48,24 +51,30 @@ def census_figures(census: dict[int, int], drones: dict[str, DroneFrames],
             "summed_error": error(summed)}
 
 
-def _drone_order(name: str) -> tuple[int, str]:
-    """drone_2 before drone_10 (the graph's order, the locator's ``drones``)."""
+def drone_order(name: str) -> tuple[int, str]:
+    """drone_2 before drone_10 (up's and the launch file's cameras, in the locator's ``drones`` order)."""
     return len(name), name
 
 
-CENSUS_RULE = ("census_along", "census_across", "census_gate", "census_separation")  # the locator's parameters
+def zebra_points(dets: list[tuple[str, float, tuple[float, float, float]]]) -> np.ndarray:
+    """The zebras' points (N, 3) of a Detection3DArray read by :func:`~zebra_sim_ros.recording.cdr.cdr_detections3d`."""
+    return np.array([c for name, _, c in dets if name == "zebra"], np.float64).reshape(-1, 3)
 
 
-def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None = None) -> dict[str, Any]:
+def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None = None,
+               drones: Sequence[str] | None = None) -> dict[str, Any]:
     """The census of the bag ``paths`` counted again by ``rule``'s :data:`CENSUS_RULE` parameters (the locator's;
-    default: its defaults; module docstring): per stamp that every camera with placed detections has placed and
-    posed, its zebras joined across the cameras (in drone order) and scored by :func:`census_figures`;
-    ``recorded``: the locator's recorded census scored the same way (None where the bag has none). ParameterError
-    when the bag holds no placed detections (recorded without ``up --locate``)."""
+    default: its defaults; module docstring), the cameras joined in ``drones``' order (the locator's ``drones``,
+    last names; default: the cameras found, ``drone_2`` before ``drone_10``, as up and the launch file have them):
+    per stamp that every camera has placed and posed, its zebras joined across the cameras and scored by
+    :func:`census_figures`. ``recorded``: the locator's recorded census, scored on the same stamps (None where the
+    bag has none). ParameterError when the bag holds no placed detections (recorded without ``up --locate``) or no
+    camera poses, holds more than one graph's (two namespaces), or ``drones`` are not its cameras."""
     rule = rule or LocatorConfig()
     located: dict[tuple[str, int], list[tuple[str, float, tuple[float, float, float]]]] = {}
     poses: dict[tuple[str, int], tuple[float, float, float]] = {}
     recorded: dict[int, int] = {}
+    graphs: set[str] = set()  # the namespaces the cameras are in
     unusable: list[str] = []
 
     def visit(m: BagMessage) -> None:
@@ -73,27 +82,37 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
             if owner := topic_owner(m.topic, _LOCATED):
                 t, dets = cdr_detections3d(m.data)
                 located[(last_name(owner[0]), t)] = dets
+                graphs.add(owner[0].rsplit("/", 1)[0])
             elif (owner := topic_owner(m.topic, _POSE)) and m.type_name.endswith("/PoseStamped"):
                 t, position = cdr_pose_position(m.data)
                 poses[(last_name(owner[0]), t)] = position
             elif CENSUS_TOPIC.match(m.topic):
                 t, animals = cdr_detections3d(m.data)
-                recorded[t] = sum(1 for name, _, _ in animals if name == "zebra")
+                recorded[t] = len(zebra_points(animals))
         except (*MALFORMED, ZebraSimError) as exc:
             unusable.append(skip_note(m, exc))
 
     collected = collect(paths, each=visit)
+    bag = [str(p) for p in (paths if isinstance(paths, list) else [paths])]
     if not located:
-        raise ParameterError("bag", [str(p) for p in (paths if isinstance(paths, list) else [paths])],
-                             f"a bag with placed detections (<drone>/{_LOCATED[0]}: recorded by up --locate)")
-    cameras = sorted({d for d, _ in located}, key=_drone_order)
+        raise ParameterError("bag", bag, f"a bag with placed detections (<drone>/{_LOCATED[0]}: recorded by up "
+                             "--locate)")
+    if len(graphs) > 1:
+        raise ParameterError("bag", bag, f"one graph's run (its cameras are in {len(graphs)} namespaces: "
+                             f"{', '.join(sorted(g or '/' for g in graphs))})")
+    found = sorted({d for d, _ in located}, key=drone_order)
+    cameras = list(drones) if drones else found
+    if sorted(cameras) != sorted(found):
+        raise ParameterError("drones", cameras, f"the bag's cameras, each once, in any order: {found}")
     by_stamp: dict[int, set[str]] = defaultdict(set)
     for d, t in located:
         if (d, t) in poses:
             by_stamp[t].add(d)
+    if not by_stamp:
+        raise ParameterError("bag", bag, "a bag with the cameras' poses (<drone>/camera/pose, recorded by up "
+                             "--locate) beside their placed detections")
     counts: dict[int, int] = {}
-    zebras = {key: np.array([c for name, _, c in dets if name == "zebra"], np.float64).reshape(-1, 3)
-              for key, dets in located.items()}
+    zebras = {key: zebra_points(dets) for key, dets in located.items()}
     for t, have in sorted(by_stamp.items()):
         if have != set(cameras):
             continue
@@ -101,7 +120,9 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
         census = join_views([zebras[(d, t)] for d in cameras], [np.array(poses[(d, t)]) for d in cameras],
                             rule.census_along, rule.census_across, rule.census_gate, rule.census_separation, scores)
         counts[t] = census.count
-    return {"rule": {k: getattr(rule, k) for k in CENSUS_RULE}, "cameras": cameras, "stamps_placed": len(by_stamp),
-            "stamps_counted": len(counts), "recounted": census_figures(counts, collected.drones, zebras),
-            "recorded": census_figures(recorded, collected.drones, zebras) if recorded else None,
-            "skipped": unusable + collected.skipped, "damaged": collected.damaged}
+    both = {t: recorded[t] for t in counts if t in recorded}
+    return {"rule": {k: getattr(rule, k) for k in CENSUS_RULE}, "cameras": cameras,
+            "stamps_placed": len({t for _, t in located}), "stamps_counted": len(counts),
+            "recounted": census_figures(counts, collected.drones, zebras),
+            "recorded": census_figures(both, collected.drones, zebras) if recorded else None,
+            "recorded_stamps": len(recorded), "skipped": unusable + collected.skipped, "damaged": collected.damaged}
