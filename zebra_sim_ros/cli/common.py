@@ -69,4 +69,5 @@ def census_options(p: argparse.ArgumentParser) -> None:
     for name in CENSUS_RULE:
         add_option(p, spec_of(LocatorConfig, name))
     add_option(p, spec_of(LocatorConfig, "drones"), default=None,
-               note="here: the bag's cameras, joined in this order (not given: drone_0, drone_1 ... as up has them)")
+               note="here: the bag's cameras, joined in this order (not given: the bag's cameras, drone_2 before "
+                    "drone_10, as up orders them)")

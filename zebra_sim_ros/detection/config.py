@@ -181,7 +181,7 @@ class LocatorConfig(StageConfig):
                                        "transient local too, as the placer's is, or no pose arrives; zebra-sim up "
                                        "sets it)")
     qos_reliability: str = reliability_param("QoS reliability of the detections' and poses' subscriptions and the "
-                                             "output")
+                                             "outputs (placed detections, census, markers)")
     image_reliability: str = image_reliability_param()
     qos_depth: int = param(10, "history depth", lo=1, hi=1000)
     diagnostics_period_s: float = diagnostics_param()

@@ -28,9 +28,9 @@ with the image's stamp:
   rays cross, weighed), a box as wide and long as its largest detection's larger side (height 0) and ``id`` the
   detections it joins (``drone_0:3,drone_0:5,drone_2:7``: camera and index in that camera's detections message).
   Each stamp is counted once: when every camera sends a counted stamp's frame again (a placer's resent step, a
-  looping replay), its census is published again and counted in ``census_repeated``, not in ``census``; a stamp
-  that some camera has not completed when ``sync_window`` later stamps have arrived gets no census
-  (``census_incomplete``).
+  looping replay; among the last :data:`COUNTED_KEPT` counted stamps, or ``sync_window`` if more), its census is
+  published again and counted in ``census_repeated``, not in ``census``; a stamp that some camera has not completed
+  when ``sync_window`` later stamps have arrived gets no census (``census_incomplete``).
 - ``<census_output>/markers`` (with ``census``; visualization_msgs/MarkerArray in ``map``): the census for RViz, a
   cylinder per animal coloured by how many cameras saw it (one orange, two yellow, three green) and the count.
 
@@ -124,6 +124,7 @@ def census_msg(type_name: str, header: Header, views: dict[str, tuple[Detections
 
 
 # an animal's marker by how many cameras saw it: one (orange), two (yellow), three or more (green)
+COUNTED_KEPT = 100  # counted stamps remembered (or sync_window, if more): one sent again is not counted again
 _VIEWS_RGBA = ((1.0, 0.55, 0.0, 0.7), (0.95, 0.9, 0.1, 0.7), (0.2, 0.85, 0.3, 0.7))
 MARKER_HEIGHT_M = 1.5  # an animal's cylinder, centred on its placed point (its visible back)
 
@@ -160,13 +161,14 @@ def _class_rows(dets: Detections, where: Located, cls: str) -> np.ndarray:
 
 
 class LocatorNode(ZebraNode[LocatorConfig]):
-    """Synchronises each camera's detections, depth and pose by stamp; thin adapter around ``locate_boxes``."""
+    """Synchronises each camera's detections, depth and pose by stamp; thin adapter around ``locate_boxes`` and
+    ``join_views``."""
 
     def __init__(self) -> None:
         super().__init__("locator", LocatorConfig)
 
     def start(self) -> None:
-        """Subscribe every camera's inputs and publish its placed detections."""
+        """Subscribe every camera's inputs and publish its placed detections, and the census."""
         c = self.cfg
         q = qos(c.qos_reliability, c.qos_depth)
         image_q = qos(c.image_reliability, c.qos_depth)
@@ -183,7 +185,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
             c.sync_window)
         # stamps counted: the cameras whose frames came again since (a resent step, a looping replay)
         self.census_done: RecentStamps[dict[str, tuple[Detections, Located, np.ndarray]]] = RecentStamps(
-            max(c.sync_window, 100))
+            max(c.sync_window, COUNTED_KEPT))
         self.seconds = 0.0
         self.pubs: dict[str, Any] = {}
         det_class = message_class(detection_array_type())
