@@ -41,13 +41,13 @@ from launch import LaunchDescription
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_view, write_rviz
 from zebra_sim_ros.graph.spec import (
-    CENSUS_TOPICS,
     NODE_ENVIRONMENT,
     PACKAGE,
     bag_image_overrides,
     check_bag_images,
     check_drones,
     recorder_excludes,
+    rviz_off,
 )
 
 
@@ -104,7 +104,7 @@ def generate_launch_description():
         if evaluate_condition_expression(context, [LaunchConfiguration("rviz")]):  # true, 1, false, 0, as score
             # the package's view, one detection image per drone, written beside the bag as up writes it
             locate = evaluate_condition_expression(context, [LaunchConfiguration("locate")])
-            view = rviz_view(config, drones, off=() if locate else CENSUS_TOPICS)  # census: only with the locator
+            view = rviz_view(config, drones, off=rviz_off(locate))  # the census: only with the locator
             if view is None:
                 raise ValueError(f"rviz:=true: no {RVIZ_FILE} in {config}")
             path = write_rviz(view, Path(LaunchConfiguration("bag").perform(context)).parent / RVIZ_FILE)

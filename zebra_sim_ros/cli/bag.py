@@ -122,29 +122,19 @@ def cmd_eval(args: argparse.Namespace) -> Summary:
 def cmd_census(args: argparse.Namespace) -> Summary:
     """Count a recorded run's zebras again across the drones."""
     from zebra_sim_ros.detection.config import CENSUS_RULE, LocatorConfig
-    from zebra_sim_ros.recording.census import bag_census
+    from zebra_sim_ros.recording.census import bag_census, census_line
 
     s = bag_census(args.bag, LocatorConfig.from_params({k: getattr(args, k) for k in CENSUS_RULE}), args.drones)
-
-    def line(f: dict[str, Any]) -> str:
-        if f["true"] is None:
-            return f"{f['animals']} zebras in {f['steps']} steps (no labels in the bag to compare with)"
-        if not f["steps"]:
-            return "no step that every camera labelled"
-        if not f["true"]:
-            return f"{f['animals']} zebras in {f['steps']} steps, where the labels keep none"
-        return (f"{f['animals']} zebras for {f['true']} distinct zebras labelled ({f['error']:+.1%}; summed over the "
-                f"drones {f['summed']}, {f['summed_error']:+.1%}) in {f['steps']} steps")
 
     rule = ", ".join(f"{k} {v:g}" for k, v in s["rule"].items())
     print(f"cameras {', '.join(s['cameras'])} (joined in this order): {s['stamps_counted']} of {s['stamps_placed']} "
           f"placed stamps with every camera's frame and pose")
-    print(f"recounted ({rule}): {line(s['recounted'])}")
+    print(f"recounted ({rule}): {census_line(s['recounted'])}")
     if s["recorded"] is None:
         print("recorded: no census/animals in the bag")
     else:
         print(f"recorded (the locator's census/animals, on the same stamps, {s['recorded_stamps']} in the bag): "
-              f"{line(s['recorded'])}")
+              f"{census_line(s['recorded'])}")
     if s["skipped"]:
         print(f"skipped {len(s['skipped'])} unusable message(s), first: {s['skipped'][0]}")
     for note in s["damaged"]:

@@ -82,7 +82,7 @@ class _Stop(Exception):
 def cmd_up(args: argparse.Namespace) -> Summary:
     """Run the graph; returns the summary (``exit_code`` 0, 1 when a node died, 130 when interrupted)."""
     from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_command, rviz_view, write_rviz
-    from zebra_sim_ros.graph.spec import CENSUS_TOPICS, config_dir
+    from zebra_sim_ros.graph.spec import config_dir, rviz_off
     from zebra_sim_ros.zebra.asset import load_library
 
     cfg, specs = _up_config(args)
@@ -94,7 +94,7 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     scoring = ScorerRun.read(conf, scorer) if scorer is not None else None  # a bad scorer.yaml stops here
     try:  # the package's RViz view drawn for this graph's drones and namespace; a view that cannot be is no reason
         # to stop the run; the census display off without the locator
-        view = rviz_view(conf, cfg.drone_names, cfg.namespace, () if cfg.locate else CENSUS_TOPICS)
+        view = rviz_view(conf, cfg.drone_names, cfg.namespace, rviz_off(cfg.locate))
     except ValueError as exc:
         view = None
         print(f"[up] warning: no RViz view for this graph ({exc})", flush=True)
@@ -393,10 +393,10 @@ def _print_summary(r: dict[str, Any], drones: tuple[str, ...]) -> None:
             where = " (no placed zebras in the bag to compare with: zebra_sim/zebras not recorded)"
         print(f"[up] locator: {loc['detections']} zebra detections placed on the map in {loc['frames']} frames"
               f"{where}", flush=True)
-    if (cen := r.get("census")) and cen["error"] is not None:
-        print(f"[up] census: {cen['animals']} zebras counted once across the drones for {cen['true']} distinct "
-              f"zebras labelled ({cen['error']:+.1%}; summed over the drones {cen['summed']}, "
-              f"{cen['summed_error']:+.1%}) in {cen['steps']} steps", flush=True)
+    if cen := r.get("census"):
+        from zebra_sim_ros.recording.census import census_line
+
+        print(f"[up] census: {census_line(cen)}", flush=True)
     ms = r["median_ms"]
     if r.get("steps_per_s"):
         print(f"[up] throughput: {r['steps']} steps in {r['seconds']:.1f} s = {r['steps_per_s']:.2f} steps/s, "

@@ -141,7 +141,7 @@ class Census:
     members: IntArray  # (A, V)
     # per view, each point's representative: the point of the same place that joined (itself, another within
     # ``separation_m``: :func:`one_per_place`; -1: a non-finite point, left out)
-    representative: tuple[IntArray, ...] = ()
+    representative: tuple[IntArray, ...]
 
     @property
     def count(self) -> int:
@@ -155,15 +155,8 @@ class Census:
 
     def points_of(self, animal: int) -> list[tuple[int, int]]:
         """Every point of ``animal``, as (view, index): per view its representative and the points it stands for."""
-        out: list[tuple[int, int]] = []
-        for v, j in enumerate(self.members[animal].tolist()):
-            if j < 0:
-                continue
-            if v < len(self.representative):
-                out += [(v, int(i)) for i in np.flatnonzero(self.representative[v] == j)]
-            else:
-                out.append((v, j))
-        return out
+        return [(v, int(i)) for v, j in enumerate(self.members[animal].tolist()) if j >= 0
+                for i in np.flatnonzero(self.representative[v] == j)]
 
 
 def one_per_place(points: FloatArray, order: IntArray, separation_m: float) -> IntArray:

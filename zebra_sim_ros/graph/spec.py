@@ -26,9 +26,14 @@ DRONES = ("drone_0", "drone_1", "drone_2")  # the default graph's cameras (UpCon
 CAMERA_TOPICS = ("image_raw", "depth", "instances", "camera_info")
 LABELLER_TOPICS = ("labels", "labels/markers", "labels/boxes3d", "labels/boxes2d")
 DETECTOR_TOPICS = ("detections", "detections/image", "detections/markers")
-LOCATOR_TOPICS = (LocatorConfig().output,)  # up --locate: the detections placed on the map
+LOCATOR_TOPICS = (LocatorConfig().output,)  # up --locate: the detections placed on the map, under each camera
 # up --locate: the census, under the graph's namespace (the RViz view's census display is off without the locator)
 CENSUS_TOPICS = (f"/{LocatorConfig().census_output}", f"/{LocatorConfig().census_output}/markers")
+
+
+def rviz_off(locate: bool) -> tuple[str, ...]:
+    """The topics whose RViz displays are switched off for a graph with (``locate``) or without the locator."""
+    return () if locate else CENSUS_TOPICS
 PLACER_TOPICS = ("zebra_sim/scene", "zebra_sim/zebras", "zebra_sim/zebras/markers")  # and each <drone>/camera/pose
 # By convention absolute (tf2 listeners and every node's time source use them); a namespaced graph remaps them.
 GLOBAL_TOPICS = ("/tf", "/tf_static", "/clock")

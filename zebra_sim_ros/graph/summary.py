@@ -19,13 +19,12 @@ from typing import Any
 import cv2
 import numpy as np
 
-from zebra_sim_ros.detection.config import LocatorConfig
 from zebra_sim_ros.detection.scoring import COUNT_CONF, DroneFrames
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.locate import nearest_distances, placing_figures
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections3d, cdr_string, header_stamp_ns
-from zebra_sim_ros.recording.census import CENSUS_TOPIC, census_figures, drone_order, zebra_points
+from zebra_sim_ros.recording.census import CENSUS_TOPIC, LOCATED_TOPICS, census_figures, drone_order, zebra_points
 from zebra_sim_ros.recording.evaluate import collect, score, skip_note
 from zebra_sim_ros.recording.images import message_rgb
 from zebra_sim_ros.recording.reader import CAMERA_IMAGES, BagMessage, last_name, topic_owner
@@ -33,7 +32,6 @@ from zebra_sim_ros.recording.reader import CAMERA_IMAGES, BagMessage, last_name,
 _DRONE = re.compile(r"drone_\d+")  # a camera of the graph (up's drone_0 ... drone_N-1), under any namespace
 _SCENE_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/scene$")
 _ANIMALS_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/zebras$")  # the placed animals (Detection3DArray)
-_LOCATED = (LocatorConfig().output,)  # a camera's detections placed on the map by the locator (up --locate)
 
 
 PREVIEW_COLUMNS = 4  # drones per row of the preview (a row of 16 4K frames is past JPEG's 65535 px)
@@ -71,7 +69,7 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
     latest: dict[str, tuple[int, str, bytes]] = {}  # drone -> (stamp, type, serialized image): decoded at the end
 
     unusable: list[str] = []  # scenes and images that do not parse (collect notes bad labels and detections)
-    placed: dict[int, np.ndarray] = {}  # stamp -> the placed zebras' box centres (zebra_sim/zebras)
+    placed_raw: dict[int, BagMessage] = {}  # stamp -> the placed animals (zebra_sim/zebras), read with --locate only
     located: dict[tuple[str, int], np.ndarray] = {}  # (drone, stamp) -> its detections placed on the map
     census: dict[int, int] = {}  # stamp -> the zebras the locator's census counted in it
 
@@ -82,12 +80,11 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
             if _SCENE_TOPIC.match(m.topic):
                 scenes[Scene.from_json(cdr_string(m.data)).stamp.ns] = m.publish_time
             elif _ANIMALS_TOPIC.match(m.topic):
-                t, animals = cdr_detections3d(m.data)
-                placed[t] = zebra_points(animals)
+                placed_raw[header_stamp_ns(m.data)] = m
             elif CENSUS_TOPIC.match(m.topic):
                 t, animals = cdr_detections3d(m.data)
                 census[t] = len(zebra_points(animals))
-            elif owner := topic_owner(m.topic, _LOCATED):
+            elif owner := topic_owner(m.topic, LOCATED_TOPICS):
                 t, dets = cdr_detections3d(m.data)
                 located[(last_name(owner[0]), t)] = zebra_points(dets)
             elif _DRONE.fullmatch(drone):
@@ -125,6 +122,12 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
         except (*MALFORMED, ValueError):
             pass  # its pixels are cut short, or do not decode: no tile for this drone
     if located:  # up --locate: each zebra detection on the map against the nearest zebra placed in its step
+        placed: dict[int, np.ndarray] = {}  # stamp -> the placed zebras' box centres
+        for t in sorted({t for _, t in located} & set(placed_raw)):
+            try:
+                placed[t] = zebra_points(cdr_detections3d(placed_raw[t].data)[1])
+            except (*MALFORMED, ZebraSimError) as exc:
+                out["skipped"].append(skip_note(placed_raw[t], exc))
         gaps = [nearest_distances(p, placed[t]) for (_, t), p in located.items() if t in placed]
         out["located"] = {"frames": len(located), "detections": sum(len(p) for p in located.values()),
                           "frames_with_placed": len(gaps),

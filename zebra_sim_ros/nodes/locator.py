@@ -42,6 +42,8 @@ from __future__ import annotations
 
 import importlib
 import time
+from collections import Counter
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -98,66 +100,93 @@ def located_msg(type_name: str, header: Header, dets: Detections, where: Located
     return msg.Detection3DArray(header=header, detections=out)
 
 
-def census_msg(type_name: str, header: Header, views: dict[str, tuple[Detections, Located]], names: list[str],
-               classes: list[str], joined: list[Census]) -> Any:
-    """The animals of one stamp as a Detection3DArray of ``type_name`` in ``header``'s frame (``map``): for each
-    class in ``classes`` its :class:`Census` over the cameras ``names`` (``joined``, the same order), whose points
-    are that class's placed detections of each camera in ``views``; per animal one hypothesis (the class, the
-    highest score of its detections) at its position (identity orientation), a box as wide and long as its
-    largest detection's larger side, and ``id`` the detections it joins (``camera:index``)."""
+@dataclass(frozen=True)
+class CountedAnimal:
+    """One animal of a census: its class, position (map), how many cameras saw it, the detections it joins
+    (camera, index in that camera's detections message), their highest score and their largest box side (m)."""
+
+    class_id: str
+    position: tuple[float, float, float]
+    views: int
+    parts: tuple[tuple[str, int], ...]
+    score: float
+    side: float
+
+
+def counted_animals(views: dict[str, tuple[Detections, Located, np.ndarray]], names: list[str], cls: str,
+                    rows: list[np.ndarray], census: Census) -> list[CountedAnimal]:
+    """The animals of ``census``, one class's join over the cameras ``names``: ``rows`` per camera the indices of
+    the class's placed detections in its ``views`` entry (the points ``census`` was joined from)."""
+    out = []
+    for a, (x, y, z) in enumerate(census.positions.tolist()):
+        parts = tuple((names[v], int(rows[v][j])) for v, j in census.points_of(a))
+        out.append(CountedAnimal(cls, (x, y, z), int(census.views_per_animal[a]), parts,
+                                 max(float(views[d][0].detections[i].score) for d, i in parts),
+                                 max(float(views[d][1].size[i].max()) for d, i in parts)))
+    return out
+
+
+def census_msg(type_name: str, header: Header, animals: list[CountedAnimal]) -> Any:
+    """The animals of one stamp as a Detection3DArray of ``type_name`` in ``header``'s frame (``map``): per animal
+    one hypothesis (its class, the highest score of its detections) at its position (identity orientation), a box
+    as wide and long as its largest detection's larger side, and ``id`` the detections it joins (``camera:index``)."""
     msg = importlib.import_module(f"{type_name.split('/')[0]}.msg")
     out = []
-    for cls, census in zip(classes, joined, strict=True):
-        index = [_class_rows(views[d][0], views[d][1], cls) for d in names]
-        for a, position in enumerate(census.positions):
-            parts = [(names[v], int(index[v][j])) for v, j in census.points_of(a)]
-            score = max(views[d][0].detections[i].score for d, i in parts)
-            side = max(float(views[d][1].size[i].max()) for d, i in parts)
-            px, py, pz = (float(v) for v in position)
-            at = Pose(position=Point(x=px, y=py, z=pz), orientation=Quaternion(w=1.0))
-            hyp = msg.ObjectHypothesisWithPose(hypothesis=msg.ObjectHypothesis(class_id=cls, score=float(score)),
-                                               pose=PoseWithCovariance(pose=at))
-            box = msg.BoundingBox3D(center=at, size=Vector3(x=side, y=side, z=0.0))
-            out.append(msg.Detection3D(header=header, results=[hyp], bbox=box,
-                                       id=",".join(f"{d}:{i}" for d, i in parts)))
+    for animal in animals:
+        x, y, z = animal.position
+        at = Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(w=1.0))
+        hyp = msg.ObjectHypothesisWithPose(hypothesis=msg.ObjectHypothesis(class_id=animal.class_id,
+                                                                           score=animal.score),
+                                           pose=PoseWithCovariance(pose=at))
+        box = msg.BoundingBox3D(center=at, size=Vector3(x=animal.side, y=animal.side, z=0.0))
+        out.append(msg.Detection3D(header=header, results=[hyp], bbox=box,
+                                   id=",".join(f"{d}:{i}" for d, i in animal.parts)))
     return msg.Detection3DArray(header=header, detections=out)
 
 
-# an animal's marker by how many cameras saw it: one (orange), two (yellow), three or more (green)
 COUNTED_KEPT = 100  # counted stamps remembered (or sync_window, if more): one sent again is not counted again
+# an animal's marker by how many cameras saw it: one (orange), two (yellow), three or more (green)
 _VIEWS_RGBA = ((1.0, 0.55, 0.0, 0.7), (0.95, 0.9, 0.1, 0.7), (0.2, 0.85, 0.3, 0.7))
 MARKER_HEIGHT_M = 1.5  # an animal's cylinder, centred on its placed point (its visible back)
 
 
-def census_markers(header: Header, classes: list[str], joined: list[Census], sides: list[list[float]]) -> MarkerArray:
+def count_text(animals: list[CountedAnimal]) -> str:
+    """Animals per class: "12 zebra, 2 elephant" (classes in order of first appearance); "" for none."""
+    counts = Counter(a.class_id for a in animals)
+    return ", ".join(f"{n} {cls}" for cls, n in counts.items())
+
+
+def census_markers(header: Header, animals: list[CountedAnimal]) -> MarkerArray:
     """The census for RViz (visualization_msgs/MarkerArray in ``header``'s frame): what the last one showed deleted;
-    per animal a cylinder at its position, as wide as its box (``sides``, per class), coloured by how many cameras
-    saw it (:data:`_VIEWS_RGBA`), ``ns`` its class, ``id`` its index; and a text over the animals: the count per
-    class."""
+    per animal a cylinder at its position, as wide as its box, coloured by how many cameras saw it
+    (:data:`_VIEWS_RGBA`), ``ns`` its class, ``id`` its index in the class; and a text over the animals: the count
+    per class."""
     out = [Marker(header=header, ns="", action=Marker.DELETEALL)]  # every namespace's: the classes' and the count
-    every = []
-    for cls, census, side in zip(classes, joined, sides, strict=True):
-        views = census.views_per_animal
-        for a, (x, y, z) in enumerate(census.positions.tolist()):
-            r, g, b, alpha = _VIEWS_RGBA[min(int(views[a]), len(_VIEWS_RGBA)) - 1]
-            out.append(Marker(header=header, ns=cls, id=a, type=Marker.CYLINDER, action=Marker.ADD,
-                              pose=Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(w=1.0)),
-                              scale=Vector3(x=side[a], y=side[a], z=MARKER_HEIGHT_M),
-                              color=ColorRGBA(r=r, g=g, b=b, a=alpha)))
-        every.append(census.positions)
-    points = np.concatenate(every) if every else np.zeros((0, 3))
+    index: Counter[str] = Counter()
+    for animal in animals:
+        r, g, b, alpha = _VIEWS_RGBA[min(animal.views, len(_VIEWS_RGBA)) - 1]
+        x, y, z = animal.position
+        out.append(Marker(header=header, ns=animal.class_id, id=index[animal.class_id], type=Marker.CYLINDER,
+                          action=Marker.ADD, pose=Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(w=1.0)),
+                          scale=Vector3(x=animal.side, y=animal.side, z=MARKER_HEIGHT_M),
+                          color=ColorRGBA(r=r, g=g, b=b, a=alpha)))
+        index[animal.class_id] += 1
+    points = np.array([a.position for a in animals], np.float64).reshape(-1, 3)
     x, y, z = (points.mean(axis=0) + [0.0, 0.0, 8.0]).tolist() if len(points) else (0.0, 0.0, 8.0)
-    text = ", ".join(f"{j.count} {cls}" for cls, j in zip(classes, joined, strict=True)) or "no animals"
     out.append(Marker(header=header, ns="census", id=0, type=Marker.TEXT_VIEW_FACING, action=Marker.ADD,
                       pose=Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(w=1.0)),
-                      scale=Vector3(z=3.0), color=ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0), text=text))
+                      scale=Vector3(z=3.0), color=ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0),
+                      text=count_text(animals) or "no animals"))
     return MarkerArray(markers=out)
 
 
-def _class_rows(dets: Detections, where: Located, cls: str) -> np.ndarray:
-    """The indices of ``cls``'s placed detections."""
-    return np.array([i for i, (d, ok) in enumerate(zip(dets.detections, where.valid, strict=True))
-                     if ok and d.class_name == cls], np.int64)
+def _class_rows(dets: Detections, where: Located) -> dict[str, np.ndarray]:
+    """Per class (sorted), the indices of its placed detections."""
+    rows: dict[str, list[int]] = {}
+    for i, (d, ok) in enumerate(zip(dets.detections, where.valid, strict=True)):
+        if ok:
+            rows.setdefault(d.class_name, []).append(i)
+    return {cls: np.array(rows[cls], np.int64) for cls in sorted(rows)}
 
 
 class LocatorNode(ZebraNode[LocatorConfig]):
@@ -254,6 +283,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         pose: PoseStamped = got["pose"]
         p, o = pose.pose.position, pose.pose.orientation
         orientation = (o.x, o.y, o.z, o.w)
+        position = np.array([p.x, p.y, p.z])
         try:
             k, width, height = self.info[drone]
             depth = image_array(got["depth"])
@@ -263,7 +293,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
             if got["depth"].encoding in _MILLIMETRES:  # REP 118: 16-bit depth in millimetres, 0 unmeasured
                 depth = depth.astype(np.float32) / 1000.0
             boxes = np.array([x.box_xyxy for x in dets.detections], np.float64).reshape(-1, 4)
-            where = locate_boxes(boxes, depth, k, np.array([p.x, p.y, p.z]), np.array(orientation),
+            where = locate_boxes(boxes, depth, k, position, np.array(orientation),
                                  self.cfg.core, self.cfg.depth_window)
         except (ZebraSimError, ValueError, TypeError, IndexError, ArithmeticError) as exc:
             self.skip_bad(self.stats, f"{drone} stamp {t}", exc)
@@ -271,7 +301,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         self.pubs[drone].publish(located_msg(self.out_type, Header(stamp=stamp(t), frame_id=pose.header.frame_id),
                                              dets, where, orientation))
         if self.census_pub is not None:
-            self._census(t, drone, dets, where, np.array([p.x, p.y, p.z]), pose.header.frame_id)
+            self._census(t, drone, dets, where, position, pose.header.frame_id)
         placed = int(where.valid.sum())
         self.stats["frames"] += 1
         self.stats["placed"] += placed
@@ -299,36 +329,32 @@ class LocatorNode(ZebraNode[LocatorConfig]):
             return
         self.census_pending.pop(t)
         self.census_done.put(t, {})
-        joined = self._publish_census(t, views, frame)
+        animals = self._publish_census(t, views, frame)
         self.stats["census"] += 1
-        self.stats["animals"] += sum(j.count for j in joined.values())
-        self.last_count = ", ".join(f"{j.count} {cls}" for cls, j in joined.items()) or "none"
+        self.stats["animals"] += len(animals)
+        self.last_count = count_text(animals) or "none"
 
     def _publish_census(self, t: int, views: dict[str, tuple[Detections, Located, np.ndarray]],
-                        frame: str) -> dict[str, Census]:
+                        frame: str) -> list[CountedAnimal]:
         """Join every camera's placed frame of stamp ``t`` per class and publish the census and its markers."""
         c = self.cfg
         names = list(c.drones)
-        classes = sorted({x.class_name for d in names for x, ok in zip(views[d][0].detections, views[d][1].valid,
-                                                                      strict=True) if ok})
-        joined = []
-        for cls in classes:
-            rows = [_class_rows(views[d][0], views[d][1], cls) for d in names]
-            joined.append(join_views([views[d][1].points[r] for d, r in zip(names, rows, strict=True)],
-                                     [views[d][2] for d in names], c.census_along, c.census_across, c.census_gate,
-                                     c.census_separation,
-                                     [np.array([views[d][0].detections[i].score for i in r], np.float64)
-                                      for d, r in zip(names, rows, strict=True)]))
+        by_camera = [_class_rows(views[d][0], views[d][1]) for d in names]
+        empty = np.zeros(0, np.int64)
+        animals: list[CountedAnimal] = []
+        for cls in sorted({cls for rows in by_camera for cls in rows}):
+            rows = [r.get(cls, empty) for r in by_camera]
+            census = join_views([views[d][1].points[r] for d, r in zip(names, rows, strict=True)],
+                                [views[d][2] for d in names], c.census_along, c.census_across, c.census_gate,
+                                c.census_separation,
+                                [np.array([views[d][0].detections[i].score for i in r], np.float64)
+                                 for d, r in zip(names, rows, strict=True)])
+            animals += counted_animals(views, names, cls, rows, census)
         header = Header(stamp=stamp(t), frame_id=frame)
         assert self.census_pub is not None and self.marker_pub is not None
-        msg = census_msg(self.out_type, header, {d: views[d][:2] for d in names}, names, classes, joined)
-        self.census_pub.publish(msg)
-        sides, k = [], 0
-        for j in joined:  # the census's detections are its animals, class by class
-            sides.append([float(det.bbox.size.x) for det in msg.detections[k:k + j.count]])
-            k += j.count
-        self.marker_pub.publish(census_markers(header, classes, joined, sides))
-        return dict(zip(classes, joined, strict=True))
+        self.census_pub.publish(census_msg(self.out_type, header, animals))
+        self.marker_pub.publish(census_markers(header, animals))
+        return animals
 
     def activity(self) -> Activity:
         """Frames placed; detections placed and not (no depth in the box); frames whose inputs never all arrived

@@ -24,7 +24,7 @@ from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections3d, cdr_pose_po
 from zebra_sim_ros.recording.evaluate import collect, skip_note
 from zebra_sim_ros.recording.reader import BagMessage, last_name, topic_owner
 
-_LOCATED = (LocatorConfig().output,)  # a camera's detections placed on the map
+LOCATED_TOPICS = (LocatorConfig().output,)  # a camera's detections placed on the map (under each camera)
 _POSE = ("camera/pose",)  # a camera's optical frame in map (the placer's)
 # the locator's own census, under the graph's namespace
 CENSUS_TOPIC = re.compile(rf"^(?:/[^/]+)*/{re.escape(LocatorConfig().census_output)}$")
@@ -49,6 +49,19 @@ def census_figures(census: dict[int, int], drones: dict[str, DroneFrames],
 
     return {"steps": len(stamps), "animals": animals, "true": true, "error": error(animals), "summed": summed,
             "summed_error": error(summed)}
+
+
+def census_line(f: dict[str, Any]) -> str:
+    """One line of :func:`census_figures`: the zebras counted against the distinct labelled ones, or why not."""
+    if f["true"] is None:
+        return f"{f['animals']} zebras in {f['steps']} steps (no labels in the bag to compare with)"
+    if not f["steps"]:
+        return "no step that every camera labelled"
+    if not f["true"]:
+        return f"{f['animals']} zebras in {f['steps']} steps, where the labels keep none"
+    return (f"{f['animals']} zebras counted once across the drones for {f['true']} distinct zebras labelled "
+            f"({f['error']:+.1%}; summed over the drones {f['summed']}, {f['summed_error']:+.1%}) in {f['steps']} "
+            "steps")
 
 
 def drone_order(name: str) -> tuple[int, str]:
@@ -79,7 +92,7 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
 
     def visit(m: BagMessage) -> None:
         try:
-            if owner := topic_owner(m.topic, _LOCATED):
+            if owner := topic_owner(m.topic, LOCATED_TOPICS):
                 t, dets = cdr_detections3d(m.data)
                 located[(last_name(owner[0]), t)] = dets
                 graphs.add(owner[0].rsplit("/", 1)[0])
@@ -95,7 +108,7 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
     collected = collect(paths, each=visit)
     bag = [str(p) for p in (paths if isinstance(paths, list) else [paths])]
     if not located:
-        raise ParameterError("bag", bag, f"a bag with placed detections (<drone>/{_LOCATED[0]}: recorded by up "
+        raise ParameterError("bag", bag, f"a bag with placed detections (<drone>/{LOCATED_TOPICS[0]}: recorded by up "
                              "--locate)")
     if len(graphs) > 1:
         raise ParameterError("bag", bag, f"one graph's run (its cameras are in {len(graphs)} namespaces: "
