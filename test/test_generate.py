@@ -226,7 +226,8 @@ def test_a_worker_killed_or_hung_mid_run_stops_generate_at_once_and_a_rerun_comp
         elif len(hit) == 1:  # the next, from the other worker: it is past its pipeline's building (seconds) too,
             monkeypatch.setattr(generate_module, "_WORKER_STALL_S", 3.0)  # so the silence allowed can be cut
             hit.append((0, 0.0))  # (SMALL gives each worker two jobs: after the first report the other worker
-            # always reports once more, whichever worker sent it)
+            # always reports once more, whichever worker sent it; on its own pipe, so a worker stopped in the
+            # middle of a report cannot hold that back, as a shared queue's write lock could)
 
     with pytest.raises(WorkerError) as err:
         generate(GenerateConfig(out=str(out), workers=2, **SMALL), progress=break_one)

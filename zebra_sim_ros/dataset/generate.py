@@ -31,8 +31,8 @@ import contextlib
 import io
 import json
 import multiprocessing as mp
+import multiprocessing.connection as mp_connection
 import os
-import queue as queue_module
 import shlex
 import signal
 import sys
@@ -299,12 +299,15 @@ class _Pipeline:
         return name
 
 
-def _worker(cfg: GenerateConfig, jobs: list[Job], queue: Any, index: int) -> None:
-    queue.put(("started", index, None))  # before the pipeline is built (a GL context; the asset, if not cached)
+def _worker(cfg: GenerateConfig, jobs: list[Job], conn: Any) -> None:
+    """Render ``jobs``, reporting on ``conn``, this worker's own pipe: a worker stopped in the middle of a report
+    (SIGSTOP, ^Z) holds no lock that the others need to report (a queue shared by all workers has one)."""
+    conn.send(("started", None))  # before the pipeline is built (a GL context; the asset, if not cached)
     pipe = _Pipeline(cfg)
     for job in jobs:
-        queue.put(("frames", index, len(pipe.run(job))))
-    queue.put(("done", index, pipe.times))
+        conn.send(("frames", len(pipe.run(job))))
+    conn.send(("done", pipe.times))
+    conn.close()
 
 
 def _progress(done: int, total: int, t0: float, stream: Any) -> None:
@@ -328,12 +331,15 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int,
     nothing for :data:`_WORKER_STALL_S` (each worker's silence is timed apart, so one that hangs is found while the
     others still report)."""
     ctx = mp.get_context("spawn")  # fresh processes: GL contexts do not survive fork
-    queue = ctx.Queue()
-    chunks = [todo[k::cfg.workers] for k in range(cfg.workers)]
-    procs = [ctx.Process(target=_worker, args=(cfg, ch, queue, k), daemon=True)
-             for k, ch in enumerate(c for c in chunks if c)]
+    chunks = [c for c in (todo[k::cfg.workers] for k in range(cfg.workers)) if c]
+    pipes = [ctx.Pipe(duplex=False) for _ in chunks]  # (read end, write end): one per worker
+    procs = [ctx.Process(target=_worker, args=(cfg, ch, w), daemon=True)
+             for ch, (_, w) in zip(chunks, pipes, strict=True)]
     for p in procs:
         p.start()
+    for _, w in pipes:
+        w.close()  # the worker holds its write end alone, so its pipe reads as ended when it dies
+    reading = {r: k for k, (r, _) in enumerate(pipes)}
     done = 0
     finished: set[int] = set()
     times = {"place": 0.0, "render": 0.0, "label": 0.0, "write": 0.0}
@@ -342,21 +348,23 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int,
     failure = ""
     try:
         while len(finished) < len(procs):
-            try:
-                kind, index, val = queue.get(timeout=_WORKER_POLL_S)
-            except queue_module.Empty:
-                kind, index = "", -1
+            ready = mp_connection.wait(list(reading), timeout=_WORKER_POLL_S)
             now = time.monotonic()
-            if kind == "frames":
-                done += val
-                show(done)
-            elif kind == "done":
-                finished.add(index)
-                for k in times:
-                    times[k] += val[k]
-            if kind:
-                heard[index] = now
-            if kind and now - looked < _WORKER_POLL_S:
+            for r, k in [(r, k) for r, k in reading.items() if r in ready]:
+                try:
+                    kind, val = r.recv()  # a report is one write of under PIPE_BUF bytes: never read in part
+                except EOFError:  # the worker ended: its exit code, looked at below, says how
+                    del reading[r]
+                    continue
+                heard[k] = now
+                if kind == "frames":
+                    done += val
+                    show(done)
+                elif kind == "done":
+                    finished.add(k)
+                    for key in times:
+                        times[key] += val[key]
+            if ready and now - looked < _WORKER_POLL_S:
                 continue
             looked = now
             dead = [(k, p) for k, p in enumerate(procs) if p.exitcode not in (None, 0)]
@@ -381,6 +389,8 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int,
             if p.is_alive():
                 p.kill()
                 p.join(timeout=10)
+        for r, _ in pipes:
+            r.close()
     if not failure:  # every worker said it was done: one that then failed on its way out
         failure = "; ".join(f"worker {k} (pid {p.pid}) ended with exit code {p.exitcode}{_signal_name(p.exitcode)} "
                             f"after its last frame" for k, p in enumerate(procs) if p.exitcode)
