@@ -189,3 +189,21 @@ def test_box_markers_and_step_acknowledgements() -> None:
     assert recent.touch(7, lambda: "w") == ("w", [(5, "z")]) and 7 in recent and recent.pop(7) == "w"
     silent = StepAcks(FakeNode(), "", ["a"], window=5)  # type: ignore[arg-type]
     assert silent.pub is None and silent.part_done(stamp(1), "a") is True
+
+
+def test_frame_parts_hold_a_cameras_messages_of_a_stamp_until_all_have_arrived() -> None:
+    """The labeller's and the locator's input sync: a camera's parts of a stamp are given once, when the last
+    arrives, and no longer held; another camera's parts of that stamp wait on; a stamp pushed out of the window
+    returns each camera whose parts never all arrived."""
+    from zebra_sim_ros.nodes.ros_adapter import FrameParts
+
+    frames = FrameParts(2, ("image", "depth"))
+    assert frames.put(1, "a", "image", "a1") == [] and frames.take(1, "a") is None  # its depth still missing
+    assert frames.put(1, "b", "image", "b1") == [] and frames.put(1, "a", "depth", "a1d") == []
+    assert frames.take(1, "a") == {"image": "a1", "depth": "a1d"} and frames.take(1, "a") is None  # given once
+    assert frames.waiting() == [1]  # b's depth of stamp 1 is still awaited
+    assert frames.put(2, "a", "image", "a2") == [] and frames.put(1, "b", "image", "b1 again") == []
+    assert frames.waiting() == [2, 1]  # stamp 1 arrived last: a replay's older stamps are kept, not forgotten
+    assert sorted(frames.put(3, "c", "depth", "c3")) == [(2, "a")]  # stamp 2 pushed out, a's incomplete
+    assert frames.put(1, "b", "depth", "b1d") == [] and frames.take(1, "b") == {"image": "b1 again", "depth": "b1d"}
+    assert frames.waiting() == [3]  # stamp 1 is let go once no camera waits on it

@@ -33,6 +33,7 @@ from zebra_sim_ros.labels.labeller import Labeller
 from zebra_sim_ros.messages import Labels, Scene
 from zebra_sim_ros.nodes.placer import SCENE_TOPIC
 from zebra_sim_ros.nodes.ros_adapter import (
+    FrameParts,
     RecentStamps,
     StepAcks,
     ZebraNode,
@@ -89,7 +90,7 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         scene_qos = qos("reliable", 1, transient_local=True)
         # the last sync_window stamps to arrive (a restarted placer or a looping replay sends older ones again)
         self.scenes: RecentStamps[Scene] = RecentStamps(c.sync_window)
-        self.pending: RecentStamps[dict[str, dict[str, Any]]] = RecentStamps(c.sync_window)  # stamp: drone: kind
+        self.frames = FrameParts(c.sync_window, ("instances", "depth", "info"))
         self.stats = {"labelled": 0, "unmatched": 0, "bad_messages": 0}
         self.create_subscription(String, SCENE_TOPIC, self._on_scene, scene_qos)
         self.pubs: dict[str, tuple[Any, Any, Any, Any]] = {}
@@ -127,14 +128,7 @@ class LabellerNode(ZebraNode[LabellerConfig]):
 
     def _on_input(self, drone: str, kind: str, msg: Any) -> None:
         t = stamp_ns(msg.header.stamp)
-        by_drone, dropped = self.pending.touch(t, dict)
-        by_drone.setdefault(drone, {})[kind] = msg
-        # Forget what can no longer be matched: stamps pushed out of the window of the latest to arrive.
-        for old, drones in dropped:
-            for d in drones:
-                self.stats["unmatched"] += 1
-                self.get_logger().warning(f"{d}: inputs of stamp {old} never all arrived; dropped "
-                                          f"({self.stats['unmatched']} so far)")
+        self.skip_unmatched(self.stats, self.frames.put(t, drone, kind, msg))
         self._try(drone, t)
 
     def _labeller(self, width: int, height: int, fx: float) -> Labeller:
@@ -149,14 +143,10 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         return self.labellers[key]
 
     def _try(self, drone: str, t: int) -> None:
-        by_drone = self.pending.get(t) or {}
-        got = by_drone.get(drone)
         scene = self.scenes.get(t)
-        if not got or len(got) < 3 or scene is None:
+        got = self.frames.take(t, drone) if scene is not None else None
+        if scene is None or got is None:
             return
-        del by_drone[drone]
-        if not by_drone:
-            self.pending.pop(t)
         t0 = time.perf_counter()
         try:
             info: CameraInfo = got["info"]

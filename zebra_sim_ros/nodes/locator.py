@@ -59,6 +59,7 @@ from zebra_sim_ros.geometry.locate import Located, locate_boxes
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Detections
 from zebra_sim_ros.nodes.ros_adapter import (
+    FrameParts,
     RecentStamps,
     ZebraNode,
     describe_qos,
@@ -204,7 +205,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         pose_q = qos(c.qos_reliability, c.qos_depth, transient_local=c.pose_transient_local)
         self.out_type = detection3d_array_type()
         out_class = message_class(self.out_type)
-        self.pending: RecentStamps[dict[str, dict[str, Any]]] = RecentStamps(c.sync_window)  # stamp: drone: part
+        self.frames = FrameParts(c.sync_window, _PARTS)
         self.info: dict[str, tuple[np.ndarray, int, int]] = {}  # drone: its latest K (3x3), width, height
         self.stats = {"frames": 0, "placed": 0, "unplaced": 0, "unmatched": 0, "bad_messages": 0, "census": 0,
                       "animals": 0, "census_incomplete": 0, "census_repeated": 0}
@@ -241,7 +242,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
             first = drone not in self.info
             self.info[drone] = (k, int(msg.width), int(msg.height))
             if first:  # the frames that waited for it
-                for t in list(self.pending.items):
+                for t in self.frames.waiting():
                     self._try(drone, t)
         return on_info
 
@@ -261,23 +262,13 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         return on_part
 
     def _put(self, drone: str, part: str, t: int, value: Any) -> None:
-        by_drone, dropped = self.pending.touch(t, dict)
-        by_drone.setdefault(drone, {})[part] = value
-        for old, drones in dropped:  # stamps pushed out of the window of the latest to arrive: never complete
-            for d in drones:
-                self.stats["unmatched"] += 1
-                self.get_logger().warning(f"{d}: inputs of stamp {old} never all arrived; dropped "
-                                          f"({self.stats['unmatched']} so far)")
+        self.skip_unmatched(self.stats, self.frames.put(t, drone, part, value))
         self._try(drone, t)
 
     def _try(self, drone: str, t: int) -> None:
-        by_drone = self.pending.get(t) or {}
-        got = by_drone.get(drone, {})
-        if any(p not in got for p in _PARTS) or drone not in self.info:
+        got = self.frames.take(t, drone) if drone in self.info else None
+        if got is None:
             return
-        del by_drone[drone]
-        if not by_drone:
-            self.pending.pop(t)
         t0 = time.perf_counter()
         dets: Detections = got["detections"]
         pose: PoseStamped = got["pose"]

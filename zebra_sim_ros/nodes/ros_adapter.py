@@ -151,6 +151,14 @@ class ZebraNode(Node, Generic[C]):
         counts["bad_messages"] = counts.get("bad_messages", 0) + 1
         self.get_logger().error(f"{what} skipped ({counts['bad_messages']} bad so far): {type(exc).__name__}: {exc}")
 
+    def skip_unmatched(self, counts: dict[str, int], dropped: list[tuple[int, str]]) -> None:
+        """Cameras' inputs of a stamp that never all arrived (:meth:`FrameParts.put`'s pushed out): counted in
+        ``counts["unmatched"]`` and logged."""
+        for old, camera in dropped:
+            counts["unmatched"] = counts.get("unmatched", 0) + 1
+            self.get_logger().warning(f"{camera}: inputs of stamp {old} never all arrived; dropped "
+                                      f"({counts['unmatched']} so far)")
+
     def wall_timer(self, period_s: float, callback: Callable[[], None]) -> Any:
         """A timer on the steady wall clock. rclpy's timers follow the node's clock, which under ``use_sim_time``
         stands still between two ``/clock`` messages: a recorder's topic discovery or a detector's batch window
@@ -267,6 +275,37 @@ class RecentStamps(Generic[V]):
             old = next(iter(self.items))
             out.append((old, self.items.pop(old)))
         return out
+
+
+class FrameParts:
+    """Each camera's messages of one stamp (its ``parts``: an image, its depth, a pose...) gathered until all have
+    arrived, for the ``window`` stamps that arrived last (:class:`RecentStamps`): a camera's parts of a stamp pushed
+    out of the window before they were all there are never complete, and :meth:`put` returns them."""
+
+    def __init__(self, window: int, parts: Iterable[str]) -> None:
+        self.parts = frozenset(parts)
+        self.stamps: RecentStamps[dict[str, dict[str, Any]]] = RecentStamps(window)  # stamp: camera: part: message
+
+    def put(self, t: int, camera: str, part: str, value: Any) -> list[tuple[int, str]]:
+        """Hold ``camera``'s ``part`` of stamp ``t``; returns the (stamp, camera) pairs this pushed out, incomplete."""
+        by_camera, dropped = self.stamps.touch(t, dict)
+        by_camera.setdefault(camera, {})[part] = value
+        return [(old, c) for old, cameras in dropped for c in cameras]
+
+    def take(self, t: int, camera: str) -> dict[str, Any] | None:
+        """``camera``'s parts of stamp ``t`` by name, no longer held, once all have arrived; else None (held)."""
+        by_camera = self.stamps.get(t) or {}
+        got = by_camera.get(camera)
+        if got is None or not self.parts <= got.keys():
+            return None
+        del by_camera[camera]
+        if not by_camera:
+            self.stamps.pop(t)
+        return got
+
+    def waiting(self) -> list[int]:
+        """The stamps some camera's parts are held for, the oldest arrival first."""
+        return list(self.stamps.items)
 
 
 class StepAcks:
