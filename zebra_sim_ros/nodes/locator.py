@@ -40,14 +40,13 @@ compares: where the detector put each animal, and where it stood, and how many t
 
 from __future__ import annotations
 
-import importlib
 import time
 from collections import Counter
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import Point, Pose, PoseStamped, PoseWithCovariance, Quaternion, Vector3
+from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
@@ -63,11 +62,13 @@ from zebra_sim_ros.nodes.ros_adapter import (
     RecentStamps,
     ZebraNode,
     describe_qos,
+    detection3d_array_msg,
     detection3d_array_type,
     detection_array_type,
     help_text,
     image_array,
     message_class,
+    pose_msg,
     qos,
     run_node,
     stamp,
@@ -84,21 +85,13 @@ def located_msg(type_name: str, header: Header, dets: Detections, where: Located
     """The detections placed on the map as a Detection3DArray of ``type_name`` in ``header``'s frame: per placed
     detection one hypothesis (class name, score) at its point, its box in the image plane at its depth (the
     optical frame's ``orientation_xyzw``, size width x height x 0 m), ``id`` its index in ``dets``."""
-    msg = importlib.import_module(f"{type_name.split('/')[0]}.msg")
-    qx, qy, qz, qw = (float(v) for v in orientation_xyzw)
-    out = []
+    rows = []
     for i, (det, point, size, ok) in enumerate(zip(dets.detections, where.points, where.size, where.valid,
                                                    strict=True)):
-        if not ok:
-            continue
-        px, py, pz = (float(v) for v in point)
-        at = Pose(position=Point(x=px, y=py, z=pz), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))
-        hyp = msg.ObjectHypothesisWithPose(hypothesis=msg.ObjectHypothesis(class_id=det.class_name,
-                                                                           score=float(det.score)),
-                                           pose=PoseWithCovariance(pose=at))
-        box = msg.BoundingBox3D(center=at, size=Vector3(x=float(size[0]), y=float(size[1]), z=0.0))
-        out.append(msg.Detection3D(header=header, results=[hyp], bbox=box, id=str(i)))
-    return msg.Detection3DArray(header=header, detections=out)
+        if ok:
+            at = pose_msg(point, orientation_xyzw)
+            rows.append((det.class_name, det.score, at, at, (size[0], size[1], 0.0), str(i)))
+    return detection3d_array_msg(type_name, header, rows)
 
 
 @dataclass(frozen=True)
@@ -131,18 +124,12 @@ def census_msg(type_name: str, header: Header, animals: list[CountedAnimal]) -> 
     """The animals of one stamp as a Detection3DArray of ``type_name`` in ``header``'s frame (``map``): per animal
     one hypothesis (its class, the highest score of its detections) at its position (identity orientation), a box
     as wide and long as its largest detection's larger side, and ``id`` the detections it joins (``camera:index``)."""
-    msg = importlib.import_module(f"{type_name.split('/')[0]}.msg")
-    out = []
+    rows = []
     for animal in animals:
-        x, y, z = animal.position
-        at = Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(w=1.0))
-        hyp = msg.ObjectHypothesisWithPose(hypothesis=msg.ObjectHypothesis(class_id=animal.class_id,
-                                                                           score=animal.score),
-                                           pose=PoseWithCovariance(pose=at))
-        box = msg.BoundingBox3D(center=at, size=Vector3(x=animal.side, y=animal.side, z=0.0))
-        out.append(msg.Detection3D(header=header, results=[hyp], bbox=box,
-                                   id=",".join(f"{d}:{i}" for d, i in animal.parts)))
-    return msg.Detection3DArray(header=header, detections=out)
+        at = pose_msg(animal.position)
+        rows.append((animal.class_id, animal.score, at, at, (animal.side, animal.side, 0.0),
+                     ",".join(f"{d}:{i}" for d, i in animal.parts)))
+    return detection3d_array_msg(type_name, header, rows)
 
 
 COUNTED_KEPT = 100  # counted stamps remembered (or sync_window, if more): one sent again is not counted again

@@ -448,25 +448,36 @@ def detection3d_array_type() -> str:
     return _first_importable(DETECTION3D_TYPES)
 
 
+def pose_msg(position: Sequence[float], orientation_xyzw: Sequence[float] = (0.0, 0.0, 0.0, 1.0)) -> Pose:
+    """A Pose from a position (x, y, z) and a quaternion (x, y, z, w; identity by default)."""
+    (px, py, pz), (qx, qy, qz, qw) = (float(v) for v in position), (float(v) for v in orientation_xyzw)
+    return Pose(position=Point(x=px, y=py, z=pz), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))
+
+
+def detection3d_array_msg(type_name: str, header: Header,
+                          detections: Iterable[tuple[str, float, Pose, Pose, Sequence[float], str]]) -> Any:
+    """A Detection3DArray of ``type_name`` (vision_msgs' or zebra_sim_msgs' layout) in ``header``'s frame, one
+    Detection3D per (class id, score, the hypothesis' pose, the box's centre pose, the box's size x, y, z in m,
+    id); the header on the array and on each detection. The locator's placed detections and census and the
+    placer's scene animals are all built here."""
+    msg = importlib.import_module(f"{type_name.split('/')[0]}.msg")
+    out = []
+    for class_id, score, pose, center, (sx, sy, sz), ident in detections:
+        hyp = msg.ObjectHypothesisWithPose(hypothesis=msg.ObjectHypothesis(class_id=class_id, score=float(score)),
+                                           pose=PoseWithCovariance(pose=pose))
+        box = msg.BoundingBox3D(center=center, size=Vector3(x=float(sx), y=float(sy), z=float(sz)))
+        out.append(msg.Detection3D(header=header, results=[hyp], bbox=box, id=ident))
+    return msg.Detection3DArray(header=header, detections=out)
+
+
 def scene_animals_msg(type_name: str, header: Header, animals: Sequence[SceneZebra]) -> Any:
     """A scene's placed ``animals`` as a Detection3DArray of ``type_name`` in ``header``'s frame (the scene's
     ``map``): per animal one hypothesis, its species (``zebra``, ``elephant`` ...) with score 1 and the animal's own
     pose (its origin on the ground, its orientation), its oriented box (centre pose and size: length, width, height in
     m) and ``id`` the scene's id (the instance masks' id - 1); the header on the array and on each detection."""
-    pkg = type_name.split("/")[0]
-    msg = importlib.import_module(f"{pkg}.msg")
-    out = []
-    for z in animals:
-        c, size, (bx, by, bz, bw) = z.box.center, z.box.size, z.box.orientation_xyzw
-        (px, py, pz), (qx, qy, qz, qw) = z.position, z.orientation_xyzw
-        pose = PoseWithCovariance(pose=Pose(position=Point(x=px, y=py, z=pz),
-                                            orientation=Quaternion(x=qx, y=qy, z=qz, w=qw)))
-        hyp = msg.ObjectHypothesisWithPose(hypothesis=msg.ObjectHypothesis(class_id=z.species, score=1.0), pose=pose)
-        box = msg.BoundingBox3D(center=Pose(position=Point(x=c[0], y=c[1], z=c[2]),
-                                            orientation=Quaternion(x=bx, y=by, z=bz, w=bw)),
-                                size=Vector3(x=size[0], y=size[1], z=size[2]))
-        out.append(msg.Detection3D(header=header, results=[hyp], bbox=box, id=str(z.id)))
-    return msg.Detection3DArray(header=header, detections=out)
+    return detection3d_array_msg(type_name, header, (
+        (z.species, 1.0, pose_msg(z.position, z.orientation_xyzw), pose_msg(z.box.center, z.box.orientation_xyzw),
+         z.box.size, str(z.id)) for z in animals))
 
 
 _ENCODING = {"mono16": "<u2", "16UC1": "<u2", "32SC1": "<i4", "32FC1": "<f4"}
