@@ -13,7 +13,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from zebra_sim_ros.detection.config import DETECTOR_PARAMS, LOCATOR_PARAMS, SCORER_PARAMS, LocatorConfig
+from zebra_sim_ros.detection.config import (
+    DETECTOR_PARAMS,
+    LOCATED_TOPICS,
+    LOCATOR_PARAMS,
+    SCORER_PARAMS,
+    LocatorConfig,
+)
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LABELLER_PARAMS
 from zebra_sim_ros.params import ParamSpec, load_params_file, replace_tables, validate, write_config
@@ -26,7 +32,6 @@ DRONES = ("drone_0", "drone_1", "drone_2")  # the default graph's cameras (UpCon
 CAMERA_TOPICS = ("image_raw", "depth", "instances", "camera_info")
 LABELLER_TOPICS = ("labels", "labels/markers", "labels/boxes3d", "labels/boxes2d")
 DETECTOR_TOPICS = ("detections", "detections/image", "detections/markers")
-LOCATOR_TOPICS = (LocatorConfig().output,)  # up --locate: the detections placed on the map, under each camera
 # up --locate: the census, under the graph's namespace (the RViz view's census display is off without the locator)
 CENSUS_TOPICS = (f"/{LocatorConfig().census_output}", f"/{LocatorConfig().census_output}/markers")
 
@@ -275,7 +280,7 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
         nodes.append(NodeSpec("locator", "locator", ns, "locator.yaml",
                               {"drones": list(drones), "image_reliability": "reliable", "pose_transient_local": True,
                                **sim},
-                              tuple(f"{ns}/{d}/{t}" for d in drones for t in LOCATOR_TOPICS)
+                              tuple(f"{ns}/{d}/{t}" for d in drones for t in LOCATED_TOPICS)
                               + tuple(f"{ns}{t}" for t in CENSUS_TOPICS), remaps,
                               tuple(f"{ns}/{d}/{t}" for d in drones
                                     for t in ("detections", "depth", "camera_info", "camera/pose"))))

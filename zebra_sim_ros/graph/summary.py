@@ -19,12 +19,13 @@ from typing import Any
 import cv2
 import numpy as np
 
+from zebra_sim_ros.detection.config import LOCATED_TOPICS
 from zebra_sim_ros.detection.scoring import COUNT_CONF, DroneFrames
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.locate import nearest_distances, placing_figures
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections3d, cdr_string, header_stamp_ns
-from zebra_sim_ros.recording.census import CENSUS_TOPIC, LOCATED_TOPICS, census_figures, drone_order, zebra_points
+from zebra_sim_ros.recording.census import CENSUS_TOPIC, census_figures, drone_order, zebra_points
 from zebra_sim_ros.recording.evaluate import collect, score, skip_note
 from zebra_sim_ros.recording.images import message_rgb
 from zebra_sim_ros.recording.reader import CAMERA_IMAGES, BagMessage, last_name, topic_owner

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from zebra_sim_ros.detection.config import CENSUS_RULE, LocatorConfig
+from zebra_sim_ros.detection.config import CENSUS_RULE, LOCATED_TOPICS, LocatorConfig
 from zebra_sim_ros.detection.scoring import DroneFrames
 from zebra_sim_ros.errors import ParameterError, ZebraSimError
 from zebra_sim_ros.geometry.census import join_views
@@ -24,7 +24,6 @@ from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections3d, cdr_pose_po
 from zebra_sim_ros.recording.evaluate import collect, skip_note
 from zebra_sim_ros.recording.reader import BagMessage, last_name, topic_owner
 
-LOCATED_TOPICS = (LocatorConfig().output,)  # a camera's detections placed on the map (under each camera)
 _POSE = ("camera/pose",)  # a camera's optical frame in map (the placer's)
 # the locator's own census, under the graph's namespace
 CENSUS_TOPIC = re.compile(rf"^(?:/[^/]+)*/{re.escape(LocatorConfig().census_output)}$")
