@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.rotations import quat_to_matrix
@@ -84,16 +84,23 @@ def box_depths(depth: NDArray[np.floating], boxes: FloatArray, core: float = COR
     return out
 
 
+def intrinsics(k: ArrayLike) -> FloatArray:
+    """``k`` (CameraInfo ``k``: 9 values, row-major) as a 3x3 intrinsic matrix; ValueError naming its values unless
+    they are finite with positive focal lengths (a calibrated camera)."""
+    k = np.asarray(k, dtype=np.float64).reshape(3, 3)
+    if not (k[0, 0] > 0 and k[1, 1] > 0 and np.all(np.isfinite(k))):
+        raise ValueError(f"K = {k.ravel().tolist()}: want a calibrated camera (finite, positive focal lengths)")
+    return k
+
+
 def locate_boxes(boxes: FloatArray, depth: NDArray[np.floating], k: FloatArray, position: FloatArray,
                  orientation_xyzw: FloatArray, core: float = CORE, window_m: float = DEPTH_WINDOW_M) -> Located:
     """Each box's point in ``map``: the ray through its centre, at its depth (:func:`box_depths`), from a camera
     whose optical frame (z forward, x right, y down) is at ``position`` with ``orientation_xyzw`` in ``map`` (the
     placer's ``<drone>/camera/pose``), ``k`` its 3x3 intrinsic matrix (CameraInfo ``k``; skew and lens distortion
-    are not modelled: the placer's cameras are ideal pinholes). ValueError for a K without positive focal lengths,
+    are not modelled: the placer's cameras are ideal pinholes). ValueError for a K that :func:`intrinsics` refuses,
     a pose that is not finite or a zero quaternion (others are normalised)."""
-    k = np.asarray(k, dtype=np.float64).reshape(3, 3)
-    if not (k[0, 0] > 0 and k[1, 1] > 0):
-        raise ValueError(f"an intrinsic matrix with positive focal lengths, not fx={k[0, 0]}, fy={k[1, 1]}")
+    k = intrinsics(k)
     position = np.asarray(position, dtype=np.float64).reshape(3)
     quat = np.asarray(orientation_xyzw, dtype=np.float64).reshape(4)
     if not (np.all(np.isfinite(position)) and np.all(np.isfinite(quat)) and np.linalg.norm(quat) > 1e-6):

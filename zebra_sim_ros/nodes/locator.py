@@ -54,7 +54,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from zebra_sim_ros.detection.config import LOCATOR_PARAMS, LocatorConfig
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.census import Census, join_views
-from zebra_sim_ros.geometry.locate import Located, locate_boxes
+from zebra_sim_ros.geometry.locate import Located, intrinsics, locate_boxes
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Detections
 from zebra_sim_ros.nodes.ros_adapter import (
@@ -221,10 +221,10 @@ class LocatorNode(ZebraNode[LocatorConfig]):
 
     def _on_info(self, drone: str) -> Any:
         def on_info(msg: CameraInfo) -> None:
-            k = np.asarray(msg.k, dtype=np.float64).reshape(3, 3)
-            if not (k[0, 0] > 0 and k[1, 1] > 0 and np.all(np.isfinite(k))):
-                why = ValueError(f"K = {k.ravel().tolist()}: not a calibrated camera")
-                self.skip_bad(self.stats, f"{drone}/camera_info", why)
+            try:
+                k = intrinsics(msg.k)
+            except ValueError as exc:
+                self.skip_bad(self.stats, f"{drone}/camera_info", exc)
                 return
             first = drone not in self.info
             self.info[drone] = (k, int(msg.width), int(msg.height))
