@@ -12,6 +12,7 @@ import pytest
 
 from zebra_sim_ros.dataset.generate import GenerateConfig, generate
 from zebra_sim_ros.messages import (
+    Datum,
     Detection,
     Detections,
     FrameAnnotation,
@@ -56,6 +57,9 @@ def test_scene_round_trips_and_refuses_other_schemas(savanna: World, library: Ze
     assert back == scene and back.to_json() == text  # same object, same bytes
     assert scene.placed == len(json.loads(text)["zebras"]) > 0 and not scene.ground.is_identity
     assert scene.camera("drone_1").frame_id == "drone_1/camera_optical"
+    assert scene.datum == Datum(-2.3, 34.8, 1550.0) == back.datum  # the placer's defaults: map in the Serengeti
+    old = {k: v for k, v in json.loads(text).items() if k != "datum"}  # a scene from before scenes carried it
+    assert Scene.from_json(json.dumps(old)).datum is None and "datum" not in Scene.from_json(json.dumps(old)).to_dict()
     with pytest.raises(MessageFormatError, match="no camera 'drone_9'"):
         scene.camera("drone_9")
     d = json.loads(text)
@@ -64,7 +68,9 @@ def test_scene_round_trips_and_refuses_other_schemas(savanna: World, library: Ze
                           ({**d, "zebras": [{"id": 1}]}, "malformed"),
                           ({**d, "world": "savanna"}, "malformed: AttributeError"),  # not an object
                           ({**d, "rectangle": [0, 0]}, "malformed: AttributeError"),
-                          ({**d, "step": float("inf")}, "malformed: OverflowError")):  # JSON's Infinity
+                          ({**d, "step": float("inf")}, "malformed: OverflowError"),  # JSON's Infinity
+                          ({**d, "datum": {**d["datum"], "latitude_deg": 91}}, "datum latitude 91.0 deg"),
+                          ({**d, "datum": {"latitude_deg": 1.0}}, "malformed: KeyError 'longitude_deg'")):
         with pytest.raises(MessageFormatError, match=named):
             Scene.from_json(json.dumps(broken))
     with pytest.raises(MessageFormatError, match="not JSON"):

@@ -365,6 +365,34 @@ class SceneCamera:
 
 
 @dataclass(frozen=True)
+class Datum:
+    """Where ``map``'s origin is on the Earth: WGS84 latitude and longitude (deg) and height above the ellipsoid
+    (m); ``map`` is the local tangent plane there (x east, y north, z up; :mod:`zebra_sim_ros.geometry.geodesy`)."""
+
+    latitude_deg: float
+    longitude_deg: float
+    altitude_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not -90.0 <= self.latitude_deg <= 90.0:
+            raise ValueError(f"datum latitude {self.latitude_deg!r} deg: want -90..90")
+        if not -180.0 <= self.longitude_deg <= 180.0:
+            raise ValueError(f"datum longitude {self.longitude_deg!r} deg: want -180..180")
+        if not math.isfinite(self.altitude_m):
+            raise ValueError(f"datum altitude {self.altitude_m!r} m: want a finite height")
+
+    def to_dict(self) -> dict[str, float]:
+        return {"latitude_deg": self.latitude_deg, "longitude_deg": self.longitude_deg, "altitude_m": self.altitude_m}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any] | None) -> Datum | None:
+        """None for a scene written before scenes carried their datum."""
+        if d is None:
+            return None
+        return cls(float(d["latitude_deg"]), float(d["longitude_deg"]), float(d.get("altitude_m", 0.0)))
+
+
+@dataclass(frozen=True)
 class WorldRef:
     """Which world a scene is in: enough for ``load_world`` to rebuild it."""
 
@@ -410,6 +438,7 @@ class Scene(_Message):
     cameras: tuple[SceneCamera, ...]
     ground: GroundLook = field(default_factory=GroundLook)
     weather: Weather = field(default_factory=Weather)
+    datum: Datum | None = None  # where map is on the Earth (None: a scene from before scenes carried it)
 
     @property
     def placed(self) -> int:
@@ -439,6 +468,7 @@ class Scene(_Message):
             "cameras": [c.to_dict() for c in self.cameras],
             **({} if self.ground.is_identity else {"ground": self.ground.to_dict()}),
             **({} if self.weather.is_clear else {"weather": self.weather.to_dict()}),
+            **({} if self.datum is None else {"datum": self.datum.to_dict()}),
         }
 
     @classmethod
@@ -451,7 +481,8 @@ class Scene(_Message):
             Lighting.from_dict(d["lighting"]), _v2(d.get("rectangle", {}).get("center", (0, 0))),
             _v2(d.get("rectangle", {}).get("size", (0, 0))), int(d.get("requested", len(d["zebras"]))),
             tuple(SceneZebra.from_dict(z) for z in d["zebras"]), tuple(SceneCamera.from_dict(c) for c in d["cameras"]),
-            GroundLook.from_dict(d.get("ground")), Weather.from_dict(d.get("weather"))), d)
+            GroundLook.from_dict(d.get("ground")), Weather.from_dict(d.get("weather")),
+            Datum.from_dict(d.get("datum"))), d)
 
 
 # -- labels ------------------------------------------------------------------------------------------------------

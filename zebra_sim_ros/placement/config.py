@@ -136,7 +136,13 @@ class PlacerConfig(StageConfig):
     look_randomise: float = param(0.0, "share of steps with a randomised look: sky and light tints, recoloured "
                                   "plants, the sun turned to another azimuth (structured domain randomisation for "
                                   "training sets; 0 = as authored)", lo=0.0, hi=1.0)
-    latitude_deg: float = param(-2.3, "latitude for the sun's path (Serengeti: -2.3)", "deg", lo=-90.0, hi=90.0)
+    latitude_deg: float = param(-2.3, "latitude of map's origin (WGS84): the sun's path, and where the scene's datum "
+                                "puts the map on the Earth (Serengeti: -2.3)", "deg", lo=-90.0, hi=90.0)
+    longitude_deg: float = param(34.8, "longitude of map's origin (WGS84), east positive: the scene's datum, with "
+                                 "latitude_deg and altitude_m (Serengeti: 34.8; the sun follows local solar time)",
+                                 "deg", lo=-180.0, hi=180.0)
+    altitude_m: float = param(1550.0, "height of map's origin above the WGS84 ellipsoid: the scene's datum "
+                              "(the Serengeti plains: about 1550)", "m", lo=-500.0, hi=9000.0)
     mode: str = param("rate", "rate: publish at rate_hz; lockstep: next step when every acker acknowledged; "
                       "service: one step per call of the ~/step service (std_srvs/Trigger)",
                       choices=("rate", "lockstep", "service"))

@@ -13,7 +13,7 @@ import numpy as np
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import PinholeCamera
-from zebra_sim_ros.messages import Scene, WorldRef
+from zebra_sim_ros.messages import Datum, Scene, WorldRef
 from zebra_sim_ros.placement.cameras import STRATEGIES, CameraRanges, Surroundings, sample_cameras
 from zebra_sim_ros.placement.config import PlacerConfig
 from zebra_sim_ros.placement.ground import sample_ground_look
@@ -129,4 +129,4 @@ class Placer:
                               self.species)
         return build_scene(step, placement, reroll, c.seed, stamp_ns, self._world_info, str(lib.manifest["digest"]),
                            zebras, herd, rotate_sun(lighting_for(tod, doy, c.latitude_deg), sun_turn), cams, ground,
-                           weather)
+                           weather, Datum(c.latitude_deg, c.longitude_deg, c.altitude_m))

@@ -23,8 +23,10 @@ Schema ``zebra_sim_ros/scene`` version 1 (all lengths metres, angles degrees, fr
       "cameras": [{"name": "drone_0", "strategy": "far" | "closeby", "frame_id": "drone_0/camera_optical",
                    "position": [3], "orientation_xyzw": [4] (optical frame: z forward, x right, y down),
                    "yaw_deg", "pitch_deg" (optical-axis elevation, negative looks down), "roll_deg"}],
-      "ground": {"tint": [3], "desaturation": float}   # optional, absent = the terrain as authored: linear
+      "ground": {"tint": [3], "desaturation": float},  # optional, absent = the terrain as authored: linear
                                                     # albedo' = min(mix(albedo, luma, desaturation) * tint, 0.95)
+      "datum": {"latitude_deg", "longitude_deg", "altitude_m"}  # map's origin on the Earth (WGS84; map is the
+                                                    # local tangent plane there); absent in scenes written before it
     }
 """
 
@@ -38,6 +40,7 @@ import numpy as np
 from zebra_sim_ros.geometry.frames import optical_frame
 from zebra_sim_ros.geometry.rotations import matrix_to_quat
 from zebra_sim_ros.messages import (
+    Datum,
     GroundLook,
     Lighting,
     OrientedBox,
@@ -84,9 +87,9 @@ def _vec3(v: Any) -> tuple[float, float, float]:
 
 def build_scene(step: int, placement: int, reroll: int, seed: int, stamp_ns: int, world: WorldRef,
                 asset_digest: str, zebras: tuple[SceneZebra, ...], herd: Herd, lighting: Lighting,
-                cameras: Sequence[CameraPose], ground: GroundLook, weather: Weather) -> Scene:
+                cameras: Sequence[CameraPose], ground: GroundLook, weather: Weather, datum: Datum) -> Scene:
     """The typed scene of one step (the placement rectangle and the count asked for come from ``herd``)."""
     return Scene(Stamp.from_ns(stamp_ns), step, placement, reroll, seed, asset_digest, world, lighting,
                  (float(herd.rect_center[0]), float(herd.rect_center[1])),
                  (float(herd.rect_size[0]), float(herd.rect_size[1])), int(herd.requested), zebras,
-                 tuple(scene_camera(c) for c in cameras), ground, weather)
+                 tuple(scene_camera(c) for c in cameras), ground, weather, datum)

@@ -1,0 +1,74 @@
+"""The map on the Earth: WGS84 conversions checked against the ellipsoid's own figures (its radii, its meridian's
+curvature) and against each other, everywhere on the Earth; the placer's datum parameters refused by name."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.geometry.geodesy import (
+    WGS84_A,
+    WGS84_B,
+    WGS84_E2,
+    ecef_to_geodetic,
+    enu_to_geodetic,
+    geodetic_to_ecef,
+    geodetic_to_enu,
+)
+from zebra_sim_ros.messages import Datum
+from zebra_sim_ros.placement.config import PlacerConfig
+
+
+def test_known_points_of_the_ellipsoid() -> None:
+    got = geodetic_to_ecef([[0.0, 0.0, 0.0], [90.0, 0.0, 0.0], [0.0, 90.0, 100.0], [-90.0, 0.0, -20.0]])
+    want = [[WGS84_A, 0, 0], [0, 0, WGS84_B], [0, WGS84_A + 100.0, 0], [0, 0, -WGS84_B + 20.0]]
+    assert got == pytest.approx(np.array(want), abs=1e-6)
+    assert ecef_to_geodetic(want)[:, [0, 2]] == pytest.approx(np.array([[0, 0], [90, 0], [0, 100], [-90, -20]]),
+                                                              abs=1e-9)
+
+
+def test_geodetic_round_trips_everywhere_to_well_under_a_millimetre() -> None:
+    rng = np.random.default_rng(5)
+    lla = np.stack([rng.uniform(-89.9, 89.9, 2000), rng.uniform(-180, 180, 2000), rng.uniform(-500, 12000, 2000)],
+                   axis=-1)
+    back = ecef_to_geodetic(geodetic_to_ecef(lla))
+    assert back[:, :2] == pytest.approx(lla[:, :2], abs=1e-9)  # 1e-9 deg: 0.1 mm on the ground
+    assert back[:, 2] == pytest.approx(lla[:, 2], abs=1e-5)
+    assert np.abs(geodetic_to_ecef(back) - geodetic_to_ecef(lla)).max() < 1e-5
+
+
+@pytest.mark.parametrize("lat", [0.0, -2.3, 45.0, 70.0])
+def test_a_kilometre_north_east_and_up_of_the_datum(lat: float) -> None:
+    """A metre north is 1/(M + h) rad of latitude, a metre east 1/((N + h) cos lat) rad of longitude (M, N: the
+    ellipsoid's radii of curvature at the datum, h its height); up changes the height alone; the tangent plane
+    rises above the ellipsoid by d^2 / 2R at d."""
+    datum = Datum(lat, 34.8, 1550.0)
+    phi = np.radians(lat)
+    w = 1.0 - WGS84_E2 * np.sin(phi) ** 2
+    m, n = WGS84_A * (1 - WGS84_E2) / w ** 1.5 + 1550.0, WGS84_A / np.sqrt(w) + 1550.0
+    got = enu_to_geodetic([[0, 0, 0], [0, 1000.0, 0], [1000.0, 0, 0], [0, 0, 100.0]], datum)
+    assert got[0] == pytest.approx([lat, 34.8, 1550.0], abs=1e-9)
+    assert got[1, 0] - lat == pytest.approx(np.degrees(1000.0 / m), rel=1e-5) and got[1, 1] == pytest.approx(34.8)
+    assert got[2, 1] - 34.8 == pytest.approx(np.degrees(1000.0 / (n * np.cos(phi))), rel=1e-5)
+    assert got[1, 2] - 1550.0 == pytest.approx(1000.0 ** 2 / (2 * m), rel=0.01)  # 7.9 cm at the equator
+    assert got[2, 2] - 1550.0 == pytest.approx(1000.0 ** 2 / (2 * n), rel=0.01)
+    assert got[3] == pytest.approx([lat, 34.8, 1650.0], abs=1e-8)
+
+
+def test_map_points_round_trip_through_latitude_and_longitude() -> None:
+    rng = np.random.default_rng(7)
+    points = np.concatenate([rng.uniform(-200, 200, (500, 3)), rng.uniform(-1e5, 1e5, (500, 3))])
+    for datum in (Datum(-2.3, 34.8, 1550.0), Datum(78.2, 15.6, 0.0), Datum(-33.9, -179.9, 20.0)):
+        back = geodetic_to_enu(enu_to_geodetic(points, datum), datum)
+        assert np.abs(back - points).max() < 1e-4  # 0.1 mm, 100 km out
+
+
+def test_datums_and_the_placers_datum_parameters_are_refused_by_name() -> None:
+    for bad, named in (((91.0, 0.0), "latitude 91.0"), ((0.0, -181.0), "longitude -181.0"),
+                       ((0.0, 0.0, float("nan")), "altitude nan")):
+        with pytest.raises(ValueError, match=named):
+            Datum(*bad)
+    for name, value in (("longitude_deg", 200.0), ("altitude_m", -1000.0), ("latitude_deg", -95.0)):
+        with pytest.raises(ParameterError, match=name):
+            PlacerConfig.from_params({name: value})
