@@ -326,8 +326,8 @@ def test_placed_detections_are_read_back_from_the_bag_and_scored_against_the_nea
     data = serialize_message(msg.Detection3DArray(header=Header(stamp=stamp(7 * 10**9 + 5), frame_id="map"),
                                                   detections=dets))
     t, got = cdr_detections3d(data)
-    assert t == 7 * 10**9 + 5 and [(c, round(s, 6), p) for c, s, p in got] == [
-        ("zebra", 0.9, (1.0, 2.0, 1.0)), ("elephant", 1.0, (-5.0, 0.5, 1.0))]
+    assert t == 7 * 10**9 + 5 and [(c, round(s, 6), p, i) for c, s, p, i in got] == [
+        ("zebra", 0.9, (1.0, 2.0, 1.0), "0"), ("elephant", 1.0, (-5.0, 0.5, 1.0), "1")]
     d = nearest_distances(np.array([[0.0, 0, 0], [3, 4, 0]]), np.array([[0.0, 0, 0.5], [3, 4.5, 0]]))
     assert d == pytest.approx([0.5, 0.5])
     assert np.isinf(nearest_distances(np.zeros((2, 3)), np.zeros((0, 3)))).all()

@@ -354,10 +354,10 @@ def test_pose_reader_matches_rclpy() -> None:
 
 
 def _census_bag(path: Path, views: dict[str, dict[int, np.ndarray]], poses: bool = True,
-                recorded: dict[int, int] | None = None, ns: str = "") -> Path:
+                recorded: dict[int, int] | None = None, ns: str = "", ids: dict[str, int] | None = None) -> Path:
     """A bag as up --locate records it, less the images: per camera and stamp its placed zebras (a
-    Detection3DArray, scores 0.9, 0.8 ...) and its pose (the camera 60 m up, 80 m from the origin along its
-    name's order), and the locator's census of some stamps."""
+    Detection3DArray, scores 0.9, 0.8 ..., ids from ``ids[camera]`` up where given, else none) and its pose (the
+    camera 60 m up, 80 m from the origin along its name's order), and the locator's census of some stamps."""
     from geometry_msgs.msg import Point, Pose, PoseStamped
 
     from zebra_sim_ros.nodes.ros_adapter import detection3d_array_type, message_class, stamp
@@ -373,7 +373,8 @@ def _census_bag(path: Path, views: dict[str, dict[int, np.ndarray]], poses: bool
             h = Header(stamp=stamp(t), frame_id="map")
             dets = [msg.Detection3D(header=h, results=[msg.ObjectHypothesisWithPose(
                 hypothesis=msg.ObjectHypothesis(class_id="zebra", score=0.9 - 0.1 * k))],
-                bbox=msg.BoundingBox3D(center=Pose(position=Point(x=x, y=y, z=z)))) for k, (x, y, z) in enumerate(pts)]
+                bbox=msg.BoundingBox3D(center=Pose(position=Point(x=x, y=y, z=z))),
+                id=str(ids[cam] + k) if ids and cam in ids else "") for k, (x, y, z) in enumerate(pts)]
             w.write(f"{ns}/{cam}/detections/located", serialize_message(message_class(kind)(header=h, detections=dets)),
                     t)
             if poses:
@@ -435,6 +436,54 @@ def test_a_recorded_census_is_counted_again_from_the_bag(tmp_path: Path) -> None
     [path] = _write(plain / "plain.mcap", n=3)
     with pytest.raises(ParameterError, match=f"{re.escape(str(path))}.*placed detections"):
         bag_census(path)
+
+
+def test_a_recounted_census_on_the_earth(tmp_path: Path) -> None:
+    """``bag census --geojson``: every recounted animal a WGS84 point that converts back to its map position to the
+    millimetre, with its score and cameras; every zebra detection of a counted stamp in exactly one animal, named
+    by its id, or its place in the message where it has none. A bag whose scenes do not say where map is wants
+    ``datum``, by name; the CLI reads ``--datum`` or refuses it by name."""
+    import json
+
+    from zebra_sim_ros.cli.bag import parse_datum
+    from zebra_sim_ros.errors import ParameterError
+    from zebra_sim_ros.geometry.geodesy import geodetic_to_enu
+    from zebra_sim_ros.messages import Datum
+    from zebra_sim_ros.recording.census import bag_census
+
+    rng = np.random.default_rng(9)
+    herd = np.column_stack([rng.uniform(-10, 10, (12, 2)), np.full(12, 0.7)])
+    s1 = 10**9
+    views = {cam: {s1: herd[rng.permutation(12)[:9]] + [*rng.normal(0, 0.1, 2), 0.0]} for cam in ("north", "south",
+                                                                                                    "east")}
+    bag = _census_bag(tmp_path / "flight.mcap", views, ids={"east": 10})
+    with pytest.raises(ParameterError, match="'datum'.*hold none"):
+        bag_census(bag, geojson=tmp_path / "no.geojson")
+    assert not (tmp_path / "no.geojson").exists()
+    datum = Datum(-2.3, 34.8, 1550.0)
+    got = bag_census(bag, geojson=tmp_path / "out" / "census.geojson", datum=datum)
+    doc = json.loads((tmp_path / "out" / "census.geojson").read_text())
+    assert got["geojson"] == str(tmp_path / "out" / "census.geojson") and got["datum"] == datum.to_dict()
+    features = doc["features"]
+    assert doc["type"] == "FeatureCollection" and len(features) == got["recounted"]["animals"] >= 9
+    assert doc["zebra_sim"]["datum"] == datum.to_dict() and doc["zebra_sim"]["census"] == "recounted"
+    lon_lat_h = np.array([f["geometry"]["coordinates"] for f in features])
+    back = geodetic_to_enu(lon_lat_h[:, [1, 0, 2]], datum)
+    assert np.abs(back - np.array([f["properties"]["map_xyz"] for f in features])).max() < 2e-3  # rounding alone
+    assert np.abs(back[:, :2]).max() < 15  # the herd, around map's origin
+    parts = [p for f in features for p in f["properties"]["detections"]]
+    want = [f"east:{10 + k}" for k in range(9)] + [f"{c}:{k}" for c in ("north", "south") for k in range(9)]
+    assert sorted(parts) == sorted(want)  # each detection in one animal
+    for f in features:
+        props = f["properties"]
+        cams = {p.split(":")[0] for p in props["detections"]}
+        assert props["views"] == len(cams) and props["class"] == "zebra" and props["stamp_ns"] == s1
+        ranks = [int(p.split(":")[1]) % 10 for p in props["detections"]]  # east's ids start at 10
+        assert props["score"] == pytest.approx(0.9 - 0.1 * min(ranks), abs=1e-4)  # its best detection's
+    assert parse_datum("-2.3,34.8") == Datum(-2.3, 34.8, 0.0)
+    for bad in ("91,0", "1", "a,b", "1,2,3,4"):
+        with pytest.raises(ParameterError, match="'datum'"):
+            parse_datum(bad)
 
 
 def test_a_damaged_chunk_in_the_middle_loses_only_that_chunk(tmp_path: Path) -> None:

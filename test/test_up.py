@@ -115,10 +115,27 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     assert census["summed"] == located["detections"] and "[up] census: " in stdout
     # counted again from the bag by the locator's rule: the census it recorded, to the animal; without the
     # separation, one camera's two boxes on a zebra count twice; a rule out of range is refused by name
-    again = cli(["bag", "census", live["bag"], "--json"])
+    again = cli(["bag", "census", live["bag"], "--json", "--geojson", str(tmp_path / "recount.geojson")])
     assert again.returncode == 0, again.stderr
     recount = _last_json(again.stdout)
     assert recount["recounted"] == census and recount["recorded"] == census and recount["stamps_counted"] == 3
+    # the census on the Earth: up's (the locator's, as published) and the recount's, by the scenes' datum (the
+    # placer's defaults), the same animals at the same places
+    serengeti = {"latitude_deg": -2.3, "longitude_deg": 34.8, "altitude_m": 1550.0}
+    assert recount["datum"] == serengeti and "[up] census on the Earth: " in stdout
+    published = json.loads(Path(live["census_geojson"]).read_text())
+    recounted = json.loads((tmp_path / "recount.geojson").read_text())
+    assert published["zebra_sim"]["datum"] == recounted["zebra_sim"]["datum"] == serengeti
+    assert len(published["features"]) == len(recounted["features"]) == census["animals"]
+
+    def places(doc: dict[str, Any]) -> list[tuple[int, str, tuple[float, ...]]]:
+        return sorted((f["properties"]["stamp_ns"], ",".join(sorted(f["properties"]["detections"])),
+                       tuple(f["geometry"]["coordinates"])) for f in doc["features"])
+
+    for (t1, d1, at1), (t2, d2, at2) in zip(places(published), places(recounted), strict=True):
+        assert (t1, d1) == (t2, d2)  # the same detections joined into the same animal
+        assert at1[:2] == pytest.approx(at2[:2], abs=2e-8) and at1[2] == pytest.approx(at2[2], abs=2e-3)  # rounding
+        assert at1[1] == pytest.approx(-2.3, abs=0.01) and at1[0] == pytest.approx(34.8, abs=0.01)
     apart = cli(["bag", "census", live["bag"], "--census-separation", "0", "--json"])
     assert _last_json(apart.stdout)["recounted"]["animals"] > census["animals"]
     refused = cli(["bag", "census", live["bag"], "--census-gate", "0"])

@@ -8,6 +8,7 @@ from typing import Any
 
 from zebra_sim_ros.cli.common import Summary, add_json_flag, census_options, count_option, detector_options
 from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.messages import Datum
 
 
 def register(sub: Any) -> None:
@@ -40,6 +41,11 @@ def register(sub: Any) -> None:
                         "detections, up --locate) with the census's parameters, against the distinct labelled zebras")
     c.add_argument("bag", nargs="+", type=Path, help="bag files, or folders of split files")
     census_options(c)
+    c.add_argument("--geojson", type=Path, default=None, help="also write the recounted animals there as GeoJSON "
+                   "(WGS84 points with class, score, stamp, cameras and detections; for a GIS)")
+    c.add_argument("--datum", default=None, metavar="LAT,LON[,HEIGHT]",
+                   help="where map's origin is on the Earth (deg, deg, m above the WGS84 ellipsoid), for --geojson; "
+                   "default: the datum the bag's scenes carry (the placer's latitude_deg, longitude_deg, altitude_m)")
     add_json_flag(c)
     c.set_defaults(func=cmd_census)
     x = bsub.add_parser("export", help="a recorded run as a YOLO dataset: each camera image with its labels, for "
@@ -124,7 +130,8 @@ def cmd_census(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.detection.config import CENSUS_RULE, LocatorConfig
     from zebra_sim_ros.recording.census import bag_census, census_line
 
-    s = bag_census(args.bag, LocatorConfig.from_params({k: getattr(args, k) for k in CENSUS_RULE}), args.drones)
+    s = bag_census(args.bag, LocatorConfig.from_params({k: getattr(args, k) for k in CENSUS_RULE}), args.drones,
+                   args.geojson, parse_datum(args.datum) if args.datum is not None else None)
 
     rule = ", ".join(f"{k} {v:g}" for k, v in s["rule"].items())
     print(f"cameras {', '.join(s['cameras'])} (joined in this order): {s['stamps_counted']} of {s['stamps_placed']} "
@@ -135,11 +142,24 @@ def cmd_census(args: argparse.Namespace) -> Summary:
     else:
         print(f"recorded (the locator's census/animals, on the same stamps, {s['recorded_stamps']} in the bag): "
               f"{census_line(s['recorded'])}")
+    if "geojson" in s:
+        d = s["datum"]
+        print(f"the recounted animals on the map: {s['geojson']} (GeoJSON; map's origin at {d['latitude_deg']:g}, "
+              f"{d['longitude_deg']:g}, {d['altitude_m']:g} m)")
     if s["skipped"]:
         print(f"skipped {len(s['skipped'])} unusable message(s), first: {s['skipped'][0]}")
     for note in s["damaged"]:
         print(f"damaged: {note}")
     return s
+
+
+def parse_datum(text: str) -> Datum:
+    """``--datum``'s "LAT,LON" or "LAT,LON,HEIGHT" (deg, deg, m) as a :class:`Datum`; ParameterError naming it."""
+    try:
+        return Datum(*(float(v) for v in text.split(",")))
+    except (TypeError, ValueError) as exc:
+        raise ParameterError("datum", text, f"LAT,LON or LAT,LON,HEIGHT: latitude -90..90 deg, longitude -180..180 "
+                             f"deg, a finite height in m ({exc})") from exc
 
 
 def cmd_export(args: argparse.Namespace) -> Summary:

@@ -5,7 +5,8 @@ ready (its topics published, recorded and scored), then starts the placer in loc
 labeller and the detector have both acknowledged it, so no frame is skipped. After the last step it stops the graph
 (recorder last), reads the bag back and prints frames per drone, detection scores against the live ground truth
 (and the scorer node's live figures, the same for a run no longer than its window), throughput and stage times; it
-writes ``summary.json`` and ``preview.jpg`` beside the bag, and at the start ``zebra_sim.rviz``, the package's RViz
+writes ``summary.json`` and ``preview.jpg`` beside the bag (and with ``--locate`` ``census.geojson``, the census
+on the Earth), and at the start ``zebra_sim.rviz``, the package's RViz
 configuration for this graph's drones and namespace (the command that opens it is printed). If a node dies, the rest
 are stopped and the command says which died and why; Ctrl-C stops everything cleanly too.
 """
@@ -31,6 +32,9 @@ if TYPE_CHECKING:  # the graph and rclpy are imported only when the command runs
     from zebra_sim_ros.graph.spec import NodeSpec, UpConfig
     from zebra_sim_ros.graph.supervisor import Child, Supervisor
     from zebra_sim_ros.nodes.graph_watch import GraphWatch
+
+
+CENSUS_MAP = "census.geojson"  # up --locate: the locator's census on the Earth, beside the bag
 
 
 def register(sub: Any) -> None:
@@ -100,7 +104,7 @@ def cmd_up(args: argparse.Namespace) -> Summary:
         print(f"[up] warning: no RViz view for this graph ({exc})", flush=True)
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
-    for old in (cfg.bag_path, out / "summary.json", out / "preview.jpg", out / RVIZ_FILE):
+    for old in (cfg.bag_path, out / "summary.json", out / "preview.jpg", out / RVIZ_FILE, out / CENSUS_MAP):
         old.unlink(missing_ok=True)
     env = _graph_environment(conf, args.domain_id)
     load_library()  # build the zebra cache once here, not in every node at the same time
@@ -124,9 +128,9 @@ def cmd_up(args: argparse.Namespace) -> Summary:
 
         count_conf = scoring.count_conf if scoring is not None else COUNT_CONF  # as the scorer counts them live
         try:
-            result.update(summarize_run(cfg.bag_path, out / "preview.jpg", count_conf))
+            result.update(summarize_run(cfg.bag_path, out / "preview.jpg", count_conf, out / CENSUS_MAP))
         except OSError as exc:  # a full disk: the scores still come, the preview does not
-            result.update(summarize_run(cfg.bag_path, None, count_conf))
+            result.update(summarize_run(cfg.bag_path, None, count_conf, out / CENSUS_MAP))
             result["preview_error"] = f"{exc.strerror or exc}: {out / 'preview.jpg'}"
         _print_summary(result, cfg.drone_names)
     if (live := result.get("live_scores")) and "all" in live:
@@ -397,6 +401,10 @@ def _print_summary(r: dict[str, Any], drones: tuple[str, ...]) -> None:
         from zebra_sim_ros.recording.census import census_line
 
         print(f"[up] census: {census_line(cen)}", flush=True)
+    if geo := r.get("census_geojson"):
+        print(f"[up] census on the Earth: {geo} (GeoJSON, WGS84, by the scenes' datum; for a GIS)", flush=True)
+    elif r.get("census_geojson_error"):
+        print(f"[up] warning: no census GeoJSON: {r['census_geojson_error']}", flush=True)
     ms = r["median_ms"]
     if r.get("steps_per_s"):
         print(f"[up] throughput: {r['steps']} steps in {r['seconds']:.1f} s = {r['steps_per_s']:.2f} steps/s, "

@@ -21,11 +21,19 @@ import numpy as np
 
 from zebra_sim_ros.detection.config import LOCATED_TOPICS
 from zebra_sim_ros.detection.scoring import COUNT_CONF, DroneFrames
-from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.errors import ParameterError, ZebraSimError
 from zebra_sim_ros.geometry.locate import nearest_distances, placing_figures
-from zebra_sim_ros.messages import Scene
-from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections3d, cdr_string, header_stamp_ns
-from zebra_sim_ros.recording.census import CENSUS_TOPIC, census_figures, drone_order, zebra_points
+from zebra_sim_ros.messages import Datum, Scene
+from zebra_sim_ros.recording.cdr import MALFORMED, Placed3D, cdr_detections3d, cdr_string, header_stamp_ns
+from zebra_sim_ros.recording.census import (
+    CENSUS_TOPIC,
+    census_figures,
+    census_geojson,
+    drone_order,
+    run_datum,
+    write_geojson,
+    zebra_points,
+)
 from zebra_sim_ros.recording.evaluate import collect, score, skip_note
 from zebra_sim_ros.recording.images import message_rgb
 from zebra_sim_ros.recording.reader import CAMERA_IMAGES, BagMessage, last_name, topic_owner
@@ -62,29 +70,34 @@ def _stage_seconds(scenes: dict[int, int], times: dict[str, dict[str, dict[int, 
     return out
 
 
-def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf: float = COUNT_CONF) -> dict[str, Any]:
+def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf: float = COUNT_CONF,
+                  geojson: str | Path | None = None) -> dict[str, Any]:
     """Summary of the run recorded in ``bag``, the zebras counted at ``count_conf`` (the scorer's); writes
-    ``preview`` (one tile per drone) when given."""
+    ``preview`` (one tile per drone) when given, and ``geojson``, the locator's census on the Earth by the scenes'
+    datum, when given and the run has a census (``census_geojson`` in the summary: its path)."""
     scenes: dict[int, int] = {}  # stamp -> log time
+    datums: set[Datum | None] = set()  # the scenes' (a run has one; None: scenes from before they carried it)
     times: dict[str, dict[str, dict[int, int]]] = defaultdict(lambda: defaultdict(dict))  # drone -> kind -> stamp
     latest: dict[str, tuple[int, str, bytes]] = {}  # drone -> (stamp, type, serialized image): decoded at the end
 
     unusable: list[str] = []  # scenes and images that do not parse (collect notes bad labels and detections)
     placed_raw: dict[int, BagMessage] = {}  # stamp -> the placed animals (zebra_sim/zebras), read with --locate only
     located: dict[tuple[str, int], np.ndarray] = {}  # (drone, stamp) -> its detections placed on the map
-    census: dict[int, int] = {}  # stamp -> the zebras the locator's census counted in it
+    census: dict[int, list[Placed3D]] = {}  # stamp -> the animals the locator's census counted in it
 
     def visit(m: BagMessage) -> None:  # scenes and images; collect itself parses labels and detections
         image = topic_owner(m.topic, CAMERA_IMAGES)
         drone = last_name(image[0]) if image else ""
         try:
             if _SCENE_TOPIC.match(m.topic):
-                scenes[Scene.from_json(cdr_string(m.data)).stamp.ns] = m.publish_time
+                scene = Scene.from_json(cdr_string(m.data))
+                scenes[scene.stamp.ns] = m.publish_time
+                datums.add(scene.datum)
             elif _ANIMALS_TOPIC.match(m.topic):
                 placed_raw[header_stamp_ns(m.data)] = m
             elif CENSUS_TOPIC.match(m.topic):
                 t, animals = cdr_detections3d(m.data)
-                census[t] = len(zebra_points(animals))
+                census[t] = animals
             elif owner := topic_owner(m.topic, LOCATED_TOPICS):
                 t, dets = cdr_detections3d(m.data)
                 located[(last_name(owner[0]), t)] = zebra_points(dets)
@@ -134,7 +147,16 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
                           "frames_with_placed": len(gaps),
                           **placing_figures(np.concatenate(gaps) if gaps else np.zeros(0))}
     if census:  # the zebras counted once across the drones against the distinct zebras labelled by any of them
-        out["census"] = census_figures(census, collected.drones, located)
+        out["census"] = census_figures({t: len(zebra_points(a)) for t, a in census.items()}, collected.drones,
+                                       located)
+        if geojson is not None:
+            try:
+                out["census_geojson"] = str(write_geojson(geojson, census_geojson(
+                    census, run_datum(datums), {"source": str(bag), "census": "the locator's, as published"})))
+            except ParameterError as exc:  # scenes without their datum: the figures still come
+                out["census_geojson_error"] = str(exc)
+            except OSError as exc:  # a full disk: the figures still come
+                out["census_geojson_error"] = f"{exc.strerror or exc}: {geojson}"
     if preview is not None and images_rgb:
         out["preview"] = str(write_preview(preview, collected.drones, images_rgb))
     return out

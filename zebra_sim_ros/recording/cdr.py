@@ -6,6 +6,7 @@ without ROS, and an image's stamp is read without decoding its pixels.
 from __future__ import annotations
 
 import struct
+from typing import NamedTuple
 
 import numpy as np
 
@@ -123,9 +124,19 @@ def _detection_head(r: _Cdr) -> tuple[str, float]:
     return best
 
 
-def cdr_detections3d(data: bytes) -> tuple[int, list[tuple[str, float, tuple[float, float, float]]]]:
+class Placed3D(NamedTuple):
+    """One detection of a Detection3DArray as :func:`cdr_detections3d` reads it: its best hypothesis' class and
+    score, its box's centre (in the array's frame) and its ``id``."""
+
+    class_id: str
+    score: float
+    center: tuple[float, float, float]
+    id: str
+
+
+def cdr_detections3d(data: bytes) -> tuple[int, list[Placed3D]]:
     """A CDR-serialized ``vision_msgs/Detection3DArray`` (or ``zebra_sim_msgs/``'s, the same layout): its stamp (ns)
-    and per detection its best hypothesis' class and score and its box's centre (in the array's frame)."""
+    and its detections (:class:`Placed3D`)."""
     r = _Cdr(data)
     t = _stamp_of(r)
     r.string()  # frame_id
@@ -135,8 +146,7 @@ def cdr_detections3d(data: bytes) -> tuple[int, list[tuple[str, float, tuple[flo
         x, y, z = r.f64(), r.f64(), r.f64()
         for _ in range(4 + 3):  # the box's orientation and size
             r.f64()
-        r.string()  # id
-        out.append((class_id, score, (x, y, z)))
+        out.append(Placed3D(class_id, score, (x, y, z), r.string()))
     return t, out
 
 

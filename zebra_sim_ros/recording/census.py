@@ -8,6 +8,7 @@ so be counted again with other parameters, and a change to the rule measured on 
 
 from __future__ import annotations
 
+import json
 import re
 from collections import defaultdict
 from collections.abc import Sequence
@@ -20,13 +21,61 @@ from zebra_sim_ros.detection.config import CENSUS_RULE, LOCATED_TOPICS, LocatorC
 from zebra_sim_ros.detection.scoring import DroneFrames
 from zebra_sim_ros.errors import ParameterError, ZebraSimError
 from zebra_sim_ros.geometry.census import join_views
-from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections3d, cdr_pose_position
+from zebra_sim_ros.geometry.geodesy import enu_to_geodetic
+from zebra_sim_ros.messages import Datum, Scene
+from zebra_sim_ros.recording.cdr import MALFORMED, Placed3D, cdr_detections3d, cdr_pose_position, cdr_string
 from zebra_sim_ros.recording.evaluate import collect, skip_note
 from zebra_sim_ros.recording.reader import BagMessage, last_name, topic_owner
 
 _POSE = ("camera/pose",)  # a camera's optical frame in map (the placer's)
 # the locator's own census, under the graph's namespace
 CENSUS_TOPIC = re.compile(rf"^(?:/[^/]+)*/{re.escape(LocatorConfig().census_output)}$")
+SCENE_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/scene$")  # the placer's scenes, under the graph's namespace
+
+
+def census_geojson(census: dict[int, list[Placed3D]], datum: Datum, about: dict[str, Any]) -> dict[str, Any]:
+    """A census as a GeoJSON FeatureCollection (RFC 7946: WGS84 longitude, latitude and height above the
+    ellipsoid), for a GIS: per stamp (``census``: its animals, each placed in ``map`` with ``id`` the detections it
+    joins, ``camera:index``) and animal a Point with its class, score, stamp, the number of cameras that saw it, the
+    detections it joins and its ``map`` position; ``datum`` puts ``map`` on the Earth; ``about`` (the rule, the
+    source) and the datum go beside the features, under ``zebra_sim``."""
+    rows = [(t, a) for t in sorted(census) for a in census[t]]
+    lla = enu_to_geodetic(np.array([a.center for _, a in rows], np.float64).reshape(-1, 3), datum)
+    features = []
+    for (t, a), (lat, lon, height) in zip(rows, lla.tolist(), strict=True):
+        parts = [p for p in a.id.split(",") if p]
+        features.append({
+            "type": "Feature",
+            "geometry": {"type": "Point", "coordinates": [round(lon, 8), round(lat, 8), round(height, 3)]},
+            "properties": {"class": a.class_id, "score": round(a.score, 4), "stamp_ns": t, "time_s": t / 1e9,
+                           "views": len({p.rsplit(":", 1)[0] for p in parts}), "detections": parts,
+                           "map_xyz": [round(v, 3) for v in a.center]}})
+    return {"type": "FeatureCollection", "features": features,
+            "zebra_sim": {"datum": datum.to_dict(), "animals": len(rows), "stamps": len(census), **about}}
+
+
+def write_geojson(path: str | Path, collection: dict[str, Any]) -> Path:
+    """Write :func:`census_geojson`'s collection to ``path`` (its folder made); OSError if it cannot be."""
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(collection, indent=1) + "\n")
+    return out
+
+
+def scene_datum(scene_json: str) -> Datum | None:
+    """The datum of a recorded ``zebra_sim/scene`` (None for a scene written before scenes carried one)."""
+    return Scene.from_json(scene_json).datum
+
+
+def run_datum(datums: set[Datum | None]) -> Datum:
+    """The one datum of a run's scenes (``datums``: each scene's); ParameterError naming ``datum`` when they hold
+    none (scenes from before scenes carried it) or disagree."""
+    held = {d for d in datums if d is not None}
+    if len(held) != 1:
+        hold = "none" if not held else f"{len(held)} different ones"
+        raise ParameterError("datum", None, "the map origin's latitude, longitude and height, given where the bag's "
+                             f"scenes do not say it (they hold {hold})")
+    return held.pop()
 
 
 def census_figures(census: dict[int, int], drones: dict[str, DroneFrames],
@@ -68,22 +117,28 @@ def drone_order(name: str) -> tuple[int, str]:
     return len(name), name
 
 
-def zebra_points(dets: list[tuple[str, float, tuple[float, float, float]]]) -> np.ndarray:
+def zebra_points(dets: list[Placed3D]) -> np.ndarray:
     """The zebras' points (N, 3) of a Detection3DArray read by :func:`~zebra_sim_ros.recording.cdr.cdr_detections3d`."""
-    return np.array([c for name, _, c in dets if name == "zebra"], np.float64).reshape(-1, 3)
+    return np.array([d.center for d in dets if d.class_id == "zebra"], np.float64).reshape(-1, 3)
 
 
 def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None = None,
-               drones: Sequence[str] | None = None) -> dict[str, Any]:
+               drones: Sequence[str] | None = None, geojson: str | Path | None = None,
+               datum: Datum | None = None) -> dict[str, Any]:
     """The census of the bag ``paths`` counted again by ``rule``'s :data:`CENSUS_RULE` parameters (the locator's;
     default: its defaults; module docstring), the cameras joined in ``drones``' order (the locator's ``drones``,
     last names; default: the cameras found, ``drone_2`` before ``drone_10``, as up and the launch file have them):
     per stamp that every camera has placed and posed, its zebras joined across the cameras and scored by
     :func:`census_figures`. ``recorded``: the locator's recorded census, scored on the same stamps (None where the
     bag has none). ParameterError when the bag holds no placed detections (recorded without ``up --locate``) or no
-    camera poses, holds more than one graph's (two namespaces), or ``drones`` are not its cameras."""
+    camera poses, holds more than one graph's (two namespaces), or ``drones`` are not its cameras.
+
+    ``geojson``: the recounted animals are written there (:func:`census_geojson`), put on the Earth by ``datum``,
+    or else by the datum of the bag's scenes; ParameterError naming ``datum`` when there is neither, or the scenes
+    disagree."""
     rule = rule or LocatorConfig()
-    located: dict[tuple[str, int], list[tuple[str, float, tuple[float, float, float]]]] = {}
+    located: dict[tuple[str, int], list[Placed3D]] = {}
+    datums: set[Datum | None] = set()  # the scenes' (a run has one)
     poses: dict[tuple[str, int], tuple[float, float, float]] = {}
     recorded: dict[int, int] = {}
     graphs: set[str] = set()  # the namespaces the cameras are in
@@ -101,6 +156,8 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
             elif CENSUS_TOPIC.match(m.topic):
                 t, animals = cdr_detections3d(m.data)
                 recorded[t] = len(zebra_points(animals))
+            elif geojson is not None and datum is None and SCENE_TOPIC.match(m.topic):
+                datums.add(scene_datum(cdr_string(m.data)))
         except (*MALFORMED, ZebraSimError) as exc:
             unusable.append(skip_note(m, exc))
 
@@ -124,16 +181,33 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
         raise ParameterError("bag", bag, "a bag with the cameras' poses (<drone>/camera/pose, recorded by up "
                              "--locate) beside their placed detections")
     counts: dict[int, int] = {}
+    animals: dict[int, list[Placed3D]] = {}  # stamp -> the animals counted, in map
     zebras = {key: zebra_points(dets) for key, dets in located.items()}
     for t, have in sorted(by_stamp.items()):
         if have != set(cameras):
             continue
-        scores = [np.array([s for name, s, _ in located[(d, t)] if name == "zebra"], np.float64) for d in cameras]
+        # each camera's zebras, named by their id (the locator's: the detection's index in its image's detections)
+        # or, without one, their index in the placed message
+        kept = [[(x.id or str(i), x) for i, x in enumerate(located[(d, t)]) if x.class_id == "zebra"]
+                for d in cameras]
+        scores = [np.array([x.score for _, x in k], np.float64) for k in kept]
         census = join_views([zebras[(d, t)] for d in cameras], [np.array(poses[(d, t)]) for d in cameras],
                             rule.census_along, rule.census_across, rule.census_gate, rule.census_separation, scores)
         counts[t] = census.count
+        animals[t] = []
+        for a, (x, y, z) in enumerate(census.positions.tolist()):
+            parts = [(cameras[v], *kept[v][j]) for v, j in census.points_of(a)]
+            animals[t].append(Placed3D("zebra", max(p.score for _, _, p in parts), (x, y, z),
+                                       ",".join(f"{d}:{name}" for d, name, _ in parts)))
     both = {t: recorded[t] for t in counts if t in recorded}
-    return {"rule": {k: getattr(rule, k) for k in CENSUS_RULE}, "cameras": cameras,
+    rule_values = {k: getattr(rule, k) for k in CENSUS_RULE}
+    about: dict[str, Any] = {}
+    if geojson is not None:
+        datum = datum or run_datum(datums)
+        about = {"geojson": str(write_geojson(geojson, census_geojson(
+            animals, datum, {"source": bag, "census": "recounted", "rule": rule_values, "cameras": cameras}))),
+            "datum": datum.to_dict()}
+    return {**about, "rule": rule_values, "cameras": cameras,
             "stamps_placed": len({t for _, t in located}), "stamps_counted": len(counts),
             "recounted": census_figures(counts, collected.drones, zebras),
             "recorded": census_figures(both, collected.drones, zebras) if recorded else None,

@@ -1,0 +1,58 @@
+"""Benchmark: what ``zebra-sim bag census`` costs on a recorded ``up --locate`` run, and what writing the census on
+the Earth (``--geojson``: each scene read for its datum, every animal converted to WGS84, the file written) adds.
+
+Alternates the two, ``--repeats`` times each in one process (the bag in the page cache after a first, unmeasured
+read), and prints the medians and their ratio: the cost of ``--geojson`` as a share of the recount's.
+
+    python benchmarks/bench_bag_census.py out/up/zebra_sim.mcap [--repeats 5] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from zebra_sim_ros.recording.census import bag_census
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("bag", type=Path, help="a bag recorded by zebra-sim up --locate")
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    times: dict[str, list[float]] = {"recount": [], "recount + geojson": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        first = bag_census(args.bag, geojson=Path(tmp) / "census.geojson")  # warms the page cache
+        features = len(json.loads((Path(tmp) / "census.geojson").read_text())["features"])
+        for _ in range(args.repeats):
+            for name, geojson in (("recount", None), ("recount + geojson", Path(tmp) / "census.geojson")):
+                t0 = time.perf_counter()
+                bag_census(args.bag, geojson=geojson)
+                times[name].append(time.perf_counter() - t0)
+    med = {k: statistics.median(v) for k, v in times.items()}
+    out: dict[str, Any] = {
+        "date": time.strftime("%Y-%m-%d"), "machine": platform.processor() or platform.machine(),
+        "cores": os.cpu_count(), "bag": str(args.bag), "bag_mb": round(args.bag.stat().st_size / 2**20, 1),
+        "stamps": first["stamps_counted"], "animals": first["recounted"]["animals"], "features": features,
+        "median_s": {k: round(v, 3) for k, v in med.items()},
+        "geojson_share": round(med["recount + geojson"] / med["recount"] - 1.0, 3)}
+    if args.json:
+        print(json.dumps(out, indent=1))
+        return
+    print(f"{out['bag']} ({out['bag_mb']} MB, {out['stamps']} steps, {out['animals']} animals, {features} features)")
+    print("| run | median s |\n| --- | --- |")
+    for k, v in out["median_s"].items():
+        print(f"| {k} | {v} |")
+    print(f"--geojson adds {out['geojson_share']:+.1%} to the recount ({args.repeats} of each, alternated)")
+
+
+if __name__ == "__main__":
+    main()
