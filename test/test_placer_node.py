@@ -14,10 +14,13 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from ros_helpers import fresh_domain_id, node_process, run_node_once, spin_until
+from sensor_msgs.msg import NavSatFix, NavSatStatus
 from std_msgs.msg import Header, String
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
+from zebra_sim_ros.geometry.geodesy import geodetic_to_enu
+from zebra_sim_ros.messages import Datum
 from zebra_sim_ros.nodes.ros_adapter import detection3d_array_type, message_class
 
 pytestmark = pytest.mark.integration
@@ -53,6 +56,9 @@ class Listener:
             self.node.create_subscription(message_class(detection3d_array_type()), "/zebra_sim/zebras",
                                           self.animals.append, stream)
         self.node.create_subscription(TFMessage, "/tf", self.tf.append, 100)
+        self.fixes: dict[str, list[NavSatFix]] = {name: [] for name in self.poses}
+        for name in self.fixes:
+            self.node.create_subscription(NavSatFix, f"/{name}/fix", lambda m, n=name: self.fixes[n].append(m), stream)
         self.ack_pub = self.node.create_publisher(Header, "/zebra_sim/frame_done", 100)
 
     def _on_scene(self, msg: String) -> None:
@@ -95,6 +101,18 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path, 
                 assert pose.header.frame_id == "map"
                 assert pose.pose.position.x == pytest.approx(cam["position"][0])
                 assert pose.pose.orientation.w == pytest.approx(cam["orientation_xyzw"][3])
+        # each camera on the Earth: its NavSatFix, converted back by the scene's datum, is its position in map
+        assert listener.spin_until(lambda: all(len(f) >= 5 for f in listener.fixes.values()), 10)
+        datum = Datum.from_dict(listener.scenes[0]["datum"])
+        assert datum == Datum(-2.3, 34.8, 1550.0)  # the placer's defaults
+        for name, fixes in listener.fixes.items():
+            by_stamp = {(f.header.stamp.sec, f.header.stamp.nanosec): f for f in fixes}
+            for s in listener.scenes:
+                cam = next(c for c in s["cameras"] if c["name"] == name)
+                fix = by_stamp[(s["stamp"]["sec"], s["stamp"]["nanosec"])]
+                assert fix.header.frame_id == f"{name}/base_link" and fix.status.status == NavSatStatus.STATUS_FIX
+                back = geodetic_to_enu([[fix.latitude, fix.longitude, fix.altitude]], datum)[0]
+                assert back == pytest.approx(cam["position"], abs=1e-4)  # 0.1 mm
         assert listener.markers and len(listener.markers[-1].markers) == listener.scenes[-1]["placed"] + 1
         # the placed animals, typed: one Detection3DArray per step in map, each animal of the scene's JSON with
         # its species, pose, oriented box and id

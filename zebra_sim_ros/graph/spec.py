@@ -39,7 +39,8 @@ CENSUS_TOPICS = (f"/{LocatorConfig().census_output}", f"/{LocatorConfig().census
 def rviz_off(locate: bool) -> tuple[str, ...]:
     """The topics whose RViz displays are switched off for a graph with (``locate``) or without the locator."""
     return () if locate else CENSUS_TOPICS
-PLACER_TOPICS = ("zebra_sim/scene", "zebra_sim/zebras", "zebra_sim/zebras/markers")  # and each <drone>/camera/pose
+PLACER_TOPICS = ("zebra_sim/scene", "zebra_sim/zebras", "zebra_sim/zebras/markers")
+PLACER_CAMERA_TOPICS = ("camera/pose", "fix")  # the placer's, under each camera
 # By convention absolute (tf2 listeners and every node's time source use them); a namespaced graph remaps them.
 GLOBAL_TOPICS = ("/tf", "/tf_static", "/clock")
 BAG_NAME = "zebra_sim.mcap"
@@ -300,7 +301,7 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
         "lockstep_timeout_s": cfg.step_timeout_s,
         "camera_width": cfg.width, "camera_height": cfg.height, "wait_for_subscribers": 1 if cfg.record else 0,
         "wait_for_nodes": ["recorder"] if cfg.record else [""]},
-        tuple(f"{ns}/{t}" for t in (*PLACER_TOPICS, *(f"{d}/camera/pose" for d in drones)))
+        tuple(f"{ns}/{t}" for t in (*PLACER_TOPICS, *(f"{d}/{c}" for d in drones for c in PLACER_CAMERA_TOPICS)))
         + tuple(f"{ns}{t}" for t in GLOBAL_TOPICS), remaps))
     return nodes
 

@@ -10,6 +10,9 @@ the whole graph, except the conventional ``/tf``, ``/tf_static`` and ``/clock``,
   truth in 3D, for trackers and counters); ``publish_animals:=false`` leaves it out.
 - ``zebra_sim/zebras/markers`` (visualization_msgs/MarkerArray): the zebras' oriented 3D boxes.
 - ``drone_{i}/camera/pose`` (geometry_msgs/PoseStamped): pose of ``drone_{i}/camera_optical`` in ``map``.
+- ``drone_{i}/fix`` (sensor_msgs/NavSatFix): the same camera's position on the Earth (WGS84 latitude, longitude,
+  height above the ellipsoid) by the scene's datum, as a drone's GNSS receiver reports it (exact: no noise, the
+  covariance unknown); frame ``drone_{i}/base_link``.
 - ``/tf`` (tf2_msgs/TFMessage): ``map -> drone_{i}/base_link`` of every drone, each step (REP 105);
   ``/tf_static``: ``drone_{i}/base_link -> drone_{i}/camera_optical`` once (transient local), so RViz, Foxglove
   and tf2 place each camera's images in 3D.
@@ -34,12 +37,14 @@ import time
 
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3
 from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import NavSatFix, NavSatStatus
 from std_msgs.msg import ColorRGBA, Header, String
 from std_srvs.srv import Trigger
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
 from zebra_sim_ros.geometry.frames import OPTICAL_IN_BASE_XYZW, base_frame, body_orientation, optical_frame
+from zebra_sim_ros.geometry.geodesy import enu_to_geodetic
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.nodes.ros_adapter import (
@@ -50,6 +55,7 @@ from zebra_sim_ros.nodes.ros_adapter import (
     flush,
     help_text,
     message_class,
+    pose_msg,
     qos,
     run_node,
     scene_animals_msg,
@@ -100,6 +106,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             self.animals_pub = self.create_publisher(message_class(self.animals_type), ANIMALS_TOPIC, stream)
         self.pose_pubs = [self.create_publisher(PoseStamped, f"{n}/camera/pose", poses)
                           for n in self.placer.camera_names]
+        self.fix_pubs = [self.create_publisher(NavSatFix, f"{n}/fix", poses) for n in self.placer.camera_names]
         # Transient local, depth 1: a reader that matches late (a recorder whose /clock reader matched after its /tf
         # one) still gets the current step's time. /clock cannot be waited on by count: every use_sim_time node
         # subscribes to it.
@@ -200,10 +207,15 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             self.animals_pub.publish(scene_animals_msg(self.animals_type, header, scene.zebras))
         self.marker_pub.publish(self._markers(scene, header))
         for pub, cam in zip(self.pose_pubs, scene.cameras, strict=True):
-            x, y, z, w = cam.orientation_xyzw
-            pose = Pose(position=Point(x=cam.position[0], y=cam.position[1], z=cam.position[2]),
-                        orientation=Quaternion(x=x, y=y, z=z, w=w))
-            pub.publish(PoseStamped(header=header, pose=pose))
+            pub.publish(PoseStamped(header=header, pose=pose_msg(cam.position, cam.orientation_xyzw)))
+        if scene.datum is not None:
+            where = enu_to_geodetic([cam.position for cam in scene.cameras], scene.datum)
+            for pub, cam, (lat, lon, height) in zip(self.fix_pubs, scene.cameras, where.tolist(), strict=True):
+                pub.publish(NavSatFix(header=Header(stamp=header.stamp, frame_id=base_frame(cam.name)),
+                                      status=NavSatStatus(status=NavSatStatus.STATUS_FIX,
+                                                          service=NavSatStatus.SERVICE_GPS),
+                                      latitude=lat, longitude=lon, altitude=height,
+                                      position_covariance_type=NavSatFix.COVARIANCE_TYPE_UNKNOWN))
         self.sent_at = time.monotonic()
         self.get_logger().debug(f"step {scene.step}: {scene.placed}/{scene.requested} zebras placed")
 
