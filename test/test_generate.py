@@ -200,7 +200,7 @@ def test_same_seed_same_bytes_and_resume(dataset: Path, tmp_path: Path) -> None:
 def test_a_worker_killed_or_hung_mid_run_stops_generate_at_once_and_a_rerun_completes_it(
         dataset: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, sig: str, said: str) -> None:
     """A worker the OOM killer takes (SIGKILL, after the run's first frame) sends nothing more: generate stops within
-    seconds with an error naming that worker, its exit code and signal (it used to wait ten minutes for the queue),
+    seconds with an error naming that worker, its exit code and signal (it once waited ten minutes for a report),
     and stops the other worker too. A worker that hangs (stopped by SIGSTOP; the silence allowed cut to 3 s once both
     run) is found while the other still reports, named, and ended although stopped. Nothing written is lost: a rerun
     writes only what is missing, the same bytes as an unbroken run."""

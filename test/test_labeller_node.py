@@ -127,11 +127,15 @@ def test_an_uncalibrated_camera_info_is_a_skipped_frame_not_a_crash() -> None:
 
     from zebra_sim_ros.nodes.labeller import LabellerNode
 
-    for fx in (0.0, float("nan"), float("inf"), -500.0):
-        with pytest.raises(ValueError, match=r"K\[0\] = "):
-            LabellerNode._labeller(SimpleNamespace(labellers={}), 320, 240, fx)  # type: ignore[arg-type]
+    def info(width: int, fx: float, fy: float = 500.0) -> SimpleNamespace:
+        return SimpleNamespace(width=width, height=240, k=[fx, 0.0, 160.0, 0.0, fy, 120.0, 0.0, 0.0, 1.0])
+
+    for bad in (info(320, 0.0, 0.0), info(320, float("nan")), info(320, float("inf")), info(320, -500.0),
+                info(320, 500.0, 0.0)):
+        with pytest.raises(ValueError, match=r"K = \[.*want a calibrated camera"):
+            LabellerNode._labeller(SimpleNamespace(labellers={}), bad)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="0x240"):
-        LabellerNode._labeller(SimpleNamespace(labellers={}), 0, 240, 500.0)  # type: ignore[arg-type]
+        LabellerNode._labeller(SimpleNamespace(labellers={}), info(0, 500.0))  # type: ignore[arg-type]
 
 
 def test_bad_labeller_parameter_stops_the_node() -> None:
@@ -194,7 +198,7 @@ def test_box_markers_and_step_acknowledgements() -> None:
 def test_frame_parts_hold_a_cameras_messages_of_a_stamp_until_all_have_arrived() -> None:
     """The labeller's and the locator's input sync: a camera's parts of a stamp are given once, when the last
     arrives, and no longer held; another camera's parts of that stamp wait on; a stamp pushed out of the window
-    returns each camera whose parts never all arrived."""
+    returns each camera whose parts were not taken."""
     from zebra_sim_ros.nodes.ros_adapter import FrameParts
 
     frames = FrameParts(2, ("image", "depth"))

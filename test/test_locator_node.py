@@ -70,8 +70,11 @@ def test_a_box_is_placed_on_its_ray_at_its_depth() -> None:
         box_depths(depth, boxes, core=0.0)
     with pytest.raises(ValueError, match="focal"):
         locate_boxes(boxes, depth, np.zeros((3, 3)), position, _xyzw(r))
-    with pytest.raises(ValueError, match=r"K = \[nan"):  # the node's camera_info check: not finite
-        locate_boxes(boxes, depth, np.where(np.eye(3) > 0, np.nan, CAMERA.K), position, _xyzw(r))
+    for at, bad in (((0, 0), np.inf), ((0, 2), np.nan)):  # positive but not finite; a centre not finite
+        k = np.array(CAMERA.K, np.float64)
+        k[at] = bad
+        with pytest.raises(ValueError, match=r"K = \[.*(inf|nan).*want a calibrated camera"):
+            locate_boxes(boxes, depth, k, position, _xyzw(r))
 
 
 def test_located_zebras_of_a_real_render_are_where_they_were_placed() -> None:

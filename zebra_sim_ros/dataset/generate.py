@@ -340,6 +340,7 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int,
     for _, w in pipes:
         w.close()  # the worker holds its write end alone, so its pipe reads as ended when it dies
     reading = {r: k for k, (r, _) in enumerate(pipes)}
+    ended: set[int] = set()  # the workers whose pipe has ended
     done = 0
     finished: set[int] = set()
     times = {"place": 0.0, "render": 0.0, "label": 0.0, "write": 0.0}
@@ -353,8 +354,11 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int,
             for r, k in [(r, k) for r, k in reading.items() if r in ready]:
                 try:
                     kind, val = r.recv()  # a report is one write of under PIPE_BUF bytes: never read in part
-                except EOFError:  # the worker ended: its exit code, looked at below, says how
+                except EOFError:  # the worker ended, every report of it read: its exit code, looked at below, says how
                     del reading[r]
+                    ended.add(k)
+                    if k not in finished:
+                        procs[k].join(timeout=5)  # its exit code, without waiting for a poll
                     continue
                 heard[k] = now
                 if kind == "frames":
@@ -367,10 +371,14 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int,
             if ready and now - looked < _WORKER_POLL_S:
                 continue
             looked = now
-            dead = [(k, p) for k, p in enumerate(procs) if p.exitcode not in (None, 0)]
+            # the latter: ended (its pipe read to the end) without saying it was done
+            dead = [(k, p) for k, p in enumerate(procs) if p.exitcode not in (None, 0)
+                    or (k in ended and k not in finished)]
             if dead:  # the exit codes as the workers died, before the others are stopped below
                 failure = "; ".join(f"worker {k} (pid {p.pid}) died with exit code {p.exitcode}"
-                                    f"{_signal_name(p.exitcode)}" for k, p in dead)
+                                    f"{_signal_name(p.exitcode)}" if p.exitcode else
+                                    f"worker {k} (pid {p.pid}) ended (exit code {p.exitcode}) before its last frame"
+                                    for k, p in dead)
                 break
             hung = [(k, p) for k, p in enumerate(procs) if k not in finished and now - heard[k] > _WORKER_STALL_S]
             if hung:

@@ -27,6 +27,7 @@ from visualization_msgs.msg import ImageMarker, Marker, MarkerArray
 
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.camera import PinholeCamera
+from zebra_sim_ros.geometry.locate import intrinsics
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.labels.config import LABELLER_PARAMS, LabellerConfig
 from zebra_sim_ros.labels.labeller import Labeller
@@ -131,10 +132,12 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         self.skip_unmatched(self.stats, self.frames.put(t, drone, kind, msg))
         self._try(drone, t)
 
-    def _labeller(self, width: int, height: int, fx: float) -> Labeller:
-        if not (np.isfinite(fx) and fx > 0) or width <= 0 or height <= 0:
-            raise ValueError(f"camera_info of {width}x{height} px with focal length K[0] = {fx}: want a calibrated "
-                             f"camera (K[0] > 0) and a non-empty image")
+    def _labeller(self, info: CameraInfo) -> Labeller:
+        """The labeller of ``info``'s camera model (made once per model); ValueError for a K that
+        :func:`~zebra_sim_ros.geometry.locate.intrinsics` refuses, or an empty image."""
+        width, height, fx = int(info.width), int(info.height), float(intrinsics(info.k)[0, 0])
+        if width <= 0 or height <= 0:
+            raise ValueError(f"camera_info of {width}x{height} px: want a non-empty image")
         hfov = float(np.degrees(2 * np.arctan(width / 2 / fx)))
         key = (width, height, round(hfov, 6))
         if key not in self.labellers:
@@ -150,7 +153,7 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         t0 = time.perf_counter()
         try:
             info: CameraInfo = got["info"]
-            labeller = self._labeller(int(info.width), int(info.height), float(info.k[0]))
+            labeller = self._labeller(info)
             labels = labeller.label(scene, drone, image_array(got["instances"]), image_array(got["depth"]))
         except (ZebraSimError, KeyError, ValueError, TypeError, IndexError, ArithmeticError) as exc:
             self.skip_bad(self.stats, f"{drone} stamp {t}: a frame", exc)  # an instance image with inf (32FC1), say

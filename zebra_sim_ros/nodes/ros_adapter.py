@@ -152,8 +152,8 @@ class ZebraNode(Node, Generic[C]):
         self.get_logger().error(f"{what} skipped ({counts['bad_messages']} bad so far): {type(exc).__name__}: {exc}")
 
     def skip_unmatched(self, counts: dict[str, int], dropped: list[tuple[int, str]]) -> None:
-        """Cameras' inputs of a stamp that never all arrived (:meth:`FrameParts.put`'s pushed out): counted in
-        ``counts["unmatched"]`` and logged."""
+        """Cameras' inputs of a stamp dropped before they were used (:meth:`FrameParts.put`'s pushed out: some never
+        arrived, or what else the node needs for them did not): counted in ``counts["unmatched"]`` and logged."""
         for old, camera in dropped:
             counts["unmatched"] = counts.get("unmatched", 0) + 1
             self.get_logger().warning(f"{camera}: inputs of stamp {old} never all arrived; dropped "
@@ -279,15 +279,16 @@ class RecentStamps(Generic[V]):
 
 class FrameParts:
     """Each camera's messages of one stamp (its ``parts``: an image, its depth, a pose...) gathered until all have
-    arrived, for the ``window`` stamps that arrived last (:class:`RecentStamps`): a camera's parts of a stamp pushed
-    out of the window before they were all there are never complete, and :meth:`put` returns them."""
+    arrived and the node takes them, for the ``window`` stamps that arrived last (:class:`RecentStamps`): a camera's
+    parts of a stamp pushed out of the window before they were taken (some never came, or what else the node needs
+    for them did not: a scene, a camera_info) are dropped, and :meth:`put` returns them."""
 
     def __init__(self, window: int, parts: Iterable[str]) -> None:
         self.parts = frozenset(parts)
         self.stamps: RecentStamps[dict[str, dict[str, Any]]] = RecentStamps(window)  # stamp: camera: part: message
 
     def put(self, t: int, camera: str, part: str, value: Any) -> list[tuple[int, str]]:
-        """Hold ``camera``'s ``part`` of stamp ``t``; returns the (stamp, camera) pairs this pushed out, incomplete."""
+        """Hold ``camera``'s ``part`` of stamp ``t``; returns the (stamp, camera) pairs this pushed out, not taken."""
         by_camera, dropped = self.stamps.touch(t, dict)
         by_camera.setdefault(camera, {})[part] = value
         return [(old, c) for old, cameras in dropped for c in cameras]
