@@ -24,8 +24,41 @@ def test_known_points_of_the_ellipsoid() -> None:
     got = geodetic_to_ecef([[0.0, 0.0, 0.0], [90.0, 0.0, 0.0], [0.0, 90.0, 100.0], [-90.0, 0.0, -20.0]])
     want = [[WGS84_A, 0, 0], [0, 0, WGS84_B], [0, WGS84_A + 100.0, 0], [0, 0, -WGS84_B + 20.0]]
     assert got == pytest.approx(np.array(want), abs=1e-6)
-    assert ecef_to_geodetic(want)[:, [0, 2]] == pytest.approx(np.array([[0, 0], [90, 0], [0, 100], [-90, -20]]),
-                                                              abs=1e-9)
+    assert ecef_to_geodetic(want) == pytest.approx(np.array([[0, 0, 0], [90, 0, 0], [0, 90, 100], [-90, 0, -20]]),
+                                                   abs=1e-9)
+
+
+def _heikkinen(xyz: np.ndarray) -> np.ndarray:
+    """Latitude, longitude (deg) and height of ECEF points by Heikkinen's closed form (1982): another method than
+    the module's iteration, written here from its published equations, to check it against."""
+    a, b, e2 = WGS84_A, WGS84_B, WGS84_E2
+    ep2 = (a * a - b * b) / (b * b)
+    x, y, z = xyz.T
+    p = np.hypot(x, y)
+    f = 54 * b * b * z * z
+    g = p * p + (1 - e2) * z * z - e2 * (a * a - b * b)
+    c = e2 * e2 * f * p * p / g ** 3
+    s = np.cbrt(1 + c + np.sqrt(c * c + 2 * c))
+    k = s + 1 + 1 / s
+    pp = f / (3 * k * k * g * g)
+    q = np.sqrt(1 + 2 * e2 * e2 * pp)
+    r0 = -pp * e2 * p / (1 + q) + np.sqrt(a * a / 2 * (1 + 1 / q) - pp * (1 - e2) * z * z / (q * (1 + q))
+                                           - pp * p * p / 2)
+    u = np.sqrt((p - e2 * r0) ** 2 + z * z)
+    v = np.sqrt((p - e2 * r0) ** 2 + (1 - e2) * z * z)
+    z0 = b * b * z / (a * v)
+    return np.stack([np.degrees(np.arctan((z + ep2 * z0) / p)), np.degrees(np.arctan2(y, x)),
+                     u * (1 - b * b / (a * v))], axis=-1)
+
+
+def test_the_inverse_agrees_with_heikkinens_closed_form() -> None:
+    rng = np.random.default_rng(11)
+    lla = np.stack([rng.uniform(-89, 89, 2000), rng.uniform(-180, 180, 2000), rng.uniform(-500, 12000, 2000)],
+                   axis=-1)
+    xyz = geodetic_to_ecef(lla)
+    ours, theirs = ecef_to_geodetic(xyz), _heikkinen(xyz)
+    assert ours[:, :2] == pytest.approx(theirs[:, :2], abs=1e-9) and ours[:, 2] == pytest.approx(theirs[:, 2], abs=1e-4)
+    assert theirs[:, :2] == pytest.approx(lla[:, :2], abs=1e-9)  # the closed form inverts the forward one too
 
 
 def test_geodetic_round_trips_everywhere_to_well_under_a_millimetre() -> None:
@@ -42,14 +75,18 @@ def test_geodetic_round_trips_everywhere_to_well_under_a_millimetre() -> None:
 def test_a_kilometre_north_east_and_up_of_the_datum(lat: float) -> None:
     """A metre north is 1/(M + h) rad of latitude, a metre east 1/((N + h) cos lat) rad of longitude (M, N: the
     ellipsoid's radii of curvature at the datum, h its height); up changes the height alone; the tangent plane
-    rises above the ellipsoid by d^2 / 2R at d."""
+    rises above the ellipsoid by d^2 / 2R at d (the figures of a textbook's second-order expansion, not of this
+    module)."""
     datum = Datum(lat, 34.8, 1550.0)
     phi = np.radians(lat)
     w = 1.0 - WGS84_E2 * np.sin(phi) ** 2
     m, n = WGS84_A * (1 - WGS84_E2) / w ** 1.5 + 1550.0, WGS84_A / np.sqrt(w) + 1550.0
     got = enu_to_geodetic([[0, 0, 0], [0, 1000.0, 0], [1000.0, 0, 0], [0, 0, 100.0]], datum)
     assert got[0] == pytest.approx([lat, 34.8, 1550.0], abs=1e-9)
-    assert got[1, 0] - lat == pytest.approx(np.degrees(1000.0 / m), rel=1e-5) and got[1, 1] == pytest.approx(34.8)
+    assert got[1, 0] - lat == pytest.approx(np.degrees(1000.0 / m), rel=1e-5)
+    assert got[1, 1] == pytest.approx(34.8, abs=1e-10)
+    # east: a kilometre along the tangent plane leaves the parallel towards the equator by d^2 tan(lat) / 2MN rad
+    assert got[2, 0] - lat == pytest.approx(-np.degrees(1000.0 ** 2 * np.tan(phi) / (2 * m * n)), rel=1e-3, abs=1e-12)
     assert got[2, 1] - 34.8 == pytest.approx(np.degrees(1000.0 / (n * np.cos(phi))), rel=1e-5)
     assert got[1, 2] - 1550.0 == pytest.approx(1000.0 ** 2 / (2 * m), rel=0.01)  # 7.9 cm at the equator
     assert got[2, 2] - 1550.0 == pytest.approx(1000.0 ** 2 / (2 * n), rel=0.01)
@@ -69,6 +106,6 @@ def test_datums_and_the_placers_datum_parameters_are_refused_by_name() -> None:
                        ((0.0, 0.0, float("nan")), "altitude nan")):
         with pytest.raises(ValueError, match=named):
             Datum(*bad)
-    for name, value in (("longitude_deg", 200.0), ("altitude_m", -1000.0), ("latitude_deg", -95.0)):
+    for name, value in (("longitude_deg", 200.0), ("origin_altitude_m", -1000.0), ("latitude_deg", -95.0)):
         with pytest.raises(ParameterError, match=name):
             PlacerConfig.from_params({name: value})

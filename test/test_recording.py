@@ -354,10 +354,12 @@ def test_pose_reader_matches_rclpy() -> None:
 
 
 def _census_bag(path: Path, views: dict[str, dict[int, np.ndarray]], poses: bool = True,
-                recorded: dict[int, int] | None = None, ns: str = "", ids: dict[str, int] | None = None) -> Path:
+                recorded: dict[int, int] | None = None, ns: str = "", ids: dict[str, int] | None = None,
+                scenes: dict[int, str] | None = None) -> Path:
     """A bag as up --locate records it, less the images: per camera and stamp its placed zebras (a
     Detection3DArray, scores 0.9, 0.8 ..., ids from ``ids[camera]`` up where given, else none) and its pose (the
-    camera 60 m up, 80 m from the origin along its name's order), and the locator's census of some stamps."""
+    camera 60 m up, 80 m from the origin along its name's order), the locator's census of some stamps, and the
+    placer's scenes (JSON by stamp) where given."""
     from geometry_msgs.msg import Point, Pose, PoseStamped
 
     from zebra_sim_ros.nodes.ros_adapter import detection3d_array_type, message_class, stamp
@@ -381,6 +383,10 @@ def _census_bag(path: Path, views: dict[str, dict[int, np.ndarray]], poses: bool
                 angle = 2.1 * i
                 w.write(f"{ns}/{cam}/camera/pose", serialize_message(PoseStamped(header=h, pose=Pose(position=Point(
                     x=80 * np.cos(angle), y=80 * np.sin(angle), z=60.0)))), t)
+    if scenes:
+        w.add_channel(f"{ns}/zebra_sim/scene", "std_msgs/msg/String", [])
+        for t, text in scenes.items():
+            w.write(f"{ns}/zebra_sim/scene", serialize_message(String(data=text)), t)
     if recorded:
         w.add_channel(f"{ns}/census/animals", kind, [])
         for t, n in recorded.items():
@@ -438,18 +444,23 @@ def test_a_recorded_census_is_counted_again_from_the_bag(tmp_path: Path) -> None
         bag_census(path)
 
 
-def test_a_recounted_census_on_the_earth(tmp_path: Path) -> None:
+def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any) -> None:
     """``bag census --geojson``: every recounted animal a WGS84 point that converts back to its map position to the
     millimetre, with its score and cameras; every zebra detection of a counted stamp in exactly one animal, named
-    by its id, or its place in the message where it has none. A bag whose scenes do not say where map is wants
-    ``datum``, by name; the CLI reads ``--datum`` or refuses it by name."""
+    by its id, or its place in the message where it has none. The datum is the bag's scenes'; ``datum`` only where
+    they carry none: a bag whose scenes carry none wants it, scenes that disagree or a ``datum`` unlike theirs are
+    refused by name, as is a file that cannot be written; the CLI reads ``--datum`` or refuses it by name."""
     import json
+    from dataclasses import replace
 
     from zebra_sim_ros.cli.bag import parse_datum
     from zebra_sim_ros.errors import ParameterError
     from zebra_sim_ros.geometry.geodesy import geodetic_to_enu
     from zebra_sim_ros.messages import Datum
+    from zebra_sim_ros.placement.config import PlacerConfig
+    from zebra_sim_ros.placement.placer import Placer
     from zebra_sim_ros.recording.census import bag_census
+    from zebra_sim_ros.world.world import generate_world
 
     rng = np.random.default_rng(9)
     herd = np.column_stack([rng.uniform(-10, 10, (12, 2)), np.full(12, 0.7)])
@@ -457,7 +468,7 @@ def test_a_recounted_census_on_the_earth(tmp_path: Path) -> None:
     views = {cam: {s1: herd[rng.permutation(12)[:9]] + [*rng.normal(0, 0.1, 2), 0.0]} for cam in ("north", "south",
                                                                                                     "east")}
     bag = _census_bag(tmp_path / "flight.mcap", views, ids={"east": 10})
-    with pytest.raises(ParameterError, match="'datum'.*hold none"):
+    with pytest.raises(ParameterError, match="'datum' = \\[\\].*one datum"):
         bag_census(bag, geojson=tmp_path / "no.geojson")
     assert not (tmp_path / "no.geojson").exists()
     datum = Datum(-2.3, 34.8, 1550.0)
@@ -467,24 +478,47 @@ def test_a_recounted_census_on_the_earth(tmp_path: Path) -> None:
     features = doc["features"]
     assert doc["type"] == "FeatureCollection" and len(features) == got["recounted"]["animals"] >= 9
     assert doc["zebra_sim"]["datum"] == datum.to_dict() and doc["zebra_sim"]["census"] == "recounted"
+    assert doc["zebra_sim"]["per_class"] == {"zebra": len(features)} and doc["zebra_sim"]["source"] == [str(bag)]
+    assert len({f["id"] for f in features}) == len(features)
     lon_lat_h = np.array([f["geometry"]["coordinates"] for f in features])
     back = geodetic_to_enu(lon_lat_h[:, [1, 0, 2]], datum)
-    assert np.abs(back - np.array([f["properties"]["map_xyz"] for f in features])).max() < 2e-3  # rounding alone
+    xyz = np.array([[f["properties"][f"map_{a}"] for a in "xyz"] for f in features])
+    assert np.abs(back - xyz).max() < 2e-3  # the rounding alone
     assert np.abs(back[:, :2]).max() < 15  # the herd, around map's origin
-    parts = [p for f in features for p in f["properties"]["detections"]]
+    parts = [p for f in features for p in f["properties"]["detections"].split(",")]
     want = [f"east:{10 + k}" for k in range(9)] + [f"{c}:{k}" for c in ("north", "south") for k in range(9)]
     assert sorted(parts) == sorted(want)  # each detection in one animal
     for f in features:
         props = f["properties"]
-        cams = {p.split(":")[0] for p in props["detections"]}
-        assert props["views"] == len(cams) and props["class"] == "zebra" and props["stamp_ns"] == s1
-        ranks = [int(p.split(":")[1]) % 10 for p in props["detections"]]  # east's ids start at 10
+        joined = props["detections"].split(",")
+        assert props["views"] == len({p.split(":")[0] for p in joined}) and props["class"] == "zebra"
+        assert props["stamp_ns"] == s1 and props["time_s"] == pytest.approx(1.0)
+        ranks = [int(p.split(":")[1]) % 10 for p in joined]  # east's ids start at 10
         assert props["score"] == pytest.approx(0.9 - 0.1 * min(ranks), abs=1e-4)  # its best detection's
+    # a bag whose scenes carry their datum: that one, the same animals elsewhere on the Earth
+    scene = Placer(PlacerConfig.from_params({"seed": 3, "count_max": 5}), generate_world("savanna", 0),
+                   library).scene(0)
+    arctic = Datum(78.2, 15.6, 10.0)
+    with_scenes = _census_bag(tmp_path / "with_scenes.mcap", views, ids={"east": 10},
+                              scenes={s1: replace(scene, datum=arctic).to_json()})
+    north = bag_census(with_scenes, geojson=tmp_path / "arctic.geojson")
+    moved = json.loads((tmp_path / "arctic.geojson").read_text())["features"]
+    assert north["datum"] == arctic.to_dict() and len(moved) == len(features)
+    assert all(f["geometry"]["coordinates"][1] == pytest.approx(78.2, abs=1e-3) for f in moved)
+    assert bag_census(with_scenes, geojson=tmp_path / "same.geojson", datum=arctic)["datum"] == arctic.to_dict()
+    with pytest.raises(ParameterError, match="'datum' = \\(-2.3, 34.8, 1550.0\\).*\\(78.2, 15.6, 10.0\\)"):
+        bag_census(with_scenes, geojson=tmp_path / "other.geojson", datum=datum)  # not the bag's own
+    disagree = _census_bag(tmp_path / "disagree.mcap", views, scenes={s1: replace(scene, datum=arctic).to_json(),
+                                                                       2 * s1: replace(scene, datum=datum).to_json()})
+    with pytest.raises(ParameterError, match="'datum' = \\[\\(-2.3.*\\(78.2.*one datum"):
+        bag_census(disagree, geojson=tmp_path / "two.geojson")
+    (tmp_path / "a_folder").mkdir()
+    with pytest.raises(ParameterError, match="'geojson'.*a_folder.*a file that can be written"):
+        bag_census(bag, geojson=tmp_path / "a_folder", datum=datum)
     assert parse_datum("-2.3,34.8") == Datum(-2.3, 34.8, 0.0)
     for bad in ("91,0", "1", "a,b", "1,2,3,4"):
         with pytest.raises(ParameterError, match="'datum'"):
             parse_datum(bad)
-
 
 def test_a_damaged_chunk_in_the_middle_loses_only_that_chunk(tmp_path: Path) -> None:
     [path] = _write(tmp_path / "full.mcap", n=300)

@@ -389,7 +389,7 @@ class Datum:
         """None for a scene written before scenes carried their datum."""
         if d is None:
             return None
-        return cls(float(d["latitude_deg"]), float(d["longitude_deg"]), float(d.get("altitude_m", 0.0)))
+        return cls(float(d["latitude_deg"]), float(d["longitude_deg"]), float(d["altitude_m"]))
 
 
 @dataclass(frozen=True)

@@ -44,8 +44,9 @@ def register(sub: Any) -> None:
     c.add_argument("--geojson", type=Path, default=None, help="also write the recounted animals there as GeoJSON "
                    "(WGS84 points with class, score, stamp, cameras and detections; for a GIS)")
     c.add_argument("--datum", default=None, metavar="LAT,LON[,HEIGHT]",
-                   help="where map's origin is on the Earth (deg, deg, m above the WGS84 ellipsoid), for --geojson; "
-                   "default: the datum the bag's scenes carry (the placer's latitude_deg, longitude_deg, altitude_m)")
+                   help="with --geojson, for a bag whose scenes do not carry their datum (a real flight's): where "
+                   "map's origin is on the Earth (deg, deg, m above the WGS84 ellipsoid, 0 if left out); write it "
+                   "--datum=-2.3,34.8,1550 for a southern latitude (argparse would take -2.3 for an option)")
     add_json_flag(c)
     c.set_defaults(func=cmd_census)
     x = bsub.add_parser("export", help="a recorded run as a YOLO dataset: each camera image with its labels, for "
@@ -130,6 +131,8 @@ def cmd_census(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.detection.config import CENSUS_RULE, LocatorConfig
     from zebra_sim_ros.recording.census import bag_census, census_line
 
+    if args.datum is not None and args.geojson is None:
+        raise ParameterError("datum", args.datum, "only with --geojson (the census is placed on the Earth for it)")
     s = bag_census(args.bag, LocatorConfig.from_params({k: getattr(args, k) for k in CENSUS_RULE}), args.drones,
                    args.geojson, parse_datum(args.datum) if args.datum is not None else None)
 

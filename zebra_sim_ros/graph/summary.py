@@ -27,6 +27,7 @@ from zebra_sim_ros.messages import Datum, Scene
 from zebra_sim_ros.recording.cdr import MALFORMED, Placed3D, cdr_detections3d, cdr_string, header_stamp_ns
 from zebra_sim_ros.recording.census import (
     CENSUS_TOPIC,
+    SCENE_TOPIC,
     census_figures,
     census_geojson,
     drone_order,
@@ -39,7 +40,6 @@ from zebra_sim_ros.recording.images import message_rgb
 from zebra_sim_ros.recording.reader import CAMERA_IMAGES, BagMessage, last_name, topic_owner
 
 _DRONE = re.compile(r"drone_\d+")  # a camera of the graph (up's drone_0 ... drone_N-1), under any namespace
-_SCENE_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/scene$")
 _ANIMALS_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/zebras$")  # the placed animals (Detection3DArray)
 
 
@@ -89,7 +89,7 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
         image = topic_owner(m.topic, CAMERA_IMAGES)
         drone = last_name(image[0]) if image else ""
         try:
-            if _SCENE_TOPIC.match(m.topic):
+            if SCENE_TOPIC.match(m.topic):
                 scene = Scene.from_json(cdr_string(m.data))
                 scenes[scene.stamp.ns] = m.publish_time
                 datums.add(scene.datum)
@@ -152,7 +152,7 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
         if geojson is not None:
             try:
                 out["census_geojson"] = str(write_geojson(geojson, census_geojson(
-                    census, run_datum(datums), {"source": str(bag), "census": "the locator's, as published"})))
+                    census, run_datum(datums), {"source": [str(bag)], "census": "the locator's, as published"})))
             except ParameterError as exc:  # scenes without their datum: the figures still come
                 out["census_geojson_error"] = str(exc)
             except OSError as exc:  # a full disk: the figures still come

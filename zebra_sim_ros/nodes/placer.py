@@ -119,8 +119,8 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             for n in self.placer.camera_names]))
         # What wait_for_subscribers waits for. /tf too: a recorder that matched the markers but not yet /tf would
         # miss the first step's transforms. /clock is latched instead (above).
-        self.outputs = [p for p in (self.scene_pub, self.animals_pub, self.marker_pub, *self.pose_pubs, self.tf_pub)
-                        if p is not None]
+        self.outputs = [p for p in (self.scene_pub, self.animals_pub, self.marker_pub, *self.pose_pubs,
+                                    *self.fix_pubs, self.tf_pub) if p is not None]
         self.step = c.start_step
         self.published = 0
         self.resent = 0  # lockstep steps published again for want of an acknowledgement

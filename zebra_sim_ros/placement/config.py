@@ -139,10 +139,11 @@ class PlacerConfig(StageConfig):
     latitude_deg: float = param(-2.3, "latitude of map's origin (WGS84): the sun's path, and where the scene's datum "
                                 "puts the map on the Earth (Serengeti: -2.3)", "deg", lo=-90.0, hi=90.0)
     longitude_deg: float = param(34.8, "longitude of map's origin (WGS84), east positive: the scene's datum, with "
-                                 "latitude_deg and altitude_m (Serengeti: 34.8; the sun follows local solar time)",
-                                 "deg", lo=-180.0, hi=180.0)
-    altitude_m: float = param(1550.0, "height of map's origin above the WGS84 ellipsoid: the scene's datum "
-                              "(the Serengeti plains: about 1550)", "m", lo=-500.0, hi=9000.0)
+                                 "latitude_deg and origin_altitude_m (Serengeti: 34.8; the sun follows local solar "
+                                 "time)", "deg", lo=-180.0, hi=180.0)
+    origin_altitude_m: float = param(1550.0, "height of map's origin above the WGS84 ellipsoid: the scene's datum "
+                                     "(the Serengeti plains: about 1550; not a flight height)", "m", lo=-500.0,
+                                     hi=9000.0)
     mode: str = param("rate", "rate: publish at rate_hz; lockstep: next step when every acker acknowledged; "
                       "service: one step per call of the ~/step service (std_srvs/Trigger)",
                       choices=("rate", "lockstep", "service"))
@@ -154,12 +155,12 @@ class PlacerConfig(StageConfig):
     lockstep_timeout_s: float = param(30.0, "warn and re-publish when a step is not acknowledged within this", "s",
                                       lo=0.1, hi=3600.0)
     wait_for_subscribers: int = param(0, "publish the first step only when each output topic (scene, animals, "
-                                      "markers, camera poses, /tf) has at least this many subscribers, e.g. 1 so a "
-                                      "recorder misses nothing (0: start at once)", lo=0, hi=1000)
+                                      "markers, camera poses and fixes, /tf) has at least this many subscribers, "
+                                      "e.g. 1 so a recorder misses nothing (0: start at once)", lo=0, hi=1000)
     wait_for_nodes: tuple[str, ...] = param(
         ("",), "publish the first step only when each of these nodes subscribes to every output topic (scene, "
-        "animals, markers, camera poses, /tf), e.g. [recorder], so that another subscriber (RViz) cannot start the "
-        "run early; a name without a leading / is in the placer's namespace ([''] (empty): none)",
+        "animals, markers, camera poses and fixes, /tf), e.g. [recorder], so that another subscriber (RViz) cannot "
+        "start the run early; a name without a leading / is in the placer's namespace ([''] (empty): none)",
         allowed="[''] or a list of node names", check=_node_names)
     publish_animals: bool = param(True, "publish zebra_sim/zebras, every placed animal's species, pose and 3D box "
                                   "(a Detection3DArray); false: neither published nor waited on (a recorder that "

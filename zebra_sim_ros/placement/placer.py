@@ -129,4 +129,4 @@ class Placer:
                               self.species)
         return build_scene(step, placement, reroll, c.seed, stamp_ns, self._world_info, str(lib.manifest["digest"]),
                            zebras, herd, rotate_sun(lighting_for(tod, doy, c.latitude_deg), sun_turn), cams, ground,
-                           weather, Datum(c.latitude_deg, c.longitude_deg, c.altitude_m))
+                           weather, Datum(c.latitude_deg, c.longitude_deg, c.origin_altitude_m))

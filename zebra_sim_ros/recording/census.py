@@ -36,46 +36,47 @@ SCENE_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/scene$")  # the placer's scene
 def census_geojson(census: dict[int, list[Placed3D]], datum: Datum, about: dict[str, Any]) -> dict[str, Any]:
     """A census as a GeoJSON FeatureCollection (RFC 7946: WGS84 longitude, latitude and height above the
     ellipsoid), for a GIS: per stamp (``census``: its animals, each placed in ``map`` with ``id`` the detections it
-    joins, ``camera:index``) and animal a Point with its class, score, stamp, the number of cameras that saw it, the
-    detections it joins and its ``map`` position; ``datum`` puts ``map`` on the Earth; ``about`` (the rule, the
-    source) and the datum go beside the features, under ``zebra_sim``."""
-    rows = [(t, a) for t in sorted(census) for a in census[t]]
-    lla = enu_to_geodetic(np.array([a.center for _, a in rows], np.float64).reshape(-1, 3), datum)
+    joins, ``camera:index``) and animal a Point, its id ``<stamp_ns>:<k>``, with scalar properties (they survive a
+    shapefile or CSV export): its class, score, stamp, how many cameras saw it, the detections it joins and its
+    ``map`` position; ``datum`` puts ``map`` on the Earth; the datum, the animals per class and ``about`` (the
+    source, the rule) go beside the features, under ``zebra_sim``."""
+    rows = [(t, k, a) for t in sorted(census) for k, a in enumerate(census[t])]
+    lla = enu_to_geodetic(np.array([a.center for _, _, a in rows], np.float64).reshape(-1, 3), datum)
     features = []
-    for (t, a), (lat, lon, height) in zip(rows, lla.tolist(), strict=True):
+    for (t, k, a), (lat, lon, height) in zip(rows, lla.tolist(), strict=True):
         parts = [p for p in a.id.split(",") if p]
+        x, y, z = (round(v, 3) for v in a.center)
         features.append({
-            "type": "Feature",
+            "type": "Feature", "id": f"{t}:{k}",
             "geometry": {"type": "Point", "coordinates": [round(lon, 8), round(lat, 8), round(height, 3)]},
             "properties": {"class": a.class_id, "score": round(a.score, 4), "stamp_ns": t, "time_s": t / 1e9,
-                           "views": len({p.rsplit(":", 1)[0] for p in parts}), "detections": parts,
-                           "map_xyz": [round(v, 3) for v in a.center]}})
+                           "views": len({p.rsplit(":", 1)[0] for p in parts}), "detections": ",".join(parts),
+                           "map_x": x, "map_y": y, "map_z": z}})
+    per_class: dict[str, int] = defaultdict(int)
+    for _, _, a in rows:
+        per_class[a.class_id] += 1
     return {"type": "FeatureCollection", "features": features,
-            "zebra_sim": {"datum": datum.to_dict(), "animals": len(rows), "stamps": len(census), **about}}
+            "zebra_sim": {"datum": datum.to_dict(), "animals": len(rows), "per_class": dict(per_class),
+                          "stamps": len(census), **about}}
 
 
 def write_geojson(path: str | Path, collection: dict[str, Any]) -> Path:
     """Write :func:`census_geojson`'s collection to ``path`` (its folder made); OSError if it cannot be."""
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(collection, indent=1) + "\n")
+    out.write_text(json.dumps(collection) + "\n")
     return out
 
 
-def scene_datum(scene_json: str) -> Datum | None:
-    """The datum of a recorded ``zebra_sim/scene`` (None for a scene written before scenes carried one)."""
-    return Scene.from_json(scene_json).datum
-
-
 def run_datum(datums: set[Datum | None]) -> Datum:
-    """The one datum of a run's scenes (``datums``: each scene's); ParameterError naming ``datum`` when they hold
-    none (scenes from before scenes carried it) or disagree."""
-    held = {d for d in datums if d is not None}
+    """The one datum of a run's scenes (``datums``: each scene's, None for one from before scenes carried it);
+    ParameterError naming ``datum`` when they hold none or disagree."""
+    held = sorted({d for d in datums if d is not None}, key=lambda d: (d.latitude_deg, d.longitude_deg, d.altitude_m))
     if len(held) != 1:
-        hold = "none" if not held else f"{len(held)} different ones"
-        raise ParameterError("datum", None, "the map origin's latitude, longitude and height, given where the bag's "
-                             f"scenes do not say it (they hold {hold})")
-    return held.pop()
+        raise ParameterError("datum", [tuple(d.to_dict().values()) for d in held],
+                             "one datum (map origin's latitude, longitude and height) in the bag's scenes, or one "
+                             "given where they carry none (bag census --datum)")
+    return held[0]
 
 
 def census_figures(census: dict[int, int], drones: dict[str, DroneFrames],
@@ -133,9 +134,10 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
     bag has none). ParameterError when the bag holds no placed detections (recorded without ``up --locate``) or no
     camera poses, holds more than one graph's (two namespaces), or ``drones`` are not its cameras.
 
-    ``geojson``: the recounted animals are written there (:func:`census_geojson`), put on the Earth by ``datum``,
-    or else by the datum of the bag's scenes; ParameterError naming ``datum`` when there is neither, or the scenes
-    disagree."""
+    ``geojson``: the recounted animals are written there (:func:`census_geojson`), put on the Earth by the datum of
+    the bag's scenes, or by ``datum`` where they carry none; ParameterError naming ``datum`` when there is neither,
+    when the scenes disagree, or when ``datum`` differs from theirs, and naming ``geojson`` when it cannot be
+    written."""
     rule = rule or LocatorConfig()
     located: dict[tuple[str, int], list[Placed3D]] = {}
     datums: set[Datum | None] = set()  # the scenes' (a run has one)
@@ -156,8 +158,8 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
             elif CENSUS_TOPIC.match(m.topic):
                 t, animals = cdr_detections3d(m.data)
                 recorded[t] = len(zebra_points(animals))
-            elif geojson is not None and datum is None and SCENE_TOPIC.match(m.topic):
-                datums.add(scene_datum(cdr_string(m.data)))
+            elif geojson is not None and SCENE_TOPIC.match(m.topic):
+                datums.add(Scene.from_json(cdr_string(m.data)).datum)
         except (*MALFORMED, ZebraSimError) as exc:
             unusable.append(skip_note(m, exc))
 
@@ -203,10 +205,19 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
     rule_values = {k: getattr(rule, k) for k in CENSUS_RULE}
     about: dict[str, Any] = {}
     if geojson is not None:
+        held = {d for d in datums if d is not None}
+        if datum is not None and held and held != {datum}:
+            raise ParameterError("datum", tuple(datum.to_dict().values()), "no datum of its own for a bag whose scenes "
+                                 f"carry one ({', '.join(str(tuple(d.to_dict().values())) for d in held)}): give it "
+                                 "only where they carry none")
         datum = datum or run_datum(datums)
-        about = {"geojson": str(write_geojson(geojson, census_geojson(
-            animals, datum, {"source": bag, "census": "recounted", "rule": rule_values, "cameras": cameras}))),
-            "datum": datum.to_dict()}
+        collection = census_geojson(animals, datum, {"source": bag, "census": "recounted", "rule": rule_values,
+                                                     "cameras": cameras})
+        try:
+            about = {"geojson": str(write_geojson(geojson, collection)), "datum": datum.to_dict()}
+        except OSError as exc:
+            why = exc.strerror or exc
+            raise ParameterError("geojson", str(geojson), f"a file that can be written ({why})") from exc
     return {**about, "rule": rule_values, "cameras": cameras,
             "stamps_placed": len({t for _, t in located}), "stamps_counted": len(counts),
             "recounted": census_figures(counts, collected.drones, zebras),
