@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from cli_helpers import CliRun
 from mcap.reader import make_reader
 from rclpy.serialization import serialize_message
 from rosbags.highlevel import AnyReader
@@ -444,7 +445,7 @@ def test_a_recorded_census_is_counted_again_from_the_bag(tmp_path: Path) -> None
         bag_census(path)
 
 
-def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any) -> None:
+def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any, cli: CliRun) -> None:
     """``bag census --geojson``: every recounted animal a WGS84 point that converts back to its map position to the
     millimetre, with its score and cameras; every zebra detection of a counted stamp in exactly one animal, named
     by its id, or its place in the message where it has none. The datum is the bag's scenes'; ``datum`` only where
@@ -519,6 +520,12 @@ def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any) -> None:
     for bad in ("91,0", "1", "a,b", "1,2,3,4"):
         with pytest.raises(ParameterError, match="'datum'"):
             parse_datum(bad)
+    run = cli(["bag", "census", str(bag), "--geojson", str(tmp_path / "cli.geojson"), "--datum=-2.3,34.8,1550"])
+    assert run.returncode == 0, run.stderr
+    assert "on the map: " in run.stdout and "origin at -2.3, 34.8, 1550 m" in run.stdout
+    assert json.loads((tmp_path / "cli.geojson").read_text())["features"] == features  # as called in Python
+    alone = cli(["bag", "census", str(bag), "--datum=-2.3,34.8"])  # a datum for no GeoJSON
+    assert alone.returncode != 0 and "'datum'" in alone.stderr and "only with --geojson" in alone.stderr
 
 def test_a_damaged_chunk_in_the_middle_loses_only_that_chunk(tmp_path: Path) -> None:
     [path] = _write(tmp_path / "full.mcap", n=300)
