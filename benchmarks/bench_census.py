@@ -29,16 +29,18 @@ import platform
 import statistics
 import time
 from collections import Counter
-from typing import Any
+from collections.abc import Iterator, Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from zebra_sim_ros.geometry.census import CENSUS_GATE, CENSUS_SEPARATION_M, join_views
 from zebra_sim_ros.geometry.locate import locate_boxes
+from zebra_sim_ros.messages import Scene, SceneCamera
 from zebra_sim_ros.placement.config import PlacerConfig
 from zebra_sim_ros.placement.placer import Placer
 from zebra_sim_ros.rendering.config import CameraConfig
-from zebra_sim_ros.simulation import Simulator
+from zebra_sim_ros.simulation import Frame, Simulator
 from zebra_sim_ros.world.world import load_world
 from zebra_sim_ros.zebra.asset import load_library
 
@@ -46,56 +48,94 @@ from zebra_sim_ros.zebra.asset import load_library
 View = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
-def views_of_steps(steps: int, size: str, detector: bool, first: int = 0) -> tuple[list[dict[str, list[View]]],
-                                                                                 list[float]]:
-    """Per step, per kind of box ("labels", and "detector" with it), the three cameras' placed points and ids;
-    and the milliseconds of each render."""
-    model = None
-    if detector:
-        from zebra_sim_ros.detection.checkpoint import load_model, select_device
+class RenderedCamera(NamedTuple):
+    """One camera of one step of the default world, rendered (with :func:`rendered_cameras`)."""
 
-        model, _ = load_model(None, select_device("cpu"))
+    step: int
+    scene: Scene
+    cam: SceneCamera
+    frame: Frame
+    k: np.ndarray  # the camera's 3x3 intrinsics
+    render_ms: float
+
+
+def rendered_cameras(size: str, steps: int, first: int = 0) -> Iterator[RenderedCamera]:
+    """Steps ``first`` .. ``first + steps - 1`` of the default world (the placer's defaults, its three cameras),
+    each camera rendered at ``size`` ("1280x720") as the camera node renders it (its photographic sensor): the
+    render loop of this benchmark and of ``bench_locate.py``."""
     w, h = (int(v) for v in size.split("x"))
     pc, cc = PlacerConfig(), CameraConfig(width=w, height=h)
     world = load_world(pc.world, pc.terrain_prim, pc.world_seed)
     lib = load_library()
     placer = Placer(pc, world, lib)
     sim = Simulator(world, lib, cc.render_options(), sensor=cc.sensor_model())  # as the camera node renders
-    out: list[dict[str, list[View]]] = []
-    render_ms: list[float] = []
     try:
         for step in range(first, first + steps):
             scene = placer.scene(step)
-            kinds: dict[str, list[View]] = {"labels": [], "detector": []}
             for cam in scene.cameras:
                 t0 = time.perf_counter()
                 frame = sim.simulate(scene, [cam.name])[0]
-                render_ms.append((time.perf_counter() - t0) * 1e3)
-                pose = (sim.renderer.camera.K, np.array(cam.position), np.array(cam.orientation_xyzw))
-                kept = frame.labels.kept
-                boxes = np.array([z.box_visible for z in kept], np.float64).reshape(-1, 4)
-                got = locate_boxes(boxes, frame.view.depth, *pose)
-                ids = np.array([z.id for z in kept], np.int64)
-                kinds["labels"].append((got.points[got.valid], ids[got.valid], pose[1], np.ones(int(got.valid.sum()))))
-                if model is not None:
-                    from zebra_sim_ros.detection.metrics import iou_matrix
-                    from zebra_sim_ros.detection.predict import detect
-
-                    found = detect(model, [frame.view.rgb])[0]
-                    found = found[found[:, 5] == 0].astype(np.float64)
-                    seen = [z for z in frame.labels.zebras if z.is_zebra]
-                    ids = np.full(len(found), -1, np.int64)
-                    if seen and len(found):
-                        iou = iou_matrix(found[:, :4], np.array([z.box_visible for z in seen], np.float64))
-                        best = iou.argmax(axis=1)
-                        hit = iou.max(axis=1) >= 0.5
-                        ids[hit] = np.array([seen[int(j)].id for j in best[hit]], np.int64)
-                    placed = locate_boxes(found[:, :4], frame.view.depth, *pose)
-                    ok = placed.valid
-                    kinds["detector"].append((placed.points[ok], ids[ok], pose[1], found[ok, 4]))
-            out.append(kinds)
+                yield RenderedCamera(step, scene, cam, frame, sim.renderer.camera.K, (time.perf_counter() - t0) * 1e3)
     finally:
         sim.release()
+
+
+def shipped_detector() -> Any:
+    """The shipped weights on the CPU, at the detector node's defaults."""
+    from zebra_sim_ros.detection.checkpoint import load_model, select_device
+
+    return load_model(None, select_device("cpu"))[0]
+
+
+def detected_zebras(model: Any, rgb: np.ndarray) -> np.ndarray:
+    """The detector's zebra boxes of one image: (N, 6) float64 rows x0, y0, x1, y1, score, class."""
+    from zebra_sim_ros.detection.predict import detect
+
+    found = detect(model, [rgb])[0]
+    return found[found[:, 5] == 0].astype(np.float64)
+
+
+def box_owners(boxes: np.ndarray, seen: Sequence[Any]) -> np.ndarray:
+    """For each box (N, 4), the index in ``seen`` (labelled zebras) of the one whose visible box it overlaps most,
+    IoU 0.5 or more; -1 for none (a false box)."""
+    from zebra_sim_ros.detection.metrics import iou_matrix
+
+    owner = np.full(len(boxes), -1, np.int64)
+    if seen and len(boxes):
+        iou = iou_matrix(boxes, np.array([z.box_visible for z in seen], np.float64).reshape(-1, 4))
+        hit = iou.max(axis=1) >= 0.5
+        owner[hit] = iou.argmax(axis=1)[hit]
+    return owner
+
+
+def views_of_steps(steps: int, size: str, detector: bool, first: int = 0) -> tuple[list[dict[str, list[View]]],
+                                                                                 list[float]]:
+    """Per step, per kind of box ("labels", and "detector" with it), the three cameras' placed points and ids;
+    and the milliseconds of each render."""
+    model = shipped_detector() if detector else None
+    out: list[dict[str, list[View]]] = []
+    render_ms: list[float] = []
+    current = -1
+    for r in rendered_cameras(size, steps, first):
+        if r.step != current:
+            current = r.step
+            out.append({"labels": [], "detector": []})
+        kinds = out[-1]
+        render_ms.append(r.render_ms)
+        pose = (r.k, np.array(r.cam.position), np.array(r.cam.orientation_xyzw))
+        kept = r.frame.labels.kept
+        boxes = np.array([z.box_visible for z in kept], np.float64).reshape(-1, 4)
+        got = locate_boxes(boxes, r.frame.view.depth, *pose)
+        ids = np.array([z.id for z in kept], np.int64)
+        kinds["labels"].append((got.points[got.valid], ids[got.valid], pose[1], np.ones(int(got.valid.sum()))))
+        if model is not None:
+            found = detected_zebras(model, r.frame.view.rgb)
+            seen = [z for z in r.frame.labels.zebras if z.is_zebra]
+            owner = box_owners(found[:, :4], seen)
+            ids = np.array([seen[int(j)].id if j >= 0 else -1 for j in owner], np.int64)
+            placed = locate_boxes(found[:, :4], r.frame.view.depth, *pose)
+            ok = placed.valid
+            kinds["detector"].append((placed.points[ok], ids[ok], pose[1], found[ok, 4]))
     return out, render_ms
 
 

@@ -26,14 +26,9 @@ import time
 from typing import Any
 
 import numpy as np
+from bench_census import box_owners, detected_zebras, rendered_cameras, shipped_detector  # the same render loop
 
 from zebra_sim_ros.geometry.locate import locate_boxes
-from zebra_sim_ros.placement.config import PlacerConfig
-from zebra_sim_ros.placement.placer import Placer
-from zebra_sim_ros.rendering.config import CameraConfig
-from zebra_sim_ros.simulation import Simulator
-from zebra_sim_ros.world.world import load_world
-from zebra_sim_ros.zebra.asset import load_library
 
 
 def main() -> None:
@@ -44,17 +39,7 @@ def main() -> None:
     ap.add_argument("--detector", action="store_true", help="also place the shipped detector's boxes")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    model = None
-    if args.detector:
-        from zebra_sim_ros.detection.checkpoint import load_model, select_device
-
-        model, _ = load_model(None, select_device("cpu"))
-    w, h = (int(v) for v in args.size.split("x"))
-    pc, cc = PlacerConfig(), CameraConfig(width=w, height=h)
-    world = load_world(pc.world, pc.terrain_prim, pc.world_seed)
-    lib = load_library()
-    placer = Placer(pc, world, lib)
-    sim = Simulator(world, lib, cc.render_options(), sensor=cc.sensor_model())  # as the camera node renders
+    model = shipped_detector() if args.detector else None
     err3d: list[float] = []
     err_ground: list[float] = []
     ranges: list[float] = []
@@ -63,50 +48,35 @@ def main() -> None:
     det_err: list[float] = []
     det_own: list[float] = []
     det_counts = {"placed": 0, "unplaced": 0}
-    try:
-        for step in range(args.steps):
-            scene = placer.scene(step)
-            for cam in scene.cameras:
-                t0 = time.perf_counter()
-                frame = sim.simulate(scene, [cam.name])[0]
-                render_ms.append((time.perf_counter() - t0) * 1e3)
-                zebras = [z for z in frame.labels.kept if z.visible_pixels >= args.min_pixels]
-                boxes = np.array([z.box_visible for z in zebras], np.float64).reshape(-1, 4)
-                t0 = time.perf_counter()
-                got = locate_boxes(boxes, frame.view.depth, sim.renderer.camera.K, np.array(cam.position),
-                                   np.array(cam.orientation_xyzw))
-                locate_ms.append((time.perf_counter() - t0) * 1e3)
-                centres = np.array([z.box3d_map.center for z in zebras], np.float64).reshape(-1, 3)
-                ok = got.valid
-                d = got.points[ok] - centres[ok]
-                err3d += np.linalg.norm(d, axis=1).tolist()
-                err_ground += np.linalg.norm(d[:, :2], axis=1).tolist()
-                ranges += np.linalg.norm(centres[ok] - np.array(cam.position), axis=1).tolist()
-                if model is not None:
-                    from zebra_sim_ros.detection.predict import detect
-
-                    every = np.array([a.box.center for a in scene.zebras if a.species == "zebra"],
-                                     np.float64).reshape(-1, 3)  # every placed zebra, seen or not
-                    found = detect(model, [frame.view.rgb])[0]
-                    found = found[found[:, 5] == 0] if found.shape[1] > 5 else found  # zebras
-                    placed = locate_boxes(found[:, :4].astype(np.float64), frame.view.depth,
-                                          sim.renderer.camera.K, np.array(cam.position), np.array(cam.orientation_xyzw))
-                    det_counts["placed"] += int(placed.valid.sum())
-                    det_counts["unplaced"] += int((~placed.valid).sum())
-                    if len(every):
-                        gaps = np.linalg.norm(placed.points[placed.valid][:, None] - every[None], axis=2)
-                        det_err += gaps.min(axis=1).tolist()
-                    seen = frame.labels.zebras  # kept or not: each with its visible box and its own 3D box
-                    if seen and len(found):
-                        from zebra_sim_ros.detection.metrics import iou_matrix
-
-                        iou = iou_matrix(found[:, :4].astype(np.float64),
-                                         np.array([z.box_visible for z in seen], np.float64).reshape(-1, 4))
-                        for i in np.flatnonzero(placed.valid & (iou.max(axis=1) >= 0.5)):
-                            own = np.array(seen[int(iou[i].argmax())].box3d_map.center, np.float64)
-                            det_own.append(float(np.linalg.norm(placed.points[i] - own)))
-    finally:
-        sim.release()
+    for r in rendered_cameras(args.size, args.steps):
+        render_ms.append(r.render_ms)
+        position, orientation = np.array(r.cam.position), np.array(r.cam.orientation_xyzw)
+        zebras = [z for z in r.frame.labels.kept if z.visible_pixels >= args.min_pixels]
+        boxes = np.array([z.box_visible for z in zebras], np.float64).reshape(-1, 4)
+        t0 = time.perf_counter()
+        got = locate_boxes(boxes, r.frame.view.depth, r.k, position, orientation)
+        locate_ms.append((time.perf_counter() - t0) * 1e3)
+        centres = np.array([z.box3d_map.center for z in zebras], np.float64).reshape(-1, 3)
+        ok = got.valid
+        d = got.points[ok] - centres[ok]
+        err3d += np.linalg.norm(d, axis=1).tolist()
+        err_ground += np.linalg.norm(d[:, :2], axis=1).tolist()
+        ranges += np.linalg.norm(centres[ok] - position, axis=1).tolist()
+        if model is not None:
+            every = np.array([a.box.center for a in r.scene.zebras if a.species == "zebra"],
+                             np.float64).reshape(-1, 3)  # every placed zebra, seen or not
+            found = detected_zebras(model, r.frame.view.rgb)
+            placed = locate_boxes(found[:, :4], r.frame.view.depth, r.k, position, orientation)
+            det_counts["placed"] += int(placed.valid.sum())
+            det_counts["unplaced"] += int((~placed.valid).sum())
+            if len(every):
+                gaps = np.linalg.norm(placed.points[placed.valid][:, None] - every[None], axis=2)
+                det_err += gaps.min(axis=1).tolist()
+            seen = r.frame.labels.zebras  # kept or not: each with its visible box and its own 3D box
+            owner = box_owners(found[:, :4], seen)
+            for i in np.flatnonzero(placed.valid & (owner >= 0)):
+                own = np.array(seen[int(owner[i])].box3d_map.center, np.float64)
+                det_own.append(float(np.linalg.norm(placed.points[i] - own)))
     e3, eg, rg = np.array(err3d), np.array(err_ground), np.array(ranges)
     out: dict[str, Any] = {
         "date": time.strftime("%Y-%m-%d"), "machine": f"{platform.processor() or platform.machine()}, "
