@@ -114,6 +114,15 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path, 
                 back = geodetic_to_enu([[fix.latitude, fix.longitude, fix.altitude]], datum)[0]
                 assert back == pytest.approx(cam["position"], abs=1e-4)  # 0.1 mm
         assert listener.markers and len(listener.markers[-1].markers) == listener.scenes[-1]["placed"] + 1
+        shown = listener.markers[-1].markers
+        last = next(s for s in listener.scenes
+                    if (s["stamp"]["sec"], s["stamp"]["nanosec"]) == (shown[1].header.stamp.sec,
+                                                                        shown[1].header.stamp.nanosec))
+        for cube in shown[1:]:  # each zebra's oriented box, where its step's scene has it
+            box = next(z["box"] for z in last["zebras"] if z["id"] == cube.id)
+            p, q = cube.pose.position, cube.pose.orientation
+            assert (p.x, p.y, p.z, q.x, q.y, q.z, q.w) == pytest.approx([*box["center"], *box["orientation_xyzw"]])
+            assert (cube.scale.x, cube.scale.y, cube.scale.z) == pytest.approx(box["size"])
         # the placed animals, typed: one Detection3DArray per step in map, each animal of the scene's JSON with
         # its species, pose, oriented box and id
         assert listener.spin_until(lambda: len(listener.animals) >= 5, 10)

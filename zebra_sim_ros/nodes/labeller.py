@@ -20,7 +20,7 @@ import time
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
+from geometry_msgs.msg import Vector3
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import ColorRGBA, Header, String
 from visualization_msgs.msg import ImageMarker, Marker, MarkerArray
@@ -45,6 +45,7 @@ from zebra_sim_ros.nodes.ros_adapter import (
     help_text,
     image_array,
     message_class,
+    pose_msg,
     qos,
     run_node,
     stamp_ns,
@@ -65,10 +66,9 @@ def boxes3d(header: Header, labels: Labels) -> MarkerArray:
     out = [Marker(header=h, ns="zebra_boxes3d", action=Marker.DELETEALL)]
     for z in labels.zebras:
         b = z.box3d_map
-        (cx, cy, cz), (sx, sy, sz), (qx, qy, qz, qw) = b.center, b.size, b.orientation_xyzw
+        sx, sy, sz = b.size
         out.append(Marker(header=h, ns="zebra_boxes3d", id=z.id, type=Marker.CUBE, action=Marker.ADD,
-                          pose=Pose(position=Point(x=cx, y=cy, z=cz), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw)),
-                          scale=Vector3(x=sx, y=sy, z=sz),
+                          pose=pose_msg(b.center, b.orientation_xyzw), scale=Vector3(x=sx, y=sy, z=sz),
                           color=ColorRGBA(r=0.1, g=1.0, b=0.2, a=0.35 if z.kept else 0.1)))
     return MarkerArray(markers=out)
 

@@ -46,7 +46,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3
+from geometry_msgs.msg import PoseStamped, Vector3
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
@@ -153,16 +153,15 @@ def census_markers(header: Header, animals: list[CountedAnimal]) -> MarkerArray:
     index: Counter[str] = Counter()
     for animal in animals:
         r, g, b, alpha = _VIEWS_RGBA[min(animal.views, len(_VIEWS_RGBA)) - 1]
-        x, y, z = animal.position
         out.append(Marker(header=header, ns=animal.class_id, id=index[animal.class_id], type=Marker.CYLINDER,
-                          action=Marker.ADD, pose=Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(w=1.0)),
+                          action=Marker.ADD, pose=pose_msg(animal.position),
                           scale=Vector3(x=animal.side, y=animal.side, z=MARKER_HEIGHT_M),
                           color=ColorRGBA(r=r, g=g, b=b, a=alpha)))
         index[animal.class_id] += 1
     points = np.array([a.position for a in animals], np.float64).reshape(-1, 3)
-    x, y, z = (points.mean(axis=0) + [0.0, 0.0, 8.0]).tolist() if len(points) else (0.0, 0.0, 8.0)
+    above = (points.mean(axis=0) + [0.0, 0.0, 8.0]).tolist() if len(points) else (0.0, 0.0, 8.0)
     out.append(Marker(header=header, ns="census", id=0, type=Marker.TEXT_VIEW_FACING, action=Marker.ADD,
-                      pose=Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(w=1.0)),
+                      pose=pose_msg(above),
                       scale=Vector3(z=3.0), color=ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0),
                       text=count_text(animals) or "no animals"))
     return MarkerArray(markers=out)

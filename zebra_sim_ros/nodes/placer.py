@@ -35,7 +35,7 @@ from __future__ import annotations
 import math
 import time
 
-from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3
+from geometry_msgs.msg import PoseStamped, Quaternion, Transform, TransformStamped, Vector3
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import NavSatFix, NavSatStatus
 from std_msgs.msg import ColorRGBA, Header, String
@@ -222,12 +222,12 @@ class PlacerNode(ZebraNode[PlacerConfig]):
     def _markers(self, scene: Scene, header: Header) -> MarkerArray:
         markers = [Marker(header=header, ns="zebras", action=Marker.DELETEALL)]
         for z in scene.zebras:
-            (cx, cy, cz), (sx, sy, sz), (qx, qy, qz, qw) = z.box.center, z.box.size, z.box.orientation_xyzw
+            sx, sy, sz = z.box.size
             r, g, b, a = _MORPH_RGBA.get(z.morph, (1.0, 1.0, 1.0, 0.5))
             markers.append(Marker(
                 header=header, ns="zebras", id=z.id, type=Marker.CUBE, action=Marker.ADD,
-                pose=Pose(position=Point(x=cx, y=cy, z=cz), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw)),
-                scale=Vector3(x=sx, y=sy, z=sz), color=ColorRGBA(r=r, g=g, b=b, a=a)))
+                pose=pose_msg(z.box.center, z.box.orientation_xyzw), scale=Vector3(x=sx, y=sy, z=sz),
+                color=ColorRGBA(r=r, g=g, b=b, a=a)))
         return MarkerArray(markers=markers)
 
     # -- service ----------------------------------------------------------------------------------
