@@ -186,11 +186,16 @@ class LocatorConfig(StageConfig):
     qos_depth: int = param(10, "history depth", lo=1, hi=1000)
     diagnostics_period_s: float = diagnostics_param()
 
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        """The topics it reads under each camera."""
+        return self.detections, "depth", "camera_info", "camera/pose"
+
     def check(self) -> None:
         """Each camera once; an output that is not an input; the census outside the cameras' namespaces."""
         if len({d.strip("/") for d in self.drones}) != len(self.drones):
             raise ParameterError("drones", list(self.drones), "each camera once")
-        inputs = (self.detections, "depth", "camera_info", "camera/pose", "image_raw")
+        inputs = (*self.inputs, "image_raw")
         if self.output in inputs:
             raise ParameterError("output", self.output, f"another topic than the camera's inputs {list(inputs)}")
         out = self.census_output.strip("/")

@@ -283,8 +283,7 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
                                **sim},
                               tuple(f"{ns}/{d}/{t}" for d in drones for t in LOCATED_TOPICS)
                               + tuple(f"{ns}{t}" for t in CENSUS_TOPICS), remaps,
-                              tuple(f"{ns}/{d}/{t}" for d in drones
-                                    for t in ("detections", "depth", "camera_info", "camera/pose"))))
+                              tuple(f"{ns}/{d}/{t}" for d in drones for t in LocatorConfig().inputs)))
     if cfg.score:  # every frame scored: subscribed before the first step
         nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml", {"drones": list(drones), **sim}, (), remaps,
                               tuple(f"{ns}/{d}/{t}" for d in drones for t in ("labels", "detections"))))
