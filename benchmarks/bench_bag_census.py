@@ -32,6 +32,8 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
+    if args.repeats < 1:
+        ap.error(f"--repeats {args.repeats}: want 1 or more")
     times: dict[str, list[float]] = {"recount": [], "recount + geojson": []}
     with tempfile.TemporaryDirectory() as tmp:
         first = bag_census(args.bag, geojson=Path(tmp) / "census.geojson")  # warms the page cache
@@ -55,9 +57,10 @@ def main() -> None:
             alone.append(time.perf_counter() - t0)
         times["the GeoJSON alone"] = alone
     med = {k: statistics.median(v) for k, v in times.items()}
+    files = sorted(args.bag.rglob("*.mcap")) if args.bag.is_dir() else [args.bag]  # a split recording's folder
     out: dict[str, Any] = {
         "date": time.strftime("%Y-%m-%d"), "machine": platform.processor() or platform.machine(),
-        "cores": os.cpu_count(), "bag": str(args.bag), "bag_mb": round(args.bag.stat().st_size / 2**20, 1),
+        "cores": os.cpu_count(), "bag": str(args.bag), "bag_mb": round(sum(p.stat().st_size for p in files) / 2**20, 1),
         "stamps": first["stamps_counted"], "animals": first["recounted"]["animals"], "features": features,
         "median_s": {k: round(v, 3) for k, v in med.items()},
         "geojson_share": round(med["recount + geojson"] / med["recount"] - 1.0, 3)}

@@ -70,7 +70,9 @@ def test_scene_round_trips_and_refuses_other_schemas(savanna: World, library: Ze
                           ({**d, "rectangle": [0, 0]}, "malformed: AttributeError"),
                           ({**d, "step": float("inf")}, "malformed: OverflowError"),  # JSON's Infinity
                           ({**d, "datum": {**d["datum"], "latitude_deg": 91}}, "datum latitude 91.0 deg"),
-                          ({**d, "datum": {"latitude_deg": 1.0}}, "malformed: KeyError 'longitude_deg'")):
+                          ({**d, "datum": {"latitude_deg": 1.0}}, "malformed: KeyError 'longitude_deg'"),
+                          ({**d, "datum": {"latitude_deg": 1.0, "longitude_deg": 2.0}},
+                           "malformed: KeyError 'altitude_m'")):
         with pytest.raises(MessageFormatError, match=named):
             Scene.from_json(json.dumps(broken))
     with pytest.raises(MessageFormatError, match="not JSON"):

@@ -224,7 +224,7 @@ def test_a_best_effort_placer_still_sends_its_scene_reliable(domain: int, tmp_pa
         assert "zebra_sim/scene: reliability=reliable" in log, log[-1500:]
         assert "animals and markers: reliability=best_effort" in log, log[-1500:]
         # the poses too, kept for late readers (transient local), and a volatile best-effort reader still gets them
-        assert "poses: reliability=best_effort durability=transient_local" in log, log[-1500:]
+        assert "poses and fixes: reliability=best_effort durability=transient_local" in log, log[-1500:]
         assert offered == [ReliabilityPolicy.BEST_EFFORT]  # the animals' boxes follow qos_reliability too
         assert [s["step"] for s in listener.scenes] == [0, 1, 2]
     finally:

@@ -522,10 +522,13 @@ def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any, cli: CliR
             parse_datum(bad)
     run = cli(["bag", "census", str(bag), "--geojson", str(tmp_path / "cli.geojson"), "--datum=-2.3,34.8,1550"])
     assert run.returncode == 0, run.stderr
-    assert "on the map: " in run.stdout and "origin at -2.3, 34.8, 1550 m" in run.stdout
+    assert "on the map: " in run.stdout and "origin at -2.3, 34.8, 1550.0 m" in run.stdout
     assert json.loads((tmp_path / "cli.geojson").read_text())["features"] == features  # as called in Python
     alone = cli(["bag", "census", str(bag), "--datum=-2.3,34.8"])  # a datum for no GeoJSON
-    assert alone.returncode != 0 and "'datum'" in alone.stderr and "only with --geojson" in alone.stderr
+    assert alone.returncode != 0 and "'datum'" in alone.stderr and "only with geojson" in alone.stderr
+    # the scenes' own datum, typed back rounded from a printout, is theirs
+    assert bag_census(with_scenes, geojson=tmp_path / "typed.geojson", datum=Datum(78.2 + 1e-12, 15.6, 10.0004))[
+        "datum"] == Datum(78.2 + 1e-12, 15.6, 10.0004).to_dict()
 
 def test_a_damaged_chunk_in_the_middle_loses_only_that_chunk(tmp_path: Path) -> None:
     [path] = _write(tmp_path / "full.mcap", n=300)

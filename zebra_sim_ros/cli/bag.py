@@ -131,8 +131,6 @@ def cmd_census(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.detection.config import CENSUS_RULE, LocatorConfig
     from zebra_sim_ros.recording.census import bag_census, census_line
 
-    if args.datum is not None and args.geojson is None:
-        raise ParameterError("datum", args.datum, "only with --geojson (the census is placed on the Earth for it)")
     s = bag_census(args.bag, LocatorConfig.from_params({k: getattr(args, k) for k in CENSUS_RULE}), args.drones,
                    args.geojson, parse_datum(args.datum) if args.datum is not None else None)
 
@@ -147,8 +145,8 @@ def cmd_census(args: argparse.Namespace) -> Summary:
               f"{census_line(s['recorded'])}")
     if "geojson" in s:
         d = s["datum"]
-        print(f"the recounted animals on the map: {s['geojson']} (GeoJSON; map's origin at {d['latitude_deg']:g}, "
-              f"{d['longitude_deg']:g}, {d['altitude_m']:g} m)")
+        print(f"the recounted animals on the map: {s['geojson']} (GeoJSON; map's origin at {d['latitude_deg']!r}, "
+              f"{d['longitude_deg']!r}, {d['altitude_m']!r} m)")
     if s["skipped"]:
         print(f"skipped {len(s['skipped'])} unusable message(s), first: {s['skipped'][0]}")
     for note in s["damaged"]:

@@ -56,8 +56,8 @@ def register(sub: Any) -> None:
                "weights at 1.7 x the cameras' long side; 1.0: native resolution")
     add_option(p, spec_of(DetectorConfig, "amp"), "--detect-amp")
     add_option(p, spec_of(DetectorConfig, "verifier"))
-    p.add_argument("--out", default="out/up", help="folder for the bag, logs, summary.json, preview.jpg and "
-                   "zebra_sim.rviz")
+    p.add_argument("--out", default="out/up", help="folder for the bag, logs, summary.json, preview.jpg, "
+                   "zebra_sim.rviz and, with --locate, census.geojson")
     p.add_argument("--config", default="", help="folder of the parameter files (default: the installed config/)")
     p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID for the graph (default: inherited)")
     p.add_argument("--namespace", default="", help="run the whole graph in this namespace (e.g. /g1): every topic "

@@ -325,11 +325,12 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int,
     """Run ``todo`` (``total`` frames) in ``cfg.workers`` spawned processes; returns the frames written and the
     summed stage times.
 
-    A worker that dies (an exception, the OOM killer) sends nothing more: the parent looks at the workers' exit codes
-    every :data:`_WORKER_POLL_S` seconds, also while the others keep reporting, stops the rest and raises
-    :class:`WorkerError` naming the dead one; so it does for a live worker that has not finished and has reported
-    nothing for :data:`_WORKER_STALL_S` (each worker's silence is timed apart, so one that hangs is found while the
-    others still report)."""
+    Each worker reports on its own pipe (a worker stopped in the middle of a report holds up no other's). A worker
+    that dies (an exception, the OOM killer) sends nothing more: the parent looks at the workers' exit codes
+    every :data:`_WORKER_POLL_S` seconds, also while the others keep reporting, and at a pipe that ends before its
+    worker said it was done; it stops the rest and raises :class:`WorkerError` naming the dead one. So it does for
+    a live worker that has not finished and has reported nothing for :data:`_WORKER_STALL_S` (each worker's silence
+    is timed apart, so one that hangs is found while the others still report)."""
     ctx = mp.get_context("spawn")  # fresh processes: GL contexts do not survive fork
     chunks = [c for c in (todo[k::cfg.workers] for k in range(cfg.workers)) if c]
     pipes = [ctx.Pipe(duplex=False) for _ in chunks]  # (read end, write end): one per worker

@@ -188,7 +188,8 @@ class LocatorConfig(StageConfig):
 
     @property
     def inputs(self) -> tuple[str, ...]:
-        """The topics it reads under each camera."""
+        """The topics it reads under each camera: its detections, depth, camera_info and camera pose (the node
+        subscribes these, up waits for them)."""
         return self.detections, "depth", "camera_info", "camera/pose"
 
     def check(self) -> None:

@@ -27,7 +27,7 @@ from zebra_sim_ros.messages import Datum, Scene
 from zebra_sim_ros.recording.cdr import MALFORMED, Placed3D, cdr_detections3d, cdr_string, header_stamp_ns
 from zebra_sim_ros.recording.census import (
     CENSUS_TOPIC,
-    SCENE_TOPIC,
+    SCENE_TOPIC_RE,
     census_figures,
     census_geojson,
     drone_order,
@@ -89,7 +89,7 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
         image = topic_owner(m.topic, CAMERA_IMAGES)
         drone = last_name(image[0]) if image else ""
         try:
-            if SCENE_TOPIC.match(m.topic):
+            if SCENE_TOPIC_RE.match(m.topic):
                 scene = Scene.from_json(cdr_string(m.data))
                 scenes[scene.stamp.ns] = m.publish_time
                 datums.add(scene.datum)

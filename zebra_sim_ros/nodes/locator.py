@@ -207,10 +207,11 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         det_class = message_class(detection_array_type())
         for d in c.drones:
             # raw: the CDR bytes read by the scorer's and bag eval's reader (cdr_detections)
-            self.create_subscription(det_class, f"{d}/{c.detections}", self._on_detections(d), q, raw=True)
-            self.create_subscription(Image, f"{d}/depth", self._on_part(d, "depth"), image_q)
-            self.create_subscription(PoseStamped, f"{d}/camera/pose", self._on_part(d, "pose"), pose_q)
-            self.create_subscription(CameraInfo, f"{d}/camera_info", self._on_info(d), image_q)
+            detections, depth, info, pose = c.inputs
+            self.create_subscription(det_class, f"{d}/{detections}", self._on_detections(d), q, raw=True)
+            self.create_subscription(Image, f"{d}/{depth}", self._on_part(d, "depth"), image_q)
+            self.create_subscription(PoseStamped, f"{d}/{pose}", self._on_part(d, "pose"), pose_q)
+            self.create_subscription(CameraInfo, f"{d}/{info}", self._on_info(d), image_q)
             self.pubs[d] = self.create_publisher(out_class, f"{d}/{c.output}", q)
         self.census_pub = self.create_publisher(out_class, c.census_output, q) if c.census else None
         self.marker_pub = self.create_publisher(MarkerArray, f"{c.census_output}/markers", q) if c.census else None

@@ -97,7 +97,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         # step goes out may match the placer only after its first pose has gone; volatile readers match too
         poses = qos(c.qos_reliability, c.qos_depth, transient_local=True)
         self.get_logger().info(f"QoS {SCENE_TOPIC}: {describe_qos(latched)}; animals and markers: "
-                               f"{describe_qos(stream)}; poses: {describe_qos(poses)}")
+                               f"{describe_qos(stream)}; poses and fixes: {describe_qos(poses)}")
         self.scene_pub = self.create_publisher(String, SCENE_TOPIC, latched)
         self.marker_pub = self.create_publisher(MarkerArray, MARKER_TOPIC, stream)
         self.animals_type, self.animals_pub = "", None  # publish_animals:=false: neither published nor awaited

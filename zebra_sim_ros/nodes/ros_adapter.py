@@ -156,7 +156,8 @@ class ZebraNode(Node, Generic[C]):
         arrived, or what else the node needs for them did not): counted in ``counts["unmatched"]`` and logged."""
         for old, camera in dropped:
             counts["unmatched"] = counts.get("unmatched", 0) + 1
-            self.get_logger().warning(f"{camera}: inputs of stamp {old} never all arrived; dropped "
+            self.get_logger().warning(f"{camera}: inputs of stamp {old} dropped unused (not all arrived, or what "
+                                      f"else they need did not: a scene, a camera_info); "
                                       f"({counts['unmatched']} so far)")
 
     def wall_timer(self, period_s: float, callback: Callable[[], None]) -> Any:

@@ -30,7 +30,7 @@ from zebra_sim_ros.recording.reader import BagMessage, last_name, topic_owner
 _POSE = ("camera/pose",)  # a camera's optical frame in map (the placer's)
 # the locator's own census, under the graph's namespace
 CENSUS_TOPIC = re.compile(rf"^(?:/[^/]+)*/{re.escape(LocatorConfig().census_output)}$")
-SCENE_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/scene$")  # the placer's scenes, under the graph's namespace
+SCENE_TOPIC_RE = re.compile(r"^(?:/[^/]+)*/zebra_sim/scene$")  # the placer's scenes, under the graph's namespace
 
 
 def census_geojson(census: dict[int, list[Placed3D]], datum: Datum, about: dict[str, Any]) -> dict[str, Any]:
@@ -66,6 +66,12 @@ def write_geojson(path: str | Path, collection: dict[str, Any]) -> Path:
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(collection) + "\n")
     return out
+
+
+def same_place(a: Datum, b: Datum) -> bool:
+    """The same datum to within 1e-9 deg (0.1 mm) and 1 mm: one typed from another's printout is the same."""
+    return (abs(a.latitude_deg - b.latitude_deg) <= 1e-9 and abs(a.longitude_deg - b.longitude_deg) <= 1e-9
+            and abs(a.altitude_m - b.altitude_m) <= 1e-3)
 
 
 def run_datum(datums: set[Datum | None]) -> Datum:
@@ -138,6 +144,9 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
     the bag's scenes, or by ``datum`` where they carry none; ParameterError naming ``datum`` when there is neither,
     when the scenes disagree, or when ``datum`` differs from theirs, and naming ``geojson`` when it cannot be
     written."""
+    if datum is not None and geojson is None:
+        raise ParameterError("datum", tuple(datum.to_dict().values()), "only with geojson (the census is placed on "
+                             "the Earth for it)")
     rule = rule or LocatorConfig()
     located: dict[tuple[str, int], list[Placed3D]] = {}
     datums: set[Datum | None] = set()  # the scenes' (a run has one)
@@ -158,7 +167,7 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
             elif CENSUS_TOPIC.match(m.topic):
                 t, animals = cdr_detections3d(m.data)
                 recorded[t] = len(zebra_points(animals))
-            elif geojson is not None and SCENE_TOPIC.match(m.topic):
+            elif geojson is not None and SCENE_TOPIC_RE.match(m.topic):
                 datums.add(Scene.from_json(cdr_string(m.data)).datum)
         except (*MALFORMED, ZebraSimError) as exc:
             unusable.append(skip_note(m, exc))
@@ -206,7 +215,7 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
     about: dict[str, Any] = {}
     if geojson is not None:
         held = {d for d in datums if d is not None}
-        if datum is not None and held and held != {datum}:
+        if datum is not None and held and not all(same_place(datum, d) for d in held):
             raise ParameterError("datum", tuple(datum.to_dict().values()), "no datum of its own for a bag whose scenes "
                                  f"carry one ({', '.join(str(tuple(d.to_dict().values())) for d in held)}): give it "
                                  "only where they carry none")
