@@ -157,8 +157,8 @@ class ZebraNode(Node, Generic[C]):
         for old, camera in dropped:
             counts["unmatched"] = counts.get("unmatched", 0) + 1
             self.get_logger().warning(f"{camera}: inputs of stamp {old} dropped unused (not all arrived, or what "
-                                      f"else they need did not: a scene, a camera_info); "
-                                      f"({counts['unmatched']} so far)")
+                                      f"else they need did not: a scene, a camera_info; {counts['unmatched']} so "
+                                      "far)")
 
     def wall_timer(self, period_s: float, callback: Callable[[], None]) -> Any:
         """A timer on the steady wall clock. rclpy's timers follow the node's clock, which under ``use_sim_time``

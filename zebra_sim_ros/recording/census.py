@@ -12,6 +12,7 @@ import json
 import re
 from collections import defaultdict
 from collections.abc import Sequence
+from dataclasses import astuple
 from pathlib import Path
 from typing import Any
 
@@ -77,12 +78,12 @@ def same_place(a: Datum, b: Datum) -> bool:
 def run_datum(datums: set[Datum | None]) -> Datum:
     """The one datum of a run's scenes (``datums``: each scene's, None for one from before scenes carried it);
     ParameterError naming ``datum`` when they hold none or disagree."""
-    held = sorted({d for d in datums if d is not None}, key=lambda d: (d.latitude_deg, d.longitude_deg, d.altitude_m))
+    held = sorted({astuple(d) for d in datums if d is not None})
     if len(held) != 1:
-        raise ParameterError("datum", [tuple(d.to_dict().values()) for d in held],
+        raise ParameterError("datum", held,
                              "one datum (map origin's latitude, longitude and height) in the bag's scenes, or one "
                              "given where they carry none (bag census --datum)")
-    return held[0]
+    return Datum(*held[0])
 
 
 def census_figures(census: dict[int, int], drones: dict[str, DroneFrames],
@@ -145,8 +146,7 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
     when the scenes disagree, or when ``datum`` differs from theirs, and naming ``geojson`` when it cannot be
     written."""
     if datum is not None and geojson is None:
-        raise ParameterError("datum", tuple(datum.to_dict().values()), "only with geojson (the census is placed on "
-                             "the Earth for it)")
+        raise ParameterError("datum", astuple(datum), "only with geojson (the census is placed on the Earth for it)")
     rule = rule or LocatorConfig()
     located: dict[tuple[str, int], list[Placed3D]] = {}
     datums: set[Datum | None] = set()  # the scenes' (a run has one)
@@ -214,12 +214,11 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
     rule_values = {k: getattr(rule, k) for k in CENSUS_RULE}
     about: dict[str, Any] = {}
     if geojson is not None:
-        held = {d for d in datums if d is not None}
-        if datum is not None and held and not all(same_place(datum, d) for d in held):
-            raise ParameterError("datum", tuple(datum.to_dict().values()), "no datum of its own for a bag whose scenes "
-                                 f"carry one ({', '.join(str(tuple(d.to_dict().values())) for d in held)}): give it "
-                                 "only where they carry none")
-        datum = datum or run_datum(datums)
+        if datum is None:
+            datum = run_datum(datums)
+        elif held := [astuple(d) for d in datums if d is not None and not same_place(datum, d)]:
+            raise ParameterError("datum", astuple(datum), f"no datum of its own for a bag whose scenes carry one "
+                                 f"({', '.join(map(str, held))}): give it only where they carry none")
         collection = census_geojson(animals, datum, {"source": bag, "census": "recounted", "rule": rule_values,
                                                      "cameras": cameras})
         try:
