@@ -248,6 +248,77 @@ def test_a_worker_killed_or_hung_mid_run_stops_generate_at_once_and_a_rerun_comp
         assert p.read_bytes() == (out / "annotations" / p.name).read_bytes(), p.name
 
 
+@pytest.mark.parametrize(("worker", "said"), [
+    ("reports_then_returns", r"worker 0 \(pid \d+\) ended \(exit code 0\) before its last frame"),
+    ("closes_its_pipe_and_stays", r"worker 0 \(pid \d+\) closed its pipe before its last frame and did not end")])
+def test_a_worker_that_ends_its_pipe_before_it_is_done_is_named_at_once(tmp_path: Path, worker: str,
+                                                                          said: str) -> None:
+    """A worker whose pipe ends before it said it was done is a failure seen as the pipe ends, not after the ten
+    minutes of silence allowed a hung one: whether it ended with exit code 0 (nothing else tells it from a worker
+    that finished) or closed its pipe and went on running (then it is ended, not left behind)."""
+    import multiprocessing
+    import time
+
+    import worker_helpers
+
+    from zebra_sim_ros.dataset.generate import _run_workers
+    from zebra_sim_ros.errors import WorkerError
+
+    before = set(multiprocessing.active_children())
+    cfg = GenerateConfig(out=str(tmp_path / "x"), workers=1, **SMALL)
+    shown: list[int] = []
+    t0 = time.monotonic()
+    with pytest.raises(WorkerError) as err:
+        _run_workers(cfg, plan(cfg, 3), 36, shown.append, worker=getattr(worker_helpers, worker))
+    assert time.monotonic() - t0 < 60, "the parent waited out the silence allowed"
+    message = str(err.value)
+    assert re.search(said, message), message
+    assert shown == ([1] if worker == "reports_then_returns" else [])  # what it reported still counts
+    assert f"after {shown[-1] if shown else 0} of 36 frames" in message
+    assert set(multiprocessing.active_children()) <= before  # the one that stayed was ended
+
+
+def test_a_worker_that_cannot_be_started_stops_those_started(tmp_path: Path,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """The system refusing the second worker's process (EAGAIN) is an error naming that worker, and the first one,
+    already running, is ended and reaped: no process is left behind and no pipe left open."""
+    import errno
+    import multiprocessing
+    import multiprocessing.context as mp_context
+    import os
+    from multiprocessing import resource_tracker
+
+    import worker_helpers
+
+    from zebra_sim_ros.dataset.generate import _run_workers
+    from zebra_sim_ros.errors import WorkerError
+
+    started: list[int] = []
+    start = mp_context.SpawnProcess.start
+
+    def refuse_the_second(self: mp_context.SpawnProcess) -> None:
+        if started:
+            raise OSError(errno.EAGAIN, os.strerror(errno.EAGAIN))
+        start(self)
+        assert self.pid is not None
+        started.append(self.pid)
+
+    monkeypatch.setattr(mp_context.SpawnProcess, "start", refuse_the_second)
+    before = set(multiprocessing.active_children())
+    resource_tracker.ensure_running()  # its pipe stays open for the process's life: opened before counting
+    fds = len(os.listdir("/proc/self/fd"))
+    cfg = GenerateConfig(out=str(tmp_path / "x"), workers=3, **SMALL)
+    with pytest.raises(WorkerError) as err:
+        _run_workers(cfg, plan(cfg, 3), 36, lambda d: None, worker=worker_helpers.reports_then_waits)
+    message = str(err.value)
+    assert "worker 1 of 3 could not be started" in message and os.strerror(errno.EAGAIN) in message, message
+    assert "run the same command again" in message
+    assert len(started) == 1 and set(multiprocessing.active_children()) <= before
+    with pytest.raises(ProcessLookupError):
+        os.kill(started[0], 0)  # reaped
+    assert len(os.listdir("/proc/self/fd")) <= fds  # the six pipe ends and the started one's sentinel closed
+
+
 @pytest.mark.parametrize(("key", "what"), [("asset_digest", "animal asset"),
                                            ("appearance_digest", r"animal appearance \(asset and coats\)")])
 def test_a_folder_of_other_animals_is_not_continued(dataset: Path, tmp_path: Path, key: str, what: str) -> None:

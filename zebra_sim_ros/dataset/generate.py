@@ -320,36 +320,41 @@ def _progress(done: int, total: int, t0: float, stream: Any) -> None:
     stream.flush()
 
 
-def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int,
-                 show: Callable[[int], None]) -> tuple[int, dict[str, float]]:
-    """Run ``todo`` (``total`` frames) in ``cfg.workers`` spawned processes; returns the frames written and the
-    summed stage times.
+def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int, show: Callable[[int], None],
+                 worker: Callable[[GenerateConfig, list[Job], Any], None] = _worker) -> tuple[int, dict[str, float]]:
+    """Run ``todo`` (``total`` frames) in ``cfg.workers`` spawned processes, each running ``worker`` (importable by
+    a spawned process) on its share; returns the frames written and the summed stage times.
 
     Each worker reports on its own pipe (a worker stopped in the middle of a report holds up no other's). A worker
     that dies (an exception, the OOM killer) sends nothing more: the parent looks at the workers' exit codes
     every :data:`_WORKER_POLL_S` seconds, also while the others keep reporting, and at a pipe that ends before its
     worker said it was done; it stops the rest and raises :class:`WorkerError` naming the dead one. So it does for
     a live worker that has not finished and has reported nothing for :data:`_WORKER_STALL_S` (each worker's silence
-    is timed apart, so one that hangs is found while the others still report)."""
+    is timed apart, so one that hangs is found while the others still report). A worker that cannot be started
+    (the system refuses a process) stops those already started, the same way."""
     ctx = mp.get_context("spawn")  # fresh processes: GL contexts do not survive fork
     chunks = [c for c in (todo[k::cfg.workers] for k in range(cfg.workers)) if c]
     pipes = [ctx.Pipe(duplex=False) for _ in chunks]  # (read end, write end): one per worker
-    procs = [ctx.Process(target=_worker, args=(cfg, ch, w), daemon=True)
+    procs = [ctx.Process(target=worker, args=(cfg, ch, w), daemon=True)
              for ch, (_, w) in zip(chunks, pipes, strict=True)]
-    for p in procs:
-        p.start()
-    for _, w in pipes:
-        w.close()  # the worker holds its write end alone, so its pipe reads as ended when it dies
     reading = {r: k for k, (r, _) in enumerate(pipes)}
     ended: set[int] = set()  # the workers whose pipe has ended
     done = 0
     finished: set[int] = set()
     times = {"place": 0.0, "render": 0.0, "label": 0.0, "write": 0.0}
-    looked = time.monotonic()
-    heard = [looked] * len(procs)  # when each worker last reported
     failure = ""
     try:
-        while len(finished) < len(procs):
+        for k, p in enumerate(procs):
+            try:
+                p.start()
+            except OSError as exc:  # no process to be had (EAGAIN, ENOMEM): those started are stopped below
+                failure = f"worker {k} of {len(procs)} could not be started ({exc})"
+                break
+        for _, w in pipes:
+            w.close()  # the worker holds its write end alone, so its pipe reads as ended when it dies
+        looked = time.monotonic()
+        heard = [looked] * len(procs)  # when each worker last reported
+        while not failure and len(finished) < len(procs):
             ready = mp_connection.wait(list(reading), timeout=_WORKER_POLL_S)
             now = time.monotonic()
             for r, k in [(r, k) for r, k in reading.items() if r in ready]:
@@ -378,7 +383,9 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int,
             if dead:  # the exit codes as the workers died, before the others are stopped below
                 failure = "; ".join(f"worker {k} (pid {p.pid}) died with exit code {p.exitcode}"
                                     f"{_signal_name(p.exitcode)}" if p.exitcode else
-                                    f"worker {k} (pid {p.pid}) ended (exit code {p.exitcode}) before its last frame"
+                                    f"worker {k} (pid {p.pid}) ended (exit code 0) before its last frame"
+                                    if p.exitcode == 0 else
+                                    f"worker {k} (pid {p.pid}) closed its pipe before its last frame and did not end"
                                     for k, p in dead)
                 break
             hung = [(k, p) for k, p in enumerate(procs) if k not in finished and now - heard[k] > _WORKER_STALL_S]
@@ -389,6 +396,8 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int,
     finally:
         stop = len(finished) < len(procs)
         for p in procs:
+            if p.pid is None:  # never started
+                continue
             if stop and p.is_alive():  # the rest of a failed run is not waited for: a rerun resumes it
                 p.terminate()
                 if p.pid is not None:
@@ -398,11 +407,16 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int,
             if p.is_alive():
                 p.kill()
                 p.join(timeout=10)
-        for r, _ in pipes:
+        ends = [(p.pid, p.exitcode) for p in procs]  # read before close(), after which a Process says nothing
+        for p in procs:
+            with contextlib.suppress(ValueError):  # its sentinel's descriptor; still running after the kill: left
+                p.close()
+        for r, w in pipes:
             r.close()
+            w.close()  # closed already, but where a start failed
     if not failure:  # every worker said it was done: one that then failed on its way out
-        failure = "; ".join(f"worker {k} (pid {p.pid}) ended with exit code {p.exitcode}{_signal_name(p.exitcode)} "
-                            f"after its last frame" for k, p in enumerate(procs) if p.exitcode)
+        failure = "; ".join(f"worker {k} (pid {pid}) ended with exit code {code}{_signal_name(code)} "
+                            f"after its last frame" for k, (pid, code) in enumerate(ends) if code)
     if failure:
         raise WorkerError(f"generate into {cfg.out}: {failure}, after {done} of {total} frames; "
                           f"the other workers were stopped and every frame written is kept: run the same command "
