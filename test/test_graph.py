@@ -726,6 +726,38 @@ def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: P
     assert not up._live_scores({}, up.ScorerRun(300, 1.0, 3, 0.25), 0)["complete"]  # no step at all
 
 
+def test_ups_locator_waits_for_the_topics_its_file_names(tmp_path: Path) -> None:
+    """A config folder whose locator.yaml renames the locator's input and outputs, or switches its census off: the
+    graph's locator publishes and subscribes what its file names, so up waits for those topics and the recorder
+    records them (up once waited on the default names and timed out); a bad value there is refused before any node
+    starts, named with its file."""
+    conf = tmp_path / "config"
+    shutil.copytree(REPO / "config", conf)
+    text = (conf / "locator.yaml").read_text()
+
+    def locator(**changes: str) -> tuple[NodeSpec, NodeSpec]:
+        edited = text
+        for key, value in changes.items():
+            edited, n = re.subn(rf"^(    {key}:) \S+", rf"\1 {value}", edited, flags=re.M)
+            assert n == 1, key
+        (conf / "locator.yaml").write_text(edited)
+        specs = graph_spec(UpConfig(config_dir=str(conf), locate=True, namespace="/g1"))
+        return next(s for s in specs if s.executable == "locator"), next(s for s in specs if s.executable == "recorder")
+
+    default, _ = locator()
+    assert "/g1/drone_0/detections/located" in default.publishes and "/g1/census/animals" in default.publishes
+    assert default == next(s for s in graph_spec(UpConfig(locate=True, namespace="/g1")) if s.executable == "locator")
+    loc, rec = locator(detections="dets", output="placed", census_output="herd/count")
+    assert loc.publishes == ("/g1/drone_0/placed", "/g1/drone_1/placed", "/g1/drone_2/placed", "/g1/herd/count",
+                             "/g1/herd/count/markers")
+    assert "/g1/drone_2/dets" in loc.subscribes and "/g1/drone_2/detections" not in loc.subscribes
+    assert set(loc.publishes) <= set(rec.subscribes) and "/g1/census/animals" not in rec.subscribes
+    off, rec = locator(census="false")
+    assert off.publishes == default.publishes[:3] and "/g1/census/animals" not in rec.subscribes
+    with pytest.raises(ParameterError, match=re.escape(f"{conf / 'locator.yaml'}: output")):
+        locator(output="depth")  # one of its inputs
+
+
 def test_ups_locator_line_reads_every_summary_the_bag_can_give(capsys: pytest.CaptureFixture[str]) -> None:
     """The printed locator line of up's summary: the figures; a 90th percentile past every placed zebra (a step
     with none placed), which once ended the run before summary.json; no placed zebras recorded at all."""

@@ -356,11 +356,12 @@ def test_pose_reader_matches_rclpy() -> None:
 
 def _census_bag(path: Path, views: dict[str, dict[int, np.ndarray]], poses: bool = True,
                 recorded: dict[int, int] | None = None, ns: str = "", ids: dict[str, int] | None = None,
-                scenes: dict[int, str] | None = None) -> Path:
+                scenes: dict[int, str] | None = None, located: str = "detections/located",
+                census: str = "census/animals") -> Path:
     """A bag as up --locate records it, less the images: per camera and stamp its placed zebras (a
-    Detection3DArray, scores 0.9, 0.8 ..., ids from ``ids[camera]`` up where given, else none) and its pose (the
-    camera 60 m up, 80 m from the origin along its name's order), the locator's census of some stamps, and the
-    placer's scenes (JSON by stamp) where given."""
+    Detection3DArray on ``<camera>/<located>``, scores 0.9, 0.8 ..., ids from ``ids[camera]`` up where given, else
+    none) and its pose (the camera 60 m up, 80 m from the origin along its name's order), the locator's census of
+    some stamps (on ``census``), and the placer's scenes (JSON by stamp) where given."""
     from geometry_msgs.msg import Point, Pose, PoseStamped
 
     from zebra_sim_ros.nodes.ros_adapter import detection3d_array_type, message_class, stamp
@@ -370,7 +371,7 @@ def _census_bag(path: Path, views: dict[str, dict[int, np.ndarray]], poses: bool
     msg = __import__(kind.split("/")[0] + ".msg", fromlist=["Detection3D"])
     w = BagWriter(path)
     for i, (cam, by_stamp) in enumerate(views.items()):
-        w.add_channel(f"{ns}/{cam}/detections/located", kind, [])
+        w.add_channel(f"{ns}/{cam}/{located}", kind, [])
         w.add_channel(f"{ns}/{cam}/camera/pose", "geometry_msgs/msg/PoseStamped", [])
         for t, pts in by_stamp.items():
             h = Header(stamp=stamp(t), frame_id="map")
@@ -378,8 +379,7 @@ def _census_bag(path: Path, views: dict[str, dict[int, np.ndarray]], poses: bool
                 hypothesis=msg.ObjectHypothesis(class_id="zebra", score=0.9 - 0.1 * k))],
                 bbox=msg.BoundingBox3D(center=Pose(position=Point(x=x, y=y, z=z))),
                 id=str(ids[cam] + k) if ids and cam in ids else "") for k, (x, y, z) in enumerate(pts)]
-            w.write(f"{ns}/{cam}/detections/located", serialize_message(message_class(kind)(header=h, detections=dets)),
-                    t)
+            w.write(f"{ns}/{cam}/{located}", serialize_message(message_class(kind)(header=h, detections=dets)), t)
             if poses:
                 angle = 2.1 * i
                 w.write(f"{ns}/{cam}/camera/pose", serialize_message(PoseStamped(header=h, pose=Pose(position=Point(
@@ -389,12 +389,12 @@ def _census_bag(path: Path, views: dict[str, dict[int, np.ndarray]], poses: bool
         for t, text in scenes.items():
             w.write(f"{ns}/zebra_sim/scene", serialize_message(String(data=text)), t)
     if recorded:
-        w.add_channel(f"{ns}/census/animals", kind, [])
+        w.add_channel(f"{ns}/{census}", kind, [])
         for t, n in recorded.items():
             h = Header(stamp=stamp(t), frame_id="map")
             dets = [msg.Detection3D(header=h, results=[msg.ObjectHypothesisWithPose(
                 hypothesis=msg.ObjectHypothesis(class_id="zebra", score=0.9))]) for _ in range(n)]
-            w.write(f"{ns}/census/animals", serialize_message(message_class(kind)(header=h, detections=dets)), t)
+            w.write(f"{ns}/{census}", serialize_message(message_class(kind)(header=h, detections=dets)), t)
     (out,) = w.close()
     return out
 
@@ -443,6 +443,35 @@ def test_a_recorded_census_is_counted_again_from_the_bag(tmp_path: Path) -> None
     [path] = _write(plain / "plain.mcap", n=3)
     with pytest.raises(ParameterError, match=f"{re.escape(str(path))}.*placed detections"):
         bag_census(path)
+
+
+def test_a_locator_publishing_under_other_names_is_read_by_its_names(tmp_path: Path) -> None:
+    """A locator whose file renames its outputs (``output``, ``census_output``): ``bag census`` and the run's
+    summary read the placed detections and the census by the names given, the same figures as under the default
+    names; asked by the default names, the bag census refuses naming the topic it looked for, and the summary has
+    neither part."""
+    from zebra_sim_ros.detection.config import LocatorConfig
+    from zebra_sim_ros.errors import ParameterError
+    from zebra_sim_ros.graph.summary import summarize_run
+    from zebra_sim_ros.recording.census import bag_census
+
+    rng = np.random.default_rng(8)
+    herd = np.column_stack([rng.uniform(-10, 10, (10, 2)), np.full(10, 0.7)])
+    views = {cam: {t * 10**9: herd[rng.permutation(10)[:8]] for t in (1, 2)} for cam in ("drone_0", "drone_1")}
+    named = LocatorConfig(output="placed", census_output="herd/count")
+    renamed = _census_bag(tmp_path / "renamed.mcap", views, recorded={10**9: 9, 2 * 10**9: 7}, located="placed",
+                          census="herd/count")
+    default = _census_bag(tmp_path / "default.mcap", views, recorded={10**9: 9, 2 * 10**9: 7})
+    got, want = bag_census(renamed, named), bag_census(default)
+    assert got["stamps_counted"] == 2 and got["recounted"] == want["recounted"] and got["recorded"] == want["recorded"]
+    assert got["recorded"]["animals"] == 16
+    with pytest.raises(ParameterError, match=re.escape("<drone>/detections/located")):
+        bag_census(renamed)
+    summary, by_default = summarize_run(renamed, locator=named), summarize_run(default)
+    assert summary["located"]["frames"] == 4 and summary["located"]["detections"] == 32
+    assert summary["located"] == by_default["located"] and summary["census"] == by_default["census"]
+    assert summary["census"]["animals"] == 16
+    assert "located" not in summarize_run(renamed) and "census" not in summarize_run(renamed)
 
 
 def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any, cli: CliRun) -> None:

@@ -85,8 +85,9 @@ class _Stop(Exception):
 
 def cmd_up(args: argparse.Namespace) -> Summary:
     """Run the graph; returns the summary (``exit_code`` 0, 1 when a node died, 130 when interrupted)."""
+    from zebra_sim_ros.detection.config import LocatorConfig
     from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_command, rviz_view, write_rviz
-    from zebra_sim_ros.graph.spec import config_dir, rviz_off
+    from zebra_sim_ros.graph.spec import config_dir, node_config, rviz_off
     from zebra_sim_ros.zebra.asset import load_library
 
     cfg, specs = _up_config(args)
@@ -96,6 +97,9 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     conf = config_dir(cfg.config_dir)
     scorer = next((s for s in specs if s.executable == "scorer"), None)
     scoring = ScorerRun.read(conf, scorer) if scorer is not None else None  # a bad scorer.yaml stops here
+    locator = next((s for s in specs if s.executable == "locator"), None)  # its topics, for the summary
+    located = (node_config(conf, locator.params_file, locator.fqn, locator.overrides, LocatorConfig)
+               if locator is not None else None)
     try:  # the package's RViz view drawn for this graph's drones and namespace; a view that cannot be is no reason
         # to stop the run; the census display off without the locator
         view = rviz_view(conf, cfg.drone_names, cfg.namespace, rviz_off(cfg.locate))
@@ -128,9 +132,9 @@ def cmd_up(args: argparse.Namespace) -> Summary:
 
         count_conf = scoring.count_conf if scoring is not None else COUNT_CONF  # as the scorer counts them live
         try:
-            result.update(summarize_run(cfg.bag_path, out / "preview.jpg", count_conf, out / CENSUS_MAP))
+            result.update(summarize_run(cfg.bag_path, out / "preview.jpg", count_conf, out / CENSUS_MAP, located))
         except OSError as exc:  # a full disk: the scores still come, the preview does not
-            result.update(summarize_run(cfg.bag_path, None, count_conf, out / CENSUS_MAP))
+            result.update(summarize_run(cfg.bag_path, None, count_conf, out / CENSUS_MAP, located))
             result["preview_error"] = f"{exc.strerror or exc}: {out / 'preview.jpg'}"
         _print_summary(result, cfg.drone_names)
     if (live := result.get("live_scores")) and "all" in live:
@@ -319,15 +323,9 @@ class ScorerRun:
         """The settings of the graph's scorer ``spec`` (its name, parameter file and overrides, as ``up`` starts it)
         with the parameter files in ``conf`` (``ParameterError`` naming a bad value)."""
         from zebra_sim_ros.detection.config import ScorerConfig
-        from zebra_sim_ros.params import load_params_file
+        from zebra_sim_ros.graph.spec import node_config
 
-        path = conf / spec.params_file
-        try:
-            sc = ScorerConfig.from_params({**load_params_file(str(path), spec.fqn), **spec.overrides})
-        except ParameterError as exc:  # named by its file: qos_depth, diagnostics_period_s are in every node's
-            if exc.name == "params_file":
-                raise
-            raise ParameterError(f"{path}: {exc.name}", exc.value, exc.allowed) from None
+        sc = node_config(conf, spec.params_file, spec.fqn, spec.overrides, ScorerConfig)
         return ScorerRun(sc.window, sc.diagnostics_period_s, len(sc.drones), sc.count_conf)
 
     def expected(self, steps: int) -> int:

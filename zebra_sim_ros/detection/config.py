@@ -206,7 +206,6 @@ class LocatorConfig(StageConfig):
 
 LOCATOR_PARAMS: tuple[ParamSpec, ...] = LocatorConfig.specs()
 CENSUS_RULE = ("census_along", "census_across", "census_gate", "census_separation")  # how the census joins views
-LOCATED_TOPICS = (LocatorConfig().output,)  # a camera's detections placed on the map (under each camera)
 
 
 def distinct_outputs(image_topics: Sequence[str], resolve: Callable[[str], str] = lambda t: t) -> None:

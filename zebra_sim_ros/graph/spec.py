@@ -11,18 +11,12 @@ import re
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
-from zebra_sim_ros.detection.config import (
-    DETECTOR_PARAMS,
-    LOCATED_TOPICS,
-    LOCATOR_PARAMS,
-    SCORER_PARAMS,
-    LocatorConfig,
-)
+from zebra_sim_ros.detection.config import DETECTOR_PARAMS, LOCATOR_PARAMS, SCORER_PARAMS, LocatorConfig
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LABELLER_PARAMS
-from zebra_sim_ros.params import ParamSpec, load_params_file, replace_tables, validate, write_config
+from zebra_sim_ros.params import ParamSpec, StageConfig, load_params_file, replace_tables, validate, write_config
 from zebra_sim_ros.placement.config import PLACER_PARAMS
 from zebra_sim_ros.recording.config import RECORDER_PARAMS, REPLAY_PARAMS, RecorderConfig
 from zebra_sim_ros.rendering.config import CAMERA_PARAMS
@@ -32,8 +26,14 @@ DRONES = ("drone_0", "drone_1", "drone_2")  # the default graph's cameras (UpCon
 CAMERA_TOPICS = ("image_raw", "depth", "instances", "camera_info")
 LABELLER_TOPICS = ("labels", "labels/markers", "labels/boxes3d", "labels/boxes2d")
 DETECTOR_TOPICS = ("detections", "detections/image", "detections/markers")
-# up --locate: the census, under the graph's namespace (the RViz view's census display is off without the locator)
+# up --locate: the census, under the graph's namespace, as the locator's defaults name it (the RViz view's census
+# display, off without the locator; the graph's locator publishes what its parameter file names: census_topics)
 CENSUS_TOPICS = (f"/{LocatorConfig().census_output}", f"/{LocatorConfig().census_output}/markers")
+
+
+def census_topics(locator: LocatorConfig) -> tuple[str, ...]:
+    """What ``locator`` publishes of its census, relative to its namespace (nothing with ``census`` false)."""
+    return (f"/{locator.census_output}", f"/{locator.census_output}/markers") if locator.census else ()
 
 
 def rviz_off(locate: bool) -> tuple[str, ...]:
@@ -73,6 +73,21 @@ def bag_image_overrides(bag_images: str, excludes: str) -> tuple[dict[str, str],
     if bag_images == "raw":
         return {}, {}
     return {"compressed": bag_images}, {"exclude_regex": excludes}
+
+
+C = TypeVar("C", bound=StageConfig)
+
+
+def node_config(conf: Path, params_file: str, fqn: str, overrides: dict[str, Any], cls: type[C]) -> C:
+    """The settings of the graph's node ``fqn`` as it starts with them: ``conf``/``params_file``'s sections for it,
+    then ``overrides``, validated as the node validates them (``ParameterError`` naming a bad value and its file)."""
+    path = Path(conf) / params_file
+    try:
+        return cls.from_params({**load_params_file(str(path), fqn), **overrides})
+    except ParameterError as exc:  # named by its file: qos_depth, diagnostics_period_s are in every node's
+        if exc.name == "params_file":
+            raise
+        raise ParameterError(f"{path}: {exc.name}", exc.value, exc.allowed) from None
 
 
 NODE_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
@@ -277,13 +292,13 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
            "verifier": cfg.verifier if cfg.verifier in ("", "shipped") else str(Path(cfg.verifier).resolve()), **sim}
     nodes.append(NodeSpec("detector", "detector", ns, "detector.yaml", det,
                           tuple(f"{ns}/{d}/{t}" for d in drones for t in DETECTOR_TOPICS), remaps))
-    if cfg.locate:  # every frame placed: subscribed before the first step
-        nodes.append(NodeSpec("locator", "locator", ns, "locator.yaml",
-                              {"drones": list(drones), "image_reliability": "reliable", "pose_transient_local": True,
-                               **sim},
-                              tuple(f"{ns}/{d}/{t}" for d in drones for t in LOCATED_TOPICS)
-                              + tuple(f"{ns}{t}" for t in CENSUS_TOPICS), remaps,
-                              tuple(f"{ns}/{d}/{t}" for d in drones for t in LocatorConfig().inputs)))
+    if cfg.locate:  # every frame placed: subscribed before the first step; its topics as its file names them
+        loc = {"drones": list(drones), "image_reliability": "reliable", "pose_transient_local": True, **sim}
+        located = node_config(config_dir(cfg.config_dir), "locator.yaml", f"{ns}/locator", loc, LocatorConfig)
+        nodes.append(NodeSpec("locator", "locator", ns, "locator.yaml", loc,
+                              tuple(f"{ns}/{d}/{located.output}" for d in drones)
+                              + tuple(f"{ns}{t}" for t in census_topics(located)), remaps,
+                              tuple(f"{ns}/{d}/{t}" for d in drones for t in located.inputs)))
     if cfg.score:  # every frame scored: subscribed before the first step
         nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml", {"drones": list(drones), **sim}, (), remaps,
                               tuple(f"{ns}/{d}/{t}" for d in drones for t in ("labels", "detections"))))

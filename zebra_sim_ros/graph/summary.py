@@ -19,17 +19,17 @@ from typing import Any
 import cv2
 import numpy as np
 
-from zebra_sim_ros.detection.config import LOCATED_TOPICS
+from zebra_sim_ros.detection.config import LocatorConfig
 from zebra_sim_ros.detection.scoring import COUNT_CONF, DroneFrames
 from zebra_sim_ros.errors import ParameterError, ZebraSimError
 from zebra_sim_ros.geometry.locate import nearest_distances, placing_figures
 from zebra_sim_ros.messages import Datum, Scene
 from zebra_sim_ros.recording.cdr import MALFORMED, Placed3D, cdr_detections3d, cdr_string, header_stamp_ns
 from zebra_sim_ros.recording.census import (
-    CENSUS_TOPIC,
     SCENE_TOPIC_RE,
     census_figures,
     census_geojson,
+    census_topic_re,
     drone_order,
     run_datum,
     write_geojson,
@@ -71,10 +71,13 @@ def _stage_seconds(scenes: dict[int, int], times: dict[str, dict[str, dict[int, 
 
 
 def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf: float = COUNT_CONF,
-                  geojson: str | Path | None = None) -> dict[str, Any]:
+                  geojson: str | Path | None = None, locator: LocatorConfig | None = None) -> dict[str, Any]:
     """Summary of the run recorded in ``bag``, the zebras counted at ``count_conf`` (the scorer's); writes
     ``preview`` (one tile per drone) when given, and ``geojson``, the locator's census on the Earth by the scenes'
-    datum, when given and the run has a census (``census_geojson`` in the summary: its path)."""
+    datum, when given and the run has a census (``census_geojson`` in the summary: its path). The placed detections
+    and the census are read from ``locator``'s topics (the graph's locator; default: the locator's defaults)."""
+    locator = locator or LocatorConfig()
+    located_topics, census_topic = (locator.output,), census_topic_re(locator)
     scenes: dict[int, int] = {}  # stamp -> log time
     datums: set[Datum | None] = set()  # the scenes' (a run has one; None: scenes from before they carried it)
     times: dict[str, dict[str, dict[int, int]]] = defaultdict(lambda: defaultdict(dict))  # drone -> kind -> stamp
@@ -95,10 +98,10 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
                 datums.add(scene.datum)
             elif _ANIMALS_TOPIC.match(m.topic):
                 placed_raw[header_stamp_ns(m.data)] = m
-            elif CENSUS_TOPIC.match(m.topic):
+            elif census_topic.match(m.topic):
                 t, animals = cdr_detections3d(m.data)
                 census[t] = animals
-            elif owner := topic_owner(m.topic, LOCATED_TOPICS):
+            elif owner := topic_owner(m.topic, located_topics):
                 t, dets = cdr_detections3d(m.data)
                 located[(last_name(owner[0]), t)] = zebra_points(dets)
             elif _DRONE.fullmatch(drone):

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from zebra_sim_ros.detection.config import CENSUS_RULE, LOCATED_TOPICS, LocatorConfig
+from zebra_sim_ros.detection.config import CENSUS_RULE, LocatorConfig
 from zebra_sim_ros.detection.scoring import DroneFrames
 from zebra_sim_ros.errors import ParameterError, ZebraSimError
 from zebra_sim_ros.geometry.census import join_views
@@ -29,8 +29,13 @@ from zebra_sim_ros.recording.evaluate import collect, skip_note
 from zebra_sim_ros.recording.reader import BagMessage, last_name, topic_owner
 
 _POSE = ("camera/pose",)  # a camera's optical frame in map (the placer's)
-# the locator's own census, under the graph's namespace
-CENSUS_TOPIC = re.compile(rf"^(?:/[^/]+)*/{re.escape(LocatorConfig().census_output)}$")
+
+
+def census_topic_re(locator: LocatorConfig) -> re.Pattern[str]:
+    """The topic of ``locator``'s own census, under any graph's namespace."""
+    return re.compile(rf"^(?:/[^/]+)*/{re.escape(locator.census_output)}$")
+
+
 SCENE_TOPIC_RE = re.compile(r"^(?:/[^/]+)*/zebra_sim/scene$")  # the placer's scenes, under the graph's namespace
 
 
@@ -148,6 +153,7 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
     if datum is not None and geojson is None:
         raise ParameterError("datum", astuple(datum), "only with geojson (the census is placed on the Earth for it)")
     rule = rule or LocatorConfig()
+    located_topics, census_topic = (rule.output,), census_topic_re(rule)
     located: dict[tuple[str, int], list[Placed3D]] = {}
     datums: set[Datum | None] = set()  # the scenes' (a run has one)
     poses: dict[tuple[str, int], tuple[float, float, float]] = {}
@@ -157,14 +163,14 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
 
     def visit(m: BagMessage) -> None:
         try:
-            if owner := topic_owner(m.topic, LOCATED_TOPICS):
+            if owner := topic_owner(m.topic, located_topics):
                 t, dets = cdr_detections3d(m.data)
                 located[(last_name(owner[0]), t)] = dets
                 graphs.add(owner[0].rsplit("/", 1)[0])
             elif (owner := topic_owner(m.topic, _POSE)) and m.type_name.endswith("/PoseStamped"):
                 t, position = cdr_pose_position(m.data)
                 poses[(last_name(owner[0]), t)] = position
-            elif CENSUS_TOPIC.match(m.topic):
+            elif census_topic.match(m.topic):
                 t, animals = cdr_detections3d(m.data)
                 recorded[t] = len(zebra_points(animals))
             elif geojson is not None and SCENE_TOPIC_RE.match(m.topic):
@@ -175,7 +181,7 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
     collected = collect(paths, each=visit)
     bag = [str(p) for p in (paths if isinstance(paths, list) else [paths])]
     if not located:
-        raise ParameterError("bag", bag, f"a bag with placed detections (<drone>/{LOCATED_TOPICS[0]}: recorded by up "
+        raise ParameterError("bag", bag, f"a bag with placed detections (<drone>/{rule.output}: recorded by up "
                              "--locate)")
     if len(graphs) > 1:
         raise ParameterError("bag", bag, f"one graph's run (its cameras are in {len(graphs)} namespaces: "
