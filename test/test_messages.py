@@ -5,6 +5,7 @@ detections as the node publishes them, a dataset's annotation file)."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -70,6 +71,8 @@ def test_scene_round_trips_and_refuses_other_schemas(savanna: World, library: Ze
                           ({**d, "rectangle": [0, 0]}, "malformed: AttributeError"),
                           ({**d, "step": float("inf")}, "malformed: OverflowError"),  # JSON's Infinity
                           ({**d, "datum": {**d["datum"], "latitude_deg": 91}}, "datum latitude 91.0 deg"),
+                          ({**d, "datum": {**d["datum"], "latitude_deg": -2.4}},
+                           r"datum latitude -2.4 deg is not the lighting's -2.3 deg"),
                           ({**d, "datum": {"latitude_deg": 1.0}}, "malformed: KeyError 'longitude_deg'"),
                           ({**d, "datum": {"latitude_deg": 1.0, "longitude_deg": 2.0}},
                            "malformed: KeyError 'altitude_m'")):
@@ -77,6 +80,8 @@ def test_scene_round_trips_and_refuses_other_schemas(savanna: World, library: Ze
             Scene.from_json(json.dumps(broken))
     with pytest.raises(MessageFormatError, match="not JSON"):
         Scene.from_json("{")
+    with pytest.raises(ValueError, match="not the lighting's"):  # built, not parsed: the same rule
+        replace(scene, datum=Datum(45.0, 34.8, 1550.0))
 
 
 def test_labels_and_annotations_written_by_generate_parse_back(dataset: Path) -> None:

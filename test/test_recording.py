@@ -481,7 +481,6 @@ def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any, cli: CliR
     they carry none: a bag whose scenes carry none wants it, scenes that disagree or a ``datum`` unlike theirs are
     refused by name, as is a file that cannot be written; the CLI reads ``--datum`` or refuses it by name."""
     import json
-    from dataclasses import replace
 
     from zebra_sim_ros.cli.bag import parse_datum
     from zebra_sim_ros.errors import ParameterError
@@ -526,11 +525,14 @@ def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any, cli: CliR
         ranks = [int(p.split(":")[1]) % 10 for p in joined]  # east's ids start at 10
         assert props["score"] == pytest.approx(0.9 - 0.1 * min(ranks), abs=1e-4)  # its best detection's
     # a bag whose scenes carry their datum: that one, the same animals elsewhere on the Earth
-    scene = Placer(PlacerConfig.from_params({"seed": 3, "count_max": 5}), generate_world("savanna", 0),
-                   library).scene(0)
+    world = generate_world("savanna", 0)
+    scene = Placer(PlacerConfig.from_params({"seed": 3, "count_max": 5}), world, library).scene(0)
     arctic = Datum(78.2, 15.6, 10.0)
+    far_north = Placer(PlacerConfig.from_params({"seed": 3, "count_max": 5, "latitude_deg": 78.2, "longitude_deg": 15.6,
+                                                 "origin_altitude_m": 10.0}), world, library).scene(0)
+    assert far_north.datum == arctic and scene.datum == datum
     with_scenes = _census_bag(tmp_path / "with_scenes.mcap", views, ids={"east": 10},
-                              scenes={s1: replace(scene, datum=arctic).to_json()})
+                              scenes={s1: far_north.to_json()})
     north = bag_census(with_scenes, geojson=tmp_path / "arctic.geojson")
     moved = json.loads((tmp_path / "arctic.geojson").read_text())["features"]
     assert north["datum"] == arctic.to_dict() and len(moved) == len(features)
@@ -538,8 +540,8 @@ def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any, cli: CliR
     assert bag_census(with_scenes, geojson=tmp_path / "same.geojson", datum=arctic)["datum"] == arctic.to_dict()
     with pytest.raises(ParameterError, match="'datum' = \\(-2.3, 34.8, 1550.0\\).*\\(78.2, 15.6, 10.0\\)"):
         bag_census(with_scenes, geojson=tmp_path / "other.geojson", datum=datum)  # not the bag's own
-    disagree = _census_bag(tmp_path / "disagree.mcap", views, scenes={s1: replace(scene, datum=arctic).to_json(),
-                                                                       2 * s1: replace(scene, datum=datum).to_json()})
+    disagree = _census_bag(tmp_path / "disagree.mcap", views, scenes={s1: far_north.to_json(),
+                                                                       2 * s1: scene.to_json()})
     with pytest.raises(ParameterError, match="'datum' = \\[\\(-2.3.*\\(78.2.*one datum"):
         bag_census(disagree, geojson=tmp_path / "two.geojson")
     (tmp_path / "a_folder").mkdir()

@@ -440,6 +440,12 @@ class Scene(_Message):
     weather: Weather = field(default_factory=Weather)
     datum: Datum | None = None  # where map is on the Earth (None: a scene from before scenes carried it)
 
+    def __post_init__(self) -> None:
+        # the sun's path is drawn for the lighting's latitude: a map put elsewhere on the Earth would disagree with it
+        if self.datum is not None and abs(self.datum.latitude_deg - self.lighting.latitude_deg) > 1e-9:
+            raise ValueError(f"datum latitude {self.datum.latitude_deg!r} deg is not the lighting's "
+                             f"{self.lighting.latitude_deg!r} deg (the sun's path is drawn for it)")
+
     @property
     def placed(self) -> int:
         """Zebras actually placed."""
