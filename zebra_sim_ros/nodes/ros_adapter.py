@@ -200,6 +200,12 @@ def message_class(type_name: str) -> Any:
     return getattr(importlib.import_module(f"{pkg}.{kind}"), name)
 
 
+def message_module(type_name: str) -> Any:
+    """The message module of ``pkg/msg/Type``'s package (``pkg.msg``: the type's siblings, e.g. a Detection3DArray's
+    Detection3D and BoundingBox3D in the same layout)."""
+    return importlib.import_module(f"{type_name.split('/')[0]}.msg")
+
+
 def qos(reliability: str = "reliable", depth: int = 10, transient_local: bool = False) -> QoSProfile:
     """A keep-last QoS profile from parameter values."""
     return QoSProfile(
@@ -462,7 +468,7 @@ def detection3d_array_msg(type_name: str, header: Header,
     Detection3D per (class id, score, the hypothesis' pose, the box's centre pose, the box's size x, y, z in m,
     id); the header on the array and on each detection. The locator's placed detections and census and the
     placer's scene animals are all built here."""
-    msg = importlib.import_module(f"{type_name.split('/')[0]}.msg")
+    msg = message_module(type_name)
     out = []
     for class_id, score, pose, center, (sx, sy, sz), ident in detections:
         hyp = msg.ObjectHypothesisWithPose(hypothesis=msg.ObjectHypothesis(class_id=class_id, score=float(score)),
@@ -502,8 +508,7 @@ def detection_array_msg(type_name: str, header: Header, dets: Detections, ids: S
     header on the array and on each detection."""
     if ids and len(ids) != len(dets.detections):
         raise ValueError(f"{len(ids)} ids for {len(dets.detections)} detections")
-    pkg = type_name.split("/")[0]
-    msg = importlib.import_module(f"{pkg}.msg")
+    msg = message_module(type_name)
     out = []
     for k, d in enumerate(dets.detections):
         x0, y0, x1, y1 = d.box_xyxy
