@@ -99,8 +99,9 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=DEFAULT_FRAMES)
     ap.add_argument("--workers", type=int, default=2, help="generation workers (the frames do not depend on it)")
     ap.add_argument("--cache", type=Path, default=Path("datasets"))
-    ap.add_argument("--verifier", default="", help="also score each weights with this verifier ('shipped': the "
-                    "package's) rescoring its zebra boxes, as the detector node's verifier parameter does")
+    ap.add_argument("--verifier", nargs="+", default=[], help="also score each weights with each of these "
+                    "verifiers ('shipped': the package's), the same detections rescored as the detector node's "
+                    "verifier parameter does")
     ap.add_argument("--bootstrap", type=int, default=0, help="resamples of the placements (0: none)")
     ap.add_argument("--bootstrap-seed", type=int, default=0)
     ap.add_argument("--json", action="store_true")
@@ -119,7 +120,7 @@ def main() -> None:
     rows: list[dict[str, Any]] = []
     runs: list[list[MatchedImage]] = []
     groups: list[tuple[int, str]] = []
-    net = load_verifier(args.verifier, "cpu", "--verifier")[0] if args.verifier else None
+    nets = [(v, load_verifier(v, "cpu", "--verifier")[0]) for v in args.verifier]
     for w in args.weights:
         model, _ = load_model(None if w == "shipped" else w, torch.device("cpu"))
         rule = partial(inference_size, model.cfg)  # each frame at the checkpoint's own scale, as val serves it
@@ -129,12 +130,13 @@ def main() -> None:
         if args.bootstrap:
             runs.append(matched_all(per_seed))
             groups = [(s, placement(x.file)) for s, ps in per_seed.items() for x in ps]
-        if net is not None:  # the same detections rescored, as predictions(..., verifier=net) would give them
+        for v, net in nets:  # the same detections rescored, as predictions(..., verifier=net) would give them
             t0 = time.perf_counter()
-            per_seed = {s: [verified(net, x) for x in p] for s, p in per_seed.items()}
-            rows.append(row(w + " + verifier", per_seed, time.perf_counter() - t0))
+            rescored = {s: [verified(net, x) for x in p] for s, p in per_seed.items()}
+            rows.append(row(w + (" + verifier" if v == "shipped" else f" + verifier {v}"), rescored,
+                            time.perf_counter() - t0))
             if args.bootstrap:
-                runs.append(matched_all(per_seed))
+                runs.append(matched_all(rescored))
     if args.bootstrap:
         bootstrap_rows(rows, runs, groups, args.bootstrap, args.bootstrap_seed)
     if args.json:

@@ -158,7 +158,8 @@ def score_set(weights: str, folder: Path, imgsz: int, sweep: tuple[float, ...] =
             row[2] += int(_centred(d, lab[lab[:, 0] == k, 1:]).any(1).sum()) if len(d) else 0
     z = _if(bool(zebra))  # a set of other species only has no zebra figures, one of zebras only no false ones
     o = _if(bool(others))
-    return {"weights": weights + (" + verifier" if verifier else ""), "set": folder.name, "imgsz": imgsz or "rule",
+    return {"weights": weights + (f" + verifier {verifier}" if verifier not in ("", "shipped") else
+                                  " + verifier" if verifier else ""), "set": folder.name, "imgsz": imgsz or "rule",
             "served": sorted({p.imgsz for p in per}), "zebra_images": len(zebra), "zebras": m.instances,
             "mAP50": z(round(m.map50, 4)), "mAP50-95": z(round(m.map50_95, 4)), "P@0.25": z(round(prec, 4)),
             "R@0.25": z(round(rec, 4)), "AP50_small": z(sizes["small"]["mAP50"]),
@@ -301,8 +302,9 @@ def main() -> None:
     ap.add_argument("--conf-sweep", nargs="*", type=float, default=[], metavar="CONF",
                     help="also a table of operating points: P / R on the zebra photos and other-species detections "
                     "per photo at each of these thresholds")
-    ap.add_argument("--verifier", default="", help="rescore the zebra boxes with this verifier ('shipped': the "
-                    "package's), as the detector node's verifier parameter does")
+    ap.add_argument("--verifier", nargs="+", default=[""], help="rescore the zebra boxes with this verifier "
+                    "('shipped': the package's), as the detector node's verifier parameter does; several: each "
+                    "weights scored with each in turn ('' or 'none': without one)")
     ap.add_argument("--bootstrap", type=int, default=0, help="resamples of each set's photos for 95%% intervals "
                     "and paired differences (0: none)")
     ap.add_argument("--bootstrap-seed", type=int, default=0)
@@ -323,13 +325,13 @@ def main() -> None:
         raise SystemExit(f"--bootstrap {args.bootstrap}: want 0 (none) or more")
     if args.bootstrap_seed < 0:
         raise SystemExit(f"--bootstrap-seed {args.bootstrap_seed}: want 0 or more")
-    rows = [score_set(w, s, n, tuple(args.conf_sweep), args.verifier, args.bootstrap, args.bootstrap_seed)
-            for w in args.weights for s in sets for n in args.imgsz]
+    verifiers = ["" if v == "none" else v for v in args.verifier]
+    rows = [score_set(w, s, n, tuple(args.conf_sweep), v, args.bootstrap, args.bootstrap_seed)
+            for w in args.weights for v in verifiers for s in sets for n in args.imgsz]
     machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores"
     digests = ", ".join(f"{w} {sha256_12(SHIPPED if w == 'shipped' else Path(w))}" for w in args.weights)
-    if args.verifier:
-        v = SHIPPED_VERIFIER if args.verifier == "shipped" else Path(args.verifier)
-        digests += f"; verifier {args.verifier} {sha256_12(v)}"
+    for name in (v for v in verifiers if v):
+        digests += f"; verifier {name} {sha256_12(SHIPPED_VERIFIER if name == 'shipped' else Path(name))}"
     head = f"`bench_real.py` {dt.date.today().isoformat()}, {machine}; weights sha256: {digests}"
     lines = [head, "", *table(rows)] + (["", *sweep_table(rows)] if args.conf_sweep else [])
     if args.bootstrap:

@@ -22,6 +22,7 @@ from zebra_sim_ros.detection.verify import (
     judged_side,
     load_verifier,
     rescore,
+    reserve_verifier,
     save_verifier,
     square_crop,
     verify,
@@ -127,6 +128,32 @@ def test_a_size_share_judges_boxes_from_a_side_that_grows_with_the_image() -> No
     assert VerifierConfig.from_dict(old).min_side_fraction == pytest.approx(0.0)
 
 
+def test_a_power_weighs_the_verifier_more_on_boxes_that_fill_their_image() -> None:
+    """power 3 from 0.1 of the image's long side: a judged box that long scores s·p³, a smaller judged box s·p, an
+    unjudged one s; the same boxes on a larger image fall under the share; power 1 is s·p whatever the share, and
+    from 0 every judged box is cubed. Checkpoints from before the power read back as s·p; bad values are named."""
+    cfg = VerifierConfig(widths=(8, 16), power=3.0, power_from=0.1)
+    net = constant(0.5, cfg)
+    dets = np.array([[10, 10, 30, 25, 0.8, 0],  # 20 px: under min_side, not judged
+                     [100, 100, 150, 140, 0.8, 0],  # 50 px: judged, under a tenth of 640
+                     [200, 100, 300, 180, 0.8, 0]], np.float32)  # 100 px: a tenth of 640 or more
+    photo = verify(net, np.full((480, 640, 3), 90, np.uint8), dets)
+    np.testing.assert_allclose(photo[:, 4], [0.8, 0.4, 0.1], rtol=1e-5)
+    frame = verify(net, np.full((720, 1280, 3), 90, np.uint8), dets)  # a tenth is 128 px: none that long
+    np.testing.assert_allclose(frame[:, 4], [0.8, 0.4, 0.4], rtol=1e-5)
+    every = verify(constant(0.5, replace(cfg, power_from=0.0)), np.full((720, 1280, 3), 90, np.uint8), dets)
+    np.testing.assert_allclose(every[:, 4], [0.8, 0.1, 0.1], rtol=1e-5)
+    plain = verify(constant(0.5, replace(cfg, power=1.0)), np.full((480, 640, 3), 90, np.uint8), dets)
+    np.testing.assert_allclose(plain[:, 4], [0.8, 0.4, 0.4], rtol=1e-5)
+    assert photo.dtype == dets.dtype
+    old = {"crop": 96, "context": 1.2, "min_side": 24.0, "widths": [8, 16]}  # a checkpoint from before the power
+    assert (VerifierConfig.from_dict(old).power, VerifierConfig.from_dict(old).power_from) == (1.0, 0.0)
+    assert VerifierConfig.from_dict(cfg.to_dict()) == cfg
+    for field, value in (("power", 0.5), ("power", float("nan")), ("power_from", 1.5)):
+        with pytest.raises(ParameterError, match=f"verifier {field}"):
+            replace(cfg, **{field: value}).check()
+
+
 def test_served_views_average_the_crops_at_each_context_and_their_mirror_images() -> None:
     """contexts (1.2, 1.45) with mirror: p(zebra) is the mean of four single-crop verifiers' answers with the same
     weights, the mirrored ones computed independently, on the mirrored image around the mirrored box."""
@@ -228,6 +255,39 @@ def test_an_ensemble_averages_its_members_probabilities_and_records_them(
         TrainVerifierConfig(data=(str(tmp_path / "set"),), out="y", model=replace(cfg, members=2)).check()
     with pytest.raises(ParameterError, match="verifier members"):
         VerifierConfig(members=0).check()
+
+
+def test_a_verifier_served_otherwise_keeps_its_weights_and_record(tmp_path: Path, cli: CliRun) -> None:
+    """``verifier-serving`` writes a verifier again with the serving settings given (power, the share it starts
+    from, views), the others kept: the same weights tensor for tensor, the same training record, and the scores
+    the new settings give. A bad setting is refused naming its option, and nothing is written."""
+    torch.manual_seed(5)
+    net = Verifier(VerifierConfig(widths=(8, 16), min_side=10)).eval()
+    with torch.no_grad():
+        net.head.weight.mul_(300)
+    save_verifier(tmp_path / "v.pt", net, seed=5, crops={"zebra": 7})
+    done = cli(["verifier-serving", tmp_path / "v.pt", "--power", "3", "--power-from", "0.25", "--mirror",
+                "--out", tmp_path / "p.pt", "--json"])
+    assert done.returncode == 0, done.stderr
+    served, record = load_verifier(tmp_path / "p.pt")
+    assert served.cfg == replace(net.cfg, power=3.0, power_from=0.25, mirror=True)
+    assert record["seed"] == 5 and record["crops"] == {"zebra": 7}
+    a, b = torch.load(tmp_path / "v.pt", weights_only=True), torch.load(tmp_path / "p.pt", weights_only=True)
+    assert a["model"].keys() == b["model"].keys() and all(torch.equal(a["model"][k], b["model"][k]) for k in a["model"])
+    rng = np.random.default_rng(3)
+    img = rng.integers(0, 255, (160, 240, 3), dtype=np.uint8)
+    dets = np.array([[20, 30, 90, 80, 0.9], [120, 40, 140, 60, 0.9]], np.float32)  # 70 px: a quarter of 240 or more
+    p = zebra_probability(served, img, dets)  # with the mirror images, as served
+    np.testing.assert_allclose(verify(served, img, dets)[:, 4], [0.9 * p[0] ** 3, 0.9 * p[1]], rtol=1e-5)
+    again = reserve_verifier(tmp_path / "p.pt", tmp_path / "q.pt", power=1.0)  # the others kept
+    assert again["config"] == replace(served.cfg, power=1.0).to_dict()
+    refused = cli(["verifier-serving", tmp_path / "v.pt", "--power", "0.5", "--out", tmp_path / "x.pt"])
+    assert refused.returncode == 2 and "'--power' = 0.5" in refused.stderr
+    refused = cli(["verifier-serving", tmp_path / "v.pt", "--contexts", "4", "--out", tmp_path / "x.pt"])
+    assert refused.returncode == 2 and "'--contexts' = (4.0,)" in refused.stderr
+    assert not (tmp_path / "x.pt").exists()
+    with pytest.raises(ParameterError, match="'crop'.*serving settings"):
+        reserve_verifier(tmp_path / "v.pt", tmp_path / "x.pt", crop=64)  # a training setting
 
 
 def test_detect_with_a_verifier_is_detect_rescored(tmp_path: Path) -> None:

@@ -131,6 +131,27 @@ def register(sub: Any) -> None:
     add_json_flag(ve)
     ve.set_defaults(func=cmd_verifier_ensemble)
 
+    vs = sub.add_parser("verifier-serving", help="a verifier with other serving settings (the same weights)",
+                        description="Write a verifier checkpoint (single or ensemble) again with other serving "
+                        "settings: which boxes it judges, the crops it averages and how much its p(zebra) weighs in "
+                        "a box's score. The weights and the training record are kept; settings not given are kept.")
+    vs.add_argument("verifier", help="verifier checkpoint ('shipped': the package's)")
+    vs.add_argument("--min-side-fraction", type=float, default=None,
+                    help="judge a box only if its long side is also at least this share of the image's long side")
+    vs.add_argument("--contexts", type=float, nargs="+", default=None,
+                    help="the crops' contexts, times the box's long side (p(zebra) is their mean)")
+    vs.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=None,
+                    help="each crop's mirror image too")
+    vs.add_argument("--power", type=float, default=None,
+                    help="a judged box whose long side is --power-from of its image's or more scores s·p^POWER, not "
+                    "s·p (1..10; 1: s·p for every judged box)")
+    vs.add_argument("--power-from", type=float, default=None,
+                    help="with --power: the share of the image's long side from which a box's p(zebra) is raised "
+                    "to it (0..1; 0: every judged box)")
+    vs.add_argument("--out", type=Path, required=True, help="verifier checkpoint to write (.pt)")
+    add_json_flag(vs)
+    vs.set_defaults(func=cmd_verifier_serving)
+
     v = sub.add_parser("val", help="precision, recall, mAP50 and mAP50-95 (COCO definition) of a checkpoint")
     v.add_argument("--weights", default=None, help="checkpoint (default: the shipped weights)")
     v.add_argument("--data", required=True, help="dataset.yaml, or a folder of images with a sibling labels/ folder")
@@ -244,6 +265,26 @@ def cmd_verifier_ensemble(args: argparse.Namespace) -> Summary:
     print(f"verifier ensemble: {args.out} ({len(record['members'])} members: {shas})")
     members = [{k: v for k, v in m.items() if k != "history"} for m in record["members"]]  # as train-verifier's
     return {"out": str(args.out), **record, "members": members}
+
+
+def cmd_verifier_serving(args: argparse.Namespace) -> Summary:
+    """Write a verifier again with other serving settings."""
+    from zebra_sim_ros.detection.verify import SERVING, reserve_verifier
+
+    given = {k: getattr(args, k) for k in SERVING if getattr(args, k) is not None}
+    try:
+        record = reserve_verifier(args.verifier, args.out, **given)
+    except ParameterError as exc:  # named by the option that set it ("verifier power_from" -> --power-from)
+        if not exc.name.startswith("verifier ") or exc.name == "verifier":
+            raise
+        raise ParameterError("--" + exc.name.removeprefix("verifier ").replace("_", "-"), exc.value,
+                             exc.allowed) from None
+    c = record["config"]
+    print(f"verifier: {args.out} (from {record['from']}; serving: judged from {c['min_side']:g} px and "
+          f"{c['min_side_fraction']:g} of the image, contexts {c['contexts'] or [c['context']]}, mirror "
+          f"{'on' if c['mirror'] else 'off'}, score s·p^{c['power']:g} from {c['power_from']:g} of the image, "
+          f"s·p under)")
+    return {"out": str(args.out), **record}
 
 
 def cmd_val(args: argparse.Namespace) -> Summary:

@@ -306,10 +306,13 @@ class VerifierConfig:
     """What the verifier sees: ``crop`` px squares around boxes of at least ``min_side`` px, ``context`` times the
     box's long side.
 
-    ``min_side_fraction``, ``contexts`` and ``mirror`` are for serving only. A box is judged when its long side is
-    also at least ``min_side_fraction`` of the image's long side (0.0375: 24 px on a 640 px photo, 48 px on a
-    1280x720 frame); training crops animals by ``min_side`` alone. Its p(zebra) is the mean over one crop at each of
-    ``contexts`` (empty: ``context`` alone) and, with ``mirror``, each crop's mirror image too. ``members`` > 1 makes
+    ``min_side_fraction``, ``contexts``, ``mirror``, ``power`` and ``power_from`` are for serving only. A box is
+    judged when its long side is also at least ``min_side_fraction`` of the image's long side (0.0375: 24 px on a
+    640 px photo, 48 px on a 1280x720 frame); training crops animals by ``min_side`` alone. Its p(zebra) is the mean
+    over one crop at each of ``contexts`` (empty: ``context`` alone) and, with ``mirror``, each crop's mirror image
+    too. A judged box's score s becomes s·p, or s·p^``power`` where its long side is ``power_from`` or more of the
+    image's long side (the verifier weighed more where a box fills much of its image, as an animal does a
+    photograph, than on a drone frame's small animals; power 1: s·p for all). ``members`` > 1 makes
     the verifier an ensemble of that many networks of this shape, trained apart: p(zebra) of a crop is the mean of
     theirs (:func:`~zebra_sim_ros.detection.verify.ensemble_verifiers`)."""
 
@@ -321,6 +324,8 @@ class VerifierConfig:
     contexts: tuple[float, ...] = ()
     mirror: bool = False
     members: int = 1
+    power: float = 1.0
+    power_from: float = 0.0
 
     def check(self) -> None:
         if not 32 <= self.crop <= 256:
@@ -339,6 +344,11 @@ class VerifierConfig:
                                  "distinct values in 1.0..3.0 (times the box's long side; empty: context alone)")
         if not 1 <= self.members <= MAX_MEMBERS:
             raise ParameterError("verifier members", self.members, f"1..{MAX_MEMBERS} (networks averaged)")
+        if not 1.0 <= self.power <= 10.0:  # also refuses NaN
+            raise ParameterError("verifier power", self.power, "1..10 (the power of p(zebra) in a large box's score)")
+        if not 0.0 <= self.power_from <= 1.0:
+            raise ParameterError("verifier power_from", self.power_from,
+                                 "0..1 (of the image's long side: the boxes scored s·p^power; 0: every judged box)")
 
     def views(self) -> list[tuple[float, bool]]:
         """The (context, mirrored) crops whose p(zebra) a served box averages."""
@@ -353,7 +363,7 @@ class VerifierConfig:
         cfg = cls(int(d["crop"]), float(d["context"]), float(d["min_side"]), tuple(int(w) for w in d["widths"]),
                   float(d.get("min_side_fraction", 0.0)),  # checkpoints before the fraction judged by min_side alone
                   tuple(float(c) for c in d.get("contexts", ())), bool(d.get("mirror", False)),  # and by one crop
-                  int(d.get("members", 1)))
+                  int(d.get("members", 1)), float(d.get("power", 1.0)), float(d.get("power_from", 0.0)))  # s·p
         cfg.check()
         return cfg
 

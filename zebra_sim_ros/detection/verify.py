@@ -172,13 +172,19 @@ def judged_side(cfg: VerifierConfig, image_shape: tuple[int, ...]) -> float:
 
 def verify(net: Verifier, image: NDArray[np.uint8], dets: NDArray[Any]) -> NDArray[Any]:
     """``dets`` (n, >= 5) [x0, y0, x1, y1, score, ...] of an RGB ``image`` with the score of every box whose long
-    side is at least :func:`judged_side` multiplied by its p(zebra); a copy, in the same order."""
+    side is at least :func:`judged_side` multiplied by its p(zebra), or by p(zebra) to the verifier's ``power``
+    where the long side is also its ``power_from`` of the image's long side or more; a copy, in the same order."""
     out = np.array(dets, copy=True)
     if not len(out):
         return out
-    big = np.maximum(out[:, 2] - out[:, 0], out[:, 3] - out[:, 1]) >= judged_side(net.cfg, image.shape)
+    side = np.maximum(out[:, 2] - out[:, 0], out[:, 3] - out[:, 1])
+    big = side >= judged_side(net.cfg, image.shape)
     if big.any():
-        out[big, 4] *= zebra_probability(net, image, out[big])
+        p = zebra_probability(net, image, out[big])
+        if net.cfg.power != 1.0:
+            strong = side[big] >= net.cfg.power_from * max(image.shape[:2])
+            p = np.where(strong, p ** np.float32(net.cfg.power), p).astype(np.float32)
+        out[big, 4] *= p
     return out
 
 
@@ -242,6 +248,33 @@ def load_verifier(path: str | Path | None = None, device: str | torch.device = "
 def verifier_file(path: str | Path | None) -> Path:
     """The file a verifier argument names: None, "" or "shipped" the package's, else the path itself."""
     return SHIPPED_VERIFIER if path in (None, "", "shipped") else Path(path)
+
+
+SERVING = ("min_side_fraction", "contexts", "mirror", "power", "power_from")  # VerifierConfig's serving-only fields
+
+
+def reserve_verifier(path: str | Path, out: str | Path, **serving: Any) -> dict[str, Any]:
+    """Write to ``out`` the verifier at ``path`` ("shipped": the package's; a single one or an ensemble) with other
+    serving settings (``serving``: fields of :data:`SERVING`; those not given kept): the same weights, as stored,
+    and the same record. Returns the new config; a bad setting is a ParameterError naming its field."""
+    unknown = sorted(set(serving) - set(SERVING))
+    if unknown:
+        raise ParameterError(unknown[0], serving[unknown[0]], f"one of the serving settings {list(SERVING)}")
+    from zebra_sim_ros.detection.checkpoint import read_checkpoint
+
+    net, record = load_verifier(path, "cpu", "verifier", fuse=False)  # its weights fit its config
+    changes: dict[str, Any] = {k: tuple(float(c) for c in v) if k == "contexts" else v for k, v in serving.items()}
+    cfg = replace(net.cfg, **changes)
+    cfg.check()
+    src = verifier_file(path)
+    ckpt = {**read_checkpoint(src, "verifier", FORMAT, (VERSION, ENSEMBLE_VERSION)), "config": cfg.to_dict()}
+    p = Path(out)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    tmp = p.with_name(p.name + ".tmp")
+    torch.save(ckpt, tmp)
+    tmp.replace(p)
+    return {"config": cfg.to_dict(), "from": str(src), **{k: v for k, v in record.items()
+                                                           if k not in ("format", "version", "config", "history")}}
 
 
 def ensemble_verifiers(paths: Sequence[str | Path], out: str | Path, contexts: Sequence[float] | None = None,
