@@ -445,11 +445,11 @@ def test_a_recorded_census_is_counted_again_from_the_bag(tmp_path: Path) -> None
         bag_census(path)
 
 
-def test_a_locator_publishing_under_other_names_is_read_by_its_names(tmp_path: Path) -> None:
-    """A locator whose file renames its outputs (``output``, ``census_output``): ``bag census`` and the run's
-    summary read the placed detections and the census by the names given, the same figures as under the default
-    names; asked by the default names, the bag census refuses naming the topic it looked for, and the summary has
-    neither part."""
+def test_a_locator_publishing_under_other_names_is_read_by_its_names(tmp_path: Path, cli: CliRun) -> None:
+    """A locator whose file renames its outputs (``output``, ``census_output``): ``bag census`` (``--output``,
+    ``--census-output`` on the command line) and the run's summary read the placed detections and the census by the
+    names given, the same figures as under the default names; asked by the default names, the bag census refuses
+    naming the topic it looked for, and the summary has neither part."""
     from zebra_sim_ros.detection.config import LocatorConfig
     from zebra_sim_ros.errors import ParameterError
     from zebra_sim_ros.graph.summary import summarize_run
@@ -467,6 +467,12 @@ def test_a_locator_publishing_under_other_names_is_read_by_its_names(tmp_path: P
     assert got["recorded"]["animals"] == 16
     with pytest.raises(ParameterError, match=re.escape("<drone>/detections/located")):
         bag_census(renamed)
+    run = cli(["bag", "census", str(renamed), "--output", "placed", "--census-output", "herd/count", "--json"])
+    assert run.returncode == 0, run.stderr
+    assert "recorded (the locator's herd/count" in run.stdout
+    assert json.loads(run.stdout[run.stdout.index("{"):])["recounted"] == want["recounted"]
+    refused = cli(["bag", "census", str(renamed)])
+    assert refused.returncode == 2 and "<drone>/detections/located" in refused.stderr
     summary, by_default = summarize_run(renamed, locator=named), summarize_run(default)
     assert summary["located"]["frames"] == 4 and summary["located"]["detections"] == 32
     assert summary["located"] == by_default["located"] and summary["census"] == by_default["census"]

@@ -131,18 +131,19 @@ def cmd_census(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.detection.config import CENSUS_RULE, LocatorConfig
     from zebra_sim_ros.recording.census import bag_census, census_line
 
-    s = bag_census(args.bag, LocatorConfig.from_params({k: getattr(args, k) for k in CENSUS_RULE}), args.drones,
-                   args.geojson, parse_datum(args.datum) if args.datum is not None else None)
+    rule = LocatorConfig.from_params({k: getattr(args, k) for k in (*CENSUS_RULE, "output", "census_output")})
+    s = bag_census(args.bag, rule, args.drones, args.geojson, parse_datum(args.datum) if args.datum is not None
+                   else None)
 
-    rule = ", ".join(f"{k} {v:g}" for k, v in s["rule"].items())
+    joined = ", ".join(f"{k} {v:g}" for k, v in s["rule"].items())
     print(f"cameras {', '.join(s['cameras'])} (joined in this order): {s['stamps_counted']} of {s['stamps_placed']} "
           f"placed stamps with every camera's frame and pose")
-    print(f"recounted ({rule}): {census_line(s['recounted'])}")
+    print(f"recounted ({joined}): {census_line(s['recounted'])}")
     if s["recorded"] is None:
-        print("recorded: no census/animals in the bag")
+        print(f"recorded: no {rule.census_output} in the bag")
     else:
-        print(f"recorded (the locator's census/animals, on the same stamps, {s['recorded_stamps']} in the bag): "
-              f"{census_line(s['recorded'])}")
+        print(f"recorded (the locator's {rule.census_output}, on the same stamps, {s['recorded_stamps']} in the "
+              f"bag): {census_line(s['recorded'])}")
     if "geojson" in s:
         d = s["datum"]
         print(f"the recounted animals on the map: {s['geojson']} (GeoJSON; map's origin at {d['latitude_deg']!r}, "
