@@ -15,6 +15,7 @@ from zebra_sim_ros.geometry.geodesy import (
     enu_to_geodetic,
     geodetic_to_ecef,
     geodetic_to_enu,
+    gnss_fixes,
 )
 from zebra_sim_ros.messages import Datum
 from zebra_sim_ros.placement.config import PlacerConfig
@@ -109,3 +110,28 @@ def test_datums_and_the_placers_datum_parameters_are_refused_by_name() -> None:
     for name, value in (("longitude_deg", 200.0), ("origin_altitude_m", -1000.0), ("latitude_deg", -95.0)):
         with pytest.raises(ParameterError, match=name):
             PlacerConfig.from_params({name: value})
+
+
+def test_gnss_fixes_are_seeded_gaussian_about_the_points_with_their_covariance() -> None:
+    """A receiver's noise: the same seed gives the same fixes, another seed others; converted back, the offsets of
+    4,000 fixes have the sigmas asked per axis (within 5%), no mean and no correlation between axes; the covariance
+    is their diagonal; without noise the fixes are the points exactly and nothing is drawn. Bad sigmas are named."""
+    datum = Datum(-2.3, 34.8, 1550.0)
+    rng = np.random.default_rng(4)
+    points = np.column_stack([rng.uniform(-500, 500, (4000, 2)), rng.uniform(40, 120, 4000)])
+    fixes, cov = gnss_fixes(points, datum, 2.5, 5.0, (9, 3, 7))
+    again, _ = gnss_fixes(points, datum, 2.5, 5.0, (9, 3, 7))
+    other, _ = gnss_fixes(points, datum, 2.5, 5.0, (9, 4, 7))
+    np.testing.assert_array_equal(fixes, again)
+    assert np.abs(geodetic_to_enu(other, datum) - geodetic_to_enu(fixes, datum)).mean() > 1.0  # other draws
+    off = geodetic_to_enu(fixes, datum) - points
+    np.testing.assert_allclose(off.std(0), [2.5, 2.5, 5.0], rtol=0.05)
+    assert np.abs(off.mean(0)).max() < 0.25  # 3 standard errors of 5 m over 4,000
+    assert np.abs(np.corrcoef(off.T) - np.eye(3)).max() < 0.06
+    np.testing.assert_allclose(cov, np.diag([6.25, 6.25, 25.0]))
+    exact, zero = gnss_fixes(points[:5], datum)
+    np.testing.assert_allclose(geodetic_to_enu(exact, datum), points[:5], atol=1e-6)
+    assert not zero.any()
+    for bad in ((-1.0, 0.0), (0.0, float("nan")), (float("inf"), 1.0)):
+        with pytest.raises(ValueError, match="GNSS sigmas"):
+            gnss_fixes(points[:1], datum, *bad)

@@ -7,6 +7,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 import rclpy
 from cli_helpers import CliRun
@@ -19,7 +20,7 @@ from std_msgs.msg import Header, String
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
-from zebra_sim_ros.geometry.geodesy import geodetic_to_enu
+from zebra_sim_ros.geometry.geodesy import GNSS_STREAM, geodetic_to_enu, gnss_fixes
 from zebra_sim_ros.messages import Datum
 from zebra_sim_ros.nodes.ros_adapter import detection3d_array_type, message_class
 
@@ -113,6 +114,7 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path, 
                 assert fix.header.frame_id == f"{name}/base_link" and fix.status.status == NavSatStatus.STATUS_FIX
                 back = geodetic_to_enu([[fix.latitude, fix.longitude, fix.altitude]], datum)[0]
                 assert back == pytest.approx(cam["position"], abs=1e-4)  # 0.1 mm
+                assert fix.position_covariance_type == NavSatFix.COVARIANCE_TYPE_UNKNOWN  # exact: no noise asked
         assert listener.markers and len(listener.markers[-1].markers) == listener.scenes[-1]["placed"] + 1
         shown = listener.markers[-1].markers
         last = next(s for s in listener.scenes
@@ -163,7 +165,8 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path, 
 def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tmp_path: Path) -> None:
     """``mode:=service``: each call of ``/placer/step`` (std_srvs/Trigger) publishes one step and answers with its
     index and stamp; a call while subscribers are still awaited publishes nothing and says so; after ``max_steps``
-    the node ends by itself."""
+    the node ends by itself. With GNSS noise asked for, each drone's fix is its camera's position moved by the draw
+    the scene's seed and step give (recomputed here from the scene alone), with that covariance, known."""
     from std_srvs.srv import Trigger
 
     listener = Listener(domain)
@@ -175,7 +178,8 @@ def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tm
         assert listener.spin_until(future.done, 30), "no answer"
         return future.result()
     try:
-        params = dict(SMALL, mode="service", max_steps=2, seed=9, wait_for_subscribers=2)
+        params = dict(SMALL, mode="service", max_steps=2, seed=9, wait_for_subscribers=2, fix_sigma_m=2.5,
+                      fix_vertical_sigma_m=5.0)
         with node_process("placer", params, domain, tmp_path / "placer.log") as proc:
             assert listener.spin_until(client.service_is_ready, 60), (tmp_path / "placer.log").read_text()
             first = call()
@@ -197,6 +201,22 @@ def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tm
             assert answer.message.startswith(f"step {scene['step']}, stamp {stamp}: {scene['placed']}/"), answer.message
         assert [s["step"] for s in listener.scenes] == [0, 1]
         assert "published 2 steps on request; stopping" in (tmp_path / "placer.log").read_text()
+        assert listener.spin_until(lambda: all(len(f) == 2 for f in listener.fixes.values()), 10)
+        names = sorted(listener.fixes)
+        for scene in listener.scenes:
+            cams = [next(c for c in scene["cameras"] if c["name"] == n) for n in names]
+            datum = Datum.from_dict(scene["datum"])
+            want, cov = gnss_fixes([c["position"] for c in cams], datum, 2.5, 5.0,
+                                   (scene["seed"], scene["step"], GNSS_STREAM))
+            for name, cam, (lat, lon, height) in zip(names, cams, want, strict=True):
+                fix = next(f for f in listener.fixes[name] if (f.header.stamp.sec, f.header.stamp.nanosec) ==
+                           (scene["stamp"]["sec"], scene["stamp"]["nanosec"]))
+                assert (fix.latitude, fix.longitude) == pytest.approx((lat, lon), abs=1e-9)
+                assert fix.altitude == pytest.approx(height, abs=1e-6)
+                assert fix.position_covariance_type == NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN
+                assert list(fix.position_covariance) == pytest.approx([6.25, 0, 0, 0, 6.25, 0, 0, 0, 25.0])
+                off = geodetic_to_enu([[fix.latitude, fix.longitude, fix.altitude]], datum)[0] - cam["position"]
+                assert 1e-3 < np.linalg.norm(off) < 6 * 5.0  # moved, by a draw of these sigmas
     finally:
         listener.close()
         if second is not None:

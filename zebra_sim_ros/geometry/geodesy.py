@@ -4,10 +4,12 @@
 latitude, longitude and height above the WGS84 ellipsoid, x east, y north, z up along the ellipsoid's normal there.
 The conversions are exact (through Earth-centred, Earth-fixed coordinates; the inverse by Bowring's method,
 iterated to well under a millimetre), not a flat-Earth approximation, so a survey hundreds of kilometres wide stays
-right. Pure numpy.
+right. :func:`gnss_fixes` adds a GNSS receiver's seeded noise. Pure numpy.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -73,3 +75,23 @@ def enu_to_geodetic(points: ArrayLike, datum: Datum) -> FloatArray:
 def geodetic_to_enu(lla: ArrayLike, datum: Datum) -> FloatArray:
     """(N, 3) latitude, longitude (deg) and height (m) as points of ``map`` (east, north, up in m from ``datum``)."""
     return (geodetic_to_ecef(lla) - _origin(datum)) @ _enu_basis(datum).T
+
+
+GNSS_STREAM = 0x6E55  # the fixes' noise: a stream of its own beside the placement's, drawn from (seed, step, this)
+
+
+def gnss_fixes(points: ArrayLike, datum: Datum, sigma_h_m: float = 0.0, sigma_v_m: float = 0.0,
+               seed: Sequence[int] = ()) -> tuple[FloatArray, FloatArray]:
+    """``points`` of ``map`` (N, 3; east, north, up from ``datum``) as GNSS receivers there report them: latitude,
+    longitude (deg) and height above the WGS84 ellipsoid (m) of each point moved by Gaussian noise of ``sigma_h_m``
+    per horizontal axis and ``sigma_v_m`` up, drawn from ``numpy.random.default_rng(seed)`` (one draw per point, in
+    order: the same seed, the same fixes), and the 3x3 ENU covariance those sigmas give (m², NavSatFix's
+    ``position_covariance``; the receiver's own east, north and up differ from the datum's by under a thousandth of a
+    radian within 6 km). Both sigmas 0: the points exactly, no draw made."""
+    if not (np.isfinite(sigma_h_m) and np.isfinite(sigma_v_m) and sigma_h_m >= 0.0 and sigma_v_m >= 0.0):
+        raise ValueError(f"GNSS sigmas ({sigma_h_m!r}, {sigma_v_m!r}) m: want finite values >= 0")
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    sigma = np.array([sigma_h_m, sigma_h_m, sigma_v_m])
+    if sigma.any():
+        pts = pts + np.random.default_rng(list(seed)).normal(size=pts.shape) * sigma
+    return enu_to_geodetic(pts, datum), np.diag(sigma**2)

@@ -11,8 +11,9 @@ the whole graph, except the conventional ``/tf``, ``/tf_static`` and ``/clock``,
 - ``zebra_sim/zebras/markers`` (visualization_msgs/MarkerArray): the zebras' oriented 3D boxes.
 - ``drone_{i}/camera/pose`` (geometry_msgs/PoseStamped): pose of ``drone_{i}/camera_optical`` in ``map``.
 - ``drone_{i}/fix`` (sensor_msgs/NavSatFix): the same camera's position on the Earth (WGS84 latitude, longitude,
-  height above the ellipsoid) by the scene's datum, as a drone's GNSS receiver reports it (exact: no noise, the
-  covariance unknown); frame ``drone_{i}/base_link``.
+  height above the ellipsoid) by the scene's datum, as a drone's GNSS receiver reports it: exact, its covariance
+  unknown, or with ``fix_sigma_m`` / ``fix_vertical_sigma_m`` seeded Gaussian noise (from the scene's seed and step:
+  the same fixes on a rerun) and that diagonal covariance, known; frame ``drone_{i}/base_link``.
 - ``/tf`` (tf2_msgs/TFMessage): ``map -> drone_{i}/base_link`` of every drone, each step (REP 105);
   ``/tf_static``: ``drone_{i}/base_link -> drone_{i}/camera_optical`` once (transient local), so RViz, Foxglove
   and tf2 place each camera's images in 3D.
@@ -44,7 +45,7 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
 from zebra_sim_ros.geometry.frames import OPTICAL_IN_BASE_XYZW, base_frame, body_orientation, optical_frame
-from zebra_sim_ros.geometry.geodesy import enu_to_geodetic
+from zebra_sim_ros.geometry.geodesy import GNSS_STREAM, gnss_fixes
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.nodes.ros_adapter import (
@@ -209,13 +210,18 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         for pub, cam in zip(self.pose_pubs, scene.cameras, strict=True):
             pub.publish(PoseStamped(header=header, pose=pose_msg(cam.position, cam.orientation_xyzw)))
         if scene.datum is not None:
-            where = enu_to_geodetic([cam.position for cam in scene.cameras], scene.datum)
+            c = self.cfg
+            where, cov = gnss_fixes([cam.position for cam in scene.cameras], scene.datum, c.fix_sigma_m,
+                                    c.fix_vertical_sigma_m, (scene.seed, scene.step, GNSS_STREAM))
+            known = bool(cov.any())
             for pub, cam, (lat, lon, height) in zip(self.fix_pubs, scene.cameras, where.tolist(), strict=True):
                 pub.publish(NavSatFix(header=Header(stamp=header.stamp, frame_id=base_frame(cam.name)),
                                       status=NavSatStatus(status=NavSatStatus.STATUS_FIX,
                                                           service=NavSatStatus.SERVICE_GPS),
                                       latitude=lat, longitude=lon, altitude=height,
-                                      position_covariance_type=NavSatFix.COVARIANCE_TYPE_UNKNOWN))
+                                      position_covariance=cov.ravel().tolist(),
+                                      position_covariance_type=NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN if known
+                                      else NavSatFix.COVARIANCE_TYPE_UNKNOWN))
         self.sent_at = time.monotonic()
         self.get_logger().debug(f"step {scene.step}: {scene.placed}/{scene.requested} zebras placed")
 

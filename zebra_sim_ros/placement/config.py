@@ -144,6 +144,12 @@ class PlacerConfig(StageConfig):
     origin_altitude_m: float = param(1550.0, "height of map's origin above the WGS84 ellipsoid: the scene's datum "
                                      "(the Serengeti plains: about 1550; not a flight height)", "m", lo=-500.0,
                                      hi=9000.0)
+    fix_sigma_m: float = param(0.0, "standard deviation of each drone's GNSS fix (drone_{i}/fix) about its camera's "
+                               "position, per horizontal axis, drawn per step from the scene's seed and step; the "
+                               "fix's covariance says it (0 with fix_vertical_sigma_m 0: the exact position, its "
+                               "covariance unknown)", "m", lo=0.0, hi=100.0)
+    fix_vertical_sigma_m: float = param(0.0, "the same, up (a receiver's height is about twice as uncertain as its "
+                                        "horizontal position)", "m", lo=0.0, hi=100.0)
     mode: str = param("rate", "rate: publish at rate_hz; lockstep: next step when every acker acknowledged; "
                       "service: one step per call of the ~/step service (std_srvs/Trigger)",
                       choices=("rate", "lockstep", "service"))
