@@ -120,6 +120,8 @@ def main() -> None:
     rows: list[dict[str, Any]] = []
     runs: list[list[MatchedImage]] = []
     groups: list[tuple[int, str]] = []
+    if any(v in ("", "none") for v in args.verifier):  # bench_real's word for no verifier: here always a row
+        raise SystemExit("--verifier: 'shipped' or checkpoints (each weights' row without a verifier is always there)")
     nets = [(v, load_verifier(v, "cpu", "--verifier")[0]) for v in args.verifier]
     for w in args.weights:
         model, _ = load_model(None if w == "shipped" else w, torch.device("cpu"))

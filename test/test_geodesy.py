@@ -129,9 +129,11 @@ def test_gnss_fixes_are_seeded_gaussian_about_the_points_with_their_covariance()
     assert np.abs(off.mean(0)).max() < 0.25  # 3 standard errors of 5 m over 4,000
     assert np.abs(np.corrcoef(off.T) - np.eye(3)).max() < 0.06
     np.testing.assert_allclose(cov, np.diag([6.25, 6.25, 25.0]))
-    exact, zero = gnss_fixes(points[:5], datum)
+    exact, zero = gnss_fixes(points[:5], datum, 0.0, 0.0, (9, 3, 7))
     np.testing.assert_allclose(geodetic_to_enu(exact, datum), points[:5], atol=1e-6)
     assert not zero.any()
     for bad in ((-1.0, 0.0), (0.0, float("nan")), (float("inf"), 1.0)):
         with pytest.raises(ValueError, match="GNSS sigmas"):
-            gnss_fixes(points[:1], datum, *bad)
+            gnss_fixes(points[:1], datum, *bad, (1,))
+    with pytest.raises(ValueError, match="GNSS seed"):
+        gnss_fixes(points[:1], datum, 1.0, 1.0, ())

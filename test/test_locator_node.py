@@ -304,11 +304,16 @@ def test_a_bad_locator_parameter_stops_the_node() -> None:
                       ({"census_output": "drone_1/animals"}, "'census_output'"),
                       ({"census_output": "/abs"}, "'census_output'"), ({"census_across": 0.0}, "'census_across'"),
                       ({"census_separation": -1.0}, "'census_separation'"),
-                      ({"drones": ["uav/drone_0"], "census_output": "uav/drone_0/animals"}, "'census_output'")):
+                      ({"drones": ["uav/drone_0"], "census_output": "uav/drone_0/animals"}, "'census_output'"),
+                      # one name ending the other: a bag's reader of either topic would take the other's messages
+                      ({"output": "census/animals"}, "'census_output' = 'census/animals'.*neither ends"),
+                      ({"output": "x/census/animals"}, "'census_output'"),
+                      ({"output": "animals"}, "'census_output'")):
         with pytest.raises(ParameterError, match=name):
             LocatorConfig.from_params(bad)
     # outside a nested camera's namespace, whatever its last name
     assert LocatorConfig.from_params({"drones": ["uav/drone_0"], "census_output": "drone_0/animals"}).census
+    assert LocatorConfig.from_params({"output": "census/animals/placed"}).census  # a longer name, not an ending
     proc = run_node_once("locator", {"core": 2.0})  # the node stops at start, naming it
     assert proc.returncode == 2 and "'core'" in proc.stderr + proc.stdout, proc.stderr[-500:]
 

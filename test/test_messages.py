@@ -73,6 +73,8 @@ def test_scene_round_trips_and_refuses_other_schemas(savanna: World, library: Ze
                           ({**d, "datum": {**d["datum"], "latitude_deg": 91}}, "datum latitude 91.0 deg"),
                           ({**d, "datum": {**d["datum"], "latitude_deg": -2.4}},
                            r"datum latitude -2.4 deg is not the lighting's -2.3 deg"),
+                          ({**d, "lighting": {**d["lighting"], "latitude_deg": float("nan")}},
+                           r"is not the lighting's nan deg"),
                           ({**d, "datum": {"latitude_deg": 1.0}}, "malformed: KeyError 'longitude_deg'"),
                           ({**d, "datum": {"latitude_deg": 1.0, "longitude_deg": 2.0}},
                            "malformed: KeyError 'altitude_m'")):

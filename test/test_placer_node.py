@@ -202,9 +202,10 @@ def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tm
         assert [s["step"] for s in listener.scenes] == [0, 1]
         assert "published 2 steps on request; stopping" in (tmp_path / "placer.log").read_text()
         assert listener.spin_until(lambda: all(len(f) == 2 for f in listener.fixes.values()), 10)
-        names = sorted(listener.fixes)
         for scene in listener.scenes:
-            cams = [next(c for c in scene["cameras"] if c["name"] == n) for n in names]
+            cams = scene["cameras"]  # the draw's order: the scene's cameras
+            names = [c["name"] for c in cams]
+            assert sorted(names) == sorted(listener.fixes)
             datum = Datum.from_dict(scene["datum"])
             want, cov = gnss_fixes([c["position"] for c in cams], datum, 2.5, 5.0,
                                    (scene["seed"], scene["step"], GNSS_STREAM))

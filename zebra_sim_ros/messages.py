@@ -442,7 +442,7 @@ class Scene(_Message):
 
     def __post_init__(self) -> None:
         # the sun's path is drawn for the lighting's latitude: a map put elsewhere on the Earth would disagree with it
-        if self.datum is not None and abs(self.datum.latitude_deg - self.lighting.latitude_deg) > 1e-9:
+        if self.datum is not None and not abs(self.datum.latitude_deg - self.lighting.latitude_deg) <= 1e-9:  # NaN too
             raise ValueError(f"datum latitude {self.datum.latitude_deg!r} deg is not the lighting's "
                              f"{self.lighting.latitude_deg!r} deg (the sun's path is drawn for it)")
 

@@ -348,7 +348,7 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int, show: Callabl
             try:
                 p.start()
             except OSError as exc:  # no process to be had (EAGAIN, ENOMEM): those started are stopped below
-                failure = f"worker {k} of {len(procs)} could not be started ({exc})"
+                failure = f"worker {k} (of workers 0..{len(procs) - 1}) could not be started ({exc})"
                 break
         for _, w in pipes:
             w.close()  # the worker holds its write end alone, so its pipe reads as ended when it dies
@@ -400,9 +400,8 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int, show: Callabl
                 continue
             if stop and p.is_alive():  # the rest of a failed run is not waited for: a rerun resumes it
                 p.terminate()
-                if p.pid is not None:
-                    with contextlib.suppress(OSError):  # a stopped worker (SIGSTOP, ^Z) takes its SIGTERM only
-                        os.kill(p.pid, signal.SIGCONT)  # once continued
+                with contextlib.suppress(OSError):  # a stopped worker (SIGSTOP, ^Z) takes its SIGTERM only
+                    os.kill(p.pid, signal.SIGCONT)  # once continued
             p.join(timeout=30)
             if p.is_alive():
                 p.kill()

@@ -202,6 +202,10 @@ class LocatorConfig(StageConfig):
         out = self.census_output.strip("/")
         if any(out == ns or out.startswith(ns + "/") for ns in (d.strip("/") for d in self.drones)):
             raise ParameterError("census_output", self.census_output, "a topic outside the cameras' namespaces")
+        placed = self.output.strip("/")
+        if out == placed or out.endswith("/" + placed) or placed.endswith("/" + out):  # a reader of one takes the other
+            raise ParameterError("census_output", self.census_output, f"a name that neither ends the placed "
+                                 f"detections' output {self.output!r} nor is ended by it")
 
 
 LOCATOR_PARAMS: tuple[ParamSpec, ...] = LocatorConfig.specs()

@@ -256,7 +256,8 @@ SERVING = ("min_side_fraction", "contexts", "mirror", "power", "power_from")  # 
 def reserve_verifier(path: str | Path, out: str | Path, **serving: Any) -> dict[str, Any]:
     """Write to ``out`` the verifier at ``path`` ("shipped": the package's; a single one or an ensemble) with other
     serving settings (``serving``: fields of :data:`SERVING`; those not given kept): the same weights, as stored,
-    and the same record. Returns the new config; a bad setting is a ParameterError naming its field."""
+    and the same record. Returns the new config (``config``), the file read (``from``) and its record (less its
+    history); a bad setting is a ParameterError naming its field."""
     unknown = sorted(set(serving) - set(SERVING))
     if unknown:
         raise ParameterError(unknown[0], serving[unknown[0]], f"one of the serving settings {list(SERVING)}")

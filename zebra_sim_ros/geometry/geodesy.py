@@ -80,8 +80,8 @@ def geodetic_to_enu(lla: ArrayLike, datum: Datum) -> FloatArray:
 GNSS_STREAM = 0x6E55  # the fixes' noise: a stream of its own beside the placement's, drawn from (seed, step, this)
 
 
-def gnss_fixes(points: ArrayLike, datum: Datum, sigma_h_m: float = 0.0, sigma_v_m: float = 0.0,
-               seed: Sequence[int] = ()) -> tuple[FloatArray, FloatArray]:
+def gnss_fixes(points: ArrayLike, datum: Datum, sigma_h_m: float, sigma_v_m: float,
+               seed: Sequence[int]) -> tuple[FloatArray, FloatArray]:
     """``points`` of ``map`` (N, 3; east, north, up from ``datum``) as GNSS receivers there report them: latitude,
     longitude (deg) and height above the WGS84 ellipsoid (m) of each point moved by Gaussian noise of ``sigma_h_m``
     per horizontal axis and ``sigma_v_m`` up, drawn from ``numpy.random.default_rng(seed)`` (one draw per point, in
@@ -90,6 +90,8 @@ def gnss_fixes(points: ArrayLike, datum: Datum, sigma_h_m: float = 0.0, sigma_v_
     radian within 6 km). Both sigmas 0: the points exactly, no draw made."""
     if not (np.isfinite(sigma_h_m) and np.isfinite(sigma_v_m) and sigma_h_m >= 0.0 and sigma_v_m >= 0.0):
         raise ValueError(f"GNSS sigmas ({sigma_h_m!r}, {sigma_v_m!r}) m: want finite values >= 0")
+    if not len(seed):  # default_rng([]) would draw as default_rng(0): one draw for every caller
+        raise ValueError("GNSS seed (): want the draw's seed, e.g. (scene seed, step, GNSS_STREAM)")
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     sigma = np.array([sigma_h_m, sigma_h_m, sigma_v_m])
     if sigma.any():

@@ -28,12 +28,12 @@ LABELLER_TOPICS = ("labels", "labels/markers", "labels/boxes3d", "labels/boxes2d
 DETECTOR_TOPICS = ("detections", "detections/image", "detections/markers")
 # up --locate: the census, under the graph's namespace, as the locator's defaults name it (the RViz view's census
 # display, off without the locator; the graph's locator publishes what its parameter file names: census_topics)
-CENSUS_TOPICS = (f"/{LocatorConfig().census_output}", f"/{LocatorConfig().census_output}/markers")
-
-
 def census_topics(locator: LocatorConfig) -> tuple[str, ...]:
     """What ``locator`` publishes of its census, relative to its namespace (nothing with ``census`` false)."""
     return (f"/{locator.census_output}", f"/{locator.census_output}/markers") if locator.census else ()
+
+
+CENSUS_TOPICS = census_topics(LocatorConfig())
 
 
 def rviz_off(locate: bool) -> tuple[str, ...]:

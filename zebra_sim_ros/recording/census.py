@@ -1,8 +1,10 @@
 """The census of a recorded run, counted again (``zebra-sim bag census``): each step's detections placed on the map
-by the locator (``<drone>/detections/located`` and ``<drone>/camera/pose``, recorded by ``up --locate``) joined
+by the locator (``<drone>/detections/located``, or the ``output`` its file names, and ``<drone>/camera/pose``,
+recorded by ``up --locate``) joined
 across the cameras with census parameters given here (:func:`zebra_sim_ros.geometry.census.join_views`, the
 locator node's rule, in its ``drones`` order), against the distinct zebras the cameras' labels keep where the bag
-has labels; beside it the census the locator recorded (``census/animals``), where it did. A run recorded once can
+has labels; beside it the census the locator recorded (``census/animals``, or its ``census_output``), where it
+did. A run recorded once can
 so be counted again with other parameters, and a change to the rule measured on the same detections.
 """
 
@@ -139,8 +141,9 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
                drones: Sequence[str] | None = None, geojson: str | Path | None = None,
                datum: Datum | None = None) -> dict[str, Any]:
     """The census of the bag ``paths`` counted again by ``rule``'s :data:`CENSUS_RULE` parameters (the locator's;
-    default: its defaults; module docstring), the cameras joined in ``drones``' order (the locator's ``drones``,
-    last names; default: the cameras found, ``drone_2`` before ``drone_10``, as up and the launch file have them):
+    default: its defaults; module docstring), read from ``rule``'s topics (``output``, ``census_output``), the
+    cameras joined in ``drones``' order (the locator's ``drones``, last names; default: the cameras found,
+    ``drone_2`` before ``drone_10``, as up and the launch file have them):
     per stamp that every camera has placed and posed, its zebras joined across the cameras and scored by
     :func:`census_figures`. ``recorded``: the locator's recorded census, scored on the same stamps (None where the
     bag has none). ParameterError when the bag holds no placed detections (recorded without ``up --locate``) or no
