@@ -23,6 +23,7 @@ import json
 import os
 import platform
 import statistics
+import sys
 import time
 from functools import partial
 from pathlib import Path
@@ -38,6 +39,9 @@ from zebra_sim_ros.detection.metrics import MatchedImage, interval95, paired_boo
 from zebra_sim_ros.detection.predict import inference_size
 from zebra_sim_ros.detection.verify import Verifier, load_verifier, read_rgb, rescore
 from zebra_sim_ros.zebra.asset import appearance_digest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_real import verifier_label  # noqa: E402
 
 DEFAULT_FRAMES = 36  # README's default generate
 VAL_CONF = 0.001  # default val: every detection above it counts into AP
@@ -135,8 +139,7 @@ def main() -> None:
         for v, net in nets:  # the same detections rescored, as predictions(..., verifier=net) would give them
             t0 = time.perf_counter()
             rescored = {s: [verified(net, x) for x in p] for s, p in per_seed.items()}
-            rows.append(row(w + (" + verifier" if v == "shipped" else f" + verifier {v}"), rescored,
-                            time.perf_counter() - t0))
+            rows.append(row(w + verifier_label(v), rescored, time.perf_counter() - t0))
             if args.bootstrap:
                 runs.append(matched_all(rescored))
     if args.bootstrap:

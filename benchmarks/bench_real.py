@@ -64,7 +64,7 @@ from zebra_sim_ros.detection.metrics import (
 )
 from zebra_sim_ros.detection.model import OTHER_ANIMAL, ZEBRA
 from zebra_sim_ros.detection.predict import inference_size
-from zebra_sim_ros.detection.verify import SHIPPED_VERIFIER, load_verifier
+from zebra_sim_ros.detection.verify import SHIPPED_VERIFIER, Verifier, load_verifier, read_rgb, rescore
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_ROOTS = (ROOT / "real", ROOT.parent / "shared" / "real")
@@ -114,8 +114,21 @@ def _centred(d: np.ndarray, boxes: np.ndarray) -> np.ndarray:
 
 def score_set(weights: str, folder: Path, imgsz: int, sweep: tuple[float, ...] = (), verifier: str = "",
               bootstrap: int = 0, seed: int = 0) -> dict[str, Any]:
+    """One weights' row on one set at one size, with ``verifier`` ('' none, 'shipped' or a checkpoint)."""
+    return score_sets(weights, folder, imgsz, sweep, (verifier,), bootstrap, seed)[0]
+
+
+def verifier_label(verifier: str) -> str:
+    """What a row's weights name says of its verifier: nothing, `` + verifier`` (the shipped one) or its path."""
+    return "" if not verifier else " + verifier" if verifier == "shipped" else f" + verifier {verifier}"
+
+
+def score_sets(weights: str, folder: Path, imgsz: int, sweep: tuple[float, ...] = (),
+               verifiers: tuple[str, ...] = ("",), bootstrap: int = 0, seed: int = 0) -> list[dict[str, Any]]:
+    """A row per verifier of ``verifiers`` for one weights on one set at one size: the detector runs once, and each
+    verifier rescores its zebra boxes as ``predictions_by_class(..., verifier=)`` would (on the image files, the
+    rows under its conf dropped); a row's time is the detector's and its verifier's."""
     model, _ = load_model(None if weights == "shipped" else weights, torch.device("cpu"))
-    net = load_verifier(verifier, "cpu", "--verifier")[0] if verifier else None
 
     def rule(long_side: int) -> int:
         return inference_size(model.cfg, long_side, imgsz or None)
@@ -123,9 +136,36 @@ def score_set(weights: str, folder: Path, imgsz: int, sweep: tuple[float, ...] =
     other_class = model.cfg.names.index(OTHER_ANIMAL) if OTHER_ANIMAL in model.cfg.names else None
     classes = (ZEBRA,) if other_class is None else (ZEBRA, other_class)
     t0 = time.perf_counter()
-    by_class = predictions_by_class(model, make_loader(folder / "images", rule, batch=4), classes, verifier=net)
-    seconds = time.perf_counter() - t0
-    per = by_class[ZEBRA]
+    by_class = predictions_by_class(model, make_loader(folder / "images", rule, batch=4), classes, conf=DETECT_CONF)
+    detected = time.perf_counter() - t0
+    rows = []
+    for verifier in verifiers:
+        t0 = time.perf_counter()
+        per = by_class[ZEBRA]
+        if verifier:
+            net = load_verifier(verifier, "cpu", "--verifier")[0]
+            per = [_rescored(net, p) for p in per]
+        rows.append(_row(weights + verifier_label(verifier), folder, imgsz, per, by_class, other_class,
+                         detected + time.perf_counter() - t0, sweep, bootstrap, seed))
+    return rows
+
+
+DETECT_CONF = 0.001  # the detector's threshold for these figures (as val's): every box into AP
+
+
+def _rescored(net: Verifier, p: ImagePredictions) -> ImagePredictions:
+    """``p``'s detections rescored by ``net`` as ``predictions_by_class`` rescores them: in float32, the rows now
+    under :data:`DETECT_CONF` dropped."""
+    if not len(p.detections):
+        return p
+    d = rescore(net, read_rgb(p.file), p.detections.astype(np.float32), DETECT_CONF)
+    return p._replace(detections=d.astype(np.float64))
+
+
+def _row(name: str, folder: Path, imgsz: int, per: list[ImagePredictions],
+         by_class: dict[int, list[ImagePredictions]], other_class: int | None, seconds: float,
+         sweep: tuple[float, ...], bootstrap: int, seed: int) -> dict[str, Any]:
+    """The figures of one row: ``per`` the zebra class's predictions (rescored or not), ``by_class`` every class's."""
     zebra = [p for p in per if len(p.labels)]
     others = [p for p in per if not len(p.labels)]
     dets, gts = [p.detections for p in zebra], [p.labels for p in zebra]
@@ -158,8 +198,7 @@ def score_set(weights: str, folder: Path, imgsz: int, sweep: tuple[float, ...] =
             row[2] += int(_centred(d, lab[lab[:, 0] == k, 1:]).any(1).sum()) if len(d) else 0
     z = _if(bool(zebra))  # a set of other species only has no zebra figures, one of zebras only no false ones
     o = _if(bool(others))
-    return {"weights": weights + (f" + verifier {verifier}" if verifier not in ("", "shipped") else
-                                  " + verifier" if verifier else ""), "set": folder.name, "imgsz": imgsz or "rule",
+    return {"weights": name, "set": folder.name, "imgsz": imgsz or "rule",
             "served": sorted({p.imgsz for p in per}), "zebra_images": len(zebra), "zebras": m.instances,
             "mAP50": z(round(m.map50, 4)), "mAP50-95": z(round(m.map50_95, 4)), "P@0.25": z(round(prec, 4)),
             "R@0.25": z(round(rec, 4)), "AP50_small": z(sizes["small"]["mAP50"]),
@@ -326,8 +365,10 @@ def main() -> None:
     if args.bootstrap_seed < 0:
         raise SystemExit(f"--bootstrap-seed {args.bootstrap_seed}: want 0 or more")
     verifiers = ["" if v == "none" else v for v in args.verifier]
-    rows = [score_set(w, s, n, tuple(args.conf_sweep), v, args.bootstrap, args.bootstrap_seed)
-            for w in args.weights for v in verifiers for s in sets for n in args.imgsz]
+    by_key = {(w, s, n): score_sets(w, s, n, tuple(args.conf_sweep), tuple(verifiers), args.bootstrap,
+                                    args.bootstrap_seed) for w in args.weights for s in sets for n in args.imgsz}
+    rows = [by_key[(w, s, n)][k] for w in args.weights for k in range(len(verifiers)) for s in sets
+            for n in args.imgsz]  # a weights' rows with its first verifier, then its second ...
     machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores"
     digests = ", ".join(f"{w} {sha256_12(SHIPPED if w == 'shipped' else Path(w))}" for w in args.weights)
     for name in (v for v in verifiers if v):

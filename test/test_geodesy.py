@@ -123,8 +123,9 @@ def test_gnss_fixes_are_seeded_gaussian_about_the_points_with_their_covariance()
     again, _ = gnss_fixes(points, datum, 2.5, 5.0, (9, 3, 7))
     other, _ = gnss_fixes(points, datum, 2.5, 5.0, (9, 4, 7))
     np.testing.assert_array_equal(fixes, again)
-    assert np.abs(geodetic_to_enu(other, datum) - geodetic_to_enu(fixes, datum)).mean() > 1.0  # other draws
-    off = geodetic_to_enu(fixes, datum) - points
+    back = geodetic_to_enu(fixes, datum)
+    assert np.abs(geodetic_to_enu(other, datum) - back).mean() > 1.0  # other draws
+    off = back - points
     np.testing.assert_allclose(off.std(0), [2.5, 2.5, 5.0], rtol=0.05)
     assert np.abs(off.mean(0)).max() < 0.25  # 3 standard errors of 5 m over 4,000
     assert np.abs(np.corrcoef(off.T) - np.eye(3)).max() < 0.06

@@ -89,7 +89,8 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path, 
                       other_animals_max=6)  # other species too, in the typed 3D boxes by their own names
         with node_process("placer", params, domain, tmp_path / "placer.log") as proc:
             assert listener.spin_until(lambda: len(listener.scenes) >= 5 and len(listener.tf) >= 5 and
-                                       all(len(p) >= 5 for p in listener.poses.values()), 60), \
+                                       all(len(p) >= 5 for p in listener.poses.values()) and
+                                       all(len(f) >= 5 for f in listener.fixes.values()), 60), \
                 (tmp_path / "placer.log").read_text()
             assert proc.wait(timeout=20) == 0  # stops by itself after max_steps
         steps = [s["step"] for s in listener.scenes]
@@ -103,7 +104,6 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path, 
                 assert pose.pose.position.x == pytest.approx(cam["position"][0])
                 assert pose.pose.orientation.w == pytest.approx(cam["orientation_xyzw"][3])
         # each camera on the Earth: its NavSatFix, converted back by the scene's datum, is its position in map
-        assert listener.spin_until(lambda: all(len(f) >= 5 for f in listener.fixes.values()), 10)
         datum = Datum.from_dict(listener.scenes[0]["datum"])
         assert datum == Datum(-2.3, 34.8, 1550.0)  # the placer's defaults
         for name, fixes in listener.fixes.items():

@@ -470,14 +470,15 @@ def test_a_locator_publishing_under_other_names_is_read_by_its_names(tmp_path: P
     run = cli(["bag", "census", str(renamed), "--output", "placed", "--census-output", "herd/count", "--json"])
     assert run.returncode == 0, run.stderr
     assert "recorded (the locator's herd/count" in run.stdout
-    assert json.loads(run.stdout[run.stdout.index("{"):])["recounted"] == want["recounted"]
+    assert json.loads(run.stdout.strip().splitlines()[-1])["recounted"] == want["recounted"]
     refused = cli(["bag", "census", str(renamed)])
     assert refused.returncode == 2 and "<drone>/detections/located" in refused.stderr
     summary, by_default = summarize_run(renamed, locator=named), summarize_run(default)
     assert summary["located"]["frames"] == 4 and summary["located"]["detections"] == 32
     assert summary["located"] == by_default["located"] and summary["census"] == by_default["census"]
     assert summary["census"]["animals"] == 16
-    assert "located" not in summarize_run(renamed) and "census" not in summarize_run(renamed)
+    unnamed = summarize_run(renamed)
+    assert "located" not in unnamed and "census" not in unnamed
 
 
 def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any, cli: CliRun) -> None:
@@ -486,8 +487,6 @@ def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any, cli: CliR
     by its id, or its place in the message where it has none. The datum is the bag's scenes'; ``datum`` only where
     they carry none: a bag whose scenes carry none wants it, scenes that disagree or a ``datum`` unlike theirs are
     refused by name, as is a file that cannot be written; the CLI reads ``--datum`` or refuses it by name."""
-    import json
-
     from zebra_sim_ros.cli.bag import parse_datum
     from zebra_sim_ros.errors import ParameterError
     from zebra_sim_ros.geometry.geodesy import geodetic_to_enu

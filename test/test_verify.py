@@ -147,7 +147,8 @@ def test_a_power_weighs_the_verifier_more_on_boxes_that_fill_their_image() -> No
     np.testing.assert_allclose(plain[:, 4], [0.8, 0.4, 0.4], rtol=1e-5)
     assert photo.dtype == dets.dtype
     old = {"crop": 96, "context": 1.2, "min_side": 24.0, "widths": [8, 16]}  # a checkpoint from before the power
-    assert (VerifierConfig.from_dict(old).power, VerifierConfig.from_dict(old).power_from) == (1.0, 0.0)
+    before = VerifierConfig.from_dict(old)
+    assert (before.power, before.power_from) == pytest.approx((1.0, 0.0))
     assert VerifierConfig.from_dict(cfg.to_dict()) == cfg
     for field, value in (("power", 0.5), ("power", float("nan")), ("power_from", 1.5)):
         with pytest.raises(ParameterError, match=f"verifier {field}"):
@@ -278,6 +279,7 @@ def test_a_verifier_served_otherwise_keeps_its_weights_and_record(tmp_path: Path
     img = rng.integers(0, 255, (160, 240, 3), dtype=np.uint8)
     dets = np.array([[20, 30, 90, 80, 0.9], [120, 40, 140, 60, 0.9]], np.float32)  # 70 px: a quarter of 240 or more
     p = zebra_probability(served, img, dets)  # with the mirror images, as served
+    assert 0.05 < p[0] < 0.95, p  # where p³ and p differ
     np.testing.assert_allclose(verify(served, img, dets)[:, 4], [0.9 * p[0] ** 3, 0.9 * p[1]], rtol=1e-5)
     again = reserve_verifier(tmp_path / "p.pt", tmp_path / "q.pt", power=1.0)  # the others kept
     assert again["config"] == replace(served.cfg, power=1.0).to_dict()

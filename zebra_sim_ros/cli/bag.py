@@ -128,10 +128,10 @@ def cmd_eval(args: argparse.Namespace) -> Summary:
 
 def cmd_census(args: argparse.Namespace) -> Summary:
     """Count a recorded run's zebras again across the drones."""
-    from zebra_sim_ros.detection.config import CENSUS_RULE, LocatorConfig
+    from zebra_sim_ros.detection.config import CENSUS_READS, CENSUS_RULE, LocatorConfig
     from zebra_sim_ros.recording.census import bag_census, census_line
 
-    rule = LocatorConfig.from_params({k: getattr(args, k) for k in (*CENSUS_RULE, "output", "census_output")})
+    rule = LocatorConfig.from_params({k: getattr(args, k) for k in (*CENSUS_RULE, *CENSUS_READS)})
     s = bag_census(args.bag, rule, args.drones, args.geojson, parse_datum(args.datum) if args.datum is not None
                    else None)
 

@@ -240,9 +240,8 @@ def cmd_train_verifier(args: argparse.Namespace) -> Summary:
                            min_side_fraction=args.min_side_fraction, contexts=tuple(args.contexts), mirror=args.mirror)
     try:
         model.check()
-    except ParameterError as exc:  # named by the flag that set it ("verifier min_side" -> --min-side), not the field
-        flag = "--" + exc.name.removeprefix("verifier ").replace("_", "-")
-        raise ParameterError(flag, exc.value, exc.allowed) from None
+    except ParameterError as exc:
+        raise _by_option(exc) from None
     cfg = TrainVerifierConfig(data=tuple(str(d) for d in args.data), out=str(args.out), model=model,
                               **{f.name: getattr(args, f.name) for f in fields(TrainVerifierConfig)
                                  if f.name not in ("data", "out", "model", "min_visible_fraction")})
@@ -251,16 +250,23 @@ def cmd_train_verifier(args: argparse.Namespace) -> Summary:
     return {"out": str(args.out), **{k: v for k, v in record.items() if k != "history"}}
 
 
+def _by_option(exc: ParameterError, fields: tuple[str, ...] | None = None) -> ParameterError:
+    """A verifier setting's error (``verifier min_side``) named by the option that set it (``--min-side``), not the
+    config field; ``fields``: only those fields' (the command's options set no others); any other error as it is."""
+    field = exc.name.removeprefix("verifier ")
+    if field == exc.name or (fields is not None and field not in fields):
+        return exc
+    return ParameterError("--" + field.replace("_", "-"), exc.value, exc.allowed)
+
+
 def cmd_verifier_ensemble(args: argparse.Namespace) -> Summary:
     """Join verifiers into an ensemble."""
     from zebra_sim_ros.detection.verify import ensemble_verifiers
 
     try:
         record = ensemble_verifiers(args.members, args.out, args.contexts, args.mirror, args.half)
-    except ParameterError as exc:  # named by the option that set it, not the config field
-        if exc.name != "verifier contexts":
-            raise
-        raise ParameterError("--contexts", exc.value, exc.allowed) from None
+    except ParameterError as exc:
+        raise _by_option(exc, ("contexts",)) from None
     shas = ", ".join(m["sha256"][:12] for m in record["members"])
     print(f"verifier ensemble: {args.out} ({len(record['members'])} members: {shas})")
     members = [{k: v for k, v in m.items() if k != "history"} for m in record["members"]]  # as train-verifier's
@@ -274,11 +280,8 @@ def cmd_verifier_serving(args: argparse.Namespace) -> Summary:
     given = {k: getattr(args, k) for k in SERVING if getattr(args, k) is not None}
     try:
         record = reserve_verifier(args.verifier, args.out, **given)
-    except ParameterError as exc:  # named by the option that set it ("verifier power_from" -> --power-from)
-        if not exc.name.startswith("verifier ") or exc.name == "verifier":
-            raise
-        raise ParameterError("--" + exc.name.removeprefix("verifier ").replace("_", "-"), exc.value,
-                             exc.allowed) from None
+    except ParameterError as exc:
+        raise _by_option(exc) from None
     c = record["config"]
     print(f"verifier: {args.out} (from {record['from']}; serving: judged from {c['min_side']:g} px and "
           f"{c['min_side_fraction']:g} of the image, contexts {c['contexts'] or [c['context']]}, mirror "

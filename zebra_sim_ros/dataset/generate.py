@@ -381,12 +381,7 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int, show: Callabl
             dead = [(k, p) for k, p in enumerate(procs) if p.exitcode not in (None, 0)
                     or (k in ended and k not in finished)]
             if dead:  # the exit codes as the workers died, before the others are stopped below
-                failure = "; ".join(f"worker {k} (pid {p.pid}) died with exit code {p.exitcode}"
-                                    f"{_signal_name(p.exitcode)}" if p.exitcode else
-                                    f"worker {k} (pid {p.pid}) ended (exit code 0) before its last frame"
-                                    if p.exitcode == 0 else
-                                    f"worker {k} (pid {p.pid}) closed its pipe before its last frame and did not end"
-                                    for k, p in dead)
+                failure = "; ".join(_death_note(k, p.pid, p.exitcode) for k, p in dead)
                 break
             hung = [(k, p) for k, p in enumerate(procs) if k not in finished and now - heard[k] > _WORKER_STALL_S]
             if hung:
@@ -412,7 +407,7 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int, show: Callabl
                 p.close()
         for r, w in pipes:
             r.close()
-            w.close()  # closed already, but where a start failed
+            w.close()  # closed already, but where an exception came between the start and their closing
     if not failure:  # every worker said it was done: one that then failed on its way out
         failure = "; ".join(f"worker {k} (pid {pid}) ended with exit code {code}{_signal_name(code)} "
                             f"after its last frame" for k, (pid, code) in enumerate(ends) if code)
@@ -421,6 +416,16 @@ def _run_workers(cfg: GenerateConfig, todo: list[Job], total: int, show: Callabl
                           f"the other workers were stopped and every frame written is kept: run the same command "
                           f"again to write the rest")
     return done, times
+
+
+def _death_note(k: int, pid: int | None, exitcode: int | None) -> str:
+    """How worker ``k`` failed before its last frame: died (a non-zero exit code, and the signal), ended with 0, or
+    closed its pipe and still runs (None: its join timed out)."""
+    if exitcode:
+        return f"worker {k} (pid {pid}) died with exit code {exitcode}{_signal_name(exitcode)}"
+    if exitcode == 0:
+        return f"worker {k} (pid {pid}) ended (exit code 0) before its last frame"
+    return f"worker {k} (pid {pid}) closed its pipe before its last frame and did not end"
 
 
 def _signal_name(exitcode: int | None) -> str:

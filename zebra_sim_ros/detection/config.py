@@ -210,6 +210,7 @@ class LocatorConfig(StageConfig):
 
 LOCATOR_PARAMS: tuple[ParamSpec, ...] = LocatorConfig.specs()
 CENSUS_RULE = ("census_along", "census_across", "census_gate", "census_separation")  # how the census joins views
+CENSUS_READS = ("output", "census_output")  # the locator's topic parameters a bag census reads back
 
 
 def distinct_outputs(image_topics: Sequence[str], resolve: Callable[[str], str] = lambda t: t) -> None:

@@ -233,6 +233,14 @@ def load_verifier(path: str | Path | None = None, device: str | torch.device = "
     (without the weights). ``fuse``: its batch norms folded for serving (:meth:`Verifier.fuse`); without, a network
     that can be trained, saved or joined into an ensemble. A missing file is a :class:`ParameterError` naming
     ``name``; a bad one an :class:`AssetError`."""
+    ckpt, net = _read_verifier(path, name)
+    net = net.to(device).eval()
+    return net.fuse() if fuse else net, {k: v for k, v in ckpt.items() if k != "model"}
+
+
+def _read_verifier(path: str | Path | None, name: str) -> tuple[dict[str, Any], Verifier]:
+    """The checkpoint dict of the verifier at ``path`` (:func:`verifier_file`) and its network, unfused, on the
+    CPU; errors as :func:`load_verifier` says."""
     from zebra_sim_ros.detection.checkpoint import load_weights, read_checkpoint
 
     p = verifier_file(path)
@@ -241,8 +249,7 @@ def load_verifier(path: str | Path | None = None, device: str | torch.device = "
     ckpt = read_checkpoint(p, name, FORMAT, (VERSION, ENSEMBLE_VERSION))
     net = Verifier(VerifierConfig.from_dict(ckpt["config"]))
     load_weights(net, ckpt["model"], f"{name} {p}: its weights do not fit its config {ckpt['config']}")
-    net = net.to(device).eval()
-    return net.fuse() if fuse else net, {k: v for k, v in ckpt.items() if k != "model"}
+    return ckpt, net
 
 
 def verifier_file(path: str | Path | None) -> Path:
@@ -261,21 +268,17 @@ def reserve_verifier(path: str | Path, out: str | Path, **serving: Any) -> dict[
     unknown = sorted(set(serving) - set(SERVING))
     if unknown:
         raise ParameterError(unknown[0], serving[unknown[0]], f"one of the serving settings {list(SERVING)}")
-    from zebra_sim_ros.detection.checkpoint import read_checkpoint
-
-    net, record = load_verifier(path, "cpu", "verifier", fuse=False)  # its weights fit its config
+    ckpt, net = _read_verifier(path, "verifier")  # its weights fit its config
     changes: dict[str, Any] = {k: tuple(float(c) for c in v) if k == "contexts" else v for k, v in serving.items()}
     cfg = replace(net.cfg, **changes)
     cfg.check()
-    src = verifier_file(path)
-    ckpt = {**read_checkpoint(src, "verifier", FORMAT, (VERSION, ENSEMBLE_VERSION)), "config": cfg.to_dict()}
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)
     tmp = p.with_name(p.name + ".tmp")
-    torch.save(ckpt, tmp)
+    torch.save({**ckpt, "config": cfg.to_dict()}, tmp)
     tmp.replace(p)
-    return {"config": cfg.to_dict(), "from": str(src), **{k: v for k, v in record.items()
-                                                           if k not in ("format", "version", "config", "history")}}
+    return {"config": cfg.to_dict(), "from": str(verifier_file(path)),
+            **{k: v for k, v in ckpt.items() if k not in ("format", "version", "config", "history", "model")}}
 
 
 def ensemble_verifiers(paths: Sequence[str | Path], out: str | Path, contexts: Sequence[float] | None = None,

@@ -146,9 +146,7 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         return self.labellers[key]
 
     def _try(self, drone: str, t: int) -> None:
-        scene = self.scenes.get(t)
-        got = self.frames.take(t, drone) if scene is not None else None
-        if scene is None or got is None:
+        if (scene := self.scenes.get(t)) is None or (got := self.frames.take(t, drone)) is None:
             return
         t0 = time.perf_counter()
         try:

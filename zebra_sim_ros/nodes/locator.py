@@ -205,9 +205,9 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         self.seconds = 0.0
         self.pubs: dict[str, Any] = {}
         det_class = message_class(detection_array_type())
+        detections, depth, info, pose = c.inputs
         for d in c.drones:
             # raw: the CDR bytes read by the scorer's and bag eval's reader (cdr_detections)
-            detections, depth, info, pose = c.inputs
             self.create_subscription(det_class, f"{d}/{detections}", self._on_detections(d), q, raw=True)
             self.create_subscription(Image, f"{d}/{depth}", self._on_part(d, "depth"), image_q)
             self.create_subscription(PoseStamped, f"{d}/{pose}", self._on_part(d, "pose"), pose_q)

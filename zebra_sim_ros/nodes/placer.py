@@ -209,19 +209,16 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         self.marker_pub.publish(self._markers(scene, header))
         for pub, cam in zip(self.pose_pubs, scene.cameras, strict=True):
             pub.publish(PoseStamped(header=header, pose=pose_msg(cam.position, cam.orientation_xyzw)))
-        if scene.datum is not None:
-            c = self.cfg
-            where, cov = gnss_fixes([cam.position for cam in scene.cameras], scene.datum, c.fix_sigma_m,
-                                    c.fix_vertical_sigma_m, (scene.seed, scene.step, GNSS_STREAM))
-            known = bool(cov.any())
-            for pub, cam, (lat, lon, height) in zip(self.fix_pubs, scene.cameras, where.tolist(), strict=True):
-                pub.publish(NavSatFix(header=Header(stamp=header.stamp, frame_id=base_frame(cam.name)),
-                                      status=NavSatStatus(status=NavSatStatus.STATUS_FIX,
-                                                          service=NavSatStatus.SERVICE_GPS),
-                                      latitude=lat, longitude=lon, altitude=height,
-                                      position_covariance=cov.ravel().tolist(),
-                                      position_covariance_type=NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN if known
-                                      else NavSatFix.COVARIANCE_TYPE_UNKNOWN))
+        assert scene.datum is not None  # the placer's scenes always carry theirs
+        c = self.cfg
+        where, cov = gnss_fixes([cam.position for cam in scene.cameras], scene.datum, c.fix_sigma_m,
+                                c.fix_vertical_sigma_m, (scene.seed, scene.step, GNSS_STREAM))
+        kind = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN if cov.any() else NavSatFix.COVARIANCE_TYPE_UNKNOWN
+        status = NavSatStatus(status=NavSatStatus.STATUS_FIX, service=NavSatStatus.SERVICE_GPS)
+        for pub, cam, (lat, lon, height) in zip(self.fix_pubs, scene.cameras, where.tolist(), strict=True):
+            pub.publish(NavSatFix(header=Header(stamp=header.stamp, frame_id=base_frame(cam.name)), status=status,
+                                  latitude=lat, longitude=lon, altitude=height,
+                                  position_covariance=cov.ravel().tolist(), position_covariance_type=kind))
         self.sent_at = time.monotonic()
         self.get_logger().debug(f"step {scene.step}: {scene.placed}/{scene.requested} zebras placed")
 

@@ -68,6 +68,7 @@ class Placer:
         self.camera_names = [f"drone_{i}" for i in range(cfg.num_cameras)]
         self._cache: tuple[int, Herd] | None = None
         self._world_info = WorldRef(world.name, world.source, world.seed, cfg.terrain_prim)
+        self._datum = Datum(cfg.latitude_deg, cfg.longitude_deg, cfg.origin_altitude_m)  # where map is on the Earth
 
     def herd_for(self, placement: int) -> Herd:
         """The herd of ``placement`` (kept while its camera re-rolls are generated).
@@ -129,4 +130,4 @@ class Placer:
                               self.species)
         return build_scene(step, placement, reroll, c.seed, stamp_ns, self._world_info, str(lib.manifest["digest"]),
                            zebras, herd, rotate_sun(lighting_for(tod, doy, c.latitude_deg), sun_turn), cams, ground,
-                           weather, Datum(c.latitude_deg, c.longitude_deg, c.origin_altitude_m))
+                           weather, self._datum)

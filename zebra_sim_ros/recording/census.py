@@ -214,6 +214,8 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
         census = join_views([zebras[(d, t)] for d in cameras], [np.array(poses[(d, t)]) for d in cameras],
                             rule.census_along, rule.census_across, rule.census_gate, rule.census_separation, scores)
         counts[t] = census.count
+        if geojson is None:  # the animals themselves only for the map
+            continue
         animals[t] = []
         for a, (x, y, z) in enumerate(census.positions.tolist()):
             parts = [(cameras[v], *kept[v][j]) for v, j in census.points_of(a)]
