@@ -8,14 +8,16 @@ import pytest
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.geodesy import (
+    GNSS_MAX_CORRELATION_STEPS,
+    GNSS_STREAM,
     WGS84_A,
     WGS84_B,
     WGS84_E2,
+    GnssNoise,
     ecef_to_geodetic,
     enu_to_geodetic,
     geodetic_to_ecef,
     geodetic_to_enu,
-    gnss_fixes,
 )
 from zebra_sim_ros.messages import Datum
 from zebra_sim_ros.placement.config import PlacerConfig
@@ -113,28 +115,98 @@ def test_datums_and_the_placers_datum_parameters_are_refused_by_name() -> None:
 
 
 def test_gnss_fixes_are_seeded_gaussian_about_the_points_with_their_covariance() -> None:
-    """A receiver's noise: the same seed gives the same fixes, another seed others; converted back, the offsets of
-    4,000 fixes have the sigmas asked per axis (within 5%), no mean and no correlation between axes; the covariance
-    is their diagonal; without noise the fixes are the points exactly and nothing is drawn. Bad sigmas are named."""
+    """A receiver's noise: the same seed gives the same fixes, another step others; a white, independent error is
+    the step's own standard normals times the sigmas; converted back, the offsets of 4,000 fixes have the sigmas
+    asked per axis (within 5%), no mean and no correlation between axes; the covariance is their diagonal; without
+    noise the fixes are the points exactly and nothing is drawn. Bad settings are named."""
     datum = Datum(-2.3, 34.8, 1550.0)
     rng = np.random.default_rng(4)
     points = np.column_stack([rng.uniform(-500, 500, (4000, 2)), rng.uniform(40, 120, 4000)])
-    fixes, cov = gnss_fixes(points, datum, 2.5, 5.0, (9, 3, 7))
-    again, _ = gnss_fixes(points, datum, 2.5, 5.0, (9, 3, 7))
-    other, _ = gnss_fixes(points, datum, 2.5, 5.0, (9, 4, 7))
+    noise = GnssNoise(2.5, 5.0)
+    fixes, cov = noise.fixes(points, datum, 9, 3)
+    again, _ = GnssNoise(2.5, 5.0).fixes(points, datum, 9, 3)
+    other, _ = noise.fixes(points, datum, 9, 4)
     np.testing.assert_array_equal(fixes, again)
+    want = np.random.default_rng([9, 3, GNSS_STREAM]).normal(size=(4000, 3)) * [2.5, 2.5, 5.0]
+    np.testing.assert_array_equal(noise.errors(4000, 9, 3), want)
     back = geodetic_to_enu(fixes, datum)
     assert np.abs(geodetic_to_enu(other, datum) - back).mean() > 1.0  # other draws
     off = back - points
+    np.testing.assert_allclose(off, want, atol=1e-6)
     np.testing.assert_allclose(off.std(0), [2.5, 2.5, 5.0], rtol=0.05)
     assert np.abs(off.mean(0)).max() < 0.25  # 3 standard errors of 5 m over 4,000
     assert np.abs(np.corrcoef(off.T) - np.eye(3)).max() < 0.06
     np.testing.assert_allclose(cov, np.diag([6.25, 6.25, 25.0]))
-    exact, zero = gnss_fixes(points[:5], datum, 0.0, 0.0, (9, 3, 7))
+    silent = GnssNoise()
+    exact, zero = silent.fixes(points[:5], datum, 9, 3)
     np.testing.assert_allclose(geodetic_to_enu(exact, datum), points[:5], atol=1e-6)
-    assert not zero.any()
-    for bad in ((-1.0, 0.0), (0.0, float("nan")), (float("inf"), 1.0)):
-        with pytest.raises(ValueError, match="GNSS sigmas"):
-            gnss_fixes(points[:1], datum, *bad, (1,))
-    with pytest.raises(ValueError, match="GNSS seed"):
-        gnss_fixes(points[:1], datum, 1.0, 1.0, ())
+    assert not zero.any() and not silent._last  # nothing drawn
+    for bad, what in (((-1.0, 0.0), "GNSS sigmas"), ((0.0, float("nan")), "GNSS sigmas"),
+                      ((float("inf"), 1.0), "GNSS sigmas"), ((1.0, 1.0, -0.5), "correlation_steps -0.5"),
+                      ((1.0, 1.0, float("nan")), "correlation_steps nan"),
+                      ((1.0, 1.0, GNSS_MAX_CORRELATION_STEPS + 1), "correlation_steps 3601"),
+                      ((1.0, 1.0, 0.0, 1.5), "common_fraction 1.5")):
+        with pytest.raises(ValueError, match=what):
+            GnssNoise(*bad)
+    with pytest.raises(ValueError, match="GNSS step -1"):
+        noise.errors(2, 9, -1)
+
+
+def _gauss_markov(unit: np.ndarray, a: float) -> np.ndarray:
+    """The process by its recursion, from the draws of steps 0..k (k, ..., 3): e_0 = w_0, e_k = a e_(k-1) +
+    sqrt(1 - a²) w_k."""
+    out = np.empty_like(unit)
+    out[0] = unit[0]
+    for k in range(1, len(unit)):
+        out[k] = a * out[k - 1] + np.sqrt(1.0 - a * a) * unit[k]
+    return out
+
+
+def test_a_correlated_gnss_error_wanders_as_a_gauss_markov_process() -> None:
+    """A time constant of 5 steps: the errors are the recursion's on the same draws (to 1e-9 m at every step,
+    past step 138 too, where the sum leaves out the draws that weigh under 1e-12), whether the steps come in order
+    or a step comes alone; over
+    6,000 steps each axis keeps its sigma (within 6%), and its correlation between steps 1 and 5 apart is
+    exp(-1/5) and exp(-1) (within 0.04); a common fraction of 0.6 correlates two receivers' errors by 0.6 and leaves
+    each its sigma."""
+    tau, n_steps = 5.0, 6000
+    a = float(np.exp(-1.0 / tau))
+    noise = GnssNoise(2.0, 4.0, correlation_steps=tau)
+    seq = np.stack([noise.errors(2, 17, k) for k in range(n_steps)])  # (steps, receivers, axes)
+    draws = np.stack([np.random.default_rng([17, k, GNSS_STREAM]).normal(size=(2, 3)) for k in range(n_steps)])
+    want = _gauss_markov(draws, a) * [2.0, 2.0, 4.0]
+    np.testing.assert_allclose(seq, want, atol=1e-9, rtol=0)
+    np.testing.assert_allclose(GnssNoise(2.0, 4.0, tau).errors(2, 17, 4321), want[4321], atol=1e-9, rtol=0)
+    np.testing.assert_allclose(GnssNoise(2.0, 4.0, tau).errors(2, 17, 3), want[3], atol=1e-12, rtol=0)
+    unit = (seq / [2.0, 2.0, 4.0]).reshape(n_steps, 6)
+    np.testing.assert_allclose(unit.std(0), 1.0, atol=0.06)
+    for lag in (1, 5):
+        r = [np.corrcoef(unit[:-lag, i], unit[lag:, i])[0, 1] for i in range(6)]
+        assert np.allclose(r, a ** lag, atol=0.04), (lag, r)
+    assert np.abs(np.corrcoef(unit.T) - np.eye(6)).max() < 0.08  # receivers and axes independent
+
+    shared = GnssNoise(2.0, 2.0, tau, common_fraction=0.6)
+    both = np.stack([shared.errors(2, 5, k) for k in range(n_steps)]) / 2.0
+    np.testing.assert_allclose(both.std(0), 1.0, atol=0.06)
+    r = [np.corrcoef(both[:, 0, i], both[:, 1, i])[0, 1] for i in range(3)]
+    assert np.allclose(r, 0.6, atol=0.05), r
+    lag1 = [np.corrcoef(both[:-1, 0, i], both[1:, 0, i])[0, 1] for i in range(3)]
+    assert np.allclose(lag1, a, atol=0.04), lag1
+    white_shared = GnssNoise(2.0, 2.0, 0.0, common_fraction=0.6)
+    rng = np.random.default_rng([5, 8, GNSS_STREAM])
+    own, common = rng.normal(size=(2, 3)), rng.normal(size=3)
+    np.testing.assert_allclose(white_shared.errors(2, 5, 8), (np.sqrt(0.4) * own + np.sqrt(0.6) * common) * 2.0,
+                               atol=1e-12)
+
+
+def test_the_placer_names_a_correlation_too_long_for_its_rate() -> None:
+    """A time constant is counted in steps: 3600 steps at most, so its bound in seconds follows rate_hz."""
+    ok = PlacerConfig.from_params({"fix_sigma_m": 1.0, "fix_correlation_s": 360.0, "rate_hz": 10.0,
+                                   "fix_common_fraction": 0.5})
+    noise = ok.gnss_noise()
+    assert (noise.sigma_h_m, noise.sigma_v_m, noise.correlation_steps, noise.common_fraction) == \
+        pytest.approx((1.0, 0.0, 3600.0, 0.5))
+    with pytest.raises(ParameterError, match=r"fix_correlation_s.*<= 360 s at rate_hz 10"):
+        PlacerConfig.from_params({"fix_correlation_s": 361.0, "rate_hz": 10.0})
+    with pytest.raises(ParameterError, match="fix_common_fraction"):
+        PlacerConfig.from_params({"fix_common_fraction": 1.2})

@@ -20,7 +20,7 @@ from std_msgs.msg import Header, String
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
-from zebra_sim_ros.geometry.geodesy import GNSS_STREAM, geodetic_to_enu, gnss_fixes
+from zebra_sim_ros.geometry.geodesy import GnssNoise, geodetic_to_enu
 from zebra_sim_ros.messages import Datum
 from zebra_sim_ros.nodes.ros_adapter import detection3d_array_type, message_class
 
@@ -165,8 +165,9 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path, 
 def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tmp_path: Path) -> None:
     """``mode:=service``: each call of ``/placer/step`` (std_srvs/Trigger) publishes one step and answers with its
     index and stamp; a call while subscribers are still awaited publishes nothing and says so; after ``max_steps``
-    the node ends by itself. With GNSS noise asked for, each drone's fix is its camera's position moved by the draw
-    the scene's seed and step give (recomputed here from the scene alone), with that covariance, known."""
+    the node ends by itself. With GNSS noise asked for (wandering, a time constant of 3 steps, half of it shared by
+    the drones), each drone's fix is its camera's position moved by the error the scene's seed and step give
+    (recomputed here from each scene alone: step 1's sums step 0's draws too), with that covariance, known."""
     from std_srvs.srv import Trigger
 
     listener = Listener(domain)
@@ -179,7 +180,7 @@ def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tm
         return future.result()
     try:
         params = dict(SMALL, mode="service", max_steps=2, seed=9, wait_for_subscribers=2, fix_sigma_m=2.5,
-                      fix_vertical_sigma_m=5.0)
+                      fix_vertical_sigma_m=5.0, fix_correlation_s=3.0, fix_common_fraction=0.5)
         with node_process("placer", params, domain, tmp_path / "placer.log") as proc:
             assert listener.spin_until(client.service_is_ready, 60), (tmp_path / "placer.log").read_text()
             first = call()
@@ -207,8 +208,9 @@ def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tm
             names = [c["name"] for c in cams]
             assert sorted(names) == sorted(listener.fixes)
             datum = Datum.from_dict(scene["datum"])
-            want, cov = gnss_fixes([c["position"] for c in cams], datum, 2.5, 5.0,
-                                   (scene["seed"], scene["step"], GNSS_STREAM))
+            # each step alone, in a model of its own: step 1's error sums step 0's draws too
+            want, cov = GnssNoise(2.5, 5.0, correlation_steps=3.0, common_fraction=0.5).fixes(
+                [c["position"] for c in cams], datum, scene["seed"], scene["step"])
             for name, cam, (lat, lon, height) in zip(names, cams, want, strict=True):
                 fix = next(f for f in listener.fixes[name] if (f.header.stamp.sec, f.header.stamp.nanosec) ==
                            (scene["stamp"]["sec"], scene["stamp"]["nanosec"]))
@@ -323,6 +325,7 @@ def _time(stamp: dict):  # type: ignore[no-untyped-def]
     ({"strategy": "sideways"}, "strategy"),
     ({"count_min": 10, "count_max": 5}, "count_min"),
     ({"world": "atlantis"}, "world"),
+    ({"fix_correlation_s": 7200.0}, "fix_correlation_s"),
 ])
 def test_bad_parameter_stops_the_node_naming_it(domain: int, params: dict, needle: str) -> None:
     proc = run_node_once("placer", params, domain)

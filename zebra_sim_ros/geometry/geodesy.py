@@ -4,12 +4,12 @@
 latitude, longitude and height above the WGS84 ellipsoid, x east, y north, z up along the ellipsoid's normal there.
 The conversions are exact (through Earth-centred, Earth-fixed coordinates; the inverse by Bowring's method,
 iterated to well under a millimetre), not a flat-Earth approximation, so a survey hundreds of kilometres wide stays
-right. :func:`gnss_fixes` adds a GNSS receiver's seeded noise. Pure numpy.
+right. :class:`GnssNoise` gives GNSS receivers' seeded errors. Pure numpy.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -78,22 +78,107 @@ def geodetic_to_enu(lla: ArrayLike, datum: Datum) -> FloatArray:
 
 
 GNSS_STREAM = 0x6E55  # the fixes' noise: a stream of its own beside the placement's, drawn from (seed, step, this)
+GNSS_MAX_CORRELATION_STEPS = 3600.0  # the longest time constant, in steps, whose error a step alone can recompute
+_NEGLIGIBLE = 1e-12  # a past step's draw whose weight in the error has fallen under this is left out
 
 
-def gnss_fixes(points: ArrayLike, datum: Datum, sigma_h_m: float, sigma_v_m: float,
-               seed: Sequence[int]) -> tuple[FloatArray, FloatArray]:
-    """``points`` of ``map`` (N, 3; east, north, up from ``datum``) as GNSS receivers there report them: latitude,
-    longitude (deg) and height above the WGS84 ellipsoid (m) of each point moved by Gaussian noise of ``sigma_h_m``
-    per horizontal axis and ``sigma_v_m`` up, drawn from ``numpy.random.default_rng(seed)`` (one draw per point, in
-    order: the same seed, the same fixes), and the 3x3 ENU covariance those sigmas give (m², NavSatFix's
-    ``position_covariance``; the receiver's own east, north and up differ from the datum's by under a thousandth of a
-    radian within 6 km). Both sigmas 0: the points exactly, no draw made."""
-    if not (np.isfinite(sigma_h_m) and np.isfinite(sigma_v_m) and sigma_h_m >= 0.0 and sigma_v_m >= 0.0):
-        raise ValueError(f"GNSS sigmas ({sigma_h_m!r}, {sigma_v_m!r}) m: want finite values >= 0")
-    if not len(seed):  # default_rng([]) would draw as default_rng(0): one draw for every caller
-        raise ValueError("GNSS seed (): want the draw's seed, e.g. (scene seed, step, GNSS_STREAM)")
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    sigma = np.array([sigma_h_m, sigma_h_m, sigma_v_m])
-    if sigma.any():
-        pts = pts + np.random.default_rng(list(seed)).normal(size=pts.shape) * sigma
-    return enu_to_geodetic(pts, datum), np.diag(sigma**2)
+@dataclass(frozen=True)
+class GnssNoise:
+    """A GNSS receiver's error on each of N receivers' fixes, as a function of (seed, step) alone: ``sigma_h_m``
+    per horizontal axis and ``sigma_v_m`` up (the spread at every step), correlated in time as a first-order
+    Gauss-Markov process of time constant ``correlation_steps`` steps (each axis's error ``e_k = a e_(k-1) + sqrt(1 -
+    a²) w_k``, a = exp(-1 / correlation_steps), started stationary at step 0: the slow wander of a receiver's
+    multipath and atmospheric error; 0: drawn anew each step, white), and ``common_fraction`` of its variance
+    shared by every receiver (the part of the atmosphere's and the satellites' error that receivers a few km apart
+    see alike: the receivers' errors correlate by this; 0: independent).
+
+    The draw ``w_j`` of step j is ``numpy.random.default_rng([seed, j, GNSS_STREAM])``: N x 3 standard normals
+    (the receivers in order), then 3 for the common part where ``common_fraction`` > 0, so a white, independent
+    error is those normals times the sigmas, bit for bit. A correlated error follows the recursion from one step to
+    the next (one draw a step); a step reached otherwise (the first, ``start_step``, a jump) sums the draws of the
+    steps whose weight ``a^(k-j)`` is 1e-12 or more (at most 28 time constants of them), so a step's fixes are the
+    same, to 1e-12 of the sigmas, whether it is reached from step 0 or computed alone."""
+
+    sigma_h_m: float = 0.0
+    sigma_v_m: float = 0.0
+    correlation_steps: float = 0.0
+    common_fraction: float = 0.0
+    # the last error computed, unit variance: (n, seed, step, own (n, 3), common (3,) or None)
+    _last: list[tuple[int, int, int, FloatArray, FloatArray | None]] = field(
+        default_factory=list, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        s_h, s_v = self.sigma_h_m, self.sigma_v_m
+        if not (np.isfinite(s_h) and np.isfinite(s_v) and s_h >= 0.0 and s_v >= 0.0):
+            raise ValueError(f"GNSS sigmas ({s_h!r}, {s_v!r}) m: want finite values >= 0")
+        if not 0.0 <= self.correlation_steps <= GNSS_MAX_CORRELATION_STEPS:  # NaN fails both
+            raise ValueError(f"GNSS correlation_steps {self.correlation_steps!r}: want 0 (white) .. "
+                             f"{GNSS_MAX_CORRELATION_STEPS:g} steps")
+        if not 0.0 <= self.common_fraction <= 1.0:
+            raise ValueError(f"GNSS common_fraction {self.common_fraction!r}: want 0..1")
+
+    @property
+    def sigmas(self) -> FloatArray:
+        """Per axis (east, north, up), m."""
+        return np.array([self.sigma_h_m, self.sigma_h_m, self.sigma_v_m])
+
+    @property
+    def covariance(self) -> FloatArray:
+        """The 3x3 ENU covariance of each fix (m², NavSatFix's ``position_covariance``; the receiver's own east,
+        north and up differ from the datum's by under a thousandth of a radian within 6 km)."""
+        return np.diag(self.sigmas ** 2)
+
+    @property
+    def a(self) -> float:
+        """The correlation of each axis's error between consecutive steps (0: white)."""
+        return float(np.exp(-1.0 / self.correlation_steps)) if self.correlation_steps > 0.0 else 0.0
+
+    def _draw(self, n: int, seed: int, step: int) -> tuple[FloatArray, FloatArray | None]:
+        rng = np.random.default_rng([seed, step, GNSS_STREAM])
+        own = rng.normal(size=(n, 3))
+        return own, (rng.normal(size=3) if self.common_fraction > 0.0 else None)
+
+    def _alone(self, n: int, seed: int, step: int) -> tuple[FloatArray, FloatArray | None]:
+        """The unit-variance error of ``step`` as the weighted sum of its own and earlier steps' draws."""
+        a = self.a
+        if a == 0.0:
+            return self._draw(n, seed, step)
+        first = max(0, step - int(np.log(_NEGLIGIBLE) / np.log(a)))
+        own, common = np.zeros((n, 3)), (np.zeros(3) if self.common_fraction > 0.0 else None)
+        for j in range(first, step + 1):
+            weight = a ** (step - j) * (1.0 if j == 0 else np.sqrt(1.0 - a * a))  # step 0: e_0 = w_0
+            w_own, w_common = self._draw(n, seed, j)
+            own += weight * w_own
+            if common is not None and w_common is not None:
+                common += weight * w_common
+        return own, common
+
+    def errors(self, n: int, seed: int, step: int) -> FloatArray:
+        """(n, 3) east, north, up errors (m) of n receivers' fixes at ``step`` of a run seeded ``seed``: zeros,
+        with nothing drawn, when both sigmas are 0."""
+        if step < 0:
+            raise ValueError(f"GNSS step {step!r}: want >= 0")
+        if not self.sigmas.any():
+            return np.zeros((n, 3))
+        a = self.a
+        last = self._last[0] if self._last else None
+        if a > 0.0 and last is not None and last[:3] == (n, seed, step - 1):  # the recursion: one draw
+            b = np.sqrt(1.0 - a * a)
+            w_own, w_common = self._draw(n, seed, step)
+            own = a * last[3] + b * w_own
+            common = None if last[4] is None or w_common is None else a * last[4] + b * w_common
+        elif last is not None and last[:3] == (n, seed, step):
+            own, common = last[3], last[4]
+        else:
+            own, common = self._alone(n, seed, step)
+        self._last[:] = [(n, seed, step, own, common)]
+        if common is not None:
+            own = np.sqrt(1.0 - self.common_fraction) * own + np.sqrt(self.common_fraction) * common
+        return own * self.sigmas
+
+    def fixes(self, points: ArrayLike, datum: Datum, seed: int, step: int) -> tuple[FloatArray, FloatArray]:
+        """``points`` of ``map`` (N, 3; east, north, up from ``datum``: the receivers in the draw's order) as the
+        receivers report them: latitude, longitude (deg) and height above the WGS84 ellipsoid (m) of each point
+        moved by its error at ``step``, and their covariance. Both sigmas 0: the points exactly."""
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        return enu_to_geodetic(pts + self.errors(len(pts), seed, step), datum), self.covariance

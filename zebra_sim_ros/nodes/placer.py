@@ -13,7 +13,9 @@ the whole graph, except the conventional ``/tf``, ``/tf_static`` and ``/clock``,
 - ``drone_{i}/fix`` (sensor_msgs/NavSatFix): the same camera's position on the Earth (WGS84 latitude, longitude,
   height above the ellipsoid) by the scene's datum, as a drone's GNSS receiver reports it: exact, its covariance
   unknown, or with ``fix_sigma_m`` / ``fix_vertical_sigma_m`` seeded Gaussian noise (from the scene's seed and step:
-  the same fixes on a rerun) and that diagonal covariance, known; frame ``drone_{i}/base_link``.
+  the same fixes on a rerun, or for a step alone), white or wandering (``fix_correlation_s``), independent or
+  partly shared by the drones (``fix_common_fraction``), and that diagonal covariance, known; frame
+  ``drone_{i}/base_link``.
 - ``/tf`` (tf2_msgs/TFMessage): ``map -> drone_{i}/base_link`` of every drone, each step (REP 105);
   ``/tf_static``: ``drone_{i}/base_link -> drone_{i}/camera_optical`` once (transient local), so RViz, Foxglove
   and tf2 place each camera's images in 3D.
@@ -45,7 +47,6 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
 from zebra_sim_ros.geometry.frames import OPTICAL_IN_BASE_XYZW, base_frame, body_orientation, optical_frame
-from zebra_sim_ros.geometry.geodesy import GNSS_STREAM, gnss_fixes
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.nodes.ros_adapter import (
@@ -87,6 +88,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         t0 = time.perf_counter()
         world = load_world(c.world, c.terrain_prim, c.world_seed)
         self.placer = Placer(c, world, load_library())
+        self.gnss = c.gnss_noise()
         self.get_logger().info(
             f"world '{world.name}' ({world.source}), asset {self.placer.library.manifest['digest']}, seed {c.seed}, "
             f"strategy {c.strategy}, mode {c.mode}, ready in {time.perf_counter() - t0:.1f} s")
@@ -210,9 +212,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         for pub, cam in zip(self.pose_pubs, scene.cameras, strict=True):
             pub.publish(PoseStamped(header=header, pose=pose_msg(cam.position, cam.orientation_xyzw)))
         assert scene.datum is not None  # the placer's scenes always carry theirs
-        c = self.cfg
-        where, cov = gnss_fixes([cam.position for cam in scene.cameras], scene.datum, c.fix_sigma_m,
-                                c.fix_vertical_sigma_m, (scene.seed, scene.step, GNSS_STREAM))
+        where, cov = self.gnss.fixes([cam.position for cam in scene.cameras], scene.datum, scene.seed, scene.step)
         kind = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN if cov.any() else NavSatFix.COVARIANCE_TYPE_UNKNOWN
         status = NavSatStatus(status=NavSatStatus.STATUS_FIX, service=NavSatStatus.SERVICE_GPS)
         for pub, cam, (lat, lon, height) in zip(self.fix_pubs, scene.cameras, where.tolist(), strict=True):

@@ -14,6 +14,7 @@ from typing import Any
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import MAX_CAMERAS, Intrinsics
+from zebra_sim_ros.geometry.geodesy import GNSS_MAX_CORRELATION_STEPS, GnssNoise
 from zebra_sim_ros.params import (
     ROS_NAME,
     ParamSpec,
@@ -150,6 +151,14 @@ class PlacerConfig(StageConfig):
                                "covariance unknown)", "m", lo=0.0, hi=100.0)
     fix_vertical_sigma_m: float = param(0.0, "the same, up (a receiver's height is about twice as uncertain as its "
                                         "horizontal position)", "m", lo=0.0, hi=100.0)
+    fix_correlation_s: float = param(0.0, "time constant of the fixes' error in simulated time: > 0 makes it wander "
+                                     "as a receiver's does (first-order Gauss-Markov, each axis correlated "
+                                     "exp(-dt / this) between fixes dt apart, its spread still fix_sigma_m); 0: "
+                                     "drawn anew each step", "s", lo=0.0, hi=1e6,
+                                     allowed="0..3600 steps' time (3600 / rate_hz s)")
+    fix_common_fraction: float = param(0.0, "share of the fixes' error variance common to every drone (receivers a "
+                                       "few km apart see much the same atmosphere and satellites: their errors "
+                                       "correlate by this); 0: independent", lo=0.0, hi=1.0)
     mode: str = param("rate", "rate: publish at rate_hz; lockstep: next step when every acker acknowledged; "
                       "service: one step per call of the ~/step service (std_srvs/Trigger)",
                       choices=("rate", "lockstep", "service"))
@@ -178,6 +187,11 @@ class PlacerConfig(StageConfig):
                                              "(the scene, /clock and /tf are always reliable)")
     diagnostics_period_s: float = diagnostics_param()
 
+    def gnss_noise(self) -> GnssNoise:
+        """The drones' GNSS error that the ``fix_*`` parameters give (its time constant in steps of 1/rate_hz s)."""
+        return GnssNoise(self.fix_sigma_m, self.fix_vertical_sigma_m, self.fix_correlation_s * self.rate_hz,
+                         self.fix_common_fraction)
+
     def check(self) -> None:
         """Cross-parameter rules (each parameter alone was checked by its spec)."""
         if self.count_max > self.pool_size:
@@ -197,6 +211,11 @@ class PlacerConfig(StageConfig):
                 raise ParameterError(lo_name, getattr(self, lo_name), f"<= {hi_name} ({getattr(self, hi_name)})")
         if self.day_start_h >= self.day_end_h:
             raise ParameterError("day_start_h", self.day_start_h, f"< day_end_h ({self.day_end_h})")
+        if self.fix_correlation_s * self.rate_hz > GNSS_MAX_CORRELATION_STEPS:
+            raise ParameterError("fix_correlation_s", self.fix_correlation_s,
+                                 f"<= {GNSS_MAX_CORRELATION_STEPS / self.rate_hz:g} s at rate_hz {self.rate_hz:g} "
+                                 f"({GNSS_MAX_CORRELATION_STEPS:g} steps: a step alone sums about 28 time "
+                                 "constants of draws)")
         if len(set(self.lockstep_ack_from)) != len(self.lockstep_ack_from):
             raise ParameterError("lockstep_ack_from", list(self.lockstep_ack_from), "distinct names")
 
