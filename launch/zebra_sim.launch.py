@@ -20,7 +20,8 @@ clock (``/clock``, the simulated time of each step); every other node runs with 
 ``rviz:=true`` also starts RViz (a desktop install's rviz2) on the package's view drawn for ``drones`` cameras,
 written beside the bag (``zebra_sim.rviz``) as ``zebra-sim up`` writes it; its topics are the graph's without a
 namespace (a graph moved into one needs up's view, ``up --namespace``, or RViz's own remaps); the census display is
-off without ``locate:=true``.
+off without ``locate:=true`` (or with the locator file's ``census: false``), and shows the topic that file's
+``census_output`` names.
 """
 
 import os
@@ -37,7 +38,8 @@ from launch import LaunchDescription
 
 # up's own rules (light: numpy and OpenCV, no rclpy, no torch): the camera cap, what the bag may hold of the images
 # and the recorder's exclude_regex for it, the environment every node gets (OpenMP threads that sleep when idle),
-# and the RViz view drawn for the drones
+# and the RViz view drawn for the drones, its census display on what the locator's file names
+from zebra_sim_ros.detection.config import LocatorConfig
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_view, write_rviz
 from zebra_sim_ros.graph.spec import (
@@ -46,8 +48,9 @@ from zebra_sim_ros.graph.spec import (
     bag_image_overrides,
     check_bag_images,
     check_drones,
+    node_config,
     recorder_excludes,
-    rviz_off,
+    rviz_census,
 )
 
 
@@ -100,11 +103,15 @@ def generate_launch_description():
         ns = "/" + str(context.launch_configurations.get("ros_namespace", "")).strip("/")
         compressed, excludes = bag_image_overrides(
             bag_images, recorder_excludes(config, bag_images, f"{ns.rstrip('/')}/recorder"))
+        locator = {"drones": drones, "image_reliability": "reliable", "pose_transient_local": True,
+                   "use_sim_time": True}
         viewer = []
         if evaluate_condition_expression(context, [LaunchConfiguration("rviz")]):  # true, 1, false, 0, as score
             # the package's view, one detection image per drone, written beside the bag as up writes it
-            locate = evaluate_condition_expression(context, [LaunchConfiguration("locate")])
-            view = rviz_view(config, drones, off=rviz_off(locate))  # the census: only with the locator
+            # the census display on what this graph's locator publishes (its file's census_output), off without it
+            located = (node_config(Path(config), "locator.yaml", f"{ns.rstrip('/')}/locator", locator, LocatorConfig)
+                       if evaluate_condition_expression(context, [LaunchConfiguration("locate")]) else None)
+            view = rviz_view(config, drones, "", *rviz_census(located))
             if view is None:
                 raise ValueError(f"rviz:=true: no {RVIZ_FILE} in {config}")
             path = write_rviz(view, Path(LaunchConfiguration("bag").perform(context)).parent / RVIZ_FILE)
@@ -128,8 +135,7 @@ def generate_launch_description():
                                                      "amp": arg("detect_amp"), "verifier": arg("verifier"),
                                                      "image_reliability": "reliable", "use_sim_time": True}]),
             Node(package=PACKAGE, executable="locator", name="locator", namespace="", output="screen",
-                 parameters=[file("locator.yaml"), {"drones": drones, "image_reliability": "reliable",
-                                                    "pose_transient_local": True, "use_sim_time": True}],
+                 parameters=[file("locator.yaml"), locator],
                  condition=IfCondition(LaunchConfiguration("locate"))),
             Node(package=PACKAGE, executable="scorer", name="scorer", namespace="", output="screen",
                  parameters=[file("scorer.yaml"), {"drones": drones, "use_sim_time": True}],

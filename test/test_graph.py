@@ -285,6 +285,15 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
     view = yaml.safe_load((bag.parent / "zebra_sim.rviz").read_text())["Visualization Manager"]["Displays"]
     assert [t for d in view if (t := d.get("Topic", {}).get("Value", "")).endswith("/detections/image")] == [
         f"/drone_{i}/detections/image" for i in range(5)]
+    census = [d for d in view if "census" in d["Name"]]
+    assert [(d["Topic"]["Value"], d["Enabled"]) for d in census] == [("/census/animals/markers", False)]  # no locator
+    # locate:=true: the census display on the census the locator's file names (its census_output), as up draws it
+    (tmp_path / "share" / "config" / "locator.yaml").write_text(re.sub(
+        r"^(    census_output:) \S+", r"\1 herd/count", (REPO / "config" / "locator.yaml").read_text(), flags=re.M))
+    _launch(monkeypatch, tmp_path / "share", rviz="true", locate="true", bag=str(bag))
+    view = yaml.safe_load((bag.parent / "zebra_sim.rviz").read_text())["Visualization Manager"]["Displays"]
+    assert [(d["Topic"]["Value"], d["Enabled"]) for d in view if "census" in d["Name"]] == [
+        ("/herd/count/markers", True)]
     assert not [n for n in _launch(monkeypatch, tmp_path / "share", rviz="0").nodes if n["package"] == "rviz2"]
     with pytest.raises(ValueError, match="'maybe'"):
         _launch(monkeypatch, tmp_path / "share", rviz="maybe")
@@ -632,6 +641,17 @@ def test_the_rviz_config_is_drawn_again_for_each_graphs_drones_and_namespace(tmp
     assert not by_name["census relative"]["Enabled"] and not by_name["census in a group"]["Enabled"]
     assert by_name["census group"]["Enabled"] and by_name["census in a group"]["Topic"]["Value"] == (
         "/g1/census/animals/markers")
+    # ... or moved to where the graph's locator publishes it, as spelled or relative, inside a group too; the
+    # others stay
+    moved = rviz_config(with_displays(*spelled), UpConfig().drone_names, "/g1", (),
+                        {"census/animals/markers": "herd/count/markers"})["Visualization Manager"]["Displays"]
+    by_name = {d["Name"]: d for d in moved} | {d["Name"]: d for d in moved[-1]["Displays"]}
+    assert [by_name[n]["Topic"]["Value"] for n in ("census relative", "census in a group",
+                                                   "census, each zebra counted once across the drones (locator, "
+                                                   "up --locate)")] == ["/g1/herd/count/markers"] * 3
+    assert by_name["census relative"]["Enabled"] and by_name["census in a group"]["Enabled"]
+    assert [d["Topic"]["Value"] for d in moved if "Topic" in d and "census" not in d["Name"]] == [
+        d["Topic"]["Value"] for d in shown if "Topic" in d and "census" not in d["Name"]]
     # names that do not follow drone_N, relative drone topics: still one per camera; a name naming two drones keeps
     # the other; displays inside a group are moved into the namespace
     free = [{"Class": "rviz_default_plugins/Image", "Name": name, "Topic": {"Value": f"drone_{i}/depth"}}
@@ -728,12 +748,18 @@ def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: P
 
 def test_ups_locator_waits_for_the_topics_its_file_names(tmp_path: Path) -> None:
     """A config folder whose locator.yaml renames the locator's input and outputs, or switches its census off: the
-    graph's locator publishes and subscribes what its file names, so up waits for those topics and the recorder
-    records them (up once waited on the default names and timed out); a bad value there is refused before any node
-    starts, named with its file."""
+    graph's locator publishes and subscribes what its file names, so up waits for those topics, the recorder
+    records them (up once waited on the default names and timed out) and up's RViz view shows the census where it
+    is published (once it showed the default topic), off with the census off or no locator; a bad value there is
+    refused before any node starts, named with its file."""
+    from zebra_sim_ros.cli import up
+
     conf = tmp_path / "config"
     shutil.copytree(REPO / "config", conf)
     text = (conf / "locator.yaml").read_text()
+
+    cfg = UpConfig(config_dir=str(conf), locate=True, namespace="/g1")
+    specs: list[NodeSpec] = []
 
     def locator(**changes: str) -> tuple[NodeSpec, NodeSpec]:
         edited = text
@@ -741,8 +767,13 @@ def test_ups_locator_waits_for_the_topics_its_file_names(tmp_path: Path) -> None
             edited, n = re.subn(rf"^(    {key}:) \S+", rf"\1 {value}", edited, flags=re.M)
             assert n == 1, key
         (conf / "locator.yaml").write_text(edited)
-        specs = graph_spec(UpConfig(config_dir=str(conf), locate=True, namespace="/g1"))
+        specs[:] = graph_spec(cfg)
         return next(s for s in specs if s.executable == "locator"), next(s for s in specs if s.executable == "recorder")
+
+    def census_display(view: dict[str, Any] | None) -> tuple[str, bool]:
+        assert view is not None
+        (d,) = [d for d in view["Visualization Manager"]["Displays"] if "census" in d["Name"]]
+        return d["Topic"]["Value"], d["Enabled"]
 
     default, _ = locator()
     assert "/g1/drone_0/detections/located" in default.publishes and "/g1/census/animals" in default.publishes
@@ -752,8 +783,17 @@ def test_ups_locator_waits_for_the_topics_its_file_names(tmp_path: Path) -> None
                              "/g1/herd/count/markers")
     assert "/g1/drone_2/dets" in loc.subscribes and "/g1/drone_2/detections" not in loc.subscribes
     assert set(loc.publishes) <= set(rec.subscribes) and "/g1/census/animals" not in rec.subscribes
+    # up's RViz view: the census display on the census this locator publishes (its markers), on
+    view = census_display(up._rviz_view(cfg, conf, up._located(conf, specs)))
+    assert view == ("/g1/herd/count/markers", True) and view[0] in loc.publishes
     off, rec = locator(census="false")
     assert off.publishes == default.publishes[:3] and "/g1/census/animals" not in rec.subscribes
+    assert census_display(up._rviz_view(cfg, conf, up._located(conf, specs))) == ("/g1/census/animals/markers", False)
+    locator()
+    assert census_display(up._rviz_view(cfg, conf, up._located(conf, specs))) == ("/g1/census/animals/markers", True)
+    no_locator = UpConfig(config_dir=str(conf), namespace="/g1")
+    assert up._located(conf, graph_spec(no_locator)) is None
+    assert census_display(up._rviz_view(no_locator, conf, None)) == ("/g1/census/animals/markers", False)
     with pytest.raises(ParameterError, match=re.escape(f"{conf / 'locator.yaml'}: output")):
         locator(output="depth")  # one of its inputs
 

@@ -29,6 +29,9 @@ from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.params import add_option, spec_of
 
 if TYPE_CHECKING:  # the graph and rclpy are imported only when the command runs
+    from collections.abc import Sequence
+
+    from zebra_sim_ros.detection.config import LocatorConfig
     from zebra_sim_ros.graph.spec import NodeSpec, UpConfig
     from zebra_sim_ros.graph.supervisor import Child, Supervisor
     from zebra_sim_ros.nodes.graph_watch import GraphWatch
@@ -83,11 +86,34 @@ class _Stop(Exception):
     """SIGTERM to the supervisor: stop like Ctrl-C."""
 
 
+def _located(conf: Path, specs: Sequence[NodeSpec]) -> LocatorConfig | None:
+    """The settings the graph's locator starts with (None: a graph without it); a bad value in its file is named."""
+    from zebra_sim_ros.detection.config import LocatorConfig
+    from zebra_sim_ros.graph.spec import node_config
+
+    locator = next((s for s in specs if s.executable == "locator"), None)
+    return (node_config(conf, locator.params_file, locator.fqn, locator.overrides, LocatorConfig)
+            if locator is not None else None)
+
+
+def _rviz_view(cfg: UpConfig, conf: Path, located: LocatorConfig | None) -> dict[str, Any] | None:
+    """The package's RViz view drawn for this graph's drones and namespace, its census display on the census this
+    graph's locator publishes (off without one); None, with a warning, where it cannot be drawn (no reason to stop
+    the run)."""
+    from zebra_sim_ros.graph.rviz import rviz_view
+    from zebra_sim_ros.graph.spec import rviz_census
+
+    try:
+        return rviz_view(conf, cfg.drone_names, cfg.namespace, *rviz_census(located))
+    except ValueError as exc:
+        print(f"[up] warning: no RViz view for this graph ({exc})", flush=True)
+        return None
+
+
 def cmd_up(args: argparse.Namespace) -> Summary:
     """Run the graph; returns the summary (``exit_code`` 0, 1 when a node died, 130 when interrupted)."""
-    from zebra_sim_ros.detection.config import LocatorConfig
-    from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_command, rviz_view, write_rviz
-    from zebra_sim_ros.graph.spec import config_dir, node_config, rviz_off
+    from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_command, write_rviz
+    from zebra_sim_ros.graph.spec import config_dir
     from zebra_sim_ros.zebra.asset import load_library
 
     cfg, specs = _up_config(args)
@@ -97,15 +123,8 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     conf = config_dir(cfg.config_dir)
     scorer = next((s for s in specs if s.executable == "scorer"), None)
     scoring = ScorerRun.read(conf, scorer) if scorer is not None else None  # a bad scorer.yaml stops here
-    locator = next((s for s in specs if s.executable == "locator"), None)  # its topics, for the summary
-    located = (node_config(conf, locator.params_file, locator.fqn, locator.overrides, LocatorConfig)
-               if locator is not None else None)
-    try:  # the package's RViz view drawn for this graph's drones and namespace; a view that cannot be is no reason
-        # to stop the run; the census display off without the locator
-        view = rviz_view(conf, cfg.drone_names, cfg.namespace, rviz_off(cfg.locate))
-    except ValueError as exc:
-        view = None
-        print(f"[up] warning: no RViz view for this graph ({exc})", flush=True)
+    located = _located(conf, specs)  # its topics, for the summary and the RViz view
+    view = _rviz_view(cfg, conf, located)
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
     for old in (cfg.bag_path, out / "summary.json", out / "preview.jpg", out / RVIZ_FILE, out / CENSUS_MAP):

@@ -18,7 +18,7 @@ from __future__ import annotations
 import copy
 import re
 import shlex
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -67,14 +67,26 @@ def _switch_off(displays: list[dict[str, Any]], off: set[str]) -> None:
             _switch_off([x for x in inner if isinstance(x, dict)], off)
 
 
+def _move(displays: list[dict[str, Any]], moved: Mapping[str, str]) -> None:
+    """The displays (those inside groups too) of the topics ``moved``'s keys (absolute) shown on its values instead,
+    in place."""
+    for d in displays:
+        if (topic := _topic(d)) and (to := moved.get("/" + topic.lstrip("/"))) is not None:
+            d["Topic"]["Value"] = to
+        inner = d.get("Displays")
+        if isinstance(inner, list):
+            _move([x for x in inner if isinstance(x, dict)], moved)
+
+
 def rviz_config(base: dict[str, Any], drones: Sequence[str], namespace: str = "",
-                off: Collection[str] = ()) -> dict[str, Any]:
+                off: Collection[str] = (), moved: Mapping[str, str] | None = None) -> dict[str, Any]:
     """``base`` (the package file, parsed) for a graph of ``drones`` (``drone_0``, ``drone_1`` ...) in ``namespace``
     ("" or ``/g1``): each every-drone display drawn once per camera, in drone order, where the file's first copy
     stood (the others dropped); a display of one drone kept where the graph has that drone; the rest in the file's
     order; the displays of the topics ``off`` (as the file names them: those of a node this graph leaves out)
-    switched off; every topic moved into the namespace. ``base`` is left as it is; ValueError when it is not an RViz
-    configuration (no ``Visualization Manager`` with a list of ``Displays``)."""
+    switched off; those of the topics ``moved``'s keys shown on its values (absolute; a node of this graph that
+    publishes under other names); every topic moved into the namespace. ``base`` is left as it is; ValueError when
+    it is not an RViz configuration (no ``Visualization Manager`` with a list of ``Displays``)."""
     manager = base.get("Visualization Manager") if isinstance(base, dict) else None
     displays = manager.get("Displays") if isinstance(manager, dict) else None
     if not isinstance(displays, list) or not all(isinstance(d, dict) for d in displays):
@@ -100,6 +112,7 @@ def rviz_config(base: dict[str, Any], drones: Sequence[str], namespace: str = ""
                 c["Topic"]["Value"] = _DRONE.sub(rf"\g<1>{name}/", _topic(d))
                 new.append(c)
     _switch_off(new, {"/" + t.lstrip("/") for t in off})
+    _move(new, {"/" + a.lstrip("/"): "/" + b.lstrip("/") for a, b in (moved or {}).items()})
     if namespace:
         _namespaced(new, namespace)
     out = copy.deepcopy(base)
@@ -108,7 +121,7 @@ def rviz_config(base: dict[str, Any], drones: Sequence[str], namespace: str = ""
 
 
 def rviz_view(config: Path, drones: Sequence[str], namespace: str = "",
-              off: Collection[str] = ()) -> dict[str, Any] | None:
+              off: Collection[str] = (), moved: Mapping[str, str] | None = None) -> dict[str, Any] | None:
     """:func:`rviz_config` of ``config``/zebra_sim.rviz; None when the config folder has none. ValueError naming the
     file when it cannot be read or is not an RViz configuration."""
     import yaml
@@ -117,7 +130,7 @@ def rviz_view(config: Path, drones: Sequence[str], namespace: str = "",
     if not src.is_file():
         return None
     try:
-        return rviz_config(yaml.safe_load(src.read_text()), drones, namespace, off)
+        return rviz_config(yaml.safe_load(src.read_text()), drones, namespace, off, moved)
     except (OSError, UnicodeDecodeError, yaml.YAMLError, ValueError) as exc:
         raise ValueError(f"{src}: {exc}") from exc
 

@@ -36,9 +36,14 @@ def census_topics(locator: LocatorConfig) -> tuple[str, ...]:
 CENSUS_TOPICS = census_topics(LocatorConfig())
 
 
-def rviz_off(locate: bool) -> tuple[str, ...]:
-    """The topics whose RViz displays are switched off for a graph with (``locate``) or without the locator."""
-    return () if locate else CENSUS_TOPICS
+def rviz_census(located: LocatorConfig | None) -> tuple[tuple[str, ...], dict[str, str]]:
+    """What the RViz view's census displays (drawn on the locator's default topics, ``CENSUS_TOPICS``) need in a
+    graph whose locator starts with ``located`` (None: a graph without the locator): the topics whose displays are
+    switched off (no locator, or its ``census`` false) and those moved to where this locator publishes its census
+    (a ``census_output`` of its own), both absolute and relative to the graph's namespace."""
+    if located is None or not located.census:
+        return CENSUS_TOPICS, {}
+    return (), {a: b for a, b in zip(CENSUS_TOPICS, census_topics(located), strict=True) if a != b}
 PLACER_TOPICS = ("zebra_sim/scene", "zebra_sim/zebras", "zebra_sim/zebras/markers")
 PLACER_CAMERA_TOPICS = ("camera/pose", "fix")  # the placer's, under each camera
 # By convention absolute (tf2 listeners and every node's time source use them); a namespaced graph remaps them.
