@@ -9,6 +9,11 @@ on the map (``geometry.locate.locate_boxes``, the rendered depth, each camera's 
   scale rule), each given the zebra
   whose visible box it overlaps most (IoU 0.5 or more; any zebra seen, labelled or not), or none (a false box).
 
+With ``--gnss``, the same boxes are placed again from each camera's pose as the drone's navigation gives it (the
+placer's ``camera/pose_gnss``: the camera moved by the GNSS error of the scene's seed and step,
+``geodesy.GnssNoise``; each ``SIGMA[:COMMON]`` a horizontal sigma in m, twice it up, and the share of its variance
+common to the drones), which moves every point of a camera by its error; the census of each is scored alike.
+
 Per step the three views' points are joined into animals at each ``--gates`` (standard deviations) and
 ``--separations`` (one camera's points closer than this on the ground are one animal; 0: never), and scored against
 the zebras the boxes came from: the animals counted against the distinct zebras among them (the true count); the
@@ -17,7 +22,7 @@ detector the animals made of false boxes only. The sum of the three cameras' box
 Also the milliseconds a step's joining takes, against its three renders, measured in the same run.
 
     python benchmarks/bench_census.py [--steps 10] [--first 0] [--size 1280x720] [--detector] [--gates 4]
-        [--separations 0 0.5] [--json]
+        [--separations 0 0.5] [--gnss 0.5 2.5 2.5:0.9] [--json]
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from zebra_sim_ros.geometry.census import CENSUS_GATE, CENSUS_SEPARATION_M, join_views
+from zebra_sim_ros.geometry.geodesy import GnssNoise
 from zebra_sim_ros.geometry.locate import locate_boxes
 from zebra_sim_ros.messages import Scene, SceneCamera
 from zebra_sim_ros.placement.config import PlacerConfig
@@ -109,17 +115,19 @@ def box_owners(boxes: np.ndarray, seen: Sequence[Any]) -> np.ndarray:
 
 
 def views_of_steps(steps: int, size: str, detector: bool, first: int = 0) -> tuple[list[dict[str, list[View]]],
-                                                                                 list[float]]:
+                                                                                 list[float], list[tuple[int, int]]]:
     """Per step, per kind of box ("labels", and "detector" with it), the three cameras' placed points and ids;
-    and the milliseconds of each render."""
+    the milliseconds of each render; and each step's scene seed and step."""
     model = shipped_detector() if detector else None
     out: list[dict[str, list[View]]] = []
     render_ms: list[float] = []
+    at: list[tuple[int, int]] = []
     current = -1
     for r in rendered_cameras(size, steps, first):
         if r.step != current:
             current = r.step
             out.append({"labels": [], "detector": []})
+            at.append((r.scene.seed, r.scene.step))
         kinds = out[-1]
         render_ms.append(r.render_ms)
         pose = (r.k, np.array(r.cam.position), np.array(r.cam.orientation_xyzw))
@@ -136,7 +144,26 @@ def views_of_steps(steps: int, size: str, detector: bool, first: int = 0) -> tup
             placed = locate_boxes(found[:, :4], r.frame.view.depth, *pose)
             ok = placed.valid
             kinds["detector"].append((placed.points[ok], ids[ok], pose[1], found[ok, 4]))
-    return out, render_ms
+    return out, render_ms, at
+
+
+def navigated(views_by_step: list[list[View]], at: list[tuple[int, int]], noise: GnssNoise) -> list[list[View]]:
+    """The views placed from the cameras' GNSS positions instead: a box's point lies on its ray at its depth from
+    the camera, so moving the camera by its error moves its points by as much."""
+    out = []
+    for views, (seed, step) in zip(views_by_step, at, strict=True):
+        err = noise.errors(len(views), seed, step)
+        out.append([(v[0] + err[i], v[1], v[2] + err[i], v[3]) for i, v in enumerate(views)])
+    return out
+
+
+def gnss_setting(text: str) -> GnssNoise:
+    """``SIGMA[:COMMON]``: a horizontal sigma in m (twice it up), white, with that share common to the drones."""
+    sigma, _, common = text.partition(":")
+    try:
+        return GnssNoise(float(sigma), 2.0 * float(sigma), 0.0, float(common or 0.0))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"--gnss {text!r}: want SIGMA[:COMMON] ({exc})") from None
 
 
 def score_census(views_by_step: list[list[View]], gate: float, separation: float) -> dict[str, Any]:
@@ -175,15 +202,21 @@ def main() -> None:
     ap.add_argument("--gates", type=float, nargs="+", default=[CENSUS_GATE], help="in standard deviations")
     ap.add_argument("--separations", type=float, nargs="+", default=[0.0, CENSUS_SEPARATION_M],
                     help="one camera's points closer than this on the ground are one animal, m")
+    ap.add_argument("--gnss", type=gnss_setting, nargs="*", default=[],
+                    help="SIGMA[:COMMON]: the census again with the boxes placed from each drone's GNSS position")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    steps, render_ms = views_of_steps(args.steps, args.size, args.detector, args.first)
+    steps, render_ms, at = views_of_steps(args.steps, args.size, args.detector, args.first)
     out: dict[str, Any] = {
         "date": time.strftime("%Y-%m-%d"), "machine": f"{platform.processor() or platform.machine()}, "
         f"{os.cpu_count()} cores", "steps": args.steps, "first": args.first, "size": args.size,
         "render_ms_per_step": round(statistics.median(render_ms) * 3, 1)}
     for kind in ("labels", "detector") if args.detector else ("labels",):
         out[kind] = [score_census([s[kind] for s in steps], g, sep) for sep in args.separations for g in args.gates]
+        for noise in args.gnss:
+            moved = navigated([s[kind] for s in steps], at, noise)
+            out[kind] += [{"gnss_sigma_m": noise.sigma_h_m, "gnss_common": noise.common_fraction,
+                           **score_census(moved, g, sep)} for sep in args.separations for g in args.gates]
     if args.json:
         print(json.dumps(out, indent=1))
         return

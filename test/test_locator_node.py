@@ -121,7 +121,8 @@ def _depth_msg(depth: np.ndarray, stamp_msg: Any, encoding: str = "32FC1") -> An
 def test_the_locator_places_a_cameras_detections_over_dds(tmp_path: Path) -> None:
     """Detections, depth, camera_info and pose in; Detection3DArray in map out, each detection where the geometry
     puts it; a box with no depth left out and counted; a frame before any camera_info waits for it; a depth image
-    it cannot read is logged, counted and skipped."""
+    it cannot read is logged, counted and skipped. The pose is read from the topic ``pose`` names (here the
+    navigation's, camera/pose_gnss; the exact camera/pose, 100 m off here, is not read)."""
     r = optical_rotation(0.0, np.radians(-90.0), 0.0)  # nadir
     position = np.array([5.0, 7.0, 40.0])
     qx, qy, qz, qw = _xyzw(r)
@@ -138,7 +139,8 @@ def test_the_locator_places_a_cameras_detections_over_dds(tmp_path: Path) -> Non
     pubs = {"det": node.create_publisher(detection_array_class(), "/drone_0/detections", 10),
             "depth": node.create_publisher(Image, "/drone_0/depth", 10),
             "info": node.create_publisher(CameraInfo, "/drone_0/camera_info", 10),
-            "pose": node.create_publisher(PoseStamped, "/drone_0/camera/pose", 10)}
+            "pose": node.create_publisher(PoseStamped, "/drone_0/camera/pose_gnss", 10)}
+    decoy = node.create_publisher(PoseStamped, "/drone_0/camera/pose", 10)
     log = tmp_path / "locator.log"
 
     def send(sec: int, info: bool = True, encoding: str = "32FC1", image: np.ndarray | None = None) -> None:
@@ -146,9 +148,9 @@ def test_the_locator_places_a_cameras_detections_over_dds(tmp_path: Path) -> Non
         if info:
             pubs["info"].publish(CameraInfo(header=Header(stamp=t), width=CAMERA.width, height=CAMERA.height,
                                             k=CAMERA.K.ravel().tolist()))
-        pubs["pose"].publish(PoseStamped(header=Header(stamp=t, frame_id="map"), pose=Pose(
-            position=Point(x=position[0], y=position[1], z=position[2]), orientation=Quaternion(x=qx, y=qy, z=qz,
-                                                                                                 w=qw))))
+        for pub, at in ((pubs["pose"], position), (decoy, position + 100.0)):
+            pub.publish(PoseStamped(header=Header(stamp=t, frame_id="map"), pose=Pose(
+                position=Point(x=at[0], y=at[1], z=at[2]), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))))
         pubs["depth"].publish(_depth_msg(depth if image is None else image, t, encoding))
         dets = Detections(Stamp(sec, 0), "drone_0/camera_optical", CAMERA.width, CAMERA.height,
                           tuple(Detection(tuple(b[:4]), b[4]) for b in boxes))  # type: ignore[arg-type]
@@ -156,7 +158,7 @@ def test_the_locator_places_a_cameras_detections_over_dds(tmp_path: Path) -> Non
 
     try:
         with node_process("locator", {"drones": ["drone_0"], "diagnostics_period_s": 0.2,
-                                      "image_reliability": "reliable"}, domain, log):
+                                      "image_reliability": "reliable", "pose": "camera/pose_gnss"}, domain, log):
             assert peer.spin(lambda: all(node.count_subscribers(p.topic_name) for p in pubs.values())
                              and node.count_publishers("/drone_0/detections/located"), 60), log.read_text()
             # Step 1 without camera_info: it waits. Sent a few times (the same frame again to the node), as what is
@@ -308,7 +310,10 @@ def test_a_bad_locator_parameter_stops_the_node() -> None:
                       # one name ending the other: a bag's reader of either topic would take the other's messages
                       ({"output": "census/animals"}, "'census_output' = 'census/animals'.*neither ends"),
                       ({"output": "x/census/animals"}, "'census_output'"),
-                      ({"output": "animals"}, "'census_output'")):
+                      ({"output": "animals"}, "'census_output'"), ({"pose": "/abs"}, "'pose'"),
+                      # the placer's poses are not outputs, whichever the locator reads
+                      ({"output": "camera/pose_gnss"}, "'output'"),
+                      ({"output": "camera/pose", "pose": "camera/pose_gnss"}, "'output'")):
         with pytest.raises(ParameterError, match=name):
             LocatorConfig.from_params(bad)
     # outside a nested camera's namespace, whatever its last name

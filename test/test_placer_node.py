@@ -58,8 +58,11 @@ class Listener:
                                           self.animals.append, stream)
         self.node.create_subscription(TFMessage, "/tf", self.tf.append, 100)
         self.fixes: dict[str, list[NavSatFix]] = {name: [] for name in self.poses}
+        self.gnss_poses: dict[str, list[PoseStamped]] = {name: [] for name in self.poses}
         for name in self.fixes:
             self.node.create_subscription(NavSatFix, f"/{name}/fix", lambda m, n=name: self.fixes[n].append(m), stream)
+            self.node.create_subscription(PoseStamped, f"/{name}/camera/pose_gnss",
+                                          lambda m, n=name: self.gnss_poses[n].append(m), stream)
         self.ack_pub = self.node.create_publisher(Header, "/zebra_sim/frame_done", 100)
 
     def _on_scene(self, msg: String) -> None:
@@ -167,7 +170,8 @@ def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tm
     index and stamp; a call while subscribers are still awaited publishes nothing and says so; after ``max_steps``
     the node ends by itself. With GNSS noise asked for (wandering, a time constant of 3 steps, half of it shared by
     the drones), each drone's fix is its camera's position moved by the error the scene's seed and step give
-    (recomputed here from each scene alone: step 1's sums step 0's draws too), with that covariance, known."""
+    (recomputed here from each scene alone: step 1's sums step 0's draws too), with that covariance, known, and its
+    camera/pose_gnss is at that fix, oriented as its exact pose."""
     from std_srvs.srv import Trigger
 
     listener = Listener(domain)
@@ -202,7 +206,8 @@ def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tm
             assert answer.message.startswith(f"step {scene['step']}, stamp {stamp}: {scene['placed']}/"), answer.message
         assert [s["step"] for s in listener.scenes] == [0, 1]
         assert "published 2 steps on request; stopping" in (tmp_path / "placer.log").read_text()
-        assert listener.spin_until(lambda: all(len(f) == 2 for f in listener.fixes.values()), 10)
+        assert listener.spin_until(lambda: all(len(f) == 2 for f in (*listener.fixes.values(),
+                                                                     *listener.gnss_poses.values())), 10)
         for scene in listener.scenes:
             cams = scene["cameras"]  # the draw's order: the scene's cameras
             names = [c["name"] for c in cams]
@@ -220,6 +225,15 @@ def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tm
                 assert list(fix.position_covariance) == pytest.approx([6.25, 0, 0, 0, 6.25, 0, 0, 0, 25.0])
                 off = geodetic_to_enu([[fix.latitude, fix.longitude, fix.altitude]], datum)[0] - cam["position"]
                 assert 1e-3 < np.linalg.norm(off) < 6 * 5.0  # moved, by a draw of these sigmas
+                # the navigation's pose: at the fix, in map (1e-6 m: the round trip through latitude), oriented as
+                # the exact one
+                nav = next(p for p in listener.gnss_poses[name] if p.header.stamp == fix.header.stamp)
+                exact = next(p for p in listener.poses[name] if p.header.stamp == fix.header.stamp)
+                p, o = nav.pose.position, nav.pose.orientation
+                assert [p.x, p.y, p.z] == pytest.approx(cam["position"] + off, abs=1e-6)
+                assert (o.x, o.y, o.z, o.w) == (exact.pose.orientation.x, exact.pose.orientation.y,
+                                                exact.pose.orientation.z, exact.pose.orientation.w)
+                assert nav.header.frame_id == "map"
     finally:
         listener.close()
         if second is not None:

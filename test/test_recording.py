@@ -357,11 +357,11 @@ def test_pose_reader_matches_rclpy() -> None:
 def _census_bag(path: Path, views: dict[str, dict[int, np.ndarray]], poses: bool = True,
                 recorded: dict[int, int] | None = None, ns: str = "", ids: dict[str, int] | None = None,
                 scenes: dict[int, str] | None = None, located: str = "detections/located",
-                census: str = "census/animals") -> Path:
+                census: str = "census/animals", pose: str = "camera/pose") -> Path:
     """A bag as up --locate records it, less the images: per camera and stamp its placed zebras (a
     Detection3DArray on ``<camera>/<located>``, scores 0.9, 0.8 ..., ids from ``ids[camera]`` up where given, else
-    none) and its pose (the camera 60 m up, 80 m from the origin along its name's order), the locator's census of
-    some stamps (on ``census``), and the placer's scenes (JSON by stamp) where given."""
+    none) and its pose on ``<camera>/<pose>`` (the camera 60 m up, 80 m from the origin along its name's order), the
+    locator's census of some stamps (on ``census``), and the placer's scenes (JSON by stamp) where given."""
     from geometry_msgs.msg import Point, Pose, PoseStamped
 
     from zebra_sim_ros.nodes.ros_adapter import detection3d_array_type, message_class, stamp
@@ -372,7 +372,7 @@ def _census_bag(path: Path, views: dict[str, dict[int, np.ndarray]], poses: bool
     w = BagWriter(path)
     for i, (cam, by_stamp) in enumerate(views.items()):
         w.add_channel(f"{ns}/{cam}/{located}", kind, [])
-        w.add_channel(f"{ns}/{cam}/camera/pose", "geometry_msgs/msg/PoseStamped", [])
+        w.add_channel(f"{ns}/{cam}/{pose}", "geometry_msgs/msg/PoseStamped", [])
         for t, pts in by_stamp.items():
             h = Header(stamp=stamp(t), frame_id="map")
             dets = [msg.Detection3D(header=h, results=[msg.ObjectHypothesisWithPose(
@@ -382,7 +382,7 @@ def _census_bag(path: Path, views: dict[str, dict[int, np.ndarray]], poses: bool
             w.write(f"{ns}/{cam}/{located}", serialize_message(message_class(kind)(header=h, detections=dets)), t)
             if poses:
                 angle = 2.1 * i
-                w.write(f"{ns}/{cam}/camera/pose", serialize_message(PoseStamped(header=h, pose=Pose(position=Point(
+                w.write(f"{ns}/{cam}/{pose}", serialize_message(PoseStamped(header=h, pose=Pose(position=Point(
                     x=80 * np.cos(angle), y=80 * np.sin(angle), z=60.0)))), t)
     if scenes:
         w.add_channel(f"{ns}/zebra_sim/scene", "std_msgs/msg/String", [])
@@ -446,10 +446,11 @@ def test_a_recorded_census_is_counted_again_from_the_bag(tmp_path: Path) -> None
 
 
 def test_a_locator_publishing_under_other_names_is_read_by_its_names(tmp_path: Path, cli: CliRun) -> None:
-    """A locator whose file renames its outputs (``output``, ``census_output``): ``bag census`` (``--output``,
-    ``--census-output`` on the command line) and the run's summary read the placed detections and the census by the
-    names given, the same figures as under the default names; asked by the default names, the bag census refuses
-    naming the topic it looked for, and the summary has neither part."""
+    """A locator whose file renames its outputs (``output``, ``census_output``) and places from the navigation's
+    poses (``pose``: camera/pose_gnss): ``bag census`` (``--output``, ``--census-output``, ``--pose`` on the command
+    line) and the run's summary read the placed detections, the census and the poses by the names given, the same
+    figures as under the default names; asked by the default names, the bag census refuses naming the topic it
+    looked for, and the summary has neither part."""
     from zebra_sim_ros.detection.config import LocatorConfig
     from zebra_sim_ros.errors import ParameterError
     from zebra_sim_ros.graph.summary import summarize_run
@@ -458,16 +459,19 @@ def test_a_locator_publishing_under_other_names_is_read_by_its_names(tmp_path: P
     rng = np.random.default_rng(8)
     herd = np.column_stack([rng.uniform(-10, 10, (10, 2)), np.full(10, 0.7)])
     views = {cam: {t * 10**9: herd[rng.permutation(10)[:8]] for t in (1, 2)} for cam in ("drone_0", "drone_1")}
-    named = LocatorConfig(output="placed", census_output="herd/count")
+    named = LocatorConfig(output="placed", census_output="herd/count", pose="camera/pose_gnss")
     renamed = _census_bag(tmp_path / "renamed.mcap", views, recorded={10**9: 9, 2 * 10**9: 7}, located="placed",
-                          census="herd/count")
+                          census="herd/count", pose="camera/pose_gnss")
     default = _census_bag(tmp_path / "default.mcap", views, recorded={10**9: 9, 2 * 10**9: 7})
     got, want = bag_census(renamed, named), bag_census(default)
     assert got["stamps_counted"] == 2 and got["recounted"] == want["recounted"] and got["recorded"] == want["recorded"]
     assert got["recorded"]["animals"] == 16
     with pytest.raises(ParameterError, match=re.escape("<drone>/detections/located")):
         bag_census(renamed)
-    run = cli(["bag", "census", str(renamed), "--output", "placed", "--census-output", "herd/count", "--json"])
+    with pytest.raises(ParameterError, match=re.escape("poses (<drone>/camera/pose,")):
+        bag_census(renamed, LocatorConfig(output="placed", census_output="herd/count"))
+    run = cli(["bag", "census", str(renamed), "--output", "placed", "--census-output", "herd/count", "--pose",
+               "camera/pose_gnss", "--json"])
     assert run.returncode == 0, run.stderr
     assert "recorded (the locator's herd/count" in run.stdout
     assert json.loads(run.stdout.strip().splitlines()[-1])["recounted"] == want["recounted"]

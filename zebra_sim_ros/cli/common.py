@@ -61,16 +61,18 @@ def count_option(p: argparse.ArgumentParser) -> None:
 
 
 def census_options(p: argparse.ArgumentParser) -> None:
-    """``--census-along``, ``--census-across``, ``--census-gate``, ``--census-separation``, ``--drones``, ``--output``
-    and ``--census-output``, mirroring the locator node's census parameters and the topics it published (``bag
-    census``): the same names, ranges and defaults."""
+    """``--census-along``, ``--census-across``, ``--census-gate``, ``--census-separation``, ``--drones``, ``--output``,
+    ``--census-output`` and ``--pose``, mirroring the locator node's census parameters and the topics it published
+    and read its poses from (``bag census``): the same names, ranges and defaults."""
     from zebra_sim_ros.detection.config import CENSUS_READS, CENSUS_RULE, LocatorConfig
     from zebra_sim_ros.params import add_option, spec_of
 
     for name in CENSUS_RULE:
         add_option(p, spec_of(LocatorConfig, name))
     for name in CENSUS_READS:
-        add_option(p, spec_of(LocatorConfig, name), note="here: the topic the bag's locator published it on")
+        add_option(p, spec_of(LocatorConfig, name), note="here: the poses the bag's locator placed its detections "
+                   "from, read back for the cameras' positions" if name == "pose" else
+                   "here: the topic the bag's locator published it on")
     add_option(p, spec_of(LocatorConfig, "drones"), default=None,
                note="here: the bag's cameras, joined in this order (not given: the bag's cameras, drone_2 before "
                     "drone_10, as up orders them)")

@@ -24,6 +24,7 @@ from zebra_sim_ros.params import (
     reliability_param,
     same_as,
 )
+from zebra_sim_ros.placement.config import CAMERA_POSE, GNSS_POSE
 
 NATIVE = -1  # as imgsz: each batch at its frames' own resolution (predict.native_size)
 STRIDE = 32  # the largest stride of the model: input sides must be multiples of it
@@ -149,11 +150,16 @@ class LocatorConfig(StageConfig):
     """Validated locator node parameters: which cameras' detections it places on the map, and how."""
 
     drones: tuple[str, ...] = same_as(ScorerConfig, "drones", help="cameras whose detections to place (their "
-                                      "namespaces: <drone>/<detections>, depth, camera_info and camera/pose)")
+                                      "namespaces: <drone>/<detections>, depth, camera_info and <pose>)")
     detections: str = same_as(ScorerConfig, "detections")
     output: str = param("detections/located", "the placed detections' topic under each camera (a Detection3DArray "
                         "in map)", allowed="a topic name relative to the drone (letters, digits, _ and /)",
                         check=lambda v: bool(RELATIVE_NAME.fullmatch(v)))
+    pose: str = param(CAMERA_POSE, "each camera's pose topic under it (geometry_msgs/PoseStamped of its optical frame "
+                      f"in map): {CAMERA_POSE}, the placer's exact one, or {GNSS_POSE}, at the drone's GNSS fix (the "
+                      "placer's fix_* noise), as a real flight's navigation places its camera",
+                      allowed="a topic name relative to the drone (letters, digits, _ and /)",
+                      check=lambda v: bool(RELATIVE_NAME.fullmatch(v)))
     core: float = param(CORE, "share of each box's width and height, about its centre, whose depths place it (1: "
                         "the whole box)", lo=0.05, hi=1.0, runtime=True)
     depth_window: float = param(DEPTH_WINDOW_M, "a box's depth is the median of the densest span of its depths this "
@@ -190,15 +196,16 @@ class LocatorConfig(StageConfig):
     def inputs(self) -> tuple[str, ...]:
         """The topics it reads under each camera: its detections, depth, camera_info and camera pose (the node
         subscribes these, up waits for them)."""
-        return self.detections, "depth", "camera_info", "camera/pose"
+        return self.detections, "depth", "camera_info", self.pose
 
     def check(self) -> None:
         """Each camera once; an output that is not an input; the census outside the cameras' namespaces."""
         if len({d.strip("/") for d in self.drones}) != len(self.drones):
             raise ParameterError("drones", list(self.drones), "each camera once")
-        inputs = (*self.inputs, "image_raw")
+        inputs = tuple(dict.fromkeys((*self.inputs, "image_raw", CAMERA_POSE, GNSS_POSE, "fix")))
         if self.output in inputs:
-            raise ParameterError("output", self.output, f"another topic than the camera's inputs {list(inputs)}")
+            raise ParameterError("output", self.output, f"another topic than the camera's inputs and poses "
+                                 f"{list(inputs)}")
         out = self.census_output.strip("/")
         if any(out == ns or out.startswith(ns + "/") for ns in (d.strip("/") for d in self.drones)):
             raise ParameterError("census_output", self.census_output, "a topic outside the cameras' namespaces")
@@ -210,7 +217,7 @@ class LocatorConfig(StageConfig):
 
 LOCATOR_PARAMS: tuple[ParamSpec, ...] = LocatorConfig.specs()
 CENSUS_RULE = ("census_along", "census_across", "census_gate", "census_separation")  # how the census joins views
-CENSUS_READS = ("output", "census_output")  # the locator's topic parameters a bag census reads back
+CENSUS_READS = ("output", "census_output", "pose")  # the locator's topic parameters a bag census reads back
 
 
 def distinct_outputs(image_topics: Sequence[str], resolve: Callable[[str], str] = lambda t: t) -> None:

@@ -10,6 +10,9 @@ the whole graph, except the conventional ``/tf``, ``/tf_static`` and ``/clock``,
   truth in 3D, for trackers and counters); ``publish_animals:=false`` leaves it out.
 - ``zebra_sim/zebras/markers`` (visualization_msgs/MarkerArray): the zebras' oriented 3D boxes.
 - ``drone_{i}/camera/pose`` (geometry_msgs/PoseStamped): pose of ``drone_{i}/camera_optical`` in ``map``.
+- ``drone_{i}/camera/pose_gnss`` (geometry_msgs/PoseStamped): the same pose as the drone's own navigation gives it:
+  at its GNSS fix's position (the fix's error, below, in ``map``), the orientation exact; what a locator that
+  places detections from a real flight's poses reads (the locator's ``pose``).
 - ``drone_{i}/fix`` (sensor_msgs/NavSatFix): the same camera's position on the Earth (WGS84 latitude, longitude,
   height above the ellipsoid) by the scene's datum, as a drone's GNSS receiver reports it: exact, its covariance
   unknown, or with ``fix_sigma_m`` / ``fix_vertical_sigma_m`` seeded Gaussian noise (from the scene's seed and step:
@@ -38,6 +41,7 @@ from __future__ import annotations
 import math
 import time
 
+import numpy as np
 from geometry_msgs.msg import PoseStamped, Quaternion, Transform, TransformStamped, Vector3
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import NavSatFix, NavSatStatus
@@ -47,6 +51,7 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
 from zebra_sim_ros.geometry.frames import OPTICAL_IN_BASE_XYZW, base_frame, body_orientation, optical_frame
+from zebra_sim_ros.geometry.geodesy import enu_to_geodetic
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.nodes.ros_adapter import (
@@ -64,7 +69,7 @@ from zebra_sim_ros.nodes.ros_adapter import (
     stamp,
     stamp_ns,
 )
-from zebra_sim_ros.placement.config import PLACER_PARAMS, PlacerConfig
+from zebra_sim_ros.placement.config import CAMERA_POSE, GNSS_POSE, PLACER_PARAMS, PlacerConfig
 from zebra_sim_ros.placement.placer import Placer
 from zebra_sim_ros.world.world import load_world
 from zebra_sim_ros.zebra.asset import load_library
@@ -107,8 +112,10 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         if c.publish_animals:
             self.animals_type = detection3d_array_type()
             self.animals_pub = self.create_publisher(message_class(self.animals_type), ANIMALS_TOPIC, stream)
-        self.pose_pubs = [self.create_publisher(PoseStamped, f"{n}/camera/pose", poses)
+        self.pose_pubs = [self.create_publisher(PoseStamped, f"{n}/{CAMERA_POSE}", poses)
                           for n in self.placer.camera_names]
+        self.gnss_pose_pubs = [self.create_publisher(PoseStamped, f"{n}/{GNSS_POSE}", poses)
+                               for n in self.placer.camera_names]
         self.fix_pubs = [self.create_publisher(NavSatFix, f"{n}/fix", poses) for n in self.placer.camera_names]
         # Transient local, depth 1: a reader that matches late (a recorder whose /clock reader matched after its /tf
         # one) still gets the current step's time. /clock cannot be waited on by count: every use_sim_time node
@@ -123,7 +130,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         # What wait_for_subscribers waits for. /tf too: a recorder that matched the markers but not yet /tf would
         # miss the first step's transforms. /clock is latched instead (above).
         self.outputs = [p for p in (self.scene_pub, self.animals_pub, self.marker_pub, *self.pose_pubs,
-                                    *self.fix_pubs, self.tf_pub) if p is not None]
+                                    *self.gnss_pose_pubs, *self.fix_pubs, self.tf_pub) if p is not None]
         self.step = c.start_step
         self.published = 0
         self.resent = 0  # lockstep steps published again for want of an acknowledgement
@@ -212,7 +219,11 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         for pub, cam in zip(self.pose_pubs, scene.cameras, strict=True):
             pub.publish(PoseStamped(header=header, pose=pose_msg(cam.position, cam.orientation_xyzw)))
         assert scene.datum is not None  # the placer's scenes always carry theirs
-        where, cov = self.gnss.fixes([cam.position for cam in scene.cameras], scene.datum, scene.seed, scene.step)
+        at = np.array([cam.position for cam in scene.cameras], np.float64).reshape(-1, 3)
+        at += self.gnss.errors(len(at), scene.seed, scene.step)  # where each drone's GNSS puts its camera, in map
+        for pub, cam, position in zip(self.gnss_pose_pubs, scene.cameras, at.tolist(), strict=True):
+            pub.publish(PoseStamped(header=header, pose=pose_msg(position, cam.orientation_xyzw)))
+        where, cov = enu_to_geodetic(at, scene.datum), self.gnss.covariance
         kind = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN if cov.any() else NavSatFix.COVARIANCE_TYPE_UNKNOWN
         status = NavSatStatus(status=NavSatStatus.STATUS_FIX, service=NavSatStatus.SERVICE_GPS)
         for pub, cam, (lat, lon, height) in zip(self.fix_pubs, scene.cameras, where.tolist(), strict=True):

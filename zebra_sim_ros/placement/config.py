@@ -29,6 +29,11 @@ from zebra_sim_ros.placement.cameras import STRATEGIES
 from zebra_sim_ros.placement.sun import DAY_WINDOWS
 from zebra_sim_ros.zebra.skeleton import OTHER_SPECIES
 
+# the placer's poses of each camera's optical frame in map, under the camera (geometry_msgs/PoseStamped): exact,
+# and as the drone's navigation gives it (at its GNSS fix's position)
+CAMERA_POSE = "camera/pose"
+GNSS_POSE = "camera/pose_gnss"
+
 STRATEGY_CHOICES = (*STRATEGIES, "mixed", "any")
 """The placer's ``strategy`` values: one strategy for every step, or a draw per step (``mixed``: far or closeby;
 ``any``: each of the four)."""

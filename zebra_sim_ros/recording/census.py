@@ -1,6 +1,6 @@
 """The census of a recorded run, counted again (``zebra-sim bag census``): each step's detections placed on the map
-by the locator (``<drone>/detections/located``, or the ``output`` its file names, and ``<drone>/camera/pose``,
-recorded by ``up --locate``) joined
+by the locator (``<drone>/detections/located``, or the ``output`` its file names, and ``<drone>/camera/pose``, or
+the ``pose`` it placed them from, recorded by ``up --locate``) joined
 across the cameras with census parameters given here (:func:`zebra_sim_ros.geometry.census.join_views`, the
 locator node's rule, in its ``drones`` order), against the distinct zebras the cameras' labels keep where the bag
 has labels; beside it the census the locator recorded (``census/animals``, or its ``census_output``), where it
@@ -29,8 +29,6 @@ from zebra_sim_ros.messages import Datum, Scene
 from zebra_sim_ros.recording.cdr import MALFORMED, Placed3D, cdr_detections3d, cdr_pose_position, cdr_string
 from zebra_sim_ros.recording.evaluate import collect, skip_note
 from zebra_sim_ros.recording.reader import BagMessage, last_name, topic_owner
-
-_POSE = ("camera/pose",)  # a camera's optical frame in map (the placer's)
 
 
 def census_topic_re(locator: LocatorConfig) -> re.Pattern[str]:
@@ -141,9 +139,9 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
                drones: Sequence[str] | None = None, geojson: str | Path | None = None,
                datum: Datum | None = None) -> dict[str, Any]:
     """The census of the bag ``paths`` counted again by ``rule``'s :data:`CENSUS_RULE` parameters (the locator's;
-    default: its defaults; module docstring), read from ``rule``'s topics (``output``, ``census_output``), the
-    cameras joined in ``drones``' order (the locator's ``drones``, last names; default: the cameras found,
-    ``drone_2`` before ``drone_10``, as up and the launch file have them):
+    default: its defaults; module docstring), read from ``rule``'s topics (``output``, ``census_output``,
+    ``pose``), the cameras joined in ``drones``' order (the locator's ``drones``, last names; default: the cameras
+    found, ``drone_2`` before ``drone_10``, as up and the launch file have them):
     per stamp that every camera has placed and posed, its zebras joined across the cameras and scored by
     :func:`census_figures`. ``recorded``: the locator's recorded census, scored on the same stamps (None where the
     bag has none). ParameterError when the bag holds no placed detections (recorded without ``up --locate``) or no
@@ -170,7 +168,7 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
                 t, dets = cdr_detections3d(m.data)
                 located[(last_name(owner[0]), t)] = dets
                 graphs.add(owner[0].rsplit("/", 1)[0])
-            elif (owner := topic_owner(m.topic, _POSE)) and m.type_name.endswith("/PoseStamped"):
+            elif (owner := topic_owner(m.topic, (rule.pose,))) and m.type_name.endswith("/PoseStamped"):
                 t, position = cdr_pose_position(m.data)
                 poses[(last_name(owner[0]), t)] = position
             elif census_topic.match(m.topic):
@@ -198,7 +196,7 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
         if (d, t) in poses:
             by_stamp[t].add(d)
     if not by_stamp:
-        raise ParameterError("bag", bag, "a bag with the cameras' poses (<drone>/camera/pose, recorded by up "
+        raise ParameterError("bag", bag, f"a bag with the cameras' poses (<drone>/{rule.pose}, recorded by up "
                              "--locate) beside their placed detections")
     counts: dict[int, int] = {}
     animals: dict[int, list[Placed3D]] = {}  # stamp -> the animals counted, in map
