@@ -31,10 +31,19 @@ def optical_frame(drone: str) -> str:
     return f"{drone}/camera_optical"
 
 
+def xyzw_to_matrix(xyzw: tuple[float, float, float, float] | FloatArray) -> FloatArray:
+    """The rotation of a ROS quaternion ([x, y, z, w], a message's order; :mod:`rotations` orders (w, x, y, z))."""
+    x, y, z, w = (float(v) for v in xyzw)
+    return quat_to_matrix(np.array([w, x, y, z]))
+
+
+def matrix_to_xyzw(r: FloatArray) -> tuple[float, float, float, float]:
+    """A rotation matrix as a ROS quaternion [x, y, z, w], w >= 0."""
+    w, x, y, z = matrix_to_quat(r)
+    return float(x), float(y), float(z), float(w)
+
+
 def body_orientation(optical_xyzw: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
-    """The body's orientation in ``map`` ([x, y, z, w]) of a camera whose optical frame has ``optical_xyzw``."""
-    r_map_opt = quat_to_matrix(np.asarray(optical_xyzw, dtype=np.float64))
-    q = matrix_to_quat(r_map_opt @ OPTICAL_IN_BASE.T)
-    if q[3] < 0:  # one of the two equal quaternions, w >= 0
-        q = -q
-    return float(q[0]), float(q[1]), float(q[2]), float(q[3])
+    """The body's orientation in ``map`` ([x, y, z, w]) of a camera whose optical frame has ``optical_xyzw``: the
+    body with ``/tf_static``'s OPTICAL_IN_BASE gives the optical frame back."""
+    return matrix_to_xyzw(xyzw_to_matrix(optical_xyzw) @ OPTICAL_IN_BASE.T)

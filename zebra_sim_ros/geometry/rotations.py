@@ -8,7 +8,7 @@ Quaternions are ``(w, x, y, z)``.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 FloatArray = NDArray[np.float64]
 
@@ -40,6 +40,21 @@ def rot_z(a: float | NDArray[np.float64]) -> FloatArray:
 def euler_zyx(yaw: float | FloatArray, pitch: float | FloatArray, roll: float | FloatArray) -> FloatArray:
     """``Rz(yaw) @ Ry(pitch) @ Rx(roll)``; broadcasts over arrays of angles."""
     return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
+
+
+def rotvec_to_matrix(v: ArrayLike) -> FloatArray:
+    """The rotation of the rotation vector ``v`` (its axis, its length the angle in radians; Rodrigues' formula);
+    (N, 3) gives (N, 3, 3)."""
+    v = np.asarray(v, dtype=np.float64)
+    theta = np.linalg.norm(v, axis=-1)[..., None, None]
+    k = np.zeros((*v.shape[:-1], 3, 3))
+    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    k[..., 1, 0], k[..., 2, 0], k[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
+    small = theta < 1e-12  # sin(t)/t -> 1, (1 - cos t)/t^2 -> 1/2
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5, (1.0 - np.cos(safe)) / safe ** 2)
+    return np.eye(3) + a * k + b * (k @ k)
 
 
 def matrix_to_quat(r: FloatArray) -> FloatArray:

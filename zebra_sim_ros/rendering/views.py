@@ -10,16 +10,10 @@ from __future__ import annotations
 import numpy as np
 
 from zebra_sim_ros.errors import ZebraSimError
-from zebra_sim_ros.geometry.rotations import quat_to_matrix
-from zebra_sim_ros.messages import Quat, Scene
+from zebra_sim_ros.geometry.frames import xyzw_to_matrix
+from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.rendering.renderer import CameraView, ZebraSet
 from zebra_sim_ros.zebra.asset import ZebraLibrary
-
-
-def matrix_xyzw(q: Quat) -> np.ndarray:
-    """The rotation matrix of a quaternion ``[x, y, z, w]``."""
-    x, y, z, w = q
-    return np.asarray(quat_to_matrix(np.array([w, x, y, z], dtype=np.float64)))
 
 
 def zebras_from_scene(scene: Scene, library: ZebraLibrary) -> ZebraSet:
@@ -31,7 +25,7 @@ def zebras_from_scene(scene: Scene, library: ZebraLibrary) -> ZebraSet:
     except (ValueError, ZebraSimError) as exc:
         raise ZebraSimError(f"scene {scene.step} refers to a morph or clip frame this zebra asset lacks "
                             f"({exc}); scene asset {scene.asset_digest}, ours {library.manifest['digest']}") from exc
-    rot = np.stack([matrix_xyzw(z.orientation_xyzw) for z in zs]) if zs else np.zeros((0, 3, 3))
+    rot = np.stack([xyzw_to_matrix(z.orientation_xyzw) for z in zs]) if zs else np.zeros((0, 3, 3))
     return ZebraSet(
         ids=np.array([z.id for z in zs], dtype=np.int64), morph=morph, global_frame=frame,
         scale=np.array([z.scale for z in zs]), rotation=rot,
@@ -42,5 +36,5 @@ def zebras_from_scene(scene: Scene, library: ZebraLibrary) -> ZebraSet:
 
 def views_from_scene(scene: Scene, names: list[str] | None = None) -> list[CameraView]:
     """Camera views of the scene (all, or those named), optical frame poses in map."""
-    return [CameraView(c.name, np.array(c.position, dtype=np.float64), matrix_xyzw(c.orientation_xyzw))
+    return [CameraView(c.name, np.array(c.position, dtype=np.float64), xyzw_to_matrix(c.orientation_xyzw))
             for c in scene.cameras if names is None or c.name in names]
