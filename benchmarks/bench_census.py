@@ -10,9 +10,11 @@ on the map (``geometry.locate.locate_boxes``, the rendered depth, each camera's 
   whose visible box it overlaps most (IoU 0.5 or more; any zebra seen, labelled or not), or none (a false box).
 
 With ``--gnss``, the same boxes are placed again from each camera's pose as the drone's navigation gives it (the
-placer's ``camera/pose_gnss``: the camera moved by the GNSS error of the scene's seed and step,
-``geodesy.GnssNoise``; each ``SIGMA[:COMMON]`` a horizontal sigma in m, twice it up, and the share of its variance
-common to the drones), which moves every point of a camera by its error; the census of each is scored alike.
+placer's ``camera/pose_nav``: the camera moved by the GNSS error of the scene's seed and step,
+``geodesy.NavNoise``; each ``SIGMA[:COMMON]`` a horizontal sigma in m, twice it up, and the share of its variance
+common to the drones), which moves every point of a camera by its error; with ``--attitude``, from each camera
+turned by its navigation's attitude error (``TILT:HEADING`` in degrees, the placer's ``nav_*``), which turns its
+points about it. The census of each is scored alike.
 
 Per step the three views' points are joined into animals at each ``--gates`` (standard deviations) and
 ``--separations`` (one camera's points closer than this on the ground are one animal; 0: never), and scored against
@@ -22,7 +24,7 @@ detector the animals made of false boxes only. The sum of the three cameras' box
 Also the milliseconds a step's joining takes, against its three renders, measured in the same run.
 
     python benchmarks/bench_census.py [--steps 10] [--first 0] [--size 1280x720] [--detector] [--gates 4]
-        [--separations 0 0.5] [--gnss 0.5 2.5 2.5:0.9] [--json]
+        [--separations 0 0.5] [--gnss 0.5 2.5 2.5:0.9] [--attitude 0.2:0.5 0.5:2] [--json]
 """
 
 from __future__ import annotations
@@ -40,8 +42,9 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from zebra_sim_ros.geometry.census import CENSUS_GATE, CENSUS_SEPARATION_M, join_views
-from zebra_sim_ros.geometry.geodesy import GnssNoise
+from zebra_sim_ros.geometry.geodesy import NavNoise
 from zebra_sim_ros.geometry.locate import locate_boxes
+from zebra_sim_ros.geometry.rotations import rotvec_to_matrix
 from zebra_sim_ros.messages import Scene, SceneCamera
 from zebra_sim_ros.placement.config import PlacerConfig
 from zebra_sim_ros.placement.placer import Placer
@@ -147,23 +150,37 @@ def views_of_steps(steps: int, size: str, detector: bool, first: int = 0) -> tup
     return out, render_ms, at
 
 
-def navigated(views_by_step: list[list[View]], at: list[tuple[int, int]], noise: GnssNoise) -> list[list[View]]:
-    """The views placed from the cameras' GNSS positions instead: a box's point lies on its ray at its depth from
-    the camera, so moving the camera by its error moves its points by as much."""
+def navigated(views_by_step: list[list[View]], at: list[tuple[int, int]], gnss: NavNoise,
+              attitude: NavNoise) -> list[list[View]]:
+    """The views placed from the cameras' navigated poses instead (the placer's ``camera/pose_nav``): a box's
+    point lies on its ray at its depth from the camera, so turning the camera by its attitude error turns its
+    points about it, and moving it by its GNSS error moves them by as much."""
     out = []
     for views, (seed, step) in zip(views_by_step, at, strict=True):
-        err = noise.errors(len(views), seed, step)
-        out.append([(v[0] + err[i], v[1], v[2] + err[i], v[3]) for i, v in enumerate(views)])
+        err = gnss.errors(len(views), seed, step)
+        turn = rotvec_to_matrix(np.radians(attitude.errors(len(views), seed, step)))
+        out.append([(v[2] + err[i] + (v[0] - v[2]) @ turn[i].T, v[1], v[2] + err[i], v[3])
+                    for i, v in enumerate(views)])
     return out
 
 
-def gnss_setting(text: str) -> GnssNoise:
+def gnss_setting(text: str) -> NavNoise:
     """``SIGMA[:COMMON]``: a horizontal sigma in m (twice it up), white, with that share common to the drones."""
     sigma, _, common = text.partition(":")
     try:
-        return GnssNoise(float(sigma), 2.0 * float(sigma), 0.0, float(common or 0.0))
+        return NavNoise(float(sigma), 2.0 * float(sigma), 0.0, float(common or 0.0))
     except ValueError as exc:
         raise argparse.ArgumentTypeError(f"--gnss {text!r}: want SIGMA[:COMMON] ({exc})") from None
+
+
+def attitude_setting(text: str) -> NavNoise:
+    """``TILT:HEADING``: the navigation's attitude sigmas in degrees (the placer's ``nav_*``), white."""
+    tilt, _, heading = text.partition(":")
+    try:
+        return PlacerConfig.from_params({"nav_tilt_sigma_deg": float(tilt),
+                                         "nav_heading_sigma_deg": float(heading or 0.0)}).attitude_noise()
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"--attitude {text!r}: want TILT:HEADING ({exc})") from None
 
 
 def score_census(views_by_step: list[list[View]], gate: float, separation: float) -> dict[str, Any]:
@@ -204,6 +221,9 @@ def main() -> None:
                     help="one camera's points closer than this on the ground are one animal, m")
     ap.add_argument("--gnss", type=gnss_setting, nargs="*", default=[],
                     help="SIGMA[:COMMON]: the census again with the boxes placed from each drone's GNSS position")
+    ap.add_argument("--attitude", type=attitude_setting, nargs="*", default=[],
+                    help="TILT:HEADING (deg): the census again with the boxes placed from each camera turned by its "
+                         "navigation's attitude error (positions exact)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     steps, render_ms, at = views_of_steps(args.steps, args.size, args.detector, args.first)
@@ -213,9 +233,11 @@ def main() -> None:
         "render_ms_per_step": round(statistics.median(render_ms) * 3, 1)}
     for kind in ("labels", "detector") if args.detector else ("labels",):
         out[kind] = [score_census([s[kind] for s in steps], g, sep) for sep in args.separations for g in args.gates]
-        for noise in args.gnss:
-            moved = navigated([s[kind] for s in steps], at, noise)
-            out[kind] += [{"gnss_sigma_m": noise.sigma_h_m, "gnss_common": noise.common_fraction,
+        exact = NavNoise()
+        for gnss, attitude in [(n, exact) for n in args.gnss] + [(exact, a) for a in args.attitude]:
+            moved = navigated([s[kind] for s in steps], at, gnss, attitude)
+            out[kind] += [{"gnss_sigma_m": gnss.sigma_h_m, "gnss_common": gnss.common_fraction,
+                           "tilt_deg": attitude.sigma_h_m, "heading_deg": attitude.sigma_v_m,
                            **score_census(moved, g, sep)} for sep in args.separations for g in args.gates]
     if args.json:
         print(json.dumps(out, indent=1))

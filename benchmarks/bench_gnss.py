@@ -2,7 +2,7 @@
 
 Scenes come from the placer's own core (``Placer.scene``, the default world and its three drones, seeded). Per
 time constant (``--taus``, in steps; 0 = white): the median over ``--steps`` consecutive steps of the fixes of
-the scene's cameras (``GnssNoise.fixes``: the error by its recursion, one draw a step, and the conversion to
+the scene's cameras (``NavNoise.fixes``: the error by its recursion, one draw a step, and the conversion to
 latitude, longitude and height), the time of the first step computed alone (``start_step``: the weighted sum of
 up to 28 time constants of draws, paid once), and each as a ratio to the median ``Placer.scene`` of the same run.
 

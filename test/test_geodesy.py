@@ -13,7 +13,7 @@ from zebra_sim_ros.geometry.geodesy import (
     WGS84_A,
     WGS84_B,
     WGS84_E2,
-    GnssNoise,
+    NavNoise,
     ecef_to_geodetic,
     enu_to_geodetic,
     geodetic_to_ecef,
@@ -122,9 +122,9 @@ def test_gnss_fixes_are_seeded_gaussian_about_the_points_with_their_covariance()
     datum = Datum(-2.3, 34.8, 1550.0)
     rng = np.random.default_rng(4)
     points = np.column_stack([rng.uniform(-500, 500, (4000, 2)), rng.uniform(40, 120, 4000)])
-    noise = GnssNoise(2.5, 5.0)
+    noise = NavNoise(2.5, 5.0)
     fixes, cov = noise.fixes(points, datum, 9, 3)
-    again, _ = GnssNoise(2.5, 5.0).fixes(points, datum, 9, 3)
+    again, _ = NavNoise(2.5, 5.0).fixes(points, datum, 9, 3)
     other, _ = noise.fixes(points, datum, 9, 4)
     np.testing.assert_array_equal(fixes, again)
     want = np.random.default_rng([9, 3, GNSS_STREAM]).normal(size=(4000, 3)) * [2.5, 2.5, 5.0]
@@ -137,7 +137,7 @@ def test_gnss_fixes_are_seeded_gaussian_about_the_points_with_their_covariance()
     assert np.abs(off.mean(0)).max() < 0.25  # 3 standard errors of 5 m over 4,000
     assert np.abs(np.corrcoef(off.T) - np.eye(3)).max() < 0.06
     np.testing.assert_allclose(cov, np.diag([6.25, 6.25, 25.0]))
-    silent = GnssNoise()
+    silent = NavNoise()
     exact, zero = silent.fixes(points[:5], datum, 9, 3)
     np.testing.assert_allclose(geodetic_to_enu(exact, datum), points[:5], atol=1e-6)
     assert not zero.any() and not silent._last  # nothing drawn
@@ -147,7 +147,7 @@ def test_gnss_fixes_are_seeded_gaussian_about_the_points_with_their_covariance()
                       ((1.0, 1.0, GNSS_MAX_CORRELATION_STEPS + 1), "correlation_steps 3601"),
                       ((1.0, 1.0, 0.0, 1.5), "common_fraction 1.5")):
         with pytest.raises(ValueError, match=what):
-            GnssNoise(*bad)
+            NavNoise(*bad)
     with pytest.raises(ValueError, match="GNSS step -1"):
         noise.errors(2, 9, -1)
 
@@ -171,13 +171,13 @@ def test_a_correlated_gnss_error_wanders_as_a_gauss_markov_process() -> None:
     each its sigma."""
     tau, n_steps = 5.0, 6000
     a = float(np.exp(-1.0 / tau))
-    noise = GnssNoise(2.0, 4.0, correlation_steps=tau)
+    noise = NavNoise(2.0, 4.0, correlation_steps=tau)
     seq = np.stack([noise.errors(2, 17, k) for k in range(n_steps)])  # (steps, receivers, axes)
     draws = np.stack([np.random.default_rng([17, k, GNSS_STREAM]).normal(size=(2, 3)) for k in range(n_steps)])
     want = _gauss_markov(draws, a) * [2.0, 2.0, 4.0]
     np.testing.assert_allclose(seq, want, atol=1e-9, rtol=0)
-    np.testing.assert_allclose(GnssNoise(2.0, 4.0, tau).errors(2, 17, 4321), want[4321], atol=1e-9, rtol=0)
-    np.testing.assert_allclose(GnssNoise(2.0, 4.0, tau).errors(2, 17, 3), want[3], atol=1e-12, rtol=0)
+    np.testing.assert_allclose(NavNoise(2.0, 4.0, tau).errors(2, 17, 4321), want[4321], atol=1e-9, rtol=0)
+    np.testing.assert_allclose(NavNoise(2.0, 4.0, tau).errors(2, 17, 3), want[3], atol=1e-12, rtol=0)
     unit = (seq / [2.0, 2.0, 4.0]).reshape(n_steps, 6)
     np.testing.assert_allclose(unit.std(0), 1.0, atol=0.06)
     for lag in (1, 5):
@@ -185,14 +185,14 @@ def test_a_correlated_gnss_error_wanders_as_a_gauss_markov_process() -> None:
         assert np.allclose(r, a ** lag, atol=0.04), (lag, r)
     assert np.abs(np.corrcoef(unit.T) - np.eye(6)).max() < 0.08  # receivers and axes independent
 
-    shared = GnssNoise(2.0, 2.0, tau, common_fraction=0.6)
+    shared = NavNoise(2.0, 2.0, tau, common_fraction=0.6)
     both = np.stack([shared.errors(2, 5, k) for k in range(n_steps)]) / 2.0
     np.testing.assert_allclose(both.std(0), 1.0, atol=0.06)
     r = [np.corrcoef(both[:, 0, i], both[:, 1, i])[0, 1] for i in range(3)]
     assert np.allclose(r, 0.6, atol=0.05), r
     lag1 = [np.corrcoef(both[:-1, 0, i], both[1:, 0, i])[0, 1] for i in range(3)]
     assert np.allclose(lag1, a, atol=0.04), lag1
-    white_shared = GnssNoise(2.0, 2.0, 0.0, common_fraction=0.6)
+    white_shared = NavNoise(2.0, 2.0, 0.0, common_fraction=0.6)
     rng = np.random.default_rng([5, 8, GNSS_STREAM])
     own, common = rng.normal(size=(2, 3)), rng.normal(size=3)
     np.testing.assert_allclose(white_shared.errors(2, 5, 8), (np.sqrt(0.4) * own + np.sqrt(0.6) * common) * 2.0,

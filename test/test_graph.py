@@ -800,17 +800,21 @@ def test_ups_locator_waits_for_the_topics_its_file_names(tmp_path: Path) -> None
 
 def test_ups_locator_line_reads_every_summary_the_bag_can_give(capsys: pytest.CaptureFixture[str]) -> None:
     """The printed locator line of up's summary: the figures; a 90th percentile past every placed zebra (a step
-    with none placed), which once ended the run before summary.json; no placed zebras recorded at all."""
+    with none placed), which once ended the run before summary.json; no placed zebras recorded at all; detections
+    placed from the drones' navigation (said; the exact poses are not)."""
     from zebra_sim_ros.cli import up
 
     base = {"frames": {}, "scores": {}, "median_ms": {}, "bag": "b.mcap", "damaged": [], "skipped": []}
     for located, want in (
             ({"frames": 9, "detections": 87, "frames_with_placed": 9, "scored": 87, "median_m": 0.42, "p90_m": 2.9,
               "within_1_m": 0.72}, "87 zebra detections placed on the map in 9 frames, 0.42 m from the nearest placed "
-                                   "zebra (median; 90th percentile 2.90 m), 72% within 1 m"),
+                                   "zebra (median; 90th percentile 2.90 m), 72% within 1 m\n"),
             ({"frames": 9, "detections": 20, "frames_with_placed": 9, "scored": 20, "median_m": 0.3, "p90_m": None,
               "within_1_m": 0.6}, "(median; 90th percentile none placed near), 60% within 1 m"),
             ({"frames": 9, "detections": 20, "frames_with_placed": 0, "scored": 0, "median_m": None, "p90_m": None,
-              "within_1_m": None}, "20 zebra detections placed on the map in 9 frames (no placed zebras in the bag")):
+              "within_1_m": None}, "20 zebra detections placed on the map in 9 frames (no placed zebras in the bag"),
+            # placed from the drones' navigation: said
+            ({"frames": 9, "detections": 87, "frames_with_placed": 9, "scored": 87, "median_m": 2.27, "p90_m": 3.6,
+              "within_1_m": 0.03, "pose": "camera/pose_nav"}, "3% within 1 m (from <drone>/camera/pose_nav)\n")):
         up._print_summary({**base, "located": located}, ())
         assert want in capsys.readouterr().out, located

@@ -122,7 +122,7 @@ def test_the_locator_places_a_cameras_detections_over_dds(tmp_path: Path) -> Non
     """Detections, depth, camera_info and pose in; Detection3DArray in map out, each detection where the geometry
     puts it; a box with no depth left out and counted; a frame before any camera_info waits for it; a depth image
     it cannot read is logged, counted and skipped. The pose is read from the topic ``pose`` names (here the
-    navigation's, camera/pose_gnss; the exact camera/pose, 100 m off here, is not read)."""
+    navigation's, camera/pose_nav; the exact camera/pose, 100 m off here, is not read)."""
     r = optical_rotation(0.0, np.radians(-90.0), 0.0)  # nadir
     position = np.array([5.0, 7.0, 40.0])
     qx, qy, qz, qw = _xyzw(r)
@@ -139,7 +139,7 @@ def test_the_locator_places_a_cameras_detections_over_dds(tmp_path: Path) -> Non
     pubs = {"det": node.create_publisher(detection_array_class(), "/drone_0/detections", 10),
             "depth": node.create_publisher(Image, "/drone_0/depth", 10),
             "info": node.create_publisher(CameraInfo, "/drone_0/camera_info", 10),
-            "pose": node.create_publisher(PoseStamped, "/drone_0/camera/pose_gnss", 10)}
+            "pose": node.create_publisher(PoseStamped, "/drone_0/camera/pose_nav", 10)}
     decoy = node.create_publisher(PoseStamped, "/drone_0/camera/pose", 10)
     log = tmp_path / "locator.log"
 
@@ -158,7 +158,7 @@ def test_the_locator_places_a_cameras_detections_over_dds(tmp_path: Path) -> Non
 
     try:
         with node_process("locator", {"drones": ["drone_0"], "diagnostics_period_s": 0.2,
-                                      "image_reliability": "reliable", "pose": "camera/pose_gnss"}, domain, log):
+                                      "image_reliability": "reliable", "pose": "camera/pose_nav"}, domain, log):
             assert peer.spin(lambda: all(node.count_subscribers(p.topic_name) for p in pubs.values())
                              and node.count_publishers("/drone_0/detections/located"), 60), log.read_text()
             # Step 1 without camera_info: it waits. Sent a few times (the same frame again to the node), as what is
@@ -312,8 +312,8 @@ def test_a_bad_locator_parameter_stops_the_node() -> None:
                       ({"output": "x/census/animals"}, "'census_output'"),
                       ({"output": "animals"}, "'census_output'"), ({"pose": "/abs"}, "'pose'"),
                       # the placer's poses are not outputs, whichever the locator reads
-                      ({"output": "camera/pose_gnss"}, "'output'"),
-                      ({"output": "camera/pose", "pose": "camera/pose_gnss"}, "'output'")):
+                      ({"output": "camera/pose_nav"}, "'output'"),
+                      ({"output": "camera/pose", "pose": "camera/pose_nav"}, "'output'")):
         with pytest.raises(ParameterError, match=name):
             LocatorConfig.from_params(bad)
     # outside a nested camera's namespace, whatever its last name

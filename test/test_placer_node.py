@@ -20,7 +20,10 @@ from std_msgs.msg import Header, String
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
-from zebra_sim_ros.geometry.geodesy import GnssNoise, geodetic_to_enu
+from zebra_sim_ros.geometry.camera import body_rotation
+from zebra_sim_ros.geometry.frames import OPTICAL_IN_BASE_XYZW, xyzw_to_matrix
+from zebra_sim_ros.geometry.geodesy import ATTITUDE_STREAM, NavNoise, geodetic_to_enu
+from zebra_sim_ros.geometry.rotations import rotvec_to_matrix
 from zebra_sim_ros.messages import Datum
 from zebra_sim_ros.nodes.ros_adapter import detection3d_array_type, message_class
 
@@ -58,11 +61,11 @@ class Listener:
                                           self.animals.append, stream)
         self.node.create_subscription(TFMessage, "/tf", self.tf.append, 100)
         self.fixes: dict[str, list[NavSatFix]] = {name: [] for name in self.poses}
-        self.gnss_poses: dict[str, list[PoseStamped]] = {name: [] for name in self.poses}
+        self.nav_poses: dict[str, list[PoseStamped]] = {name: [] for name in self.poses}
         for name in self.fixes:
             self.node.create_subscription(NavSatFix, f"/{name}/fix", lambda m, n=name: self.fixes[n].append(m), stream)
-            self.node.create_subscription(PoseStamped, f"/{name}/camera/pose_gnss",
-                                          lambda m, n=name: self.gnss_poses[n].append(m), stream)
+            self.node.create_subscription(PoseStamped, f"/{name}/camera/pose_nav",
+                                          lambda m, n=name: self.nav_poses[n].append(m), stream)
         self.ack_pub = self.node.create_publisher(Header, "/zebra_sim/frame_done", 100)
 
     def _on_scene(self, msg: String) -> None:
@@ -156,6 +159,19 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path, 
         assert tf_stamps == [(s["stamp"]["sec"], s["stamp"]["nanosec"]) for s in listener.scenes]
         assert all(sorted(t.child_frame_id for t in m.transforms) == [f"drone_{i}/base_link" for i in range(3)]
                    for m in listener.tf)
+        # each body where its camera is, turned as the camera's angles say (an independent path: Euler angles, not
+        # the scene's quaternion), and with /tf_static's base_link -> camera_optical the scene's optical frame (the
+        # body was once turned by a quaternion read in the wrong order: RViz showed every camera askew)
+        for m, s in zip(listener.tf, listener.scenes, strict=True):
+            for t in m.transforms:
+                cam = next(c for c in s["cameras"] if f"{c['name']}/base_link" == t.child_frame_id)
+                q, at = t.transform.rotation, t.transform.translation
+                body = xyzw_to_matrix((q.x, q.y, q.z, q.w))
+                want = body_rotation(*np.radians([cam["yaw_deg"], cam["pitch_deg"], cam["roll_deg"]]))
+                assert np.abs(body - want).max() < 1e-9, (cam, body, want)
+                assert np.abs(body @ xyzw_to_matrix(OPTICAL_IN_BASE_XYZW)
+                              - xyzw_to_matrix(cam["orientation_xyzw"])).max() < 1e-9
+                assert [at.x, at.y, at.z] == pytest.approx(cam["position"], abs=1e-9)
         # The node's scenes are exactly the command line's (same parameters, no ROS).
         placed = cli(["place", "--steps", "2", "--set", "count_max=40", "--set", "rate_hz=4.0", "--set",
                       "other_animals_max=6", "--seed", "9"])
@@ -171,7 +187,8 @@ def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tm
     the node ends by itself. With GNSS noise asked for (wandering, a time constant of 3 steps, half of it shared by
     the drones), each drone's fix is its camera's position moved by the error the scene's seed and step give
     (recomputed here from each scene alone: step 1's sums step 0's draws too), with that covariance, known, and its
-    camera/pose_gnss is at that fix, oriented as its exact pose."""
+    camera/pose_nav is at that fix, turned from its exact pose by the attitude error of the scene's seed and step
+    (0.5 deg of tilt, 2 deg of heading)."""
     from std_srvs.srv import Trigger
 
     listener = Listener(domain)
@@ -184,7 +201,8 @@ def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tm
         return future.result()
     try:
         params = dict(SMALL, mode="service", max_steps=2, seed=9, wait_for_subscribers=2, fix_sigma_m=2.5,
-                      fix_vertical_sigma_m=5.0, fix_correlation_s=3.0, fix_common_fraction=0.5)
+                      fix_vertical_sigma_m=5.0, fix_correlation_s=3.0, fix_common_fraction=0.5, nav_tilt_sigma_deg=0.5,
+                      nav_heading_sigma_deg=2.0)
         with node_process("placer", params, domain, tmp_path / "placer.log") as proc:
             assert listener.spin_until(client.service_is_ready, 60), (tmp_path / "placer.log").read_text()
             first = call()
@@ -207,15 +225,16 @@ def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tm
         assert [s["step"] for s in listener.scenes] == [0, 1]
         assert "published 2 steps on request; stopping" in (tmp_path / "placer.log").read_text()
         assert listener.spin_until(lambda: all(len(f) == 2 for f in (*listener.fixes.values(),
-                                                                     *listener.gnss_poses.values())), 10)
+                                                                     *listener.nav_poses.values())), 10)
         for scene in listener.scenes:
             cams = scene["cameras"]  # the draw's order: the scene's cameras
             names = [c["name"] for c in cams]
             assert sorted(names) == sorted(listener.fixes)
             datum = Datum.from_dict(scene["datum"])
             # each step alone, in a model of its own: step 1's error sums step 0's draws too
-            want, cov = GnssNoise(2.5, 5.0, correlation_steps=3.0, common_fraction=0.5).fixes(
+            want, cov = NavNoise(2.5, 5.0, correlation_steps=3.0, common_fraction=0.5).fixes(
                 [c["position"] for c in cams], datum, scene["seed"], scene["step"])
+            attitude = NavNoise(0.5, 2.0, stream=ATTITUDE_STREAM).errors(len(cams), scene["seed"], scene["step"])
             for name, cam, (lat, lon, height) in zip(names, cams, want, strict=True):
                 fix = next(f for f in listener.fixes[name] if (f.header.stamp.sec, f.header.stamp.nanosec) ==
                            (scene["stamp"]["sec"], scene["stamp"]["nanosec"]))
@@ -225,14 +244,16 @@ def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tm
                 assert list(fix.position_covariance) == pytest.approx([6.25, 0, 0, 0, 6.25, 0, 0, 0, 25.0])
                 off = geodetic_to_enu([[fix.latitude, fix.longitude, fix.altitude]], datum)[0] - cam["position"]
                 assert 1e-3 < np.linalg.norm(off) < 6 * 5.0  # moved, by a draw of these sigmas
-                # the navigation's pose: at the fix, in map (1e-6 m: the round trip through latitude), oriented as
-                # the exact one
-                nav = next(p for p in listener.gnss_poses[name] if p.header.stamp == fix.header.stamp)
-                exact = next(p for p in listener.poses[name] if p.header.stamp == fix.header.stamp)
+                # the navigation's pose: at the fix, in map (1e-6 m: the round trip through latitude), turned from
+                # the exact one by the attitude error of the scene's seed and step
+                nav = next(p for p in listener.nav_poses[name] if p.header.stamp == fix.header.stamp)
                 p, o = nav.pose.position, nav.pose.orientation
                 assert [p.x, p.y, p.z] == pytest.approx(cam["position"] + off, abs=1e-6)
-                assert (o.x, o.y, o.z, o.w) == (exact.pose.orientation.x, exact.pose.orientation.y,
-                                                exact.pose.orientation.z, exact.pose.orientation.w)
+                turn = rotvec_to_matrix(np.radians(attitude[names.index(name)]))
+                np.testing.assert_allclose(xyzw_to_matrix((o.x, o.y, o.z, o.w)),
+                                           turn @ xyzw_to_matrix(cam["orientation_xyzw"]), atol=1e-9)
+                angle = np.degrees(np.arccos(np.clip((np.trace(turn) - 1) / 2, -1, 1)))
+                assert 1e-4 < angle < 6 * 2.0  # turned, by a draw of these sigmas
                 assert nav.header.frame_id == "map"
     finally:
         listener.close()

@@ -447,7 +447,7 @@ def test_a_recorded_census_is_counted_again_from_the_bag(tmp_path: Path) -> None
 
 def test_a_locator_publishing_under_other_names_is_read_by_its_names(tmp_path: Path, cli: CliRun) -> None:
     """A locator whose file renames its outputs (``output``, ``census_output``) and places from the navigation's
-    poses (``pose``: camera/pose_gnss): ``bag census`` (``--output``, ``--census-output``, ``--pose`` on the command
+    poses (``pose``: camera/pose_nav): ``bag census`` (``--output``, ``--census-output``, ``--pose`` on the command
     line) and the run's summary read the placed detections, the census and the poses by the names given, the same
     figures as under the default names; asked by the default names, the bag census refuses naming the topic it
     looked for, and the summary has neither part."""
@@ -459,9 +459,9 @@ def test_a_locator_publishing_under_other_names_is_read_by_its_names(tmp_path: P
     rng = np.random.default_rng(8)
     herd = np.column_stack([rng.uniform(-10, 10, (10, 2)), np.full(10, 0.7)])
     views = {cam: {t * 10**9: herd[rng.permutation(10)[:8]] for t in (1, 2)} for cam in ("drone_0", "drone_1")}
-    named = LocatorConfig(output="placed", census_output="herd/count", pose="camera/pose_gnss")
+    named = LocatorConfig(output="placed", census_output="herd/count", pose="camera/pose_nav")
     renamed = _census_bag(tmp_path / "renamed.mcap", views, recorded={10**9: 9, 2 * 10**9: 7}, located="placed",
-                          census="herd/count", pose="camera/pose_gnss")
+                          census="herd/count", pose="camera/pose_nav")
     default = _census_bag(tmp_path / "default.mcap", views, recorded={10**9: 9, 2 * 10**9: 7})
     got, want = bag_census(renamed, named), bag_census(default)
     assert got["stamps_counted"] == 2 and got["recounted"] == want["recounted"] and got["recorded"] == want["recorded"]
@@ -471,7 +471,7 @@ def test_a_locator_publishing_under_other_names_is_read_by_its_names(tmp_path: P
     with pytest.raises(ParameterError, match=re.escape("poses (<drone>/camera/pose,")):
         bag_census(renamed, LocatorConfig(output="placed", census_output="herd/count"))
     run = cli(["bag", "census", str(renamed), "--output", "placed", "--census-output", "herd/count", "--pose",
-               "camera/pose_gnss", "--json"])
+               "camera/pose_nav", "--json"])
     assert run.returncode == 0, run.stderr
     assert "recorded (the locator's herd/count" in run.stdout
     assert json.loads(run.stdout.strip().splitlines()[-1])["recounted"] == want["recounted"]
@@ -479,7 +479,9 @@ def test_a_locator_publishing_under_other_names_is_read_by_its_names(tmp_path: P
     assert refused.returncode == 2 and "<drone>/detections/located" in refused.stderr
     summary, by_default = summarize_run(renamed, locator=named), summarize_run(default)
     assert summary["located"]["frames"] == 4 and summary["located"]["detections"] == 32
-    assert summary["located"] == by_default["located"] and summary["census"] == by_default["census"]
+    assert (summary["located"]["pose"], by_default["located"]["pose"]) == ("camera/pose_nav", "camera/pose")
+    assert {**summary["located"], "pose": ""} == {**by_default["located"], "pose": ""}
+    assert summary["census"] == by_default["census"]
     assert summary["census"]["animals"] == 16
     unnamed = summarize_run(renamed)
     assert "located" not in unnamed and "census" not in unnamed

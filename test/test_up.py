@@ -127,6 +127,7 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     recounted = json.loads((tmp_path / "recount.geojson").read_text())
     assert published["zebra_sim"]["datum"] == recounted["zebra_sim"]["datum"] == serengeti
     assert published["zebra_sim"]["per_class"]["zebra"] == len(recounted["features"]) == census["animals"]
+    assert published["zebra_sim"]["pose"] == recounted["zebra_sim"]["pose"] == located["pose"] == "camera/pose"
 
     def places(doc: dict[str, Any]) -> list[tuple[int, str, tuple[float, ...]]]:  # the zebras: the recount's class
         zebras = [f for f in doc["features"] if f["properties"]["class"] == "zebra"]

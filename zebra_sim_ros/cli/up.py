@@ -392,6 +392,8 @@ def _live_scores(values: dict[str, str], run: ScorerRun, steps: int) -> dict[str
 
 
 def _print_summary(r: dict[str, Any], drones: tuple[str, ...]) -> None:
+    from zebra_sim_ros.placement.config import CAMERA_POSE
+
     for d in drones:
         f = r["frames"].get(d, {})
         print(f"[up] {d}: {f.get('image_raw', 0)} images, {f.get('labels', 0)} labelled, "
@@ -412,8 +414,9 @@ def _print_summary(r: dict[str, Any], drones: tuple[str, ...]) -> None:
                      f"{loc['within_1_m']:.0%} within 1 m")
         elif not loc["frames_with_placed"]:
             where = " (no placed zebras in the bag to compare with: zebra_sim/zebras not recorded)"
+        pose = loc.get("pose", CAMERA_POSE)  # a run placed from the drones' navigation says so
         print(f"[up] locator: {loc['detections']} zebra detections placed on the map in {loc['frames']} frames"
-              f"{where}", flush=True)
+              f"{where}{f' (from <drone>/{pose})' if pose != CAMERA_POSE else ''}", flush=True)
     if cen := r.get("census"):
         from zebra_sim_ros.recording.census import census_line
 

@@ -24,7 +24,7 @@ from zebra_sim_ros.params import (
     reliability_param,
     same_as,
 )
-from zebra_sim_ros.placement.config import CAMERA_POSE, GNSS_POSE
+from zebra_sim_ros.placement.config import CAMERA_POSE, NAV_POSE
 
 NATIVE = -1  # as imgsz: each batch at its frames' own resolution (predict.native_size)
 STRIDE = 32  # the largest stride of the model: input sides must be multiples of it
@@ -156,8 +156,9 @@ class LocatorConfig(StageConfig):
                         "in map)", allowed="a topic name relative to the drone (letters, digits, _ and /)",
                         check=lambda v: bool(RELATIVE_NAME.fullmatch(v)))
     pose: str = param(CAMERA_POSE, "each camera's pose topic under it (geometry_msgs/PoseStamped of its optical frame "
-                      f"in map): {CAMERA_POSE}, the placer's exact one, or {GNSS_POSE}, at the drone's GNSS fix (the "
-                      "placer's fix_* noise), as a real flight's navigation places its camera",
+                      f"in map): {CAMERA_POSE}, the placer's exact one, or {NAV_POSE}, at the drone's GNSS fix and "
+                      "turned by its attitude error (the placer's fix_* and nav_* noise), as a real flight's "
+                      "navigation places its camera",
                       allowed="a topic name relative to the drone (letters, digits, _ and /)",
                       check=lambda v: bool(RELATIVE_NAME.fullmatch(v)))
     core: float = param(CORE, "share of each box's width and height, about its centre, whose depths place it (1: "
@@ -202,7 +203,7 @@ class LocatorConfig(StageConfig):
         """Each camera once; an output that is not an input; the census outside the cameras' namespaces."""
         if len({d.strip("/") for d in self.drones}) != len(self.drones):
             raise ParameterError("drones", list(self.drones), "each camera once")
-        inputs = tuple(dict.fromkeys((*self.inputs, "image_raw", CAMERA_POSE, GNSS_POSE, "fix")))
+        inputs = tuple(dict.fromkeys((*self.inputs, "image_raw", CAMERA_POSE, NAV_POSE, "fix")))
         if self.output in inputs:
             raise ParameterError("output", self.output, f"another topic than the camera's inputs and poses "
                                  f"{list(inputs)}")

@@ -4,7 +4,7 @@
 latitude, longitude and height above the WGS84 ellipsoid, x east, y north, z up along the ellipsoid's normal there.
 The conversions are exact (through Earth-centred, Earth-fixed coordinates; the inverse by Bowring's method,
 iterated to well under a millimetre), not a flat-Earth approximation, so a survey hundreds of kilometres wide stays
-right. :class:`GnssNoise` gives GNSS receivers' seeded errors. Pure numpy.
+right. :class:`NavNoise` gives GNSS receivers' (and the navigation's attitude) seeded errors. Pure numpy.
 """
 
 from __future__ import annotations
@@ -78,13 +78,17 @@ def geodetic_to_enu(lla: ArrayLike, datum: Datum) -> FloatArray:
 
 
 GNSS_STREAM = 0x6E55  # the fixes' noise: a stream of its own beside the placement's, drawn from (seed, step, this)
+ATTITUDE_STREAM = 0x6A77  # the navigation's attitude error: another stream of its own
 GNSS_MAX_CORRELATION_STEPS = 3600.0  # the longest time constant, in steps, whose error a step alone can recompute
 _NEGLIGIBLE = 1e-12  # a past step's draw whose weight in the error has fallen under this is left out
 
 
 @dataclass(frozen=True)
-class GnssNoise:
-    """A GNSS receiver's error on each of N receivers' fixes, as a function of (seed, step) alone: ``sigma_h_m``
+class NavNoise:
+    """A navigation sensor's error on each of N drones, per axis of ``map`` (east, north, up), as a function of
+    (seed, step) alone. For a GNSS receiver's fix (``stream`` GNSS_STREAM) the errors are metres; for the attitude
+    of the drones' navigation (ATTITUDE_STREAM) they are degrees of a small rotation about each axis (tilt about east
+    and north, heading about up). ``sigma_h_m``
     per horizontal axis and ``sigma_v_m`` up (the spread at every step), correlated in time as a first-order
     Gauss-Markov process of time constant ``correlation_steps`` steps (each axis's error ``e_k = a e_(k-1) + sqrt(1 -
     a²) w_k``, a = exp(-1 / correlation_steps), started stationary at step 0: the slow wander of a receiver's
@@ -92,7 +96,7 @@ class GnssNoise:
     shared by every receiver (the part of the atmosphere's and the satellites' error that receivers a few km apart
     see alike: the receivers' errors correlate by this; 0: independent).
 
-    The draw ``w_j`` of step j is ``numpy.random.default_rng([seed, j, GNSS_STREAM])``: N x 3 standard normals
+    The draw ``w_j`` of step j is ``numpy.random.default_rng([seed, j, stream])``: N x 3 standard normals
     (the receivers in order), then 3 for the common part where ``common_fraction`` > 0, so a white, independent
     error is those normals times the sigmas, bit for bit. A correlated error follows the recursion from one step to
     the next (one draw a step); a step reached otherwise (the first, ``start_step``, a jump) sums the draws of the
@@ -103,6 +107,7 @@ class GnssNoise:
     sigma_v_m: float = 0.0
     correlation_steps: float = 0.0
     common_fraction: float = 0.0
+    stream: int = GNSS_STREAM
     # the last error computed, unit variance: (n, seed, step, own (n, 3), common (3,) or None)
     _last: list[tuple[int, int, int, FloatArray, FloatArray | None]] = field(
         default_factory=list, repr=False, compare=False)
@@ -134,7 +139,7 @@ class GnssNoise:
         return float(np.exp(-1.0 / self.correlation_steps)) if self.correlation_steps > 0.0 else 0.0
 
     def _draw(self, n: int, seed: int, step: int) -> tuple[FloatArray, FloatArray | None]:
-        rng = np.random.default_rng([seed, step, GNSS_STREAM])
+        rng = np.random.default_rng([seed, step, self.stream])
         own = rng.normal(size=(n, 3))
         return own, (rng.normal(size=3) if self.common_fraction > 0.0 else None)
 

@@ -147,7 +147,7 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
                 out["skipped"].append(skip_note(placed_raw[t], exc))
         gaps = [nearest_distances(p, placed[t]) for (_, t), p in located.items() if t in placed]
         out["located"] = {"frames": len(located), "detections": sum(len(p) for p in located.values()),
-                          "frames_with_placed": len(gaps),
+                          "frames_with_placed": len(gaps), "pose": locator.pose,
                           **placing_figures(np.concatenate(gaps) if gaps else np.zeros(0))}
     if census:  # the zebras counted once across the drones against the distinct zebras labelled by any of them
         out["census"] = census_figures({t: len(zebra_points(a)) for t, a in census.items()}, collected.drones,
@@ -155,7 +155,8 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
         if geojson is not None:
             try:
                 out["census_geojson"] = str(write_geojson(geojson, census_geojson(
-                    census, run_datum(datums), {"source": [str(bag)], "census": "the locator's, as published"})))
+                    census, run_datum(datums), {"source": [str(bag)], "census": "the locator's, as published",
+                                                "pose": locator.pose})))
             except ParameterError as exc:  # scenes without their datum: the figures still come
                 out["census_geojson_error"] = str(exc)
             except OSError as exc:  # a full disk: the figures still come

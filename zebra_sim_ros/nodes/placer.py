@@ -10,9 +10,10 @@ the whole graph, except the conventional ``/tf``, ``/tf_static`` and ``/clock``,
   truth in 3D, for trackers and counters); ``publish_animals:=false`` leaves it out.
 - ``zebra_sim/zebras/markers`` (visualization_msgs/MarkerArray): the zebras' oriented 3D boxes.
 - ``drone_{i}/camera/pose`` (geometry_msgs/PoseStamped): pose of ``drone_{i}/camera_optical`` in ``map``.
-- ``drone_{i}/camera/pose_gnss`` (geometry_msgs/PoseStamped): the same pose as the drone's own navigation gives it:
-  at its GNSS fix's position (the fix's error, below, in ``map``), the orientation exact; what a locator that
-  places detections from a real flight's poses reads (the locator's ``pose``).
+- ``drone_{i}/camera/pose_nav`` (geometry_msgs/PoseStamped): the same pose as the drone's own navigation gives it:
+  at its GNSS fix's position (the fix's error, below, in ``map``), turned by the navigation's attitude error
+  (``nav_tilt_sigma_deg`` about east and north, ``nav_heading_sigma_deg`` about up; white, from the scene's seed and
+  step; 0: exact); what a locator that places detections from a real flight's poses reads (the locator's ``pose``).
 - ``drone_{i}/fix`` (sensor_msgs/NavSatFix): the same camera's position on the Earth (WGS84 latitude, longitude,
   height above the ellipsoid) by the scene's datum, as a drone's GNSS receiver reports it: exact, its covariance
   unknown, or with ``fix_sigma_m`` / ``fix_vertical_sigma_m`` seeded Gaussian noise (from the scene's seed and step:
@@ -50,8 +51,16 @@ from std_srvs.srv import Trigger
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
-from zebra_sim_ros.geometry.frames import OPTICAL_IN_BASE_XYZW, base_frame, body_orientation, optical_frame
+from zebra_sim_ros.geometry.frames import (
+    OPTICAL_IN_BASE_XYZW,
+    base_frame,
+    body_orientation,
+    matrix_to_xyzw,
+    optical_frame,
+    xyzw_to_matrix,
+)
 from zebra_sim_ros.geometry.geodesy import enu_to_geodetic
+from zebra_sim_ros.geometry.rotations import rotvec_to_matrix
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.nodes.ros_adapter import (
@@ -69,7 +78,7 @@ from zebra_sim_ros.nodes.ros_adapter import (
     stamp,
     stamp_ns,
 )
-from zebra_sim_ros.placement.config import CAMERA_POSE, GNSS_POSE, PLACER_PARAMS, PlacerConfig
+from zebra_sim_ros.placement.config import CAMERA_POSE, NAV_POSE, PLACER_PARAMS, PlacerConfig
 from zebra_sim_ros.placement.placer import Placer
 from zebra_sim_ros.world.world import load_world
 from zebra_sim_ros.zebra.asset import load_library
@@ -93,7 +102,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         t0 = time.perf_counter()
         world = load_world(c.world, c.terrain_prim, c.world_seed)
         self.placer = Placer(c, world, load_library())
-        self.gnss = c.gnss_noise()
+        self.gnss, self.attitude = c.gnss_noise(), c.attitude_noise()
         self.get_logger().info(
             f"world '{world.name}' ({world.source}), asset {self.placer.library.manifest['digest']}, seed {c.seed}, "
             f"strategy {c.strategy}, mode {c.mode}, ready in {time.perf_counter() - t0:.1f} s")
@@ -114,7 +123,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             self.animals_pub = self.create_publisher(message_class(self.animals_type), ANIMALS_TOPIC, stream)
         self.pose_pubs = [self.create_publisher(PoseStamped, f"{n}/{CAMERA_POSE}", poses)
                           for n in self.placer.camera_names]
-        self.gnss_pose_pubs = [self.create_publisher(PoseStamped, f"{n}/{GNSS_POSE}", poses)
+        self.nav_pose_pubs = [self.create_publisher(PoseStamped, f"{n}/{NAV_POSE}", poses)
                                for n in self.placer.camera_names]
         self.fix_pubs = [self.create_publisher(NavSatFix, f"{n}/fix", poses) for n in self.placer.camera_names]
         # Transient local, depth 1: a reader that matches late (a recorder whose /clock reader matched after its /tf
@@ -130,7 +139,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         # What wait_for_subscribers waits for. /tf too: a recorder that matched the markers but not yet /tf would
         # miss the first step's transforms. /clock is latched instead (above).
         self.outputs = [p for p in (self.scene_pub, self.animals_pub, self.marker_pub, *self.pose_pubs,
-                                    *self.gnss_pose_pubs, *self.fix_pubs, self.tf_pub) if p is not None]
+                                    *self.nav_pose_pubs, *self.fix_pubs, self.tf_pub) if p is not None]
         self.step = c.start_step
         self.published = 0
         self.resent = 0  # lockstep steps published again for want of an acknowledgement
@@ -216,20 +225,23 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         if self.animals_pub is not None:
             self.animals_pub.publish(scene_animals_msg(self.animals_type, header, scene.zebras))
         self.marker_pub.publish(self._markers(scene, header))
-        for pub, cam in zip(self.pose_pubs, scene.cameras, strict=True):
-            pub.publish(PoseStamped(header=header, pose=pose_msg(cam.position, cam.orientation_xyzw)))
         assert scene.datum is not None  # the placer's scenes always carry theirs
-        at = np.array([cam.position for cam in scene.cameras], np.float64).reshape(-1, 3)
-        at += self.gnss.errors(len(at), scene.seed, scene.step)  # where each drone's GNSS puts its camera, in map
-        for pub, cam, position in zip(self.gnss_pose_pubs, scene.cameras, at.tolist(), strict=True):
-            pub.publish(PoseStamped(header=header, pose=pose_msg(position, cam.orientation_xyzw)))
-        where, cov = enu_to_geodetic(at, scene.datum), self.gnss.covariance
+        exact = np.array([cam.position for cam in scene.cameras], np.float64).reshape(-1, 3)
+        navigated = exact + self.gnss.errors(len(exact), scene.seed, scene.step)  # where each drone's GNSS puts it
+        turned = [matrix_to_xyzw(r @ xyzw_to_matrix(cam.orientation_xyzw)) for r, cam in zip(
+            rotvec_to_matrix(np.radians(self.attitude.errors(len(exact), scene.seed, scene.step))), scene.cameras,
+            strict=True)]  # as its navigation has it turned (a small rotation about east, north and up in map)
+        where, cov = enu_to_geodetic(navigated, scene.datum), self.gnss.covariance
         kind = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN if cov.any() else NavSatFix.COVARIANCE_TYPE_UNKNOWN
         status = NavSatStatus(status=NavSatStatus.STATUS_FIX, service=NavSatStatus.SERVICE_GPS)
-        for pub, cam, (lat, lon, height) in zip(self.fix_pubs, scene.cameras, where.tolist(), strict=True):
-            pub.publish(NavSatFix(header=Header(stamp=header.stamp, frame_id=base_frame(cam.name)), status=status,
-                                  latitude=lat, longitude=lon, altitude=height,
-                                  position_covariance=cov.ravel().tolist(), position_covariance_type=kind))
+        for pose_pub, nav_pub, fix_pub, cam, nav, nav_xyzw, (lat, lon, height) in zip(
+                self.pose_pubs, self.nav_pose_pubs, self.fix_pubs, scene.cameras, navigated.tolist(), turned,
+                where.tolist(), strict=True):
+            pose_pub.publish(PoseStamped(header=header, pose=pose_msg(cam.position, cam.orientation_xyzw)))
+            nav_pub.publish(PoseStamped(header=header, pose=pose_msg(nav, nav_xyzw)))
+            fix_pub.publish(NavSatFix(header=Header(stamp=header.stamp, frame_id=base_frame(cam.name)), status=status,
+                                      latitude=lat, longitude=lon, altitude=height,
+                                      position_covariance=cov.ravel().tolist(), position_covariance_type=kind))
         self.sent_at = time.monotonic()
         self.get_logger().debug(f"step {scene.step}: {scene.placed}/{scene.requested} zebras placed")
 

@@ -14,7 +14,7 @@ from typing import Any
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import MAX_CAMERAS, Intrinsics
-from zebra_sim_ros.geometry.geodesy import GNSS_MAX_CORRELATION_STEPS, GnssNoise
+from zebra_sim_ros.geometry.geodesy import ATTITUDE_STREAM, GNSS_MAX_CORRELATION_STEPS, NavNoise
 from zebra_sim_ros.params import (
     ROS_NAME,
     ParamSpec,
@@ -30,9 +30,9 @@ from zebra_sim_ros.placement.sun import DAY_WINDOWS
 from zebra_sim_ros.zebra.skeleton import OTHER_SPECIES
 
 # the placer's poses of each camera's optical frame in map, under the camera (geometry_msgs/PoseStamped): exact,
-# and as the drone's navigation gives it (at its GNSS fix's position)
+# and as the drone's navigation gives it (at its GNSS fix's position, turned by its attitude error)
 CAMERA_POSE = "camera/pose"
-GNSS_POSE = "camera/pose_gnss"
+NAV_POSE = "camera/pose_nav"
 
 STRATEGY_CHOICES = (*STRATEGIES, "mixed", "any")
 """The placer's ``strategy`` values: one strategy for every step, or a draw per step (``mixed``: far or closeby;
@@ -164,6 +164,12 @@ class PlacerConfig(StageConfig):
     fix_common_fraction: float = param(0.0, "share of the fixes' error variance common to every drone (receivers a "
                                        "few km apart see much the same atmosphere and satellites: their errors "
                                        "correlate by this); 0: independent", lo=0.0, hi=1.0)
+    nav_tilt_sigma_deg: float = param(0.0, "standard deviation of the tilt error of each camera's navigated pose "
+                                      "(drone_{i}/camera/pose_nav, at its GNSS fix): a rotation about east and one "
+                                      "about north, drawn per step from the scene's seed and step (a gimbal's IMU: "
+                                      "about 0.1-0.5; 0: its orientation exact)", "deg", lo=0.0, hi=10.0)
+    nav_heading_sigma_deg: float = param(0.0, "the same about up: the heading's error (a magnetometer's or a "
+                                         "dual-antenna GNSS's heading: about 0.5-2)", "deg", lo=0.0, hi=30.0)
     mode: str = param("rate", "rate: publish at rate_hz; lockstep: next step when every acker acknowledged; "
                       "service: one step per call of the ~/step service (std_srvs/Trigger)",
                       choices=("rate", "lockstep", "service"))
@@ -192,10 +198,15 @@ class PlacerConfig(StageConfig):
                                              "(the scene, /clock and /tf are always reliable)")
     diagnostics_period_s: float = diagnostics_param()
 
-    def gnss_noise(self) -> GnssNoise:
+    def gnss_noise(self) -> NavNoise:
         """The drones' GNSS error that the ``fix_*`` parameters give (its time constant in steps of 1/rate_hz s)."""
-        return GnssNoise(self.fix_sigma_m, self.fix_vertical_sigma_m, self.fix_correlation_s * self.rate_hz,
-                         self.fix_common_fraction)
+        return NavNoise(self.fix_sigma_m, self.fix_vertical_sigma_m, self.fix_correlation_s * self.rate_hz,
+                        self.fix_common_fraction)
+
+    def attitude_noise(self) -> NavNoise:
+        """The drones' navigated attitude error that the ``nav_*`` parameters give: degrees about east, north and up
+        (tilt, tilt, heading), white and independent, from a stream of its own."""
+        return NavNoise(self.nav_tilt_sigma_deg, self.nav_heading_sigma_deg, stream=ATTITUDE_STREAM)
 
     def check(self) -> None:
         """Cross-parameter rules (each parameter alone was checked by its spec)."""

@@ -229,13 +229,13 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
             raise ParameterError("datum", astuple(datum), f"no datum of its own for a bag whose scenes carry one "
                                  f"({', '.join(map(str, held))}): give it only where they carry none")
         collection = census_geojson(animals, datum, {"source": bag, "census": "recounted", "rule": rule_values,
-                                                     "cameras": cameras})
+                                                     "cameras": cameras, "pose": rule.pose})
         try:
             about = {"geojson": str(write_geojson(geojson, collection)), "datum": datum.to_dict()}
         except OSError as exc:
             why = exc.strerror or exc
             raise ParameterError("geojson", str(geojson), f"a file that can be written ({why})") from exc
-    return {**about, "rule": rule_values, "cameras": cameras,
+    return {**about, "rule": rule_values, "cameras": cameras, "pose": rule.pose,
             "stamps_placed": len({t for _, t in located}), "stamps_counted": len(counts),
             "recounted": census_figures(counts, collected.drones, zebras),
             "recorded": census_figures(both, collected.drones, zebras) if recorded else None,
