@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import cv2
+import numpy as np
 import pytest
 import yaml
 from cli_helpers import CliRun
@@ -215,12 +216,15 @@ def _check_time_base_tf_and_typed_detections(bag: Path, steps: int) -> None:
     per step (map -> drone_i/base_link) and /tf_static base_link -> camera_optical, typed detections, the placed
     animals' typed 3D boxes once per step, and every
     message's log time equal to its header stamp, but for /diagnostics: logged at the recorder's (simulated) clock
-    whatever clock its reporter stamped it with (the test's own reporter runs on wall time)."""
+    whatever clock its reporter stamped it with (the test's own reporter runs on wall time). A camera's /tf body
+    composed with its /tf_static link is its recorded camera/pose, position and orientation."""
     from rosbags.highlevel import AnyReader
 
+    from zebra_sim_ros.geometry.frames import xyzw_to_matrix
     from zebra_sim_ros.recording.stamps import REPORT_TYPES
 
     clocks, tf, static, stamped, detections, reports, animals = [], [], [], 0, 0, [], []
+    poses: dict[tuple[str, int], Any] = {}
     reporters: set[str] = set()
     with AnyReader([bag]) as reader:
         for conn, t, raw in reader.messages():
@@ -231,6 +235,8 @@ def _check_time_base_tf_and_typed_detections(bag: Path, steps: int) -> None:
             elif conn.topic in ("/tf", "/tf_static"):
                 assert conn.msgtype == "tf2_msgs/msg/TFMessage"
                 (tf if conn.topic == "/tf" else static).append((t, msg))
+            elif conn.topic.endswith("/camera/pose"):
+                poses[(conn.topic.split("/")[1], t)] = msg.pose
             elif conn.topic == "/zebra_sim/zebras":  # the placed animals, typed, in map
                 assert conn.msgtype.endswith("/msg/Detection3DArray"), conn.msgtype
                 animals.append(msg)
@@ -261,6 +267,18 @@ def _check_time_base_tf_and_typed_detections(bag: Path, steps: int) -> None:
                all(x.header.frame_id == "map" for x in m.transforms) for _, m in tf)
     links = {(x.header.frame_id, x.child_frame_id) for _, m in static for x in m.transforms}
     assert links == {(f"{d}/base_link", f"{d}/camera_optical") for d in DRONES}
+
+    def rotation(q: Any) -> np.ndarray:
+        return xyzw_to_matrix((q.x, q.y, q.z, q.w))
+
+    link = {x.header.frame_id.split("/")[0]: rotation(x.transform.rotation) for _, m in static for x in m.transforms}
+    for t, m in tf:  # map -> base_link -> camera_optical is the camera's pose
+        for x in m.transforms:
+            drone = x.child_frame_id.split("/")[0]
+            pose = poses[(drone, t)]
+            at = x.transform.translation
+            assert [at.x, at.y, at.z] == pytest.approx([pose.position.x, pose.position.y, pose.position.z], abs=1e-9)
+            assert np.abs(rotation(x.transform.rotation) @ link[drone] - rotation(pose.orientation)).max() < 1e-9
     assert detections == steps * len(DRONES) and stamped > 20
     assert len(animals) == steps and all(m.header.frame_id == "map" and m.detections for m in animals)
     zebras = [d for m in animals for d in m.detections if d.results[0].hypothesis.class_id == "zebra"]
