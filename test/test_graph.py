@@ -746,6 +746,34 @@ def test_up_options_reach_its_graph_and_the_scorer_report_reads_back(tmp_path: P
     assert not up._live_scores({}, up.ScorerRun(300, 1.0, 3, 0.25), 0)["complete"]  # no step at all
 
 
+def test_up_sets_a_nodes_parameters_for_one_run() -> None:
+    """``up --set NODE.NAME=VALUE``: the value (YAML) goes to that node's overrides (every camera's for camera),
+    and the graph follows it (a locator set to place from the navigated poses subscribes those, and up waits for
+    them); a parameter up sets itself, a node the graph does not run, a name the node does not declare, a value out
+    of its range and a malformed item are each refused by name before anything starts."""
+    from zebra_sim_ros.cli.up import parse_sets
+
+    sets = parse_sets(["placer.fix_sigma_m=2.5", "placer.nav_heading_sigma_deg=1", "locator.pose=camera/pose_nav",
+                       "camera.jpeg_quality=80"])
+    assert sets == (("placer", "fix_sigma_m", 2.5), ("placer", "nav_heading_sigma_deg", 1),
+                    ("locator", "pose", "camera/pose_nav"), ("camera", "jpeg_quality", 80))
+    nodes = {s.name: s for s in UpConfig(locate=True, sets=sets).check()}
+    assert nodes["placer"].overrides["fix_sigma_m"] == 2.5 and nodes["placer"].overrides["mode"] == "lockstep"
+    assert all(nodes[f"drone_{i}_camera"].overrides["jpeg_quality"] == 80 for i in range(3))
+    assert "/drone_1/camera/pose_nav" in nodes["locator"].subscribes
+    assert "/drone_1/camera/pose" not in nodes["locator"].subscribes
+    assert "fix_sigma_m" not in {s.name: s for s in graph_spec(UpConfig(locate=True))}["placer"].overrides
+    for bad, needle in ((["placer.mode=rate"], "'--set' = 'placer.mode=rate' is invalid: allowed a parameter up "
+                                               "does not set itself"),
+                        (["locator.pose=camera/pose_nav"], "a node this graph runs"),  # no --locate
+                        (["placer.fix_sigma=2"], "'fix_sigma'"),
+                        (["placer.fix_sigma_m=-1"], "'fix_sigma_m' = -1"),
+                        (["fix_sigma_m=2"], "NODE.NAME=VALUE"), (["placer.fix_sigma_m"], "NODE.NAME=VALUE"),
+                        (["placer.fix_sigma_m=[1"], "a YAML value")):
+        with pytest.raises(ParameterError, match=re.escape(needle)):
+            UpConfig(sets=parse_sets(bad)).check()
+
+
 def test_ups_locator_waits_for_the_topics_its_file_names(tmp_path: Path) -> None:
     """A config folder whose locator.yaml renames the locator's input and outputs, or switches its census off: the
     graph's locator publishes and subscribes what its file names, so up waits for those topics, the recorder

@@ -74,6 +74,10 @@ def register(sub: Any) -> None:
                    "scorer node's)")
     p.add_argument("--no-score", action="store_true", help="run without the scorer node (its live figures on "
                    "/diagnostics); the bag is still scored at the end")
+    p.add_argument("--set", action="append", default=[], metavar="NODE.NAME=VALUE",
+                   help="set a node's parameter for this run over its file (a YAML value; repeatable), e.g. --set "
+                        "placer.fix_sigma_m=2.5 --set locator.pose=camera/pose_nav; camera.NAME sets every camera's; "
+                        "a parameter up sets itself is refused")
     p.add_argument("--locate", action="store_true", help="also run the locator node: each drone's detections placed "
                    "on the map (<drone>/detections/located, Detection3DArray in map) and each step's zebras counted "
                    "once across the drones (census/animals), scored at the end against the placed and the labelled "
@@ -132,7 +136,7 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     env = _graph_environment(conf, args.domain_id)
     load_library()  # build the zebra cache once here, not in every node at the same time
     result: dict[str, Any] = {"out": str(out), "config": str(conf), "frames_asked": cfg.frames, "exit_code": 0,
-                              "detect_imgsz": detect_imgsz}
+                              "detect_imgsz": detect_imgsz, "sets": [f"{e}.{n}={v}" for e, n, v in cfg.sets]}
     if view is not None:
         try:
             result["rviz"] = str(write_rviz(view, out / RVIZ_FILE))
@@ -196,6 +200,24 @@ def _recorder_report(log: Path) -> dict[str, Any]:
     return out
 
 
+def parse_sets(items: Sequence[str]) -> tuple[tuple[str, str, Any], ...]:
+    """``--set NODE.NAME=VALUE`` items as (node's executable, parameter, YAML value); a malformed one is named."""
+    import yaml
+
+    out = []
+    for item in items:
+        key, eq, raw = item.partition("=")
+        node, dot, name = key.strip().partition(".")
+        if not (eq and dot and node and name):
+            raise ParameterError("--set", item, "NODE.NAME=VALUE, e.g. placer.fix_sigma_m=2.5")
+        try:
+            value = yaml.safe_load(raw)
+        except yaml.YAMLError as exc:
+            raise ParameterError("--set", item, f"a YAML value after '=' ({exc.__class__.__name__})") from None
+        out.append((node, name.strip(), value))
+    return tuple(out)
+
+
 def _up_config(args: argparse.Namespace) -> tuple[UpConfig, list[NodeSpec]]:
     """The run's :class:`~zebra_sim_ros.graph.spec.UpConfig` from the options, checked (``ParameterError``), and its
     graph's nodes."""
@@ -206,7 +228,8 @@ def _up_config(args: argparse.Namespace) -> tuple[UpConfig, list[NodeSpec]]:
                    height=h, weights=args.weights, device=args.device, detect_scale=args.scale, detect_amp=args.amp,
                    strategy=args.strategy, config_dir=args.config, ready_timeout_s=args.ready_timeout,
                    step_timeout_s=args.step_timeout, record=not args.no_record, score=not args.no_score,
-                   namespace=args.namespace, verifier=args.verifier, bag_images=args.bag_images, locate=args.locate)
+                   namespace=args.namespace, verifier=args.verifier, bag_images=args.bag_images, locate=args.locate,
+                   sets=parse_sets(args.set))
     specs = cfg.check()
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         raise ParameterError("--domain-id", args.domain_id, "0..232 (ROS_DOMAIN_ID)")

@@ -153,6 +153,9 @@ class UpConfig:
     detect_amp: str = "off"  # the detector's ``amp``: its features in mixed precision (bf16: 1.7x on AVX512-BF16)
     verifier: str = ""  # the detector's crop verifier ("" off, "shipped" or a path): for photographs, off by default
     namespace: str = ""  # the graph's namespace ("" = the root): every topic moves under it
+    # (executable, parameter, value): a node's parameter set for this run over its file (``up --set``); every
+    # camera's for "camera"; a parameter up sets itself cannot be (its lockstep, topics and sizes)
+    sets: tuple[tuple[str, str, Any], ...] = ()
 
     def check(self) -> list[NodeSpec]:
         """Raise :class:`ParameterError` naming the first bad setting; the graph's nodes (:func:`graph_spec`), each
@@ -179,6 +182,11 @@ class UpConfig:
 
         check_world_source(self.world)
         nodes = graph_spec(self)
+        running = sorted({n.executable for n in nodes})
+        for executable, name, value in self.sets:
+            if executable not in running:
+                raise ParameterError("--set", f"{executable}.{name}={value}", f"NODE.NAME=VALUE of a node this graph "
+                                     f"runs ({', '.join(running)})")
         for node in nodes:  # each node's own rules, before any process starts
             validate(NODE_PARAMS[node.executable], node.overrides)
         return nodes
@@ -277,49 +285,61 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
     sim = {"use_sim_time": True}
     drones = cfg.drone_names
     nodes: list[NodeSpec] = []
+
+    def own(executable: str, ups: dict[str, Any]) -> dict[str, Any]:
+        """``ups`` (what up sets) with the run's ``--set`` values of ``executable``; one of up's own refused."""
+        mine = {name: value for exe, name, value in cfg.sets if exe == executable}
+        if clash := sorted(set(mine) & set(ups)):
+            raise ParameterError("--set", f"{executable}.{clash[0]}={mine[clash[0]]}", f"a parameter up does not set "
+                                 f"itself (it sets the {executable}'s {', '.join(sorted(ups))})")
+        return {**ups, **mine}
+
     # what the recorder leaves out (up waits for the rest); its file is read only where a recorder runs
     excludes = recorder_excludes(config_dir(cfg.config_dir), cfg.bag_images, f"{ns}/recorder") if cfg.record else ""
     camera_bag, recorder_bag = bag_image_overrides(cfg.bag_images, excludes)
     for i, d in enumerate(drones):
         nodes.append(NodeSpec("camera", f"{d}_camera", ns, "camera.yaml",
-                              {"drone_index": i, "width": cfg.width, "height": cfg.height, "ack": False, **camera_bag,
-                               **sim},
+                              own("camera", {"drone_index": i, "width": cfg.width, "height": cfg.height, "ack": False,
+                                             **camera_bag, **sim}),
                               tuple(f"{ns}/{d}/{t}" for t in CAMERA_TOPICS)
                               + ((f"{ns}/{d}/image_raw/compressed",) if cfg.bag_images != "raw" else ()), remaps))
     # The graph's own cameras publish reliably and lockstep waits for every frame: subscribe reliably too.
     nodes.append(NodeSpec("labeller", "labeller", ns, "labeller.yaml",
-                          {"drones": list(drones), "ack_name": "labeller", "image_reliability": "reliable", **sim},
+                          own("labeller", {"drones": list(drones), "ack_name": "labeller",
+                                           "image_reliability": "reliable", **sim}),
                           tuple(f"{ns}/{d}/{t}" for d in drones for t in LABELLER_TOPICS), remaps))
     # scale 0: the detector sizes the cameras' frames by the checkpoint's rule (far zebras are a few pixels tall).
     det = {"image_topics": [f"{d}/image_raw" for d in drones], "ack_name": "detector",
            "weights": str(Path(cfg.weights).resolve()) if cfg.weights else "", "device": cfg.device,
            "scale": cfg.detect_scale, "amp": cfg.detect_amp, "image_reliability": "reliable",
            "verifier": cfg.verifier if cfg.verifier in ("", "shipped") else str(Path(cfg.verifier).resolve()), **sim}
-    nodes.append(NodeSpec("detector", "detector", ns, "detector.yaml", det,
+    nodes.append(NodeSpec("detector", "detector", ns, "detector.yaml", own("detector", det),
                           tuple(f"{ns}/{d}/{t}" for d in drones for t in DETECTOR_TOPICS), remaps))
     if cfg.locate:  # every frame placed: subscribed before the first step; its topics as its file names them
-        loc = {"drones": list(drones), "image_reliability": "reliable", "pose_transient_local": True, **sim}
+        loc = own("locator", {"drones": list(drones), "image_reliability": "reliable", "pose_transient_local": True,
+                              **sim})
         located = node_config(config_dir(cfg.config_dir), "locator.yaml", f"{ns}/locator", loc, LocatorConfig)
         nodes.append(NodeSpec("locator", "locator", ns, "locator.yaml", loc,
                               tuple(f"{ns}/{d}/{located.output}" for d in drones)
                               + tuple(f"{ns}{t}" for t in census_topics(located)), remaps,
                               tuple(f"{ns}/{d}/{t}" for d in drones for t in located.inputs)))
     if cfg.score:  # every frame scored: subscribed before the first step
-        nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml", {"drones": list(drones), **sim}, (), remaps,
+        nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml", own("scorer", {"drones": list(drones), **sim}),
+                              (), remaps,
                               tuple(f"{ns}/{d}/{t}" for d in drones for t in ("labels", "detections"))))
     if cfg.record:
         rec = {"output": str(cfg.bag_path.resolve()), **recorder_bag, **sim}
         if ns:  # this graph's topics only, not another graph's on the same domain
             rec["topic_regex"] = f"^{ns}/"
-        nodes.append(NodeSpec("recorder", "recorder", ns, "recorder.yaml", rec, (), remaps,
+        nodes.append(NodeSpec("recorder", "recorder", ns, "recorder.yaml", own("recorder", rec), (), remaps,
                               tuple(t for n in nodes for t in n.publishes
                                     if not (excludes and re.search(excludes, t)))))
-    nodes.append(NodeSpec("placer", "placer", ns, "placer.yaml", {
+    nodes.append(NodeSpec("placer", "placer", ns, "placer.yaml", own("placer", {
         "world": cfg.world, "seed": cfg.seed, "strategy": cfg.strategy, "num_cameras": cfg.drones, "mode": "lockstep",
         "max_steps": cfg.frames, "lockstep_ack_from": ["labeller", "detector"],
         "lockstep_timeout_s": cfg.step_timeout_s,
         "camera_width": cfg.width, "camera_height": cfg.height, "wait_for_subscribers": 1 if cfg.record else 0,
-        "wait_for_nodes": ["recorder"] if cfg.record else [""]},
+        "wait_for_nodes": ["recorder"] if cfg.record else [""]}),
         tuple(f"{ns}/{t}" for t in (*PLACER_TOPICS, *(f"{d}/{c}" for d in drones for c in PLACER_CAMERA_TOPICS)))
         + tuple(f"{ns}{t}" for t in GLOBAL_TOPICS), remaps))
     return nodes
