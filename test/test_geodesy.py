@@ -3,11 +3,14 @@ curvature) and against each other, everywhere on the Earth; the placer's datum p
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.geodesy import (
+    ATTITUDE_STREAM,
     GNSS_MAX_CORRELATION_STEPS,
     GNSS_STREAM,
     WGS84_A,
@@ -148,7 +151,7 @@ def test_gnss_fixes_are_seeded_gaussian_about_the_points_with_their_covariance()
                       ((1.0, 1.0, 0.0, 1.5), "common_fraction 1.5")):
         with pytest.raises(ValueError, match=what):
             NavNoise(*bad)
-    with pytest.raises(ValueError, match="GNSS step -1"):
+    with pytest.raises(ValueError, match="step -1"):
         noise.errors(2, 9, -1)
 
 
@@ -192,6 +195,10 @@ def test_a_correlated_gnss_error_wanders_as_a_gauss_markov_process() -> None:
     assert np.allclose(r, 0.6, atol=0.05), r
     lag1 = [np.corrcoef(both[:-1, 0, i], both[1:, 0, i])[0, 1] for i in range(3)]
     assert np.allclose(lag1, a, atol=0.04), lag1
+    np.testing.assert_allclose(NavNoise(2.0, 2.0, tau, common_fraction=0.6).errors(2, 5, 4321) / 2.0, both[4321],
+                               atol=1e-9, rtol=0)  # alone, past the truncation, as in order
+    copied = replace(shared, stream=ATTITUDE_STREAM)  # a copy keeps nothing of the original's last step
+    assert not copied._last and np.abs(copied.errors(2, 5, n_steps - 1) / 2.0 - both[-1]).max() > 0.01
     white_shared = NavNoise(2.0, 2.0, 0.0, common_fraction=0.6)
     rng = np.random.default_rng([5, 8, GNSS_STREAM])
     own, common = rng.normal(size=(2, 3)), rng.normal(size=3)
@@ -208,5 +215,8 @@ def test_the_placer_names_a_correlation_too_long_for_its_rate() -> None:
         pytest.approx((1.0, 0.0, 3600.0, 0.5))
     with pytest.raises(ParameterError, match=r"fix_correlation_s.*<= 360 s at rate_hz 10"):
         PlacerConfig.from_params({"fix_correlation_s": 361.0, "rate_hz": 10.0})
+    # the bound itself, whatever the rounding of seconds times rate: accepted, and no more than 3600 steps
+    at_bound = PlacerConfig.from_params({"fix_correlation_s": 3600.0 / 7.0, "rate_hz": 7.0}).gnss_noise()
+    assert at_bound.correlation_steps == pytest.approx(3600.0, abs=1e-9) and at_bound.correlation_steps <= 3600.0
     with pytest.raises(ParameterError, match="fix_common_fraction"):
         PlacerConfig.from_params({"fix_common_fraction": 1.2})

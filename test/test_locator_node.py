@@ -313,7 +313,10 @@ def test_a_bad_locator_parameter_stops_the_node() -> None:
                       ({"output": "animals"}, "'census_output'"), ({"pose": "/abs"}, "'pose'"),
                       # the placer's poses are not outputs, whichever the locator reads
                       ({"output": "camera/pose_nav"}, "'output'"),
-                      ({"output": "camera/pose", "pose": "camera/pose_nav"}, "'output'")):
+                      ({"output": "camera/pose", "pose": "camera/pose_nav"}, "'output'"),
+                      # a pose read from a topic of another type would never complete a frame
+                      ({"pose": "depth"}, "'pose' = 'depth'"), ({"pose": "fix"}, "'pose'"),
+                      ({"pose": "dets", "detections": "dets"}, "'pose'")):
         with pytest.raises(ParameterError, match=name):
             LocatorConfig.from_params(bad)
     # outside a nested camera's namespace, whatever its last name

@@ -109,6 +109,11 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path, 
                 assert pose.header.frame_id == "map"
                 assert pose.pose.position.x == pytest.approx(cam["position"][0])
                 assert pose.pose.orientation.w == pytest.approx(cam["orientation_xyzw"][3])
+        # without navigation errors asked for, the navigated pose is the exact one, bit for bit
+        assert listener.spin_until(lambda: all(len(p) >= 5 for p in listener.nav_poses.values()), 10)
+        for name, navs in listener.nav_poses.items():
+            exact = {(p.header.stamp.sec, p.header.stamp.nanosec): p.pose for p in listener.poses[name]}
+            assert all(n.pose == exact[(n.header.stamp.sec, n.header.stamp.nanosec)] for n in navs)
         # each camera on the Earth: its NavSatFix, converted back by the scene's datum, is its position in map
         datum = Datum.from_dict(listener.scenes[0]["datum"])
         assert datum == Datum(-2.3, 34.8, 1550.0)  # the placer's defaults

@@ -203,6 +203,10 @@ class LocatorConfig(StageConfig):
         """Each camera once; an output that is not an input; the census outside the cameras' namespaces."""
         if len({d.strip("/") for d in self.drones}) != len(self.drones):
             raise ParameterError("drones", list(self.drones), "each camera once")
+        others = (self.detections, "depth", "camera_info", "image_raw", "fix")
+        if self.pose in others:  # a topic of another type: no frame would ever be complete
+            raise ParameterError("pose", self.pose, f"a pose topic, not one of the camera's other topics "
+                                 f"{list(others)}")
         inputs = tuple(dict.fromkeys((*self.inputs, "image_raw", CAMERA_POSE, NAV_POSE, "fix")))
         if self.output in inputs:
             raise ParameterError("output", self.output, f"another topic than the camera's inputs and poses "

@@ -100,8 +100,9 @@ class NavNoise:
     (the receivers in order), then 3 for the common part where ``common_fraction`` > 0, so a white, independent
     error is those normals times the sigmas, bit for bit. A correlated error follows the recursion from one step to
     the next (one draw a step); a step reached otherwise (the first, ``start_step``, a jump) sums the draws of the
-    steps whose weight ``a^(k-j)`` is 1e-12 or more (at most 28 time constants of them), so a step's fixes are the
-    same, to 1e-12 of the sigmas, whether it is reached from step 0 or computed alone."""
+    steps whose weight ``a^(k-j)`` is 1e-12 or more (at most 28 time constants of them: 2.6 s of draws at the bound
+    of 3,600 steps, once), so a step's errors are the same, to about 1e-12 of the sigmas, whether it is reached from
+    step 0 or computed alone."""
 
     sigma_h_m: float = 0.0
     sigma_v_m: float = 0.0
@@ -110,17 +111,19 @@ class NavNoise:
     stream: int = GNSS_STREAM
     # the last error computed, unit variance: (n, seed, step, own (n, 3), common (3,) or None)
     _last: list[tuple[int, int, int, FloatArray, FloatArray | None]] = field(
-        default_factory=list, repr=False, compare=False)
+        default_factory=list, init=False, repr=False, compare=False)  # a copy (dataclasses.replace) starts its own
 
     def __post_init__(self) -> None:
         s_h, s_v = self.sigma_h_m, self.sigma_v_m
+        what = "GNSS" if self.stream == GNSS_STREAM else "attitude" if self.stream == ATTITUDE_STREAM else "error"
         if not (np.isfinite(s_h) and np.isfinite(s_v) and s_h >= 0.0 and s_v >= 0.0):
-            raise ValueError(f"GNSS sigmas ({s_h!r}, {s_v!r}) m: want finite values >= 0")
+            unit = "deg" if self.stream == ATTITUDE_STREAM else "m"
+            raise ValueError(f"{what} sigmas ({s_h!r}, {s_v!r}) {unit}: want finite values >= 0")
         if not 0.0 <= self.correlation_steps <= GNSS_MAX_CORRELATION_STEPS:  # NaN fails both
-            raise ValueError(f"GNSS correlation_steps {self.correlation_steps!r}: want 0 (white) .. "
+            raise ValueError(f"{what} correlation_steps {self.correlation_steps!r}: want 0 (white) .. "
                              f"{GNSS_MAX_CORRELATION_STEPS:g} steps")
         if not 0.0 <= self.common_fraction <= 1.0:
-            raise ValueError(f"GNSS common_fraction {self.common_fraction!r}: want 0..1")
+            raise ValueError(f"{what} common_fraction {self.common_fraction!r}: want 0..1")
 
     @property
     def sigmas(self) -> FloatArray:
@@ -162,7 +165,7 @@ class NavNoise:
         """(n, 3) east, north, up errors (m) of n receivers' fixes at ``step`` of a run seeded ``seed``: zeros,
         with nothing drawn, when both sigmas are 0."""
         if step < 0:
-            raise ValueError(f"GNSS step {step!r}: want >= 0")
+            raise ValueError(f"step {step!r}: want >= 0")
         if not self.sigmas.any():
             return np.zeros((n, 3))
         a = self.a

@@ -2,8 +2,9 @@
 
 Subscribes, per camera in ``drones``, ``<drone>/<detections>`` (the detector's Detection2DArray),
 ``<drone>/depth`` (metres along the optical axis: 32FC1, or 16UC1 in millimetres, as REP 118 has them),
-``<drone>/camera_info`` and ``<drone>/camera/pose`` (the optical frame's pose in ``map``, from the placer or a
-drone's own localisation); matches them by stamp, exactly (the image's: a pose source must stamp a pose per image,
+``<drone>/camera_info`` and ``<drone>/<pose>`` (the optical frame's pose in ``map``: ``camera/pose``, the placer's
+exact one, ``camera/pose_nav``, the placer's as the drone's navigation gives it, or a drone's own localisation);
+matches them by stamp, exactly (the image's: a pose source must stamp a pose per image,
 as the placer does; a stamp whose inputs do not all arrive before ``sync_window`` other stamps have arrived after
 it is dropped and counted; the latest camera_info serves every frame, its size the depth image's) and publishes,
 with the image's stamp:

@@ -228,9 +228,11 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         assert scene.datum is not None  # the placer's scenes always carry theirs
         exact = np.array([cam.position for cam in scene.cameras], np.float64).reshape(-1, 3)
         navigated = exact + self.gnss.errors(len(exact), scene.seed, scene.step)  # where each drone's GNSS puts it
-        turned = [matrix_to_xyzw(r @ xyzw_to_matrix(cam.orientation_xyzw)) for r, cam in zip(
-            rotvec_to_matrix(np.radians(self.attitude.errors(len(exact), scene.seed, scene.step))), scene.cameras,
-            strict=True)]  # as its navigation has it turned (a small rotation about east, north and up in map)
+        turned = [cam.orientation_xyzw for cam in scene.cameras]  # exact without an attitude error, bit for bit
+        if self.attitude.sigmas.any():  # as its navigation has it turned (a small rotation about east, north and up)
+            turned = [matrix_to_xyzw(r @ xyzw_to_matrix(q)) for r, q in zip(
+                rotvec_to_matrix(np.radians(self.attitude.errors(len(exact), scene.seed, scene.step))), turned,
+                strict=True)]
         where, cov = enu_to_geodetic(navigated, scene.datum), self.gnss.covariance
         kind = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN if cov.any() else NavSatFix.COVARIANCE_TYPE_UNKNOWN
         status = NavSatStatus(status=NavSatStatus.STATUS_FIX, service=NavSatStatus.SERVICE_GPS)

@@ -168,8 +168,8 @@ class PlacerConfig(StageConfig):
                                       "(drone_{i}/camera/pose_nav, at its GNSS fix): a rotation about east and one "
                                       "about north, drawn per step from the scene's seed and step (a gimbal's IMU: "
                                       "about 0.1-0.5; 0: its orientation exact)", "deg", lo=0.0, hi=10.0)
-    nav_heading_sigma_deg: float = param(0.0, "the same about up: the heading's error (a magnetometer's or a "
-                                         "dual-antenna GNSS's heading: about 0.5-2)", "deg", lo=0.0, hi=30.0)
+    nav_heading_sigma_deg: float = param(0.0, "the same about up: the heading's error (a magnetometer's: about "
+                                         "0.5-2; a dual-antenna GNSS's: about 0.1-0.2)", "deg", lo=0.0, hi=30.0)
     mode: str = param("rate", "rate: publish at rate_hz; lockstep: next step when every acker acknowledged; "
                       "service: one step per call of the ~/step service (std_srvs/Trigger)",
                       choices=("rate", "lockstep", "service"))
@@ -200,8 +200,8 @@ class PlacerConfig(StageConfig):
 
     def gnss_noise(self) -> NavNoise:
         """The drones' GNSS error that the ``fix_*`` parameters give (its time constant in steps of 1/rate_hz s)."""
-        return NavNoise(self.fix_sigma_m, self.fix_vertical_sigma_m, self.fix_correlation_s * self.rate_hz,
-                        self.fix_common_fraction)
+        steps = min(self.fix_correlation_s * self.rate_hz, GNSS_MAX_CORRELATION_STEPS)  # check() allows a rounding
+        return NavNoise(self.fix_sigma_m, self.fix_vertical_sigma_m, steps, self.fix_common_fraction)
 
     def attitude_noise(self) -> NavNoise:
         """The drones' navigated attitude error that the ``nav_*`` parameters give: degrees about east, north and up
@@ -227,7 +227,7 @@ class PlacerConfig(StageConfig):
                 raise ParameterError(lo_name, getattr(self, lo_name), f"<= {hi_name} ({getattr(self, hi_name)})")
         if self.day_start_h >= self.day_end_h:
             raise ParameterError("day_start_h", self.day_start_h, f"< day_end_h ({self.day_end_h})")
-        if self.fix_correlation_s * self.rate_hz > GNSS_MAX_CORRELATION_STEPS:
+        if self.fix_correlation_s * self.rate_hz > GNSS_MAX_CORRELATION_STEPS * (1.0 + 1e-9):  # the bound itself ok
             raise ParameterError("fix_correlation_s", self.fix_correlation_s,
                                  f"<= {GNSS_MAX_CORRELATION_STEPS / self.rate_hz:g} s at rate_hz {self.rate_hz:g} "
                                  f"({GNSS_MAX_CORRELATION_STEPS:g} steps: a step alone sums about 28 time "
