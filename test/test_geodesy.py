@@ -215,6 +215,10 @@ def test_the_placer_names_a_correlation_too_long_for_its_rate() -> None:
         pytest.approx((1.0, 0.0, 3600.0, 0.5))
     with pytest.raises(ParameterError, match=r"fix_correlation_s.*<= 360 s at rate_hz 10"):
         PlacerConfig.from_params({"fix_correlation_s": 361.0, "rate_hz": 10.0})
+    assert ok.navigation_text() == "GNSS 1 m horizontal, 0 m up, wandering over 360 s, 50% common to the drones"
+    assert PlacerConfig.from_params({"nav_heading_sigma_deg": 0.5}).navigation_text() == (
+        "attitude 0 deg tilt, 0.5 deg heading")
+    assert PlacerConfig().navigation_text() == "exact"
     # the bound itself, whatever the rounding of seconds times rate: accepted, and no more than 3600 steps
     at_bound = PlacerConfig.from_params({"fix_correlation_s": 3600.0 / 7.0, "rate_hz": 7.0}).gnss_noise()
     assert at_bound.correlation_steps == pytest.approx(3600.0, abs=1e-9) and at_bound.correlation_steps <= 3600.0

@@ -85,7 +85,7 @@ def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
                               10), health
         last = health["placer: placer"][-1]
         assert last["level"] == 0 and last["message"] == f"done: {STEPS} steps", last
-        assert last["values"]["steps"] == str(STEPS)
+        assert last["values"]["steps"] == str(STEPS) and last["values"]["navigation"] == "exact"
         assert all(s["level"] == 0 for n in ("labeller: labeller", "drone_1_camera: camera")
                    for s in health[n]), health  # nothing skipped, nothing unmatched
         assert {s["hardware_id"] for s in health["drone_1_camera: camera"]} == {"drone_1"}

@@ -343,7 +343,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
                        f"{', '.join(missing)} to acknowledge")
         return Activity({"steps": self.published, "resent": self.resent}, "steps", ("resent",), waiting=waiting,
                         info={"world": c.world, "seed": str(c.seed), "strategy": c.strategy, "mode": c.mode,
-                              "next step": str(self.step)})
+                              "next step": str(self.step), "navigation": c.navigation_text()})
 
 
 def _transform(header: Header, child: str, xyz: tuple[float, float, float],

@@ -208,6 +208,20 @@ class PlacerConfig(StageConfig):
         (tilt, tilt, heading), white and independent, from a stream of its own."""
         return NavNoise(self.nav_tilt_sigma_deg, self.nav_heading_sigma_deg, stream=ATTITUDE_STREAM)
 
+    def navigation_text(self) -> str:
+        """The navigation errors asked for, in words (its diagnostics): "exact" without any."""
+        parts = []
+        if self.fix_sigma_m or self.fix_vertical_sigma_m:
+            gnss = f"GNSS {self.fix_sigma_m:g} m horizontal, {self.fix_vertical_sigma_m:g} m up"
+            if self.fix_correlation_s:
+                gnss += f", wandering over {self.fix_correlation_s:g} s"
+            if self.fix_common_fraction:
+                gnss += f", {self.fix_common_fraction:.0%} common to the drones"
+            parts.append(gnss)
+        if self.nav_tilt_sigma_deg or self.nav_heading_sigma_deg:
+            parts.append(f"attitude {self.nav_tilt_sigma_deg:g} deg tilt, {self.nav_heading_sigma_deg:g} deg heading")
+        return "; ".join(parts) or "exact"
+
     def check(self) -> None:
         """Cross-parameter rules (each parameter alone was checked by its spec)."""
         if self.count_max > self.pool_size:
