@@ -1,5 +1,5 @@
 """Shared fixtures: the zebra library in a private cache folder for the session (linked from the default cache);
-``zebra-sim`` run in the test's own process."""
+``zebra-sim`` run in the test's own process; the default world, generated once per test module."""
 
 from __future__ import annotations
 
@@ -13,7 +13,14 @@ import pytest
 from cli_helpers import CliRun, run_cli, script_main
 
 from zebra_sim_ros.errors import AssetError
+from zebra_sim_ros.world.world import World, generate_world
 from zebra_sim_ros.zebra.asset import ZebraLibrary, build_library, library_dir, load_library
+
+
+@pytest.fixture(scope="module")
+def savanna() -> World:
+    """The default world (savanna, seed 0), once per module: a module that changes it changes only its own."""
+    return generate_world("savanna", 0)
 
 
 @pytest.fixture(scope="session")

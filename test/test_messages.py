@@ -25,13 +25,8 @@ from zebra_sim_ros.messages import (
 )
 from zebra_sim_ros.placement.config import PlacerConfig
 from zebra_sim_ros.placement.placer import Placer
-from zebra_sim_ros.world.world import World, generate_world
+from zebra_sim_ros.world.world import World
 from zebra_sim_ros.zebra.asset import ZebraLibrary
-
-
-@pytest.fixture(scope="module")
-def savanna() -> World:
-    return generate_world("savanna", 0)
 
 
 @pytest.fixture(scope="module")

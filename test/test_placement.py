@@ -30,11 +30,6 @@ from zebra_sim_ros.zebra.mesh import PART_NAMES
 
 
 @pytest.fixture(scope="module")
-def savanna() -> World:
-    return generate_world("savanna", 0)
-
-
-@pytest.fixture(scope="module")
 def woodland() -> World:
     return generate_world("woodland", 1)
 
