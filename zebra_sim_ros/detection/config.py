@@ -11,7 +11,15 @@ from typing import Any
 
 from zebra_sim_ros.detection.metrics import MAX_DETECTIONS
 from zebra_sim_ros.errors import ParameterError
-from zebra_sim_ros.geometry.census import CENSUS_ACROSS_M, CENSUS_ALONG_M, CENSUS_GATE, CENSUS_SEPARATION_M
+from zebra_sim_ros.geometry.census import (
+    CENSUS_ACROSS_M,
+    CENSUS_ALONG_M,
+    CENSUS_GATE,
+    CENSUS_SEPARATION_M,
+    Census,
+    FloatArray,
+    join_views,
+)
 from zebra_sim_ros.geometry.locate import CORE, DEPTH_WINDOW_M
 from zebra_sim_ros.params import (
     RELATIVE_NAME,
@@ -192,6 +200,13 @@ class LocatorConfig(StageConfig):
     image_reliability: str = image_reliability_param()
     qos_depth: int = param(10, "history depth", lo=1, hi=1000)
     diagnostics_period_s: float = diagnostics_param()
+
+    def census_join(self, points: Sequence[FloatArray], origins: Sequence[FloatArray],
+                    scores: Sequence[FloatArray]) -> Census:
+        """One stamp's placed detections of one class joined across the cameras by this rule (:data:`CENSUS_RULE`;
+        :func:`~zebra_sim_ros.geometry.census.join_views`): the locator's census and ``bag census``' recount."""
+        return join_views(points, origins, self.census_along, self.census_across, self.census_gate,
+                          self.census_separation, scores)
 
     @property
     def inputs(self) -> tuple[str, ...]:

@@ -54,7 +54,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from zebra_sim_ros.detection.config import LOCATOR_PARAMS, LocatorConfig
 from zebra_sim_ros.errors import ZebraSimError
-from zebra_sim_ros.geometry.census import Census, join_views
+from zebra_sim_ros.geometry.census import Census
 from zebra_sim_ros.geometry.locate import Located, intrinsics, locate_boxes
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Detections
@@ -323,11 +323,10 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         animals: list[CountedAnimal] = []
         for cls in sorted({cls for rows in by_camera for cls in rows}):
             rows = [r.get(cls, empty) for r in by_camera]
-            census = join_views([views[d][1].points[r] for d, r in zip(names, rows, strict=True)],
-                                [views[d][2] for d in names], c.census_along, c.census_across, c.census_gate,
-                                c.census_separation,
-                                [np.array([views[d][0].detections[i].score for i in r], np.float64)
-                                 for d, r in zip(names, rows, strict=True)])
+            census = c.census_join([views[d][1].points[r] for d, r in zip(names, rows, strict=True)],
+                                   [views[d][2] for d in names],
+                                   [np.array([views[d][0].detections[i].score for i in r], np.float64)
+                                    for d, r in zip(names, rows, strict=True)])
             animals += counted_animals(views, names, cls, rows, census)
         header = Header(stamp=stamp(t), frame_id=frame)
         assert self.census_pub is not None and self.marker_pub is not None

@@ -23,7 +23,6 @@ import numpy as np
 from zebra_sim_ros.detection.config import CENSUS_RULE, LocatorConfig
 from zebra_sim_ros.detection.scoring import DroneFrames
 from zebra_sim_ros.errors import ParameterError, ZebraSimError
-from zebra_sim_ros.geometry.census import join_views
 from zebra_sim_ros.geometry.geodesy import enu_to_geodetic
 from zebra_sim_ros.messages import Datum, Scene
 from zebra_sim_ros.recording.cdr import MALFORMED, Placed3D, cdr_detections3d, cdr_pose_position, cdr_string
@@ -209,8 +208,8 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
         kept = [[(x.id or str(i), x) for i, x in enumerate(located[(d, t)]) if x.class_id == "zebra"]
                 for d in cameras]
         scores = [np.array([x.score for _, x in k], np.float64) for k in kept]
-        census = join_views([zebras[(d, t)] for d in cameras], [np.array(poses[(d, t)]) for d in cameras],
-                            rule.census_along, rule.census_across, rule.census_gate, rule.census_separation, scores)
+        census = rule.census_join([zebras[(d, t)] for d in cameras], [np.array(poses[(d, t)]) for d in cameras],
+                                  scores)
         counts[t] = census.count
         if geojson is None:  # the animals themselves only for the map
             continue
