@@ -750,7 +750,8 @@ def test_up_sets_a_nodes_parameters_for_one_run() -> None:
     """``up --set NODE.NAME=VALUE``: the value (YAML) goes to that node's overrides (every camera's for camera),
     and the graph follows it (a locator set to place from the navigated poses subscribes those, and up waits for
     them); a parameter up sets itself, a node the graph does not run, a name the node does not declare, a value out
-    of its range and a malformed item are each refused by name before anything starts."""
+    of its range or against another parameter's rule and a malformed item are each refused by name before anything
+    starts."""
     from zebra_sim_ros.cli.up import parse_sets
 
     sets = parse_sets(["placer.fix_sigma_m=2.5", "placer.nav_heading_sigma_deg=1", "locator.pose=camera/pose_nav",
@@ -768,6 +769,9 @@ def test_up_sets_a_nodes_parameters_for_one_run() -> None:
                         (["locator.pose=camera/pose_nav"], "a node this graph runs"),  # no --locate
                         (["placer.fix_sigma=2"], "'fix_sigma'"),
                         (["placer.fix_sigma_m=-1"], "'fix_sigma_m' = -1"),
+                        # a rule between parameters, the file's values with the set one
+                        (["placer.fix_correlation_s=5000"], "placer.yaml: fix_correlation_s' = 5000"),
+                        (["placer.count_min=300"], "placer.yaml: count_min"),
                         (["fix_sigma_m=2"], "NODE.NAME=VALUE"), (["placer.fix_sigma_m"], "NODE.NAME=VALUE"),
                         (["placer.fix_sigma_m=[1"], "a YAML value")):
         with pytest.raises(ParameterError, match=re.escape(needle)):

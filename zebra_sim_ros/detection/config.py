@@ -191,7 +191,7 @@ class LocatorConfig(StageConfig):
                                      lo=0.0, hi=100.0, runtime=True)
     sync_window: int = param(20, "stamps kept while waiting for their missing inputs (all cameras' together)",
                              lo=1, hi=1000)
-    pose_transient_local: bool = param(False, "subscribe camera/pose transient local: a locator that matches its "
+    pose_transient_local: bool = param(False, "subscribe the poses (pose) transient local: a locator that matches its "
                                        "publisher late still gets the last qos_depth poses (the publisher must be "
                                        "transient local too, as the placer's is, or no pose arrives; zebra-sim up "
                                        "sets it)")

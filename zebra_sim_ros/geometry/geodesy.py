@@ -127,7 +127,7 @@ class NavNoise:
 
     @property
     def sigmas(self) -> FloatArray:
-        """Per axis (east, north, up), m."""
+        """Per axis (east, north, up): m, or deg for the attitude."""
         return np.array([self.sigma_h_m, self.sigma_h_m, self.sigma_v_m])
 
     @property
@@ -162,8 +162,8 @@ class NavNoise:
         return own, common
 
     def errors(self, n: int, seed: int, step: int) -> FloatArray:
-        """(n, 3) east, north, up errors (m) of n receivers' fixes at ``step`` of a run seeded ``seed``: zeros,
-        with nothing drawn, when both sigmas are 0."""
+        """(n, 3) east, north, up errors of n receivers at ``step`` of a run seeded ``seed`` (m; deg about each axis
+        for the attitude): zeros, with nothing drawn, when both sigmas are 0."""
         if step < 0:
             raise ValueError(f"step {step!r}: want >= 0")
         if not self.sigmas.any():

@@ -95,6 +95,19 @@ def node_config(conf: Path, params_file: str, fqn: str, overrides: dict[str, Any
         raise ParameterError(f"{path}: {exc.name}", exc.value, exc.allowed) from None
 
 
+def node_config_class(executable: str) -> type[StageConfig]:
+    """The validated settings class of a node (its parameters and the rules between them)."""
+    from zebra_sim_ros.detection.config import DetectorConfig, ScorerConfig
+    from zebra_sim_ros.labels.config import LabellerConfig
+    from zebra_sim_ros.placement.config import PlacerConfig
+    from zebra_sim_ros.recording.config import ReplayConfig
+    from zebra_sim_ros.rendering.config import CameraConfig
+
+    return {"placer": PlacerConfig, "camera": CameraConfig, "labeller": LabellerConfig, "detector": DetectorConfig,
+            "recorder": RecorderConfig, "replay": ReplayConfig, "scorer": ScorerConfig,
+            "locator": LocatorConfig}[executable]
+
+
 NODE_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
     "placer": PLACER_PARAMS, "camera": CAMERA_PARAMS, "labeller": LABELLER_PARAMS, "detector": DETECTOR_PARAMS,
     "recorder": RECORDER_PARAMS, "replay": REPLAY_PARAMS, "scorer": SCORER_PARAMS, "locator": LOCATOR_PARAMS}
@@ -187,8 +200,12 @@ class UpConfig:
             if executable not in running:
                 raise ParameterError("--set", f"{executable}.{name}={value}", f"NODE.NAME=VALUE of a node this graph "
                                      f"runs ({', '.join(running)})")
+        set_for = {executable for executable, _, _ in self.sets}
         for node in nodes:  # each node's own rules, before any process starts
             validate(NODE_PARAMS[node.executable], node.overrides)
+            if node.executable in set_for:  # and the rules between its parameters, its file's values with the sets
+                node_config(config_dir(self.config_dir), node.params_file, node.fqn, node.overrides,
+                            node_config_class(node.executable))
         return nodes
 
     @property

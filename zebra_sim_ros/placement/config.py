@@ -150,8 +150,9 @@ class PlacerConfig(StageConfig):
     origin_altitude_m: float = param(1550.0, "height of map's origin above the WGS84 ellipsoid: the scene's datum "
                                      "(the Serengeti plains: about 1550; not a flight height)", "m", lo=-500.0,
                                      hi=9000.0)
-    fix_sigma_m: float = param(0.0, "standard deviation of each drone's GNSS fix (drone_{i}/fix) about its camera's "
-                               "position, per horizontal axis, drawn per step from the scene's seed and step; the "
+    fix_sigma_m: float = param(0.0, "standard deviation of each drone's GNSS fix (drone_{i}/fix, and the position of "
+                               "its camera/pose_nav) about its camera's position, per horizontal axis, drawn per step "
+                               "from the scene's seed and step; the "
                                "fix's covariance says it (0 with fix_vertical_sigma_m 0: the exact position, its "
                                "covariance unknown)", "m", lo=0.0, hi=100.0)
     fix_vertical_sigma_m: float = param(0.0, "the same, up (a receiver's height is about twice as uncertain as its "
@@ -159,7 +160,7 @@ class PlacerConfig(StageConfig):
     fix_correlation_s: float = param(0.0, "time constant of the fixes' error in simulated time: > 0 makes it wander "
                                      "as a receiver's does (first-order Gauss-Markov, each axis correlated "
                                      "exp(-dt / this) between fixes dt apart, its spread still fix_sigma_m); 0: "
-                                     "drawn anew each step", "s", lo=0.0, hi=1e6,
+                                     "drawn anew each step", "s", lo=0.0, hi=3.6e6,
                                      allowed="0..3600 steps' time (3600 / rate_hz s)")
     fix_common_fraction: float = param(0.0, "share of the fixes' error variance common to every drone (receivers a "
                                        "few km apart see much the same atmosphere and satellites: their errors "
