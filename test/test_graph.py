@@ -764,6 +764,11 @@ def test_up_sets_a_nodes_parameters_for_one_run() -> None:
     assert "/drone_1/camera/pose_nav" in nodes["locator"].subscribes
     assert "/drone_1/camera/pose" not in nodes["locator"].subscribes
     assert "fix_sigma_m" not in {s.name: s for s in graph_spec(UpConfig(locate=True))}["placer"].overrides
+    # what shapes up's waits follows the set values too: the recorder's selection, the scorer's detections
+    waits = {s.name: s.subscribes for s in UpConfig(sets=parse_sets(
+        ["recorder.exclude_regex=/depth$", "scorer.detections=dets"])).check()}
+    assert "/drone_0/depth" not in waits["recorder"] and "/drone_0/image_raw" in waits["recorder"]
+    assert "/drone_2/dets" in waits["scorer"] and "/drone_2/detections" not in waits["scorer"]
     for bad, needle in ((["placer.mode=rate"], "'--set' = 'placer.mode=rate' is invalid: allowed a parameter up "
                                                "does not set itself"),
                         (["locator.pose=camera/pose_nav"], "a node this graph runs"),  # no --locate
@@ -816,15 +821,15 @@ def test_ups_locator_waits_for_the_topics_its_file_names(tmp_path: Path) -> None
     assert "/g1/drone_2/dets" in loc.subscribes and "/g1/drone_2/detections" not in loc.subscribes
     assert set(loc.publishes) <= set(rec.subscribes) and "/g1/census/animals" not in rec.subscribes
     # up's RViz view: the census display on the census this locator publishes (its markers), on
-    view = census_display(up._rviz_view(cfg, conf, up._located(conf, specs)))
+    view = census_display(up._rviz_view(cfg, conf, up._located(specs)))
     assert view == ("/g1/herd/count/markers", True) and view[0] in loc.publishes
     off, rec = locator(census="false")
     assert off.publishes == default.publishes[:3] and "/g1/census/animals" not in rec.subscribes
-    assert census_display(up._rviz_view(cfg, conf, up._located(conf, specs))) == ("/g1/census/animals/markers", False)
+    assert census_display(up._rviz_view(cfg, conf, up._located(specs))) == ("/g1/census/animals/markers", False)
     locator()
-    assert census_display(up._rviz_view(cfg, conf, up._located(conf, specs))) == ("/g1/census/animals/markers", True)
+    assert census_display(up._rviz_view(cfg, conf, up._located(specs))) == ("/g1/census/animals/markers", True)
     no_locator = UpConfig(config_dir=str(conf), namespace="/g1")
-    assert up._located(conf, graph_spec(no_locator)) is None
+    assert up._located(graph_spec(no_locator)) is None
     assert census_display(up._rviz_view(no_locator, conf, None)) == ("/g1/census/animals/markers", False)
     with pytest.raises(ParameterError, match=re.escape(f"{conf / 'locator.yaml'}: output")):
         locator(output="depth")  # one of its inputs

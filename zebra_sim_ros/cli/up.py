@@ -31,7 +31,7 @@ from zebra_sim_ros.params import add_option, spec_of
 if TYPE_CHECKING:  # the graph and rclpy are imported only when the command runs
     from collections.abc import Sequence
 
-    from zebra_sim_ros.detection.config import LocatorConfig
+    from zebra_sim_ros.detection.config import LocatorConfig, ScorerConfig
     from zebra_sim_ros.graph.spec import NodeSpec, UpConfig
     from zebra_sim_ros.graph.supervisor import Child, Supervisor
     from zebra_sim_ros.nodes.graph_watch import GraphWatch
@@ -90,14 +90,11 @@ class _Stop(Exception):
     """SIGTERM to the supervisor: stop like Ctrl-C."""
 
 
-def _located(conf: Path, specs: Sequence[NodeSpec]) -> LocatorConfig | None:
-    """The settings the graph's locator starts with (None: a graph without it); a bad value in its file is named."""
+def _located(specs: Sequence[NodeSpec]) -> LocatorConfig | None:
+    """The settings the graph's locator starts with, as the graph read them (None: a graph without it)."""
     from zebra_sim_ros.detection.config import LocatorConfig
-    from zebra_sim_ros.graph.spec import node_config
 
-    locator = next((s for s in specs if s.executable == "locator"), None)
-    return (node_config(conf, locator.params_file, locator.fqn, locator.overrides, LocatorConfig)
-            if locator is not None else None)
+    return next((s.config for s in specs if isinstance(s.config, LocatorConfig)), None)
 
 
 def _rviz_view(cfg: UpConfig, conf: Path, located: LocatorConfig | None) -> dict[str, Any] | None:
@@ -116,6 +113,7 @@ def _rviz_view(cfg: UpConfig, conf: Path, located: LocatorConfig | None) -> dict
 
 def cmd_up(args: argparse.Namespace) -> Summary:
     """Run the graph; returns the summary (``exit_code`` 0, 1 when a node died, 130 when interrupted)."""
+    from zebra_sim_ros.detection.config import ScorerConfig
     from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_command, write_rviz
     from zebra_sim_ros.graph.spec import config_dir
     from zebra_sim_ros.zebra.asset import load_library
@@ -125,9 +123,9 @@ def cmd_up(args: argparse.Namespace) -> Summary:
         print("[up] --no-record --no-score: the run is neither recorded nor scored (no figures at the end)", flush=True)
     detect_imgsz = cfg.detect_imgsz  # reads the checkpoint's serving rule: an unreadable file stops here
     conf = config_dir(cfg.config_dir)
-    scorer = next((s for s in specs if s.executable == "scorer"), None)
-    scoring = ScorerRun.read(conf, scorer) if scorer is not None else None  # a bad scorer.yaml stops here
-    located = _located(conf, specs)  # its topics, for the summary and the RViz view
+    scorer = next((s.config for s in specs if s.executable == "scorer"), None)  # read by the graph for its topics
+    scoring = ScorerRun.of(scorer) if isinstance(scorer, ScorerConfig) else None
+    located = _located(specs)  # its topics, for the summary and the RViz view
     view = _rviz_view(cfg, conf, located)
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -367,7 +365,11 @@ class ScorerRun:
         from zebra_sim_ros.detection.config import ScorerConfig
         from zebra_sim_ros.graph.spec import node_config
 
-        sc = node_config(conf, spec.params_file, spec.fqn, spec.overrides, ScorerConfig)
+        return ScorerRun.of(node_config(conf, spec.params_file, spec.fqn, spec.overrides, ScorerConfig))
+
+    @staticmethod
+    def of(sc: ScorerConfig) -> ScorerRun:
+        """The run's view of the scorer's settings ``sc``."""
         return ScorerRun(sc.window, sc.diagnostics_period_s, len(sc.drones), sc.count_conf)
 
     def expected(self, steps: int) -> int:

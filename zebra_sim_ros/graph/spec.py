@@ -13,13 +13,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
 
-from zebra_sim_ros.detection.config import DETECTOR_PARAMS, LOCATOR_PARAMS, SCORER_PARAMS, LocatorConfig
+from zebra_sim_ros.detection.config import DetectorConfig, LocatorConfig, ScorerConfig
 from zebra_sim_ros.errors import ParameterError
-from zebra_sim_ros.labels.config import LABELLER_PARAMS
+from zebra_sim_ros.labels.config import LabellerConfig
 from zebra_sim_ros.params import ParamSpec, StageConfig, load_params_file, replace_tables, validate, write_config
-from zebra_sim_ros.placement.config import CAMERA_POSE, NAV_POSE, PLACER_PARAMS
-from zebra_sim_ros.recording.config import RECORDER_PARAMS, REPLAY_PARAMS, RecorderConfig
-from zebra_sim_ros.rendering.config import CAMERA_PARAMS
+from zebra_sim_ros.placement.config import CAMERA_POSE, NAV_POSE, PlacerConfig
+from zebra_sim_ros.recording.config import RecorderConfig, ReplayConfig
+from zebra_sim_ros.rendering.config import CameraConfig
 
 PACKAGE = "zebra_sim_ros"
 DRONES = ("drone_0", "drone_1", "drone_2")  # the default graph's cameras (UpConfig.drones: 3)
@@ -95,22 +95,11 @@ def node_config(conf: Path, params_file: str, fqn: str, overrides: dict[str, Any
         raise ParameterError(f"{path}: {exc.name}", exc.value, exc.allowed) from None
 
 
-def node_config_class(executable: str) -> type[StageConfig]:
-    """The validated settings class of a node (its parameters and the rules between them)."""
-    from zebra_sim_ros.detection.config import DetectorConfig, ScorerConfig
-    from zebra_sim_ros.labels.config import LabellerConfig
-    from zebra_sim_ros.placement.config import PlacerConfig
-    from zebra_sim_ros.recording.config import ReplayConfig
-    from zebra_sim_ros.rendering.config import CameraConfig
-
-    return {"placer": PlacerConfig, "camera": CameraConfig, "labeller": LabellerConfig, "detector": DetectorConfig,
-            "recorder": RecorderConfig, "replay": ReplayConfig, "scorer": ScorerConfig,
-            "locator": LocatorConfig}[executable]
-
-
-NODE_PARAMS: dict[str, tuple[ParamSpec, ...]] = {
-    "placer": PLACER_PARAMS, "camera": CAMERA_PARAMS, "labeller": LABELLER_PARAMS, "detector": DETECTOR_PARAMS,
-    "recorder": RECORDER_PARAMS, "replay": REPLAY_PARAMS, "scorer": SCORER_PARAMS, "locator": LOCATOR_PARAMS}
+# each executable's validated settings (its parameters and the rules between them), and its parameters
+NODE_CONFIGS: dict[str, type[StageConfig]] = {
+    "placer": PlacerConfig, "camera": CameraConfig, "labeller": LabellerConfig, "detector": DetectorConfig,
+    "recorder": RecorderConfig, "replay": ReplayConfig, "scorer": ScorerConfig, "locator": LocatorConfig}
+NODE_PARAMS: dict[str, tuple[ParamSpec, ...]] = {name: cls.specs() for name, cls in NODE_CONFIGS.items()}
 
 
 @dataclass(frozen=True)
@@ -125,6 +114,8 @@ class NodeSpec:
     publishes: tuple[str, ...] = ()  # absolute topic names this node publishes (readiness and docs)
     remaps: tuple[tuple[str, str], ...] = ()  # -r from:=to (a namespaced graph's /tf, /tf_static, /clock)
     subscribes: tuple[str, ...] = ()  # absolute topic names it must subscribe before the first step (readiness)
+    # its settings as it starts with them (file and overrides, validated), where the graph read them for its topics
+    config: StageConfig | None = field(default=None, compare=False)
 
     @property
     def fqn(self) -> str:
@@ -203,9 +194,10 @@ class UpConfig:
         set_for = {executable for executable, _, _ in self.sets}
         for node in nodes:  # each node's own rules, before any process starts
             validate(NODE_PARAMS[node.executable], node.overrides)
-            if node.executable in set_for:  # and the rules between its parameters, its file's values with the sets
+            if node.executable in set_for and node.config is None:  # and the rules between its parameters, its
+                # file's values with the sets (the nodes the graph read for their topics were checked so)
                 node_config(config_dir(self.config_dir), node.params_file, node.fqn, node.overrides,
-                            node_config_class(node.executable))
+                            NODE_CONFIGS[node.executable])
         return nodes
 
     @property
@@ -312,7 +304,8 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
         return {**ups, **mine}
 
     # what the recorder leaves out (up waits for the rest); its file is read only where a recorder runs
-    excludes = recorder_excludes(config_dir(cfg.config_dir), cfg.bag_images, f"{ns}/recorder") if cfg.record else ""
+    excludes = (recorder_excludes(config_dir(cfg.config_dir), cfg.bag_images, f"{ns}/recorder")
+                if cfg.record and cfg.bag_images != "raw" else "")  # raw: the file's own, read with its settings
     camera_bag, recorder_bag = bag_image_overrides(cfg.bag_images, excludes)
     for i, d in enumerate(drones):
         nodes.append(NodeSpec("camera", f"{d}_camera", ns, "camera.yaml",
@@ -339,18 +332,20 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
         nodes.append(NodeSpec("locator", "locator", ns, "locator.yaml", loc,
                               tuple(f"{ns}/{d}/{located.output}" for d in drones)
                               + tuple(f"{ns}{t}" for t in census_topics(located)), remaps,
-                              tuple(f"{ns}/{d}/{t}" for d in drones for t in located.inputs)))
-    if cfg.score:  # every frame scored: subscribed before the first step
-        nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml", own("scorer", {"drones": list(drones), **sim}),
-                              (), remaps,
-                              tuple(f"{ns}/{d}/{t}" for d in drones for t in ("labels", "detections"))))
-    if cfg.record:
+                              tuple(f"{ns}/{d}/{t}" for d in drones for t in located.inputs), located))
+    if cfg.score:  # every frame scored: subscribed before the first step; its detections as its file names them
+        sco = own("scorer", {"drones": list(drones), **sim})
+        scored = node_config(config_dir(cfg.config_dir), "scorer.yaml", f"{ns}/scorer", sco, ScorerConfig)
+        nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml", sco, (), remaps,
+                              tuple(f"{ns}/{d}/{t}" for d in drones for t in ("labels", scored.detections)), scored))
+    if cfg.record:  # up waits for what it records: its file's selection with up's and the run's settings
         rec = {"output": str(cfg.bag_path.resolve()), **recorder_bag, **sim}
         if ns:  # this graph's topics only, not another graph's on the same domain
             rec["topic_regex"] = f"^{ns}/"
-        nodes.append(NodeSpec("recorder", "recorder", ns, "recorder.yaml", own("recorder", rec), (), remaps,
-                              tuple(t for n in nodes for t in n.publishes
-                                    if not (excludes and re.search(excludes, t)))))
+        rec = own("recorder", rec)
+        recorded = node_config(config_dir(cfg.config_dir), "recorder.yaml", f"{ns}/recorder", rec, RecorderConfig)
+        nodes.append(NodeSpec("recorder", "recorder", ns, "recorder.yaml", rec, (), remaps,
+                              tuple(t for n in nodes for t in n.publishes if recorded.records(t)), recorded))
     nodes.append(NodeSpec("placer", "placer", ns, "placer.yaml", own("placer", {
         "world": cfg.world, "seed": cfg.seed, "strategy": cfg.strategy, "num_cameras": cfg.drones, "mode": "lockstep",
         "max_steps": cfg.frames, "lockstep_ack_from": ["labeller", "detector"],

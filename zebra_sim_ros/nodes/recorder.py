@@ -16,7 +16,6 @@ error. SIGINT, SIGTERM and node shutdown finalise the bag (summary and indexes);
 
 from __future__ import annotations
 
-import re
 import time
 from typing import Any
 
@@ -49,8 +48,6 @@ class RecorderNode(ZebraNode[RecorderConfig]):
     def start(self) -> None:
         """Open the bag; subscribe the topics to record now and look for new ones every discovery_period_s."""
         c = self.cfg
-        self.topics = c.topic_list
-        self.include, self.exclude = re.compile(c.topic_regex), re.compile(c.exclude_regex)  # checked
         reserve = -1 if c.disk_reserve_mb < 0 else int(c.disk_reserve_mb * MB)
         self.writer = BagWriter(c.output, c.compression, int(c.chunk_size_mb * MB),
                                 int(c.split_size_mb * MB), c.split_duration_s, int(c.max_size_mb * MB), reserve)
@@ -65,30 +62,23 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         self.get_logger().info(
             f"recording to {self.writer.path} ({c.compression}, chunks {c.chunk_size_mb} MB, split "
             f"{c.split_size_mb} MB / {c.split_duration_s} s, cap {c.max_size_mb} MB); "
-            f"topics {self.topics or 'matching ' + c.topic_regex}")
+            f"topics {c.topic_list or 'matching ' + c.topic_regex}")
         self._discover()
 
     def on_config(self, cfg: RecorderConfig) -> None:
         """Record the new selection: topics it adds are subscribed at once, topics it drops are no longer recorded."""
         self.cfg = cfg
-        self.topics = cfg.topic_list
-        self.include, self.exclude = re.compile(cfg.topic_regex), re.compile(cfg.exclude_regex)
-        for topic in [t for t in self.subs if not self._wanted(t)]:
+        for topic in [t for t in self.subs if not cfg.records(t)]:
             sub = self.subs.pop(topic)
             if sub is not None:
                 self.destroy_subscription(sub)
                 self.get_logger().info(f"no longer recording {topic}")
-        self.get_logger().info(f"topics {self.topics or 'matching ' + cfg.topic_regex}")
+        self.get_logger().info(f"topics {cfg.topic_list or 'matching ' + cfg.topic_regex}")
         self._discover()
-
-    def _wanted(self, topic: str) -> bool:
-        if self.topics:
-            return topic in self.topics
-        return bool(self.include.search(topic)) and not self.exclude.search(topic)
 
     def _discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():
-            if topic in self.subs or not self._wanted(topic) or not types:
+            if topic in self.subs or not self.cfg.records(topic) or not types:
                 continue
             infos = self.get_publishers_info_by_topic(topic)
             if not infos:

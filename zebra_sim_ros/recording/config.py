@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 from zebra_sim_ros.errors import ParameterError
@@ -62,6 +63,14 @@ class RecorderConfig(StageConfig):
     def topic_list(self) -> list[str]:
         """The topics named (``['']`` and empty names dropped): empty means every topic the regexes select."""
         return [t for t in self.topics if t]
+
+    def records(self, topic: str) -> bool:
+        """Whether this selection records ``topic``: one of ``topics`` where it names any, else one that
+        ``topic_regex`` finds in it and ``exclude_regex`` does not (the recorder node's rule; ``up`` waits for
+        these)."""
+        if self.topic_list:
+            return topic in self.topic_list
+        return bool(re.search(self.topic_regex, topic)) and not re.search(self.exclude_regex, topic)
 
 
 @dataclass(frozen=True)
