@@ -16,6 +16,19 @@ Summary = dict[str, Any]
 Command = Callable[[argparse.Namespace], Summary]
 
 
+def parse_set(item: str, example: str = "count_max=50") -> tuple[str, Any]:
+    """A ``--set NAME=VALUE`` item as (name, its YAML value); a malformed one is named (``example`` shows one)."""
+    import yaml
+
+    name, eq, raw = item.partition("=")
+    if not (eq and name.strip()):
+        raise ParameterError("--set", item, f"NAME=VALUE, e.g. {example}")
+    try:
+        return name.strip(), yaml.safe_load(raw)
+    except yaml.YAMLError as exc:
+        raise ParameterError("--set", item, f"a YAML value after '=' ({exc.__class__.__name__})") from None
+
+
 def add_json_flag(p: argparse.ArgumentParser) -> None:
     """Give a computing subcommand the shared ``--json`` flag."""
     p.add_argument("--json", action="store_true", help="print one JSON summary line last on stdout")

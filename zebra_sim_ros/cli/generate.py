@@ -6,9 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from zebra_sim_ros.cli.common import Summary, add_json_flag, parse_size
+from zebra_sim_ros.cli.common import Summary, add_json_flag, parse_set, parse_size
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.params import add_option, spec_of
 
@@ -87,12 +85,7 @@ def cmd_generate(args: argparse.Namespace) -> Summary:
     except ValueError:
         raise ParameterError("--shard", args.shard, "i/n, integers") from None
     worlds = tuple(PRESETS) if args.worlds == "all" else tuple(w.strip() for w in args.worlds.split(",") if w.strip())
-    placer: dict[str, Any] = {}
-    for item in args.set:
-        if "=" not in item:
-            raise ParameterError("--set", item, "NAME=VALUE")
-        name, raw = item.split("=", 1)
-        placer[name.strip()] = yaml.safe_load(raw)
+    placer: dict[str, Any] = dict(parse_set(item) for item in args.set)
     frames = 1 if args.frames is None else args.frames  # finalizing counts none
     cfg = GenerateConfig(
         out=str(args.out), frames=frames, strategy=NAMED_SETS.get(args.strategy, args.strategy), worlds=worlds,

@@ -8,9 +8,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from zebra_sim_ros.cli.common import Summary, add_json_flag
+from zebra_sim_ros.cli.common import Summary, add_json_flag, parse_set
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.params import add_option, spec_of
 
@@ -39,11 +37,7 @@ def placer_values(args: argparse.Namespace) -> dict[str, Any]:
     from zebra_sim_ros.params import load_params_file
 
     values: dict[str, Any] = load_params_file(str(args.params_file), "placer") if args.params_file else {}
-    for item in args.set:
-        if "=" not in item:
-            raise ParameterError("--set", item, "NAME=VALUE")
-        name, raw = item.split("=", 1)
-        values[name.strip()] = yaml.safe_load(raw)
+    values.update(parse_set(item) for item in args.set)
     for flag, key in (("seed", "seed"), ("world", "world"), ("strategy", "strategy"), ("start_step", "start_step")):
         if getattr(args, flag, None) is not None:
             values[key] = getattr(args, flag)

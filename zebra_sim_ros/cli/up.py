@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from zebra_sim_ros.cli.common import Summary, add_json_flag, parse_size
+from zebra_sim_ros.cli.common import Summary, add_json_flag, parse_set, parse_size
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.params import add_option, spec_of
 
@@ -200,18 +200,12 @@ def _recorder_report(log: Path) -> dict[str, Any]:
 
 def parse_sets(items: Sequence[str]) -> tuple[tuple[str, str, Any], ...]:
     """``--set NODE.NAME=VALUE`` items as (node's executable, parameter, YAML value); a malformed one is named."""
-    import yaml
-
     out = []
     for item in items:
-        key, eq, raw = item.partition("=")
-        node, dot, name = key.strip().partition(".")
-        if not (eq and dot and node and name):
+        key, value = parse_set(item, "placer.fix_sigma_m=2.5 (NODE.NAME=VALUE)")
+        node, dot, name = key.partition(".")
+        if not (dot and node and name.strip()):
             raise ParameterError("--set", item, "NODE.NAME=VALUE, e.g. placer.fix_sigma_m=2.5")
-        try:
-            value = yaml.safe_load(raw)
-        except yaml.YAMLError as exc:
-            raise ParameterError("--set", item, f"a YAML value after '=' ({exc.__class__.__name__})") from None
         out.append((node, name.strip(), value))
     return tuple(out)
 

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from zebra_sim_ros.errors import ParameterError
-from zebra_sim_ros.geometry.rotations import quat_to_matrix
+from zebra_sim_ros.geometry.frames import xyzw_to_matrix
 
 FloatArray = NDArray[np.float64]
 DEPTH_WINDOW_M = 1.5  # how deep a span of a box's depths is taken as its animal (about a zebra's length and a half)
@@ -111,8 +111,7 @@ def locate_boxes(boxes: FloatArray, depth: NDArray[np.floating], k: FloatArray, 
     u = (boxes[:, 0] + boxes[:, 2]) / 2 - 0.5  # pixel-edge to pixel-centre coordinates
     v = (boxes[:, 1] + boxes[:, 3]) / 2 - 0.5
     optical = np.stack([(u - k[0, 2]) / k[0, 0] * d, (v - k[1, 2]) / k[1, 1] * d, d], axis=-1)
-    x, y, z, w = quat
-    r = quat_to_matrix(np.array([w, x, y, z]))  # optical to map (normalised)
+    r = xyzw_to_matrix(quat)  # optical to map (normalised)
     points = optical @ r.T + position.reshape(1, 3)
     size = np.stack([np.abs(boxes[:, 2] - boxes[:, 0]) * d / k[0, 0], np.abs(boxes[:, 3] - boxes[:, 1]) * d / k[1, 1]],
                     axis=-1)

@@ -18,7 +18,7 @@ from __future__ import annotations
 import copy
 import re
 import shlex
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Collection, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -46,36 +46,35 @@ def _kind(display: dict[str, Any]) -> tuple[str, str]:
     return str(display.get("Class", "")), _DRONE.sub(r"\1drone_*/", _topic(display))
 
 
-def _namespaced(displays: list[dict[str, Any]], namespace: str) -> None:
-    """Every topic of ``displays`` (those inside groups too) moved into ``namespace``, in place."""
+def _every_display(displays: list[dict[str, Any]]) -> Iterator[dict[str, Any]]:
+    """``displays`` and, depth first, those inside their groups (``rviz_common/Group``'s ``Displays``)."""
     for d in displays:
-        topic = _topic(d)
-        if topic:
-            d["Topic"]["Value"] = f"{namespace}{topic}" if topic.startswith("/") else f"{namespace}/{topic}"
+        yield d
         inner = d.get("Displays")
         if isinstance(inner, list):
-            _namespaced([x for x in inner if isinstance(x, dict)], namespace)
+            yield from _every_display([x for x in inner if isinstance(x, dict)])
+
+
+def _namespaced(displays: list[dict[str, Any]], namespace: str) -> None:
+    """Every topic of ``displays`` (those inside groups too) moved into ``namespace``, in place."""
+    for d in _every_display(displays):
+        if topic := _topic(d):
+            d["Topic"]["Value"] = f"{namespace}{topic}" if topic.startswith("/") else f"{namespace}/{topic}"
 
 
 def _switch_off(displays: list[dict[str, Any]], off: set[str]) -> None:
     """The displays (those inside groups too) of the topics ``off`` (absolute) switched off, in place."""
-    for d in displays:
+    for d in _every_display(displays):
         if (topic := _topic(d)) and "/" + topic.lstrip("/") in off:
             d["Enabled"] = False
-        inner = d.get("Displays")
-        if isinstance(inner, list):
-            _switch_off([x for x in inner if isinstance(x, dict)], off)
 
 
 def _move(displays: list[dict[str, Any]], moved: Mapping[str, str]) -> None:
     """The displays (those inside groups too) of the topics ``moved``'s keys (absolute) shown on its values instead,
     in place."""
-    for d in displays:
+    for d in _every_display(displays):
         if (topic := _topic(d)) and (to := moved.get("/" + topic.lstrip("/"))) is not None:
             d["Topic"]["Value"] = to
-        inner = d.get("Displays")
-        if isinstance(inner, list):
-            _move([x for x in inner if isinstance(x, dict)], moved)
 
 
 def rviz_config(base: dict[str, Any], drones: Sequence[str], namespace: str = "",

@@ -28,8 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical
-from zebra_sim_ros.geometry.frames import optical_frame
-from zebra_sim_ros.geometry.rotations import matrix_to_quat, quat_to_matrix
+from zebra_sim_ros.geometry.frames import matrix_to_xyzw, optical_frame, xyzw_to_matrix
 from zebra_sim_ros.labels.config import LabelFilters
 from zebra_sim_ros.labels.silhouettes import SilhouetteCounter
 from zebra_sim_ros.messages import LabelledZebra, Labels, OrientedBox, Scene
@@ -160,12 +159,9 @@ def drop_reason(visible_px: int, silhouette_px: int, box: NDArray[np.float64], f
 
 def camera_box(box: OrientedBox, pos: NDArray[np.float64], r_opt: NDArray[np.float64]) -> OrientedBox:
     """A box in ``map`` expressed in a camera's optical frame (centre rounded to 0.1 mm)."""
-    q = box.orientation_xyzw
-    r_box = quat_to_matrix(np.array([q[3], q[0], q[1], q[2]]))
     c = (np.array(box.center) - pos) @ r_opt
-    q_cam = matrix_to_quat(r_opt.T @ r_box)
     return OrientedBox((round(float(c[0]), 4), round(float(c[1]), 4), round(float(c[2]), 4)), box.size,
-                       (float(q_cam[1]), float(q_cam[2]), float(q_cam[3]), float(q_cam[0])))
+                       matrix_to_xyzw(r_opt.T @ xyzw_to_matrix(box.orientation_xyzw)))
 
 
 def _present(scene: Scene, camera_name: str, mask: NDArray[np.integer],

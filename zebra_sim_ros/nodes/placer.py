@@ -103,6 +103,11 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         world = load_world(c.world, c.terrain_prim, c.world_seed)
         self.placer = Placer(c, world, load_library())
         self.gnss, self.attitude = c.gnss_noise(), c.attitude_noise()
+        cov = self.gnss.covariance  # the fixes' covariance, type and status: the same every step
+        self.fix_covariance = cov.ravel().tolist()
+        self.fix_covariance_type = (NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN if cov.any()
+                                    else NavSatFix.COVARIANCE_TYPE_UNKNOWN)
+        self.fix_status = NavSatStatus(status=NavSatStatus.STATUS_FIX, service=NavSatStatus.SERVICE_GPS)
         self.get_logger().info(
             f"world '{world.name}' ({world.source}), asset {self.placer.library.manifest['digest']}, seed {c.seed}, "
             f"strategy {c.strategy}, mode {c.mode}, ready in {time.perf_counter() - t0:.1f} s")
@@ -233,17 +238,16 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             turned = [matrix_to_xyzw(r @ xyzw_to_matrix(q)) for r, q in zip(
                 rotvec_to_matrix(np.radians(self.attitude.errors(len(exact), scene.seed, scene.step))), turned,
                 strict=True)]
-        where, cov = enu_to_geodetic(navigated, scene.datum), self.gnss.covariance
-        kind = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN if cov.any() else NavSatFix.COVARIANCE_TYPE_UNKNOWN
-        status = NavSatStatus(status=NavSatStatus.STATUS_FIX, service=NavSatStatus.SERVICE_GPS)
+        where = enu_to_geodetic(navigated, scene.datum)
         for pose_pub, nav_pub, fix_pub, cam, nav, nav_xyzw, (lat, lon, height) in zip(
                 self.pose_pubs, self.nav_pose_pubs, self.fix_pubs, scene.cameras, navigated.tolist(), turned,
                 where.tolist(), strict=True):
             pose_pub.publish(PoseStamped(header=header, pose=pose_msg(cam.position, cam.orientation_xyzw)))
             nav_pub.publish(PoseStamped(header=header, pose=pose_msg(nav, nav_xyzw)))
-            fix_pub.publish(NavSatFix(header=Header(stamp=header.stamp, frame_id=base_frame(cam.name)), status=status,
-                                      latitude=lat, longitude=lon, altitude=height,
-                                      position_covariance=cov.ravel().tolist(), position_covariance_type=kind))
+            fix_pub.publish(NavSatFix(header=Header(stamp=header.stamp, frame_id=base_frame(cam.name)),
+                                      status=self.fix_status, latitude=lat, longitude=lon, altitude=height,
+                                      position_covariance=self.fix_covariance,
+                                      position_covariance_type=self.fix_covariance_type))
         self.sent_at = time.monotonic()
         self.get_logger().debug(f"step {scene.step}: {scene.placed}/{scene.requested} zebras placed")
 
