@@ -231,9 +231,9 @@ def main() -> None:
         "date": time.strftime("%Y-%m-%d"), "machine": f"{platform.processor() or platform.machine()}, "
         f"{os.cpu_count()} cores", "steps": args.steps, "first": args.first, "size": args.size,
         "render_ms_per_step": round(statistics.median(render_ms) * 3, 1)}
+    exact = NavNoise()
     for kind in ("labels", "detector") if args.detector else ("labels",):
         out[kind] = [score_census([s[kind] for s in steps], g, sep) for sep in args.separations for g in args.gates]
-        exact = NavNoise()
         for gnss, attitude in [(n, exact) for n in args.gnss] + [(exact, a) for a in args.attitude]:
             moved = navigated([s[kind] for s in steps], at, gnss, attitude)
             out[kind] += [{"gnss_sigma_m": gnss.sigma_h_m, "gnss_common": gnss.common_fraction,

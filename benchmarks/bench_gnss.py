@@ -32,6 +32,8 @@ def main() -> int:
     ap.add_argument("--start", type=int, default=100_000, help="the first step, computed alone")
     ap.add_argument("--json", action="store_true", help="print the rows as JSON")
     args = ap.parse_args()
+    if args.steps < 2:
+        ap.error(f"--steps {args.steps}: want 2 or more (the first is timed alone)")
 
     cfg = PlacerConfig.from_params({"seed": 3})
     placer = Placer(cfg, load_world(cfg.world, cfg.terrain_prim, cfg.world_seed), load_library())

@@ -115,15 +115,16 @@ def test_datums_and_the_placers_datum_parameters_are_refused_by_name() -> None:
                        ((0.0, 0.0, float("nan")), "altitude nan")):
         with pytest.raises(ValueError, match=named):
             Datum(*bad)
-    for name, value in (("longitude_deg", 200.0), ("origin_altitude_m", -1000.0), ("latitude_deg", -95.0)):
+    for name, value in (("longitude_deg", 200.0), ("origin_altitude_m", -1000.0), ("latitude_deg", -95.0),
+                        ("nav_tilt_sigma_deg", -0.1), ("nav_heading_sigma_deg", 31.0)):
         with pytest.raises(ParameterError, match=name):
             PlacerConfig.from_params({name: value})
 
 
 def test_gnss_fixes_are_seeded_gaussian_about_the_points_with_their_covariance() -> None:
     """A receiver's noise: the same seed gives the same fixes, another step others; a white, independent error is
-    the step's own standard normals times the sigmas; converted back, the offsets of 4,000 fixes have the sigmas
-    asked per axis (within 5%), no mean and no correlation between axes; the covariance is their diagonal; without
+    the step's own standard normals times the sigmas, and converted back, the fixes' offsets are those draws; the
+    covariance is their diagonal; without
     noise the fixes are the points exactly and nothing is drawn. Bad settings are named."""
     datum = Datum(-2.3, 34.8, 1550.0)
     rng = np.random.default_rng(4)
@@ -138,10 +139,7 @@ def test_gnss_fixes_are_seeded_gaussian_about_the_points_with_their_covariance()
     back = geodetic_to_enu(fixes, datum)
     assert np.abs(geodetic_to_enu(other, datum) - back).mean() > 1.0  # other draws
     off = back - points
-    np.testing.assert_allclose(off, want, atol=1e-6)
-    np.testing.assert_allclose(off.std(0), [2.5, 2.5, 5.0], rtol=0.05)
-    assert np.abs(off.mean(0)).max() < 0.25  # 3 standard errors of 5 m over 4,000
-    assert np.abs(np.corrcoef(off.T) - np.eye(3)).max() < 0.06
+    np.testing.assert_allclose(off, want, atol=1e-6)  # through latitude and longitude and back: the draws
     np.testing.assert_allclose(cov, np.diag([6.25, 6.25, 25.0]))
     silent = NavNoise()
     exact, zero = silent.fixes(points[:5], datum, 9, 3)

@@ -210,6 +210,15 @@ def _launch(monkeypatch: pytest.MonkeyPatch, share: Path, **arguments: str) -> _
     return rec
 
 
+def _locator_yaml(**changes: str) -> str:
+    """The package's locator.yaml with each named parameter's value changed (each must be in it once)."""
+    text = (REPO / "config" / "locator.yaml").read_text()
+    for key, value in changes.items():
+        text, n = re.subn(rf"^(    {key}:) \S+", rf"\1 {value}", text, flags=re.M)
+        assert n == 1, key
+    return text
+
+
 def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     for var in ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE", *NODE_ENVIRONMENT):
         monkeypatch.delenv(var, raising=False)
@@ -288,8 +297,7 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
     census = [d for d in view if "census" in d["Name"]]
     assert [(d["Topic"]["Value"], d["Enabled"]) for d in census] == [("/census/animals/markers", False)]  # no locator
     # locate:=true: the census display on the census the locator's file names (its census_output), as up draws it
-    (tmp_path / "share" / "config" / "locator.yaml").write_text(re.sub(
-        r"^(    census_output:) \S+", r"\1 herd/count", (REPO / "config" / "locator.yaml").read_text(), flags=re.M))
+    (tmp_path / "share" / "config" / "locator.yaml").write_text(_locator_yaml(census_output="herd/count"))
     _launch(monkeypatch, tmp_path / "share", rviz="true", locate="true", bag=str(bag))
     view = yaml.safe_load((bag.parent / "zebra_sim.rviz").read_text())["Visualization Manager"]["Displays"]
     assert [(d["Topic"]["Value"], d["Enabled"]) for d in view if "census" in d["Name"]] == [
@@ -793,17 +801,11 @@ def test_ups_locator_waits_for_the_topics_its_file_names(tmp_path: Path) -> None
 
     conf = tmp_path / "config"
     shutil.copytree(REPO / "config", conf)
-    text = (conf / "locator.yaml").read_text()
-
     cfg = UpConfig(config_dir=str(conf), locate=True, namespace="/g1")
     specs: list[NodeSpec] = []
 
     def locator(**changes: str) -> tuple[NodeSpec, NodeSpec]:
-        edited = text
-        for key, value in changes.items():
-            edited, n = re.subn(rf"^(    {key}:) \S+", rf"\1 {value}", edited, flags=re.M)
-            assert n == 1, key
-        (conf / "locator.yaml").write_text(edited)
+        (conf / "locator.yaml").write_text(_locator_yaml(**changes))
         specs[:] = graph_spec(cfg)
         return next(s for s in specs if s.executable == "locator"), next(s for s in specs if s.executable == "recorder")
 

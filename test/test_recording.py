@@ -477,6 +477,8 @@ def test_a_locator_publishing_under_other_names_is_read_by_its_names(tmp_path: P
     assert json.loads(run.stdout.strip().splitlines()[-1])["recounted"] == want["recounted"]
     refused = cli(["bag", "census", str(renamed)])
     assert refused.returncode == 2 and "<drone>/detections/located" in refused.stderr
+    bad = cli(["bag", "census", str(renamed), "--pose", "/abs"])
+    assert bad.returncode == 2 and "--pose: '/abs': allowed a topic name relative to the drone" in bad.stderr
     summary, by_default = summarize_run(renamed, locator=named), summarize_run(default)
     assert summary["located"]["frames"] == 4 and summary["located"]["detections"] == 32
     assert (summary["located"]["pose"], by_default["located"]["pose"]) == ("camera/pose_nav", "camera/pose")
@@ -487,7 +489,7 @@ def test_a_locator_publishing_under_other_names_is_read_by_its_names(tmp_path: P
     assert "located" not in unnamed and "census" not in unnamed
 
 
-def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any, cli: CliRun) -> None:
+def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any, savanna: Any, cli: CliRun) -> None:
     """``bag census --geojson``: every recounted animal a WGS84 point that converts back to its map position to the
     millimetre, with its score and cameras; every zebra detection of a counted stamp in exactly one animal, named
     by its id, or its place in the message where it has none. The datum is the bag's scenes'; ``datum`` only where
@@ -500,7 +502,6 @@ def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any, cli: CliR
     from zebra_sim_ros.placement.config import PlacerConfig
     from zebra_sim_ros.placement.placer import Placer
     from zebra_sim_ros.recording.census import bag_census
-    from zebra_sim_ros.world.world import generate_world
 
     rng = np.random.default_rng(9)
     herd = np.column_stack([rng.uniform(-10, 10, (12, 2)), np.full(12, 0.7)])
@@ -536,7 +537,7 @@ def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any, cli: CliR
         ranks = [int(p.split(":")[1]) % 10 for p in joined]  # east's ids start at 10
         assert props["score"] == pytest.approx(0.9 - 0.1 * min(ranks), abs=1e-4)  # its best detection's
     # a bag whose scenes carry their datum: that one, the same animals elsewhere on the Earth
-    world = generate_world("savanna", 0)
+    world = savanna
     scene = Placer(PlacerConfig.from_params({"seed": 3, "count_max": 5}), world, library).scene(0)
     arctic = Datum(78.2, 15.6, 10.0)
     far_north = Placer(PlacerConfig.from_params({"seed": 3, "count_max": 5, "latitude_deg": 78.2, "longitude_deg": 15.6,
