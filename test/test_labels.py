@@ -15,6 +15,7 @@ from zebra_sim_ros.messages import Labels, OrientedBox, Scene, SceneCamera, Scen
 from zebra_sim_ros.placement.sun import lighting_for
 from zebra_sim_ros.rendering.renderer import Renderer, RenderOptions
 from zebra_sim_ros.rendering.views import zebras_from_scene
+from zebra_sim_ros.world.world import World
 from zebra_sim_ros.zebra.asset import ZebraLibrary
 from zebra_sim_ros.zebra.keypoints import KEYPOINT_NAMES
 
@@ -136,3 +137,37 @@ def test_shipped_yaml_files_match_the_defaults() -> None:
     config = Path(__file__).resolve().parents[1] / "config"
     assert LabellerConfig.from_params(load_params_file(str(config / "labeller.yaml"), "labeller")) == LabellerConfig()
     assert CameraConfig.from_params(load_params_file(str(config / "camera.yaml"), "camera")) == CameraConfig()
+
+
+def test_renderers_and_labellers_each_with_its_own_context_share_a_process(library: ZebraLibrary,
+                                                                           savanna: World) -> None:
+    """Two camera models in one process (a labeller node whose cameras differ, a benchmark comparing two renderers),
+    each with a GL context of its own, created one after the other: each draws in its own context, so the first
+    renderer's frame and the first labeller's silhouettes are what they are alone. Before, a renderer drew into the
+    latest context made (a crash) and a labeller counted empty silhouettes."""
+    from zebra_sim_ros.labels.labeller import Labeller
+    from zebra_sim_ros.placement.config import PlacerConfig
+    from zebra_sim_ros.placement.placer import Placer
+    from zebra_sim_ros.simulation import Simulator
+
+    scene = Placer(PlacerConfig(), savanna, library).scene(0)
+    alone = Simulator(savanna, library, RenderOptions(width=320, height=180))
+    try:
+        want = alone.simulate(scene)
+    finally:
+        alone.release()
+    first = Simulator(savanna, library, RenderOptions(width=320, height=180))
+    labeller = Labeller(library, PinholeCamera(320, 180, 80.0))  # a context of its own
+    second = Simulator(savanna, library, RenderOptions(width=160, height=90))  # made last: its context is current
+    try:
+        views = first.render(scene)
+        second.render(scene)
+        got = [labeller.label(scene, v.name, v.instances, v.depth) for v in views]
+    finally:
+        second.release()
+        labeller.release()
+        first.release()
+    assert sum(z.silhouette_pixels for lab in got for z in lab.zebras) > 300
+    for frame, view, labels in zip(want, views, got, strict=True):
+        assert np.array_equal(frame.view.instances, view.instances)
+        assert labels.to_dict() == frame.labels.to_dict()

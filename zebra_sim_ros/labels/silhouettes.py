@@ -82,20 +82,26 @@ class SilhouetteCounter:
         self.atlas = atlas
         self.ctx = ctx if ctx is not None else create_context()[0]
         self.owns_ctx = ctx is None
-        c = self.ctx
-        self.prog = c.program(vertex_shader=_VS, fragment_shader=_FS)
-        self.tex = c.texture((atlas, atlas), 1, dtype="f1")
-        self.fbo = c.framebuffer([self.tex])
         self.lod: dict[int, dict[str, Any]] = {}
-        for lod in (0, 1):
-            src, _, faces = unweld_uvs(library.faces(lod), library.uv(lod))
-            inst = c.buffer(reserve=8 * 1024, dynamic=True)
-            vao = c.vertex_array(self.prog, [(inst, "2f/i", "i_offset")], c.buffer(faces.tobytes()))
-            self.lod[lod] = {"src": src, "vao": vao, "inst": inst, "ssbo": c.buffer(reserve=4, dynamic=True)}
+        with self.ctx as c:  # a shared context need not be the current one
+            self.prog = c.program(vertex_shader=_VS, fragment_shader=_FS)
+            self.tex = c.texture((atlas, atlas), 1, dtype="f1")
+            self.fbo = c.framebuffer([self.tex])
+            for lod in (0, 1):
+                src, _, faces = unweld_uvs(library.faces(lod), library.uv(lod))
+                inst = c.buffer(reserve=8 * 1024, dynamic=True)
+                vao = c.vertex_array(self.prog, [(inst, "2f/i", "i_offset")], c.buffer(faces.tobytes()))
+                self.lod[lod] = {"src": src, "vao": vao, "inst": inst, "ssbo": c.buffer(reserve=4, dynamic=True)}
 
     def count(self, zebras: ZebraSet, position: NDArray[np.float64], r_optical: NDArray[np.float64],
               which: NDArray[np.int64] | None = None) -> Coverage:
-        """Silhouette pixel counts of ``zebras`` (or the subset ``which``) seen from a camera pose."""
+        """Silhouette pixel counts of ``zebras`` (or the subset ``which``) seen from a camera pose, drawn with this
+        counter's GL context current (the one before restored)."""
+        with self.ctx:
+            return self._count(zebras, position, r_optical, which)
+
+    def _count(self, zebras: ZebraSet, position: NDArray[np.float64], r_optical: NDArray[np.float64],
+               which: NDArray[np.int64] | None) -> Coverage:
         sel_all = np.arange(zebras.count) if which is None else np.asarray(which, dtype=np.int64)
         n = len(sel_all)
         in_image = np.zeros(n, dtype=np.int64)

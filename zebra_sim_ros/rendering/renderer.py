@@ -403,7 +403,13 @@ class Renderer:
     def render(self, zebras: ZebraSet, lighting: Lighting, views: list[CameraView],
                ground: GroundLook | None = None, weather: Weather | None = None) -> list[RenderedView]:
         """Render every view of one frame (``ground``: the landscape's look, None = as authored; ``weather``: the
-        sky, None = clear; the plain look, ``detail`` off, always renders a clear sky)."""
+        sky, None = clear; the plain look, ``detail`` off, always renders a clear sky). The renderer's GL context is
+        made current for the frame (and the one current before restored): a process may hold several renderers."""
+        with self.ctx:
+            return self._render_frame(zebras, lighting, views, ground, weather)
+
+    def _render_frame(self, zebras: ZebraSet, lighting: Lighting, views: list[CameraView],
+                      ground: GroundLook | None, weather: Weather | None) -> list[RenderedView]:
         g = ground or GroundLook()
         self.weather = (weather or Weather()) if self.options.detail else Weather()
         self.p_terrain["u_ground_tint"].value = g.tint
