@@ -546,3 +546,30 @@ def test_randomise_zero_renders_the_worlds_as_authored(tmp_path: Path) -> None:
             float(np.degrees(np.arctan2(meta.lighting.sun_direction[0], meta.lighting.sun_direction[1])) % 360))
     with pytest.raises(Exception, match="--randomise"):
         GenerateConfig(out="x", frames=6, randomise=1.5).check()
+
+
+def test_a_lens_goes_into_the_frames_their_labels_and_the_command_that_renders_them_again(tmp_path: Path,
+                                                                                         cli: CliRun) -> None:
+    """``generate --lens``: the settings record it, each frame's labels carry it as D, and the frame's ``regenerate``
+    command, run, renders the very instance mask the dataset holds; a lens that folds over in the image is refused
+    by name before anything is written."""
+    from zebra_sim_ros.messages import FrameAnnotation
+
+    out = tmp_path / "lens"
+    proc = cli(["generate", "--frames", "3", "--imgsz", "256x144", "--lens", "-0.2", "0.05", "--out", out,
+                "--set", "count_max=20", "--quiet"])
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads((out / "generate.json").read_text())["config"]["lens"] == [-0.2, 0.05, 0.0, 0.0, 0.0]
+    path = sorted((out / "annotations").glob("*_drone_0.json"))[0]
+    meta = FrameAnnotation.from_json(path.read_text())
+    assert meta.labels.D == (-0.2, 0.05, 0.0, 0.0, 0.0)
+    assert " --lens -0.2 0.05 0 0 0" in meta.regenerate, meta.regenerate
+    again = cli([*shlex.split(meta.regenerate)[1:], "--out", tmp_path / "again"])
+    assert again.returncode == 0, again.stderr
+    mask = cv2.imread(str(out / meta.mask), cv2.IMREAD_UNCHANGED)
+    assert mask.any() and np.array_equal(mask, cv2.imread(str(tmp_path / "again" / "drone_0_instances.png"),
+                                                         cv2.IMREAD_UNCHANGED))
+    bad = cli(["generate", "--frames", "3", "--imgsz", "256x144", "--hfov", "120", "--lens", "-1", "--out",
+               tmp_path / "bad"])
+    assert bad.returncode == 2 and "'--lens'" in bad.stderr and "fold" in bad.stderr, bad.stderr
+    assert not (tmp_path / "bad").exists()

@@ -24,6 +24,7 @@ from visualization_msgs.msg import ImageMarker, MarkerArray
 pytestmark = pytest.mark.integration
 STEPS = 3
 DRONES = ("drone_0", "drone_1", "drone_2")
+LENS = {"lens_k1": -0.2, "lens_k2": 0.05, "lens_p1": 0.001}  # drone_1's camera has a wide-angle lens
 
 
 def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
@@ -57,7 +58,8 @@ def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
     try:
         with ExitStack() as stack:
             for i, d in enumerate(DRONES):
-                params = {"drone_index": i, "width": 256, "height": 144, "shadow_size": 512}
+                params = {"drone_index": i, "width": 256, "height": 144, "shadow_size": 512,
+                          **(LENS if d == "drone_1" else {})}
                 stack.enter_context(node_process("camera", {**params, "diagnostics_period_s": 0.5}, domain,
                                                  tmp_path / f"{d}.log", name=f"{d}_camera"))
             stack.enter_context(node_process("labeller", {"ack_name": "labeller", "image_reliability": "reliable",
@@ -89,14 +91,17 @@ def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
         assert all(s["level"] == 0 for n in ("labeller: labeller", "drone_1_camera: camera")
                    for s in health[n]), health  # nothing skipped, nothing unmatched
         assert {s["hardware_id"] for s in health["drone_1_camera: camera"]} == {"drone_1"}
+        assert health["drone_1_camera: camera"][-1]["values"]["lens"] == "plumb_bob [-0.2, 0.05, 0.001, 0.0, 0.0]"
         assert any(float(s["values"].get("seconds per frame", 0)) > 0 for s in health["drone_1_camera: camera"])
         for d in DRONES:
             assert set(labels[d]) <= image_stamps[d]  # every label carries the stamp of an image
             for x in labels[d].values():
                 assert x["camera"] == d and x["frame_id"] == f"{d}/camera_optical"
+                # the labeller labels through the lens its camera_info's d gives
+                assert x["D"] == ([-0.2, 0.05, 0.001, 0.0, 0.0] if d == "drone_1" else [0.0] * 5), x["D"]
                 assert x["width"] == 256 and x["in_view"] == len(x["zebras"])
                 for z in x["zebras"]:
-                    assert z["visible_pixels"] <= z["silhouette_pixels"] + 2
+                    assert z["visible_pixels"] <= z["silhouette_pixels"] + 2, (d, z)
                     assert len(z["keypoints"]) == 26
             assert markers[d] and markers[d][-1].type == ImageMarker.LINE_LIST
             assert markers[d][-1].header.frame_id == f"{d}/camera_optical"

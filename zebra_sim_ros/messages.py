@@ -598,6 +598,7 @@ class Labels(_Message):
     filters: Mapping[str, float]  # the label filters in force (labels/config.LabelFilters)
     zebras: tuple[LabelledZebra, ...]
     unknown_instances: tuple[int, ...] = ()  # mask values no scene zebra has
+    D: tuple[float, ...] = ()  # the lens's plumb_bob distortion (k1, k2, p1, p2, k3); empty or zeros: none
 
     @property
     def kept(self) -> tuple[LabelledZebra, ...]:
@@ -631,7 +632,8 @@ class Labels(_Message):
                 "seed": self.seed, "camera": self.camera, "frame_id": self.frame_id, "width": self.width,
                 "height": self.height, "K": list(self.K), "keypoint_names": list(self.keypoint_names),
                 "filters": dict(self.filters), "zebras": [z.to_dict() for z in self.zebras],
-                "in_view": len(self.zebras), "kept": len(self.kept), "unknown_instances": list(self.unknown_instances)}
+                "in_view": len(self.zebras), "kept": len(self.kept), "unknown_instances": list(self.unknown_instances),
+                "D": list(self.D)}
 
     @classmethod
     def from_dict(cls, d: Any) -> Labels:
@@ -641,7 +643,7 @@ class Labels(_Message):
             str(d.get("frame_id", "")), int(d.get("width", 0)), int(d.get("height", 0)),
             tuple(float(v) for v in d.get("K", ())), tuple(str(n) for n in d.get("keypoint_names", ())),
             dict(d.get("filters", {})), tuple(LabelledZebra.from_dict(z) for z in d["zebras"]),
-            tuple(int(i) for i in d.get("unknown_instances", ()))), d)
+            tuple(int(i) for i in d.get("unknown_instances", ())), tuple(float(v) for v in d.get("D", ()))), d)
 
 
 # -- detections --------------------------------------------------------------------------------------------------

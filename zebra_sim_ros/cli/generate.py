@@ -16,7 +16,7 @@ def register(sub: Any) -> None:
     from zebra_sim_ros.dataset.generate import __doc__ as layout
     from zebra_sim_ros.labels.config import LabelFilters
     from zebra_sim_ros.placement.config import PlacerConfig
-    from zebra_sim_ros.rendering.config import CameraConfig
+    from zebra_sim_ros.rendering.config import CameraConfig, add_lens_option
 
     p = sub.add_parser("generate", help="generate a labelled dataset (images, masks, depth, YOLO, COCO)",
                        description=(layout or "").strip(), formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -37,6 +37,7 @@ def register(sub: Any) -> None:
     add_option(p, spec_of(CameraConfig, "hfov_deg"), "--hfov")
     add_option(p, spec_of(CameraConfig, "sensor_strength"))
     add_option(p, spec_of(CameraConfig, "look"))
+    add_lens_option(p)
     add_option(p, spec_of(PlacerConfig, "other_animals_max"), "--other-animals", default=20,
                note="distractors for training sets: on in generate, off in the placer node")
     add_option(p, spec_of(PlacerConfig, "look_randomise"), "--randomise", default=0.5,
@@ -74,6 +75,7 @@ def cmd_generate(args: argparse.Namespace) -> Summary:
     """Generate (or continue generating) the dataset."""
     from zebra_sim_ros.dataset.generate import NAMED_SETS, GenerateConfig, finalize, format_histogram, generate
     from zebra_sim_ros.labels.config import LabelFilters
+    from zebra_sim_ros.rendering.config import parse_lens
     from zebra_sim_ros.world.presets import PRESETS
 
     if args.frames is None and not args.finalize_only:
@@ -92,7 +94,7 @@ def cmd_generate(args: argparse.Namespace) -> Summary:
         seed=args.seed, world_seed=args.world_seed, width=width, height=height, hfov_deg=args.hfov_deg,
         image_format=args.format, jpeg_quality=args.jpeg_quality, workers=args.workers, shard=(i, n),
         sensor_strength=args.sensor_strength, look=args.look, other_animals=args.other_animals_max,
-        randomise=args.look_randomise,
+        randomise=args.look_randomise, lens=parse_lens(args.lens).coefficients,
         yolo_box=args.yolo_box, val_fraction=args.val_fraction,
         depth=args.depth, placer=placer,
         filters=LabelFilters(args.min_visible_pixels, args.min_visible_fraction, args.min_box_px,

@@ -20,14 +20,14 @@ from zebra_sim_ros.params import add_option, spec_of
 def register(sub: Any) -> None:
     """Add the ``render`` subcommand."""
     from zebra_sim_ros.placement.config import PlacerConfig
-    from zebra_sim_ros.rendering.config import CameraConfig
+    from zebra_sim_ros.rendering.config import CameraConfig, add_lens_option
 
     p = sub.add_parser(
         "render", help="render one step's camera views to files (PNG RGB, depth, instance mask)",
         description="Writes per camera: <name>_rgb.png (sRGB), <name>_depth.npy (float32 metres along the optical "
                     "axis, inf = sky), <name>_depth_mm.png (uint16 millimetres, 0 = sky or beyond 65.5 m), "
                     "<name>_instances.png (uint16: zebra id + 1, 0 = not a zebra), plus scene.json, "
-                    "camera_info.json and a contact sheet preview.png.")
+                    "camera_info.json (K and the lens's D per camera) and a contact sheet preview.png.")
     for name in ("seed", "world", "strategy"):  # the placer's parameters; not given: the parameter file's
         add_option(p, spec_of(PlacerConfig, name), default=None)
     p.add_argument("--step", type=int, default=0, help="which step of the seed's sequence (>= 0)")
@@ -39,6 +39,7 @@ def register(sub: Any) -> None:
     add_option(p, spec_of(CameraConfig, "hfov_deg"), "--hfov", default=None, note="not given: the placer's")
     add_option(p, spec_of(CameraConfig, "sensor_strength"))
     add_option(p, spec_of(CameraConfig, "look"))
+    add_lens_option(p)
     p.add_argument("--no-shadows", action="store_true", help="render without sun shadows")
     p.add_argument("--out", type=Path, required=True, help="output folder")
     add_json_flag(p)
@@ -52,7 +53,7 @@ def cmd_render(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.placement.config import PlacerConfig
     from zebra_sim_ros.placement.placer import Placer
     from zebra_sim_ros.placement.sun import lighting_for
-    from zebra_sim_ros.rendering.config import look_options
+    from zebra_sim_ros.rendering.config import check_render_options, look_options, parse_lens
     from zebra_sim_ros.rendering.effects import SensorModel
     from zebra_sim_ros.rendering.renderer import RenderOptions
     from zebra_sim_ros.simulation import Simulator
@@ -67,6 +68,9 @@ def cmd_render(args: argparse.Namespace) -> Summary:
     if args.hfov_deg is not None:
         values["camera_hfov_deg"] = args.hfov_deg
     cfg = PlacerConfig.from_params(values)
+    options = check_render_options(RenderOptions(width=args.width, height=args.height, hfov_deg=cfg.camera_hfov_deg,
+                                                 shadows=not args.no_shadows, distortion=parse_lens(args.lens),
+                                                 **look_options(args.look)), "--lens")
     t0 = time.perf_counter()
     world = load_world(cfg.world, cfg.terrain_prim, cfg.world_seed)
     lib = load_library()
@@ -74,8 +78,7 @@ def cmd_render(args: argparse.Namespace) -> Summary:
     if args.time_of_day is not None:
         light = scene.lighting
         scene = scene.with_lighting(lighting_for(args.time_of_day % 24.0, light.day_of_year, light.latitude_deg))
-    sim = Simulator(world, lib, RenderOptions(width=args.width, height=args.height, hfov_deg=cfg.camera_hfov_deg,
-                                              shadows=not args.no_shadows, **look_options(args.look)),
+    sim = Simulator(world, lib, options,
                     sensor=SensorModel(args.sensor_strength) if args.sensor_strength > 0 else None)
     renderer = sim.renderer
     t1 = time.perf_counter()
@@ -92,7 +95,8 @@ def cmd_render(args: argparse.Namespace) -> Summary:
         mm = np.where(np.isfinite(v.depth), np.clip(np.rint(v.depth * 1000), 0, 65535), 0).astype(np.uint16)
         cv2.imwrite(str(out / f"{v.name}_depth_mm.png"), mm)
         cv2.imwrite(str(out / f"{v.name}_instances.png"), v.instances)
-        info[v.name] = {"width": args.width, "height": args.height, "K": v.K.tolist(),
+        info[v.name] = {"width": args.width, "height": args.height, "K": v.K.tolist(), "distortion_model": "plumb_bob",
+                        "D": list(v.D),
                         "frame_id": optical_frame(v.name), "depth_unit": "m", "instances": "zebra id + 1"}
         tiles.append(preview_row(v.rgb, v.depth, v.instances))
     (out / "camera_info.json").write_text(json.dumps(info, indent=1))

@@ -96,6 +96,7 @@ class GenerateConfig:
     look: str = "photo"  # rendering.config.LOOKS: photo, or plain (flat ground, bare coats)
     other_animals: int = 20  # the placer's other_animals_max: distractors of other species (0 = zebras only)
     randomise: float = 0.5  # the placer's look_randomise (and half of it as ground_recolor): domain randomisation
+    lens: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)  # the lens's plumb_bob distortion (geometry.lens); 0: none
 
     @property
     def placer_params(self) -> dict[str, Any]:
@@ -132,6 +133,20 @@ class GenerateConfig:
             raise ParameterError("--randomise", self.randomise, "0..1")
         if not 0.0 <= self.val_fraction < 1.0:
             raise ParameterError("--val-fraction", self.val_fraction, "0 <= f < 1")
+        from zebra_sim_ros.rendering.config import check_render_options
+
+        check_render_options(self.render_options(), "--lens")  # the lens, for this image size and field of view
+
+    def render_options(self) -> Any:
+        """The renderer's settings (:class:`~zebra_sim_ros.rendering.renderer.RenderOptions`)."""
+        from zebra_sim_ros.geometry.lens import Distortion
+        from zebra_sim_ros.rendering.config import look_options
+        from zebra_sim_ros.rendering.renderer import RenderOptions
+
+        if len(self.lens) != 5:
+            raise ParameterError("--lens", list(self.lens), "k1, k2, p1, p2, k3")
+        return RenderOptions(width=self.width, height=self.height, hfov_deg=self.hfov_deg,
+                             distortion=Distortion(*self.lens), **look_options(self.look))
 
 
 @dataclass(frozen=True)
@@ -206,9 +221,7 @@ class _Pipeline:
     def _world(self, name: str) -> None:
         if name == self.world_name:
             return
-        from zebra_sim_ros.rendering.config import look_options
         from zebra_sim_ros.rendering.effects import SensorModel
-        from zebra_sim_ros.rendering.renderer import RenderOptions
         from zebra_sim_ros.simulation import Simulator
         from zebra_sim_ros.world.world import load_world
 
@@ -216,12 +229,19 @@ class _Pipeline:
             self.sim.release()
         c = self.cfg
         self.world = load_world(name, "/World/Terrain", c.world_seed)
-        self.sim = Simulator(self.world, self.library, RenderOptions(width=c.width, height=c.height,
-                                                                      hfov_deg=c.hfov_deg, **look_options(c.look)),
-                             c.filters,
+        self.sim = Simulator(self.world, self.library, c.render_options(), c.filters,
                              SensorModel(c.sensor_strength) if c.sensor_strength > 0 else None)
         self.placers = {}
         self.world_name = name
+
+    @property
+    def lens_arg(self) -> str:
+        """The lens as a ``render`` option (none without distortion)."""
+        from zebra_sim_ros.geometry.lens import Distortion
+        from zebra_sim_ros.rendering.config import lens_text
+
+        lens = Distortion(*self.cfg.lens)
+        return "" if lens.none else f" --lens {lens_text(lens)}"
 
     @property
     def set_args(self) -> str:
@@ -293,7 +313,7 @@ class _Pipeline:
             scene.reroll, job.strategy, scene.asset_digest, scene.lighting, scene.camera(v.name),
             f"zebra-sim render --seed {job.seed} --step {job.step} --world {job.world} --strategy {job.strategy} "
             f"--width {c.width} --height {c.height} --hfov {c.hfov_deg} --sensor-strength {c.sensor_strength} "
-            f"--look {c.look}"
+            f"--look {c.look}{self.lens_arg}"
             f"{self.set_args}", labels, v.sensor, scene.weather, scene.ground, self.appearance)
         _write_atomic(self.out / "annotations" / f"{name}.json", meta.to_json().encode())
         return name

@@ -13,12 +13,14 @@ horizon** (negative looks down) and yaw is the heading of the optical axis, coun
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
 
 from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.geometry.lens import Distortion, LensCanvas, lens_canvas
 from zebra_sim_ros.geometry.rotations import rot_x, rot_y, rot_z
 from zebra_sim_ros.params import param
 
@@ -42,11 +44,13 @@ class Intrinsics:
 
 @dataclass(frozen=True)
 class PinholeCamera:
-    """An ideal pinhole camera (no distortion) of ``width`` x ``height`` pixels and horizontal FOV."""
+    """A pinhole camera of ``width`` x ``height`` pixels and horizontal FOV (which sets the focal length of K), with
+    the lens's ``distortion`` (:mod:`~zebra_sim_ros.geometry.lens`; none by default: an ideal pinhole)."""
 
     width: int
     height: int
     hfov_deg: float
+    distortion: Distortion = field(default_factory=Distortion)
 
     def __post_init__(self) -> None:
         if not (16 <= self.width <= 16384):
@@ -72,14 +76,47 @@ class PinholeCamera:
         return np.array([[self.fx, 0.0, (self.width - 1) / 2], [0.0, self.fx, (self.height - 1) / 2],
                          [0.0, 0.0, 1.0]])
 
+    @property
+    def D(self) -> list[float]:  # noqa: N802 - CameraInfo's name of the distortion coefficients
+        """CameraInfo's ``d``: the plumb_bob coefficients (k1, k2, p1, p2, k3)."""
+        return list(self.distortion.coefficients)
+
+    @cached_property
+    def canvas(self) -> LensCanvas | None:
+        """Where a distorted image is resampled from (:func:`~zebra_sim_ros.geometry.lens.lens_canvas`; made once);
+        None for an ideal pinhole."""
+        return None if self.distortion.none else lens_canvas(self.width, self.height, self.fx, self.distortion)
+
+    @property
+    def ideal(self) -> PinholeCamera:
+        """The ideal pinhole this camera's images are rendered with: itself without distortion, else the canvas of
+        the same focal length that covers everything the lens sees."""
+        c = self.canvas
+        if c is None:
+            return self
+        return PinholeCamera(c.canvas_width, c.canvas_height,
+                             float(np.degrees(2 * np.arctan(c.canvas_width / 2 / self.fx))))
+
     def project(self, points_optical: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
-        """Pixels (..., 2) of points in the optical frame, and whether each lies in front of the camera."""
+        """Pixels (..., 2) of points in the optical frame (through the lens's distortion), and whether each lies in
+        front of the camera.
+
+        The distortion polynomial folds back some way outside the image (a barrel lens's r (1 + k1 r^2) turns at
+        r^2 = -1 / (3 k1)): a point farther from the axis than any the image shows keeps the radial factor of the
+        farthest (a corner's), which puts it outside the image, where it belongs."""
         p = np.asarray(points_optical, dtype=np.float64)
         z = p[..., 2]
         front = z > 1e-9
         zs = np.where(front, z, 1.0)
-        u = self.fx * p[..., 0] / zs + (self.width - 1) / 2
-        v = self.fx * p[..., 1] / zs + (self.height - 1) / 2
+        xi, yi = p[..., 0] / zs, p[..., 1] / zs
+        x, y = self.distortion.apply(xi, yi)
+        if (lens := self.canvas) is not None:
+            beyond = np.hypot(xi, yi) > lens.max_radius
+            if np.any(beyond):
+                factor = self.distortion.radial(lens.max_radius)
+                x, y = np.where(beyond, xi * factor, x), np.where(beyond, yi * factor, y)
+        u = self.fx * x + (self.width - 1) / 2
+        v = self.fx * y + (self.height - 1) / 2
         return np.stack([u, v], axis=-1), front
 
     def in_image(self, points_optical: FloatArray, margin_px: float = 0.0) -> NDArray[np.bool_]:

@@ -17,6 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.frames import xyzw_to_matrix
+from zebra_sim_ros.geometry.lens import Distortion
 
 FloatArray = NDArray[np.float64]
 DEPTH_WINDOW_M = 1.5  # how deep a span of a box's depths is taken as its animal (about a zebra's length and a half)
@@ -94,12 +95,14 @@ def intrinsics(k: ArrayLike) -> FloatArray:
 
 
 def locate_boxes(boxes: FloatArray, depth: NDArray[np.floating], k: FloatArray, position: FloatArray,
-                 orientation_xyzw: FloatArray, core: float = CORE, window_m: float = DEPTH_WINDOW_M) -> Located:
+                 orientation_xyzw: FloatArray, core: float = CORE, window_m: float = DEPTH_WINDOW_M,
+                 distortion: Distortion | None = None) -> Located:
     """Each box's point in ``map``: the ray through its centre, at its depth (:func:`box_depths`), from a camera
     whose optical frame (z forward, x right, y down) is at ``position`` with ``orientation_xyzw`` in ``map`` (the
-    placer's ``<drone>/camera/pose``), ``k`` its 3x3 intrinsic matrix (CameraInfo ``k``; skew and lens distortion
-    are not modelled: the placer's cameras are ideal pinholes). ValueError for a K that :func:`intrinsics` refuses,
-    a pose that is not finite or a zero quaternion (others are normalised)."""
+    placer's ``<drone>/camera/pose``), ``k`` its 3x3 intrinsic matrix (CameraInfo ``k``; skew is not modelled) and
+    ``distortion`` its lens's (CameraInfo ``d``, undone for the box centre's ray; None: an ideal pinhole). A box's
+    size in metres is its pixel size at the centre's scale. ValueError for a K that :func:`intrinsics` refuses, a
+    pose that is not finite or a zero quaternion (others are normalised)."""
     k = intrinsics(k)
     position = np.asarray(position, dtype=np.float64).reshape(3)
     quat = np.asarray(orientation_xyzw, dtype=np.float64).reshape(4)
@@ -110,7 +113,10 @@ def locate_boxes(boxes: FloatArray, depth: NDArray[np.floating], k: FloatArray, 
     d = box_depths(depth, boxes, core, window_m)
     u = (boxes[:, 0] + boxes[:, 2]) / 2 - 0.5  # pixel-edge to pixel-centre coordinates
     v = (boxes[:, 1] + boxes[:, 3]) / 2 - 0.5
-    optical = np.stack([(u - k[0, 2]) / k[0, 0] * d, (v - k[1, 2]) / k[1, 1] * d, d], axis=-1)
+    x, y = (u - k[0, 2]) / k[0, 0], (v - k[1, 2]) / k[1, 1]
+    if distortion is not None:
+        x, y = distortion.remove(x, y)
+    optical = np.stack([x * d, y * d, d], axis=-1)
     r = xyzw_to_matrix(quat)  # optical to map (normalised)
     points = optical @ r.T + position.reshape(1, 3)
     size = np.stack([np.abs(boxes[:, 2] - boxes[:, 0]) * d / k[0, 0], np.abs(boxes[:, 3] - boxes[:, 1]) * d / k[1, 1]],

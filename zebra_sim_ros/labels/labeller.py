@@ -16,6 +16,10 @@ For every zebra with at least one pixel in the instance mask:
 Boxes are ``[x_min, y_min, x_max, y_max]`` in pixel-edge coordinates: the top-left corner of the image is
 (0, 0) and a pixel (col, row) spans [col, col + 1] x [row, row + 1] (COCO's convention); keypoint pixel
 coordinates are the same edge coordinates. Instance ids in the mask are scene id + 1.
+
+A camera with a lens (:class:`~zebra_sim_ros.geometry.camera.PinholeCamera`'s ``distortion``, from CameraInfo's
+``d``) is labelled through it: full boxes and keypoints are projected through the lens, silhouettes are counted in
+the image's pixels (:mod:`~zebra_sim_ros.labels.silhouettes`), and the labels carry its coefficients as ``D``.
 """
 
 from __future__ import annotations
@@ -203,7 +207,7 @@ def label_view(scene: Scene, camera_name: str, mask: NDArray[np.integer], depth:
                       for j in range(len(KEYPOINT_NAMES))), reason is None, reason, species=z.species))
     return Labels(scene.stamp, scene.step, scene.seed, camera_name, optical_frame(camera_name),
                   int(camera.width), int(camera.height), tuple(float(v) for v in camera.K.ravel()),
-                  tuple(KEYPOINT_NAMES), filters.to_dict(), tuple(labels), tuple(unknown))
+                  tuple(KEYPOINT_NAMES), filters.to_dict(), tuple(labels), tuple(unknown), tuple(camera.D))
 
 
 def _box(b: NDArray[np.float64], digits: int | None = None) -> tuple[float, float, float, float]:

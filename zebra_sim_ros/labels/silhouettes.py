@@ -5,6 +5,11 @@ tile is the zebra's projected bounding box shifted by a whole number of pixels, 
 same pixel centres as in the camera image, and the count is exact and consistent with the mask (a zebra's
 visible pixels are always a subset of its silhouette). Tiles may reach outside the image, which gives the
 in-frame fraction as well. Zebras are drawn with the same level of detail rule as the renderer.
+
+A camera with lens distortion is drawn as the renderer draws it, on its lens's ideal canvas; each canvas pixel of
+a silhouette then counts as the number of image pixels that show it (their nearest canvas pixel, as in the mask),
+so the count is still exact and consistent with the mask; outside the image, where no image pixel shows the canvas,
+it counts as the lens's area factor there (the part of a silhouette outside the image is then an estimate).
 """
 
 from __future__ import annotations
@@ -53,6 +58,22 @@ class Coverage:
     total: NDArray[np.int64]
 
 
+def _lens_weights(camera: PinholeCamera) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """What a canvas pixel of a silhouette counts in the image of a camera with a lens (None without one): inside
+    the image (how many image pixels show it), and in all (that, or off the image the lens's area factor)."""
+    lens = camera.canvas
+    if lens is None:
+        return None
+    shown = lens.multiplicity().astype(np.float64)
+    cw, ch = lens.canvas_width, lens.canvas_height
+    cols, rows = np.meshgrid(np.arange(cw, dtype=np.float64), np.arange(ch, dtype=np.float64))
+    x, y = (cols - (cw - 1) / 2) / camera.fx, (rows - (ch - 1) / 2) / camera.fx
+    xd, yd = camera.distortion.apply(x, y)
+    u, v = camera.fx * xd + (camera.width - 1) / 2, camera.fx * yd + (camera.height - 1) / 2
+    in_image = (u >= -0.5) & (u <= camera.width - 0.5) & (v >= -0.5) & (v <= camera.height - 0.5)
+    return shown, np.where(in_image, shown, camera.distortion.area_factor(x, y))
+
+
 def _shelf_pack(todo: list[int], w: NDArray[np.int64], h: NDArray[np.int64],
                 atlas: int) -> tuple[dict[int, tuple[int, int]], list[int]]:
     """Shelf packing of tiles ``w x h`` (in ``todo`` order) into one atlas page: each placed tile's top-left
@@ -78,6 +99,8 @@ class SilhouetteCounter:
     def __init__(self, library: ZebraLibrary, camera: PinholeCamera, detail_distance_m: float = DETAIL_DISTANCE_M,
                  near_m: float = 0.1, far_m: float = 4000.0, atlas: int = 4096, ctx: Any = None) -> None:
         self.library, self.camera = library, camera
+        self.canvas = camera.ideal  # the pinhole the silhouettes are drawn with (the renderer's)
+        self.weights = _lens_weights(camera)
         self.detail_distance_m, self.near_m, self.far_m = detail_distance_m, near_m, far_m
         self.atlas = atlas
         self.ctx = ctx if ctx is not None else create_context()[0]
@@ -95,8 +118,8 @@ class SilhouetteCounter:
 
     def count(self, zebras: ZebraSet, position: NDArray[np.float64], r_optical: NDArray[np.float64],
               which: NDArray[np.int64] | None = None) -> Coverage:
-        """Silhouette pixel counts of ``zebras`` (or the subset ``which``) seen from a camera pose, drawn with this
-        counter's GL context current (the one before restored)."""
+        """Silhouette pixel counts of ``zebras`` (or the subset ``which``) seen from a camera pose (in the image's
+        pixels, through the lens), drawn with this counter's GL context current (the one before restored)."""
         with self.ctx:
             return self._count(zebras, position, r_optical, which)
 
@@ -108,7 +131,7 @@ class SilhouetteCounter:
         total = np.zeros(n, dtype=np.int64)
         if n == 0:
             return Coverage(in_image, total)
-        cam = self.camera
+        cam = self.canvas
         vp = perspective(cam, self.near_m, self.far_m) @ view_matrix(position, r_optical)
         dist = np.linalg.norm(zebras.position[sel_all] - position, axis=1)
         self.prog["u_view_proj"].write(np.asarray(vp, dtype=np.float32).T.tobytes())
@@ -124,7 +147,7 @@ class SilhouetteCounter:
     def _count_lod(self, zebras: ZebraSet, sel: NDArray[np.int64], lod: int, position: NDArray[np.float64],
                    r_optical: NDArray[np.float64], in_image: NDArray[np.int64], total: NDArray[np.int64],
                    slots: NDArray[np.int64]) -> None:
-        cam, z = self.camera, self.lod[lod]
+        cam, z = self.canvas, self.lod[lod]
         posed = self.library.pose(zebras.morph[sel], zebras.global_frame[sel], zebras.scale[sel],
                                   zebras.rotation[sel], zebras.position[sel], lod=lod)
         verts = np.ascontiguousarray(posed.vertices[:, z["src"]], dtype=np.float32)
@@ -166,15 +189,34 @@ class SilhouetteCounter:
             for i in idx:
                 ax, ay = place[int(i)]
                 tile = img[ay:ay + h[i], ax:ax + w[i]] > 0
-                total[slots[i]] = int(tile.sum())
-                # The part of the tile that is inside the image: image px = tile px + (x0, y0).
+                # The part of the tile that is inside the image (the canvas): image px = tile px + (x0, y0).
                 c0, r0 = max(0, -int(x0[i])), max(0, -int(y0[i]))
                 c1 = min(int(w[i]), cam.width - int(x0[i]))
                 r1 = min(int(h[i]), cam.height - int(y0[i]))
-                in_image[slots[i]] = int(tile[r0:r1, c0:c1].sum()) if c1 > c0 and r1 > r0 else 0
+                inside = tile[r0:r1, c0:c1] if c1 > c0 and r1 > r0 else tile[:0, :0]
+                if self.weights is None:
+                    total[slots[i]] = int(tile.sum())
+                    in_image[slots[i]] = int(inside.sum())
+                    continue
+                w_in, w_all = self.weights
+                win = (slice(int(y0[i]) + r0, int(y0[i]) + r0 + inside.shape[0]),
+                       slice(int(x0[i]) + c0, int(x0[i]) + c0 + inside.shape[1]))
+                shown = float(w_in[win][inside].sum())
+                beyond = tile.copy()
+                beyond[r0:r0 + inside.shape[0], c0:c0 + inside.shape[1]] = False  # tile pixels off the canvas
+                rows, cols = np.nonzero(beyond)
+                off = self._area_factor(cols + int(x0[i]), rows + int(y0[i])) if len(rows) else 0.0
+                in_image[slots[i]] = int(round(shown))
+                total[slots[i]] = int(round(float(w_all[win][inside].sum()) + off))
             if len(rest) == len(todo):  # a single zebra larger than the atlas: count what fits
                 break
             todo = rest
+
+    def _area_factor(self, cols: NDArray[np.int64], rows: NDArray[np.int64]) -> float:
+        """The lens's area factor summed over canvas pixels (col, row), which may lie off the canvas."""
+        c, fx = self.canvas, self.camera.fx
+        x, y = (cols - (c.width - 1) / 2) / fx, (rows - (c.height - 1) / 2) / fx
+        return float(self.camera.distortion.area_factor(x, y).sum())
 
     def release(self) -> None:
         """Free the GL resources (and the context, if this counter made it)."""

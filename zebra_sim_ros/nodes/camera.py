@@ -10,7 +10,8 @@ the scene's stamp and frame_id ``drone_{i}/camera_optical`` (z forward, x right,
 - ``drone_{i}/image_raw`` (sensor_msgs/Image ``rgb8``), gamma-encoded sRGB;
 - ``drone_{i}/depth`` (sensor_msgs/Image ``32FC1``): metres along the optical axis; +inf where only sky (REP 118);
 - ``drone_{i}/instances`` (sensor_msgs/Image ``mono16``): 0 = not a zebra, else the zebra's scene id + 1;
-- ``drone_{i}/camera_info`` (sensor_msgs/CameraInfo): K and P of the ideal pinhole, no distortion;
+- ``drone_{i}/camera_info`` (sensor_msgs/CameraInfo): K and P of the pinhole, and ``d`` the lens's plumb_bob
+  distortion (``lens_k1`` .. ``lens_k3``; zeros by default: an ideal pinhole, whose images need no rectification);
 - with ``compressed`` jpeg or png, ``drone_{i}/image_raw/compressed`` (sensor_msgs/CompressedImage): the same
   image as ``image_transport``'s compressed transport sends it (format ``rgb8; jpeg compressed bgr8``): at 1280x720
   jpeg 90 is 5% of the raw bytes, png 35% (``benchmarks/bench_compressed.py``), to record or send over a network.
@@ -30,6 +31,7 @@ from std_msgs.msg import Header, String
 
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.frames import optical_frame
+from zebra_sim_ros.geometry.lens import PLUMB_BOB
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.nodes.placer import SCENE_TOPIC
@@ -44,18 +46,21 @@ from zebra_sim_ros.nodes.ros_adapter import (
     stamp,
 )
 from zebra_sim_ros.recording.images import compress_rgb
-from zebra_sim_ros.rendering.config import CAMERA_PARAMS, CameraConfig
+from zebra_sim_ros.rendering.config import CAMERA_PARAMS, CameraConfig, lens_distortion
 from zebra_sim_ros.rendering.renderer import RenderedView
 from zebra_sim_ros.simulation import Simulator
 from zebra_sim_ros.world.world import load_world
 from zebra_sim_ros.zebra.asset import load_library
 
 
-def camera_info_msg(header: Header, K: np.ndarray, width: int, height: int) -> CameraInfo:  # noqa: N803
-    """CameraInfo of an ideal pinhole with intrinsics K (OpenCV convention)."""
+def camera_info_msg(header: Header, K: np.ndarray, width: int, height: int,  # noqa: N803
+                    D: tuple[float, ...] = (0.0,) * 5) -> CameraInfo:  # noqa: N803
+    """CameraInfo of a pinhole with intrinsics K (OpenCV convention) and plumb_bob distortion D (P = K: the
+    rectified image keeps K)."""
     p = np.zeros((3, 4))
     p[:, :3] = K
-    return CameraInfo(header=header, width=width, height=height, distortion_model="plumb_bob", d=[0.0] * 5,
+    return CameraInfo(header=header, width=width, height=height, distortion_model=PLUMB_BOB,
+                      d=[float(v) for v in D],
                       k=[float(v) for v in K.ravel()], r=[1.0, 0, 0, 0, 1.0, 0, 0, 0, 1.0],
                       p=[float(v) for v in p.ravel()])
 
@@ -73,6 +78,8 @@ class CameraNode(ZebraNode[CameraConfig]):
         self.sim: Simulator | None = None  # the renderer of the scene's world (its labels are the labeller's)
         self.world_key: tuple[str, str, int] | None = None
         self.effects = c.effects()
+        distortion = lens_distortion(c)
+        self.lens = "ideal" if distortion.none else f"plumb_bob {list(distortion.coefficients)}"
         self.frame_id = optical_frame(c.name)
         out_qos = qos(c.qos_reliability, c.qos_depth)
         scene_qos = qos("reliable", 1, transient_local=True)
@@ -86,7 +93,7 @@ class CameraNode(ZebraNode[CameraConfig]):
         self.pub_ack = self.create_publisher(Header, ACK_TOPIC, qos("reliable", 100)) if c.ack else None
         self.create_subscription(String, SCENE_TOPIC, self._on_scene, scene_qos)
         self.get_logger().info(
-            f"{c.name}: {c.width}x{c.height}, hfov {c.hfov_deg} deg, shadows {c.shadows}, effects "
+            f"{c.name}: {c.width}x{c.height}, hfov {c.hfov_deg} deg, lens {self.lens}, shadows {c.shadows}, effects "
             f"{self.effects if self.effects.active else 'off'}; QoS images: {describe_qos(out_qos)}; "
             f"scene: {describe_qos(scene_qos)}; publishing in namespace '{self.get_namespace()}'")
         self.last: tuple[int, Header, RenderedView] | None = None
@@ -146,7 +153,7 @@ class CameraNode(ZebraNode[CameraConfig]):
         self.pub_rgb.publish(image_msg(header, view.rgb, "rgb8"))
         self.pub_depth.publish(image_msg(header, view.depth.astype("<f4"), "32FC1"))
         self.pub_ids.publish(image_msg(header, view.instances.astype("<u2"), "mono16"))
-        self.pub_info.publish(camera_info_msg(header, view.K, c.width, c.height))
+        self.pub_info.publish(camera_info_msg(header, view.K, c.width, c.height, view.D))
         if self.pub_compressed is not None and self.pub_compressed.get_subscription_count():  # encode for a reader
             fmt, data = compress_rgb(view.rgb, c.compressed, c.compressed_quality)
             self.pub_compressed.publish(CompressedImage(header=header, format=fmt, data=data))
@@ -168,7 +175,7 @@ class CameraNode(ZebraNode[CameraConfig]):
         counts = {"frames": self.rendered, "republished": self.frames - self.rendered, "skipped": self.skipped}
         return Activity(counts, "frames", ("skipped",),
                         busy_s=self.render_seconds, hardware=c.name,
-                        info={"world": str(world), "image size": f"{c.width}x{c.height}"})
+                        info={"world": str(world), "image size": f"{c.width}x{c.height}", "lens": self.lens})
 
     def stop(self) -> None:
         """Say what the coats cost, release the GL context."""

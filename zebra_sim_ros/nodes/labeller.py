@@ -27,6 +27,7 @@ from visualization_msgs.msg import ImageMarker, Marker, MarkerArray
 
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.camera import PinholeCamera
+from zebra_sim_ros.geometry.lens import Distortion
 from zebra_sim_ros.geometry.locate import intrinsics
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.labels.config import LABELLER_PARAMS, LabellerConfig
@@ -50,6 +51,7 @@ from zebra_sim_ros.nodes.ros_adapter import (
     run_node,
     stamp_ns,
 )
+from zebra_sim_ros.rendering.gl import create_context
 from zebra_sim_ros.zebra.asset import load_library
 
 
@@ -85,7 +87,8 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         c = self.cfg
         self.library = load_library()
         self.filters = c.filters()
-        self.labellers: dict[tuple[int, int, float], Labeller] = {}  # per camera model
+        self.labellers: dict[tuple[int, int, float, Distortion], Labeller] = {}  # per camera model
+        self.ctx: Any = None  # one GL context for them all (made with the first)
         q = qos(c.qos_reliability, c.qos_depth)
         image_q = qos(c.image_reliability, c.qos_depth)
         scene_qos = qos("reliable", 1, transient_local=True)
@@ -133,16 +136,20 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         self._try(drone, t)
 
     def _labeller(self, info: CameraInfo) -> Labeller:
-        """The labeller of ``info``'s camera model (made once per model); ValueError for a K that
-        :func:`~zebra_sim_ros.geometry.locate.intrinsics` refuses, or an empty image."""
+        """The labeller of ``info``'s camera model, its lens too (made once per model); ValueError for a K that
+        :func:`~zebra_sim_ros.geometry.locate.intrinsics` refuses, a distortion other than plumb_bob, or an empty
+        image."""
         width, height, fx = int(info.width), int(info.height), float(intrinsics(info.k)[0, 0])
         if width <= 0 or height <= 0:
             raise ValueError(f"camera_info of {width}x{height} px: want a non-empty image")
         hfov = float(np.degrees(2 * np.arctan(width / 2 / fx)))
-        key = (width, height, round(hfov, 6))
+        distortion = Distortion.from_d(info.d, info.distortion_model)
+        key = (width, height, round(hfov, 6), distortion)
         if key not in self.labellers:
-            self.labellers[key] = Labeller(self.library, PinholeCamera(width, height, hfov), self.filters,
-                                           self.cfg.zebra_detail_distance_m)
+            if self.ctx is None:
+                self.ctx = create_context()[0]
+            self.labellers[key] = Labeller(self.library, PinholeCamera(width, height, hfov, distortion), self.filters,
+                                           self.cfg.zebra_detail_distance_m, ctx=self.ctx)
         return self.labellers[key]
 
     def _try(self, drone: str, t: int) -> None:
@@ -180,6 +187,8 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         """Release GL resources."""
         for labeller in self.labellers.values():
             labeller.release()
+        if self.ctx is not None:
+            self.ctx.release()
         print(f"[labeller] stopping: {self.stats}", flush=True)  # plain: the ROS context may be shut down already
 
 

@@ -6,7 +6,8 @@ Subscribes, per camera in ``drones``, ``<drone>/<detections>`` (the detector's D
 exact one, ``camera/pose_nav``, the placer's as the drone's navigation gives it, or a drone's own localisation);
 matches them by stamp, exactly (the image's: a pose source must stamp a pose per image,
 as the placer does; a stamp whose inputs do not all arrive before ``sync_window`` other stamps have arrived after
-it is dropped and counted; the latest camera_info serves every frame, its size the depth image's) and publishes,
+it is dropped and counted; the latest camera_info serves every frame, its size the depth image's, its ``d`` the
+lens's plumb_bob distortion, undone for each ray) and publishes,
 with the image's stamp:
 
 - ``<drone>/<output>`` (Detection3DArray in the pose's frame, ``map``; vision_msgs where installed, else
@@ -55,6 +56,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from zebra_sim_ros.detection.config import LOCATOR_PARAMS, LocatorConfig
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.census import Census
+from zebra_sim_ros.geometry.lens import Distortion
 from zebra_sim_ros.geometry.locate import Located, intrinsics, locate_boxes
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Detections
@@ -193,7 +195,8 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         self.out_type = detection3d_array_type()
         out_class = message_class(self.out_type)
         self.frames = FrameParts(c.sync_window, _PARTS)
-        self.info: dict[str, tuple[np.ndarray, int, int]] = {}  # drone: its latest K (3x3), width, height
+        self.info: dict[str, tuple[np.ndarray, int, int, Distortion | None]] = {}  # drone: its latest K (3x3),
+        # width, height and lens (None: an ideal pinhole)
         self.stats = {"frames": 0, "placed": 0, "unplaced": 0, "unmatched": 0, "bad_messages": 0, "census": 0,
                       "animals": 0, "census_incomplete": 0, "census_repeated": 0}
         self.last_count = ""  # the latest census: animals per class
@@ -224,11 +227,12 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         def on_info(msg: CameraInfo) -> None:
             try:
                 k = intrinsics(msg.k)
+                distortion = Distortion.from_d(msg.d, msg.distortion_model)
             except ValueError as exc:
                 self.skip_bad(self.stats, f"{drone}/camera_info", exc)
                 return
             first = drone not in self.info
-            self.info[drone] = (k, int(msg.width), int(msg.height))
+            self.info[drone] = (k, int(msg.width), int(msg.height), None if distortion.none else distortion)
             if first:  # the frames that waited for it
                 for t in self.frames.waiting():
                     self._try(drone, t)
@@ -264,7 +268,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         orientation = (o.x, o.y, o.z, o.w)
         position = np.array([p.x, p.y, p.z])
         try:
-            k, width, height = self.info[drone]
+            k, width, height, distortion = self.info[drone]
             depth = image_array(got["depth"])
             if depth.shape != (height, width):
                 raise ValueError(f"a depth image of {depth.shape[1]}x{depth.shape[0]} px with camera_info of "
@@ -273,7 +277,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
                 depth = depth.astype(np.float32) / 1000.0
             boxes = np.array([x.box_xyxy for x in dets.detections], np.float64).reshape(-1, 4)
             where = locate_boxes(boxes, depth, k, position, np.array(orientation),
-                                 self.cfg.core, self.cfg.depth_window)
+                                 self.cfg.core, self.cfg.depth_window, distortion)
         except (ZebraSimError, ValueError, TypeError, IndexError, ArithmeticError) as exc:
             self.skip_bad(self.stats, f"{drone} stamp {t}", exc)
             return

@@ -1,15 +1,20 @@
 """The camera node's parameters: one frozen dataclass, each parameter declared once (see ``CAMERA_PARAMS``).
 
 Its intrinsics (width, height, hfov_deg) are declared once in :class:`~zebra_sim_ros.geometry.camera.Intrinsics`:
-one default, unit and range for the cameras the placer aims and the cameras that render.
+one default, unit and range for the cameras the placer aims and the cameras that render; its lens (``lens_k1`` ..
+``lens_k3``) in :class:`~zebra_sim_ros.geometry.lens.Lens`, for the camera node, ``generate`` and ``render``.
 """
 
 from __future__ import annotations
 
+import argparse
+from collections.abc import Sequence
 from dataclasses import dataclass
 
+from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import MAX_CAMERAS, Intrinsics
-from zebra_sim_ros.params import ParamSpec, StageConfig, diagnostics_param, param, reliability_param, same_as
+from zebra_sim_ros.geometry.lens import LENS_ERROR, Distortion, Lens
+from zebra_sim_ros.params import ParamSpec, StageConfig, diagnostics_param, param, reliability_param, same_as, spec_of
 from zebra_sim_ros.rendering.effects import CameraEffects, SensorModel
 from zebra_sim_ros.rendering.renderer import RenderOptions
 
@@ -22,6 +27,50 @@ def look_options(look: str) -> dict[str, bool]:
     return {"detail": photo, "contact_shadows": photo}
 
 
+LENS_HELP = ("the lens's plumb_bob distortion, CameraInfo's d: K1 [K2 [P1 [P2 [K3]]]] (the rest 0; e.g. -0.2 0.05 "
+             "for a wide-angle drone camera's barrel distortion); default none, an ideal pinhole")
+
+
+def add_lens_option(p: argparse.ArgumentParser) -> None:
+    """The ``--lens K1 [K2 [P1 [P2 [K3]]]]`` option of ``generate`` and ``render`` (read with :func:`parse_lens`)."""
+    p.add_argument("--lens", nargs="+", type=float, default=[], metavar="K", help=LENS_HELP)
+
+
+def parse_lens(values: Sequence[float], name: str = "--lens") -> Distortion:
+    """k1 [k2 [p1 [p2 [k3]]]] as a :class:`Distortion`, each value in its :class:`Lens` parameter's range;
+    :class:`ParameterError` naming ``name`` otherwise."""
+    keys = ("k1", "k2", "p1", "p2", "k3")
+    if len(values) > len(keys):
+        raise ParameterError(name, list(values), "K1 [K2 [P1 [P2 [K3]]]]: up to five numbers")
+    for key, value in zip(keys, values, strict=False):
+        spec = spec_of(Lens, f"lens_{key}")
+        if not spec.check(value):
+            raise ParameterError(name, list(values), f"{key} {spec.allowed}")
+    return Distortion(*(float(v) for v in values))
+
+
+def check_render_options(options: RenderOptions, lens_name: str) -> RenderOptions:
+    """``options`` once :meth:`RenderOptions.check` accepts them; a lens it refuses is named ``lens_name`` (the
+    parameters or option that gave it)."""
+    try:
+        options.check()
+    except ParameterError as exc:
+        if exc.name == LENS_ERROR:
+            raise ParameterError(lens_name, exc.value, exc.allowed) from None
+        raise
+    return options
+
+
+def lens_text(distortion: Distortion) -> str:
+    """A distortion as ``--lens`` takes it: ``-0.2 0.05 0 0 0``."""
+    return " ".join(f"{v:.12g}" for v in distortion.coefficients)
+
+
+def lens_distortion(cfg: object) -> Distortion:
+    """The :class:`Distortion` of a config that declares the :class:`Lens` parameters."""
+    return Distortion(*(float(getattr(cfg, f"lens_{k}")) for k in ("k1", "k2", "p1", "p2", "k3")))
+
+
 @dataclass(frozen=True)
 class CameraConfig(StageConfig):
     """Validated camera parameters."""
@@ -31,6 +80,11 @@ class CameraConfig(StageConfig):
     height: int = same_as(Intrinsics, "height", help="image height (the paper used 1080)")
     hfov_deg: float = same_as(Intrinsics, "hfov_deg",
                               help="horizontal field of view (keep equal to the placer's camera_hfov_deg)")
+    lens_k1: float = same_as(Lens, "lens_k1")
+    lens_k2: float = same_as(Lens, "lens_k2")
+    lens_p1: float = same_as(Lens, "lens_p1")
+    lens_p2: float = same_as(Lens, "lens_p2")
+    lens_k3: float = same_as(Lens, "lens_k3")
     shadows: bool = param(True, "render sun shadows")
     shadow_size: int = param(2048, "shadow map size", "px", lo=256, hi=8192)
     antialias: bool = param(True, "FXAA on the RGB image (never on depth or mask)")
@@ -57,8 +111,8 @@ class CameraConfig(StageConfig):
                              "every coat in this process")
 
     def check(self) -> None:
-        """The renderer's and the effects' own rules."""
-        self.render_options().check()
+        """The renderer's and the effects' own rules (the lens with this image size and field of view)."""
+        check_render_options(self.render_options(), "lens_k1..lens_k3")
         self.effects()
 
     @property
@@ -70,7 +124,7 @@ class CameraConfig(StageConfig):
         """Renderer settings from these parameters."""
         return RenderOptions(width=self.width, height=self.height, hfov_deg=self.hfov_deg, shadows=self.shadows,
                              shadow_size=self.shadow_size, antialias=self.antialias, coat_store=self.coat_store,
-                             **look_options(self.look))
+                             distortion=lens_distortion(self), **look_options(self.look))
 
     def sensor_model(self) -> SensorModel | None:
         """The per-frame camera model (None when ``sensor_strength`` is 0)."""

@@ -3,6 +3,9 @@
 Per view it returns RGB (8-bit sRGB), depth along the optical axis in metres (float32; +inf where the ray
 meets only sky, REP 118) and the instance mask (uint16: zebra id + 1, 0 for anything that is not a zebra),
 all three from the same rasterisation, so they agree pixel for pixel. Anti-aliasing (FXAA) touches RGB only.
+A camera with lens distortion (``RenderOptions.distortion``) is rendered as an ideal pinhole on its
+:class:`~zebra_sim_ros.geometry.lens.LensCanvas` and resampled: RGB bilinearly, depth and ids at the nearest canvas
+pixel, so they still agree pixel for pixel.
 
 Cost control on a CPU: the terrain is drawn in 64 m tiles at 1 m resolution near the camera and 4 m
 farther away, tiles and vegetation outside the view are culled, grass is drawn only near the camera,
@@ -16,11 +19,13 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import PinholeCamera
+from zebra_sim_ros.geometry.lens import Distortion
 from zebra_sim_ros.messages import GroundLook, Lighting, SensorDraw, Weather
 from zebra_sim_ros.rendering import shaders
 from zebra_sim_ros.rendering.gl import create_context
@@ -63,10 +68,16 @@ class RenderOptions:
     contact_shadows: bool = True  # soft occlusion on the ground under every animal
     coat_store: bool = False  # coats read from and written to the cache root's coat store (coat_store.CoatStore),
     # shared by every process (the camera nodes: three render the same animals); False: each coat baked in memory
+    distortion: Distortion = field(default_factory=Distortion)  # the lens's (none: an ideal pinhole)
+
+    @property
+    def camera(self) -> PinholeCamera:
+        """The camera these options render (with its lens)."""
+        return PinholeCamera(self.width, self.height, self.hfov_deg, self.distortion)
 
     def check(self) -> None:
-        """Raise :class:`ParameterError` for values outside their range."""
-        PinholeCamera(self.width, self.height, self.hfov_deg)
+        """Raise :class:`ParameterError` for values outside their range (or a lens that folds over in the image)."""
+        _ = self.camera.canvas
         if not 256 <= self.shadow_size <= 8192:
             raise ParameterError("shadow_size", self.shadow_size, "256..8192 px")
         if not 0.001 <= self.near_m < self.far_m:
@@ -107,7 +118,8 @@ class CameraView:
 
 @dataclass
 class RenderedView:
-    """One camera's images; ``K`` is the pinhole intrinsic matrix the images follow."""
+    """One camera's images; ``K`` is the pinhole intrinsic matrix the images follow, ``D`` the lens's plumb_bob
+    distortion coefficients (zeros: none)."""
 
     name: str
     rgb: NDArray[np.uint8]
@@ -116,6 +128,7 @@ class RenderedView:
     K: FloatArray
     timings: dict[str, float] = field(default_factory=dict)
     sensor: SensorDraw | None = None  # the camera model applied to ``rgb`` (None: the renderer's clean image)
+    D: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 def perspective(cam: PinholeCamera, near: float, far: float) -> FloatArray:
@@ -188,7 +201,8 @@ class Renderer:
         self.options.check()
         self.world = world
         self.library = library
-        self.camera = PinholeCamera(self.options.width, self.options.height, self.options.hfov_deg)
+        self.camera = self.options.camera
+        self.canvas = self.camera.ideal  # what is drawn: the camera itself, or its lens's ideal canvas
         self.weather = Weather()
         t0 = time.perf_counter()
         self.ctx, self.info = create_context()
@@ -204,7 +218,7 @@ class Renderer:
         self.empty_vao = ctx.vertex_array(self.p_sky, [])
         self.fxaa_vao = ctx.vertex_array(self.p_fxaa, [])
         # Framebuffers: colour, depth in metres, instance id, and a depth buffer.
-        size = (o.width, o.height)
+        size = (self.canvas.width, self.canvas.height)
         self.t_color = ctx.texture(size, 4)
         self.t_color.filter = (ctx.LINEAR, ctx.LINEAR)
         self.t_depth = ctx.texture(size, 1, dtype="f4")
@@ -533,12 +547,12 @@ class Renderer:
         rgb, depth, id16 = self._read_images()
         times["read"] = time.perf_counter() - t3
         times["zebras_lod0"], times["zebras_lod1"] = counts[0], counts[1]
-        return RenderedView(view.name, rgb, depth, id16, self.camera.K, times)
+        return RenderedView(view.name, rgb, depth, id16, self.camera.K, times, D=tuple(self.camera.D))
 
     def _frustum(self, view: CameraView) -> tuple[FloatArray, FloatArray]:
         """The view-projection matrix of ``view`` and its frustum planes (:func:`_frustum_planes`)."""
         o = self.options
-        vp = perspective(self.camera, o.near_m, o.far_m) @ view_matrix(np.asarray(view.position, dtype=np.float64),
+        vp = perspective(self.canvas, o.near_m, o.far_m) @ view_matrix(np.asarray(view.position, dtype=np.float64),
                                                                        view.r_optical)
         return vp, _frustum_planes(vp)
 
@@ -656,9 +670,10 @@ class Renderer:
         ctx.depth_func = "<"
 
     def _read_images(self) -> tuple[NDArray[np.uint8], NDArray[np.float32], NDArray[np.uint16]]:
-        """RGB (after FXAA when antialias is on), depth in metres (+inf for sky) and instance ids, rows top first."""
+        """RGB (after FXAA when antialias is on), depth in metres (+inf for sky) and instance ids, rows top first;
+        through the lens where it has distortion."""
         ctx, o = self.ctx, self.options
-        w, h = o.width, o.height
+        w, h = self.canvas.width, self.canvas.height
         if o.antialias:
             self.fbo_final.use()
             ctx.disable(ctx.DEPTH_TEST)
@@ -674,6 +689,12 @@ class Renderer:
         depth[depth <= 0] = np.inf
         ids = np.frombuffer(self.fbo.read(components=1, attachment=2, dtype="u4"), dtype=np.uint32)
         id16: NDArray[np.uint16] = ids.reshape(h, w)[::-1].astype(np.uint16)
+        lens = self.camera.canvas
+        if lens is not None:
+            rgb = np.asarray(cv2.remap(rgb, lens.map_x, lens.map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE),
+                             dtype=np.uint8)
+            depth = np.ascontiguousarray(lens.resample_nearest(depth))
+            id16 = np.ascontiguousarray(lens.resample_nearest(id16))
         return rgb, depth, id16
 
     def release(self) -> None:

@@ -1,0 +1,235 @@
+"""Lens distortion: the plumb_bob model against OpenCV's, the renderer's distorted images against known geometry,
+and labels that stay exact through the lens."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from render_helpers import cube_mesh, flat_world
+
+from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical, optical_rotation
+from zebra_sim_ros.geometry.lens import Distortion, lens_canvas
+from zebra_sim_ros.placement.sun import lighting_for
+from zebra_sim_ros.rendering.config import lens_text, parse_lens
+from zebra_sim_ros.rendering.renderer import CameraView, Renderer, RenderOptions, ZebraSet
+from zebra_sim_ros.world.world import World
+from zebra_sim_ros.zebra.asset import ZebraLibrary
+
+WIDE = Distortion(-0.3, 0.1, 0.002, -0.001, -0.01)  # a wide-angle drone camera's barrel distortion, tangential too
+
+
+def _points_in_view(cam: PinholeCamera, n: int, seed: int) -> np.ndarray:
+    """``n`` optical-frame points, 3-80 m deep, whose distorted pixels lie in the image (drawn as pixels, made ideal
+    by OpenCV)."""
+    rng = np.random.default_rng(seed)
+    px = rng.uniform([0, 0], [cam.width - 1, cam.height - 1], (n, 2))
+    ideal = cv2.undistortPoints(px.reshape(-1, 1, 2), cam.K, np.array(cam.D),
+                                criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-14)).reshape(-1, 2)
+    depth = rng.uniform(3.0, 80.0, n)
+    return np.c_[ideal * depth[:, None], depth]
+
+
+@pytest.mark.parametrize("lens", [WIDE, Distortion(0.15, -0.05), Distortion(k1=-0.1), Distortion(p1=0.01, p2=-0.01)])
+def test_projection_and_its_inverse_are_opencvs(lens: Distortion) -> None:
+    """Barrel, pincushion, radial only, tangential only: ``PinholeCamera.project`` is ``cv2.projectPoints`` and
+    ``Distortion.remove`` is ``cv2.undistortPoints``, to a millionth of a pixel, over the image."""
+    cam = PinholeCamera(1280, 720, 80.0, lens)
+    pts = _points_in_view(cam, 2000, 3)
+    mine, front = cam.project(pts)
+    theirs, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), cam.K, np.array(cam.D))
+    assert front.all() and np.abs(mine - theirs.reshape(-1, 2)).max() < 1e-6
+    x, y = lens.remove((mine[:, 0] - cam.K[0, 2]) / cam.fx, (mine[:, 1] - cam.K[1, 2]) / cam.fx)
+    assert np.abs(np.c_[x, y] - pts[:, :2] / pts[:, 2:]).max() * cam.fx < 1e-6
+    # the Jacobian is the model's derivative (central differences)
+    h = 1e-6
+    xi, yi = pts[:50, 0] / pts[:50, 2], pts[:50, 1] / pts[:50, 2]
+    a, b, c, d = lens.jacobian(xi, yi)
+    (xp, yp), (xm, ym) = lens.apply(xi + h, yi), lens.apply(xi - h, yi)
+    (xq, yq), (xn, yn) = lens.apply(xi, yi + h), lens.apply(xi, yi - h)
+    numeric = np.stack([(xp - xm), (xq - xn), (yp - ym), (yq - yn)]) / (2 * h)
+    assert np.abs(np.stack([a, b, c, d]) - numeric).max() < 1e-6
+
+
+def test_a_point_beyond_the_image_stays_outside_where_the_polynomial_folds_back() -> None:
+    """A barrel lens's r (1 + k1 r^2) turns back at r^2 = -1 / (3 k1): OpenCV's projection puts a point far off the
+    axis back inside the image; ours keeps it outside, in its direction."""
+    cam = PinholeCamera(640, 360, 80.0, Distortion(k1=-0.15))
+    far = np.array([[2.45, 0.5, 1.0], [-2.0, -1.5, 1.0], [0.3, 2.5, 1.0]])  # r 2.5: 2.5 (1 - 0.15 r^2) = 0.16
+    theirs, _ = cv2.projectPoints(far, np.zeros(3), np.zeros(3), cam.K, np.array(cam.D))
+    theirs = theirs.reshape(-1, 2)
+    assert cam.in_image(far).tolist() == [False] * 3
+    inside = (theirs >= 0).all(axis=1) & (theirs[:, 0] < 640) & (theirs[:, 1] < 360)
+    assert inside.any(), theirs  # the model itself folds: the case this guards against
+    uv, _ = cam.project(far)
+    centre = np.array([(cam.width - 1) / 2, (cam.height - 1) / 2])
+    assert np.all(np.sign(uv - centre) == np.sign(far[:, :2]))
+
+
+def test_the_canvas_maps_each_pixel_to_the_ideal_point_it_shows() -> None:
+    """Every image pixel's canvas coordinates, distorted again, land on that pixel (to 1e-3 px); a barrel lens needs
+    a larger canvas, a pincushion one none (the 2 px margin); the nearest canvas pixel is the rounded map."""
+    for lens, bigger in ((WIDE, True), (Distortion(0.2), False)):
+        cam = PinholeCamera(320, 180, 70.0, lens)
+        c = lens_canvas(cam.width, cam.height, cam.fx, lens)
+        assert c is cam.canvas  # made once per camera model
+        cx, cy = (c.canvas_width - 1) / 2, (c.canvas_height - 1) / 2
+        xd, yd = lens.apply((c.map_x - cx) / cam.fx, (c.map_y - cy) / cam.fx)
+        cols, rows = np.meshgrid(np.arange(cam.width), np.arange(cam.height))
+        assert np.abs(xd * cam.fx + (cam.width - 1) / 2 - cols).max() < 1e-3
+        assert np.abs(yd * cam.fx + (cam.height - 1) / 2 - rows).max() < 1e-3
+        assert (c.pad[0] > 10 and c.pad[1] > 5) if bigger else c.pad == (2, 2)
+        assert c.canvas_width == cam.width + 2 * c.pad[0] and cam.ideal.fx == pytest.approx(cam.fx, rel=1e-12)
+        near = np.unravel_index(c.nearest, (c.canvas_height, c.canvas_width))
+        assert np.abs(near[1] - c.map_x).max() <= 0.5 + 1e-6 and np.abs(near[0] - c.map_y).max() <= 0.5 + 1e-6
+        assert c.multiplicity().sum() == cam.width * cam.height
+    assert PinholeCamera(320, 180, 70.0).canvas is None
+
+
+def test_a_lens_that_cannot_be_undone_and_a_bad_lens_option_are_refused_by_name() -> None:
+    with pytest.raises(ParameterError, match=r"lens distortion.*-1.*fold"):
+        _ = PinholeCamera(640, 360, 120.0, Distortion(k1=-1.0)).canvas
+    with pytest.raises(ParameterError, match="lens distortion"):
+        RenderOptions(width=640, height=360, hfov_deg=120.0, distortion=Distortion(k1=-1.0)).check()
+    with pytest.raises(ParameterError, match="distortion"):
+        Distortion(k1=float("nan"))
+    with pytest.raises(ValueError, match="rational_polynomial"):
+        Distortion.from_d([0.1] * 8, "rational_polynomial")
+    assert Distortion.from_d([0.0] * 8, "rational_polynomial").none and Distortion.from_d([]).none
+    assert Distortion.from_d([-0.2, 0.05, 0, 0, 0]) == Distortion(-0.2, 0.05)
+    assert parse_lens([-0.2, 0.05]) == Distortion(-0.2, 0.05) and parse_lens([]).none
+    assert parse_lens([float(v) for v in lens_text(WIDE).split()]) == WIDE
+    for values, what in (([0.0] * 6, "up to five numbers"), ([-2.0], "k1 -1..1"), ([0, 0, 0.2], "p1 -0.05..0.05")):
+        with pytest.raises(ParameterError, match=f"--lens.*{what}"):
+            parse_lens(values)
+
+
+def _cube_world() -> World:
+    return flat_world({"cube": (cube_mesh(2.0), [(11.0, -3.5, 1.0)])})  # its near face 10 m east, 2.5-4.5 m south
+
+
+def test_a_distorted_render_shows_a_cube_where_opencvs_lens_puts_it(library: ZebraLibrary) -> None:
+    """A 2 m cube towards the image's lower right corner, 10 m in front of a level camera 3.5 m up with a barrel
+    lens: its face is where the pixels' rays, made ideal by OpenCV, meet it, at 10 m depth; the ground's depth
+    follows the same rays. The ideal pinhole's silhouette, about 5 px away there, does not match."""
+    width, height, hfov = 320, 240, 60.0
+    lens = Distortion(-0.3, 0.1)
+    cam = PinholeCamera(width, height, hfov, lens)
+    r = Renderer(_cube_world(), library, RenderOptions(width=width, height=height, hfov_deg=hfov, coat_size=64,
+                                                        max_coats=16, distortion=lens))
+    view = CameraView("cam", np.array([0.0, 0.0, 3.5]), optical_rotation(0.0, 0.0, 0.0))
+    empty = ZebraSet(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0),
+                     np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0, np.int64))
+    try:
+        out = r.render(empty, lighting_for(12.0, 80, -2.3), [view])[0]
+    finally:
+        r.release()
+    assert out.rgb.shape == (height, width, 3) and out.depth.shape == (height, width)
+    assert out.D == tuple(cam.D) and np.allclose(out.K, cam.K)
+    cols, rows = np.meshgrid(np.arange(width, dtype=np.float64), np.arange(height, dtype=np.float64))
+    px = np.stack([cols.ravel(), rows.ravel()], axis=1).reshape(-1, 1, 2)
+    ideal = cv2.undistortPoints(px, cam.K, np.array(cam.D),
+                                criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12))
+    x, y = ideal.reshape(height, width, 2).transpose(2, 0, 1)  # optical: x right (map -y), y down (map -z)
+
+    def face(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Pixels whose ray (x, y, 1) meets the cube's near face: x = 10 m east, y in -4.5..-2.5, z in 0..2."""
+        return (np.abs(-10.0 * x - (-3.5)) < 1.0) & (np.abs(3.5 - 10.0 * y - 1.0) < 1.0)
+
+    apart = np.abs(3.5 / np.maximum(y, 1e-6) - 10.0) > 0.25  # not the ground 10 m away (where the face meets it)
+    want = face(x, y) & apart
+    pinhole = face((cols - cam.K[0, 2]) / cam.fx, (rows - cam.K[1, 2]) / cam.fx) & apart
+    got = (np.abs(out.depth - 10.0) < 0.1) & apart
+    assert want.sum() > 400
+
+    def iou(a: np.ndarray, b: np.ndarray) -> float:
+        return float((a & b).sum() / (a | b).sum())
+
+    def centre(mask: np.ndarray) -> np.ndarray:
+        return np.array([cols[mask].mean(), rows[mask].mean()])
+
+    assert iou(want, got) > 0.95 and iou(pinhole, got) < 0.8, (iou(want, got), iou(pinhole, got))
+    assert np.linalg.norm(centre(got) - centre(want)) < 0.5 and np.linalg.norm(centre(got) - centre(pinhole)) > 3
+    assert np.abs(out.depth[want & got] - 10.0).max() < 0.1
+    # the ground 3.5 m down, nearer than the cube: depth 3.5 / y along OpenCV's ray (the nearest canvas pixel's
+    # depth: half a pixel off at most), 8% off along the pinhole's
+    ground = (y > 0.05) & (out.depth < 9.5)
+    assert ground.sum() > 5000
+    assert np.median(np.abs(out.depth[ground] * y[ground] / 3.5 - 1.0)) < 0.005
+    y_pinhole = (rows - cam.K[1, 2]) / cam.fx
+    assert np.median(np.abs(out.depth[ground] * y_pinhole[ground] / 3.5 - 1.0)) > 0.04
+
+
+def test_labels_through_a_lens_stay_exact(library: ZebraLibrary, savanna: World) -> None:
+    """The default world's first step through a wide-angle lens: every animal's visible pixels are a subset of its
+    silhouette (both counted in the image's pixels), its visible box lies in its full box, the labels carry the
+    lens, and nine visible keypoints in ten show their own animal within a pixel (as without a lens: 94% at 640x360;
+    a thin leg or tail tip can miss), where the ideal pinhole's pixels for them would show it for about 28%."""
+    from zebra_sim_ros.placement.config import PlacerConfig
+    from zebra_sim_ros.placement.placer import Placer
+    from zebra_sim_ros.simulation import Simulator
+
+    pc = PlacerConfig()
+    scene = Placer(pc, savanna, library).scene(0)
+    sim = Simulator(savanna, library, RenderOptions(width=640, height=360, distortion=WIDE))
+    try:
+        frames = sim.simulate(scene)
+    finally:
+        sim.release()
+    cam = PinholeCamera(640, 360, 80.0, WIDE)
+    checked = shown = shown_pinhole = 0
+
+    def shows(image: np.ndarray, u: float, v: float, instance: int) -> bool:
+        r0, c0 = int(np.floor(v)), int(np.floor(u))
+        return bool((image[max(r0 - 1, 0):r0 + 2, max(c0 - 1, 0):c0 + 2] == instance).any())
+
+    for f in frames:
+        assert f.labels.D == WIDE.coefficients
+        for z in f.labels.zebras:
+            assert 0 < z.visible_pixels <= z.silhouette_pixels, (z.visible_pixels, z.silhouette_pixels)
+            vb, fb = np.array(z.box_visible), np.array(z.box_full)
+            assert (vb[:2] >= fb[:2] - 1.0).all() and (vb[2:] <= fb[2:] + 1.0).all(), (vb, fb)
+            for u, v, vis in z.keypoints:
+                if vis == 2:
+                    checked += 1
+                    shown += shows(f.view.instances, u, v, z.instance)
+                    x, y = WIDE.remove((u - 0.5 - cam.K[0, 2]) / cam.fx, (v - 0.5 - cam.K[1, 2]) / cam.fx)
+                    shown_pinhole += shows(f.view.instances, x * cam.fx + cam.K[0, 2] + 0.5,
+                                           y * cam.fx + cam.K[1, 2] + 0.5, z.instance)
+    assert checked > 500 and shown >= 0.9 * checked and shown_pinhole < 0.5 * checked, (checked, shown, shown_pinhole)
+
+
+def test_a_scene_in_the_image_through_a_lens_is_where_projection_puts_it(library: ZebraLibrary,
+                                                                           savanna: World) -> None:
+    """Each labelled animal's 3D box centre, projected through the lens, falls in its visible box (or within two
+    pixels of it); projected by the ideal pinhole of the same K, several fall outside theirs."""
+    from zebra_sim_ros.placement.config import PlacerConfig
+    from zebra_sim_ros.placement.placer import Placer
+    from zebra_sim_ros.simulation import Simulator
+
+    scene = Placer(PlacerConfig(), savanna, library).scene(0)
+    sim = Simulator(savanna, library, RenderOptions(width=640, height=360, distortion=WIDE))
+    try:
+        frames = sim.simulate(scene)
+        cam = sim.renderer.camera
+    finally:
+        sim.release()
+    pinhole = PinholeCamera(cam.width, cam.height, cam.hfov_deg)
+    inside = total = pinhole_inside = 0
+    for f, c in zip(frames, scene.cameras, strict=True):
+        pose = np.array(c.position), optical_rotation(np.radians(c.yaw_deg), np.radians(c.pitch_deg),
+                                                      np.radians(c.roll_deg))
+        for z in f.labels.kept:
+            if z.visible_fraction < 0.9 or z.visible_pixels < 30:
+                continue
+            x0, y0, x1, y1 = z.box_visible
+            total += 1
+            for camera in (cam, pinhole):
+                uv, _ = camera.project(map_to_optical(np.array(z.box3d_map.center), *pose)[None])
+                u, v = uv[0] + 0.5  # pixel edges, as boxes are
+                hit = x0 - 2 <= u <= x1 + 2 and y0 - 2 <= v <= y1 + 2
+                inside += hit and camera is cam
+                pinhole_inside += hit and camera is pinhole
+    assert total >= 10 and inside == total, (inside, total)
+    assert pinhole_inside <= total - 3, (pinhole_inside, total)

@@ -1,0 +1,202 @@
+"""Lens distortion: the ``plumb_bob`` model of ``sensor_msgs/CameraInfo`` and OpenCV (k1, k2, p1, p2, k3).
+
+A real drone camera's lens bends straight lines: a wide-angle one shows barrel distortion (k1 < 0), which grows
+towards the image corners. The model maps a point's ideal normalised image coordinates (x, y) = (X / Z, Y / Z) in
+the optical frame to distorted ones::
+
+    r2 = x^2 + y^2,  radial = 1 + k1 r2 + k2 r2^2 + k3 r2^3
+    xd = x radial + 2 p1 x y + p2 (r2 + 2 x^2)
+    yd = y radial + p1 (r2 + 2 y^2) + 2 p2 x y
+
+and the pixel is (fx xd + cx, fy yd + cy) with the camera's K. CameraInfo's ``d`` carries the five coefficients in
+that order, and ``image_proc``'s rectification or ``cv2.undistortPoints`` undo them.
+
+The renderer draws an ideal pinhole image on a :class:`LensCanvas` (the same focal length, larger where the lens
+sees more) and resamples it through the canvas's maps: RGB bilinearly, depth and instance ids at the nearest canvas
+pixel, so a distorted mask and depth stay exact values of the scene. Pure numpy, no ROS.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.params import param
+
+FloatArray = NDArray[np.float64]
+PLUMB_BOB = "plumb_bob"
+LENS_ERROR = "lens distortion"  # what a ParameterError of a lens that cannot be used names (lens_k1.., --lens)
+_CANVAS_MAX = 3.0  # the ideal canvas at most this many times the image's width or height
+
+
+@dataclass(frozen=True)
+class Lens:
+    """The declarations of the lens distortion parameters, made once: the camera node, ``generate`` and
+    ``zebra-sim render`` declare them with ``same_as``. All zero (the default) is an ideal pinhole."""
+
+    lens_k1: float = param(0.0, "lens distortion k1 (plumb_bob, as CameraInfo d[0] and OpenCV; negative: barrel, "
+                           "a wide-angle drone camera's -0.05..-0.3; 0: no distortion)", lo=-1.0, hi=1.0)
+    lens_k2: float = param(0.0, "lens distortion k2 (plumb_bob d[1], radial r^4)", lo=-1.0, hi=1.0)
+    lens_p1: float = param(0.0, "lens distortion p1 (plumb_bob d[2], tangential)", lo=-0.05, hi=0.05)
+    lens_p2: float = param(0.0, "lens distortion p2 (plumb_bob d[3], tangential)", lo=-0.05, hi=0.05)
+    lens_k3: float = param(0.0, "lens distortion k3 (plumb_bob d[4], radial r^6)", lo=-1.0, hi=1.0)
+
+
+@dataclass(frozen=True)
+class Distortion:
+    """Plumb-bob distortion coefficients; all zero is none."""
+
+    k1: float = 0.0
+    k2: float = 0.0
+    p1: float = 0.0
+    p2: float = 0.0
+    k3: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not all(np.isfinite(self.coefficients)):
+            raise ParameterError("distortion", list(self.coefficients), "finite k1, k2, p1, p2, k3")
+
+    @classmethod
+    def from_d(cls, d: ArrayLike, model: str = PLUMB_BOB) -> Distortion:
+        """From CameraInfo's ``distortion_model`` and ``d``: plumb_bob with 5 coefficients, or no coefficients (or all
+        zero) of any model; ValueError naming the values otherwise (a model this package does not undo)."""
+        values = [float(v) for v in np.asarray(d, dtype=np.float64).ravel()]
+        if not any(values):
+            return cls()
+        if model != PLUMB_BOB or len(values) != 5:
+            raise ValueError(f"distortion model {model!r} with d = {values}: want plumb_bob with 5 coefficients "
+                             "(k1, k2, p1, p2, k3), or none")
+        if not all(np.isfinite(values)):
+            raise ValueError(f"distortion d = {values}: want finite coefficients")
+        return cls(*values)
+
+    @property
+    def coefficients(self) -> tuple[float, float, float, float, float]:
+        """(k1, k2, p1, p2, k3): CameraInfo's ``d``."""
+        return self.k1, self.k2, self.p1, self.p2, self.k3
+
+    @property
+    def none(self) -> bool:
+        """Whether this is no distortion at all."""
+        return not any(self.coefficients)
+
+    def apply(self, x: ArrayLike, y: ArrayLike) -> tuple[FloatArray, FloatArray]:
+        """Distorted normalised coordinates of ideal ones (the model above)."""
+        x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+        if self.none:
+            return x, y
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
+        xd = x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x)
+        yd = y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y
+        return xd, yd
+
+    def remove(self, xd: ArrayLike, yd: ArrayLike, iterations: int = 50) -> tuple[FloatArray, FloatArray]:
+        """Ideal normalised coordinates of distorted ones: Newton's method on :meth:`apply` from the distorted point
+        (OpenCV's ``undistortPoints`` iterates a fixed point instead; both converge where the lens does not fold)."""
+        xd, yd = np.asarray(xd, dtype=np.float64), np.asarray(yd, dtype=np.float64)
+        if self.none:
+            return xd, yd
+        x, y = xd.copy(), yd.copy()
+        for _ in range(iterations):
+            fx, fy = self.apply(x, y)
+            ex, ey = fx - xd, fy - yd
+            a, b, c, d = self.jacobian(x, y)
+            det = a * d - b * c
+            det = np.where(np.abs(det) > 1e-12, det, 1e-12)
+            dx, dy = (d * ex - b * ey) / det, (a * ey - c * ex) / det
+            x, y = x - dx, y - dy
+            if float(np.max(np.abs(dx), initial=0.0)) < 1e-14 and float(np.max(np.abs(dy), initial=0.0)) < 1e-14:
+                break
+        return x, y
+
+    def jacobian(self, x: ArrayLike, y: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """The partial derivatives (dxd/dx, dxd/dy, dyd/dx, dyd/dy) of :meth:`apply` at ideal coordinates."""
+        x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
+        dradial = self.k1 + r2 * (2.0 * self.k2 + 3.0 * self.k3 * r2)  # d radial / d r2
+        a = radial + 2.0 * x * x * dradial + 2.0 * self.p1 * y + 6.0 * self.p2 * x
+        b = 2.0 * x * y * dradial + 2.0 * self.p1 * x + 2.0 * self.p2 * y
+        c = 2.0 * x * y * dradial + 2.0 * self.p1 * x + 2.0 * self.p2 * y
+        d = radial + 2.0 * y * y * dradial + 6.0 * self.p1 * y + 2.0 * self.p2 * x
+        return a, b, c, d
+
+    def radial(self, r: ArrayLike) -> FloatArray:
+        """The radial factor 1 + k1 r^2 + k2 r^4 + k3 r^6 at ideal radius ``r``."""
+        r2 = np.square(np.asarray(r, dtype=np.float64))
+        return np.asarray(1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3)))
+
+    def area_factor(self, x: ArrayLike, y: ArrayLike) -> FloatArray:
+        """How much the lens scales a small area at ideal coordinates (the Jacobian's determinant, 0 where the lens
+        folds over)."""
+        a, b, c, d = self.jacobian(x, y)
+        return np.asarray(np.maximum(a * d - b * c, 0.0))
+
+
+@dataclass(frozen=True)
+class LensCanvas:
+    """Where a distorted camera's image comes from: an ideal pinhole canvas of the same focal length, ``pad`` pixels
+    wider on each side (x, y), and per image pixel the canvas pixel it shows.
+
+    ``map_x``, ``map_y``: float32 (H, W) canvas pixel-centre coordinates of each image pixel's centre (for
+    ``cv2.remap``); ``nearest``: int64 (H, W) flat canvas index of the canvas pixel nearest to it (depth and masks);
+    ``max_radius``: the largest ideal normalised radius an image pixel shows (a corner's).
+    """
+
+    width: int
+    height: int
+    canvas_width: int
+    canvas_height: int
+    pad: tuple[int, int]
+    max_radius: float
+    map_x: NDArray[np.float32] = field(repr=False)
+    map_y: NDArray[np.float32] = field(repr=False)
+    nearest: NDArray[np.int64] = field(repr=False)
+
+    def resample_nearest(self, canvas_image: NDArray[np.generic]) -> NDArray[np.generic]:
+        """An (H', W', ...) canvas image as the distorted (H, W, ...) image, each pixel the nearest canvas pixel's."""
+        flat = canvas_image.reshape(self.canvas_height * self.canvas_width, *canvas_image.shape[2:])
+        return flat[self.nearest]
+
+    def multiplicity(self) -> NDArray[np.int64]:
+        """(H', W') how many image pixels show each canvas pixel (their nearest)."""
+        counts = np.bincount(self.nearest.ravel(), minlength=self.canvas_width * self.canvas_height)
+        return counts.reshape(self.canvas_height, self.canvas_width)
+
+
+@lru_cache(maxsize=8)
+def lens_canvas(width: int, height: int, fx: float, distortion: Distortion) -> LensCanvas:
+    """The :class:`LensCanvas` of a ``width`` x ``height`` camera with focal length ``fx`` (square pixels, principal
+    point at the centre) and ``distortion``; :class:`ParameterError` naming the coefficients where the lens folds
+    over inside the image or would need a canvas over three times the image. Made once per camera model in a
+    process (its arrays are read-only)."""
+    cx, cy = (width - 1) / 2, (height - 1) / 2
+    cols, rows = np.meshgrid(np.arange(width, dtype=np.float64), np.arange(height, dtype=np.float64))
+    x, y = distortion.remove((cols - cx) / fx, (rows - cy) / fx)
+    back_x, back_y = distortion.apply(x, y)
+    err = float(np.max(np.hypot(back_x - (cols - cx) / fx, back_y - (rows - cy) / fx))) * fx
+    a, b, c, d = distortion.jacobian(x, y)
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))) or err > 1e-3 or float(np.min(a * d - b * c)) <= 0:
+        raise ParameterError(LENS_ERROR, list(distortion.coefficients),
+                             f"a lens that does not fold over inside the {width}x{height} image (the model cannot be "
+                             f"undone there: {err:.3g} px off)")
+    u, v = x * fx, y * fx  # canvas pixels from the principal point
+    pad_x = max(0, int(np.ceil(float(np.max(np.abs(u))) - cx - 1e-6))) + 2
+    pad_y = max(0, int(np.ceil(float(np.max(np.abs(v))) - cy - 1e-6))) + 2
+    cw, ch = width + 2 * pad_x, height + 2 * pad_y
+    if cw > _CANVAS_MAX * width or ch > _CANVAS_MAX * height:
+        raise ParameterError(LENS_ERROR, list(distortion.coefficients),
+                             f"a lens whose ideal image fits in {_CANVAS_MAX:g} times the {width}x{height} image "
+                             f"(it needs {cw}x{ch})")
+    map_x, map_y = u + cx + pad_x, v + cy + pad_y
+    near_c = np.clip(np.floor(map_x + 0.5), 0, cw - 1).astype(np.int64)
+    near_r = np.clip(np.floor(map_y + 0.5), 0, ch - 1).astype(np.int64)
+    arrays = map_x.astype(np.float32), map_y.astype(np.float32), near_r * cw + near_c
+    for array in arrays:
+        array.flags.writeable = False
+    return LensCanvas(width, height, cw, ch, (pad_x, pad_y), float(np.max(np.hypot(x, y))), *arrays)
