@@ -128,3 +128,7 @@ def test_bad_camera_parameter_stops_the_node() -> None:
     proc = run_node_once("camera", {"jpeg_quality": 150})
     assert proc.returncode == 2
     assert "jpeg_quality" in proc.stderr + proc.stdout
+    # each lens coefficient in range, but together a lens whose polynomial turns back inside the image
+    proc = run_node_once("camera", {"lens_k1": -0.5, "width": 320, "height": 180})
+    out = proc.stderr + proc.stdout
+    assert proc.returncode == 2 and "lens_k1, lens_k2, lens_p1, lens_p2, lens_k3" in out and "fold" in out, out

@@ -75,7 +75,8 @@ def test_a_folder_is_continued_only_with_the_settings_its_frames_were_written_wi
                                                                                     tmp_path: Path) -> None:
     """Continuing a folder with another frame size (or split, or placer setting) would mix two kinds of frame in
     one dataset: refused, naming the setting, every file left as it was. More frames and other workers continue
-    it. The settings are recorded when a run starts, so a run cut short is checked as well."""
+    it. The settings are recorded when a run starts, so a run cut short is checked as well; a record from before a
+    setting existed is read as having had its old value (no lens)."""
     import shutil
 
     from zebra_sim_ros.errors import ParameterError
@@ -95,6 +96,11 @@ def test_a_folder_is_continued_only_with_the_settings_its_frames_were_written_wi
     (cut / "generate.json").write_text(json.dumps({"config": {"width": 640, "seed": 5}, "stats": None}))
     with pytest.raises(ParameterError, match="width 640 there, 320 now"):  # a run cut short left only this
         generate(GenerateConfig(out=str(cut), **SMALL), progress=lambda *a: None)
+    # a record from before the lens was a setting had none: continued without one, refused with one
+    (cut / "generate.json").write_text(json.dumps({"config": {"width": 320, "seed": 5}, "stats": None}))
+    with pytest.raises(ParameterError, match=r"lens \[0.0, 0.0, 0.0, 0.0, 0.0\] there, \[-0.1, 0.0"):
+        generate(GenerateConfig(out=str(cut), **{**SMALL, "lens": (-0.1, 0.0, 0.0, 0.0, 0.0)}),
+                 progress=lambda *a: None)
 
 
 def test_a_folder_whose_name_yaml_would_misread_is_still_the_yaml_path(dataset: Path, tmp_path: Path) -> None:
@@ -563,7 +569,7 @@ def test_a_lens_goes_into_the_frames_their_labels_and_the_command_that_renders_t
     path = sorted((out / "annotations").glob("*_drone_0.json"))[0]
     meta = FrameAnnotation.from_json(path.read_text())
     assert meta.labels.D == (-0.2, 0.05, 0.0, 0.0, 0.0)
-    assert " --lens -0.2 0.05 0 0 0" in meta.regenerate, meta.regenerate
+    assert " --lens -0.2 0.05 0.0 0.0 0.0" in meta.regenerate, meta.regenerate
     again = cli([*shlex.split(meta.regenerate)[1:], "--out", tmp_path / "again"])
     assert again.returncode == 0, again.stderr
     mask = cv2.imread(str(out / meta.mask), cv2.IMREAD_UNCHANGED)

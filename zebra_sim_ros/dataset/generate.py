@@ -484,13 +484,14 @@ def _check_same_asset(out: Path, have: list[str]) -> None:
 
 
 _RESUMABLE = ("frames", "workers", "shard", "out")  # settings a run may change when it continues a folder
+_ADDED = {"lens": [0.0] * 5}  # settings added since folders were first written: what a record without one had
 
 
 def _check_same_settings(out: Path, settings: dict[str, Any]) -> None:
     """Refuse to continue a folder whose frames were written with other settings (another size, split, look,
     placer...): a resumed run would mix them in one dataset. ``generate.json`` holds them from the start of every
     run; more frames, other workers or another shard may continue it. A setting the record lacks (written by an
-    older version) is not compared."""
+    older version) is not compared, but for those added since (``_ADDED``), which had the value given there."""
     try:
         then = json.loads((out / "generate.json").read_text())["config"]
     except (OSError, ValueError, KeyError, TypeError):
@@ -498,6 +499,7 @@ def _check_same_settings(out: Path, settings: dict[str, Any]) -> None:
     if not isinstance(then, dict):
         return
     ours = json.loads(json.dumps(settings))  # tuples as lists, as the record holds them
+    then = {**_ADDED, **then}
     for key, value in ours.items():
         if key not in _RESUMABLE and key in then and then[key] != value:
             raise ParameterError("--out", str(out), f"a new folder, or the settings its frames were written with "

@@ -31,6 +31,7 @@ FloatArray = NDArray[np.float64]
 PLUMB_BOB = "plumb_bob"
 LENS_ERROR = "lens distortion"  # what a ParameterError of a lens that cannot be used names (lens_k1.., --lens)
 _CANVAS_MAX = 3.0  # the ideal canvas at most this many times the image's width or height
+_TAN_85 = float(np.tan(np.radians(85.0)))  # the canvas's half field of view at most 85 deg (a pinhole's limit)
 
 
 @dataclass(frozen=True)
@@ -90,7 +91,7 @@ class Distortion:
         if self.none:
             return x, y
         r2 = x * x + y * y
-        radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
+        radial = self._radial(r2)
         xd = x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x)
         yd = y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y
         return xd, yd
@@ -118,18 +119,29 @@ class Distortion:
         """The partial derivatives (dxd/dx, dxd/dy, dyd/dx, dyd/dy) of :meth:`apply` at ideal coordinates."""
         x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
         r2 = x * x + y * y
-        radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
+        radial = self._radial(r2)
         dradial = self.k1 + r2 * (2.0 * self.k2 + 3.0 * self.k3 * r2)  # d radial / d r2
         a = radial + 2.0 * x * x * dradial + 2.0 * self.p1 * y + 6.0 * self.p2 * x
-        b = 2.0 * x * y * dradial + 2.0 * self.p1 * x + 2.0 * self.p2 * y
-        c = 2.0 * x * y * dradial + 2.0 * self.p1 * x + 2.0 * self.p2 * y
+        b = 2.0 * x * y * dradial + 2.0 * self.p1 * x + 2.0 * self.p2 * y  # dxd/dy and dyd/dx are equal
         d = radial + 2.0 * y * y * dradial + 6.0 * self.p1 * y + 2.0 * self.p2 * x
-        return a, b, c, d
+        return a, b, b, d
+
+    def _radial(self, r2: FloatArray) -> FloatArray:
+        return np.asarray(1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3)))
+
+    def on_first_branch(self, x: ArrayLike, y: ArrayLike) -> NDArray[np.bool_]:
+        """Whether ideal coordinates lie where the radial map r -> r (1 + k1 r^2 + ...) still rises from the axis:
+        its factor and its derivative positive. Past its first turn the model images a point again, mirrored or
+        nearer the axis, and undoing a distorted point may land there (a solution of the polynomial, not a ray)."""
+        x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+        r2 = x * x + y * y
+        radial = self._radial(r2)
+        dradial = self.k1 + r2 * (2.0 * self.k2 + 3.0 * self.k3 * r2)
+        return np.asarray((radial > 0) & (radial + 2.0 * r2 * dradial > 0))
 
     def radial(self, r: ArrayLike) -> FloatArray:
         """The radial factor 1 + k1 r^2 + k2 r^4 + k3 r^6 at ideal radius ``r``."""
-        r2 = np.square(np.asarray(r, dtype=np.float64))
-        return np.asarray(1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3)))
+        return self._radial(np.square(np.asarray(r, dtype=np.float64)))
 
     def area_factor(self, x: ArrayLike, y: ArrayLike) -> FloatArray:
         """How much the lens scales a small area at ideal coordinates (the Jacobian's determinant, 0 where the lens
@@ -145,7 +157,8 @@ class LensCanvas:
 
     ``map_x``, ``map_y``: float32 (H, W) canvas pixel-centre coordinates of each image pixel's centre (for
     ``cv2.remap``); ``nearest``: int64 (H, W) flat canvas index of the canvas pixel nearest to it (depth and masks);
-    ``max_radius``: the largest ideal normalised radius an image pixel shows (a corner's).
+    ``max_radius``: the largest ideal normalised radius the image shows (its outer corners'); ``fx``: the focal
+    length, px.
     """
 
     width: int
@@ -154,6 +167,8 @@ class LensCanvas:
     canvas_height: int
     pad: tuple[int, int]
     max_radius: float
+    fx: float
+    distortion: Distortion
     map_x: NDArray[np.float32] = field(repr=False)
     map_y: NDArray[np.float32] = field(repr=False)
     nearest: NDArray[np.int64] = field(repr=False)
@@ -162,6 +177,19 @@ class LensCanvas:
         """An (H', W', ...) canvas image as the distorted (H, W, ...) image, each pixel the nearest canvas pixel's."""
         flat = canvas_image.reshape(self.canvas_height * self.canvas_width, *canvas_image.shape[2:])
         return flat[self.nearest]
+
+    def normalised(self, cols: ArrayLike, rows: ArrayLike) -> tuple[FloatArray, FloatArray]:
+        """Ideal normalised coordinates of canvas pixel coordinates (on the canvas or off it)."""
+        return ((np.asarray(cols, dtype=np.float64) - (self.canvas_width - 1) / 2) / self.fx,
+                (np.asarray(rows, dtype=np.float64) - (self.canvas_height - 1) / 2) / self.fx)
+
+    def area_factor(self, x: ArrayLike, y: ArrayLike) -> FloatArray:
+        """The lens's area factor at ideal coordinates, as the camera projects: beyond the image's farthest radius a
+        point keeps the radial factor there (:meth:`PinholeCamera.project`), so the factor is its square."""
+        x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+        beyond = np.hypot(x, y) > self.max_radius
+        return np.where(beyond, float(self.distortion.radial(self.max_radius)) ** 2,
+                        self.distortion.area_factor(x, y))
 
     def multiplicity(self) -> NDArray[np.int64]:
         """(H', W') how many image pixels show each canvas pixel (their nearest)."""
@@ -172,31 +200,41 @@ class LensCanvas:
 @lru_cache(maxsize=8)
 def lens_canvas(width: int, height: int, fx: float, distortion: Distortion) -> LensCanvas:
     """The :class:`LensCanvas` of a ``width`` x ``height`` camera with focal length ``fx`` (square pixels, principal
-    point at the centre) and ``distortion``; :class:`ParameterError` naming the coefficients where the lens folds
-    over inside the image or would need a canvas over three times the image. Made once per camera model in a
-    process (its arrays are read-only)."""
+    point at the centre) and ``distortion``; :class:`ParameterError` naming the coefficients where the model cannot
+    be undone inside the image (the lens folds over there), or where the ideal image it needs is over three times
+    the image, over 16384 px or over 170 deg wide. Made once per camera model in a process (its arrays are
+    read-only)."""
     cx, cy = (width - 1) / 2, (height - 1) / 2
     cols, rows = np.meshgrid(np.arange(width, dtype=np.float64), np.arange(height, dtype=np.float64))
-    x, y = distortion.remove((cols - cx) / fx, (rows - cy) / fx)
+    # the pixel centres, and the image's outer corners (pixel edges), made ideal
+    xd = np.concatenate([((cols - cx) / fx).ravel(), np.array([-0.5 - cx, width - 0.5 - cx] * 2) / fx])
+    yd = np.concatenate([((rows - cy) / fx).ravel(), np.array([-0.5 - cy] * 2 + [height - 0.5 - cy] * 2) / fx])
+    x, y = distortion.remove(xd, yd)
     back_x, back_y = distortion.apply(x, y)
-    err = float(np.max(np.hypot(back_x - (cols - cx) / fx, back_y - (rows - cy) / fx))) * fx
-    a, b, c, d = distortion.jacobian(x, y)
-    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))) or err > 1e-3 or float(np.min(a * d - b * c)) <= 0:
+    with np.errstate(invalid="ignore", over="ignore"):
+        err = float(np.max(np.hypot(back_x - xd, back_y - yd))) * fx
+        a, b, c, d = distortion.jacobian(x, y)
+        folds = not (np.all(a * d - b * c > 0) and np.all(distortion.on_first_branch(x, y)))
+    reason = ("the model cannot be undone there: its polynomial turns back (the Jacobian's determinant reaches 0)"
+              if folds else f"the model cannot be undone there ({err:.3g} px off)")
+    if folds or not err <= 1e-3:
         raise ParameterError(LENS_ERROR, list(distortion.coefficients),
-                             f"a lens that does not fold over inside the {width}x{height} image (the model cannot be "
-                             f"undone there: {err:.3g} px off)")
+                             f"a lens that does not fold over inside the {width}x{height} image; {reason}")
+    max_radius = float(np.max(np.hypot(x, y)))
+    x, y = x[:-4].reshape(height, width), y[:-4].reshape(height, width)
     u, v = x * fx, y * fx  # canvas pixels from the principal point
     pad_x = max(0, int(np.ceil(float(np.max(np.abs(u))) - cx - 1e-6))) + 2
     pad_y = max(0, int(np.ceil(float(np.max(np.abs(v))) - cy - 1e-6))) + 2
     cw, ch = width + 2 * pad_x, height + 2 * pad_y
-    if cw > _CANVAS_MAX * width or ch > _CANVAS_MAX * height:
+    if cw > _CANVAS_MAX * width or ch > _CANVAS_MAX * height or max(cw, ch) > 16384 or cw / 2 / fx > _TAN_85:
         raise ParameterError(LENS_ERROR, list(distortion.coefficients),
-                             f"a lens whose ideal image fits in {_CANVAS_MAX:g} times the {width}x{height} image "
-                             f"(it needs {cw}x{ch})")
+                             f"a lens whose ideal image fits in {_CANVAS_MAX:g} times the {width}x{height} image, "
+                             f"16384 px and 170 deg (it needs {cw}x{ch}, "
+                             f"{np.degrees(2 * np.arctan(cw / 2 / fx)):.1f} deg)")
     map_x, map_y = u + cx + pad_x, v + cy + pad_y
     near_c = np.clip(np.floor(map_x + 0.5), 0, cw - 1).astype(np.int64)
     near_r = np.clip(np.floor(map_y + 0.5), 0, ch - 1).astype(np.int64)
     arrays = map_x.astype(np.float32), map_y.astype(np.float32), near_r * cw + near_c
     for array in arrays:
         array.flags.writeable = False
-    return LensCanvas(width, height, cw, ch, (pad_x, pad_y), float(np.max(np.hypot(x, y))), *arrays)
+    return LensCanvas(width, height, cw, ch, (pad_x, pad_y), max_radius, fx, distortion, *arrays)

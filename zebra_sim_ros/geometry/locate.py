@@ -100,9 +100,10 @@ def locate_boxes(boxes: FloatArray, depth: NDArray[np.floating], k: FloatArray, 
     """Each box's point in ``map``: the ray through its centre, at its depth (:func:`box_depths`), from a camera
     whose optical frame (z forward, x right, y down) is at ``position`` with ``orientation_xyzw`` in ``map`` (the
     placer's ``<drone>/camera/pose``), ``k`` its 3x3 intrinsic matrix (CameraInfo ``k``; skew is not modelled) and
-    ``distortion`` its lens's (CameraInfo ``d``, undone for the box centre's ray; None: an ideal pinhole). A box's
-    size in metres is its pixel size at the centre's scale. ValueError for a K that :func:`intrinsics` refuses, a
-    pose that is not finite or a zero quaternion (others are normalised)."""
+    ``distortion`` its lens's (CameraInfo ``d``; None: an ideal pinhole). The lens is undone for the centre's ray
+    (a box whose centre it cannot undo, where its polynomial folds over, gets no point) and for its edges'
+    midpoints, which give its size (else its pixel size at the centre's scale). ValueError for a K that
+    :func:`intrinsics` refuses, a pose that is not finite or a zero quaternion (others are normalised)."""
     k = intrinsics(k)
     position = np.asarray(position, dtype=np.float64).reshape(3)
     quat = np.asarray(orientation_xyzw, dtype=np.float64).reshape(4)
@@ -113,14 +114,30 @@ def locate_boxes(boxes: FloatArray, depth: NDArray[np.floating], k: FloatArray, 
     d = box_depths(depth, boxes, core, window_m)
     u = (boxes[:, 0] + boxes[:, 2]) / 2 - 0.5  # pixel-edge to pixel-centre coordinates
     v = (boxes[:, 1] + boxes[:, 3]) / 2 - 0.5
-    x, y = (u - k[0, 2]) / k[0, 0], (v - k[1, 2]) / k[1, 1]
-    if distortion is not None:
-        x, y = distortion.remove(x, y)
+    left, right, top, bottom = boxes[:, 0] - 0.5, boxes[:, 2] - 0.5, boxes[:, 1] - 0.5, boxes[:, 3] - 0.5
+
+    def ideal(us: FloatArray, vs: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Ideal normalised coordinates of pixels (NaN where the lens cannot be undone)."""
+        xd, yd = (us - k[0, 2]) / k[0, 0], (vs - k[1, 2]) / k[1, 1]
+        if distortion is None:
+            return xd, yd
+        xi, yi = distortion.remove(xd, yd)
+        xa, ya = distortion.apply(xi, yi)
+        with np.errstate(invalid="ignore"):
+            bad = ~((np.hypot(xa - xd, ya - yd) * k[0, 0] < 1e-6) & distortion.on_first_branch(xi, yi))
+        return np.where(bad, np.nan, xi), np.where(bad, np.nan, yi)
+
+    x, y = ideal(u, v)
+    d = np.where(np.isfinite(x) & np.isfinite(y), d, np.nan)
     optical = np.stack([x * d, y * d, d], axis=-1)
     r = xyzw_to_matrix(quat)  # optical to map (normalised)
     points = optical @ r.T + position.reshape(1, 3)
-    size = np.stack([np.abs(boxes[:, 2] - boxes[:, 0]) * d / k[0, 0], np.abs(boxes[:, 3] - boxes[:, 1]) * d / k[1, 1]],
-                    axis=-1)
+    (xl, _), (xr, _) = ideal(left, v), ideal(right, v)
+    (_, yt), (_, yb) = ideal(u, top), ideal(u, bottom)
+    plain = np.stack([np.abs(boxes[:, 2] - boxes[:, 0]) / k[0, 0], np.abs(boxes[:, 3] - boxes[:, 1]) / k[1, 1]],
+                     axis=-1)
+    through = np.stack([np.abs(xr - xl), np.abs(yb - yt)], axis=-1)  # NaN for an edge the lens cannot undo
+    size = np.where(np.isfinite(through), through, plain) * d[:, None]
     return Located(points.reshape(-1, 3), d, size.reshape(-1, 2))
 
 

@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical
+from zebra_sim_ros.geometry.lens import LensCanvas
 from zebra_sim_ros.rendering.gl import create_context
 from zebra_sim_ros.rendering.renderer import ZebraSet, perspective, unweld_uvs, view_matrix
 from zebra_sim_ros.zebra.asset import ZebraLibrary
@@ -58,20 +59,20 @@ class Coverage:
     total: NDArray[np.int64]
 
 
-def _lens_weights(camera: PinholeCamera) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
-    """What a canvas pixel of a silhouette counts in the image of a camera with a lens (None without one): inside
-    the image (how many image pixels show it), and in all (that, or off the image the lens's area factor)."""
+def _lens_weights(camera: PinholeCamera) -> tuple[LensCanvas, NDArray[np.float64], NDArray[np.float64]] | None:
+    """The lens's canvas, and what a canvas pixel of a silhouette counts in the image of a camera with a lens (None
+    without one): inside the image (how many image pixels show it), and in all (that where the image shows it or its
+    centre is in the image, else the lens's area factor: the part of a silhouette off the image is an estimate)."""
     lens = camera.canvas
     if lens is None:
         return None
     shown = lens.multiplicity().astype(np.float64)
-    cw, ch = lens.canvas_width, lens.canvas_height
-    cols, rows = np.meshgrid(np.arange(cw, dtype=np.float64), np.arange(ch, dtype=np.float64))
-    x, y = (cols - (cw - 1) / 2) / camera.fx, (rows - (ch - 1) / 2) / camera.fx
-    xd, yd = camera.distortion.apply(x, y)
-    u, v = camera.fx * xd + (camera.width - 1) / 2, camera.fx * yd + (camera.height - 1) / 2
+    cols, rows = np.meshgrid(np.arange(lens.canvas_width), np.arange(lens.canvas_height))
+    x, y = lens.normalised(cols, rows)
+    uv, _ = camera.project(np.stack([x, y, np.ones_like(x)], axis=-1))
+    u, v = uv[..., 0], uv[..., 1]
     in_image = (u >= -0.5) & (u <= camera.width - 0.5) & (v >= -0.5) & (v <= camera.height - 0.5)
-    return shown, np.where(in_image, shown, camera.distortion.area_factor(x, y))
+    return lens, shown, np.where(in_image | (shown > 0), shown, lens.area_factor(x, y))
 
 
 def _shelf_pack(todo: list[int], w: NDArray[np.int64], h: NDArray[np.int64],
@@ -198,25 +199,20 @@ class SilhouetteCounter:
                     total[slots[i]] = int(tile.sum())
                     in_image[slots[i]] = int(inside.sum())
                     continue
-                w_in, w_all = self.weights
+                lens, w_in, w_all = self.weights
                 win = (slice(int(y0[i]) + r0, int(y0[i]) + r0 + inside.shape[0]),
                        slice(int(x0[i]) + c0, int(x0[i]) + c0 + inside.shape[1]))
                 shown = float(w_in[win][inside].sum())
                 beyond = tile.copy()
                 beyond[r0:r0 + inside.shape[0], c0:c0 + inside.shape[1]] = False  # tile pixels off the canvas
                 rows, cols = np.nonzero(beyond)
-                off = self._area_factor(cols + int(x0[i]), rows + int(y0[i])) if len(rows) else 0.0
+                off = float(lens.area_factor(*lens.normalised(cols + int(x0[i]), rows + int(y0[i]))).sum()) \
+                    if len(rows) else 0.0
                 in_image[slots[i]] = int(round(shown))
                 total[slots[i]] = int(round(float(w_all[win][inside].sum()) + off))
             if len(rest) == len(todo):  # a single zebra larger than the atlas: count what fits
                 break
             todo = rest
-
-    def _area_factor(self, cols: NDArray[np.int64], rows: NDArray[np.int64]) -> float:
-        """The lens's area factor summed over canvas pixels (col, row), which may lie off the canvas."""
-        c, fx = self.canvas, self.camera.fx
-        x, y = (cols - (c.width - 1) / 2) / fx, (rows - (c.height - 1) / 2) / fx
-        return float(self.camera.distortion.area_factor(x, y).sum())
 
     def release(self) -> None:
         """Free the GL resources (and the context, if this counter made it)."""

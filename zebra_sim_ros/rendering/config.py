@@ -27,6 +27,7 @@ def look_options(look: str) -> dict[str, bool]:
     return {"detail": photo, "contact_shadows": photo}
 
 
+LENS_KEYS = ("k1", "k2", "p1", "p2", "k3")  # plumb_bob's order: CameraInfo's d, Distortion's fields, lens_<key>
 LENS_HELP = ("the lens's plumb_bob distortion, CameraInfo's d: K1 [K2 [P1 [P2 [K3]]]] (the rest 0; e.g. -0.2 0.05 "
              "for a wide-angle drone camera's barrel distortion); default none, an ideal pinhole")
 
@@ -39,10 +40,9 @@ def add_lens_option(p: argparse.ArgumentParser) -> None:
 def parse_lens(values: Sequence[float], name: str = "--lens") -> Distortion:
     """k1 [k2 [p1 [p2 [k3]]]] as a :class:`Distortion`, each value in its :class:`Lens` parameter's range;
     :class:`ParameterError` naming ``name`` otherwise."""
-    keys = ("k1", "k2", "p1", "p2", "k3")
-    if len(values) > len(keys):
+    if len(values) > len(LENS_KEYS):
         raise ParameterError(name, list(values), "K1 [K2 [P1 [P2 [K3]]]]: up to five numbers")
-    for key, value in zip(keys, values, strict=False):
+    for key, value in zip(LENS_KEYS, values, strict=False):
         spec = spec_of(Lens, f"lens_{key}")
         if not spec.check(value):
             raise ParameterError(name, list(values), f"{key} {spec.allowed}")
@@ -62,13 +62,13 @@ def check_render_options(options: RenderOptions, lens_name: str) -> RenderOption
 
 
 def lens_text(distortion: Distortion) -> str:
-    """A distortion as ``--lens`` takes it: ``-0.2 0.05 0 0 0``."""
-    return " ".join(f"{v:.12g}" for v in distortion.coefficients)
+    """A distortion as ``--lens`` takes it, each value exactly: ``-0.2 0.05 0.0 0.0 0.0``."""
+    return " ".join(repr(float(v)) for v in distortion.coefficients)
 
 
 def lens_distortion(cfg: object) -> Distortion:
     """The :class:`Distortion` of a config that declares the :class:`Lens` parameters."""
-    return Distortion(*(float(getattr(cfg, f"lens_{k}")) for k in ("k1", "k2", "p1", "p2", "k3")))
+    return Distortion(*(float(getattr(cfg, f"lens_{k}")) for k in LENS_KEYS))
 
 
 @dataclass(frozen=True)
@@ -112,7 +112,7 @@ class CameraConfig(StageConfig):
 
     def check(self) -> None:
         """The renderer's and the effects' own rules (the lens with this image size and field of view)."""
-        check_render_options(self.render_options(), "lens_k1..lens_k3")
+        check_render_options(self.render_options(), "lens_k1, lens_k2, lens_p1, lens_p2, lens_k3")
         self.effects()
 
     @property

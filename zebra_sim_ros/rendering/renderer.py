@@ -77,7 +77,7 @@ class RenderOptions:
 
     def check(self) -> None:
         """Raise :class:`ParameterError` for values outside their range (or a lens that folds over in the image)."""
-        _ = self.camera.canvas
+        _ = self.camera.ideal  # the lens's canvas, and the pinhole it is drawn with
         if not 256 <= self.shadow_size <= 8192:
             raise ParameterError("shadow_size", self.shadow_size, "256..8192 px")
         if not 0.001 <= self.near_m < self.far_m:
