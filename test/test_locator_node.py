@@ -127,6 +127,22 @@ def _depth_msg(depth: np.ndarray, stamp_msg: Any, encoding: str = "32FC1") -> An
                  data=pixels.tobytes())
 
 
+def _one_camera_peer(domain: int, name: str, pose: str) -> tuple[Peer, list[dict[str, Any]], list[Any],
+                                                                 dict[str, Any]]:
+    """A test node beside a locator of drone_0: its diagnostics, the located messages it receives, and publishers of
+    drone_0's detections, depth, camera_info and ``pose``."""
+    peer = Peer(domain, name)
+    node = peer.node
+    status = collect_diagnostics(node, "locator: locator")
+    got: list[Any] = []
+    node.create_subscription(message_class(detection3d_array_type()), "/drone_0/detections/located", got.append, 10)
+    pubs = {"det": node.create_publisher(detection_array_class(), "/drone_0/detections", 10),
+            "depth": node.create_publisher(Image, "/drone_0/depth", 10),
+            "info": node.create_publisher(CameraInfo, "/drone_0/camera_info", 10),
+            "pose": node.create_publisher(PoseStamped, f"/drone_0/{pose}", 10)}
+    return peer, status, got, pubs
+
+
 @pytest.mark.integration
 def test_the_locator_places_a_cameras_detections_over_dds(tmp_path: Path) -> None:
     """Detections, depth, camera_info and pose in; Detection3DArray in map out, each detection where the geometry
@@ -141,15 +157,8 @@ def test_the_locator_places_a_cameras_detections_over_dds(tmp_path: Path) -> Non
     depth[120:140, 250:300] = np.nan
     boxes = [[48.0, 48, 72, 62, 0.9], [250.0, 120, 300, 140, 0.5]]  # a zebra; a box where nothing was measured
     domain = fresh_domain_id()
-    peer = Peer(domain, "test_locator")
+    peer, status, got, pubs = _one_camera_peer(domain, "test_locator", "camera/pose_nav")
     node = peer.node
-    status = collect_diagnostics(node, "locator: locator")
-    got: list[Any] = []
-    node.create_subscription(message_class(detection3d_array_type()), "/drone_0/detections/located", got.append, 10)
-    pubs = {"det": node.create_publisher(detection_array_class(), "/drone_0/detections", 10),
-            "depth": node.create_publisher(Image, "/drone_0/depth", 10),
-            "info": node.create_publisher(CameraInfo, "/drone_0/camera_info", 10),
-            "pose": node.create_publisher(PoseStamped, "/drone_0/camera/pose_nav", 10)}
     decoy = node.create_publisher(PoseStamped, "/drone_0/camera/pose", 10)
     log = tmp_path / "locator.log"
 
@@ -219,15 +228,8 @@ def test_the_locator_undoes_the_lens_camera_info_gives_over_dds(tmp_path: Path) 
     depth[50:60, 50:70] = 38.6
     box = [48.0, 48, 72, 62]
     domain = fresh_domain_id()
-    peer = Peer(domain, "test_locator_lens")
+    peer, status, got, pubs = _one_camera_peer(domain, "test_locator_lens", "camera/pose")
     node = peer.node
-    status = collect_diagnostics(node, "locator: locator")
-    got: list[Any] = []
-    node.create_subscription(message_class(detection3d_array_type()), "/drone_0/detections/located", got.append, 10)
-    pubs = {"det": node.create_publisher(detection_array_class(), "/drone_0/detections", 10),
-            "depth": node.create_publisher(Image, "/drone_0/depth", 10),
-            "info": node.create_publisher(CameraInfo, "/drone_0/camera_info", 10),
-            "pose": node.create_publisher(PoseStamped, "/drone_0/camera/pose", 10)}
     log = tmp_path / "locator.log"
     qx, qy, qz, qw = _xyzw(r)
 
