@@ -212,6 +212,11 @@ def test_the_locator_places_a_cameras_detections_over_dds(tmp_path: Path) -> Non
     assert [mm.x, mm.y, mm.z] == pytest.approx([p.x, p.y, p.z], abs=2e-3)
     values = status[-1]["values"]
     assert (values["frames"], values["placed"], values["unplaced"]) == ("3", "3", "3"), values  # 1 of 2 each
+    # what a bag census follows: the pose topic and the census's rule, as the parameters have them
+    from zebra_sim_ros.detection.config import LocatorConfig
+
+    assert values["pose"] == "camera/pose_nav" and values["drones"] == "drone_0", values
+    assert float(values["census_gate"]) == pytest.approx(LocatorConfig().census_gate)
     text = log.read_text()
     assert "rgb8" in text and "a depth image of 320x90 px with camera_info of 320x180" in text
 

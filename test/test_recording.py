@@ -357,11 +357,13 @@ def test_pose_reader_matches_rclpy() -> None:
 def _census_bag(path: Path, views: dict[str, dict[int, np.ndarray]], poses: bool = True,
                 recorded: dict[int, int] | None = None, ns: str = "", ids: dict[str, int] | None = None,
                 scenes: dict[int, str] | None = None, located: str = "detections/located",
-                census: str = "census/animals", pose: str = "camera/pose") -> Path:
+                census: str = "census/animals", pose: str = "camera/pose",
+                reports: dict[str, dict[str, str]] | None = None) -> Path:
     """A bag as up --locate records it, less the images: per camera and stamp its placed zebras (a
     Detection3DArray on ``<camera>/<located>``, scores 0.9, 0.8 ..., ids from ``ids[camera]`` up where given, else
     none) and its pose on ``<camera>/<pose>`` (the camera 60 m up, 80 m from the origin along its name's order), the
-    locator's census of some stamps (on ``census``), and the placer's scenes (JSON by stamp) where given."""
+    locator's census of some stamps (on ``census``), the placer's scenes (JSON by stamp) where given, and
+    ``reports`` on /diagnostics (status name: its values) where given."""
     from geometry_msgs.msg import Point, Pose, PoseStamped
 
     from zebra_sim_ros.nodes.ros_adapter import detection3d_array_type, message_class, stamp
@@ -388,6 +390,15 @@ def _census_bag(path: Path, views: dict[str, dict[int, np.ndarray]], poses: bool
         w.add_channel(f"{ns}/zebra_sim/scene", "std_msgs/msg/String", [])
         for t, text in scenes.items():
             w.write(f"{ns}/zebra_sim/scene", serialize_message(String(data=text)), t)
+    if reports:
+        from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+        w.add_channel("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", [])
+        for k in range(2):  # the last report of each name is the one read
+            w.write("/diagnostics", serialize_message(DiagnosticArray(status=[DiagnosticStatus(
+                name=name, message="placed", values=[KeyValue(key=key, value=value if k else "stale")
+                                                     for key, value in values.items()])
+                for name, values in reports.items()])), 10**9 * (k + 1))
     if recorded:
         w.add_channel(f"{ns}/{census}", kind, [])
         for t, n in recorded.items():
@@ -445,6 +456,57 @@ def test_a_recorded_census_is_counted_again_from_the_bag(tmp_path: Path) -> None
         bag_census(path)
 
 
+def test_a_bag_census_follows_what_the_bags_locator_reported(tmp_path: Path, cli: CliRun) -> None:
+    """A run whose locator placed from the navigation's poses, joined with its own gate and camera order, and
+    published under other names: its reports on /diagnostics say so, and ``bag census`` with nothing given counts
+    as it did (each followed setting named), the same as with every setting given; a setting given wins over the
+    bag's; a bag with two locators' reports follows neither (the defaults, which do not find these topics)."""
+    from zebra_sim_ros.errors import ParameterError
+    from zebra_sim_ros.recording.census import bag_census
+
+    rng = np.random.default_rng(9)
+    herd = np.column_stack([rng.uniform(-10, 10, (10, 2)), np.full(10, 0.7)])
+    views = {cam: {t * 10**9: herd[rng.permutation(10)[:8]] + [*rng.normal(0, 0.3, 2), 0.0] for t in (1, 2)}
+             for cam in ("drone_0", "drone_1", "drone_2")}
+    reported = {"drones": "drone_2, drone_0, drone_1", "output": "placed", "pose": "camera/pose_nav",
+                "census_output": "herd/count", "census_along": "0.8", "census_across": "0.25", "census_gate": "2.0",
+                "census_separation": "0.5", "last census": "zebra 9"}
+    bag = _census_bag(tmp_path / "followed.mcap", views, recorded={10**9: 9}, located="placed", census="herd/count",
+                      pose="camera/pose_nav", reports={"locator: locator": reported})
+    got = bag_census(bag)
+    given = {"output": "placed", "census_output": "herd/count", "pose": "camera/pose_nav", "census_along": 0.8,
+             "census_across": 0.25, "census_gate": 2.0, "census_separation": 0.5}
+    want = bag_census(bag, given, drones=["drone_2", "drone_0", "drone_1"])
+    assert got["followed"] == {**given, "drones": ["drone_2", "drone_0", "drone_1"]}
+    assert got["cameras"] == want["cameras"] == ["drone_2", "drone_0", "drone_1"]
+    assert got["recounted"] == want["recounted"] and got["rule"] == want["rule"] and got["recorded"]["animals"] == 9
+    wider = bag_census(bag, {"census_gate": 6.0})  # given: it wins, the rest still followed
+    assert wider["rule"]["census_gate"] == pytest.approx(6.0) and "census_gate" not in wider["followed"]
+    assert wider["pose"] == "camera/pose_nav"
+    run = cli(["bag", "census", str(bag), "--json"])
+    assert run.returncode == 0, run.stderr
+    assert "as the bag's locator reported on /diagnostics: " in run.stdout and "pose camera/pose_nav" in run.stdout
+    assert json.loads(run.stdout.strip().splitlines()[-1])["recounted"] == want["recounted"]
+    two = _census_bag(tmp_path / "two.mcap", views, located="placed", census="herd/count", pose="camera/pose_nav",
+                      reports={"locator: locator": reported, "other_locator: locator": reported})
+    with pytest.raises(ParameterError, match=re.escape("<drone>/detections/located")):
+        bag_census(two)
+
+
+def test_the_diagnostics_reader_matches_rclpy() -> None:
+    """Each status's name and values of a DiagnosticArray, whatever the strings' lengths do to the alignment."""
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+    from zebra_sim_ros.recording.cdr import cdr_diagnostics
+
+    statuses = [DiagnosticStatus(level=bytes([k % 3]), name="n" * k, message="m" * (k + 1), hardware_id="h" * (2 * k),
+                                 values=[KeyValue(key="k" * j, value="v" * (j + k)) for j in range(k)])
+                for k in range(6)]
+    msg = DiagnosticArray(header=Header(frame_id="abc"), status=statuses)
+    assert cdr_diagnostics(serialize_message(msg)) == [("n" * k, {"k" * j: "v" * (j + k) for j in range(k)})
+                                                       for k in range(6)]
+
+
 def test_a_locator_publishing_under_other_names_is_read_by_its_names(tmp_path: Path, cli: CliRun) -> None:
     """A locator whose file renames its outputs (``output``, ``census_output``) and places from the navigation's
     poses (``pose``: camera/pose_nav): ``bag census`` (``--output``, ``--census-output``, ``--pose`` on the command
@@ -463,13 +525,14 @@ def test_a_locator_publishing_under_other_names_is_read_by_its_names(tmp_path: P
     renamed = _census_bag(tmp_path / "renamed.mcap", views, recorded={10**9: 9, 2 * 10**9: 7}, located="placed",
                           census="herd/count", pose="camera/pose_nav")
     default = _census_bag(tmp_path / "default.mcap", views, recorded={10**9: 9, 2 * 10**9: 7})
-    got, want = bag_census(renamed, named), bag_census(default)
+    names = {"output": "placed", "census_output": "herd/count", "pose": "camera/pose_nav"}
+    got, want = bag_census(renamed, names), bag_census(default)
     assert got["stamps_counted"] == 2 and got["recounted"] == want["recounted"] and got["recorded"] == want["recorded"]
     assert got["recorded"]["animals"] == 16
     with pytest.raises(ParameterError, match=re.escape("<drone>/detections/located")):
         bag_census(renamed)
     with pytest.raises(ParameterError, match=re.escape("poses (<drone>/camera/pose,")):
-        bag_census(renamed, LocatorConfig(output="placed", census_output="herd/count"))
+        bag_census(renamed, {"output": "placed", "census_output": "herd/count"})
     run = cli(["bag", "census", str(renamed), "--output", "placed", "--census-output", "herd/count", "--pose",
                "camera/pose_nav", "--json"])
     assert run.returncode == 0, run.stderr

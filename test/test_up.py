@@ -120,6 +120,7 @@ def test_up_runs_the_graph_and_a_replay_into_a_fresh_detector_scores_the_same(tm
     assert again.returncode == 0, again.stderr
     recount = _last_json(again.stdout)
     assert recount["recounted"] == census and recount["recorded"] == census and recount["stamps_counted"] == 3
+    assert recount["followed"]["pose"] == "camera/pose" and recount["followed"]["drones"] == list(DRONES)
     # the census on the Earth: up's (the locator's, as published) and the recount's, by the scenes' datum (the
     # placer's defaults), the same animals at the same places
     serengeti = {"latitude_deg": -2.3, "longitude_deg": 34.8, "altitude_m": 1550.0}

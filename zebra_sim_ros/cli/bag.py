@@ -128,21 +128,24 @@ def cmd_eval(args: argparse.Namespace) -> Summary:
 
 def cmd_census(args: argparse.Namespace) -> Summary:
     """Count a recorded run's zebras again across the drones."""
-    from zebra_sim_ros.detection.config import CENSUS_READS, CENSUS_RULE, LocatorConfig
+    from zebra_sim_ros.detection.config import CENSUS_READS, CENSUS_RULE
     from zebra_sim_ros.recording.census import bag_census, census_line
 
-    rule = LocatorConfig.from_params({k: getattr(args, k) for k in (*CENSUS_RULE, *CENSUS_READS)})
-    s = bag_census(args.bag, rule, args.drones, args.geojson, parse_datum(args.datum) if args.datum is not None
+    given = {k: getattr(args, k) for k in (*CENSUS_RULE, *CENSUS_READS) if getattr(args, k) is not None}
+    s = bag_census(args.bag, given, args.drones, args.geojson, parse_datum(args.datum) if args.datum is not None
                    else None)
+    if s["followed"]:
+        print("as the bag's locator reported on /diagnostics: "
+              + ", ".join(f"{k} {', '.join(v) if isinstance(v, list) else v}" for k, v in s["followed"].items()))
 
     joined = ", ".join(f"{k} {v:g}" for k, v in s["rule"].items())
     print(f"cameras {', '.join(s['cameras'])} (joined in this order): {s['stamps_counted']} of {s['stamps_placed']} "
           f"placed stamps with every camera's frame and pose")
     print(f"recounted ({joined}): {census_line(s['recounted'])}")
     if s["recorded"] is None:
-        print(f"recorded: no {rule.census_output} in the bag")
+        print(f"recorded: no {s['census_output']} in the bag")
     else:
-        print(f"recorded (the locator's {rule.census_output}, on the same stamps, {s['recorded_stamps']} in the "
+        print(f"recorded (the locator's {s['census_output']}, on the same stamps, {s['recorded_stamps']} in the "
               f"bag): {census_line(s['recorded'])}")
     if "geojson" in s:
         d = s["datum"]

@@ -76,16 +76,18 @@ def count_option(p: argparse.ArgumentParser) -> None:
 def census_options(p: argparse.ArgumentParser) -> None:
     """``--census-along``, ``--census-across``, ``--census-gate``, ``--census-separation``, ``--drones``, ``--output``,
     ``--census-output`` and ``--pose``, mirroring the locator node's census parameters and the topics it published
-    and read its poses from (``bag census``): the same names, ranges and defaults."""
+    and read its poses from (``bag census``): the same names and ranges; not given (None), the bag's locator's, as it
+    reported them on /diagnostics, else the parameter's default."""
     from zebra_sim_ros.detection.config import CENSUS_READS, CENSUS_RULE, LocatorConfig
     from zebra_sim_ros.params import add_option, spec_of
 
+    followed = "not given: the bag's locator's, from its /diagnostics, else this default"
     for name in CENSUS_RULE:
-        add_option(p, spec_of(LocatorConfig, name))
+        add_option(p, spec_of(LocatorConfig, name), default=None, note=followed)
     for name in CENSUS_READS:
-        add_option(p, spec_of(LocatorConfig, name), note="here: the poses the bag's locator placed its detections "
-                   "from, read back for the cameras' positions" if name == "pose" else
-                   "here: the topic the bag's locator published it on")
+        add_option(p, spec_of(LocatorConfig, name), default=None, note=("here: the poses the bag's locator placed "
+                   "its detections from, read back for the cameras' positions" if name == "pose" else
+                   "here: the topic the bag's locator published it on") + f"; {followed}")
     add_option(p, spec_of(LocatorConfig, "drones"), default=None,
-               note="here: the bag's cameras, joined in this order (not given: the bag's cameras, drone_2 before "
-                    "drone_10, as up orders them)")
+               note="here: the bag's cameras, joined in this order (not given: the bag's locator's order, from its "
+                    "/diagnostics, else the bag's cameras, drone_2 before drone_10, as up orders them)")

@@ -53,7 +53,7 @@ from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
-from zebra_sim_ros.detection.config import LOCATOR_PARAMS, LocatorConfig
+from zebra_sim_ros.detection.config import CENSUS_RULE, LOCATOR_PARAMS, LocatorConfig
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.census import Census
 from zebra_sim_ros.geometry.lens import Distortion
@@ -345,9 +345,11 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         camera's camera_info before it places its frames."""
         missing = [d for d in self.cfg.drones if d not in self.info]
         waiting = f"waiting for camera_info of {', '.join(missing)}" if missing else ""
-        info = {"drones": ", ".join(self.cfg.drones), "output": self.cfg.output}
-        if self.cfg.census:
-            info.update({"census_output": self.cfg.census_output, "last census": self.last_count or "none yet"})
+        c = self.cfg
+        info = {"drones": ", ".join(c.drones), "output": c.output, "pose": c.pose}
+        if c.census:  # what a bag census follows (recording.census.bag_census): names as the parameters'
+            info.update({"census_output": c.census_output, **{k: repr(getattr(c, k)) for k in CENSUS_RULE},
+                         "last census": self.last_count or "none yet"})
         return Activity(dict(self.stats), "frames", ("unmatched", "bad_messages", "census_incomplete"),
                         busy_s=self.seconds, waiting=waiting, info=info)
 

@@ -158,6 +158,25 @@ def cdr_pose_position(data: bytes) -> tuple[int, tuple[float, float, float]]:
     return t, (r.f64(), r.f64(), r.f64())
 
 
+def cdr_diagnostics(data: bytes) -> list[tuple[str, dict[str, str]]]:
+    """The statuses of a CDR-serialized ``diagnostic_msgs/DiagnosticArray``: each one's name and its values."""
+    r = _Cdr(data)
+    _stamp_of(r)
+    r.string()  # frame_id
+    out = []
+    for _ in range(r.u32()):
+        r.u8()  # level
+        name = r.string()
+        r.string()  # message
+        r.string()  # hardware_id
+        values = {}
+        for _ in range(r.u32()):
+            key = r.string()
+            values[key] = r.string()
+        out.append((name, values))
+    return out
+
+
 def cdr_detections(data: bytes) -> Detections:
     """A CDR-serialized ``vision_msgs/Detection2DArray`` (or ``zebra_sim_msgs/``'s, the same layout) as our typed
     :class:`~zebra_sim_ros.messages.Detections` (boxes back to [x0, y0, x1, y1]; each detection's best hypothesis;

@@ -1,8 +1,9 @@
 """The census of a recorded run, counted again (``zebra-sim bag census``): each step's detections placed on the map
 by the locator (``<drone>/detections/located``, or the ``output`` its file names, and ``<drone>/camera/pose``, or
 the ``pose`` it placed them from, recorded by ``up --locate``) joined
-across the cameras with census parameters given here (:func:`zebra_sim_ros.geometry.census.join_views`, the
-locator node's rule, in its ``drones`` order), against the distinct zebras the cameras' labels keep where the bag
+across the cameras with census parameters given here, or else the bag's locator's as it reported them on
+/diagnostics (:func:`zebra_sim_ros.geometry.census.join_views`, the locator node's rule, in its ``drones`` order),
+against the distinct zebras the cameras' labels keep where the bag
 has labels; beside it the census the locator recorded (``census/animals``, or its ``census_output``), where it
 did. A run recorded once can
 so be counted again with other parameters, and a change to the rule measured on the same detections.
@@ -13,19 +14,26 @@ from __future__ import annotations
 import json
 import re
 from collections import defaultdict
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import astuple
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from zebra_sim_ros.detection.config import CENSUS_RULE, LocatorConfig
+from zebra_sim_ros.detection.config import CENSUS_READS, CENSUS_RULE, LocatorConfig
 from zebra_sim_ros.detection.scoring import DroneFrames
 from zebra_sim_ros.errors import ParameterError, ZebraSimError
 from zebra_sim_ros.geometry.geodesy import enu_to_geodetic
 from zebra_sim_ros.messages import Datum, Scene
-from zebra_sim_ros.recording.cdr import MALFORMED, Placed3D, cdr_detections3d, cdr_pose_position, cdr_string
+from zebra_sim_ros.recording.cdr import (
+    MALFORMED,
+    Placed3D,
+    cdr_detections3d,
+    cdr_diagnostics,
+    cdr_pose_position,
+    cdr_string,
+)
 from zebra_sim_ros.recording.evaluate import collect, skip_note
 from zebra_sim_ros.recording.reader import BagMessage, last_name, topic_owner
 
@@ -134,14 +142,37 @@ def zebra_points(dets: list[Placed3D]) -> np.ndarray:
     return np.array([d.center for d in dets if d.class_id == "zebra"], np.float64).reshape(-1, 3)
 
 
-def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None = None,
+def _locator_settings(reports: Mapping[str, Mapping[str, str]],
+                      given: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
+    """The census settings the bag's locator reported (its last /diagnostics values; :data:`CENSUS_RULE` and
+    :data:`CENSUS_READS` not in ``given``) and its cameras' order (last names); nothing where the bag holds no
+    locator's reports, or two locators' (which would be two runs)."""
+    if len(reports) != 1:
+        return {}, []
+    (values,) = reports.values()
+    out: dict[str, Any] = {}
+    for key in (*CENSUS_RULE, *CENSUS_READS):
+        if key in values and key not in given:
+            try:
+                out[key] = float(values[key]) if key in CENSUS_RULE else values[key]
+            except ValueError:
+                continue  # not a number: the default
+    order = [last_name(d.strip()) for d in values.get("drones", "").split(",") if d.strip()]
+    return out, order
+
+
+def bag_census(paths: list[str | Path] | str | Path, settings: Mapping[str, Any] | None = None,
                drones: Sequence[str] | None = None, geojson: str | Path | None = None,
                datum: Datum | None = None) -> dict[str, Any]:
-    """The census of the bag ``paths`` counted again by ``rule``'s :data:`CENSUS_RULE` parameters (the locator's;
-    default: its defaults; module docstring), read from ``rule``'s topics (``output``, ``census_output``,
-    ``pose``), the cameras joined in ``drones``' order (the locator's ``drones``, last names; default: the cameras
-    found, ``drone_2`` before ``drone_10``, as up and the launch file have them):
-    per stamp that every camera has placed and posed, its zebras joined across the cameras and scored by
+    """The census of the bag ``paths`` counted again by the locator's :data:`CENSUS_RULE` parameters, read from its
+    topics (``output``, ``census_output``, ``pose``: :data:`CENSUS_READS`), the cameras joined in its ``drones``'
+    order. Each of these is, in this order: given in ``settings``; else the bag's locator's, as it reported them on
+    ``/diagnostics`` (:meth:`~zebra_sim_ros.nodes.locator.LocatorNode.activity`; ``followed`` in the result names
+    them), so a recount of a run made with other settings (``up --set locator.pose=camera/pose_nav``) counts as
+    it did; else the parameter's default (the cameras: those found, ``drone_2`` before ``drone_10``, as up and the
+    launch file have them). ``drones`` given are last names, in the order to join.
+
+    Per stamp that every camera has placed and posed, its zebras are joined across the cameras and scored by
     :func:`census_figures`. ``recorded``: the locator's recorded census, scored on the same stamps (None where the
     bag has none). ParameterError when the bag holds no placed detections (recorded without ``up --locate``) or no
     camera poses, holds more than one graph's (two namespaces), or ``drones`` are not its cameras.
@@ -152,33 +183,48 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
     written."""
     if datum is not None and geojson is None:
         raise ParameterError("datum", astuple(datum), "only with geojson (the census is placed on the Earth for it)")
-    rule = rule or LocatorConfig()
-    located_topics, census_topic = (rule.output,), census_topic_re(rule)
-    located: dict[tuple[str, int], list[Placed3D]] = {}
+    given = dict(settings or {})
+    if unknown := sorted(set(given) - set(CENSUS_RULE) - set(CENSUS_READS)):
+        raise ParameterError("settings", unknown, f"the locator's {', '.join((*CENSUS_RULE, *CENSUS_READS))}")
+    placed: dict[str, dict[int, list[Placed3D]]] = defaultdict(dict)  # every Detection3DArray topic, by stamp
+    posed: dict[str, dict[int, tuple[float, float, float]]] = defaultdict(dict)  # every PoseStamped topic
     datums: set[Datum | None] = set()  # the scenes' (a run has one)
-    poses: dict[tuple[str, int], tuple[float, float, float]] = {}
-    recorded: dict[int, int] = {}
-    graphs: set[str] = set()  # the namespaces the cameras are in
+    reports: dict[str, dict[str, str]] = {}  # each locator's last /diagnostics values, by status name
     unusable: list[str] = []
 
     def visit(m: BagMessage) -> None:
         try:
-            if owner := topic_owner(m.topic, located_topics):
+            if m.type_name.endswith("/Detection3DArray"):
                 t, dets = cdr_detections3d(m.data)
-                located[(last_name(owner[0]), t)] = dets
-                graphs.add(owner[0].rsplit("/", 1)[0])
-            elif (owner := topic_owner(m.topic, (rule.pose,))) and m.type_name.endswith("/PoseStamped"):
+                placed[m.topic][t] = dets
+            elif m.type_name.endswith("/PoseStamped"):
                 t, position = cdr_pose_position(m.data)
-                poses[(last_name(owner[0]), t)] = position
-            elif census_topic.match(m.topic):
-                t, animals = cdr_detections3d(m.data)
-                recorded[t] = len(zebra_points(animals))
+                posed[m.topic][t] = position
+            elif m.type_name.endswith("/DiagnosticArray"):
+                reports.update((name, values) for name, values in cdr_diagnostics(m.data)
+                               if name.endswith(": locator"))
             elif geojson is not None and SCENE_TOPIC_RE.match(m.topic):
                 datums.add(Scene.from_json(cdr_string(m.data)).datum)
         except (*MALFORMED, ZebraSimError) as exc:
             unusable.append(skip_note(m, exc))
 
     collected = collect(paths, each=visit)
+    followed, order = _locator_settings(reports, given)
+    rule = LocatorConfig.from_params({**followed, **given})
+    census_topic = census_topic_re(rule)
+    located: dict[tuple[str, int], list[Placed3D]] = {}
+    poses: dict[tuple[str, int], tuple[float, float, float]] = {}
+    recorded: dict[int, int] = {}
+    graphs: set[str] = set()  # the namespaces the cameras are in
+    for topic, placed_by_stamp in placed.items():
+        if owner := topic_owner(topic, (rule.output,)):
+            located.update(((last_name(owner[0]), t), dets) for t, dets in placed_by_stamp.items())
+            graphs.add(owner[0].rsplit("/", 1)[0])
+        elif census_topic.match(topic):
+            recorded.update((t, len(zebra_points(animals))) for t, animals in placed_by_stamp.items())
+    for topic, posed_by_stamp in posed.items():
+        if owner := topic_owner(topic, (rule.pose,)):
+            poses.update(((last_name(owner[0]), t), at) for t, at in posed_by_stamp.items())
     bag = [str(p) for p in (paths if isinstance(paths, list) else [paths])]
     if not located:
         raise ParameterError("bag", bag, f"a bag with placed detections (<drone>/{rule.output}: recorded by up "
@@ -187,6 +233,8 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
         raise ParameterError("bag", bag, f"one graph's run (its cameras are in {len(graphs)} namespaces: "
                              f"{', '.join(sorted(g or '/' for g in graphs))})")
     found = sorted({d for d, _ in located}, key=drone_order)
+    if not drones and order and sorted(order) == found:  # the bag's locator's order, where it names these cameras
+        drones, followed["drones"] = order, order
     cameras = list(drones) if drones else found
     if sorted(cameras) != sorted(found):
         raise ParameterError("drones", cameras, f"the bag's cameras, each once, in any order: {found}")
@@ -234,7 +282,8 @@ def bag_census(paths: list[str | Path] | str | Path, rule: LocatorConfig | None 
         except OSError as exc:
             why = exc.strerror or exc
             raise ParameterError("geojson", str(geojson), f"a file that can be written ({why})") from exc
-    return {**about, "rule": rule_values, "cameras": cameras, "pose": rule.pose,
+    return {**about, "rule": rule_values, "cameras": cameras, "pose": rule.pose, "census_output": rule.census_output,
+            "followed": followed,
             "stamps_placed": len({t for _, t in located}), "stamps_counted": len(counts),
             "recounted": census_figures(counts, collected.drones, zebras),
             "recorded": census_figures(both, collected.drones, zebras) if recorded else None,
