@@ -460,7 +460,9 @@ def test_a_bag_census_follows_what_the_bags_locator_reported(tmp_path: Path, cli
     """A run whose locator placed from the navigation's poses, joined with its own gate and camera order, and
     published under other names: its reports on /diagnostics say so, and ``bag census`` with nothing given counts
     as it did (each followed setting named), the same as with every setting given; a setting given wins over the
-    bag's; a bag with two locators' reports follows neither (the defaults, which do not find these topics)."""
+    bag's; the latest report counts; a bag with two locators' reports follows neither (the defaults, which do not
+    find these topics); the camera order is followed past drone_9, and a reported value this version refuses is
+    left to its default."""
     from zebra_sim_ros.errors import ParameterError
     from zebra_sim_ros.recording.census import bag_census
 
@@ -491,6 +493,14 @@ def test_a_bag_census_follows_what_the_bags_locator_reported(tmp_path: Path, cli
                       reports={"locator: locator": reported, "other_locator: locator": reported})
     with pytest.raises(ParameterError, match=re.escape("<drone>/detections/located")):
         bag_census(two)
+    # drone_10 joined before drone_2, as its (namespaced) locator had them; a value this version refuses (an
+    # absolute pose topic) is left to its default
+    tens = {"drone_10": views["drone_0"], "drone_2": views["drone_2"]}
+    odd = _census_bag(tmp_path / "tens.mcap", tens, ns="/g1", reports={"g1/locator: locator": {
+        "drones": "drone_10, drone_2", "pose": "/abs/pose", "census_gate": "3.0"}})
+    got = bag_census(odd)
+    assert got["cameras"] == ["drone_10", "drone_2"] and got["pose"] == "camera/pose"
+    assert got["followed"] == {"census_gate": 3.0, "drones": ["drone_10", "drone_2"]}
 
 
 def test_the_diagnostics_reader_matches_rclpy() -> None:

@@ -26,6 +26,7 @@ from zebra_sim_ros.detection.scoring import DroneFrames
 from zebra_sim_ros.errors import ParameterError, ZebraSimError
 from zebra_sim_ros.geometry.geodesy import enu_to_geodetic
 from zebra_sim_ros.messages import Datum, Scene
+from zebra_sim_ros.params import spec_of, validate
 from zebra_sim_ros.recording.cdr import (
     MALFORMED,
     Placed3D,
@@ -144,9 +145,10 @@ def zebra_points(dets: list[Placed3D]) -> np.ndarray:
 
 def _locator_settings(reports: Mapping[str, Mapping[str, str]],
                       given: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
-    """The census settings the bag's locator reported (its last /diagnostics values; :data:`CENSUS_RULE` and
-    :data:`CENSUS_READS` not in ``given``) and its cameras' order (last names); nothing where the bag holds no
-    locator's reports, or two locators' (which would be two runs)."""
+    """The census settings the bag's locator reported (its latest /diagnostics values; :data:`CENSUS_RULE` and
+    :data:`CENSUS_READS` not in ``given``, each one this version's parameter accepts: another is left to its
+    default) and its cameras' order (last names); nothing where the bag holds no locator's reports, or two
+    locators' (which would be two runs). A run that changed them while it ran is counted by the latest."""
     if len(reports) != 1:
         return {}, []
     (values,) = reports.values()
@@ -154,9 +156,10 @@ def _locator_settings(reports: Mapping[str, Mapping[str, str]],
     for key in (*CENSUS_RULE, *CENSUS_READS):
         if key in values and key not in given:
             try:
-                out[key] = float(values[key]) if key in CENSUS_RULE else values[key]
-            except ValueError:
-                continue  # not a number: the default
+                value = float(values[key]) if key in CENSUS_RULE else values[key]
+                out[key] = validate([spec_of(LocatorConfig, key)], {key: value})[key]
+            except (ValueError, ParameterError):
+                continue  # not this version's: the default
     order = [last_name(d.strip()) for d in values.get("drones", "").split(",") if d.strip()]
     return out, order
 
@@ -189,7 +192,7 @@ def bag_census(paths: list[str | Path] | str | Path, settings: Mapping[str, Any]
     placed: dict[str, dict[int, list[Placed3D]]] = defaultdict(dict)  # every Detection3DArray topic, by stamp
     posed: dict[str, dict[int, tuple[float, float, float]]] = defaultdict(dict)  # every PoseStamped topic
     datums: set[Datum | None] = set()  # the scenes' (a run has one)
-    reports: dict[str, dict[str, str]] = {}  # each locator's last /diagnostics values, by status name
+    reports: dict[str, tuple[int, dict[str, str]]] = {}  # each locator's latest /diagnostics values, by status name
     unusable: list[str] = []
 
     def visit(m: BagMessage) -> None:
@@ -201,16 +204,21 @@ def bag_census(paths: list[str | Path] | str | Path, settings: Mapping[str, Any]
                 t, position = cdr_pose_position(m.data)
                 posed[m.topic][t] = position
             elif m.type_name.endswith("/DiagnosticArray"):
-                reports.update((name, values) for name, values in cdr_diagnostics(m.data)
-                               if name.endswith(": locator"))
+                for name, values in cdr_diagnostics(m.data):
+                    if name.endswith(": locator") and m.log_time >= reports.get(name, (m.log_time, {}))[0]:
+                        reports[name] = (m.log_time, values)
             elif geojson is not None and SCENE_TOPIC_RE.match(m.topic):
                 datums.add(Scene.from_json(cdr_string(m.data)).datum)
         except (*MALFORMED, ZebraSimError) as exc:
             unusable.append(skip_note(m, exc))
 
     collected = collect(paths, each=visit)
-    followed, order = _locator_settings(reports, given)
-    rule = LocatorConfig.from_params({**followed, **given})
+    followed, order = _locator_settings({name: values for name, (_, values) in reports.items()}, given)
+    try:
+        rule = LocatorConfig.from_params({**followed, **given})
+    except ParameterError as exc:  # each followed value is valid alone: together, or with those given, they are not
+        raise ParameterError(exc.name, exc.value, f"{exc.allowed} (with {followed}, followed from the bag's "
+                             "locator's /diagnostics: give them to override)") from None
     census_topic = census_topic_re(rule)
     located: dict[tuple[str, int], list[Placed3D]] = {}
     poses: dict[tuple[str, int], tuple[float, float, float]] = {}
@@ -233,7 +241,7 @@ def bag_census(paths: list[str | Path] | str | Path, settings: Mapping[str, Any]
         raise ParameterError("bag", bag, f"one graph's run (its cameras are in {len(graphs)} namespaces: "
                              f"{', '.join(sorted(g or '/' for g in graphs))})")
     found = sorted({d for d, _ in located}, key=drone_order)
-    if not drones and order and sorted(order) == found:  # the bag's locator's order, where it names these cameras
+    if not drones and order and sorted(order, key=drone_order) == found:  # the locator's, where it names these
         drones, followed["drones"] = order, order
     cameras = list(drones) if drones else found
     if sorted(cameras) != sorted(found):
