@@ -97,6 +97,12 @@ def test_a_folder_is_continued_only_with_the_settings_its_frames_were_written_wi
     with pytest.raises(ParameterError, match="width 640 there, 320 now"):  # a run cut short left only this
         generate(GenerateConfig(out=str(cut), **SMALL), progress=lambda *a: None)
     # a record from before the lens was a setting had none: continued without one, refused with one
+    old = tmp_path / "old"
+    shutil.copytree(dataset, old)
+    record = json.loads((old / "generate.json").read_text())
+    del record["config"]["lens"]
+    (old / "generate.json").write_text(json.dumps(record))
+    assert generate(GenerateConfig(out=str(old), **SMALL), progress=lambda *a: None)["frames_written"] == 0
     (cut / "generate.json").write_text(json.dumps({"config": {"width": 320, "seed": 5}, "stats": None}))
     with pytest.raises(ParameterError, match=r"lens \[0.0, 0.0, 0.0, 0.0, 0.0\] there, \[-0.1, 0.0"):
         generate(GenerateConfig(out=str(cut), **{**SMALL, "lens": (-0.1, 0.0, 0.0, 0.0, 0.0)}),

@@ -272,6 +272,8 @@ def test_locating_a_box_undoes_the_lens_for_its_ray_and_its_size() -> None:
     assert got.size[0] == pytest.approx([0.6, 0.6], rel=0.03)
     assert abs(plain.size[0, 0] - 0.6) > 0.06
     folding = Distortion(k1=-0.5)  # turns back at r 0.82, inside this camera's corners (0.96)
+    xd = (630.0 - cam.K[0, 2]) / cam.fx, (350.0 - cam.K[1, 2]) / cam.fx
+    assert np.isnan(folding.remove(*xd)).all()  # the polynomial has a solution, on its far branch: not a ray
     corner = np.array([[620.0, 340, 640, 360], [310.0, 170, 330, 190]])
     far = locate_boxes(corner, depth, cam.K, np.zeros(3), ident, distortion=folding)
     assert far.valid.tolist() == [False, True]

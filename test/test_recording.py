@@ -394,11 +394,11 @@ def _census_bag(path: Path, views: dict[str, dict[int, np.ndarray]], poses: bool
         from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
         w.add_channel("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", [])
-        for k in range(2):  # the last report of each name is the one read
+        for k in range(2):  # the latest report of each name is the one read: written first, a stale one after it
             w.write("/diagnostics", serialize_message(DiagnosticArray(status=[DiagnosticStatus(
-                name=name, message="placed", values=[KeyValue(key=key, value=value if k else "stale")
+                name=name, message="placed", values=[KeyValue(key=key, value=value if k == 0 else "stale")
                                                      for key, value in values.items()])
-                for name, values in reports.items()])), 10**9 * (k + 1))
+                for name, values in reports.items()])), 10**9 * (2 - k))
     if recorded:
         w.add_channel(f"{ns}/{census}", kind, [])
         for t, n in recorded.items():
@@ -493,6 +493,9 @@ def test_a_bag_census_follows_what_the_bags_locator_reported(tmp_path: Path, cli
                       reports={"locator: locator": reported, "other_locator: locator": reported})
     with pytest.raises(ParameterError, match=re.escape("<drone>/detections/located")):
         bag_census(two)
+    clash = _census_bag(tmp_path / "clash.mcap", views, reports={"locator: locator": {"pose": "detections/located"}})
+    with pytest.raises(ParameterError, match="followed from the bag's locator's /diagnostics"):
+        bag_census(clash)  # each valid alone; the pose on the placed detections' topic is refused
     # drone_10 joined before drone_2, as its (namespaced) locator had them; a value this version refuses (an
     # absolute pose topic) is left to its default
     tens = {"drone_10": views["drone_0"], "drone_2": views["drone_2"]}

@@ -50,6 +50,7 @@ def cmd_render(args: argparse.Namespace) -> Summary:
     """Render the step."""
     import cv2
 
+    from zebra_sim_ros.geometry.lens import PLUMB_BOB
     from zebra_sim_ros.placement.config import PlacerConfig
     from zebra_sim_ros.placement.placer import Placer
     from zebra_sim_ros.placement.sun import lighting_for
@@ -95,7 +96,7 @@ def cmd_render(args: argparse.Namespace) -> Summary:
         mm = np.where(np.isfinite(v.depth), np.clip(np.rint(v.depth * 1000), 0, 65535), 0).astype(np.uint16)
         cv2.imwrite(str(out / f"{v.name}_depth_mm.png"), mm)
         cv2.imwrite(str(out / f"{v.name}_instances.png"), v.instances)
-        info[v.name] = {"width": args.width, "height": args.height, "K": v.K.tolist(), "distortion_model": "plumb_bob",
+        info[v.name] = {"width": args.width, "height": args.height, "K": v.K.tolist(), "distortion_model": PLUMB_BOB,
                         "D": list(v.D),
                         "frame_id": optical_frame(v.name), "depth_unit": "m", "instances": "zebra id + 1"}
         tiles.append(preview_row(v.rgb, v.depth, v.instances))

@@ -77,9 +77,9 @@ class PinholeCamera:
                          [0.0, 0.0, 1.0]])
 
     @property
-    def D(self) -> list[float]:  # noqa: N802 - CameraInfo's name of the distortion coefficients
+    def D(self) -> tuple[float, float, float, float, float]:  # noqa: N802 - CameraInfo's name of the distortion
         """CameraInfo's ``d``: the plumb_bob coefficients (k1, k2, p1, p2, k3)."""
-        return list(self.distortion.coefficients)
+        return self.distortion.coefficients
 
     @cached_property
     def canvas(self) -> LensCanvas | None:

@@ -71,9 +71,7 @@ class Distortion:
         if model != PLUMB_BOB or len(values) != 5:
             raise ValueError(f"distortion model {model!r} with d = {values}: want plumb_bob with 5 coefficients "
                              "(k1, k2, p1, p2, k3), or none")
-        if not all(np.isfinite(values)):
-            raise ValueError(f"distortion d = {values}: want finite coefficients")
-        return cls(*values)
+        return cls(*values)  # ParameterError (a ValueError) for one that is not finite
 
     @property
     def coefficients(self) -> tuple[float, float, float, float, float]:
@@ -98,29 +96,34 @@ class Distortion:
 
     def remove(self, xd: ArrayLike, yd: ArrayLike, iterations: int = 50) -> tuple[FloatArray, FloatArray]:
         """Ideal normalised coordinates of distorted ones: Newton's method on :meth:`apply` from the distorted point
-        (OpenCV's ``undistortPoints`` iterates a fixed point instead; both converge where the lens does not fold)."""
+        (OpenCV's ``undistortPoints`` iterates a fixed point instead; both converge where the lens does not fold).
+        NaN where the lens cannot be undone: no solution within 1e-9 (a millionth of a pixel at a focal length of
+        1000 px), or one past the radial map's first turn (:meth:`on_first_branch`: a solution of the polynomial,
+        not a ray)."""
         xd, yd = np.asarray(xd, dtype=np.float64), np.asarray(yd, dtype=np.float64)
         if self.none:
             return xd, yd
         x, y = xd.copy(), yd.copy()
-        for _ in range(iterations):
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            for _ in range(iterations):
+                fx, fy = self.apply(x, y)
+                ex, ey = fx - xd, fy - yd
+                a, b, c, d = self.jacobian(x, y)
+                det = a * d - b * c
+                det = np.where(np.abs(det) > 1e-12, det, 1e-12)
+                dx, dy = (d * ex - b * ey) / det, (a * ey - c * ex) / det
+                x, y = x - dx, y - dy
+                if float(np.max(np.abs(dx), initial=0.0)) < 1e-14 and float(np.max(np.abs(dy), initial=0.0)) < 1e-14:
+                    break
             fx, fy = self.apply(x, y)
-            ex, ey = fx - xd, fy - yd
-            a, b, c, d = self.jacobian(x, y)
-            det = a * d - b * c
-            det = np.where(np.abs(det) > 1e-12, det, 1e-12)
-            dx, dy = (d * ex - b * ey) / det, (a * ey - c * ex) / det
-            x, y = x - dx, y - dy
-            if float(np.max(np.abs(dx), initial=0.0)) < 1e-14 and float(np.max(np.abs(dy), initial=0.0)) < 1e-14:
-                break
-        return x, y
+            good = (np.hypot(fx - xd, fy - yd) <= 1e-9) & self.on_first_branch(x, y)
+        return np.where(good, x, np.nan), np.where(good, y, np.nan)
 
     def jacobian(self, x: ArrayLike, y: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """The partial derivatives (dxd/dx, dxd/dy, dyd/dx, dyd/dy) of :meth:`apply` at ideal coordinates."""
         x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
         r2 = x * x + y * y
-        radial = self._radial(r2)
-        dradial = self.k1 + r2 * (2.0 * self.k2 + 3.0 * self.k3 * r2)  # d radial / d r2
+        radial, dradial = self._radial(r2), self._slope(r2)
         a = radial + 2.0 * x * x * dradial + 2.0 * self.p1 * y + 6.0 * self.p2 * x
         b = 2.0 * x * y * dradial + 2.0 * self.p1 * x + 2.0 * self.p2 * y  # dxd/dy and dyd/dx are equal
         d = radial + 2.0 * y * y * dradial + 6.0 * self.p1 * y + 2.0 * self.p2 * x
@@ -129,6 +132,10 @@ class Distortion:
     def _radial(self, r2: FloatArray) -> FloatArray:
         return np.asarray(1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3)))
 
+    def _slope(self, r2: FloatArray) -> FloatArray:
+        """d radial / d r2."""
+        return np.asarray(self.k1 + r2 * (2.0 * self.k2 + 3.0 * self.k3 * r2))
+
     def on_first_branch(self, x: ArrayLike, y: ArrayLike) -> NDArray[np.bool_]:
         """Whether ideal coordinates lie where the radial map r -> r (1 + k1 r^2 + ...) still rises from the axis:
         its factor and its derivative positive. Past its first turn the model images a point again, mirrored or
@@ -136,8 +143,7 @@ class Distortion:
         x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
         r2 = x * x + y * y
         radial = self._radial(r2)
-        dradial = self.k1 + r2 * (2.0 * self.k2 + 3.0 * self.k3 * r2)
-        return np.asarray((radial > 0) & (radial + 2.0 * r2 * dradial > 0))
+        return np.asarray((radial > 0) & (radial + 2.0 * r2 * self._slope(r2) > 0))
 
     def radial(self, r: ArrayLike) -> FloatArray:
         """The radial factor 1 + k1 r^2 + k2 r^4 + k3 r^6 at ideal radius ``r``."""
@@ -203,23 +209,33 @@ def lens_canvas(width: int, height: int, fx: float, distortion: Distortion) -> L
     point at the centre) and ``distortion``; :class:`ParameterError` naming the coefficients where the model cannot
     be undone inside the image (the lens folds over there), or where the ideal image it needs is over three times
     the image, over 16384 px or over 170 deg wide. Made once per camera model in a process (its arrays are
-    read-only)."""
+    read-only), and refused once: a refused model is refused again without solving it again."""
+    if (refused := _REFUSED.get((width, height, fx, distortion))) is not None:
+        raise refused
+    try:
+        return _canvas(width, height, fx, distortion)
+    except ParameterError as exc:
+        _REFUSED[(width, height, fx, distortion)] = exc
+        raise
+
+
+_REFUSED: dict[tuple[int, int, float, Distortion], ParameterError] = {}  # camera models lens_canvas refused
+
+
+def _canvas(width: int, height: int, fx: float, distortion: Distortion) -> LensCanvas:
     cx, cy = (width - 1) / 2, (height - 1) / 2
     cols, rows = np.meshgrid(np.arange(width, dtype=np.float64), np.arange(height, dtype=np.float64))
     # the pixel centres, and the image's outer corners (pixel edges), made ideal
     xd = np.concatenate([((cols - cx) / fx).ravel(), np.array([-0.5 - cx, width - 0.5 - cx] * 2) / fx])
     yd = np.concatenate([((rows - cy) / fx).ravel(), np.array([-0.5 - cy] * 2 + [height - 0.5 - cy] * 2) / fx])
-    x, y = distortion.remove(xd, yd)
-    back_x, back_y = distortion.apply(x, y)
+    x, y = distortion.remove(xd, yd)  # NaN where it cannot be undone
     with np.errstate(invalid="ignore", over="ignore"):
-        err = float(np.max(np.hypot(back_x - xd, back_y - yd))) * fx
         a, b, c, d = distortion.jacobian(x, y)
-        folds = not (np.all(a * d - b * c > 0) and np.all(distortion.on_first_branch(x, y)))
-    reason = ("the model cannot be undone there: its polynomial turns back (the Jacobian's determinant reaches 0)"
-              if folds else f"the model cannot be undone there ({err:.3g} px off)")
-    if folds or not err <= 1e-3:
+        bad = int(np.count_nonzero(~(a * d - b * c > 0)))  # NaN counts too
+    if bad:
         raise ParameterError(LENS_ERROR, list(distortion.coefficients),
-                             f"a lens that does not fold over inside the {width}x{height} image; {reason}")
+                             f"a lens that does not fold over inside the {width}x{height} image (the model cannot be "
+                             f"undone at {bad} of its pixels and corners: its polynomial turns back there)")
     max_radius = float(np.max(np.hypot(x, y)))
     x, y = x[:-4].reshape(height, width), y[:-4].reshape(height, width)
     u, v = x * fx, y * fx  # canvas pixels from the principal point

@@ -114,26 +114,18 @@ def locate_boxes(boxes: FloatArray, depth: NDArray[np.floating], k: FloatArray, 
     d = box_depths(depth, boxes, core, window_m)
     u = (boxes[:, 0] + boxes[:, 2]) / 2 - 0.5  # pixel-edge to pixel-centre coordinates
     v = (boxes[:, 1] + boxes[:, 3]) / 2 - 0.5
-    left, right, top, bottom = boxes[:, 0] - 0.5, boxes[:, 2] - 0.5, boxes[:, 1] - 0.5, boxes[:, 3] - 0.5
-
-    def ideal(us: FloatArray, vs: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Ideal normalised coordinates of pixels (NaN where the lens cannot be undone)."""
-        xd, yd = (us - k[0, 2]) / k[0, 0], (vs - k[1, 2]) / k[1, 1]
-        if distortion is None:
-            return xd, yd
-        xi, yi = distortion.remove(xd, yd)
-        xa, ya = distortion.apply(xi, yi)
-        with np.errstate(invalid="ignore"):
-            bad = ~((np.hypot(xa - xd, ya - yd) * k[0, 0] < 1e-6) & distortion.on_first_branch(xi, yi))
-        return np.where(bad, np.nan, xi), np.where(bad, np.nan, yi)
-
-    x, y = ideal(u, v)
+    # the centre, then the left, right, top and bottom edges' midpoints (pixel centres), made ideal at once: NaN
+    # where the lens cannot undo them
+    us = np.concatenate([u, boxes[:, 0] - 0.5, boxes[:, 2] - 0.5, u, u])
+    vs = np.concatenate([v, v, v, boxes[:, 1] - 0.5, boxes[:, 3] - 0.5])
+    xs, ys = (us - k[0, 2]) / k[0, 0], (vs - k[1, 2]) / k[1, 1]
+    if distortion is not None:
+        xs, ys = distortion.remove(xs, ys)
+    (x, xl, xr, _, _), (y, _, _, yt, yb) = xs.reshape(5, -1), ys.reshape(5, -1)
     d = np.where(np.isfinite(x) & np.isfinite(y), d, np.nan)
     optical = np.stack([x * d, y * d, d], axis=-1)
     r = xyzw_to_matrix(quat)  # optical to map (normalised)
     points = optical @ r.T + position.reshape(1, 3)
-    (xl, _), (xr, _) = ideal(left, v), ideal(right, v)
-    (_, yt), (_, yb) = ideal(u, top), ideal(u, bottom)
     plain = np.stack([np.abs(boxes[:, 2] - boxes[:, 0]) / k[0, 0], np.abs(boxes[:, 3] - boxes[:, 1]) / k[1, 1]],
                      axis=-1)
     through = np.stack([np.abs(xr - xl), np.abs(yb - yt)], axis=-1)  # NaN for an edge the lens cannot undo

@@ -207,7 +207,7 @@ def label_view(scene: Scene, camera_name: str, mask: NDArray[np.integer], depth:
                       for j in range(len(KEYPOINT_NAMES))), reason is None, reason, species=z.species))
     return Labels(scene.stamp, scene.step, scene.seed, camera_name, optical_frame(camera_name),
                   int(camera.width), int(camera.height), tuple(float(v) for v in camera.K.ravel()),
-                  tuple(KEYPOINT_NAMES), filters.to_dict(), tuple(labels), tuple(unknown), tuple(camera.D))
+                  tuple(KEYPOINT_NAMES), filters.to_dict(), tuple(labels), tuple(unknown), camera.D)
 
 
 def _box(b: NDArray[np.float64], digits: int | None = None) -> tuple[float, float, float, float]:

@@ -15,6 +15,7 @@ it counts as the lens's area factor there (the part of a silhouette outside the 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -59,20 +60,23 @@ class Coverage:
     total: NDArray[np.int64]
 
 
+@lru_cache(maxsize=8)
 def _lens_weights(camera: PinholeCamera) -> tuple[LensCanvas, NDArray[np.float64], NDArray[np.float64]] | None:
     """The lens's canvas, and what a canvas pixel of a silhouette counts in the image of a camera with a lens (None
     without one): inside the image (how many image pixels show it), and in all (that where the image shows it or its
-    centre is in the image, else the lens's area factor: the part of a silhouette off the image is an estimate)."""
+    centre is in the image, else the lens's area factor: the part of a silhouette off the image is an estimate).
+    Made once per camera model in a process (a counter per world or labeller shares them; read-only)."""
     lens = camera.canvas
     if lens is None:
         return None
     shown = lens.multiplicity().astype(np.float64)
     cols, rows = np.meshgrid(np.arange(lens.canvas_width), np.arange(lens.canvas_height))
     x, y = lens.normalised(cols, rows)
-    uv, _ = camera.project(np.stack([x, y, np.ones_like(x)], axis=-1))
-    u, v = uv[..., 0], uv[..., 1]
-    in_image = (u >= -0.5) & (u <= camera.width - 0.5) & (v >= -0.5) & (v <= camera.height - 0.5)
-    return lens, shown, np.where(in_image | (shown > 0), shown, lens.area_factor(x, y))
+    in_image = camera.in_image(np.stack([x, y, np.ones_like(x)], axis=-1))
+    weights = shown, np.where(in_image | (shown > 0), shown, lens.area_factor(x, y))
+    for array in weights:
+        array.flags.writeable = False
+    return lens, *weights
 
 
 def _shelf_pack(todo: list[int], w: NDArray[np.int64], h: NDArray[np.int64],

@@ -25,7 +25,7 @@ from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import ColorRGBA, Header, String
 from visualization_msgs.msg import ImageMarker, Marker, MarkerArray
 
-from zebra_sim_ros.errors import ParameterError, ZebraSimError
+from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.camera import PinholeCamera
 from zebra_sim_ros.geometry.lens import Distortion
 from zebra_sim_ros.geometry.locate import intrinsics
@@ -89,7 +89,6 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         self.filters = c.filters()
         self.labellers: dict[tuple[int, int, float, Distortion], Labeller] = {}  # per camera model
         self.ctx: Any = None  # one GL context for them all (made with the first)
-        self.refused: dict[tuple[int, int, float, Distortion], ParameterError] = {}  # camera models it cannot label
         q = qos(c.qos_reliability, c.qos_depth)
         image_q = qos(c.image_reliability, c.qos_depth)
         scene_qos = qos("reliable", 1, transient_local=True)
@@ -146,19 +145,12 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         hfov = float(np.degrees(2 * np.arctan(width / 2 / fx)))
         distortion = Distortion.from_d(info.d, info.distortion_model)
         key = (width, height, round(hfov, 6), distortion)
-        if key in self.refused:  # a lens it cannot label through: said again without solving it again
-            raise self.refused[key]
         if key not in self.labellers:
             if self.ctx is None:
                 self.ctx = create_context()[0]
-            try:
-                camera = PinholeCamera(width, height, hfov, distortion)
-                _ = camera.ideal  # its lens's canvas: ParameterError for a lens that folds over in the image
-            except ParameterError as exc:
-                self.refused[key] = exc
-                raise
-            self.labellers[key] = Labeller(self.library, camera, self.filters, self.cfg.zebra_detail_distance_m,
-                                           ctx=self.ctx)
+            # ParameterError for a lens that folds over in the image (lens_canvas remembers it: not solved again)
+            self.labellers[key] = Labeller(self.library, PinholeCamera(width, height, hfov, distortion),
+                                           self.filters, self.cfg.zebra_detail_distance_m, ctx=self.ctx)
         return self.labellers[key]
 
     def _try(self, drone: str, t: int) -> None:

@@ -173,7 +173,9 @@ def bag_census(paths: list[str | Path] | str | Path, settings: Mapping[str, Any]
     ``/diagnostics`` (:meth:`~zebra_sim_ros.nodes.locator.LocatorNode.activity`; ``followed`` in the result names
     them), so a recount of a run made with other settings (``up --set locator.pose=camera/pose_nav``) counts as
     it did; else the parameter's default (the cameras: those found, ``drone_2`` before ``drone_10``, as up and the
-    launch file have them). ``drones`` given are last names, in the order to join.
+    launch file have them). ``drones`` given are last names, in the order to join; the locator's order is followed
+    only where it names the bag's cameras. ParameterError naming a ``settings`` key that is none of these, and a
+    value that the followed ones make invalid (the message says what was followed).
 
     Per stamp that every camera has placed and posed, its zebras are joined across the cameras and scored by
     :func:`census_figures`. ``recorded``: the locator's recorded census, scored on the same stamps (None where the

@@ -547,7 +547,7 @@ class Renderer:
         rgb, depth, id16 = self._read_images()
         times["read"] = time.perf_counter() - t3
         times["zebras_lod0"], times["zebras_lod1"] = counts[0], counts[1]
-        return RenderedView(view.name, rgb, depth, id16, self.camera.K, times, D=tuple(self.camera.D))
+        return RenderedView(view.name, rgb, depth, id16, self.camera.K, times, D=self.camera.D)
 
     def _frustum(self, view: CameraView) -> tuple[FloatArray, FloatArray]:
         """The view-projection matrix of ``view`` and its frustum planes (:func:`_frustum_planes`)."""
