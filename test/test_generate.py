@@ -571,10 +571,11 @@ def test_a_lens_goes_into_the_frames_their_labels_and_the_command_that_renders_t
     proc = cli(["generate", "--frames", "3", "--imgsz", "256x144", "--lens", "-0.2", "0.05", "--out", out,
                 "--set", "count_max=20", "--quiet"])
     assert proc.returncode == 0, proc.stderr
-    assert json.loads((out / "generate.json").read_text())["config"]["lens"] == [-0.2, 0.05, 0.0, 0.0, 0.0]
+    assert json.loads((out / "generate.json").read_text())["config"]["lens"] == pytest.approx(
+        [-0.2, 0.05, 0.0, 0.0, 0.0], abs=1e-12)
     path = sorted((out / "annotations").glob("*_drone_0.json"))[0]
     meta = FrameAnnotation.from_json(path.read_text())
-    assert meta.labels.D == (-0.2, 0.05, 0.0, 0.0, 0.0)
+    assert meta.labels.D == pytest.approx((-0.2, 0.05, 0.0, 0.0, 0.0), abs=1e-12)
     assert " --lens -0.2 0.05 0.0 0.0 0.0" in meta.regenerate, meta.regenerate
     again = cli([*shlex.split(meta.regenerate)[1:], "--out", tmp_path / "again"])
     assert again.returncode == 0, again.stderr

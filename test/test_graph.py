@@ -767,7 +767,8 @@ def test_up_sets_a_nodes_parameters_for_one_run() -> None:
     assert sets == (("placer", "fix_sigma_m", 2.5), ("placer", "nav_heading_sigma_deg", 1),
                     ("locator", "pose", "camera/pose_nav"), ("camera", "jpeg_quality", 80))
     nodes = {s.name: s for s in UpConfig(locate=True, sets=sets).check()}
-    assert nodes["placer"].overrides["fix_sigma_m"] == 2.5 and nodes["placer"].overrides["mode"] == "lockstep"
+    assert nodes["placer"].overrides["fix_sigma_m"] == pytest.approx(2.5, abs=1e-12)
+    assert nodes["placer"].overrides["mode"] == "lockstep"
     assert all(nodes[f"drone_{i}_camera"].overrides["jpeg_quality"] == 80 for i in range(3))
     assert "/drone_1/camera/pose_nav" in nodes["locator"].subscribes
     assert "/drone_1/camera/pose" not in nodes["locator"].subscribes

@@ -98,7 +98,8 @@ def test_labels_arrive_for_every_camera_and_frame(tmp_path: Path) -> None:
             for x in labels[d].values():
                 assert x["camera"] == d and x["frame_id"] == f"{d}/camera_optical"
                 # the labeller labels through the lens its camera_info's d gives
-                assert x["D"] == ([-0.2, 0.05, 0.001, 0.0, 0.0] if d == "drone_1" else [0.0] * 5), x["D"]
+                assert x["D"] == pytest.approx([-0.2, 0.05, 0.001, 0.0, 0.0] if d == "drone_1" else [0.0] * 5,
+                                               abs=1e-12), x["D"]
                 assert x["width"] == 256 and x["in_view"] == len(x["zebras"])
                 for z in x["zebras"]:
                     assert z["visible_pixels"] <= z["silhouette_pixels"] + 2, (d, z)
