@@ -44,7 +44,6 @@ import numpy as np
 from zebra_sim_ros.geometry.census import CENSUS_GATE, CENSUS_SEPARATION_M, join_views
 from zebra_sim_ros.geometry.geodesy import NavNoise
 from zebra_sim_ros.geometry.locate import locate_boxes
-from zebra_sim_ros.geometry.rotations import rotvec_to_matrix
 from zebra_sim_ros.messages import Scene, SceneCamera
 from zebra_sim_ros.placement.config import PlacerConfig
 from zebra_sim_ros.placement.placer import Placer
@@ -158,7 +157,7 @@ def navigated(views_by_step: list[list[View]], at: list[tuple[int, int]], gnss: 
     out = []
     for views, (seed, step) in zip(views_by_step, at, strict=True):
         err = gnss.errors(len(views), seed, step)
-        turn = rotvec_to_matrix(np.radians(attitude.errors(len(views), seed, step)))
+        turn = attitude.rotations(len(views), seed, step)
         out.append([(v[2] + err[i] + (v[0] - v[2]) @ turn[i].T, v[1], v[2] + err[i], v[3])
                     for i, v in enumerate(views)])
     return out

@@ -32,7 +32,7 @@ from zebra_sim_ros.params import (
     reliability_param,
     same_as,
 )
-from zebra_sim_ros.placement.config import CAMERA_POSE, NAV_POSE
+from zebra_sim_ros.placement.config import CAMERA_POSE, NAV_POSE, PLACER_CAMERA_TOPICS
 
 NATIVE = -1  # as imgsz: each batch at its frames' own resolution (predict.native_size)
 STRIDE = 32  # the largest stride of the model: input sides must be multiples of it
@@ -222,7 +222,7 @@ class LocatorConfig(StageConfig):
         if self.pose in others:  # a topic of another type: no frame would ever be complete
             raise ParameterError("pose", self.pose, f"a pose topic, not one of the camera's other topics "
                                  f"{list(others)}")
-        inputs = tuple(dict.fromkeys((*self.inputs, "image_raw", CAMERA_POSE, NAV_POSE, "fix")))
+        inputs = tuple(dict.fromkeys((*self.inputs, "image_raw", *PLACER_CAMERA_TOPICS)))
         if self.output in inputs:
             raise ParameterError("output", self.output, f"another topic than the camera's inputs and poses "
                                  f"{list(inputs)}")

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from zebra_sim_ros.geometry.rotations import rotvec_to_matrix
 from zebra_sim_ros.messages import Datum
 
 FloatArray = NDArray[np.float64]
@@ -160,6 +161,11 @@ class NavNoise:
             if common is not None and w_common is not None:
                 common += weight * w_common
         return own, common
+
+    def rotations(self, n: int, seed: int, step: int) -> FloatArray:
+        """(n, 3, 3) the attitude errors of :meth:`errors` (degrees about east, north and up) as rotations in
+        ``map``: what turns each camera's exact orientation into its navigated one (``R_err @ R``)."""
+        return rotvec_to_matrix(np.radians(self.errors(n, seed, step)))
 
     def errors(self, n: int, seed: int, step: int) -> FloatArray:
         """(n, 3) east, north, up errors of n receivers at ``step`` of a run seeded ``seed`` (m; deg about each axis

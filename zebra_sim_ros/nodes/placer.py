@@ -60,7 +60,6 @@ from zebra_sim_ros.geometry.frames import (
     xyzw_to_matrix,
 )
 from zebra_sim_ros.geometry.geodesy import enu_to_geodetic
-from zebra_sim_ros.geometry.rotations import rotvec_to_matrix
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.nodes.ros_adapter import (
@@ -236,7 +235,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
         turned = [cam.orientation_xyzw for cam in scene.cameras]  # exact without an attitude error, bit for bit
         if self.attitude.sigmas.any():  # as its navigation has it turned (a small rotation about east, north and up)
             turned = [matrix_to_xyzw(r @ xyzw_to_matrix(q)) for r, q in zip(
-                rotvec_to_matrix(np.radians(self.attitude.errors(len(exact), scene.seed, scene.step))), turned,
+                self.attitude.rotations(len(exact), scene.seed, scene.step), turned,
                 strict=True)]
         where = enu_to_geodetic(navigated, scene.datum)
         for pose_pub, nav_pub, fix_pub, cam, nav, nav_xyzw, (lat, lon, height) in zip(

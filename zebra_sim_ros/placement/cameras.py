@@ -38,8 +38,7 @@ from numpy.typing import NDArray
 
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical, optical_rotation
-from zebra_sim_ros.geometry.frames import optical_frame
-from zebra_sim_ros.geometry.rotations import matrix_to_quat
+from zebra_sim_ros.geometry.frames import matrix_to_xyzw, optical_frame
 from zebra_sim_ros.world.terrain import Heightfield
 
 FloatArray = NDArray[np.float64]
@@ -122,8 +121,7 @@ class CameraPose:
 
     def quaternion_xyzw(self) -> tuple[float, float, float, float]:
         """Orientation of the optical frame in map, ROS order (x, y, z, w)."""
-        w, x, y, z = matrix_to_quat(self.r_optical)
-        return (float(x), float(y), float(z), float(w))
+        return matrix_to_xyzw(self.r_optical)
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready dictionary (see the scene schema)."""

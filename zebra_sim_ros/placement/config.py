@@ -33,6 +33,7 @@ from zebra_sim_ros.zebra.skeleton import OTHER_SPECIES
 # and as the drone's navigation gives it (at its GNSS fix's position, turned by its attitude error)
 CAMERA_POSE = "camera/pose"
 NAV_POSE = "camera/pose_nav"
+PLACER_CAMERA_TOPICS = (CAMERA_POSE, NAV_POSE, "fix")  # the placer's, under each camera
 
 STRATEGY_CHOICES = (*STRATEGIES, "mixed", "any")
 """The placer's ``strategy`` values: one strategy for every step, or a draw per step (``mixed``: far or closeby;
