@@ -11,11 +11,11 @@ import pytest
 from render_helpers import cube_mesh, flat_world
 
 from zebra_sim_ros.errors import ParameterError
-from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical, optical_rotation
+from zebra_sim_ros.geometry.camera import PinholeCamera, depth_points, map_to_optical, optical_rotation, pixel_rays
 from zebra_sim_ros.geometry.lens import Distortion, lens_canvas
 from zebra_sim_ros.placement.sun import lighting_for
 from zebra_sim_ros.rendering.config import lens_text, parse_lens
-from zebra_sim_ros.rendering.renderer import CameraView, Renderer, RenderOptions, ZebraSet
+from zebra_sim_ros.rendering.renderer import CameraView, RenderedView, Renderer, RenderOptions, ZebraSet
 from zebra_sim_ros.world.world import World
 from zebra_sim_ros.zebra.asset import ZebraLibrary
 
@@ -112,22 +112,30 @@ def _cube_world() -> World:
     return flat_world({"cube": (cube_mesh(2.0), [(11.0, -3.5, 1.0)])})  # its near face 10 m east, 2.5-4.5 m south
 
 
-def test_a_distorted_render_shows_a_cube_where_opencvs_lens_puts_it(library: ZebraLibrary) -> None:
-    """A 2 m cube towards the image's lower right corner, 10 m in front of a level camera 3.5 m up with a barrel
-    lens: its face is where the pixels' rays, made ideal by OpenCV, meet it, at 10 m depth; the ground's depth
-    follows the same rays. The ideal pinhole's silhouette, 7 px away there, does not match."""
-    width, height, hfov = 320, 240, 60.0
-    lens = Distortion(-0.3, 0.1)
-    cam = PinholeCamera(width, height, hfov, lens)
-    r = Renderer(_cube_world(), library, RenderOptions(width=width, height=height, hfov_deg=hfov, coat_size=64,
-                                                        max_coats=16, distortion=lens))
-    view = CameraView("cam", np.array([0.0, 0.0, 3.5]), optical_rotation(0.0, 0.0, 0.0))
+CUBE_CAMERA = PinholeCamera(320, 240, 60.0, Distortion(-0.3, 0.1))  # a level camera 3.5 m up, looking east
+CUBE_VIEW = CameraView("cam", np.array([0.0, 0.0, 3.5]), optical_rotation(0.0, 0.0, 0.0))
+
+
+@pytest.fixture(scope="module")
+def cube_render(library: ZebraLibrary) -> RenderedView:
+    """The cube world through ``CUBE_CAMERA``'s barrel lens from ``CUBE_VIEW``."""
+    cam = CUBE_CAMERA
+    r = Renderer(_cube_world(), library, RenderOptions(width=cam.width, height=cam.height, hfov_deg=cam.hfov_deg,
+                                                        coat_size=64, max_coats=16, distortion=cam.distortion))
     empty = ZebraSet(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0),
                      np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0, np.int64))
     try:
-        out = r.render(empty, lighting_for(12.0, 80, -2.3), [view])[0]
+        return r.render(empty, lighting_for(12.0, 80, -2.3), [CUBE_VIEW])[0]
     finally:
         r.release()
+
+
+def test_a_distorted_render_shows_a_cube_where_opencvs_lens_puts_it(cube_render: RenderedView) -> None:
+    """A 2 m cube towards the image's lower right corner, 10 m in front of a level camera 3.5 m up with a barrel
+    lens: its face is where the pixels' rays, made ideal by OpenCV, meet it, at 10 m depth; the ground's depth
+    follows the same rays. The ideal pinhole's silhouette, 7 px away there, does not match."""
+    cam, out = CUBE_CAMERA, cube_render
+    width, height = cam.width, cam.height
     assert out.rgb.shape == (height, width, 3) and out.depth.shape == (height, width)
     assert out.D == pytest.approx(cam.D, abs=1e-12) and np.allclose(out.K, cam.K)
     cols, rows = np.meshgrid(np.arange(width, dtype=np.float64), np.arange(height, dtype=np.float64))
@@ -162,6 +170,54 @@ def test_a_distorted_render_shows_a_cube_where_opencvs_lens_puts_it(library: Zeb
     assert np.median(np.abs(out.depth[ground] * y[ground] / 3.5 - 1.0)) < 0.005
     y_pinhole = (rows - cam.K[1, 2]) / cam.fx
     assert np.median(np.abs(out.depth[ground] * y_pinhole[ground] / 3.5 - 1.0)) > 0.04
+
+
+def test_a_depth_images_points_lie_on_the_geometry_it_shows(cube_render: RenderedView) -> None:
+    """The points of the cube render's depth image through its barrel lens, in ``map``: the ground's on z = 0, the
+    cube's near face's at x = 10 m; each projects back onto its own pixel. The pinhole's rays, which ignore the lens,
+    put the ground off z = 0 towards the image's edges."""
+    cam, out = CUBE_CAMERA, cube_render
+    stride = 3
+    pts = depth_points(out.depth, cam, stride)
+    h, w = -(-cam.height // stride), -(-cam.width // stride)
+    assert pts.shape == (h, w, 3) and pts.dtype == np.float32
+    sky = ~np.isfinite(out.depth[::stride, ::stride])
+    assert sky.any() and np.isnan(pts[sky]).all() and np.isfinite(pts[~sky]).all()
+    in_map = pts.astype(np.float64) @ CUBE_VIEW.r_optical.T + CUBE_VIEW.position
+    depth = out.depth[::stride, ::stride]
+    face = (np.abs(depth - 10.0) < 0.1) & (in_map[..., 2] > 0.2)  # 10 m deep and off the ground: the face
+    ground = ~sky & (depth < 9.5)  # nearer than the cube: only ground
+    assert face.sum() > 100 and ground.sum() > 500
+    # on the face: 10 m east, 2.5-4.5 m south, up to 2 m (the pinhole's rays spread them 5 m either side)
+    assert np.abs(in_map[face][:, 0] - 10.0).max() < 0.05
+    assert np.abs(in_map[face][:, 1] + 3.5).max() < 1.05 and in_map[face][:, 2].max() < 2.05
+    assert np.median(np.abs(in_map[ground][:, 2])) < 0.01  # the nearest canvas pixel's depth: within 1 cm
+    rows, cols = np.mgrid[0:cam.height:stride, 0:cam.width:stride]
+    uv, front = cam.project(pts[~sky].astype(np.float64))
+    assert front.all()
+    assert np.abs(uv - np.stack([cols[~sky], rows[~sky]], axis=-1)).max() < 1e-3
+    # the pinhole's rays: the same depths, the ground well off z = 0 at the image's lower corners
+    pinhole = depth_points(out.depth, PinholeCamera(cam.width, cam.height, cam.hfov_deg), stride)
+    off = (pinhole.astype(np.float64) @ CUBE_VIEW.r_optical.T + CUBE_VIEW.position)[ground][:, 2]
+    assert np.percentile(np.abs(off), 90) > 0.1
+
+
+def test_pixel_rays_and_depth_points_refuse_what_they_cannot_use() -> None:
+    ideal = PinholeCamera(64, 48, 80.0)
+    rays = pixel_rays(ideal, 5)
+    assert rays.shape == (10, 13, 2) and not rays.flags.writeable
+    assert rays[0, 0] == pytest.approx([-31.5 / ideal.fx, -23.5 / ideal.fx])
+    assert rays[-1, -1] == pytest.approx([(60 - 31.5) / ideal.fx, (45 - 23.5) / ideal.fx])
+    assert pixel_rays(ideal, 5) is rays  # made once
+    with pytest.raises(ParameterError, match="stride"):
+        pixel_rays(ideal, 0)
+    with pytest.raises(ValueError, match="48x64"):
+        depth_points(np.ones((64, 48), np.float32), ideal)
+    depth = np.full((48, 64), 2.0, np.float32)
+    depth[0, 0], depth[0, 1], depth[0, 2] = np.inf, 0.0, np.nan
+    pts = depth_points(depth, ideal)
+    assert np.isnan(pts[0, :3]).all() and np.isfinite(pts[0, 3:]).all()
+    assert pts[1, 1] == pytest.approx([2 * (1 - 31.5) / ideal.fx, 2 * (1 - 23.5) / ideal.fx, 2.0])
 
 
 @pytest.fixture(scope="module")

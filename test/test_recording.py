@@ -77,6 +77,33 @@ def test_round_trip_with_independent_readers(tmp_path: Path) -> None:
     assert images[7][1].data[0] == 7
 
 
+def test_a_point_cloud_in_a_bag_reads_back_with_rosbags(tmp_path: Path) -> None:
+    """The cameras' organised PointCloud2 (``points_stride``) in an MCAP bag: rosbags parses its schema (PointField's
+    constants included) and its fields give back the points, NaN and packed colour."""
+    from zebra_sim_ros.nodes.ros_adapter import point_cloud_msg
+
+    rng = np.random.default_rng(5)
+    points = rng.uniform(-5, 5, (3, 4, 3)).astype(np.float32)
+    points[0, 1] = np.nan  # sky
+    rgb = rng.integers(0, 256, (3, 4, 3), dtype=np.uint8)
+    msg = point_cloud_msg(Header(frame_id="drone_0/camera_optical"), points, rgb)
+    msg.header.stamp.sec = 7
+    w = BagWriter(tmp_path / "p.mcap")
+    w.add_channel("/drone_0/points", "sensor_msgs/msg/PointCloud2", [profile_dict()])
+    w.write("/drone_0/points", serialize_message(msg), 7 * 10**9)
+    [path] = w.close()
+    with AnyReader([path]) as r:
+        [(c, raw)] = [(c, raw) for c, _, raw in r.messages()]
+        back = r.deserialize(raw, c.msgtype)
+    assert (back.height, back.width, back.point_step, back.row_step) == (3, 4, 16, 64) and not back.is_dense
+    assert [(f.name, f.offset, f.datatype, f.count) for f in back.fields] == \
+        [("x", 0, 7, 1), ("y", 4, 7, 1), ("z", 8, 7, 1), ("rgb", 12, 7, 1)]
+    cloud = np.frombuffer(bytes(back.data), dtype="<f4").reshape(3, 4, 4)
+    assert np.array_equal(cloud[..., :3], points, equal_nan=True)
+    packed = cloud[..., 3].view("<u4")
+    assert np.array_equal(np.stack([packed >> 16, (packed >> 8) & 255, packed & 255], axis=-1), rgb)
+
+
 def test_split_by_size_and_duration(tmp_path: Path) -> None:
     files = _write(tmp_path / "s.mcap", n=200, split_bytes=40_000, compression="none")
     assert len(files) > 2 and all(p.name.startswith("s_") for p in files)

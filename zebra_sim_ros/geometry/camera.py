@@ -14,7 +14,7 @@ horizon** (negative looks down) and yaw is the heading of the optical axis, coun
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -125,6 +125,38 @@ class PinholeCamera:
         lo = margin_px - 0.5
         return np.asarray(front & (uv[..., 0] >= lo) & (uv[..., 0] <= self.width - 1 - lo)
                           & (uv[..., 1] >= lo) & (uv[..., 1] <= self.height - 1 - lo))
+
+
+@lru_cache(maxsize=8)
+def pixel_rays(camera: PinholeCamera, stride: int = 1) -> NDArray[np.float64]:
+    """(ceil(H / stride), ceil(W / stride), 2) ideal normalised coordinates (x / z, y / z in the optical frame) of
+    the rays through every ``stride``-th pixel centre of each row and column, from (0, 0), the lens undone (the
+    canvas refuses a lens it cannot undo inside the image, so each is a ray). Made once per camera model and
+    stride in a process; read-only."""
+    if stride < 1:
+        raise ParameterError("stride", stride, "a whole number of pixels, 1 or more")
+    cols = (np.arange(0, camera.width, stride, dtype=np.float64) - (camera.width - 1) / 2) / camera.fx
+    rows = (np.arange(0, camera.height, stride, dtype=np.float64) - (camera.height - 1) / 2) / camera.fx
+    xd, yd = np.meshgrid(cols, rows)
+    if camera.canvas is not None:  # a lens the canvas accepted: undone at every pixel of the image
+        xd, yd = camera.distortion.remove(xd, yd)
+    rays = np.stack([xd, yd], axis=-1)
+    rays.flags.writeable = False
+    return rays
+
+
+def depth_points(depth: NDArray[np.floating], camera: PinholeCamera, stride: int = 1) -> NDArray[np.float32]:
+    """The optical-frame points (h, w, 3), float32 metres, of every ``stride``-th pixel of a depth image (metres
+    along the optical axis, as the renderer writes it: :func:`pixel_rays`' ray times the depth); NaN where the
+    depth is not a positive finite number (+inf: only sky). ValueError for a depth image not of the camera's size."""
+    depth = np.asarray(depth)
+    if depth.shape != (camera.height, camera.width):
+        raise ValueError(f"a depth image of the camera's {camera.height}x{camera.width} pixels (rows x columns), "
+                         f"not {depth.shape}")
+    rays = pixel_rays(camera, stride)
+    z = depth[::stride, ::stride].astype(np.float64)
+    z = np.where(np.isfinite(z) & (z > 0), z, np.nan)
+    return np.stack([rays[..., 0] * z, rays[..., 1] * z, z], axis=-1).astype(np.float32)
 
 
 def body_rotation(yaw: FloatArray | float, pitch: FloatArray | float, roll: FloatArray | float) -> FloatArray:

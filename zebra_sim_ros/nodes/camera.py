@@ -14,7 +14,12 @@ the scene's stamp and frame_id ``drone_{i}/camera_optical`` (z forward, x right,
   distortion (``lens_k1`` .. ``lens_k3``; zeros by default: an ideal pinhole, whose images need no rectification);
 - with ``compressed`` jpeg or png, ``drone_{i}/image_raw/compressed`` (sensor_msgs/CompressedImage): the same
   image as ``image_transport``'s compressed transport sends it (format ``rgb8; jpeg compressed bgr8``): at 1280x720
-  jpeg 90 is 5% of the raw bytes, png 35% (``benchmarks/bench_compressed.py``), to record or send over a network.
+  jpeg 90 is 5% of the raw bytes, png 35% (``benchmarks/bench_compressed.py``), to record or send over a network;
+- with ``points_stride`` N > 0, ``drone_{i}/points`` (sensor_msgs/PointCloud2, what ``depth_image_proc``'s
+  ``point_cloud_xyzrgb`` makes, without a ROS install): the point of every Nth pixel of each row and column, its
+  ray through the lens times the depth, and its colour; organised (ceil(H / N) x ceil(W / N)), NaN where only sky.
+
+The compressed image and the points are made only while something subscribes them.
 
 Then, with ``ack`` true, it acknowledges the step on ``zebra_sim/frame_done`` (std_msgs/Header, stamp = the
 scene's, frame_id = ``drone_{i}``) so a lockstep placer can go on. A scene it cannot read is logged, counted
@@ -26,10 +31,11 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from sensor_msgs.msg import CameraInfo, CompressedImage, Image
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image, PointCloud2
 from std_msgs.msg import Header, String
 
 from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.geometry.camera import PinholeCamera, depth_points
 from zebra_sim_ros.geometry.frames import optical_frame
 from zebra_sim_ros.geometry.lens import PLUMB_BOB
 from zebra_sim_ros.health import Activity
@@ -41,6 +47,7 @@ from zebra_sim_ros.nodes.ros_adapter import (
     describe_qos,
     help_text,
     image_msg,
+    point_cloud_msg,
     qos,
     run_node,
     stamp,
@@ -80,6 +87,8 @@ class CameraNode(ZebraNode[CameraConfig]):
         self.effects = c.effects()
         distortion = lens_distortion(c)
         self.lens = "ideal" if distortion.none else f"plumb_bob {list(distortion.coefficients)}"
+        self.camera = PinholeCamera(c.width, c.height, c.hfov_deg, distortion)  # the points' rays
+        self.points = f"every {c.points_stride} px" if c.points_stride else "off"
         self.frame_id = optical_frame(c.name)
         out_qos = qos(c.qos_reliability, c.qos_depth)
         scene_qos = qos("reliable", 1, transient_local=True)
@@ -89,11 +98,13 @@ class CameraNode(ZebraNode[CameraConfig]):
         self.pub_info = self.create_publisher(CameraInfo, f"{c.name}/camera_info", out_qos)
         self.pub_compressed = self.create_publisher(CompressedImage, f"{c.name}/image_raw/compressed", out_qos) \
             if c.compressed != "off" else None
+        self.pub_points = self.create_publisher(PointCloud2, f"{c.name}/points", out_qos) if c.points_stride else None
         # only when it acknowledges: a lockstep placer starts once an acknowledger publishes on the topic
         self.pub_ack = self.create_publisher(Header, ACK_TOPIC, qos("reliable", 100)) if c.ack else None
         self.create_subscription(String, SCENE_TOPIC, self._on_scene, scene_qos)
         self.get_logger().info(
-            f"{c.name}: {c.width}x{c.height}, hfov {c.hfov_deg} deg, lens {self.lens}, shadows {c.shadows}, effects "
+            f"{c.name}: {c.width}x{c.height}, hfov {c.hfov_deg} deg, lens {self.lens}, points {self.points}, "
+            f"shadows {c.shadows}, effects "
             f"{self.effects if self.effects.active else 'off'}; QoS images: {describe_qos(out_qos)}; "
             f"scene: {describe_qos(scene_qos)}; publishing in namespace '{self.get_namespace()}'")
         self.last: tuple[int, Header, RenderedView] | None = None
@@ -157,6 +168,10 @@ class CameraNode(ZebraNode[CameraConfig]):
         if self.pub_compressed is not None and self.pub_compressed.get_subscription_count():  # encode for a reader
             fmt, data = compress_rgb(view.rgb, c.compressed, c.compressed_quality)
             self.pub_compressed.publish(CompressedImage(header=header, format=fmt, data=data))
+        if self.pub_points is not None and self.pub_points.get_subscription_count():
+            s = c.points_stride
+            self.pub_points.publish(point_cloud_msg(header, depth_points(view.depth, self.camera, s),
+                                                    view.rgb[::s, ::s]))
         self.frames += 1
         if self.pub_ack is not None:
             self.pub_ack.publish(Header(stamp=header.stamp, frame_id=c.name))
@@ -175,7 +190,8 @@ class CameraNode(ZebraNode[CameraConfig]):
         counts = {"frames": self.rendered, "republished": self.frames - self.rendered, "skipped": self.skipped}
         return Activity(counts, "frames", ("skipped",),
                         busy_s=self.render_seconds, hardware=c.name,
-                        info={"world": str(world), "image size": f"{c.width}x{c.height}", "lens": self.lens})
+                        info={"world": str(world), "image size": f"{c.width}x{c.height}", "lens": self.lens,
+                              "points": self.points})
 
     def stop(self) -> None:
         """Say what the coats cost, release the GL context."""

@@ -24,7 +24,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import Image, PointCloud2, PointField
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import ImageMarker
 
@@ -228,6 +228,24 @@ def image_msg(header: Header, array: np.ndarray, encoding: str) -> Image:
     h, w = a.shape[:2]
     return Image(header=header, height=h, width=w, encoding=encoding, is_bigendian=0, step=int(a.strides[0]),
                  data=a.tobytes())
+
+
+def point_cloud_msg(header: Header, points: np.ndarray, rgb: np.ndarray | None = None) -> PointCloud2:
+    """An organised sensor_msgs/PointCloud2 of (h, w, 3) points (NaN: no point there, so not dense): float32 fields
+    x, y, z and, with an (h, w, 3) uint8 ``rgb``, PCL's packed ``rgb`` (a float32 field holding 0x00RRGGBB, what
+    RViz's RGB8 and Foxglove's packed colour read)."""
+    h, w = points.shape[:2]
+    names = ("x", "y", "z") + (("rgb",) if rgb is not None else ())
+    cloud = np.empty((h, w), dtype=np.dtype({"names": list(names), "formats": ["<f4"] * len(names)}))
+    for i, name in enumerate(("x", "y", "z")):
+        cloud[name] = points[..., i]
+    if rgb is not None:
+        c = rgb.astype(np.uint32)
+        cloud["rgb"] = ((c[..., 0] << 16) | (c[..., 1] << 8) | c[..., 2]).view("<f4")
+    fields = [PointField(name=n, offset=4 * i, datatype=PointField.FLOAT32, count=1) for i, n in enumerate(names)]
+    step = cloud.dtype.itemsize
+    return PointCloud2(header=header, height=h, width=w, fields=fields, is_bigendian=False, point_step=step,
+                       row_step=step * w, data=cloud.tobytes(), is_dense=bool(np.isfinite(points).all()))
 
 
 ACK_TOPIC = "zebra_sim/frame_done"  # std_msgs/Header: stamp = the step's, frame_id = who is done with it

@@ -102,6 +102,9 @@ class CameraConfig(StageConfig):
                             "image_transport's compressed transport): jpeg (lossy, compressed_quality), png "
                             "(lossless) or off", choices=("off", "jpeg", "png"))
     compressed_quality: int = param(90, "JPEG quality of image_raw/compressed", lo=1, hi=100)
+    points_stride: int = param(0, "also publish points (sensor_msgs/PointCloud2 in the optical frame: x, y, z and "
+                               "packed rgb from the depth and colour images, organised, NaN where only sky) at every "
+                               "points_stride-th pixel of each row and column; 0 = off", "px", lo=0, hi=64)
     qos_reliability: str = reliability_param("QoS reliability of the image topics")
     qos_depth: int = param(5, "history depth of the image topics", lo=1, hi=1000)
     diagnostics_period_s: float = diagnostics_param()
