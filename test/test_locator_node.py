@@ -393,6 +393,12 @@ def test_a_bad_locator_parameter_stops_the_node() -> None:
                       ({"output": "census/animals"}, "'census_output' = 'census/animals'.*neither ends"),
                       ({"output": "x/census/animals"}, "'census_output'"),
                       ({"output": "animals"}, "'census_output'"), ({"pose": "/abs"}, "'pose'"),
+                      # the placer's animals (a Detection3DArray) would be read as the census, and the reverse
+                      ({"census_output": "zebras"},
+                       "'census_output' = 'zebras'.*the placer's topic 'zebra_sim/zebras'"),
+                      ({"census_output": "zebra_sim/zebras"}, "'census_output'"),
+                      ({"census_output": "g/zebra_sim/zebras"}, "'census_output'"),
+                      ({"census_output": "markers"}, "'census_output'"),
                       # the placer's poses are not outputs, whichever the locator reads
                       ({"output": "camera/pose_nav"}, "'output'"),
                       ({"output": "camera/pose", "pose": "camera/pose_nav"}, "'output'"),
@@ -404,6 +410,7 @@ def test_a_bad_locator_parameter_stops_the_node() -> None:
     # outside a nested camera's namespace, whatever its last name
     assert LocatorConfig.from_params({"drones": ["uav/drone_0"], "census_output": "drone_0/animals"}).census
     assert LocatorConfig.from_params({"output": "census/animals/placed"}).census  # a longer name, not an ending
+    assert LocatorConfig.from_params({"census_output": "herd/zebras"}).census  # not the placer's
     proc = run_node_once("locator", {"core": 2.0})  # the node stops at start, naming it
     assert proc.returncode == 2 and "'core'" in proc.stderr + proc.stdout, proc.stderr[-500:]
 

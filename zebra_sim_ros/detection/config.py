@@ -32,7 +32,7 @@ from zebra_sim_ros.params import (
     reliability_param,
     same_as,
 )
-from zebra_sim_ros.placement.config import CAMERA_POSE, NAV_POSE, PLACER_CAMERA_TOPICS
+from zebra_sim_ros.placement.config import CAMERA_POSE, NAV_POSE, PLACER_CAMERA_TOPICS, PLACER_TOPICS
 
 NATIVE = -1  # as imgsz: each batch at its frames' own resolution (predict.native_size)
 STRIDE = 32  # the largest stride of the model: input sides must be multiples of it
@@ -178,7 +178,8 @@ class LocatorConfig(StageConfig):
                          "(published on census_output once every camera's frame of the stamp is placed)")
     census_output: str = param("census/animals", "the census's topic (a Detection3DArray in map: one detection per "
                                "animal)", allowed="a topic name relative to the node's namespace (letters, digits, _ "
-                               "and /)", check=lambda v: bool(RELATIVE_NAME.fullmatch(v)))
+                               "and /), outside the cameras' namespaces, that neither ends output or the placer's "
+                               "topics nor is ended by one", check=lambda v: bool(RELATIVE_NAME.fullmatch(v)))
     census_along: float = param(CENSUS_ALONG_M, "how far a placed detection is taken to be off along its camera's "
                                 "ray, seen from above (one standard deviation: its depth's error)", "m", lo=0.01,
                                 hi=100.0, runtime=True)
@@ -229,10 +230,11 @@ class LocatorConfig(StageConfig):
         out = self.census_output.strip("/")
         if any(out == ns or out.startswith(ns + "/") for ns in (d.strip("/") for d in self.drones)):
             raise ParameterError("census_output", self.census_output, "a topic outside the cameras' namespaces")
-        placed = self.output.strip("/")
-        if out == placed or out.endswith("/" + placed) or placed.endswith("/" + out):  # a reader of one takes the other
-            raise ParameterError("census_output", self.census_output, f"a name that neither ends the placed "
-                                 f"detections' output {self.output!r} nor is ended by it")
+        for other, what in ((self.output.strip("/"), "the placed detections' output"),
+                            *((t, "the placer's topic") for t in PLACER_TOPICS)):
+            if out == other or out.endswith("/" + other) or other.endswith("/" + out):  # one read as the other
+                raise ParameterError("census_output", self.census_output, f"a name that neither ends {what} "
+                                     f"{other!r} nor is ended by it")
 
 
 LOCATOR_PARAMS: tuple[ParamSpec, ...] = LocatorConfig.specs()

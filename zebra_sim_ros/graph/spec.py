@@ -17,7 +17,7 @@ from zebra_sim_ros.detection.config import DetectorConfig, LocatorConfig, Scorer
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.labels.config import LabellerConfig
 from zebra_sim_ros.params import ParamSpec, StageConfig, load_params_file, replace_tables, validate, write_config
-from zebra_sim_ros.placement.config import PLACER_CAMERA_TOPICS, PlacerConfig
+from zebra_sim_ros.placement.config import PLACER_CAMERA_TOPICS, PLACER_TOPICS, PlacerConfig
 from zebra_sim_ros.recording.config import RecorderConfig, ReplayConfig
 from zebra_sim_ros.rendering.config import CameraConfig
 
@@ -44,7 +44,6 @@ def rviz_census(located: LocatorConfig | None) -> tuple[tuple[str, ...], dict[st
     if located is None or not located.census:
         return CENSUS_TOPICS, {}
     return (), {a: b for a, b in zip(CENSUS_TOPICS, census_topics(located), strict=True) if a != b}
-PLACER_TOPICS = ("zebra_sim/scene", "zebra_sim/zebras", "zebra_sim/zebras/markers")
 # By convention absolute (tf2 listeners and every node's time source use them); a namespaced graph remaps them.
 GLOBAL_TOPICS = ("/tf", "/tf_static", "/clock")
 BAG_NAME = "zebra_sim.mcap"

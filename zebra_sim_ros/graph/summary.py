@@ -24,6 +24,7 @@ from zebra_sim_ros.detection.scoring import COUNT_CONF, DroneFrames
 from zebra_sim_ros.errors import ParameterError, ZebraSimError
 from zebra_sim_ros.geometry.locate import nearest_distances, placing_figures
 from zebra_sim_ros.messages import Datum, Scene
+from zebra_sim_ros.placement.config import ANIMALS_TOPIC
 from zebra_sim_ros.recording.cdr import MALFORMED, Placed3D, cdr_detections3d, cdr_string, header_stamp_ns
 from zebra_sim_ros.recording.census import (
     SCENE_TOPIC_RE,
@@ -32,6 +33,7 @@ from zebra_sim_ros.recording.census import (
     census_topic_re,
     drone_order,
     run_datum,
+    under_any_namespace,
     write_geojson,
     zebra_points,
 )
@@ -40,7 +42,7 @@ from zebra_sim_ros.recording.images import message_rgb
 from zebra_sim_ros.recording.reader import CAMERA_IMAGES, BagMessage, last_name, topic_owner
 
 _DRONE = re.compile(r"drone_\d+")  # a camera of the graph (up's drone_0 ... drone_N-1), under any namespace
-_ANIMALS_TOPIC = re.compile(r"^(?:/[^/]+)*/zebra_sim/zebras$")  # the placed animals (Detection3DArray)
+_ANIMALS_TOPIC = under_any_namespace(ANIMALS_TOPIC)  # the placed animals (Detection3DArray)
 
 
 PREVIEW_COLUMNS = 4  # drones per row of the preview (a row of 16 4K frames is past JPEG's 65535 px)

@@ -77,14 +77,19 @@ from zebra_sim_ros.nodes.ros_adapter import (
     stamp,
     stamp_ns,
 )
-from zebra_sim_ros.placement.config import CAMERA_POSE, NAV_POSE, PLACER_PARAMS, PlacerConfig
+from zebra_sim_ros.placement.config import (
+    ANIMALS_TOPIC,
+    CAMERA_POSE,
+    MARKER_TOPIC,
+    NAV_POSE,
+    PLACER_PARAMS,
+    SCENE_TOPIC,
+    PlacerConfig,
+)
 from zebra_sim_ros.placement.placer import Placer
 from zebra_sim_ros.world.world import load_world
 from zebra_sim_ros.zebra.asset import load_library
 
-SCENE_TOPIC = "zebra_sim/scene"
-MARKER_TOPIC = "zebra_sim/zebras/markers"
-ANIMALS_TOPIC = "zebra_sim/zebras"
 CLOCK_TOPIC, TF_TOPIC, TF_STATIC_TOPIC = "/clock", "/tf", "/tf_static"
 _MORPH_RGBA = {"plains": (0.95, 0.85, 0.2, 0.5), "grevy": (0.3, 0.7, 1.0, 0.5), "foal": (1.0, 0.4, 0.6, 0.5)}
 

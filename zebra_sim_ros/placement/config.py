@@ -34,6 +34,10 @@ from zebra_sim_ros.zebra.skeleton import OTHER_SPECIES
 CAMERA_POSE = "camera/pose"
 NAV_POSE = "camera/pose_nav"
 PLACER_CAMERA_TOPICS = (CAMERA_POSE, NAV_POSE, "fix")  # the placer's, under each camera
+SCENE_TOPIC = "zebra_sim/scene"  # the placer's own topics, in the graph's namespace
+ANIMALS_TOPIC = "zebra_sim/zebras"
+MARKER_TOPIC = "zebra_sim/zebras/markers"
+PLACER_TOPICS = (SCENE_TOPIC, ANIMALS_TOPIC, MARKER_TOPIC)
 
 STRATEGY_CHOICES = (*STRATEGIES, "mixed", "any")
 """The placer's ``strategy`` values: one strategy for every step, or a draw per step (``mixed``: far or closeby;

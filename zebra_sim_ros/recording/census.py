@@ -27,6 +27,7 @@ from zebra_sim_ros.errors import ParameterError, ZebraSimError
 from zebra_sim_ros.geometry.geodesy import enu_to_geodetic
 from zebra_sim_ros.messages import Datum, Scene
 from zebra_sim_ros.params import spec_of, validate
+from zebra_sim_ros.placement.config import SCENE_TOPIC
 from zebra_sim_ros.recording.cdr import (
     MALFORMED,
     Placed3D,
@@ -41,10 +42,15 @@ from zebra_sim_ros.recording.reader import BagMessage, last_name, topic_owner
 
 def census_topic_re(locator: LocatorConfig) -> re.Pattern[str]:
     """The topic of ``locator``'s own census, under any graph's namespace."""
-    return re.compile(rf"^(?:/[^/]+)*/{re.escape(locator.census_output)}$")
+    return under_any_namespace(locator.census_output)
 
 
-SCENE_TOPIC_RE = re.compile(r"^(?:/[^/]+)*/zebra_sim/scene$")  # the placer's scenes, under the graph's namespace
+def under_any_namespace(name: str) -> re.Pattern[str]:
+    """A relative topic ``name`` under any graph's namespace (the root's included)."""
+    return re.compile(rf"^(?:/[^/]+)*/{re.escape(name)}$")
+
+
+SCENE_TOPIC_RE = under_any_namespace(SCENE_TOPIC)  # the placer's scenes
 
 
 def census_geojson(census: dict[int, list[Placed3D]], datum: Datum, about: dict[str, Any]) -> dict[str, Any]:
