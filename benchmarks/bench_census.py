@@ -67,12 +67,13 @@ class RenderedCamera(NamedTuple):
     render_ms: float
 
 
-def rendered_cameras(size: str, steps: int, first: int = 0) -> Iterator[RenderedCamera]:
-    """Steps ``first`` .. ``first + steps - 1`` of the default world (the placer's defaults, its three cameras),
-    each camera rendered at ``size`` ("1280x720") as the camera node renders it (its photographic sensor): the
-    render loop of this benchmark and of ``bench_locate.py``."""
+def rendered_cameras(size: str, steps: int, first: int = 0, strategy: str | None = None) -> Iterator[RenderedCamera]:
+    """Steps ``first`` .. ``first + steps - 1`` of the default world (the placer's defaults, or its ``strategy``; its
+    three cameras), each camera rendered at ``size`` ("1280x720") as the camera node renders it (its photographic
+    sensor): the render loop of this benchmark and of ``bench_locate.py``."""
     w, h = (int(v) for v in size.split("x"))
-    pc, cc = PlacerConfig(), CameraConfig(width=w, height=h)
+    pc = PlacerConfig.from_params({"strategy": strategy} if strategy else {})
+    cc = CameraConfig(width=w, height=h)
     world = load_world(pc.world, pc.terrain_prim, pc.world_seed)
     lib = load_library()
     placer = Placer(pc, world, lib)

@@ -20,7 +20,7 @@ from zebra_sim_ros.geometry.census import (
     FloatArray,
     join_views,
 )
-from zebra_sim_ros.geometry.locate import CORE, DEPTH_WINDOW_M
+from zebra_sim_ros.geometry.locate import CENTRE_HEIGHT_M, CORE, DEPTH_WINDOW_M
 from zebra_sim_ros.params import (
     RELATIVE_NAME,
     ParamSpec,
@@ -153,6 +153,9 @@ class ScorerConfig(StageConfig):
 SCORER_PARAMS: tuple[ParamSpec, ...] = ScorerConfig.specs()
 
 
+PLACE_BY = ("depth", "ground")  # how the locator finds a box's distance along its ray
+
+
 @dataclass(frozen=True)
 class LocatorConfig(StageConfig):
     """Validated locator node parameters: which cameras' detections it places on the map, and how."""
@@ -169,6 +172,14 @@ class LocatorConfig(StageConfig):
                       "navigation places its camera",
                       allowed="a topic name relative to the drone (letters, digits, _ and /)",
                       check=lambda v: bool(RELATIVE_NAME.fullmatch(v)))
+    place_by: str = param("depth", "how a box's distance along its ray is found: depth, from the camera's depth "
+                          "image (<drone>/depth: a simulated or RGB-D camera); ground, where the ray through the "
+                          "box's centre meets the level plane centre_height above ground_z (a drone's colour camera "
+                          "over flat ground: no depth subscribed)", choices=PLACE_BY)
+    ground_z: float = param(0.0, "place_by ground: the ground's height in map (the site's; map's z is the height "
+                            "above the datum's origin_altitude_m)", "m", lo=-10000.0, hi=10000.0, runtime=True)
+    centre_height: float = param(CENTRE_HEIGHT_M, "place_by ground: an animal's body centre above the ground (its "
+                                 "box's centre is taken to be there)", "m", lo=0.0, hi=10.0, runtime=True)
     core: float = param(CORE, "share of each box's width and height, about its centre, whose depths place it (1: "
                         "the whole box)", lo=0.05, hi=1.0, runtime=True)
     depth_window: float = param(DEPTH_WINDOW_M, "a box's depth is the median of the densest span of its depths this "
@@ -211,9 +222,9 @@ class LocatorConfig(StageConfig):
 
     @property
     def inputs(self) -> tuple[str, ...]:
-        """The topics it reads under each camera: its detections, depth, camera_info and camera pose (the node
-        subscribes these, up waits for them)."""
-        return self.detections, "depth", "camera_info", self.pose
+        """The topics it reads under each camera: its detections, depth (with ``place_by`` depth), camera_info and
+        camera pose (the node subscribes these, up waits for them)."""
+        return self.detections, *(("depth",) if self.place_by == "depth" else ()), "camera_info", self.pose
 
     def check(self) -> None:
         """Each camera once; an output that is not an input; the census outside the cameras' namespaces."""

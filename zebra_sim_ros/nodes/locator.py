@@ -18,7 +18,9 @@ with the image's stamp:
   depth 0); ``id`` its index in the detections message. A box with no measured depth in its core (sky, outside
   the image) is left out and counted (``unplaced``). A camera's frames before its first camera_info wait for it
   (within ``sync_window``); a pose that is not finite, or a depth image of another size than camera_info's, is a
-  bad message.
+  bad message. With ``place_by: ground`` (a camera without depth) no depth is subscribed: the point is where the
+  ray through the box's centre meets the level plane ``centre_height`` above ``ground_z``
+  (:func:`zebra_sim_ros.geometry.locate.locate_on_ground`); a box whose ray does not go down to it is unplaced.
 
 - ``<census_output>`` (with ``census``; Detection3DArray in ``map``), once every camera in ``drones`` has a frame of
   the stamp placed: the animals of that instant, each counted once. Three drones that see one herd see an animal up
@@ -57,7 +59,7 @@ from zebra_sim_ros.detection.config import CENSUS_RULE, LOCATOR_PARAMS, LocatorC
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.census import Census
 from zebra_sim_ros.geometry.lens import Distortion
-from zebra_sim_ros.geometry.locate import Located, intrinsics, locate_boxes
+from zebra_sim_ros.geometry.locate import Located, intrinsics, locate_boxes, locate_on_ground
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Detections
 from zebra_sim_ros.nodes.ros_adapter import (
@@ -79,7 +81,6 @@ from zebra_sim_ros.nodes.ros_adapter import (
 )
 from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections
 
-_PARTS = ("detections", "depth", "pose")  # what each stamp of a camera needs (camera_info: the latest)
 _MILLIMETRES = ("16UC1", "mono16")  # depth encodings in millimetres (REP 118); 32FC1 is in metres
 
 
@@ -194,7 +195,8 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         pose_q = qos(c.qos_reliability, c.qos_depth, transient_local=c.pose_transient_local)
         self.out_type = detection3d_array_type()
         out_class = message_class(self.out_type)
-        self.frames = FrameParts(c.sync_window, _PARTS)
+        # what each stamp of a camera needs (camera_info: the latest)
+        self.frames = FrameParts(c.sync_window, ("detections", "pose") + (("depth",) if c.place_by == "depth" else ()))
         self.info: dict[str, tuple[np.ndarray, int, int, Distortion | None]] = {}  # drone: its latest K (3x3),
         # width, height and lens (None: an ideal pinhole)
         self.stats = {"frames": 0, "placed": 0, "unplaced": 0, "unmatched": 0, "bad_messages": 0, "census": 0,
@@ -209,13 +211,13 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         self.seconds = 0.0
         self.pubs: dict[str, Any] = {}
         det_class = message_class(detection_array_type())
-        detections, depth, info, pose = c.inputs
         for d in c.drones:
             # raw: the CDR bytes read by the scorer's and bag eval's reader (cdr_detections)
-            self.create_subscription(det_class, f"{d}/{detections}", self._on_detections(d), q, raw=True)
-            self.create_subscription(Image, f"{d}/{depth}", self._on_part(d, "depth"), image_q)
-            self.create_subscription(PoseStamped, f"{d}/{pose}", self._on_part(d, "pose"), pose_q)
-            self.create_subscription(CameraInfo, f"{d}/{info}", self._on_info(d), image_q)
+            self.create_subscription(det_class, f"{d}/{c.detections}", self._on_detections(d), q, raw=True)
+            if c.place_by == "depth":
+                self.create_subscription(Image, f"{d}/depth", self._on_part(d, "depth"), image_q)
+            self.create_subscription(PoseStamped, f"{d}/{c.pose}", self._on_part(d, "pose"), pose_q)
+            self.create_subscription(CameraInfo, f"{d}/camera_info", self._on_info(d), image_q)
             self.pubs[d] = self.create_publisher(out_class, f"{d}/{c.output}", q)
         self.census_pub = self.create_publisher(out_class, c.census_output, q) if c.census else None
         self.marker_pub = self.create_publisher(MarkerArray, f"{c.census_output}/markers", q) if c.census else None
@@ -269,15 +271,20 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         position = np.array([p.x, p.y, p.z])
         try:
             k, width, height, distortion = self.info[drone]
-            depth = image_array(got["depth"])
-            if depth.shape != (height, width):
-                raise ValueError(f"a depth image of {depth.shape[1]}x{depth.shape[0]} px with camera_info of "
-                                 f"{width}x{height}")
-            if got["depth"].encoding in _MILLIMETRES:  # REP 118: 16-bit depth in millimetres, 0 unmeasured
-                depth = depth.astype(np.float32) / 1000.0
             boxes = np.array([x.box_xyxy for x in dets.detections], np.float64).reshape(-1, 4)
-            where = locate_boxes(boxes, depth, k, position, np.array(orientation),
-                                 self.cfg.core, self.cfg.depth_window, distortion)
+            c = self.cfg
+            if c.place_by == "ground":
+                where = locate_on_ground(boxes, k, position, np.array(orientation), c.ground_z, c.centre_height,
+                                         distortion)
+            else:
+                depth = image_array(got["depth"])
+                if depth.shape != (height, width):
+                    raise ValueError(f"a depth image of {depth.shape[1]}x{depth.shape[0]} px with camera_info of "
+                                     f"{width}x{height}")
+                if got["depth"].encoding in _MILLIMETRES:  # REP 118: 16-bit depth in millimetres, 0 unmeasured
+                    depth = depth.astype(np.float32) / 1000.0
+                where = locate_boxes(boxes, depth, k, position, np.array(orientation), c.core, c.depth_window,
+                                     distortion)
         except (ZebraSimError, ValueError, TypeError, IndexError, ArithmeticError) as exc:
             self.skip_bad(self.stats, f"{drone} stamp {t}", exc)
             return
@@ -346,7 +353,9 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         missing = [d for d in self.cfg.drones if d not in self.info]
         waiting = f"waiting for camera_info of {', '.join(missing)}" if missing else ""
         c = self.cfg
-        info = {"drones": ", ".join(c.drones), "output": c.output, "pose": c.pose}
+        info = {"drones": ", ".join(c.drones), "output": c.output, "pose": c.pose,
+                "place_by": c.place_by if c.place_by == "depth" else
+                f"ground at z {c.ground_z:g} m, centres {c.centre_height:g} m above it"}
         if c.census:  # what a bag census follows (recording.census.bag_census): names as the parameters'
             info.update({"census_output": c.census_output, **{k: repr(getattr(c, k)) for k in CENSUS_RULE},
                          "last census": self.last_count or "none yet"})
