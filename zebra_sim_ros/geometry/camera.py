@@ -60,6 +60,12 @@ class PinholeCamera:
         if not (1.0 <= self.hfov_deg <= 170.0):
             raise ParameterError("hfov_deg", self.hfov_deg, "1..170 degrees")
 
+    @classmethod
+    def with_focal(cls, width: int, height: int, fx: float, distortion: Distortion | None = None) -> PinholeCamera:
+        """The camera of ``width`` x ``height`` pixels whose focal length is ``fx`` pixels (CameraInfo's K[0, 0]; its
+        field of view follows, and so ``fx`` again to within an ulp)."""
+        return cls(width, height, float(np.degrees(2 * np.arctan(width / 2 / fx))), distortion or Distortion())
+
     @property
     def fx(self) -> float:
         """Focal length in pixels (square pixels: fy == fx)."""
@@ -94,8 +100,7 @@ class PinholeCamera:
         c = self.canvas
         if c is None:
             return self
-        return PinholeCamera(c.canvas_width, c.canvas_height,
-                             float(np.degrees(2 * np.arctan(c.canvas_width / 2 / self.fx))))
+        return PinholeCamera.with_focal(c.canvas_width, c.canvas_height, self.fx)
 
     def project(self, points_optical: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
         """Pixels (..., 2) of points in the optical frame (through the lens's distortion), and whether each lies in

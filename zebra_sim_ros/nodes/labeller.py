@@ -19,7 +19,6 @@ from __future__ import annotations
 import time
 from typing import Any
 
-import numpy as np
 from geometry_msgs.msg import Vector3
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import ColorRGBA, Header, String
@@ -142,15 +141,14 @@ class LabellerNode(ZebraNode[LabellerConfig]):
         width, height, fx = int(info.width), int(info.height), float(intrinsics(info.k)[0, 0])
         if width <= 0 or height <= 0:
             raise ValueError(f"camera_info of {width}x{height} px: want a non-empty image")
-        hfov = float(np.degrees(2 * np.arctan(width / 2 / fx)))
-        distortion = Distortion.from_d(info.d, info.distortion_model)
-        key = (width, height, round(hfov, 6), distortion)
+        camera = PinholeCamera.with_focal(width, height, fx, Distortion.from_d(info.d, info.distortion_model))
+        key = (width, height, round(camera.hfov_deg, 6), camera.distortion)
         if key not in self.labellers:
             if self.ctx is None:
                 self.ctx = create_context()[0]
             # ParameterError for a lens that folds over in the image (lens_canvas remembers it: not solved again)
-            self.labellers[key] = Labeller(self.library, PinholeCamera(width, height, hfov, distortion),
-                                           self.filters, self.cfg.zebra_detail_distance_m, ctx=self.ctx)
+            self.labellers[key] = Labeller(self.library, camera, self.filters, self.cfg.zebra_detail_distance_m,
+                                           ctx=self.ctx)
         return self.labellers[key]
 
     def _try(self, drone: str, t: int) -> None:
