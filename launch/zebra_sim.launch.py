@@ -49,6 +49,7 @@ from zebra_sim_ros.graph.spec import (
     check_bag_images,
     check_drones,
     node_config,
+    placer_aim,
     recorder_excludes,
     rviz_census,
 )
@@ -124,6 +125,15 @@ def generate_launch_description():
                                                    "use_sim_time": True}])
             for i, d in enumerate(drones)
         ]
+        # the placer aims with the first camera's field of view and lens, as it starts (its file, this size)
+        size = {}
+        for k in ("width", "height"):
+            value = LaunchConfiguration(k).perform(context)
+            if not value.strip().isdigit():
+                raise ParameterError(k, value, "a number of pixels")
+            size[k] = int(value)
+        aimed = placer_aim(Path(config), f"{ns.rstrip('/')}/{drones[0]}_camera",
+                           {"drone_index": 0, **size, "ack": False, **compressed, "use_sim_time": True})
         return cameras + [
             Node(package=PACKAGE, executable="labeller", name="labeller", namespace="", output="screen",
                  parameters=[file("labeller.yaml"), {"drones": drones, "ack_name": "labeller",
@@ -147,7 +157,7 @@ def generate_launch_description():
                      "world": arg("world"), "seed": arg("seed", int), "strategy": arg("strategy"),
                      "num_cameras": int(count), "mode": "lockstep", "max_steps": arg("frames", int),
                      "lockstep_ack_from": ["labeller", "detector"], "lockstep_timeout_s": 120.0,
-                     "camera_width": arg("width", int), "camera_height": arg("height", int),
+                     "camera_width": arg("width", int), "camera_height": arg("height", int), **aimed,
                      "wait_for_subscribers": 1, "wait_for_nodes": ["recorder"]}]),
         ] + viewer
 

@@ -222,6 +222,8 @@ def _locator_yaml(**changes: str) -> str:
 def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     for var in ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE", *NODE_ENVIRONMENT):
         monkeypatch.delenv(var, raising=False)
+    (tmp_path / "share" / "config").mkdir(parents=True)  # the cameras' file: the placer aims with their lens
+    shutil.copy(REPO / "config" / "camera.yaml", tmp_path / "share" / "config")
     rec = _launch(monkeypatch, tmp_path / "share")
     up = graph_spec(UpConfig(locate=True))  # the launch file holds the nodes that its arguments may leave out
     launched = [(n["executable"], n["name"], "/" + n["namespace"] if n["namespace"] else "",
@@ -282,7 +284,6 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
     with pytest.raises(ValueError, match=f"no zebra_sim.rviz in {tmp_path / 'share' / 'config'}"):
         _launch(monkeypatch, tmp_path / "share", rviz="true", bag=str(bag))
     assert not bag.parent.exists()  # refused before anything is written
-    (tmp_path / "share" / "config").mkdir(parents=True)
     shutil.copy(REPO / "config" / "zebra_sim.rviz", tmp_path / "share" / "config")
     for flag in ("true", "1", " True"):  # launch's own spellings of true, as score:= takes them
         viewed = _launch(monkeypatch, tmp_path / "share", rviz=flag, drones="5", bag=str(bag))
@@ -773,6 +774,10 @@ def test_up_sets_a_nodes_parameters_for_one_run() -> None:
     assert "/drone_1/camera/pose_nav" in nodes["locator"].subscribes
     assert "/drone_1/camera/pose" not in nodes["locator"].subscribes
     assert "fix_sigma_m" not in {s.name: s for s in graph_spec(UpConfig(locate=True))}["placer"].overrides
+    # the placer aims with the cameras' field of view and lens, as their file and the run set them
+    lens = {s.name: s.overrides for s in UpConfig(sets=parse_sets(
+        ["camera.lens_k1=-0.2", "camera.lens_k2=0.05", "camera.hfov_deg=70"])).check()}["placer"]
+    assert (lens["camera_lens_k1"], lens["camera_lens_k2"], lens["camera_hfov_deg"]) == pytest.approx((-0.2, 0.05, 70))
     # what shapes up's waits follows the set values too: the recorder's selection, the scorer's detections
     waits = {s.name: s.subscribes for s in UpConfig(sets=parse_sets(
         ["recorder.exclude_regex=/depth$", "scorer.detections=dets"])).check()}
@@ -780,6 +785,9 @@ def test_up_sets_a_nodes_parameters_for_one_run() -> None:
     assert "/drone_2/dets" in waits["scorer"] and "/drone_2/detections" not in waits["scorer"]
     for bad, needle in ((["placer.mode=rate"], "'--set' = 'placer.mode=rate' is invalid: allowed a parameter up "
                                                "does not set itself"),
+                        # the cameras' field of view is the placer's: set on the cameras, not on it alone
+                        (["placer.camera_hfov_deg=60"], "placer.camera_hfov_deg=60' is invalid: allowed a parameter "
+                                                        "up does not set itself"),
                         (["locator.pose=camera/pose_nav"], "a node this graph runs"),  # no --locate
                         (["placer.fix_sigma=2"], "'fix_sigma'"),
                         (["placer.fix_sigma_m=-1"], "'fix_sigma_m' = -1"),

@@ -10,6 +10,7 @@ import pytest
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.boxes import box_axes, obb_corners, obb_overlap
 from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical, optical_rotation
+from zebra_sim_ros.geometry.lens import Distortion
 from zebra_sim_ros.messages import MessageFormatError, Scene
 from zebra_sim_ros.placement.cameras import LOW_ZEBRA_CLEARANCE_M, CameraRanges, Surroundings, sample_cameras
 from zebra_sim_ros.placement.config import PlacerConfig
@@ -193,6 +194,31 @@ def test_camera_poses_follow_the_paper(savanna: World, strategy: str) -> None:
     _uniform_ok(a[:, 0], 5, 20)
     _uniform_ok(a[:, 2], -10, 10)
     assert a[:, 1].min() < -0.9 * jitter and a[:, 1].max() > 0.9 * jitter
+
+
+def test_cameras_are_aimed_through_their_lens(savanna: World) -> None:
+    """A pincushion lens shows less than its pinhole: the placer aims with the lens, so every pivot is in the image
+    the lens gives. Aimed with the pinhole, some pivots near the edge fall outside it. The placer's config carries
+    the cameras' lens and refuses one that folds over by name."""
+    lens = Distortion(k1=0.4)
+    cams = {"lens": PinholeCamera(1280, 720, 60.0, lens), "pinhole": PinholeCamera(1280, 720, 60.0)}
+    outside = {}
+    for name, aim in cams.items():
+        rng = np.random.default_rng(12)
+        outside[name] = 0
+        for _ in range(150):
+            xy = rng.uniform(-150, 150, 2) + rng.uniform(-40, 40, (20, 2))
+            zebras = np.column_stack([xy, savanna.terrain.height_at(xy[:, 0], xy[:, 1])])
+            poses = sample_cameras(rng, _surroundings(savanna, zebras), "far", ["drone_0", "drone_1"],
+                                   CameraRanges(), aim)
+            pivot = zebras.mean(axis=0)[None]
+            outside[name] += sum(not cams["lens"].in_image(map_to_optical(pivot, np.array(p.position), p.r_optical))[0]
+                                 for p in poses)
+    assert outside["lens"] == 0 and outside["pinhole"] > 0, outside
+    cfg = PlacerConfig.from_params({"camera_hfov_deg": 60.0, "camera_lens_k1": 0.4})
+    assert cfg.camera == cams["lens"]
+    with pytest.raises(ParameterError, match="camera_lens_k1, camera_lens_k2.*fold"):
+        PlacerConfig.from_params({"camera_lens_k1": -0.5, "camera_width": 320, "camera_height": 180})
 
 
 def _surroundings(world: World, zebras: np.ndarray) -> Surroundings:

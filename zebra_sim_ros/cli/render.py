@@ -50,7 +50,7 @@ def cmd_render(args: argparse.Namespace) -> Summary:
     """Render the step."""
     import cv2
 
-    from zebra_sim_ros.geometry.lens import PLUMB_BOB
+    from zebra_sim_ros.geometry.lens import LENS_KEYS, PLUMB_BOB
     from zebra_sim_ros.placement.config import PlacerConfig
     from zebra_sim_ros.placement.placer import Placer
     from zebra_sim_ros.placement.sun import lighting_for
@@ -69,9 +69,13 @@ def cmd_render(args: argparse.Namespace) -> Summary:
     if args.hfov_deg is not None:
         values["camera_hfov_deg"] = args.hfov_deg
     cfg = PlacerConfig.from_params(values)
+    lens = parse_lens(args.lens)
     options = check_render_options(RenderOptions(width=args.width, height=args.height, hfov_deg=cfg.camera_hfov_deg,
-                                                 shadows=not args.no_shadows, distortion=parse_lens(args.lens),
+                                                 shadows=not args.no_shadows, distortion=lens,
                                                  **look_options(args.look)), "--lens")
+    # the placer aims through the same lens (which the options, of the same camera, accepted)
+    cfg = PlacerConfig.from_params({**cfg.as_params(), **{f"camera_lens_{k}": v for k, v in
+                                                          zip(LENS_KEYS, lens.coefficients, strict=True)}})
     t0 = time.perf_counter()
     world = load_world(cfg.world, cfg.terrain_prim, cfg.world_seed)
     lib = load_library()

@@ -252,6 +252,7 @@ class _Pipeline:
                        for k, v in sorted(over.items()))
 
     def placer(self, job: Job) -> Any:
+        from zebra_sim_ros.geometry.lens import LENS_KEYS
         from zebra_sim_ros.placement.config import PlacerConfig
         from zebra_sim_ros.placement.placer import Placer
 
@@ -262,7 +263,8 @@ class _Pipeline:
             params = {**c.placer_params, "seed": job.seed, "strategy": job.strategy,
                       "world": job.world,
                       "world_seed": c.world_seed, "camera_width": c.width, "camera_height": c.height,
-                      "camera_hfov_deg": c.hfov_deg}
+                      "camera_hfov_deg": c.hfov_deg, **{f"camera_lens_{k}": v for k, v in zip(LENS_KEYS, c.lens,
+                                                                                               strict=True)}}
             self.placers[key] = Placer(PlacerConfig.from_params(params), self.world, self.library)
         return self.placers[key]
 

@@ -18,7 +18,7 @@ pixel, so a distorted mask and depth stay exact values of the scene. Pure numpy,
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from functools import lru_cache
 
 import numpy as np
@@ -154,6 +154,15 @@ class Distortion:
         folds over)."""
         a, b, c, d = self.jacobian(x, y)
         return np.asarray(np.maximum(a * d - b * c, 0.0))
+
+
+LENS_KEYS = tuple(f.name for f in fields(Distortion))  # plumb_bob's order: CameraInfo's d, the lens_<key> parameters
+
+
+def lens_distortion(cfg: object, prefix: str = "lens_") -> Distortion:
+    """The :class:`Distortion` of a config that declares the :class:`Lens` parameters (``lens_k1`` ..., or under
+    another ``prefix``)."""
+    return Distortion(*(float(getattr(cfg, f"{prefix}{k}")) for k in LENS_KEYS))
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,7 @@ from typing import Any, TypeVar
 
 from zebra_sim_ros.detection.config import DetectorConfig, LocatorConfig, ScorerConfig
 from zebra_sim_ros.errors import ParameterError
+from zebra_sim_ros.geometry.lens import LENS_KEYS
 from zebra_sim_ros.labels.config import LabellerConfig
 from zebra_sim_ros.params import ParamSpec, StageConfig, load_params_file, replace_tables, validate, write_config
 from zebra_sim_ros.placement.config import PLACER_CAMERA_TOPICS, PLACER_TOPICS, PlacerConfig
@@ -282,6 +283,14 @@ def check_namespace(namespace: str) -> str:
     return namespace
 
 
+def placer_aim(conf: Path, camera: str, overrides: dict[str, Any]) -> dict[str, Any]:
+    """The placer's parameters that must equal the cameras' for its aim (the pivot in view): the field of view and
+    lens of the graph's camera node ``camera`` (its full name) as it starts, from ``conf``/camera.yaml and
+    ``overrides``; up and the launch file give it the first camera's (the placer aims every camera with one)."""
+    first = node_config(conf, "camera.yaml", camera, overrides, CameraConfig)
+    return {"camera_hfov_deg": first.hfov_deg, **{f"camera_lens_{k}": getattr(first, f"lens_{k}") for k in LENS_KEYS}}
+
+
 def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
     """The processes of the whole graph, in start order (the placer last: it starts the steps, once the scorer and
     the recorder subscribe what they need). Every node runs in ``cfg.namespace`` with relative topic names, so the
@@ -305,10 +314,12 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
     excludes = (recorder_excludes(config_dir(cfg.config_dir), cfg.bag_images, f"{ns}/recorder")
                 if cfg.record and cfg.bag_images != "raw" else "")  # raw: the file's own, read with its settings
     camera_bag, recorder_bag = bag_image_overrides(cfg.bag_images, excludes)
+    aimed: dict[str, Any] = {}  # the first camera's field of view and lens: what the placer aims every camera with
     for i, d in enumerate(drones):
-        nodes.append(NodeSpec("camera", f"{d}_camera", ns, "camera.yaml",
-                              own("camera", {"drone_index": i, "width": cfg.width, "height": cfg.height, "ack": False,
-                                             **camera_bag, **sim}),
+        cam = own("camera", {"drone_index": i, "width": cfg.width, "height": cfg.height, "ack": False, **camera_bag,
+                             **sim})
+        aimed = aimed or placer_aim(config_dir(cfg.config_dir), f"{ns}/{d}_camera", cam)
+        nodes.append(NodeSpec("camera", f"{d}_camera", ns, "camera.yaml", cam,
                               tuple(f"{ns}/{d}/{t}" for t in CAMERA_TOPICS)
                               + ((f"{ns}/{d}/image_raw/compressed",) if cfg.bag_images != "raw" else ()), remaps))
     # The graph's own cameras publish reliably and lockstep waits for every frame: subscribe reliably too.
@@ -348,7 +359,7 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
         "world": cfg.world, "seed": cfg.seed, "strategy": cfg.strategy, "num_cameras": cfg.drones, "mode": "lockstep",
         "max_steps": cfg.frames, "lockstep_ack_from": ["labeller", "detector"],
         "lockstep_timeout_s": cfg.step_timeout_s,
-        "camera_width": cfg.width, "camera_height": cfg.height, "wait_for_subscribers": 1 if cfg.record else 0,
+        "camera_width": cfg.width, "camera_height": cfg.height, **aimed, "wait_for_subscribers": 1 if cfg.record else 0,
         "wait_for_nodes": ["recorder"] if cfg.record else [""]}),
         tuple(f"{ns}/{t}" for t in (*PLACER_TOPICS, *(f"{d}/{c}" for d in drones for c in PLACER_CAMERA_TOPICS)))
         + tuple(f"{ns}{t}" for t in GLOBAL_TOPICS), remaps))

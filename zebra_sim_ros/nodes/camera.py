@@ -37,7 +37,7 @@ from std_msgs.msg import Header, String
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.camera import PinholeCamera, depth_points
 from zebra_sim_ros.geometry.frames import optical_frame
-from zebra_sim_ros.geometry.lens import PLUMB_BOB
+from zebra_sim_ros.geometry.lens import PLUMB_BOB, lens_distortion
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Scene
 from zebra_sim_ros.nodes.placer import SCENE_TOPIC
@@ -53,7 +53,7 @@ from zebra_sim_ros.nodes.ros_adapter import (
     stamp,
 )
 from zebra_sim_ros.recording.images import compress_rgb
-from zebra_sim_ros.rendering.config import CAMERA_PARAMS, CameraConfig, lens_distortion
+from zebra_sim_ros.rendering.config import CAMERA_PARAMS, CameraConfig
 from zebra_sim_ros.rendering.renderer import RenderedView
 from zebra_sim_ros.simulation import Simulator
 from zebra_sim_ros.world.world import load_world

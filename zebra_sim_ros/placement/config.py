@@ -13,8 +13,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from zebra_sim_ros.errors import ParameterError
-from zebra_sim_ros.geometry.camera import MAX_CAMERAS, Intrinsics
+from zebra_sim_ros.geometry.camera import MAX_CAMERAS, Intrinsics, PinholeCamera
 from zebra_sim_ros.geometry.geodesy import ATTITUDE_STREAM, GNSS_MAX_CORRELATION_STEPS, NavNoise
+from zebra_sim_ros.geometry.lens import LENS_ERROR, LENS_KEYS, Lens, lens_distortion
 from zebra_sim_ros.params import (
     ROS_NAME,
     ParamSpec,
@@ -39,6 +40,8 @@ ANIMALS_TOPIC = "zebra_sim/zebras"
 MARKER_TOPIC = "zebra_sim/zebras/markers"
 PLACER_TOPICS = (SCENE_TOPIC, ANIMALS_TOPIC, MARKER_TOPIC)
 
+_LENS_HELP = ("the cameras' lens distortion {k}, their lens_{k} (up and the launch file set it to the first camera's, "
+              "generate and render to --lens'): the pivot is kept in the image the lens gives")
 STRATEGY_CHOICES = (*STRATEGIES, "mixed", "any")
 """The placer's ``strategy`` values: one strategy for every step, or a draw per step (``mixed``: far or closeby;
 ``any``: each of the four)."""
@@ -130,7 +133,13 @@ class PlacerConfig(StageConfig):
                                         hi=100.0)
     camera_width: int = same_as(Intrinsics, "width", help="image width the cameras render (the pivot must be in view)")
     camera_height: int = same_as(Intrinsics, "height", help="image height the cameras render")
-    camera_hfov_deg: float = same_as(Intrinsics, "hfov_deg", help="horizontal field of view of the cameras")
+    camera_hfov_deg: float = same_as(Intrinsics, "hfov_deg", help="horizontal field of view of the cameras, their "
+                                     "hfov_deg (up and the launch file set it to the first camera's)")
+    camera_lens_k1: float = same_as(Lens, "lens_k1", help=_LENS_HELP.format(k="k1"))
+    camera_lens_k2: float = same_as(Lens, "lens_k2", help=_LENS_HELP.format(k="k2"))
+    camera_lens_p1: float = same_as(Lens, "lens_p1", help=_LENS_HELP.format(k="p1"))
+    camera_lens_p2: float = same_as(Lens, "lens_p2", help=_LENS_HELP.format(k="p2"))
+    camera_lens_k3: float = same_as(Lens, "lens_k3", help=_LENS_HELP.format(k="k3"))
     night_fraction: float = param(0.1, "share of frames outside the day window", lo=0.0, hi=1.0)
     day_window: str = param("sun", "the day window: sun = each frame's sunrise..sunset at latitude_deg (the paper's "
                             "90% of frames in good light); clock = day_start_h..day_end_h literally",
@@ -254,6 +263,18 @@ class PlacerConfig(StageConfig):
                                  "constants of draws)")
         if len(set(self.lockstep_ack_from)) != len(self.lockstep_ack_from):
             raise ParameterError("lockstep_ack_from", list(self.lockstep_ack_from), "distinct names")
+        try:
+            _ = self.camera.canvas  # a lens the cameras could not render is refused here, by name
+        except ParameterError as exc:
+            if exc.name != LENS_ERROR:
+                raise
+            raise ParameterError(", ".join(f"camera_lens_{k}" for k in LENS_KEYS), exc.value, exc.allowed) from None
+
+    @property
+    def camera(self) -> PinholeCamera:
+        """The cameras the placer aims: their image size, field of view and lens."""
+        return PinholeCamera(self.camera_width, self.camera_height, self.camera_hfov_deg,
+                             lens_distortion(self, "camera_lens_"))
 
 
 PLACER_PARAMS: tuple[ParamSpec, ...] = PlacerConfig.specs()

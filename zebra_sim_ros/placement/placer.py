@@ -12,7 +12,6 @@ from dataclasses import replace
 import numpy as np
 
 from zebra_sim_ros.errors import ParameterError
-from zebra_sim_ros.geometry.camera import PinholeCamera
 from zebra_sim_ros.messages import Datum, Scene, WorldRef
 from zebra_sim_ros.placement.cameras import STRATEGIES, CameraRanges, Surroundings, sample_cameras
 from zebra_sim_ros.placement.config import PlacerConfig
@@ -53,7 +52,7 @@ class Placer:
         max_slope = world.max_slope_deg if cfg.max_slope_deg < 0 else cfg.max_slope_deg
         self.herds = HerdPlacer(world.terrain, world.placeable, max_slope, world.obstacles.positions[:, :2],
                                 world.obstacles.radii, library, world.water)
-        self.camera = PinholeCamera(cfg.camera_width, cfg.camera_height, cfg.camera_hfov_deg)
+        self.camera = cfg.camera
         self.ranges = CameraRanges(
             height_min=cfg.camera_height_min, height_max=cfg.camera_height_max, far_radius=cfg.far_radius,
             closeby_margin=cfg.closeby_margin, roll_max_deg=cfg.roll_max_deg,

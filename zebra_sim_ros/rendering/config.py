@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import MAX_CAMERAS, Intrinsics
-from zebra_sim_ros.geometry.lens import LENS_ERROR, Distortion, Lens
+from zebra_sim_ros.geometry.lens import LENS_ERROR, LENS_KEYS, Distortion, Lens, lens_distortion
 from zebra_sim_ros.params import ParamSpec, StageConfig, diagnostics_param, param, reliability_param, same_as, spec_of
 from zebra_sim_ros.rendering.effects import CameraEffects, SensorModel
 from zebra_sim_ros.rendering.renderer import RenderOptions
@@ -27,7 +27,6 @@ def look_options(look: str) -> dict[str, bool]:
     return {"detail": photo, "contact_shadows": photo}
 
 
-LENS_KEYS = ("k1", "k2", "p1", "p2", "k3")  # plumb_bob's order: CameraInfo's d, Distortion's fields, lens_<key>
 LENS_HELP = ("the lens's plumb_bob distortion, CameraInfo's d: K1 [K2 [P1 [P2 [K3]]]] (the rest 0; e.g. -0.2 0.05 "
              "for a wide-angle drone camera's barrel distortion); default none, an ideal pinhole")
 
@@ -66,11 +65,6 @@ def lens_text(distortion: Distortion) -> str:
     return " ".join(repr(float(v)) for v in distortion.coefficients)
 
 
-def lens_distortion(cfg: object) -> Distortion:
-    """The :class:`Distortion` of a config that declares the :class:`Lens` parameters."""
-    return Distortion(*(float(getattr(cfg, f"lens_{k}")) for k in LENS_KEYS))
-
-
 @dataclass(frozen=True)
 class CameraConfig(StageConfig):
     """Validated camera parameters."""
@@ -79,7 +73,8 @@ class CameraConfig(StageConfig):
     width: int = same_as(Intrinsics, "width", help="image width (the paper used 1920)")
     height: int = same_as(Intrinsics, "height", help="image height (the paper used 1080)")
     hfov_deg: float = same_as(Intrinsics, "hfov_deg",
-                              help="horizontal field of view (keep equal to the placer's camera_hfov_deg)")
+                              help="horizontal field of view (the placer's camera_hfov_deg: up and the launch file "
+                              "give it the first camera's; keep them equal where you start nodes yourself)")
     lens_k1: float = same_as(Lens, "lens_k1")
     lens_k2: float = same_as(Lens, "lens_k2")
     lens_p1: float = same_as(Lens, "lens_p1")
