@@ -53,6 +53,7 @@ from zebra_sim_ros.graph.spec import (
     recorder_excludes,
     rviz_census,
 )
+from zebra_sim_ros.rendering.config import CameraConfig
 
 
 def generate_launch_description():
@@ -106,13 +107,28 @@ def generate_launch_description():
             bag_images, recorder_excludes(config, bag_images, f"{ns.rstrip('/')}/recorder"))
         locator = {"drones": drones, "image_reliability": "reliable", "pose_transient_local": True,
                    "use_sim_time": True}
+        # each camera's settings as it starts (its file, this size): the placer aims with the first one's field of
+        # view and lens; RViz shows the points of those that publish them
+        size = {}
+        for k in ("width", "height"):
+            value = LaunchConfiguration(k).perform(context)
+            if not value.strip().isdigit():
+                raise ParameterError(k, value, "a number of pixels")
+            size[k] = int(value)
+        cameras_as_started = [
+            node_config(Path(config), "camera.yaml", f"{ns.rstrip('/')}/{d}_camera",
+                        {"drone_index": i, **size, "ack": False, **compressed, "use_sim_time": True}, CameraConfig)
+            for i, d in enumerate(drones)]
+        aimed = placer_aim(cameras_as_started[0])
         viewer = []
         if evaluate_condition_expression(context, [LaunchConfiguration("rviz")]):  # true, 1, false, 0, as score
             # the package's view, one detection image per drone, written beside the bag as up writes it
             # the census display on what this graph's locator publishes (its file's census_output), off without it
             located = (node_config(Path(config), "locator.yaml", f"{ns.rstrip('/')}/locator", locator, LocatorConfig)
                        if evaluate_condition_expression(context, [LaunchConfiguration("locate")]) else None)
-            view = rviz_view(config, drones, "", *rviz_census(located))
+            clouds = [f"/{d}/points" for d, c in zip(drones, cameras_as_started, strict=True)
+                      if c.points_stride]
+            view = rviz_view(config, drones, "", *rviz_census(located), clouds=clouds)
             if view is None:
                 raise ValueError(f"rviz:=true: no {RVIZ_FILE} in {config}")
             path = write_rviz(view, Path(LaunchConfiguration("bag").perform(context)).parent / RVIZ_FILE)
@@ -125,15 +141,6 @@ def generate_launch_description():
                                                    "use_sim_time": True}])
             for i, d in enumerate(drones)
         ]
-        # the placer aims with the first camera's field of view and lens, as it starts (its file, this size)
-        size = {}
-        for k in ("width", "height"):
-            value = LaunchConfiguration(k).perform(context)
-            if not value.strip().isdigit():
-                raise ParameterError(k, value, "a number of pixels")
-            size[k] = int(value)
-        aimed = placer_aim(Path(config), f"{ns.rstrip('/')}/{drones[0]}_camera",
-                           {"drone_index": 0, **size, "ack": False, **compressed, "use_sim_time": True})
         return cameras + [
             Node(package=PACKAGE, executable="labeller", name="labeller", namespace="", output="screen",
                  parameters=[file("labeller.yaml"), {"drones": drones, "ack_name": "labeller",

@@ -304,6 +304,18 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
     assert [(d["Topic"]["Value"], d["Enabled"]) for d in view if "census" in d["Name"]] == [
         ("/herd/count/markers", True)]
     assert not [n for n in _launch(monkeypatch, tmp_path / "share", rviz="0").nodes if n["package"] == "rviz2"]
+    # cameras whose file has them publish points: RViz shows each camera's cloud, and the placer aims through the
+    # file's lens
+    (tmp_path / "share" / "config" / "camera.yaml").write_text(
+        (REPO / "config" / "camera.yaml").read_text().replace("points_stride: 0", "points_stride: 4")
+        .replace("lens_k1: 0.0", "lens_k1: -0.1"))
+    lensed = _launch(monkeypatch, tmp_path / "share", rviz="true", bag=str(bag))
+    view = yaml.safe_load((bag.parent / "zebra_sim.rviz").read_text())["Visualization Manager"]["Displays"]
+    assert [d["Topic"]["Value"] for d in view if d["Class"] == "rviz_default_plugins/PointCloud2"] == [
+        f"/drone_{i}/points" for i in range(3)]
+    (placer_node,) = [n for n in lensed.nodes if n["executable"] == "placer"]
+    assert placer_node["parameters"][1]["camera_lens_k1"] == pytest.approx(-0.1)
+    shutil.copy(REPO / "config" / "camera.yaml", tmp_path / "share" / "config")
     with pytest.raises(ValueError, match="'maybe'"):
         _launch(monkeypatch, tmp_path / "share", rviz="maybe")
     # in a namespace (PushRosNamespace around the file), the recorder's own section of its file is read
@@ -548,6 +560,26 @@ def test_the_rviz_config_shows_topics_the_graph_publishes_in_its_fixed_frame() -
     kinds = {d["Class"] for d in manager["Displays"]}
     assert {"rviz_default_plugins/TF", "rviz_default_plugins/Image", "rviz_default_plugins/MarkerArray"} <= kinds
     assert "config/*.rviz" in (REPO / "setup.py").read_text()  # installed beside the parameter files
+
+
+def test_a_graph_whose_cameras_publish_points_records_and_shows_them() -> None:
+    """``up --set camera.points_stride=4``: each camera's spec publishes its ``points``, the recorder waits to
+    record them (every frame's cloud in the bag), and up's RViz view draws each camera's cloud in the namespace, in
+    its colours; without it, no camera publishes points."""
+    from zebra_sim_ros.cli import up
+
+    cfg = UpConfig(namespace="/g1", sets=up.parse_sets(["camera.points_stride=4"]))
+    specs = cfg.check()
+    clouds = [f"/g1/{d}/points" for d in cfg.drone_names]
+    assert [t for s in specs if s.executable == "camera" for t in s.publishes if t.endswith("/points")] == clouds
+    (recorder,) = [s for s in specs if s.executable == "recorder"]
+    assert set(clouds) <= set(recorder.subscribes)
+    view = up._rviz_view(cfg, REPO / "config", specs)
+    assert view is not None
+    shown = [d for d in view["Visualization Manager"]["Displays"] if d["Class"] == "rviz_default_plugins/PointCloud2"]
+    assert [d["Topic"]["Value"] for d in shown] == clouds
+    assert all(d["Color Transformer"] == "RGB8" and d["Enabled"] for d in shown)
+    assert not [t for s in graph_spec(UpConfig()) for t in s.publishes if t.endswith("/points")]
 
 
 def test_the_rviz_config_is_drawn_again_for_each_graphs_drones_and_namespace(tmp_path: Path) -> None:
@@ -832,16 +864,17 @@ def test_ups_locator_waits_for_the_topics_its_file_names(tmp_path: Path) -> None
     assert "/g1/drone_2/dets" in loc.subscribes and "/g1/drone_2/detections" not in loc.subscribes
     assert set(loc.publishes) <= set(rec.subscribes) and "/g1/census/animals" not in rec.subscribes
     # up's RViz view: the census display on the census this locator publishes (its markers), on
-    view = census_display(up._rviz_view(cfg, conf, up._located(specs)))
+    view = census_display(up._rviz_view(cfg, conf, specs))
     assert view == ("/g1/herd/count/markers", True) and view[0] in loc.publishes
     off, rec = locator(census="false")
     assert off.publishes == default.publishes[:3] and "/g1/census/animals" not in rec.subscribes
-    assert census_display(up._rviz_view(cfg, conf, up._located(specs))) == ("/g1/census/animals/markers", False)
+    assert census_display(up._rviz_view(cfg, conf, specs)) == ("/g1/census/animals/markers", False)
     locator()
-    assert census_display(up._rviz_view(cfg, conf, up._located(specs))) == ("/g1/census/animals/markers", True)
+    assert census_display(up._rviz_view(cfg, conf, specs)) == ("/g1/census/animals/markers", True)
     no_locator = UpConfig(config_dir=str(conf), namespace="/g1")
     assert up._located(graph_spec(no_locator)) is None
-    assert census_display(up._rviz_view(no_locator, conf, None)) == ("/g1/census/animals/markers", False)
+    no_view = up._rviz_view(no_locator, conf, graph_spec(no_locator))
+    assert census_display(no_view) == ("/g1/census/animals/markers", False)
     with pytest.raises(ParameterError, match=re.escape(f"{conf / 'locator.yaml'}: output")):
         locator(output="depth")  # one of its inputs
 

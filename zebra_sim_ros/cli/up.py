@@ -97,15 +97,16 @@ def _located(specs: Sequence[NodeSpec]) -> LocatorConfig | None:
     return next((s.config for s in specs if isinstance(s.config, LocatorConfig)), None)
 
 
-def _rviz_view(cfg: UpConfig, conf: Path, located: LocatorConfig | None) -> dict[str, Any] | None:
+def _rviz_view(cfg: UpConfig, conf: Path, specs: Sequence[NodeSpec]) -> dict[str, Any] | None:
     """The package's RViz view drawn for this graph's drones and namespace, its census display on the census this
-    graph's locator publishes (off without one); None, with a warning, where it cannot be drawn (no reason to stop
-    the run)."""
+    graph's locator publishes (off without one), a point cloud display per camera that publishes its points; None,
+    with a warning, where it cannot be drawn (no reason to stop the run)."""
     from zebra_sim_ros.graph.rviz import rviz_view
     from zebra_sim_ros.graph.spec import rviz_census
 
+    clouds = [t for s in specs if s.executable == "camera" for t in s.publishes if t.endswith("/points")]
     try:
-        return rviz_view(conf, cfg.drone_names, cfg.namespace, *rviz_census(located))
+        return rviz_view(conf, cfg.drone_names, cfg.namespace, *rviz_census(_located(specs)), clouds=clouds)
     except ValueError as exc:
         print(f"[up] warning: no RViz view for this graph ({exc})", flush=True)
         return None
@@ -125,8 +126,8 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     conf = config_dir(cfg.config_dir)
     scorer = next((s.config for s in specs if s.executable == "scorer"), None)  # read by the graph for its topics
     scoring = ScorerRun.of(scorer) if isinstance(scorer, ScorerConfig) else None
-    located = _located(specs)  # its topics, for the summary and the RViz view
-    view = _rviz_view(cfg, conf, located)
+    located = _located(specs)  # its topics, for the summary
+    view = _rviz_view(cfg, conf, specs)
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
     for old in (cfg.bag_path, out / "summary.json", out / "preview.jpg", out / RVIZ_FILE, out / CENSUS_MAP):

@@ -119,19 +119,33 @@ def rviz_config(base: dict[str, Any], drones: Sequence[str], namespace: str = ""
     return out
 
 
+def cloud_display(topic: str) -> dict[str, Any]:
+    """An RViz PointCloud2 display of a camera's ``points`` (absolute ``topic``), each point in its colour."""
+    name = topic.strip("/").rsplit("/points", 1)[0]
+    return {"Class": "rviz_default_plugins/PointCloud2", "Name": f"{name} points", "Enabled": True,
+            "Color Transformer": "RGB8", "Position Transformer": "XYZ", "Style": "Points", "Size (Pixels)": 2,
+            "Decay Time": 0, "Use Fixed Frame": True, "Selectable": True, "Value": True,
+            "Topic": {"Value": topic, "Depth": 5, "Durability Policy": "Volatile", "History Policy": "Keep Last",
+                      "Reliability Policy": "Reliable"}}
+
+
 def rviz_view(config: Path, drones: Sequence[str], namespace: str = "",
-              off: Collection[str] = (), moved: Mapping[str, str] | None = None) -> dict[str, Any] | None:
-    """:func:`rviz_config` of ``config``/zebra_sim.rviz; None when the config folder has none. ValueError naming the
-    file when it cannot be read or is not an RViz configuration."""
+              off: Collection[str] = (), moved: Mapping[str, str] | None = None,
+              clouds: Sequence[str] = ()) -> dict[str, Any] | None:
+    """:func:`rviz_config` of ``config``/zebra_sim.rviz, and a :func:`cloud_display` for each of the cameras' point
+    cloud topics ``clouds`` (absolute: those the graph's cameras publish); None when the config folder has no file.
+    ValueError naming the file when it cannot be read or is not an RViz configuration."""
     import yaml
 
     src = Path(config) / RVIZ_FILE
     if not src.is_file():
         return None
     try:
-        return rviz_config(yaml.safe_load(src.read_text()), drones, namespace, off, moved)
+        view = rviz_config(yaml.safe_load(src.read_text()), drones, namespace, off, moved)
     except (OSError, UnicodeDecodeError, yaml.YAMLError, ValueError) as exc:
         raise ValueError(f"{src}: {exc}") from exc
+    view["Visualization Manager"]["Displays"] += [cloud_display(t) for t in clouds]
+    return view
 
 
 def write_rviz(view: dict[str, Any], dest: Path) -> Path:

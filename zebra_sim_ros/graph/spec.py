@@ -283,12 +283,18 @@ def check_namespace(namespace: str) -> str:
     return namespace
 
 
-def placer_aim(conf: Path, camera: str, overrides: dict[str, Any]) -> dict[str, Any]:
+def camera_topics(camera: CameraConfig) -> tuple[str, ...]:
+    """The topics a camera node publishes under its drone with ``camera``'s settings (acknowledgements aside)."""
+    return (*CAMERA_TOPICS, *(("image_raw/compressed",) if camera.compressed != "off" else ()),
+            *(("points",) if camera.points_stride else ()))
+
+
+def placer_aim(camera: CameraConfig) -> dict[str, Any]:
     """The placer's parameters that must equal the cameras' for its aim (the pivot in view): the field of view and
-    lens of the graph's camera node ``camera`` (its full name) as it starts, from ``conf``/camera.yaml and
-    ``overrides``; up and the launch file give it the first camera's (the placer aims every camera with one)."""
-    first = node_config(conf, "camera.yaml", camera, overrides, CameraConfig)
-    return {"camera_hfov_deg": first.hfov_deg, **{f"camera_lens_{k}": getattr(first, f"lens_{k}") for k in LENS_KEYS}}
+    lens of ``camera`` (a camera node's settings as it starts); up and the launch file give it the first camera's
+    (the placer aims every camera with one)."""
+    return {"camera_hfov_deg": camera.hfov_deg,
+            **{f"camera_lens_{k}": getattr(camera, f"lens_{k}") for k in LENS_KEYS}}
 
 
 def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
@@ -318,10 +324,10 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
     for i, d in enumerate(drones):
         cam = own("camera", {"drone_index": i, "width": cfg.width, "height": cfg.height, "ack": False, **camera_bag,
                              **sim})
-        aimed = aimed or placer_aim(config_dir(cfg.config_dir), f"{ns}/{d}_camera", cam)
+        camera = node_config(config_dir(cfg.config_dir), "camera.yaml", f"{ns}/{d}_camera", cam, CameraConfig)
+        aimed = aimed or placer_aim(camera)
         nodes.append(NodeSpec("camera", f"{d}_camera", ns, "camera.yaml", cam,
-                              tuple(f"{ns}/{d}/{t}" for t in CAMERA_TOPICS)
-                              + ((f"{ns}/{d}/image_raw/compressed",) if cfg.bag_images != "raw" else ()), remaps))
+                              tuple(f"{ns}/{d}/{t}" for t in camera_topics(camera)), remaps, config=camera))
     # The graph's own cameras publish reliably and lockstep waits for every frame: subscribe reliably too.
     nodes.append(NodeSpec("labeller", "labeller", ns, "labeller.yaml",
                           own("labeller", {"drones": list(drones), "ack_name": "labeller",
