@@ -13,6 +13,7 @@ from zebra_sim_ros.geometry.frames import (
     OPTICAL_IN_BASE_XYZW,
     body_orientation,
     matrix_to_xyzw,
+    slerp_xyzw,
     xyzw_to_matrix,
 )
 from zebra_sim_ros.geometry.rotations import rot_x, rot_y, rot_z, rotvec_to_matrix
@@ -53,3 +54,21 @@ def test_a_rotation_vector_turns_about_its_axis_by_its_length() -> None:
     np.testing.assert_allclose(rotvec_to_matrix(np.zeros(3)), np.eye(3), atol=0)
     tiny = np.array([1e-14, -2e-14, 3e-14])
     np.testing.assert_allclose(rotvec_to_matrix(tiny), np.eye(3) + np.cross(np.eye(3), tiny), atol=1e-27)
+
+
+def test_slerp_turns_at_a_steady_rate_along_the_shorter_arc() -> None:
+    """A quarter of the way from one heading to another 120 deg away is 30 deg on, about the same axis, whichever
+    sign the second quaternion has (q and -q are one rotation); equal rotations give themselves."""
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        r0 = optical_rotation(*rng.uniform(-np.pi, np.pi, 3))
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        turn = rotvec_to_matrix(axis * np.radians(120.0))
+        q0, q1 = matrix_to_xyzw(r0), np.array(matrix_to_xyzw(turn @ r0))
+        for sign in (1.0, -1.0):
+            got = slerp_xyzw(q0, sign * q1, 0.25)
+            assert np.linalg.norm(got) == pytest.approx(1.0)
+            want = rotvec_to_matrix(axis * np.radians(30.0)) @ r0
+            assert np.abs(xyzw_to_matrix(got) - want).max() < 1e-9
+        assert np.abs(xyzw_to_matrix(slerp_xyzw(q0, q0, 0.7)) - r0).max() < 1e-12

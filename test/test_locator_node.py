@@ -18,7 +18,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical, optical_rotation
 from zebra_sim_ros.geometry.lens import Distortion
-from zebra_sim_ros.geometry.locate import box_depths, locate_boxes, locate_on_ground
+from zebra_sim_ros.geometry.locate import PoseTrack, StampedPose, box_depths, locate_boxes, locate_on_ground
 from zebra_sim_ros.geometry.rotations import matrix_to_quat
 from zebra_sim_ros.messages import Detection, Detections, Stamp
 from zebra_sim_ros.nodes.ros_adapter import (
@@ -77,6 +77,35 @@ def test_a_box_is_placed_on_its_ray_at_its_depth() -> None:
         k[at] = bad
         with pytest.raises(ValueError, match=r"K = \[.*(inf|nan).*want a calibrated camera"):
             locate_boxes(boxes, depth, k, position, _xyzw(r))
+
+
+def test_a_pose_track_gives_the_pose_between_two_poses_or_says_to_wait() -> None:
+    """Poses at 10 Hz (a drone's odometry): an image's pose between the two about its stamp, linear in position and
+    at a steady turn; a pose of its own stamp as it is; after the latest pose within the gap, wait; before the
+    first, after it by more than the gap, or between two too far apart, none; the oldest poses let go."""
+    track = PoseTrack(max_gap_ns=150_000_000, keep=4)
+    ms = 1_000_000
+    assert track.at(5 * ms) is True  # nothing yet: a pose may come
+    yaw = {100: 0.0, 200: 30.0, 500: 60.0}
+    for t, deg in yaw.items():
+        track.add(StampedPose(t * ms, (float(t), 2.0 * t, 50.0), yaw_xyzw(deg), "map"))
+    got = track.at(125 * ms)
+    assert isinstance(got, StampedPose) and got.frame == "map"
+    assert got.position == pytest.approx((125.0, 250.0, 50.0))
+    assert got.orientation_xyzw == pytest.approx(yaw_xyzw(7.5), abs=1e-9)
+    assert track.at(200 * ms) == StampedPose(200 * ms, (200.0, 400.0, 50.0), yaw_xyzw(30.0), "map")
+    assert track.at(300 * ms) is None  # between 200 and 500 ms: 300 ms apart
+    assert track.at(50 * ms) is None  # before the first pose
+    assert track.at(600 * ms) is True and track.at(700 * ms) is None  # 100 ms after the latest: wait; 200: none
+    for t in (600, 700, 800):
+        track.add(StampedPose(t * ms, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), "map"))
+    assert track.stamps == [500 * ms, 600 * ms, 700 * ms, 800 * ms]  # four kept
+
+
+def yaw_xyzw(yaw_deg: float) -> tuple[float, float, float, float]:
+    """A heading's rotation about z as a ROS quaternion."""
+    half = np.radians(yaw_deg) / 2
+    return (0.0, 0.0, float(np.sin(half)), float(np.cos(half)))
 
 
 @pytest.mark.parametrize("lens", [Distortion(), WIDE])
@@ -379,6 +408,67 @@ def test_the_locator_places_by_the_ground_without_depth_over_dds(tmp_path: Path)
         want = locate_on_ground(np.array([box]), CAMERA.K, position, _xyzw(r), ground, 0.5)
         assert [p.x, p.y, p.z] == pytest.approx(want.points[0].tolist(), abs=1e-4)
         assert p.z == pytest.approx(ground + 0.5, abs=1e-6)
+
+
+@pytest.mark.integration
+def test_the_locator_interpolates_poses_that_come_at_their_own_rate_over_dds(tmp_path: Path) -> None:
+    """``pose_max_gap_s``: poses at 10 Hz whose stamps are not the images' (a drone's odometry). An image waits for a
+    pose after its stamp, then is placed at the pose interpolated between the two about it; one with no poses near
+    it is unmatched and counted."""
+    domain = fresh_domain_id()
+    peer, status, got, pubs = _one_camera_peer(domain, "test_locator_track", "camera/pose")
+    node = peer.node
+    log = tmp_path / "locator.log"
+    box = [150.0, 100, 170, 112]
+    ms = 1_000_000
+
+    def pose_at(t_ms: int) -> StampedPose:  # flying east at 10 m/s, turning 20 deg/s, 40 m up
+        qx, qy, qz, qw = (float(v) for v in _xyzw(optical_rotation(np.radians(0.02 * t_ms), np.radians(-35.0), 0.0)))
+        return StampedPose(t_ms * ms, (0.01 * t_ms, 0.0, 40.0), (qx, qy, qz, qw), "map")
+
+    def send_pose(t_ms: int) -> None:
+        p = pose_at(t_ms)
+        (x, y, z), (qx, qy, qz, qw) = p.position, p.orientation_xyzw
+        pubs["pose"].publish(PoseStamped(header=Header(stamp=stamp(t_ms * ms), frame_id="map"), pose=Pose(
+            position=Point(x=x, y=y, z=z), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))))
+
+    def send_image(t_ms: int) -> None:
+        t = stamp(t_ms * ms)
+        pubs["info"].publish(CameraInfo(header=Header(stamp=t), width=CAMERA.width, height=CAMERA.height,
+                                        k=CAMERA.K.ravel().tolist()))
+        dets = Detections(Stamp(t.sec, t.nanosec), "drone_0/camera_optical", CAMERA.width, CAMERA.height,
+                          (Detection((box[0], box[1], box[2], box[3]), 0.9),))
+        pubs["det"].publish(detection_array_msg(detection_array_type(), Header(stamp=t), dets))
+
+    try:
+        with node_process("locator", {"drones": ["drone_0"], "diagnostics_period_s": 0.2, "place_by": "ground",
+                                      "ground_z": 0.0, "pose_max_gap_s": 0.15}, domain, log):
+            others = [pubs[k] for k in ("det", "info", "pose")]
+            assert peer.spin(lambda: all(node.count_subscribers(p.topic_name) for p in others)
+                             and node.count_publishers("/drone_0/detections/located"), 60), log.read_text()
+            peer.spin(lambda: False, 0.5)
+            for t_ms in (900, 1000):
+                send_pose(t_ms)
+            send_image(1050)  # after the latest pose: it waits for the next
+            assert not peer.spin(lambda: bool(got), 1.0)
+            send_pose(1100)
+            assert peer.spin(lambda: bool(got), 20), log.read_text()
+            send_image(1600)  # 500 ms after the latest pose: no pose can be had for it
+            assert peer.spin(lambda: any(s["values"].get("unmatched") == "1" for s in status), 20), status[-1:]
+            assert status[-1]["values"]["pose_max_gap_s"] == "0.15"
+    finally:
+        peer.close()
+    (msg,) = got
+    track = PoseTrack(150 * ms)
+    for t_ms in (900, 1000, 1100):
+        track.add(pose_at(t_ms))
+    mid = track.at(1050 * ms)
+    assert isinstance(mid, StampedPose) and mid.position == pytest.approx((10.5, 0.0, 40.0))
+    want = locate_on_ground(np.array([box]), CAMERA.K, mid.position, mid.orientation_xyzw, 0.0)
+    p = msg.detections[0].bbox.center.position
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (1, 50 * ms)
+    assert [p.x, p.y, p.z] == pytest.approx(want.points[0].tolist(), abs=1e-4)
+    assert "no poses within pose_max_gap_s (0.15 s) about stamp 1600000000" in log.read_text()
 
 
 @pytest.mark.integration

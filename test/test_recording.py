@@ -385,12 +385,13 @@ def _census_bag(path: Path, views: dict[str, dict[int, np.ndarray]], poses: bool
                 recorded: dict[int, int] | None = None, ns: str = "", ids: dict[str, int] | None = None,
                 scenes: dict[int, str] | None = None, located: str = "detections/located",
                 census: str = "census/animals", pose: str = "camera/pose",
-                reports: dict[str, dict[str, str]] | None = None) -> Path:
+                reports: dict[str, dict[str, str]] | None = None, pose_around_ns: int = 0) -> Path:
     """A bag as up --locate records it, less the images: per camera and stamp its placed zebras (a
     Detection3DArray on ``<camera>/<located>``, scores 0.9, 0.8 ..., ids from ``ids[camera]`` up where given, else
     none) and its pose on ``<camera>/<pose>`` (the camera 60 m up, 80 m from the origin along its name's order), the
     locator's census of some stamps (on ``census``), the placer's scenes (JSON by stamp) where given, and
-    ``reports`` on /diagnostics (status name: its values) where given."""
+    ``reports`` on /diagnostics (status name: its values) where given. With ``pose_around_ns``, the poses are
+    stamped that long before and after each image instead (a source at its own rate)."""
     from geometry_msgs.msg import Point, Pose, PoseStamped
 
     from zebra_sim_ros.nodes.ros_adapter import detection3d_array_type, message_class, stamp
@@ -411,8 +412,10 @@ def _census_bag(path: Path, views: dict[str, dict[int, np.ndarray]], poses: bool
             w.write(f"{ns}/{cam}/{located}", serialize_message(message_class(kind)(header=h, detections=dets)), t)
             if poses:
                 angle = 2.1 * i
-                w.write(f"{ns}/{cam}/{pose}", serialize_message(PoseStamped(header=h, pose=Pose(position=Point(
-                    x=80 * np.cos(angle), y=80 * np.sin(angle), z=60.0)))), t)
+                for at in ((t - pose_around_ns, t + pose_around_ns) if pose_around_ns else (t,)):
+                    w.write(f"{ns}/{cam}/{pose}", serialize_message(PoseStamped(
+                        header=Header(stamp=stamp(at), frame_id="map"),
+                        pose=Pose(position=Point(x=80 * np.cos(angle), y=80 * np.sin(angle), z=60.0)))), at)
     if scenes:
         w.add_channel(f"{ns}/zebra_sim/scene", "std_msgs/msg/String", [])
         for t, text in scenes.items():
@@ -472,6 +475,14 @@ def test_a_recorded_census_is_counted_again_from_the_bag(tmp_path: Path) -> None
     no_poses = _census_bag(tmp_path / "no_poses.mcap", views, poses=False)
     with pytest.raises(ParameterError, match="camera/pose"):
         bag_census(no_poses)
+    # poses at their own rate, 50 ms either side of each image: none has an image's stamp; interpolated between the
+    # two about it (the locator's pose_max_gap_s) they give the same census; farther apart than allowed, none
+    around = _census_bag(tmp_path / "around.mcap", views, recorded={s1: 11, s2: 4}, pose_around_ns=50_000_000)
+    with pytest.raises(ParameterError, match="camera/pose"):
+        bag_census(around)
+    assert bag_census(around, {"pose_max_gap_s": 0.2})["recounted"] == got["recounted"]
+    with pytest.raises(ParameterError, match="camera/pose"):
+        bag_census(around, {"pose_max_gap_s": 0.05})
     two = _census_bag(tmp_path / "g1.mcap", {"drone_0": views["north"]}, ns="/g1")
     other = _census_bag(tmp_path / "g2.mcap", {"drone_0": views["south"]}, ns="/g2")
     with pytest.raises(ParameterError, match="2 namespaces: /g1, /g2"):

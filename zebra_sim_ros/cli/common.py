@@ -75,9 +75,10 @@ def count_option(p: argparse.ArgumentParser) -> None:
 
 def census_options(p: argparse.ArgumentParser) -> None:
     """``--census-along``, ``--census-across``, ``--census-gate``, ``--census-separation``, ``--drones``, ``--output``,
-    ``--census-output`` and ``--pose``, mirroring the locator node's census parameters and the topics it published
-    and read its poses from (``bag census``): the same names and ranges; not given (None), the bag's locator's, as it
-    reported them on /diagnostics, else the parameter's default."""
+    ``--census-output``, ``--pose`` and ``--pose-max-gap-s``, mirroring the locator node's census parameters, the
+    topics it published and read its poses from and how it matched them to images (``bag census``): the same names
+    and ranges; not given (None), the bag's locator's, as it reported them on /diagnostics, else the parameter's
+    default."""
     from zebra_sim_ros.detection.config import CENSUS_READS, CENSUS_RULE, LocatorConfig
     from zebra_sim_ros.params import add_option, spec_of
 
@@ -85,9 +86,12 @@ def census_options(p: argparse.ArgumentParser) -> None:
     for name in CENSUS_RULE:
         add_option(p, spec_of(LocatorConfig, name), default=None, note=followed)
     for name in CENSUS_READS:
-        add_option(p, spec_of(LocatorConfig, name), default=None, note=("here: the poses the bag's locator placed "
-                   "its detections from, read back for the cameras' positions" if name == "pose" else
-                   "here: the topic the bag's locator published it on") + f"; {followed}")
+        note = {"pose": "here: the poses the bag's locator placed its detections from, read back for the cameras' "
+                        "positions",
+                "pose_max_gap_s": "here: how it matched those poses to its images (above 0: each image's camera "
+                                  "position interpolated between two poses)"}.get(
+            name, "here: the topic the bag's locator published it on")
+        add_option(p, spec_of(LocatorConfig, name), default=None, note=f"{note}; {followed}")
     add_option(p, spec_of(LocatorConfig, "drones"), default=None,
                note="here: the bag's cameras, joined in this order (not given: the bag's locator's order, from its "
                     "/diagnostics, else the bag's cameras, drone_2 before drone_10, as up orders them)")

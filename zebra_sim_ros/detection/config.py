@@ -203,6 +203,10 @@ class LocatorConfig(StageConfig):
                                      lo=0.0, hi=100.0, runtime=True)
     sync_window: int = param(20, "stamps kept while waiting for their missing inputs (all cameras' together)",
                              lo=1, hi=1000)
+    pose_max_gap_s: float = param(0.0, "0: each image's pose has the image's stamp (the placer's, one per image); "
+                                  "more: poses come at their own rate (a drone's odometry), and an image's is "
+                                  "interpolated between the poses about its stamp where they are at most this far "
+                                  "apart", "s", lo=0.0, hi=10.0)
     pose_transient_local: bool = param(False, "subscribe the poses (pose) transient local: a locator that matches its "
                                        "publisher late still gets the last qos_depth poses (the publisher must be "
                                        "transient local too, as the placer's is, or no pose arrives; zebra-sim up "
@@ -250,7 +254,8 @@ class LocatorConfig(StageConfig):
 
 LOCATOR_PARAMS: tuple[ParamSpec, ...] = LocatorConfig.specs()
 CENSUS_RULE = ("census_along", "census_across", "census_gate", "census_separation")  # how the census joins views
-CENSUS_READS = ("output", "census_output", "pose")  # the locator's topic parameters a bag census reads back
+# what a bag census reads back as the locator read and wrote it: its topics, and how it matched poses to images
+CENSUS_READS = ("output", "census_output", "pose", "pose_max_gap_s")
 
 
 def distinct_outputs(image_topics: Sequence[str], resolve: Callable[[str], str] = lambda t: t) -> None:

@@ -10,7 +10,7 @@ moves each step (``/tf``).
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from zebra_sim_ros.geometry.rotations import matrix_to_quat, quat_to_matrix
 
@@ -47,3 +47,19 @@ def body_orientation(optical_xyzw: tuple[float, float, float, float]) -> tuple[f
     """The body's orientation in ``map`` ([x, y, z, w]) of a camera whose optical frame has ``optical_xyzw``: the
     body with ``/tf_static``'s OPTICAL_IN_BASE gives the optical frame back."""
     return matrix_to_xyzw(xyzw_to_matrix(optical_xyzw) @ OPTICAL_IN_BASE.T)
+
+
+def slerp_xyzw(q0: ArrayLike, q1: ArrayLike, f: float) -> FloatArray:
+    """The rotation ``f`` of the way from ROS quaternion ``q0`` to ``q1`` ([x, y, z, w]; normalised first) along
+    the shorter arc: spherical linear interpolation, a unit quaternion."""
+    a = np.asarray(q0, dtype=np.float64) / np.linalg.norm(q0)
+    b = np.asarray(q1, dtype=np.float64) / np.linalg.norm(q1)
+    dot = float(a @ b)
+    if dot < 0.0:  # q and -q are one rotation: the shorter way round
+        b, dot = -b, -dot
+    if dot > 1.0 - 1e-9:  # (nearly) the same rotation: a straight line is as good and has no 0 / 0
+        q = a + f * (b - a)
+    else:
+        theta = float(np.arccos(dot))
+        q = (np.sin((1.0 - f) * theta) * a + np.sin(f * theta) * b) / np.sin(theta)
+    return np.asarray(q / np.linalg.norm(q))

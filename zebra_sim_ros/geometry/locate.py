@@ -10,13 +10,14 @@ metres along the optical axis (REP 118: +inf, NaN or 0 where nothing is measured
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from zebra_sim_ros.errors import ParameterError
-from zebra_sim_ros.geometry.frames import xyzw_to_matrix
+from zebra_sim_ros.geometry.frames import slerp_xyzw, xyzw_to_matrix
 from zebra_sim_ros.geometry.lens import Distortion
 
 FloatArray = NDArray[np.float64]
@@ -177,6 +178,56 @@ def locate_on_ground(boxes: FloatArray, k: FloatArray, position: FloatArray, ori
     with np.errstate(divide="ignore", invalid="ignore"):
         d = (level - position[2]) / rise
     return _located(boxes, k, xs, ys, np.where(np.isfinite(d) & (d > 0), d, np.nan), position, r)
+
+
+@dataclass(frozen=True)
+class StampedPose:
+    """A camera's pose at a stamp: its optical frame's position and orientation ([x, y, z, w]) in ``frame``."""
+
+    stamp_ns: int
+    position: tuple[float, float, float]
+    orientation_xyzw: tuple[float, float, float, float]
+    frame: str
+
+
+class PoseTrack:
+    """One camera's latest poses from a source at its own rate (a drone's odometry, not one pose per image), to
+    give the pose at an image's stamp: interpolated between the latest pose at or before it and the earliest after
+    it (position linearly, orientation by :func:`~zebra_sim_ros.geometry.frames.slerp_xyzw`) where those two are at
+    most ``max_gap_ns`` apart. Keeps the ``keep`` latest poses by stamp."""
+
+    def __init__(self, max_gap_ns: int, keep: int = 2000) -> None:
+        self.max_gap_ns, self.keep = max_gap_ns, keep
+        self.stamps: list[int] = []
+        self.poses: list[StampedPose] = []
+
+    def add(self, pose: StampedPose) -> None:
+        """Hold ``pose`` in stamp order (one of a stamp already held replaces it)."""
+        i = bisect.bisect_left(self.stamps, pose.stamp_ns)
+        if i < len(self.stamps) and self.stamps[i] == pose.stamp_ns:
+            self.poses[i] = pose
+            return
+        self.stamps.insert(i, pose.stamp_ns)
+        self.poses.insert(i, pose)
+        if len(self.stamps) > self.keep:
+            del self.stamps[0], self.poses[0]
+
+    def at(self, t: int) -> StampedPose | None | bool:
+        """The pose at stamp ``t``; True where a later pose may still give it (none held yet, or the latest before
+        ``t`` by ``max_gap_ns`` or less: wait); None where none can (``t`` before the poses held, after the latest by
+        more than ``max_gap_ns``, or between two farther apart than that)."""
+        i = bisect.bisect_left(self.stamps, t)
+        if i < len(self.stamps) and self.stamps[i] == t:
+            return self.poses[i]
+        if i == len(self.stamps):  # after every pose held (or none yet): a later one may come
+            return True if not self.stamps or t - self.stamps[-1] <= self.max_gap_ns else None
+        if i == 0 or self.stamps[i] - self.stamps[i - 1] > self.max_gap_ns:
+            return None
+        a, b = self.poses[i - 1], self.poses[i]
+        f = (t - a.stamp_ns) / (b.stamp_ns - a.stamp_ns)
+        x, y, z = (float(u + f * (v - u)) for u, v in zip(a.position, b.position, strict=True))
+        qx, qy, qz, qw = (float(v) for v in slerp_xyzw(a.orientation_xyzw, b.orientation_xyzw, f))
+        return StampedPose(t, (x, y, z), (qx, qy, qz, qw), b.frame)
 
 
 def nearest_distances(points: FloatArray, targets: FloatArray) -> FloatArray:

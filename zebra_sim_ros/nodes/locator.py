@@ -18,7 +18,10 @@ with the image's stamp:
   depth 0); ``id`` its index in the detections message. A box with no measured depth in its core (sky, outside
   the image) is left out and counted (``unplaced``). A camera's frames before its first camera_info wait for it
   (within ``sync_window``); a pose that is not finite, or a depth image of another size than camera_info's, is a
-  bad message. With ``place_by: ground`` (a camera without depth) no depth is subscribed: the point is where the
+  bad message. With ``pose_max_gap_s`` above 0 poses come at their own rate (a drone's odometry) and an image's is
+  interpolated between the poses about its stamp (:class:`zebra_sim_ros.geometry.locate.PoseTrack`): a frame waits
+  for a pose after its stamp, and one with no two poses at most that far apart about it is unmatched.
+  With ``place_by: ground`` (a camera without depth) no depth is subscribed: the point is where the
   ray through the box's centre meets the level plane ``centre_height`` above ``ground_z``
   (:func:`zebra_sim_ros.geometry.locate.locate_on_ground`); a box whose ray does not go down to it is unplaced.
 
@@ -59,7 +62,14 @@ from zebra_sim_ros.detection.config import CENSUS_RULE, LOCATOR_PARAMS, LocatorC
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.geometry.census import Census
 from zebra_sim_ros.geometry.lens import Distortion
-from zebra_sim_ros.geometry.locate import Located, intrinsics, locate_boxes, locate_on_ground
+from zebra_sim_ros.geometry.locate import (
+    Located,
+    PoseTrack,
+    StampedPose,
+    intrinsics,
+    locate_boxes,
+    locate_on_ground,
+)
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Detections
 from zebra_sim_ros.nodes.ros_adapter import (
@@ -195,8 +205,12 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         pose_q = qos(c.qos_reliability, c.qos_depth, transient_local=c.pose_transient_local)
         self.out_type = detection3d_array_type()
         out_class = message_class(self.out_type)
-        # what each stamp of a camera needs (camera_info: the latest)
-        self.frames = FrameParts(c.sync_window, ("detections", "pose") + (("depth",) if c.place_by == "depth" else ()))
+        # what each stamp of a camera needs (camera_info: the latest; a pose of its own stamp, or one interpolated
+        # from the camera's pose track)
+        self.tracks = {d: PoseTrack(int(round(c.pose_max_gap_s * 1e9))) for d in c.drones} if c.pose_max_gap_s else {}
+        self.awaiting: dict[str, dict[int, dict[str, Any]]] = {d: {} for d in c.drones}  # frames waiting for a pose
+        self.frames = FrameParts(c.sync_window, ("detections",) + (("depth",) if c.place_by == "depth" else ())
+                                 + (() if self.tracks else ("pose",)))
         self.info: dict[str, tuple[np.ndarray, int, int, Distortion | None]] = {}  # drone: its latest K (3x3),
         # width, height and lens (None: an ideal pinhole)
         self.stats = {"frames": 0, "placed": 0, "unplaced": 0, "unmatched": 0, "bad_messages": 0, "census": 0,
@@ -216,7 +230,8 @@ class LocatorNode(ZebraNode[LocatorConfig]):
             self.create_subscription(det_class, f"{d}/{c.detections}", self._on_detections(d), q, raw=True)
             if c.place_by == "depth":
                 self.create_subscription(Image, f"{d}/depth", self._on_part(d, "depth"), image_q)
-            self.create_subscription(PoseStamped, f"{d}/{c.pose}", self._on_part(d, "pose"), pose_q)
+            self.create_subscription(PoseStamped, f"{d}/{c.pose}",
+                                     self._on_track(d) if self.tracks else self._on_part(d, "pose"), pose_q)
             self.create_subscription(CameraInfo, f"{d}/camera_info", self._on_info(d), image_q)
             self.pubs[d] = self.create_publisher(out_class, f"{d}/{c.output}", q)
         self.census_pub = self.create_publisher(out_class, c.census_output, q) if c.census else None
@@ -255,6 +270,15 @@ class LocatorNode(ZebraNode[LocatorConfig]):
             self._put(drone, part, stamp_ns(msg.header.stamp), msg)
         return on_part
 
+    def _on_track(self, drone: str) -> Any:
+        def on_pose(msg: PoseStamped) -> None:
+            p, o = msg.pose.position, msg.pose.orientation
+            self.tracks[drone].add(StampedPose(stamp_ns(msg.header.stamp), (p.x, p.y, p.z), (o.x, o.y, o.z, o.w),
+                                               msg.header.frame_id))
+            for t in sorted(self.awaiting[drone]):  # the frames that waited for a pose after their stamp
+                self._posed(drone, t, self.awaiting[drone].pop(t))
+        return on_pose
+
     def _put(self, drone: str, part: str, t: int, value: Any) -> None:
         self.skip_unmatched(self.stats, self.frames.put(t, drone, part, value))
         self._try(drone, t)
@@ -263,12 +287,38 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         got = self.frames.take(t, drone) if drone in self.info else None
         if got is None:
             return
+        if not self.tracks:  # the pose of the image's own stamp
+            pose: PoseStamped = got["pose"]
+            p, o = pose.pose.position, pose.pose.orientation
+            self._place(drone, t, got, StampedPose(t, (p.x, p.y, p.z), (o.x, o.y, o.z, o.w), pose.header.frame_id))
+            return
+        self._posed(drone, t, got)
+
+    def _posed(self, drone: str, t: int, got: dict[str, Any]) -> None:
+        """Place a frame at its pose interpolated from the camera's track, or hold it until a later pose comes (the
+        oldest held dropped past ``sync_window`` and counted unmatched); one no pose can be given is unmatched."""
+        at = self.tracks[drone].at(t)
+        if isinstance(at, StampedPose):
+            self._place(drone, t, got, at)
+        elif at is True:
+            held = self.awaiting[drone]
+            held[t] = got
+            while len(held) > self.cfg.sync_window:
+                oldest = min(held)
+                del held[oldest]
+                self.skip_unmatched(self.stats, [(oldest, drone)])
+        else:
+            self.stats["unmatched"] += 1
+            self.get_logger().warning(f"{drone}: no poses within pose_max_gap_s ({self.cfg.pose_max_gap_s:g} s) about "
+                                      f"stamp {t}: not placed ({self.stats['unmatched']} unmatched so far)")
+
+    def _place(self, drone: str, t: int, got: dict[str, Any], pose: StampedPose) -> None:
+        """Place a camera's frame of stamp ``t`` (its parts ``got``) from ``pose``; publish it and hold it for the
+        census; a frame it cannot place is a bad message."""
         t0 = time.perf_counter()
         dets: Detections = got["detections"]
-        pose: PoseStamped = got["pose"]
-        p, o = pose.pose.position, pose.pose.orientation
-        orientation = (o.x, o.y, o.z, o.w)
-        position = np.array([p.x, p.y, p.z])
+        orientation = pose.orientation_xyzw
+        position = np.array(pose.position)
         try:
             k, width, height, distortion = self.info[drone]
             boxes = np.array([x.box_xyxy for x in dets.detections], np.float64).reshape(-1, 4)
@@ -288,10 +338,10 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         except (ZebraSimError, ValueError, TypeError, IndexError, ArithmeticError) as exc:
             self.skip_bad(self.stats, f"{drone} stamp {t}", exc)
             return
-        self.pubs[drone].publish(located_msg(self.out_type, Header(stamp=stamp(t), frame_id=pose.header.frame_id),
+        self.pubs[drone].publish(located_msg(self.out_type, Header(stamp=stamp(t), frame_id=pose.frame),
                                              dets, where, orientation))
         if self.census_pub is not None:
-            self._census(t, drone, dets, where, position, pose.header.frame_id)
+            self._census(t, drone, dets, where, position, pose.frame)
         placed = int(where.valid.sum())
         self.stats["frames"] += 1
         self.stats["placed"] += placed
@@ -354,6 +404,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         waiting = f"waiting for camera_info of {', '.join(missing)}" if missing else ""
         c = self.cfg
         info = {"drones": ", ".join(c.drones), "output": c.output, "pose": c.pose,
+                "pose_max_gap_s": repr(c.pose_max_gap_s),
                 "place_by": c.place_by if c.place_by == "depth" else
                 f"ground at z {c.ground_z:g} m, centres {c.centre_height:g} m above it"}
         if c.census:  # what a bag census follows (recording.census.bag_census): names as the parameters'

@@ -25,6 +25,7 @@ from zebra_sim_ros.detection.config import CENSUS_READS, CENSUS_RULE, LocatorCon
 from zebra_sim_ros.detection.scoring import DroneFrames
 from zebra_sim_ros.errors import ParameterError, ZebraSimError
 from zebra_sim_ros.geometry.geodesy import enu_to_geodetic
+from zebra_sim_ros.geometry.locate import PoseTrack, StampedPose
 from zebra_sim_ros.messages import Datum, Scene
 from zebra_sim_ros.params import spec_of, validate
 from zebra_sim_ros.placement.config import SCENE_TOPIC
@@ -162,7 +163,7 @@ def _locator_settings(reports: Mapping[str, Mapping[str, str]],
     for key in (*CENSUS_RULE, *CENSUS_READS):
         if key in values and key not in given:
             try:
-                value = float(values[key]) if key in CENSUS_RULE else values[key]
+                value = float(values[key]) if isinstance(spec_of(LocatorConfig, key).default, float) else values[key]
                 out[key] = validate([spec_of(LocatorConfig, key)], {key: value})[key]
             except (ValueError, ParameterError):
                 continue  # not this version's: the default
@@ -241,6 +242,14 @@ def bag_census(paths: list[str | Path] | str | Path, settings: Mapping[str, Any]
     for topic, posed_by_stamp in posed.items():
         if owner := topic_owner(topic, (rule.pose,)):
             poses.update(((last_name(owner[0]), t), at) for t, at in posed_by_stamp.items())
+            if rule.pose_max_gap_s:  # poses at their own rate: each image's camera position between two of them
+                track = PoseTrack(int(round(rule.pose_max_gap_s * 1e9)))
+                for t, at in posed_by_stamp.items():
+                    track.add(StampedPose(t, at, (0.0, 0.0, 0.0, 1.0), ""))
+                drone = last_name(owner[0])
+                for d, t in located:
+                    if d == drone and isinstance(got := track.at(t), StampedPose):
+                        poses[(d, t)] = got.position
     bag = [str(p) for p in (paths if isinstance(paths, list) else [paths])]
     if not located:
         raise ParameterError("bag", bag, f"a bag with placed detections (<drone>/{rule.output}: recorded by up "
