@@ -18,7 +18,14 @@ from visualization_msgs.msg import Marker, MarkerArray
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import PinholeCamera, map_to_optical, optical_rotation
 from zebra_sim_ros.geometry.lens import Distortion
-from zebra_sim_ros.geometry.locate import PoseTrack, StampedPose, box_depths, locate_boxes, locate_on_ground
+from zebra_sim_ros.geometry.locate import (
+    PoseTrack,
+    StampedPose,
+    box_depths,
+    locate_boxes,
+    locate_on_ground,
+    positions_at,
+)
 from zebra_sim_ros.geometry.rotations import matrix_to_quat
 from zebra_sim_ros.messages import Detection, Detections, Stamp
 from zebra_sim_ros.nodes.ros_adapter import (
@@ -100,6 +107,16 @@ def test_a_pose_track_gives_the_pose_between_two_poses_or_says_to_wait() -> None
     for t in (600, 700, 800):
         track.add(StampedPose(t * ms, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), "map"))
     assert track.stamps == [500 * ms, 600 * ms, 700 * ms, 800 * ms]  # four kept
+    track.add(StampedPose(750 * ms, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0, 1.0), "map"))  # late, in its place
+    assert track.stamps == [600 * ms, 700 * ms, 750 * ms, 800 * ms]
+    track.add(StampedPose(2500 * ms, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0, 1.0), "map"))
+    track.add(StampedPose(10 * ms, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0, 1.0), "map"))  # over 1 s back: a new track
+    assert track.stamps == [10 * ms] and track.at(800 * ms) is None
+    # a recording's positions at the images' stamps: between two poses, exact, or none (NaN)
+    stamps = [100 * ms, 200 * ms, 500 * ms]
+    got = positions_at(stamps, np.array([[0.0, 0, 10], [10.0, 0, 10], [40.0, 0, 10]]), [150 * ms, 200 * ms,
+                                                                                         300 * ms, 900 * ms], 150 * ms)
+    assert got[:2] == pytest.approx(np.array([[5.0, 0, 10], [10.0, 0, 10]])) and np.isnan(got[2:]).all()
 
 
 def yaw_xyzw(yaw_deg: float) -> tuple[float, float, float, float]:
@@ -352,6 +369,16 @@ def test_the_locator_undoes_the_lens_camera_info_gives_over_dds(tmp_path: Path) 
     assert "equidistant" in log.read_text()
 
 
+def _send_frame(pubs: dict[str, Any], t: Any, box: list[float]) -> None:
+    """drone_0's camera_info and one detection (``box``, score 0.9) of stamp ``t``, on ``_one_camera_peer``'s
+    publishers."""
+    pubs["info"].publish(CameraInfo(header=Header(stamp=t), width=CAMERA.width, height=CAMERA.height,
+                                    k=CAMERA.K.ravel().tolist()))
+    dets = Detections(Stamp(t.sec, t.nanosec), "drone_0/camera_optical", CAMERA.width, CAMERA.height,
+                      (Detection((box[0], box[1], box[2], box[3]), 0.9),))
+    pubs["det"].publish(detection_array_msg(detection_array_type(), Header(stamp=t), dets))
+
+
 @pytest.mark.integration
 def test_the_locator_places_by_the_ground_without_depth_over_dds(tmp_path: Path) -> None:
     """``place_by: ground``: no depth subscribed; detections, camera_info and pose alone are placed where each box's
@@ -372,14 +399,10 @@ def test_the_locator_places_by_the_ground_without_depth_over_dds(tmp_path: Path)
 
     def send(sec: int) -> None:
         t = stamp(sec * 10**9)
-        pubs["info"].publish(CameraInfo(header=Header(stamp=t), width=CAMERA.width, height=CAMERA.height,
-                                        k=CAMERA.K.ravel().tolist()))
         pubs["pose"].publish(PoseStamped(header=Header(stamp=t, frame_id="map"), pose=Pose(
             position=Point(x=position[0], y=position[1], z=position[2]),
             orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))))
-        dets = Detections(Stamp(sec, 0), "drone_0/camera_optical", CAMERA.width, CAMERA.height,
-                          (Detection((box[0], box[1], box[2], box[3]), 0.9),))
-        pubs["det"].publish(detection_array_msg(detection_array_type(), Header(stamp=t), dets))
+        _send_frame(pubs, t, box)
 
     try:
         with node_process("locator", {"drones": ["drone_0"], "diagnostics_period_s": 0.2, "place_by": "ground",
@@ -433,12 +456,7 @@ def test_the_locator_interpolates_poses_that_come_at_their_own_rate_over_dds(tmp
             position=Point(x=x, y=y, z=z), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))))
 
     def send_image(t_ms: int) -> None:
-        t = stamp(t_ms * ms)
-        pubs["info"].publish(CameraInfo(header=Header(stamp=t), width=CAMERA.width, height=CAMERA.height,
-                                        k=CAMERA.K.ravel().tolist()))
-        dets = Detections(Stamp(t.sec, t.nanosec), "drone_0/camera_optical", CAMERA.width, CAMERA.height,
-                          (Detection((box[0], box[1], box[2], box[3]), 0.9),))
-        pubs["det"].publish(detection_array_msg(detection_array_type(), Header(stamp=t), dets))
+        _send_frame(pubs, stamp(t_ms * ms), box)
 
     try:
         with node_process("locator", {"drones": ["drone_0"], "diagnostics_period_s": 0.2, "place_by": "ground",

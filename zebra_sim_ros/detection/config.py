@@ -225,6 +225,11 @@ class LocatorConfig(StageConfig):
                           self.census_separation, scores)
 
     @property
+    def pose_max_gap_ns(self) -> int:
+        """``pose_max_gap_s`` in nanoseconds, the stamps' unit (0: each image's pose has its stamp)."""
+        return int(round(self.pose_max_gap_s * 1e9))
+
+    @property
     def inputs(self) -> tuple[str, ...]:
         """The topics it reads under each camera: its detections, depth (with ``place_by`` depth), camera_info and
         camera pose (the node subscribes these, up waits for them)."""

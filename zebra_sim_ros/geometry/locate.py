@@ -11,6 +11,7 @@ metres along the optical axis (REP 118: +inf, NaN or 0 where nothing is measured
 from __future__ import annotations
 
 import bisect
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -161,7 +162,7 @@ def locate_on_ground(boxes: FloatArray, k: FloatArray, position: FloatArray, ori
     centre meets the level plane ``centre_height`` above the ground at height ``ground_z`` (an animal's body centre
     over flat ground: the flat-ground georeferencing of an aerial survey; either may also be given per box), the
     camera, lens and ValueErrors as :func:`locate_boxes`'. A box whose ray does not go down to that plane in front
-    of the camera (at or above the horizon) gets no point. The error grows as the ground departs from the plane: a
+    of the camera (at or above the horizon, for a camera above it) gets no point. The error grows as the ground departs from the plane: a
     metre of height moves the point a metre over the tangent of the ray's depression (2.7 m at 20 deg)."""
     k = intrinsics(k)
     position, r = _pose(position, orientation_xyzw)
@@ -190,44 +191,77 @@ class StampedPose:
     frame: str
 
 
+def bracket(stamps: Sequence[int], t: int, max_gap_ns: int) -> tuple[int, float] | bool | None:
+    """Where stamp ``t`` falls among sorted ``stamps``, to interpolate at it: ``(i, f)``, ``t`` a share ``f`` of the
+    way from ``stamps[i]`` to ``stamps[i + 1]`` (``f`` 0 and the next index unused where ``t`` is ``stamps[i]``),
+    the two at most ``max_gap_ns`` apart; True where a later stamp may still bracket it (none yet, or ``t`` after the
+    latest by ``max_gap_ns`` or less: wait); None where none can (``t`` before the first, after the latest by more
+    than ``max_gap_ns``, or between two farther apart than that)."""
+    i = bisect.bisect_left(stamps, t)
+    if i < len(stamps) and stamps[i] == t:
+        return i, 0.0
+    if i == len(stamps):  # after every stamp (or none yet): a later one may come
+        return True if not stamps or t - stamps[-1] <= max_gap_ns else None
+    if i == 0 or stamps[i] - stamps[i - 1] > max_gap_ns:
+        return None
+    return i - 1, (t - stamps[i - 1]) / (stamps[i] - stamps[i - 1])
+
+
+JUMP_BACK_NS = 10**9  # a pose this much older than the newest held: the clock went back (a restart, another bag)
+
+
 class PoseTrack:
     """One camera's latest poses from a source at its own rate (a drone's odometry, not one pose per image), to
-    give the pose at an image's stamp: interpolated between the latest pose at or before it and the earliest after
-    it (position linearly, orientation by :func:`~zebra_sim_ros.geometry.frames.slerp_xyzw`) where those two are at
-    most ``max_gap_ns`` apart. Keeps the ``keep`` latest poses by stamp."""
+    give the pose at an image's stamp: interpolated (:func:`bracket`) between the latest pose at or before it and
+    the earliest after it (position linearly, orientation by :func:`~zebra_sim_ros.geometry.frames.slerp_xyzw`)
+    where those two are at most ``max_gap_ns`` apart. Keeps the ``keep`` latest poses by stamp (None: all); a pose
+    over :data:`JUMP_BACK_NS` older than the newest starts the track again, as tf2's buffer does when time jumps
+    back (a looping replay, a restarted source)."""
 
-    def __init__(self, max_gap_ns: int, keep: int = 2000) -> None:
+    def __init__(self, max_gap_ns: int, keep: int | None = 2000) -> None:
         self.max_gap_ns, self.keep = max_gap_ns, keep
         self.stamps: list[int] = []
         self.poses: list[StampedPose] = []
 
     def add(self, pose: StampedPose) -> None:
         """Hold ``pose`` in stamp order (one of a stamp already held replaces it)."""
+        if self.stamps and pose.stamp_ns < self.stamps[-1] - JUMP_BACK_NS:
+            self.stamps, self.poses = [], []
         i = bisect.bisect_left(self.stamps, pose.stamp_ns)
         if i < len(self.stamps) and self.stamps[i] == pose.stamp_ns:
             self.poses[i] = pose
             return
         self.stamps.insert(i, pose.stamp_ns)
         self.poses.insert(i, pose)
-        if len(self.stamps) > self.keep:
+        if self.keep is not None and len(self.stamps) > self.keep:
             del self.stamps[0], self.poses[0]
 
-    def at(self, t: int) -> StampedPose | None | bool:
-        """The pose at stamp ``t``; True where a later pose may still give it (none held yet, or the latest before
-        ``t`` by ``max_gap_ns`` or less: wait); None where none can (``t`` before the poses held, after the latest by
-        more than ``max_gap_ns``, or between two farther apart than that)."""
-        i = bisect.bisect_left(self.stamps, t)
-        if i < len(self.stamps) and self.stamps[i] == t:
-            return self.poses[i]
-        if i == len(self.stamps):  # after every pose held (or none yet): a later one may come
-            return True if not self.stamps or t - self.stamps[-1] <= self.max_gap_ns else None
-        if i == 0 or self.stamps[i] - self.stamps[i - 1] > self.max_gap_ns:
-            return None
-        a, b = self.poses[i - 1], self.poses[i]
-        f = (t - a.stamp_ns) / (b.stamp_ns - a.stamp_ns)
+    def at(self, t: int) -> StampedPose | bool | None:
+        """The pose at stamp ``t``; True to wait for a later pose, None where none can be had (:func:`bracket`)."""
+        where = bracket(self.stamps, t, self.max_gap_ns)
+        if not isinstance(where, tuple):
+            return where
+        i, f = where
+        a = self.poses[i]
+        if f == 0.0:
+            return a
+        b = self.poses[i + 1]
         x, y, z = (float(u + f * (v - u)) for u, v in zip(a.position, b.position, strict=True))
         qx, qy, qz, qw = (float(v) for v in slerp_xyzw(a.orientation_xyzw, b.orientation_xyzw, f))
         return StampedPose(t, (x, y, z), (qx, qy, qz, qw), b.frame)
+
+
+def positions_at(stamps: Sequence[int], positions: FloatArray, at: Sequence[int], max_gap_ns: int) -> FloatArray:
+    """(N, 3) positions at each stamp of ``at``, interpolated linearly between the two of sorted ``stamps`` (their
+    ``positions``) about it where :func:`bracket` finds them; NaN where it does not (a recording: nothing more to
+    wait for)."""
+    out = np.full((len(at), 3), np.nan)
+    for k, t in enumerate(at):
+        where = bracket(stamps, t, max_gap_ns)
+        if isinstance(where, tuple):
+            i, f = where
+            out[k] = positions[i] if f == 0.0 else positions[i] + f * (positions[i + 1] - positions[i])
+    return out
 
 
 def nearest_distances(points: FloatArray, targets: FloatArray) -> FloatArray:

@@ -20,7 +20,8 @@ with the image's stamp:
   (within ``sync_window``); a pose that is not finite, or a depth image of another size than camera_info's, is a
   bad message. With ``pose_max_gap_s`` above 0 poses come at their own rate (a drone's odometry) and an image's is
   interpolated between the poses about its stamp (:class:`zebra_sim_ros.geometry.locate.PoseTrack`): a frame waits
-  for a pose after its stamp, and one with no two poses at most that far apart about it is unmatched.
+  for a pose after its stamp (a camera's ``sync_window`` latest frames are held), and one with no two poses at most
+  that far apart about it is unmatched.
   With ``place_by: ground`` (a camera without depth) no depth is subscribed: the point is where the
   ray through the box's centre meets the level plane ``centre_height`` above ``ground_z``
   (:func:`zebra_sim_ros.geometry.locate.locate_on_ground`); a box whose ray does not go down to it is unplaced.
@@ -88,6 +89,7 @@ from zebra_sim_ros.nodes.ros_adapter import (
     run_node,
     stamp,
     stamp_ns,
+    stamped_pose,
 )
 from zebra_sim_ros.recording.cdr import MALFORMED, cdr_detections
 
@@ -205,12 +207,13 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         pose_q = qos(c.qos_reliability, c.qos_depth, transient_local=c.pose_transient_local)
         self.out_type = detection3d_array_type()
         out_class = message_class(self.out_type)
-        # what each stamp of a camera needs (camera_info: the latest; a pose of its own stamp, or one interpolated
-        # from the camera's pose track)
-        self.tracks = {d: PoseTrack(int(round(c.pose_max_gap_s * 1e9))) for d in c.drones} if c.pose_max_gap_s else {}
-        self.awaiting: dict[str, dict[int, dict[str, Any]]] = {d: {} for d in c.drones}  # frames waiting for a pose
-        self.frames = FrameParts(c.sync_window, ("detections",) + (("depth",) if c.place_by == "depth" else ())
-                                 + (() if self.tracks else ("pose",)))
+        # what each stamp of a camera needs: its inputs but camera_info (the latest serves), and but the pose where
+        # poses come at their own rate (one interpolated from the camera's track, the frame held until it can be)
+        self.tracks = {d: PoseTrack(c.pose_max_gap_ns) for d in c.drones} if c.pose_max_gap_ns else {}
+        self.awaiting: dict[str, RecentStamps[dict[str, Any]]] = {d: RecentStamps(c.sync_window) for d in c.drones}
+        parts = {"detections": c.detections, "depth": "depth", "pose": c.pose}
+        self.frames = FrameParts(c.sync_window, [k for k, topic in parts.items() if topic in c.inputs
+                                                 and not (k == "pose" and self.tracks)])
         self.info: dict[str, tuple[np.ndarray, int, int, Distortion | None]] = {}  # drone: its latest K (3x3),
         # width, height and lens (None: an ideal pinhole)
         self.stats = {"frames": 0, "placed": 0, "unplaced": 0, "unmatched": 0, "bad_messages": 0, "census": 0,
@@ -226,13 +229,16 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         self.pubs: dict[str, Any] = {}
         det_class = message_class(detection_array_type())
         for d in c.drones:
-            # raw: the CDR bytes read by the scorer's and bag eval's reader (cdr_detections)
-            self.create_subscription(det_class, f"{d}/{c.detections}", self._on_detections(d), q, raw=True)
-            if c.place_by == "depth":
-                self.create_subscription(Image, f"{d}/depth", self._on_part(d, "depth"), image_q)
-            self.create_subscription(PoseStamped, f"{d}/{c.pose}",
-                                     self._on_track(d) if self.tracks else self._on_part(d, "pose"), pose_q)
-            self.create_subscription(CameraInfo, f"{d}/camera_info", self._on_info(d), image_q)
+            # what it reads under each camera (LocatorConfig.inputs: the depth only where it places by it): type,
+            # callback, QoS, raw (the detections as CDR bytes, read by the scorer's and bag eval's reader)
+            handlers = {c.detections: (det_class, self._on_detections(d), q, True),
+                        "depth": (Image, self._on_part(d, "depth"), image_q, False),
+                        "camera_info": (CameraInfo, self._on_info(d), image_q, False),
+                        c.pose: (PoseStamped, self._on_track(d) if self.tracks else self._on_part(d, "pose"), pose_q,
+                                 False)}
+            for topic in c.inputs:
+                kind, callback, profile, raw = handlers[topic]
+                self.create_subscription(kind, f"{d}/{topic}", callback, profile, raw=raw)
             self.pubs[d] = self.create_publisher(out_class, f"{d}/{c.output}", q)
         self.census_pub = self.create_publisher(out_class, c.census_output, q) if c.census else None
         self.marker_pub = self.create_publisher(MarkerArray, f"{c.census_output}/markers", q) if c.census else None
@@ -272,11 +278,12 @@ class LocatorNode(ZebraNode[LocatorConfig]):
 
     def _on_track(self, drone: str) -> Any:
         def on_pose(msg: PoseStamped) -> None:
-            p, o = msg.pose.position, msg.pose.orientation
-            self.tracks[drone].add(StampedPose(stamp_ns(msg.header.stamp), (p.x, p.y, p.z), (o.x, o.y, o.z, o.w),
-                                               msg.header.frame_id))
-            for t in sorted(self.awaiting[drone]):  # the frames that waited for a pose after their stamp
-                self._posed(drone, t, self.awaiting[drone].pop(t))
+            self.tracks[drone].add(stamped_pose(msg))
+            held = self.awaiting[drone]
+            for t in sorted(held.items):  # the frames that waited for a pose after their stamp
+                got = held.pop(t)
+                if got is not None:
+                    self._posed(drone, t, got)
         return on_pose
 
     def _put(self, drone: str, part: str, t: int, value: Any) -> None:
@@ -288,26 +295,23 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         if got is None:
             return
         if not self.tracks:  # the pose of the image's own stamp
-            pose: PoseStamped = got["pose"]
-            p, o = pose.pose.position, pose.pose.orientation
-            self._place(drone, t, got, StampedPose(t, (p.x, p.y, p.z), (o.x, o.y, o.z, o.w), pose.header.frame_id))
+            self._place(drone, t, got, stamped_pose(got["pose"]))
             return
         self._posed(drone, t, got)
 
     def _posed(self, drone: str, t: int, got: dict[str, Any]) -> None:
-        """Place a frame at its pose interpolated from the camera's track, or hold it until a later pose comes (the
-        oldest held dropped past ``sync_window`` and counted unmatched); one no pose can be given is unmatched."""
+        """Place a frame at its pose interpolated from the camera's track, or hold it until a later pose comes; one
+        no pose can be given is unmatched. The camera's frames held are its ``sync_window`` latest to arrive, those
+        that could not be placed counted: one pushed out is unmatched."""
         at = self.tracks[drone].at(t)
+        held = self.awaiting[drone]
+        dropped = held.put(t, got)
+        if at is not True:
+            held.pop(t)
+        self.skip_unmatched(self.stats, [(old, drone) for old, _ in dropped])
         if isinstance(at, StampedPose):
             self._place(drone, t, got, at)
-        elif at is True:
-            held = self.awaiting[drone]
-            held[t] = got
-            while len(held) > self.cfg.sync_window:
-                oldest = min(held)
-                del held[oldest]
-                self.skip_unmatched(self.stats, [(oldest, drone)])
-        else:
+        elif at is None:
             self.stats["unmatched"] += 1
             self.get_logger().warning(f"{drone}: no poses within pose_max_gap_s ({self.cfg.pose_max_gap_s:g} s) about "
                                       f"stamp {t}: not placed ({self.stats['unmatched']} unmatched so far)")
@@ -399,9 +403,12 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         """Frames placed; detections placed and not (no depth in the box); frames whose inputs never all arrived
         (unmatched) and bad messages skipped; stamps counted (census), the animals in them, stamps some camera
         never completed (census_incomplete) and counted stamps published again (census_repeated). Waits for a
-        camera's camera_info before it places its frames."""
+        camera's camera_info before it places its frames, and with poses at their own rate for a pose after a
+        frame's stamp."""
         missing = [d for d in self.cfg.drones if d not in self.info]
-        waiting = f"waiting for camera_info of {', '.join(missing)}" if missing else ""
+        held = sum(len(h.items) for h in self.awaiting.values())
+        waiting = "; ".join(([f"waiting for camera_info of {', '.join(missing)}"] if missing else [])
+                            + ([f"{held} frames waiting for a pose after their stamp"] if held else []))
         c = self.cfg
         info = {"drones": ", ".join(c.drones), "output": c.output, "pose": c.pose,
                 "pose_max_gap_s": repr(c.pose_max_gap_s),

@@ -16,7 +16,7 @@ import numpy as np
 import rclpy
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Point, Pose, PoseWithCovariance, Quaternion, Vector3
+from geometry_msgs.msg import Point, Pose, PoseStamped, PoseWithCovariance, Quaternion, Vector3
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
@@ -29,6 +29,7 @@ from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import ImageMarker
 
 from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.geometry.locate import StampedPose
 from zebra_sim_ros.health import Activity, Health, HealthMonitor, status_name
 from zebra_sim_ros.messages import Detections, SceneZebra, Stamp
 from zebra_sim_ros.messages import stamp_ns as messages_stamp_ns
@@ -478,6 +479,12 @@ def pose_msg(position: Sequence[float], orientation_xyzw: Sequence[float] = (0.0
     """A Pose from a position (x, y, z) and a quaternion (x, y, z, w; identity by default)."""
     (px, py, pz), (qx, qy, qz, qw) = (float(v) for v in position), (float(v) for v in orientation_xyzw)
     return Pose(position=Point(x=px, y=py, z=pz), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))
+
+
+def stamped_pose(msg: PoseStamped) -> StampedPose:
+    """A geometry_msgs/PoseStamped as the locator's :class:`~zebra_sim_ros.geometry.locate.StampedPose`."""
+    p, o = msg.pose.position, msg.pose.orientation
+    return StampedPose(stamp_ns(msg.header.stamp), (p.x, p.y, p.z), (o.x, o.y, o.z, o.w), msg.header.frame_id)
 
 
 def detection3d_array_msg(type_name: str, header: Header,

@@ -25,7 +25,7 @@ from zebra_sim_ros.detection.config import CENSUS_READS, CENSUS_RULE, LocatorCon
 from zebra_sim_ros.detection.scoring import DroneFrames
 from zebra_sim_ros.errors import ParameterError, ZebraSimError
 from zebra_sim_ros.geometry.geodesy import enu_to_geodetic
-from zebra_sim_ros.geometry.locate import PoseTrack, StampedPose
+from zebra_sim_ros.geometry.locate import positions_at
 from zebra_sim_ros.messages import Datum, Scene
 from zebra_sim_ros.params import spec_of, validate
 from zebra_sim_ros.placement.config import SCENE_TOPIC
@@ -175,7 +175,8 @@ def bag_census(paths: list[str | Path] | str | Path, settings: Mapping[str, Any]
                drones: Sequence[str] | None = None, geojson: str | Path | None = None,
                datum: Datum | None = None) -> dict[str, Any]:
     """The census of the bag ``paths`` counted again by the locator's :data:`CENSUS_RULE` parameters, read from its
-    topics (``output``, ``census_output``, ``pose``: :data:`CENSUS_READS`), the cameras joined in its ``drones``'
+    topics (``output``, ``census_output``, ``pose``) as it read them (``pose_max_gap_s``: the camera's position
+    interpolated between the poses about each image; :data:`CENSUS_READS`), the cameras joined in its ``drones``'
     order. Each of these is, in this order: given in ``settings``; else the bag's locator's, as it reported them on
     ``/diagnostics`` (:meth:`~zebra_sim_ros.nodes.locator.LocatorNode.activity`; ``followed`` in the result names
     them), so a recount of a run made with other settings (``up --set locator.pose=camera/pose_nav``) counts as
@@ -243,13 +244,12 @@ def bag_census(paths: list[str | Path] | str | Path, settings: Mapping[str, Any]
         if owner := topic_owner(topic, (rule.pose,)):
             poses.update(((last_name(owner[0]), t), at) for t, at in posed_by_stamp.items())
             if rule.pose_max_gap_s:  # poses at their own rate: each image's camera position between two of them
-                track = PoseTrack(int(round(rule.pose_max_gap_s * 1e9)))
-                for t, at in posed_by_stamp.items():
-                    track.add(StampedPose(t, at, (0.0, 0.0, 0.0, 1.0), ""))
-                drone = last_name(owner[0])
-                for d, t in located:
-                    if d == drone and isinstance(got := track.at(t), StampedPose):
-                        poses[(d, t)] = got.position
+                drone, stamps = last_name(owner[0]), sorted(posed_by_stamp)
+                images = [t for d, t in located if d == drone]
+                at = positions_at(stamps, np.array([posed_by_stamp[t] for t in stamps], np.float64).reshape(-1, 3),
+                                  images, rule.pose_max_gap_ns)
+                poses.update(((drone, t), (x, y, z)) for t, (x, y, z) in zip(images, at.tolist(), strict=True)
+                             if np.isfinite(x))
     bag = [str(p) for p in (paths if isinstance(paths, list) else [paths])]
     if not located:
         raise ParameterError("bag", bag, f"a bag with placed detections (<drone>/{rule.output}: recorded by up "
