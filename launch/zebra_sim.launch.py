@@ -28,7 +28,7 @@ import os
 from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory
-from launch.actions import DeclareLaunchArgument, OpaqueFunction, SetEnvironmentVariable
+from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction, SetEnvironmentVariable
 from launch.conditions import IfCondition, evaluate_condition_expression
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
@@ -45,9 +45,11 @@ from zebra_sim_ros.graph.rviz import RVIZ_FILE, rviz_view, write_rviz
 from zebra_sim_ros.graph.spec import (
     NODE_ENVIRONMENT,
     PACKAGE,
+    aim_warning,
     bag_image_overrides,
     check_bag_images,
     check_drones,
+    cloud_topics,
     node_config,
     placer_aim,
     recorder_excludes,
@@ -107,41 +109,38 @@ def generate_launch_description():
             bag_images, recorder_excludes(config, bag_images, f"{ns.rstrip('/')}/recorder"))
         locator = {"drones": drones, "image_reliability": "reliable", "pose_transient_local": True,
                    "use_sim_time": True}
-        # each camera's settings as it starts (its file, this size): the placer aims with the first one's field of
-        # view and lens; RViz shows the points of those that publish them
+        # each camera's overrides, and its settings as it starts (its file and them): the placer aims with the first
+        # one's field of view and lens; RViz shows the points of those that publish them
         size = {}
         for k in ("width", "height"):
             value = LaunchConfiguration(k).perform(context)
             if not value.strip().isdigit():
                 raise ParameterError(k, value, "a number of pixels")
             size[k] = int(value)
-        cameras_as_started = [
-            node_config(Path(config), "camera.yaml", f"{ns.rstrip('/')}/{d}_camera",
-                        {"drone_index": i, **size, "ack": False, **compressed, "use_sim_time": True}, CameraConfig)
-            for i, d in enumerate(drones)]
-        aimed = placer_aim(cameras_as_started[0])
+        overrides = [{"drone_index": i, **size, "ack": False, **compressed, "use_sim_time": True}
+                     for i in range(len(drones))]
+        cameras = [(f"/{d}", node_config(Path(config), "camera.yaml", f"{ns.rstrip('/')}/{d}_camera", o, CameraConfig))
+                   for d, o in zip(drones, overrides, strict=True)]  # as the view names them (no namespace)
+        aimed = placer_aim(cameras[0][1])
+        said = [LogInfo(msg=f"warning: {warning}")] if (warning := aim_warning(cameras)) else []
         viewer = []
         if evaluate_condition_expression(context, [LaunchConfiguration("rviz")]):  # true, 1, false, 0, as score
             # the package's view, one detection image per drone, written beside the bag as up writes it
             # the census display on what this graph's locator publishes (its file's census_output), off without it
             located = (node_config(Path(config), "locator.yaml", f"{ns.rstrip('/')}/locator", locator, LocatorConfig)
                        if evaluate_condition_expression(context, [LaunchConfiguration("locate")]) else None)
-            clouds = [f"/{d}/points" for d, c in zip(drones, cameras_as_started, strict=True)
-                      if c.points_stride]
-            view = rviz_view(config, drones, "", *rviz_census(located), clouds=clouds)
+            view = rviz_view(config, drones, "", *rviz_census(located),
+                             clouds=cloud_topics(cameras))
             if view is None:
                 raise ValueError(f"rviz:=true: no {RVIZ_FILE} in {config}")
             path = write_rviz(view, Path(LaunchConfiguration("bag").perform(context)).parent / RVIZ_FILE)
             viewer = [Node(package="rviz2", executable="rviz2", name="rviz", output="screen",
                            arguments=["-d", str(path.resolve())], parameters=[{"use_sim_time": True}])]
-        cameras = [
+        return said + [
             Node(package=PACKAGE, executable="camera", name=f"{d}_camera", namespace="", output="screen",
-                 parameters=[file("camera.yaml"), {"drone_index": i, "width": arg("width", int),
-                                                   "height": arg("height", int), "ack": False, **compressed,
-                                                   "use_sim_time": True}])
-            for i, d in enumerate(drones)
-        ]
-        return cameras + [
+                 parameters=[file("camera.yaml"), o])
+            for d, o in zip(drones, overrides, strict=True)
+        ] + [
             Node(package=PACKAGE, executable="labeller", name="labeller", namespace="", output="screen",
                  parameters=[file("labeller.yaml"), {"drones": drones, "ack_name": "labeller",
                                                      "image_reliability": "reliable", "use_sim_time": True}]),
@@ -164,7 +163,7 @@ def generate_launch_description():
                      "world": arg("world"), "seed": arg("seed", int), "strategy": arg("strategy"),
                      "num_cameras": int(count), "mode": "lockstep", "max_steps": arg("frames", int),
                      "lockstep_ack_from": ["labeller", "detector"], "lockstep_timeout_s": 120.0,
-                     "camera_width": arg("width", int), "camera_height": arg("height", int), **aimed,
+                     "camera_width": size["width"], "camera_height": size["height"], **aimed,
                      "wait_for_subscribers": 1, "wait_for_nodes": ["recorder"]}]),
         ] + viewer
 

@@ -134,6 +134,7 @@ class _Recorder:
         self.args: dict[str, str] = {}
         self.env: dict[str, str] = {}
         self.functions: list[Any] = []  # OpaqueFunction's, called with the arguments' values (launch_configurations)
+        self.logs: list[str] = []  # LogInfo's messages
 
     def modules(self, share: Path) -> dict[str, types.ModuleType]:
         rec = self
@@ -161,6 +162,10 @@ class _Recorder:
             def __init__(self, function: Any) -> None:
                 rec.functions.append(function)
 
+        class LogInfo:
+            def __init__(self, msg: str) -> None:
+                rec.logs.append(msg)
+
         class IfCondition:
             def __init__(self, predicate: Any) -> None:
                 self.predicate = predicate
@@ -180,7 +185,7 @@ class _Recorder:
         for name, attrs in {
             "launch": {"LaunchDescription": lambda items: items},
             "launch.actions": {"DeclareLaunchArgument": DeclareLaunchArgument, "OpaqueFunction": OpaqueFunction,
-                               "SetEnvironmentVariable": SetEnvironmentVariable},
+                               "SetEnvironmentVariable": SetEnvironmentVariable, "LogInfo": LogInfo},
             "launch.substitutions": {"LaunchConfiguration": LaunchConfiguration},
             "launch.conditions": {"IfCondition": IfCondition,
                                   "evaluate_condition_expression": evaluate_condition_expression},
@@ -314,7 +319,11 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
     assert [d["Topic"]["Value"] for d in view if d["Class"] == "rviz_default_plugins/PointCloud2"] == [
         f"/drone_{i}/points" for i in range(3)]
     (placer_node,) = [n for n in lensed.nodes if n["executable"] == "placer"]
-    assert placer_node["parameters"][1]["camera_lens_k1"] == pytest.approx(-0.1)
+    assert placer_node["parameters"][1]["camera_lens_k1"] == pytest.approx(-0.1) and not lensed.logs
+    # a camera whose own section gives it another lens: the placer still aims with drone_0's, and says so
+    with open(tmp_path / "share" / "config" / "camera.yaml", "a") as f:
+        f.write("/drone_2_camera:\n  ros__parameters:\n    lens_k1: -0.05\n")
+    assert [m for m in _launch(monkeypatch, tmp_path / "share").logs if "/drone_2 differ from /drone_0" in m]
     shutil.copy(REPO / "config" / "camera.yaml", tmp_path / "share" / "config")
     with pytest.raises(ValueError, match="'maybe'"):
         _launch(monkeypatch, tmp_path / "share", rviz="maybe")

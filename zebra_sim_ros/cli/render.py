@@ -50,7 +50,7 @@ def cmd_render(args: argparse.Namespace) -> Summary:
     """Render the step."""
     import cv2
 
-    from zebra_sim_ros.geometry.lens import LENS_KEYS, PLUMB_BOB
+    from zebra_sim_ros.geometry.lens import PLUMB_BOB, lens_names, lens_params
     from zebra_sim_ros.placement.config import PlacerConfig
     from zebra_sim_ros.placement.placer import Placer
     from zebra_sim_ros.placement.sun import lighting_for
@@ -68,14 +68,17 @@ def cmd_render(args: argparse.Namespace) -> Summary:
     values.setdefault("camera_height", args.height)
     if args.hfov_deg is not None:
         values["camera_hfov_deg"] = args.hfov_deg
-    cfg = PlacerConfig.from_params(values)
     lens = parse_lens(args.lens)
+    values.update(lens_params(lens, "camera_lens_"))  # the placer aims through the lens the step is rendered with
+    try:
+        cfg = PlacerConfig.from_params(values)
+    except ParameterError as exc:  # a lens its camera cannot use: named by the option that gave it
+        if exc.name != lens_names("camera_lens_"):
+            raise
+        raise ParameterError("--lens", exc.value, exc.allowed) from None
     options = check_render_options(RenderOptions(width=args.width, height=args.height, hfov_deg=cfg.camera_hfov_deg,
                                                  shadows=not args.no_shadows, distortion=lens,
                                                  **look_options(args.look)), "--lens")
-    # the placer aims through the same lens (which the options, of the same camera, accepted)
-    cfg = PlacerConfig.from_params({**cfg.as_params(), **{f"camera_lens_{k}": v for k, v in
-                                                          zip(LENS_KEYS, lens.coefficients, strict=True)}})
     t0 = time.perf_counter()
     world = load_world(cfg.world, cfg.terrain_prim, cfg.world_seed)
     lib = load_library()

@@ -102,11 +102,11 @@ def _rviz_view(cfg: UpConfig, conf: Path, specs: Sequence[NodeSpec]) -> dict[str
     graph's locator publishes (off without one), a point cloud display per camera that publishes its points; None,
     with a warning, where it cannot be drawn (no reason to stop the run)."""
     from zebra_sim_ros.graph.rviz import rviz_view
-    from zebra_sim_ros.graph.spec import rviz_census
+    from zebra_sim_ros.graph.spec import cloud_topics, graph_cameras, rviz_census
 
-    clouds = [t for s in specs if s.executable == "camera" for t in s.publishes if t.endswith("/points")]
     try:
-        return rviz_view(conf, cfg.drone_names, cfg.namespace, *rviz_census(_located(specs)), clouds=clouds)
+        return rviz_view(conf, cfg.drone_names, cfg.namespace, *rviz_census(_located(specs)),
+                         clouds=cloud_topics(graph_cameras(specs)))
     except ValueError as exc:
         print(f"[up] warning: no RViz view for this graph ({exc})", flush=True)
         return None
@@ -120,6 +120,10 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     from zebra_sim_ros.zebra.asset import load_library
 
     cfg, specs = _up_config(args)
+    from zebra_sim_ros.graph.spec import aim_warning, graph_cameras
+
+    if warning := aim_warning(graph_cameras(specs)):
+        print(f"[up] warning: {warning}", flush=True)
     if not cfg.record and not cfg.score:
         print("[up] --no-record --no-score: the run is neither recorded nor scored (no figures at the end)", flush=True)
     detect_imgsz = cfg.detect_imgsz  # reads the checkpoint's serving rule: an unreadable file stops here

@@ -252,7 +252,7 @@ class _Pipeline:
                        for k, v in sorted(over.items()))
 
     def placer(self, job: Job) -> Any:
-        from zebra_sim_ros.geometry.lens import LENS_KEYS
+        from zebra_sim_ros.geometry.lens import Distortion, lens_params
         from zebra_sim_ros.placement.config import PlacerConfig
         from zebra_sim_ros.placement.placer import Placer
 
@@ -263,8 +263,7 @@ class _Pipeline:
             params = {**c.placer_params, "seed": job.seed, "strategy": job.strategy,
                       "world": job.world,
                       "world_seed": c.world_seed, "camera_width": c.width, "camera_height": c.height,
-                      "camera_hfov_deg": c.hfov_deg, **{f"camera_lens_{k}": v for k, v in zip(LENS_KEYS, c.lens,
-                                                                                               strict=True)}}
+                      "camera_hfov_deg": c.hfov_deg, **lens_params(Distortion(*c.lens), "camera_lens_")}
             self.placers[key] = Placer(PlacerConfig.from_params(params), self.world, self.library)
         return self.placers[key]
 

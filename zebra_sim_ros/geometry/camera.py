@@ -135,17 +135,18 @@ class PinholeCamera:
 @lru_cache(maxsize=8)
 def pixel_rays(camera: PinholeCamera, stride: int = 1) -> NDArray[np.float64]:
     """(ceil(H / stride), ceil(W / stride), 2) ideal normalised coordinates (x / z, y / z in the optical frame) of
-    the rays through every ``stride``-th pixel centre of each row and column, from (0, 0), the lens undone (the
-    canvas refuses a lens it cannot undo inside the image, so each is a ray). Made once per camera model and
-    stride in a process; read-only."""
+    the rays through every ``stride``-th pixel centre of each row and column, from (0, 0), the lens undone (as the
+    lens's canvas undid it, in float32: a hundred-thousandth of a pixel; the canvas refuses a lens it cannot undo
+    inside the image, so each is a ray). Made once per camera model and stride in a process; read-only."""
     if stride < 1:
         raise ParameterError("stride", stride, "a whole number of pixels, 1 or more")
-    cols = (np.arange(0, camera.width, stride, dtype=np.float64) - (camera.width - 1) / 2) / camera.fx
-    rows = (np.arange(0, camera.height, stride, dtype=np.float64) - (camera.height - 1) / 2) / camera.fx
-    xd, yd = np.meshgrid(cols, rows)
-    if camera.canvas is not None:  # a lens the canvas accepted: undone at every pixel of the image
-        xd, yd = camera.distortion.remove(xd, yd)
-    rays = np.stack([xd, yd], axis=-1)
+    if (lens := camera.canvas) is not None:  # the lens undone at every pixel once, for the canvas: its maps
+        x, y = lens.normalised(lens.map_x[::stride, ::stride], lens.map_y[::stride, ::stride])
+    else:
+        cols = (np.arange(0, camera.width, stride, dtype=np.float64) - (camera.width - 1) / 2) / camera.fx
+        rows = (np.arange(0, camera.height, stride, dtype=np.float64) - (camera.height - 1) / 2) / camera.fx
+        x, y = np.meshgrid(cols, rows)
+    rays = np.stack([x, y], axis=-1)
     rays.flags.writeable = False
     return rays
 

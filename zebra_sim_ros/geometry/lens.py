@@ -18,6 +18,8 @@ pixel, so a distorted mask and depth stay exact values of the scene. Pure numpy,
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field, fields
 from functools import lru_cache
 
@@ -163,6 +165,30 @@ def lens_distortion(cfg: object, prefix: str = "lens_") -> Distortion:
     """The :class:`Distortion` of a config that declares the :class:`Lens` parameters (``lens_k1`` ..., or under
     another ``prefix``)."""
     return Distortion(*(float(getattr(cfg, f"{prefix}{k}")) for k in LENS_KEYS))
+
+
+def lens_params(distortion: Distortion, prefix: str = "lens_") -> dict[str, float]:
+    """A distortion as the :class:`Lens` parameters' values (``lens_k1`` ..., or under another ``prefix``): the
+    inverse of :func:`lens_distortion`."""
+    return {f"{prefix}{k}": v for k, v in zip(LENS_KEYS, distortion.coefficients, strict=True)}
+
+
+def lens_names(prefix: str = "lens_") -> str:
+    """The lens parameters' names as an error about them gives them: ``lens_k1, lens_k2, lens_p1, lens_p2, lens_k3``
+    (or under another ``prefix``)."""
+    return ", ".join(f"{prefix}{k}" for k in LENS_KEYS)
+
+
+@contextmanager
+def lens_named(name: str) -> Iterator[None]:
+    """Raise a :class:`ParameterError` about a lens that cannot be used (named :data:`LENS_ERROR`) again naming
+    ``name``: the parameters or the option that gave the lens."""
+    try:
+        yield
+    except ParameterError as exc:
+        if exc.name != LENS_ERROR:
+            raise
+        raise ParameterError(name, exc.value, exc.allowed) from None
 
 
 @dataclass(frozen=True)

@@ -161,9 +161,10 @@ def locate_on_ground(boxes: FloatArray, k: FloatArray, position: FloatArray, ori
     """Each box's point in ``map`` for a camera without depth (a drone's colour camera): where the ray through its
     centre meets the level plane ``centre_height`` above the ground at height ``ground_z`` (an animal's body centre
     over flat ground: the flat-ground georeferencing of an aerial survey; either may also be given per box), the
-    camera, lens and ValueErrors as :func:`locate_boxes`'. A box whose ray does not go down to that plane in front
-    of the camera (at or above the horizon, for a camera above it) gets no point. The error grows as the ground departs from the plane: a
-    metre of height moves the point a metre over the tangent of the ray's depression (2.7 m at 20 deg)."""
+    camera, lens and ValueErrors as :func:`locate_boxes`'. A box whose ray does not reach that plane in front of
+    the camera (at or above the horizon, for a camera above it) gets no point. The error grows as the ground departs
+    from the plane: a metre of height moves the point a metre over the tangent of the ray's depression (2.7 m at 20
+    deg)."""
     k = intrinsics(k)
     position, r = _pose(position, orientation_xyzw)
     boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)

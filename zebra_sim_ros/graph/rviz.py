@@ -119,22 +119,22 @@ def rviz_config(base: dict[str, Any], drones: Sequence[str], namespace: str = ""
     return out
 
 
-def cloud_display(topic: str) -> dict[str, Any]:
-    """An RViz PointCloud2 display of a camera's ``points`` (absolute ``topic``), each point in its colour."""
-    name = topic.strip("/").rsplit("/points", 1)[0]
-    return {"Class": "rviz_default_plugins/PointCloud2", "Name": f"{name} points", "Enabled": True,
+def cloud_display(topic: str, reliability: str = "reliable") -> dict[str, Any]:
+    """An RViz PointCloud2 display of a camera's point cloud (absolute ``topic``, published with ``reliability``,
+    reliable or best_effort, which it subscribes alike), each point in its colour."""
+    return {"Class": "rviz_default_plugins/PointCloud2", "Name": topic.strip("/").replace("/", " "), "Enabled": True,
             "Color Transformer": "RGB8", "Position Transformer": "XYZ", "Style": "Points", "Size (Pixels)": 2,
             "Decay Time": 0, "Use Fixed Frame": True, "Selectable": True, "Value": True,
             "Topic": {"Value": topic, "Depth": 5, "Durability Policy": "Volatile", "History Policy": "Keep Last",
-                      "Reliability Policy": "Reliable"}}
+                      "Reliability Policy": "Reliable" if reliability == "reliable" else "Best Effort"}}
 
 
 def rviz_view(config: Path, drones: Sequence[str], namespace: str = "",
               off: Collection[str] = (), moved: Mapping[str, str] | None = None,
-              clouds: Sequence[str] = ()) -> dict[str, Any] | None:
+              clouds: Sequence[tuple[str, str]] = ()) -> dict[str, Any] | None:
     """:func:`rviz_config` of ``config``/zebra_sim.rviz, and a :func:`cloud_display` for each of the cameras' point
-    cloud topics ``clouds`` (absolute: those the graph's cameras publish); None when the config folder has no file.
-    ValueError naming the file when it cannot be read or is not an RViz configuration."""
+    clouds ``clouds`` (absolute topic and reliability: :func:`~zebra_sim_ros.graph.spec.cloud_topics`); None when the
+    config folder has no file. ValueError naming the file when it cannot be read or is not an RViz configuration."""
     import yaml
 
     src = Path(config) / RVIZ_FILE
@@ -144,7 +144,7 @@ def rviz_view(config: Path, drones: Sequence[str], namespace: str = "",
         view = rviz_config(yaml.safe_load(src.read_text()), drones, namespace, off, moved)
     except (OSError, UnicodeDecodeError, yaml.YAMLError, ValueError) as exc:
         raise ValueError(f"{src}: {exc}") from exc
-    view["Visualization Manager"]["Displays"] += [cloud_display(t) for t in clouds]
+    view["Visualization Manager"]["Displays"] += [cloud_display(t, reliability) for t, reliability in clouds]
     return view
 
 

@@ -9,13 +9,14 @@ import argparse
 import os
 import re
 import sys
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
 
 from zebra_sim_ros.detection.config import DetectorConfig, LocatorConfig, ScorerConfig
 from zebra_sim_ros.errors import ParameterError
-from zebra_sim_ros.geometry.lens import LENS_KEYS
+from zebra_sim_ros.geometry.lens import lens_distortion, lens_params
 from zebra_sim_ros.labels.config import LabellerConfig
 from zebra_sim_ros.params import ParamSpec, StageConfig, load_params_file, replace_tables, validate, write_config
 from zebra_sim_ros.placement.config import PLACER_CAMERA_TOPICS, PLACER_TOPICS, PlacerConfig
@@ -25,6 +26,7 @@ from zebra_sim_ros.rendering.config import CameraConfig
 PACKAGE = "zebra_sim_ros"
 DRONES = ("drone_0", "drone_1", "drone_2")  # the default graph's cameras (UpConfig.drones: 3)
 CAMERA_TOPICS = ("image_raw", "depth", "instances", "camera_info")
+POINTS_TOPIC = "points"  # a camera's point cloud, with its points_stride
 LABELLER_TOPICS = ("labels", "labels/markers", "labels/boxes3d", "labels/boxes2d")
 DETECTOR_TOPICS = ("detections", "detections/image", "detections/markers")
 # up --locate: the census, under the graph's namespace, as the locator's defaults name it (the RViz view's census
@@ -286,15 +288,34 @@ def check_namespace(namespace: str) -> str:
 def camera_topics(camera: CameraConfig) -> tuple[str, ...]:
     """The topics a camera node publishes under its drone with ``camera``'s settings (acknowledgements aside)."""
     return (*CAMERA_TOPICS, *(("image_raw/compressed",) if camera.compressed != "off" else ()),
-            *(("points",) if camera.points_stride else ()))
+            *((POINTS_TOPIC,) if camera.points_stride else ()))
+
+
+def graph_cameras(nodes: Sequence[NodeSpec]) -> list[tuple[str, CameraConfig]]:
+    """The graph's cameras as ``/ns/drone_i`` and their settings as they start (the camera specs' configs)."""
+    return [(f"{n.namespace}/{n.config.name}", n.config) for n in nodes if isinstance(n.config, CameraConfig)]
 
 
 def placer_aim(camera: CameraConfig) -> dict[str, Any]:
     """The placer's parameters that must equal the cameras' for its aim (the pivot in view): the field of view and
     lens of ``camera`` (a camera node's settings as it starts); up and the launch file give it the first camera's
-    (the placer aims every camera with one)."""
-    return {"camera_hfov_deg": camera.hfov_deg,
-            **{f"camera_lens_{k}": getattr(camera, f"lens_{k}") for k in LENS_KEYS}}
+    (the placer aims every camera with one: :func:`aim_warning`)."""
+    return {"camera_hfov_deg": camera.hfov_deg, **lens_params(lens_distortion(camera), "camera_lens_")}
+
+
+def aim_warning(cameras: Sequence[tuple[str, CameraConfig]]) -> str:
+    """What to say where the graph's cameras (name, settings) differ in field of view or lens, which the placer,
+    aiming every camera with the first one's, does not follow; "" where they agree."""
+    first = placer_aim(cameras[0][1])
+    others = [name for name, c in cameras[1:] if placer_aim(c) != first]
+    return (f"{', '.join(others)} differ from {cameras[0][0]} in field of view or lens; the placer aims every camera "
+            f"with {cameras[0][0]}'s ({first})") if others else ""
+
+
+def cloud_topics(cameras: Sequence[tuple[str, CameraConfig]]) -> list[tuple[str, str]]:
+    """The point cloud topics (absolute, under each camera's name ``/ns/drone_i``) of the cameras that publish
+    them, with their reliability: what an RViz view draws."""
+    return [(f"{name}/{POINTS_TOPIC}", c.qos_reliability) for name, c in cameras if c.points_stride]
 
 
 def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
@@ -320,14 +341,13 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
     excludes = (recorder_excludes(config_dir(cfg.config_dir), cfg.bag_images, f"{ns}/recorder")
                 if cfg.record and cfg.bag_images != "raw" else "")  # raw: the file's own, read with its settings
     camera_bag, recorder_bag = bag_image_overrides(cfg.bag_images, excludes)
-    aimed: dict[str, Any] = {}  # the first camera's field of view and lens: what the placer aims every camera with
     for i, d in enumerate(drones):
         cam = own("camera", {"drone_index": i, "width": cfg.width, "height": cfg.height, "ack": False, **camera_bag,
                              **sim})
         camera = node_config(config_dir(cfg.config_dir), "camera.yaml", f"{ns}/{d}_camera", cam, CameraConfig)
-        aimed = aimed or placer_aim(camera)
         nodes.append(NodeSpec("camera", f"{d}_camera", ns, "camera.yaml", cam,
                               tuple(f"{ns}/{d}/{t}" for t in camera_topics(camera)), remaps, config=camera))
+    aimed = placer_aim(graph_cameras(nodes)[0][1])  # what the placer aims every camera with: the first camera's
     # The graph's own cameras publish reliably and lockstep waits for every frame: subscribe reliably too.
     nodes.append(NodeSpec("labeller", "labeller", ns, "labeller.yaml",
                           own("labeller", {"drones": list(drones), "ack_name": "labeller",

@@ -33,13 +33,12 @@ from zebra_sim_ros.recording.census import (
     census_topic_re,
     drone_order,
     run_datum,
-    under_any_namespace,
     write_geojson,
     zebra_points,
 )
 from zebra_sim_ros.recording.evaluate import collect, score, skip_note
 from zebra_sim_ros.recording.images import message_rgb
-from zebra_sim_ros.recording.reader import CAMERA_IMAGES, BagMessage, last_name, topic_owner
+from zebra_sim_ros.recording.reader import CAMERA_IMAGES, BagMessage, last_name, topic_owner, under_any_namespace
 
 _DRONE = re.compile(r"drone_\d+")  # a camera of the graph (up's drone_0 ... drone_N-1), under any namespace
 _ANIMALS_TOPIC = under_any_namespace(ANIMALS_TOPIC)  # the placed animals (Detection3DArray)

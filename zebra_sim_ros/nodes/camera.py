@@ -35,12 +35,11 @@ from sensor_msgs.msg import CameraInfo, CompressedImage, Image, PointCloud2
 from std_msgs.msg import Header, String
 
 from zebra_sim_ros.errors import ZebraSimError
-from zebra_sim_ros.geometry.camera import PinholeCamera, depth_points
+from zebra_sim_ros.geometry.camera import depth_points
 from zebra_sim_ros.geometry.frames import optical_frame
-from zebra_sim_ros.geometry.lens import PLUMB_BOB, lens_distortion
+from zebra_sim_ros.geometry.lens import PLUMB_BOB
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.messages import Scene
-from zebra_sim_ros.nodes.placer import SCENE_TOPIC
 from zebra_sim_ros.nodes.ros_adapter import (
     ACK_TOPIC,
     ZebraNode,
@@ -52,6 +51,7 @@ from zebra_sim_ros.nodes.ros_adapter import (
     run_node,
     stamp,
 )
+from zebra_sim_ros.placement.config import SCENE_TOPIC
 from zebra_sim_ros.recording.images import compress_rgb
 from zebra_sim_ros.rendering.config import CAMERA_PARAMS, CameraConfig
 from zebra_sim_ros.rendering.renderer import RenderedView
@@ -85,9 +85,9 @@ class CameraNode(ZebraNode[CameraConfig]):
         self.sim: Simulator | None = None  # the renderer of the scene's world (its labels are the labeller's)
         self.world_key: tuple[str, str, int] | None = None
         self.effects = c.effects()
-        distortion = lens_distortion(c)
+        self.camera = c.render_options().camera  # what it renders; the points' rays
+        distortion = self.camera.distortion
         self.lens = "ideal" if distortion.none else f"plumb_bob {list(distortion.coefficients)}"
-        self.camera = PinholeCamera(c.width, c.height, c.hfov_deg, distortion)  # the points' rays
         self.points = f"every {c.points_stride} px" if c.points_stride else "off"
         self.frame_id = optical_frame(c.name)
         out_qos = qos(c.qos_reliability, c.qos_depth)

@@ -32,7 +32,6 @@ from zebra_sim_ros.health import Activity
 from zebra_sim_ros.labels.config import LABELLER_PARAMS, LabellerConfig
 from zebra_sim_ros.labels.labeller import Labeller
 from zebra_sim_ros.messages import Labels, Scene
-from zebra_sim_ros.nodes.placer import SCENE_TOPIC
 from zebra_sim_ros.nodes.ros_adapter import (
     FrameParts,
     RecentStamps,
@@ -50,6 +49,7 @@ from zebra_sim_ros.nodes.ros_adapter import (
     run_node,
     stamp_ns,
 )
+from zebra_sim_ros.placement.config import SCENE_TOPIC
 from zebra_sim_ros.rendering.gl import create_context
 from zebra_sim_ros.zebra.asset import load_library
 

@@ -15,7 +15,7 @@ from typing import Any
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import MAX_CAMERAS, Intrinsics, PinholeCamera
 from zebra_sim_ros.geometry.geodesy import ATTITUDE_STREAM, GNSS_MAX_CORRELATION_STEPS, NavNoise
-from zebra_sim_ros.geometry.lens import LENS_ERROR, LENS_KEYS, Lens, lens_distortion
+from zebra_sim_ros.geometry.lens import Lens, lens_distortion, lens_named, lens_names
 from zebra_sim_ros.params import (
     ROS_NAME,
     ParamSpec,
@@ -263,12 +263,8 @@ class PlacerConfig(StageConfig):
                                  "constants of draws)")
         if len(set(self.lockstep_ack_from)) != len(self.lockstep_ack_from):
             raise ParameterError("lockstep_ack_from", list(self.lockstep_ack_from), "distinct names")
-        try:
-            _ = self.camera.canvas  # a lens the cameras could not render is refused here, by name
-        except ParameterError as exc:
-            if exc.name != LENS_ERROR:
-                raise
-            raise ParameterError(", ".join(f"camera_lens_{k}" for k in LENS_KEYS), exc.value, exc.allowed) from None
+        with lens_named(lens_names("camera_lens_")):  # a lens the cameras could not render, refused by name here
+            _ = self.camera.canvas
 
     @property
     def camera(self) -> PinholeCamera:

@@ -38,17 +38,12 @@ from zebra_sim_ros.recording.cdr import (
     cdr_string,
 )
 from zebra_sim_ros.recording.evaluate import collect, skip_note
-from zebra_sim_ros.recording.reader import BagMessage, last_name, topic_owner
+from zebra_sim_ros.recording.reader import BagMessage, last_name, topic_owner, under_any_namespace
 
 
 def census_topic_re(locator: LocatorConfig) -> re.Pattern[str]:
     """The topic of ``locator``'s own census, under any graph's namespace."""
     return under_any_namespace(locator.census_output)
-
-
-def under_any_namespace(name: str) -> re.Pattern[str]:
-    """A relative topic ``name`` under any graph's namespace (the root's included)."""
-    return re.compile(rf"^(?:/[^/]+)*/{re.escape(name)}$")
 
 
 SCENE_TOPIC_RE = under_any_namespace(SCENE_TOPIC)  # the placer's scenes

@@ -41,6 +41,11 @@ def topic_owner(topic: str, kinds: tuple[str, ...]) -> tuple[str, str] | None:
     return (match.group("owner"), match.group("kind")) if match else None
 
 
+def under_any_namespace(name: str) -> re.Pattern[str]:
+    """A relative topic ``name`` under any graph's namespace (the root's included)."""
+    return re.compile(rf"^(?:/[^/]+)*/{re.escape(name)}$")
+
+
 def last_name(name: str) -> str:
     """The last name of a ROS name: ``/g1/drone_0`` is ``drone_0``."""
     return name.rsplit("/", 1)[-1]

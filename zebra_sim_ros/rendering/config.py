@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.geometry.camera import MAX_CAMERAS, Intrinsics
-from zebra_sim_ros.geometry.lens import LENS_ERROR, LENS_KEYS, Distortion, Lens, lens_distortion
+from zebra_sim_ros.geometry.lens import LENS_KEYS, Distortion, Lens, lens_distortion, lens_named, lens_names
 from zebra_sim_ros.params import ParamSpec, StageConfig, diagnostics_param, param, reliability_param, same_as, spec_of
 from zebra_sim_ros.rendering.effects import CameraEffects, SensorModel
 from zebra_sim_ros.rendering.renderer import RenderOptions
@@ -51,12 +51,8 @@ def parse_lens(values: Sequence[float], name: str = "--lens") -> Distortion:
 def check_render_options(options: RenderOptions, lens_name: str) -> RenderOptions:
     """``options`` once :meth:`RenderOptions.check` accepts them; a lens it refuses is named ``lens_name`` (the
     parameters or option that gave it)."""
-    try:
+    with lens_named(lens_name):
         options.check()
-    except ParameterError as exc:
-        if exc.name == LENS_ERROR:
-            raise ParameterError(lens_name, exc.value, exc.allowed) from None
-        raise
     return options
 
 
@@ -110,7 +106,7 @@ class CameraConfig(StageConfig):
 
     def check(self) -> None:
         """The renderer's and the effects' own rules (the lens with this image size and field of view)."""
-        check_render_options(self.render_options(), "lens_k1, lens_k2, lens_p1, lens_p2, lens_k3")
+        check_render_options(self.render_options(), lens_names())
         self.effects()
 
     @property
