@@ -103,7 +103,7 @@ def test_a_pose_track_gives_the_pose_between_two_poses_or_says_to_wait() -> None
     assert track.at(200 * ms) == StampedPose(200 * ms, (200.0, 400.0, 50.0), yaw_xyzw(30.0), "map")
     assert track.at(300 * ms) is None  # between 200 and 500 ms: 300 ms apart
     assert track.at(50 * ms) is None  # before the first pose
-    assert track.at(600 * ms) is True and track.at(700 * ms) is None  # 100 ms after the latest: wait; 200: none
+    assert track.at(600 * ms) is True and track.at(9000 * ms) is True  # after the latest: wait (a source may lag)
     for t in (600, 700, 800):
         track.add(StampedPose(t * ms, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), "map"))
     assert track.stamps == [500 * ms, 600 * ms, 700 * ms, 800 * ms]  # four kept
@@ -111,7 +111,7 @@ def test_a_pose_track_gives_the_pose_between_two_poses_or_says_to_wait() -> None
     assert track.stamps == [600 * ms, 700 * ms, 750 * ms, 800 * ms]
     track.add(StampedPose(2500 * ms, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0, 1.0), "map"))
     track.add(StampedPose(10 * ms, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0, 1.0), "map"))  # over 1 s back: a new track
-    assert track.stamps == [10 * ms] and track.at(800 * ms) is None
+    assert track.stamps == [10 * ms] and track.at(5 * ms) is None  # the old run's poses gone
     # a recording's positions at the images' stamps: between two poses, exact, or none (NaN)
     stamps = [100 * ms, 200 * ms, 500 * ms]
     got = positions_at(stamps, np.array([[0.0, 0, 10], [10.0, 0, 10], [40.0, 0, 10]]), [150 * ms, 200 * ms,
@@ -437,8 +437,9 @@ def test_the_locator_places_by_the_ground_without_depth_over_dds(tmp_path: Path)
 @pytest.mark.integration
 def test_the_locator_interpolates_poses_that_come_at_their_own_rate_over_dds(tmp_path: Path) -> None:
     """``pose_max_gap_s``: poses at 10 Hz whose stamps are not the images' (a drone's odometry). An image waits for a
-    pose after its stamp, then is placed at the pose interpolated between the two about it; one with no poses near
-    it is unmatched and counted."""
+    pose after its stamp, then is placed at the pose interpolated between the two about it; one between two poses
+    too far apart is unmatched, and so is the oldest of a camera's held frames pushed out by ``sync_window`` newer
+    ones; the diagnostics say how many wait."""
     domain = fresh_domain_id()
     peer, status, got, pubs = _one_camera_peer(domain, "test_locator_track", "camera/pose")
     node = peer.node
@@ -461,20 +462,26 @@ def test_the_locator_interpolates_poses_that_come_at_their_own_rate_over_dds(tmp
 
     try:
         with node_process("locator", {"drones": ["drone_0"], "diagnostics_period_s": 0.2, "place_by": "ground",
-                                      "ground_z": 0.0, "pose_max_gap_s": 0.15}, domain, log):
-            others = [pubs[k] for k in ("det", "info", "pose")]
-            assert peer.spin(lambda: all(node.count_subscribers(p.topic_name) for p in others)
+                                      "ground_z": 0.0, "pose_max_gap_s": 0.15, "sync_window": 2,
+                                      "image_reliability": "reliable"}, domain, log):  # no camera_info lost
+            others = [pubs[k] for k in ("det", "info", "pose")]  # matched: what is sent now is received
+            assert peer.spin(lambda: all(p.get_subscription_count() for p in others)
                              and node.count_publishers("/drone_0/detections/located"), 60), log.read_text()
-            peer.spin(lambda: False, 0.5)
             for t_ms in (900, 1000):
                 send_pose(t_ms)
             send_image(1050)  # after the latest pose: it waits for the next
-            assert not peer.spin(lambda: bool(got), 1.0)
+            assert peer.spin(lambda: any("1 frames waiting for a pose" in s["message"] for s in status), 20), \
+                status[-1:]
+            assert not got
             send_pose(1100)
             assert peer.spin(lambda: bool(got), 20), log.read_text()
-            send_image(1600)  # 500 ms after the latest pose: no pose can be had for it
+            send_image(1600)  # it waits, but the next pose is 600 ms after the one before it: none can be had
+            send_pose(1700)
             assert peer.spin(lambda: any(s["values"].get("unmatched") == "1" for s in status), 20), status[-1:]
             assert status[-1]["values"]["pose_max_gap_s"] == "0.15"  # status holds a report: the spin above
+            for t_ms in (2000, 2100, 2200):  # waiting, past sync_window 2: the oldest let go
+                send_image(t_ms)
+            assert peer.spin(lambda: any(s["values"].get("unmatched") == "2" for s in status), 20), status[-1:]
     finally:
         peer.close()
     (msg,) = got
@@ -487,7 +494,8 @@ def test_the_locator_interpolates_poses_that_come_at_their_own_rate_over_dds(tmp
     p = msg.detections[0].bbox.center.position
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (1, 50 * ms)
     assert [p.x, p.y, p.z] == pytest.approx(want.points[0].tolist(), abs=1e-4)
-    assert "no poses within pose_max_gap_s (0.15 s) about stamp 1600000000" in log.read_text()
+    text = log.read_text()
+    assert "no poses within pose_max_gap_s (0.15 s) about stamp 1600000000" in text and "stamp 2000000000" in text
 
 
 @pytest.mark.integration

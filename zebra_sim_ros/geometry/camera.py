@@ -136,7 +136,7 @@ class PinholeCamera:
 def pixel_rays(camera: PinholeCamera, stride: int = 1) -> NDArray[np.float64]:
     """(ceil(H / stride), ceil(W / stride), 2) ideal normalised coordinates (x / z, y / z in the optical frame) of
     the rays through every ``stride``-th pixel centre of each row and column, from (0, 0), the lens undone (as the
-    lens's canvas undid it, in float32: a hundred-thousandth of a pixel; the canvas refuses a lens it cannot undo
+    lens's canvas undid it, in float32: under a ten-thousandth of a pixel; the canvas refuses a lens it cannot undo
     inside the image, so each is a ray). Made once per camera model and stride in a process; read-only."""
     if stride < 1:
         raise ParameterError("stride", stride, "a whole number of pixels, 1 or more")

@@ -195,14 +195,14 @@ class StampedPose:
 def bracket(stamps: Sequence[int], t: int, max_gap_ns: int) -> tuple[int, float] | bool | None:
     """Where stamp ``t`` falls among sorted ``stamps``, to interpolate at it: ``(i, f)``, ``t`` a share ``f`` of the
     way from ``stamps[i]`` to ``stamps[i + 1]`` (``f`` 0 and the next index unused where ``t`` is ``stamps[i]``),
-    the two at most ``max_gap_ns`` apart; True where a later stamp may still bracket it (none yet, or ``t`` after the
-    latest by ``max_gap_ns`` or less: wait); None where none can (``t`` before the first, after the latest by more
-    than ``max_gap_ns``, or between two farther apart than that)."""
+    the two at most ``max_gap_ns`` apart; True where later stamps may still bracket it (``t`` after every stamp, or
+    none yet: wait, as a lagging source's may); None where none can (``t`` before the first, or between two farther
+    apart than ``max_gap_ns``)."""
     i = bisect.bisect_left(stamps, t)
     if i < len(stamps) and stamps[i] == t:
         return i, 0.0
-    if i == len(stamps):  # after every stamp (or none yet): a later one may come
-        return True if not stamps or t - stamps[-1] <= max_gap_ns else None
+    if i == len(stamps):  # after every stamp (or none yet): later ones may come
+        return True
     if i == 0 or stamps[i] - stamps[i - 1] > max_gap_ns:
         return None
     return i - 1, (t - stamps[i - 1]) / (stamps[i] - stamps[i - 1])

@@ -20,8 +20,8 @@ with the image's stamp:
   (within ``sync_window``); a pose that is not finite, or a depth image of another size than camera_info's, is a
   bad message. With ``pose_max_gap_s`` above 0 poses come at their own rate (a drone's odometry) and an image's is
   interpolated between the poses about its stamp (:class:`zebra_sim_ros.geometry.locate.PoseTrack`): a frame waits
-  for a pose after its stamp (a camera's ``sync_window`` latest frames are held), and one with no two poses at most
-  that far apart about it is unmatched.
+  for poses after its stamp (a camera's ``sync_window`` latest such frames are held, one pushed out unmatched), and
+  one between two poses farther apart than that, or before its camera's first, is unmatched.
   With ``place_by: ground`` (a camera without depth) no depth is subscribed: the point is where the
   ray through the box's centre meets the level plane ``centre_height`` above ``ground_z``
   (:func:`zebra_sim_ros.geometry.locate.locate_on_ground`); a box whose ray does not go down to it is unplaced.
@@ -300,15 +300,12 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         self._posed(drone, t, got)
 
     def _posed(self, drone: str, t: int, got: dict[str, Any]) -> None:
-        """Place a frame at its pose interpolated from the camera's track, or hold it until a later pose comes; one
-        no pose can be given is unmatched. The camera's frames held are its ``sync_window`` latest to arrive, those
-        that could not be placed counted: one pushed out is unmatched."""
+        """Place a frame at its pose interpolated from the camera's track, or hold it until later poses come (the
+        camera's ``sync_window`` latest held: one pushed out is unmatched); one no pose can be given (before the
+        track, or between two poses too far apart) is unmatched."""
         at = self.tracks[drone].at(t)
-        held = self.awaiting[drone]
-        dropped = held.put(t, got)
-        if at is not True:
-            held.pop(t)
-        self.skip_unmatched(self.stats, [(old, drone) for old, _ in dropped])
+        if at is True:
+            self.skip_unmatched(self.stats, [(old, drone) for old, _ in self.awaiting[drone].put(t, got)])
         if isinstance(at, StampedPose):
             self._place(drone, t, got, at)
         elif at is None:

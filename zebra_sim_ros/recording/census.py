@@ -236,15 +236,18 @@ def bag_census(paths: list[str | Path] | str | Path, settings: Mapping[str, Any]
         elif census_topic.match(topic):
             recorded.update((t, len(zebra_points(animals))) for t, animals in placed_by_stamp.items())
     for topic, posed_by_stamp in posed.items():
-        if owner := topic_owner(topic, (rule.pose,)):
-            poses.update(((last_name(owner[0]), t), at) for t, at in posed_by_stamp.items())
-            if rule.pose_max_gap_s:  # poses at their own rate: each image's camera position between two of them
-                drone, stamps = last_name(owner[0]), sorted(posed_by_stamp)
-                images = [t for d, t in located if d == drone]
-                at = positions_at(stamps, np.array([posed_by_stamp[t] for t in stamps], np.float64).reshape(-1, 3),
-                                  images, rule.pose_max_gap_ns)
-                poses.update(((drone, t), (x, y, z)) for t, (x, y, z) in zip(images, at.tolist(), strict=True)
-                             if np.isfinite(x))
+        if not (owner := topic_owner(topic, (rule.pose,))):
+            continue
+        drone = last_name(owner[0])
+        if not rule.pose_max_gap_s:  # one pose per image, of its stamp
+            poses.update(((drone, t), at) for t, at in posed_by_stamp.items())
+            continue
+        # poses at their own rate: each image's camera position between the two about it
+        stamps, images = sorted(posed_by_stamp), [t for d, t in located if d == drone]
+        at = positions_at(stamps, np.array([posed_by_stamp[t] for t in stamps], np.float64).reshape(-1, 3), images,
+                          rule.pose_max_gap_ns)
+        poses.update(((drone, t), (x, y, z)) for t, (x, y, z) in zip(images, at.tolist(), strict=True)
+                     if np.isfinite(x))
     bag = [str(p) for p in (paths if isinstance(paths, list) else [paths])]
     if not located:
         raise ParameterError("bag", bag, f"a bag with placed detections (<drone>/{rule.output}: recorded by up "
