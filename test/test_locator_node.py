@@ -156,6 +156,11 @@ def test_a_box_without_depth_is_placed_where_its_ray_meets_the_ground(lens: Dist
     horizon = locate_on_ground(rows, cam.K, position, level, 3.0, 0.6, distortion=d)
     assert horizon.valid.tolist() == [False, True] and np.isnan(horizon.points[0]).all()
     assert horizon.points[1, 2] == pytest.approx(3.6)
+    # just below the horizon the plane is over 2 km away: too far to place by (max_range, 1 km by default)
+    near = np.array([[150.0, 92, 170, 95]])
+    assert not locate_on_ground(near, cam.K, position, level, 3.0, 0.6, distortion=d).valid[0]
+    far = locate_on_ground(near, cam.K, position, level, 3.0, 0.6, distortion=d, max_range=5000.0)
+    assert far.valid[0] and 1000.0 < np.linalg.norm(far.points[0] - position) < 5000.0
     per_box = locate_on_ground(boxes[:2], cam.K, position, _xyzw(r), [3.0, 13.0], [0.6, 0.0], distortion=d)
     assert per_box.points[:, 2] == pytest.approx([3.6, 13.0])
     for bad in (np.nan, [1.0, 2.0, 3.0]):

@@ -20,7 +20,7 @@ from zebra_sim_ros.geometry.census import (
     FloatArray,
     join_views,
 )
-from zebra_sim_ros.geometry.locate import CENTRE_HEIGHT_M, CORE, DEPTH_WINDOW_M
+from zebra_sim_ros.geometry.locate import CENTRE_HEIGHT_M, CORE, DEPTH_WINDOW_M, GROUND_MAX_RANGE_M
 from zebra_sim_ros.params import (
     RELATIVE_NAME,
     ParamSpec,
@@ -180,6 +180,9 @@ class LocatorConfig(StageConfig):
                             "above the datum's origin_altitude_m)", "m", lo=-10000.0, hi=10000.0, runtime=True)
     centre_height: float = param(CENTRE_HEIGHT_M, "place_by ground: an animal's body centre above the ground (its "
                                  "box's centre is taken to be there)", "m", lo=0.0, hi=10.0, runtime=True)
+    ground_max_range: float = param(GROUND_MAX_RANGE_M, "place_by ground: a box whose ray meets the plane farther "
+                                    "than this from the camera is unplaced (near the horizon a pixel is metres of "
+                                    "ground)", "m", lo=1.0, hi=100000.0, runtime=True)
     core: float = param(CORE, "share of each box's width and height, about its centre, whose depths place it (1: "
                         "the whole box)", lo=0.05, hi=1.0, runtime=True)
     depth_window: float = param(DEPTH_WINDOW_M, "a box's depth is the median of the densest span of its depths this "

@@ -27,6 +27,7 @@ CORE = 1.0  # the share of a box's width and height, about its centre, whose dep
 # a zebra's body centre above the ground: its 3D box's centre over the ground under it is 0.62 m in the default
 # world's herds (median; 0.36-1.02 m from the 5th to the 95th percentile: foals to adults, grazing to standing)
 CENTRE_HEIGHT_M = 0.6
+GROUND_MAX_RANGE_M = 1000.0  # a ray that meets the ground farther than this is too near the horizon to place by it
 
 
 @dataclass(frozen=True)
@@ -157,14 +158,15 @@ def locate_boxes(boxes: FloatArray, depth: NDArray[np.floating], k: FloatArray, 
 
 def locate_on_ground(boxes: FloatArray, k: FloatArray, position: FloatArray, orientation_xyzw: FloatArray,
                      ground_z: ArrayLike, centre_height: ArrayLike = CENTRE_HEIGHT_M,
-                     distortion: Distortion | None = None) -> Located:
+                     distortion: Distortion | None = None, max_range: float = GROUND_MAX_RANGE_M) -> Located:
     """Each box's point in ``map`` for a camera without depth (a drone's colour camera): where the ray through its
     centre meets the level plane ``centre_height`` above the ground at height ``ground_z`` (an animal's body centre
     over flat ground: the flat-ground georeferencing of an aerial survey; either may also be given per box), the
     camera, lens and ValueErrors as :func:`locate_boxes`'. A box whose ray does not reach that plane in front of
-    the camera (at or above the horizon, for a camera above it) gets no point. The error grows as the ground departs
-    from the plane: a metre of height moves the point a metre over the tangent of the ray's depression (2.7 m at 20
-    deg)."""
+    the camera (at or above the horizon, for a camera above it), or reaches it farther than ``max_range`` from the
+    camera (just below the horizon, where a pixel is metres of ground), gets no point. The error grows as the ground
+    departs from the plane: a metre of height moves the point a metre over the tangent of the ray's depression (2.7 m
+    at 20 deg)."""
     k = intrinsics(k)
     position, r = _pose(position, orientation_xyzw)
     boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
@@ -179,7 +181,9 @@ def locate_on_ground(boxes: FloatArray, k: FloatArray, position: FloatArray, ori
     rise = (np.stack([xs[0], ys[0], np.ones(len(boxes))], axis=-1) @ r.T)[:, 2]  # map z per unit of optical depth
     with np.errstate(divide="ignore", invalid="ignore"):
         d = (level - position[2]) / rise
-    return _located(boxes, k, xs, ys, np.where(np.isfinite(d) & (d > 0), d, np.nan), position, r)
+        reach = d * np.sqrt(xs[0] ** 2 + ys[0] ** 2 + 1.0)  # along the ray
+    return _located(boxes, k, xs, ys, np.where(np.isfinite(d) & (d > 0) & (reach <= max_range), d, np.nan),
+                    position, r)
 
 
 @dataclass(frozen=True)

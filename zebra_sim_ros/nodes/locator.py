@@ -24,7 +24,8 @@ with the image's stamp:
   one between two poses farther apart than that, or before its camera's first, is unmatched.
   With ``place_by: ground`` (a camera without depth) no depth is subscribed: the point is where the
   ray through the box's centre meets the level plane ``centre_height`` above ``ground_z``
-  (:func:`zebra_sim_ros.geometry.locate.locate_on_ground`); a box whose ray does not go down to it is unplaced.
+  (:func:`zebra_sim_ros.geometry.locate.locate_on_ground`); a box whose ray does not reach it, or reaches it farther
+  than ``ground_max_range``, is unplaced.
 
 - ``<census_output>`` (with ``census``; Detection3DArray in ``map``), once every camera in ``drones`` has a frame of
   the stamp placed: the animals of that instant, each counted once. Three drones that see one herd see an animal up
@@ -326,7 +327,7 @@ class LocatorNode(ZebraNode[LocatorConfig]):
             c = self.cfg
             if c.place_by == "ground":
                 where = locate_on_ground(boxes, k, position, np.array(orientation), c.ground_z, c.centre_height,
-                                         distortion)
+                                         distortion, c.ground_max_range)
             else:
                 depth = image_array(got["depth"])
                 if depth.shape != (height, width):
@@ -410,7 +411,8 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         info = {"drones": ", ".join(c.drones), "output": c.output, "pose": c.pose,
                 "pose_max_gap_s": repr(c.pose_max_gap_s),
                 "place_by": c.place_by if c.place_by == "depth" else
-                f"ground at z {c.ground_z:g} m, centres {c.centre_height:g} m above it"}
+                f"ground at z {c.ground_z:g} m, centres {c.centre_height:g} m above it, within "
+                f"{c.ground_max_range:g} m"}
         if c.census:  # what a bag census follows (recording.census.bag_census): names as the parameters'
             info.update({"census_output": c.census_output, **{k: repr(getattr(c, k)) for k in CENSUS_RULE},
                          "last census": self.last_count or "none yet"})
