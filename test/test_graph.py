@@ -30,6 +30,7 @@ from zebra_sim_ros.graph.spec import (
     command,
     config_dir,
     dds_environment,
+    graph_cameras,
     graph_spec,
     ros_value,
 )
@@ -583,7 +584,7 @@ def test_a_graph_whose_cameras_publish_points_records_and_shows_them() -> None:
     assert [t for s in specs if s.executable == "camera" for t in s.publishes if t.endswith("/points")] == clouds
     (recorder,) = [s for s in specs if s.executable == "recorder"]
     assert set(clouds) <= set(recorder.subscribes)
-    view = up._rviz_view(cfg, REPO / "config", specs)
+    view = up._rviz_view(cfg, REPO / "config", up._located(specs), graph_cameras(specs))
     assert view is not None
     shown = [d for d in view["Visualization Manager"]["Displays"] if d["Class"] == "rviz_default_plugins/PointCloud2"]
     assert [d["Topic"]["Value"] for d in shown] == clouds
@@ -859,7 +860,9 @@ def test_ups_locator_waits_for_the_topics_its_file_names(tmp_path: Path) -> None
         specs[:] = graph_spec(cfg)
         return next(s for s in specs if s.executable == "locator"), next(s for s in specs if s.executable == "recorder")
 
-    def census_display(view: dict[str, Any] | None) -> tuple[str, bool]:
+    def census_display(view: dict[str, Any] | None = None) -> tuple[str, bool]:
+        """The census display of ``view``, or of up's view of the graph ``specs`` holds now."""
+        view = view or up._rviz_view(cfg, conf, up._located(specs), graph_cameras(specs))
         assert view is not None
         (d,) = [d for d in view["Visualization Manager"]["Displays"] if "census" in d["Name"]]
         return d["Topic"]["Value"], d["Enabled"]
@@ -873,16 +876,16 @@ def test_ups_locator_waits_for_the_topics_its_file_names(tmp_path: Path) -> None
     assert "/g1/drone_2/dets" in loc.subscribes and "/g1/drone_2/detections" not in loc.subscribes
     assert set(loc.publishes) <= set(rec.subscribes) and "/g1/census/animals" not in rec.subscribes
     # up's RViz view: the census display on the census this locator publishes (its markers), on
-    view = census_display(up._rviz_view(cfg, conf, specs))
+    view = census_display()
     assert view == ("/g1/herd/count/markers", True) and view[0] in loc.publishes
     off, rec = locator(census="false")
     assert off.publishes == default.publishes[:3] and "/g1/census/animals" not in rec.subscribes
-    assert census_display(up._rviz_view(cfg, conf, specs)) == ("/g1/census/animals/markers", False)
+    assert census_display() == ("/g1/census/animals/markers", False)
     locator()
-    assert census_display(up._rviz_view(cfg, conf, specs)) == ("/g1/census/animals/markers", True)
+    assert census_display() == ("/g1/census/animals/markers", True)
     no_locator = UpConfig(config_dir=str(conf), namespace="/g1")
     assert up._located(graph_spec(no_locator)) is None
-    no_view = up._rviz_view(no_locator, conf, graph_spec(no_locator))
+    no_view = up._rviz_view(no_locator, conf, None, graph_cameras(graph_spec(no_locator)))
     assert census_display(no_view) == ("/g1/census/animals/markers", False)
     with pytest.raises(ParameterError, match=re.escape(f"{conf / 'locator.yaml'}: output")):
         locator(output="depth")  # one of its inputs

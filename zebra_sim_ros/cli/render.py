@@ -50,7 +50,7 @@ def cmd_render(args: argparse.Namespace) -> Summary:
     """Render the step."""
     import cv2
 
-    from zebra_sim_ros.geometry.lens import PLUMB_BOB, lens_names, lens_params
+    from zebra_sim_ros.geometry.lens import PLUMB_BOB, lens_named, lens_names, lens_params
     from zebra_sim_ros.placement.config import PlacerConfig
     from zebra_sim_ros.placement.placer import Placer
     from zebra_sim_ros.placement.sun import lighting_for
@@ -70,12 +70,8 @@ def cmd_render(args: argparse.Namespace) -> Summary:
         values["camera_hfov_deg"] = args.hfov_deg
     lens = parse_lens(args.lens)
     values.update(lens_params(lens, "camera_lens_"))  # the placer aims through the lens the step is rendered with
-    try:
+    with lens_named("--lens", lens_names("camera_lens_")):  # a lens its camera cannot use: named by the option
         cfg = PlacerConfig.from_params(values)
-    except ParameterError as exc:  # a lens its camera cannot use: named by the option that gave it
-        if exc.name != lens_names("camera_lens_"):
-            raise
-        raise ParameterError("--lens", exc.value, exc.allowed) from None
     options = check_render_options(RenderOptions(width=args.width, height=args.height, hfov_deg=cfg.camera_hfov_deg,
                                                  shadows=not args.no_shadows, distortion=lens,
                                                  **look_options(args.look)), "--lens")

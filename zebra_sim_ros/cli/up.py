@@ -35,6 +35,7 @@ if TYPE_CHECKING:  # the graph and rclpy are imported only when the command runs
     from zebra_sim_ros.graph.spec import NodeSpec, UpConfig
     from zebra_sim_ros.graph.supervisor import Child, Supervisor
     from zebra_sim_ros.nodes.graph_watch import GraphWatch
+    from zebra_sim_ros.rendering.config import CameraConfig
 
 
 CENSUS_MAP = "census.geojson"  # up --locate: the locator's census on the Earth, beside the bag
@@ -97,16 +98,17 @@ def _located(specs: Sequence[NodeSpec]) -> LocatorConfig | None:
     return next((s.config for s in specs if isinstance(s.config, LocatorConfig)), None)
 
 
-def _rviz_view(cfg: UpConfig, conf: Path, specs: Sequence[NodeSpec]) -> dict[str, Any] | None:
+def _rviz_view(cfg: UpConfig, conf: Path, located: LocatorConfig | None,
+               cameras: Sequence[tuple[str, CameraConfig]]) -> dict[str, Any] | None:
     """The package's RViz view drawn for this graph's drones and namespace, its census display on the census this
-    graph's locator publishes (off without one), a point cloud display per camera that publishes its points; None,
-    with a warning, where it cannot be drawn (no reason to stop the run)."""
+    graph's locator publishes (``located``; off without one), a point cloud display per camera of ``cameras``
+    (:func:`~zebra_sim_ros.graph.spec.graph_cameras`) that publishes its points; None, with a warning, where it
+    cannot be drawn (no reason to stop the run)."""
     from zebra_sim_ros.graph.rviz import rviz_view
-    from zebra_sim_ros.graph.spec import cloud_topics, graph_cameras, rviz_census
+    from zebra_sim_ros.graph.spec import cloud_topics, rviz_census
 
     try:
-        return rviz_view(conf, cfg.drone_names, cfg.namespace, *rviz_census(_located(specs)),
-                         clouds=cloud_topics(graph_cameras(specs)))
+        return rviz_view(conf, cfg.drone_names, cfg.namespace, *rviz_census(located), clouds=cloud_topics(cameras))
     except ValueError as exc:
         print(f"[up] warning: no RViz view for this graph ({exc})", flush=True)
         return None
@@ -122,7 +124,8 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     cfg, specs = _up_config(args)
     from zebra_sim_ros.graph.spec import aim_warning, graph_cameras
 
-    if warning := aim_warning(graph_cameras(specs)):
+    cameras = graph_cameras(specs)
+    if warning := aim_warning(cameras):
         print(f"[up] warning: {warning}", flush=True)
     if not cfg.record and not cfg.score:
         print("[up] --no-record --no-score: the run is neither recorded nor scored (no figures at the end)", flush=True)
@@ -130,8 +133,8 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     conf = config_dir(cfg.config_dir)
     scorer = next((s.config for s in specs if s.executable == "scorer"), None)  # read by the graph for its topics
     scoring = ScorerRun.of(scorer) if isinstance(scorer, ScorerConfig) else None
-    located = _located(specs)  # its topics, for the summary
-    view = _rviz_view(cfg, conf, specs)
+    located = _located(specs)  # its topics, for the summary and the RViz view
+    view = _rviz_view(cfg, conf, located, cameras)
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
     for old in (cfg.bag_path, out / "summary.json", out / "preview.jpg", out / RVIZ_FILE, out / CENSUS_MAP):

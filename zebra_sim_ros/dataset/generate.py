@@ -137,16 +137,23 @@ class GenerateConfig:
 
         check_render_options(self.render_options(), "--lens")  # the lens, for this image size and field of view
 
-    def render_options(self) -> Any:
-        """The renderer's settings (:class:`~zebra_sim_ros.rendering.renderer.RenderOptions`)."""
+    @property
+    def distortion(self) -> Any:
+        """The lens (:class:`~zebra_sim_ros.geometry.lens.Distortion`); ParameterError naming ``--lens`` unless it
+        has its five coefficients."""
         from zebra_sim_ros.geometry.lens import Distortion
-        from zebra_sim_ros.rendering.config import look_options
-        from zebra_sim_ros.rendering.renderer import RenderOptions
 
         if len(self.lens) != 5:
             raise ParameterError("--lens", list(self.lens), "k1, k2, p1, p2, k3")
+        return Distortion(*self.lens)
+
+    def render_options(self) -> Any:
+        """The renderer's settings (:class:`~zebra_sim_ros.rendering.renderer.RenderOptions`)."""
+        from zebra_sim_ros.rendering.config import look_options
+        from zebra_sim_ros.rendering.renderer import RenderOptions
+
         return RenderOptions(width=self.width, height=self.height, hfov_deg=self.hfov_deg,
-                             distortion=Distortion(*self.lens), **look_options(self.look))
+                             distortion=self.distortion, **look_options(self.look))
 
 
 @dataclass(frozen=True)
@@ -237,10 +244,9 @@ class _Pipeline:
     @property
     def lens_arg(self) -> str:
         """The lens as a ``render`` option (none without distortion)."""
-        from zebra_sim_ros.geometry.lens import Distortion
         from zebra_sim_ros.rendering.config import lens_text
 
-        lens = Distortion(*self.cfg.lens)
+        lens = self.cfg.distortion
         return "" if lens.none else f" --lens {lens_text(lens)}"
 
     @property
@@ -252,7 +258,7 @@ class _Pipeline:
                        for k, v in sorted(over.items()))
 
     def placer(self, job: Job) -> Any:
-        from zebra_sim_ros.geometry.lens import Distortion, lens_params
+        from zebra_sim_ros.geometry.lens import lens_params
         from zebra_sim_ros.placement.config import PlacerConfig
         from zebra_sim_ros.placement.placer import Placer
 
@@ -263,7 +269,7 @@ class _Pipeline:
             params = {**c.placer_params, "seed": job.seed, "strategy": job.strategy,
                       "world": job.world,
                       "world_seed": c.world_seed, "camera_width": c.width, "camera_height": c.height,
-                      "camera_hfov_deg": c.hfov_deg, **lens_params(Distortion(*c.lens), "camera_lens_")}
+                      "camera_hfov_deg": c.hfov_deg, **lens_params(c.distortion, "camera_lens_")}
             self.placers[key] = Placer(PlacerConfig.from_params(params), self.world, self.library)
         return self.placers[key]
 

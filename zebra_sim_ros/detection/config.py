@@ -32,7 +32,7 @@ from zebra_sim_ros.params import (
     reliability_param,
     same_as,
 )
-from zebra_sim_ros.placement.config import CAMERA_POSE, NAV_POSE, PLACER_CAMERA_TOPICS, PLACER_TOPICS
+from zebra_sim_ros.placement.config import CAMERA_POSE, FIX_TOPIC, NAV_POSE, PLACER_CAMERA_TOPICS, PLACER_TOPICS
 
 NATIVE = -1  # as imgsz: each batch at its frames' own resolution (predict.native_size)
 STRIDE = 32  # the largest stride of the model: input sides must be multiples of it
@@ -242,7 +242,7 @@ class LocatorConfig(StageConfig):
         """Each camera once; an output that is not an input; the census outside the cameras' namespaces."""
         if len({d.strip("/") for d in self.drones}) != len(self.drones):
             raise ParameterError("drones", list(self.drones), "each camera once")
-        others = (self.detections, "depth", "camera_info", "image_raw", "fix")
+        others = (self.detections, "depth", "camera_info", "image_raw", FIX_TOPIC)
         if self.pose in others:  # a topic of another type: no frame would ever be complete
             raise ParameterError("pose", self.pose, f"a pose topic, not one of the camera's other topics "
                                  f"{list(others)}")

@@ -180,13 +180,13 @@ def lens_names(prefix: str = "lens_") -> str:
 
 
 @contextmanager
-def lens_named(name: str) -> Iterator[None]:
-    """Raise a :class:`ParameterError` about a lens that cannot be used (named :data:`LENS_ERROR`) again naming
-    ``name``: the parameters or the option that gave the lens."""
+def lens_named(name: str, source: str = LENS_ERROR) -> Iterator[None]:
+    """Raise a :class:`ParameterError` about a lens that cannot be used (named ``source``: :data:`LENS_ERROR`, or the
+    parameters that gave it) again naming ``name``: the parameters or the option that gave the lens."""
     try:
         yield
     except ParameterError as exc:
-        if exc.name != LENS_ERROR:
+        if exc.name != source:
             raise
         raise ParameterError(name, exc.value, exc.allowed) from None
 

@@ -194,9 +194,10 @@ class UpConfig:
                                      f"runs ({', '.join(running)})")
         set_for = {executable for executable, _, _ in self.sets}
         for node in nodes:  # each node's own rules, before any process starts
+            if node.config is not None:  # read by the graph for its topics: validated then, its file with them
+                continue
             validate(NODE_PARAMS[node.executable], node.overrides)
-            if node.executable in set_for and node.config is None:  # and the rules between its parameters, its
-                # file's values with the sets (the nodes the graph read for their topics were checked so)
+            if node.executable in set_for:  # and the rules between its parameters, its file's values with the sets
                 node_config(config_dir(self.config_dir), node.params_file, node.fqn, node.overrides,
                             NODE_CONFIGS[node.executable])
         return nodes
@@ -324,6 +325,7 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
     namespace moves the whole graph; the placer is the clock (``/clock``), the others run on its simulated time
     (``use_sim_time``)."""
     ns = check_namespace(cfg.namespace)
+    conf = config_dir(cfg.config_dir)
     remaps = global_remaps(ns)
     sim = {"use_sim_time": True}
     drones = cfg.drone_names
@@ -338,16 +340,18 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
         return {**ups, **mine}
 
     # what the recorder leaves out (up waits for the rest); its file is read only where a recorder runs
-    excludes = (recorder_excludes(config_dir(cfg.config_dir), cfg.bag_images, f"{ns}/recorder")
+    excludes = (recorder_excludes(conf, cfg.bag_images, f"{ns}/recorder")
                 if cfg.record and cfg.bag_images != "raw" else "")  # raw: the file's own, read with its settings
     camera_bag, recorder_bag = bag_image_overrides(cfg.bag_images, excludes)
+    aimed: dict[str, Any] = {}
     for i, d in enumerate(drones):
         cam = own("camera", {"drone_index": i, "width": cfg.width, "height": cfg.height, "ack": False, **camera_bag,
                              **sim})
-        camera = node_config(config_dir(cfg.config_dir), "camera.yaml", f"{ns}/{d}_camera", cam, CameraConfig)
+        camera = node_config(conf, "camera.yaml", f"{ns}/{d}_camera", cam, CameraConfig)
+        if i == 0:  # what the placer aims every camera with: the first camera's field of view and lens
+            aimed = placer_aim(camera)
         nodes.append(NodeSpec("camera", f"{d}_camera", ns, "camera.yaml", cam,
                               tuple(f"{ns}/{d}/{t}" for t in camera_topics(camera)), remaps, config=camera))
-    aimed = placer_aim(graph_cameras(nodes)[0][1])  # what the placer aims every camera with: the first camera's
     # The graph's own cameras publish reliably and lockstep waits for every frame: subscribe reliably too.
     nodes.append(NodeSpec("labeller", "labeller", ns, "labeller.yaml",
                           own("labeller", {"drones": list(drones), "ack_name": "labeller",
@@ -363,14 +367,14 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
     if cfg.locate:  # every frame placed: subscribed before the first step; its topics as its file names them
         loc = own("locator", {"drones": list(drones), "image_reliability": "reliable", "pose_transient_local": True,
                               **sim})
-        located = node_config(config_dir(cfg.config_dir), "locator.yaml", f"{ns}/locator", loc, LocatorConfig)
+        located = node_config(conf, "locator.yaml", f"{ns}/locator", loc, LocatorConfig)
         nodes.append(NodeSpec("locator", "locator", ns, "locator.yaml", loc,
                               tuple(f"{ns}/{d}/{located.output}" for d in drones)
                               + tuple(f"{ns}{t}" for t in census_topics(located)), remaps,
                               tuple(f"{ns}/{d}/{t}" for d in drones for t in located.inputs), located))
     if cfg.score:  # every frame scored: subscribed before the first step; its detections as its file names them
         sco = own("scorer", {"drones": list(drones), **sim})
-        scored = node_config(config_dir(cfg.config_dir), "scorer.yaml", f"{ns}/scorer", sco, ScorerConfig)
+        scored = node_config(conf, "scorer.yaml", f"{ns}/scorer", sco, ScorerConfig)
         nodes.append(NodeSpec("scorer", "scorer", ns, "scorer.yaml", sco, (), remaps,
                               tuple(f"{ns}/{d}/{t}" for d in drones for t in ("labels", scored.detections)), scored))
     if cfg.record:  # up waits for what it records: its file's selection with up's and the run's settings
@@ -378,7 +382,7 @@ def graph_spec(cfg: UpConfig) -> list[NodeSpec]:
         if ns:  # this graph's topics only, not another graph's on the same domain
             rec["topic_regex"] = f"^{ns}/"
         rec = own("recorder", rec)
-        recorded = node_config(config_dir(cfg.config_dir), "recorder.yaml", f"{ns}/recorder", rec, RecorderConfig)
+        recorded = node_config(conf, "recorder.yaml", f"{ns}/recorder", rec, RecorderConfig)
         nodes.append(NodeSpec("recorder", "recorder", ns, "recorder.yaml", rec, (), remaps,
                               tuple(t for n in nodes for t in n.publishes if recorded.records(t)), recorded))
     nodes.append(NodeSpec("placer", "placer", ns, "placer.yaml", own("placer", {

@@ -212,9 +212,8 @@ class LocatorNode(ZebraNode[LocatorConfig]):
         # poses come at their own rate (one interpolated from the camera's track, the frame held until it can be)
         self.tracks = {d: PoseTrack(c.pose_max_gap_ns) for d in c.drones} if c.pose_max_gap_ns else {}
         self.awaiting: dict[str, RecentStamps[dict[str, Any]]] = {d: RecentStamps(c.sync_window) for d in c.drones}
-        parts = {"detections": c.detections, "depth": "depth", "pose": c.pose}
-        self.frames = FrameParts(c.sync_window, [k for k, topic in parts.items() if topic in c.inputs
-                                                 and not (k == "pose" and self.tracks)])
+        self.frames = FrameParts(c.sync_window, ["detections", *(("depth",) if c.place_by == "depth" else ()),
+                                                 *(() if self.tracks else ("pose",))])
         self.info: dict[str, tuple[np.ndarray, int, int, Distortion | None]] = {}  # drone: its latest K (3x3),
         # width, height and lens (None: an ideal pinhole)
         self.stats = {"frames": 0, "placed": 0, "unplaced": 0, "unmatched": 0, "bad_messages": 0, "census": 0,

@@ -80,6 +80,7 @@ from zebra_sim_ros.nodes.ros_adapter import (
 from zebra_sim_ros.placement.config import (
     ANIMALS_TOPIC,
     CAMERA_POSE,
+    FIX_TOPIC,
     MARKER_TOPIC,
     NAV_POSE,
     PLACER_PARAMS,
@@ -134,7 +135,7 @@ class PlacerNode(ZebraNode[PlacerConfig]):
                           for n in self.placer.camera_names]
         self.nav_pose_pubs = [self.create_publisher(PoseStamped, f"{n}/{NAV_POSE}", poses)
                                for n in self.placer.camera_names]
-        self.fix_pubs = [self.create_publisher(NavSatFix, f"{n}/fix", poses) for n in self.placer.camera_names]
+        self.fix_pubs = [self.create_publisher(NavSatFix, f"{n}/{FIX_TOPIC}", poses) for n in self.placer.camera_names]
         # Transient local, depth 1: a reader that matches late (a recorder whose /clock reader matched after its /tf
         # one) still gets the current step's time. /clock cannot be waited on by count: every use_sim_time node
         # subscribes to it.

@@ -34,7 +34,8 @@ from zebra_sim_ros.zebra.skeleton import OTHER_SPECIES
 # and as the drone's navigation gives it (at its GNSS fix's position, turned by its attitude error)
 CAMERA_POSE = "camera/pose"
 NAV_POSE = "camera/pose_nav"
-PLACER_CAMERA_TOPICS = (CAMERA_POSE, NAV_POSE, "fix")  # the placer's, under each camera
+FIX_TOPIC = "fix"  # sensor_msgs/NavSatFix of the camera's position, as its GNSS reports it
+PLACER_CAMERA_TOPICS = (CAMERA_POSE, NAV_POSE, FIX_TOPIC)  # the placer's, under each camera
 SCENE_TOPIC = "zebra_sim/scene"  # the placer's own topics, in the graph's namespace
 ANIMALS_TOPIC = "zebra_sim/zebras"
 MARKER_TOPIC = "zebra_sim/zebras/markers"

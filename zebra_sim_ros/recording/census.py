@@ -238,11 +238,9 @@ def bag_census(paths: list[str | Path] | str | Path, settings: Mapping[str, Any]
     for topic, posed_by_stamp in posed.items():
         if not (owner := topic_owner(topic, (rule.pose,))):
             continue
+        # each image's camera position: its pose's, or with poses at their own rate (pose_max_gap_s) between the two
+        # about it
         drone = last_name(owner[0])
-        if not rule.pose_max_gap_s:  # one pose per image, of its stamp
-            poses.update(((drone, t), at) for t, at in posed_by_stamp.items())
-            continue
-        # poses at their own rate: each image's camera position between the two about it
         stamps, images = sorted(posed_by_stamp), [t for d, t in located if d == drone]
         at = positions_at(stamps, np.array([posed_by_stamp[t] for t in stamps], np.float64).reshape(-1, 3), images,
                           rule.pose_max_gap_ns)
