@@ -22,6 +22,12 @@ written beside the bag (``zebra_sim.rviz``) as ``zebra-sim up`` writes it; its t
 namespace (a graph moved into one needs up's view, ``up --namespace``, or RViz's own remaps); the census display is
 off without ``locate:=true`` (or with the locator file's ``census: false``), and shows the topic that file's
 ``census_output`` names.
+
+``config:=DIR`` reads the nodes' parameter files from ``DIR`` instead of the package's (a copy of
+share/zebra_sim_ros/config edited, as ``zebra-sim up --config DIR``): every node's file, the recorder's exclusions,
+the cameras' settings the placer aims with, the RViz view and the locator's topics come from it, and so does the
+Fast DDS profile (its ``fastdds.xml``, where it holds one and no profile file is chosen already). A folder without
+``placer.yaml`` is refused, naming ``config``.
 """
 
 import os
@@ -50,6 +56,8 @@ from zebra_sim_ros.graph.spec import (
     check_bag_images,
     check_drones,
     cloud_topics,
+    config_dir,
+    dds_environment,
     node_config,
     placer_aim,
     recorder_excludes,
@@ -59,7 +67,7 @@ from zebra_sim_ros.rendering.config import CameraConfig
 
 
 def generate_launch_description():
-    config = os.path.join(get_package_share_directory(PACKAGE), "config")
+    share = os.path.join(get_package_share_directory(PACKAGE), "config")
     args = [
         DeclareLaunchArgument("frames", default_value="10", description="steps to run"),
         DeclareLaunchArgument("drones", default_value="3", description="cameras, drone_0 .. drone_<N-1> (1..16; as "
@@ -88,16 +96,29 @@ def generate_launch_description():
                               "install) on the package's view drawn for these drones, as zebra-sim up writes it"),
         DeclareLaunchArgument("bag_images", default_value="raw", description="the cameras' images in the bag: raw, "
                               "or jpeg or png (image_raw/compressed instead; as zebra-sim up --bag-images)"),
+        DeclareLaunchArgument("config", default_value="", description="folder of the nodes' parameter files ('' = "
+                              "the package's, share/zebra_sim_ros/config; as zebra-sim up --config)"),
     ]
 
     def arg(name, value_type=str):
         return ParameterValue(LaunchConfiguration(name), value_type=value_type)
 
-    def file(name):
-        return os.path.join(config, name)
-
     def nodes(context):
-        """The graph's processes: the number of cameras is the ``drones`` argument's value, read here."""
+        """The graph's processes: the number of cameras is the ``drones`` argument's value, read here, and their
+        parameter files are the ``config`` argument's folder's."""
+        given = LaunchConfiguration("config").perform(context).strip()
+        try:
+            config = str(config_dir(given)) if given else share
+        except ParameterError as exc:
+            raise ParameterError("config", given, exc.allowed) from None
+
+        def file(name):
+            return os.path.join(config, name)
+
+        # our Fast DDS profile (100 ms heartbeat: large images that lost a fragment arrive in 0.1 s, not 3 s) from
+        # this folder, as zebra-sim up sets it, unless a profile file is already chosen
+        profile = [SetEnvironmentVariable(k, v) for k, v in dds_environment(Path(config), dict(os.environ)).items()
+                   if os.environ.get(k) != v]
         count = LaunchConfiguration("drones").perform(context)
         if not count.isdigit():
             raise ParameterError("drones", count, "a number of cameras")
@@ -136,7 +157,7 @@ def generate_launch_description():
             path = write_rviz(view, Path(LaunchConfiguration("bag").perform(context)).parent / RVIZ_FILE)
             viewer = [Node(package="rviz2", executable="rviz2", name="rviz", output="screen",
                            arguments=["-d", str(path.resolve())], parameters=[{"use_sim_time": True}])]
-        return said + [
+        return profile + said + [
             Node(package=PACKAGE, executable="camera", name=f"{d}_camera", namespace="", output="screen",
                  parameters=[file("camera.yaml"), o])
             for d, o in zip(drones, overrides, strict=True)
@@ -167,9 +188,5 @@ def generate_launch_description():
                      "wait_for_subscribers": 1, "wait_for_nodes": ["recorder"]}]),
         ] + viewer
 
-    # Our Fast DDS profile (100 ms heartbeat: large images that lost a fragment arrive in 0.1 s, not 3 s),
-    # as zebra-sim up sets it, unless a profile file is already chosen.
     env = [SetEnvironmentVariable(k, v) for k, v in NODE_ENVIRONMENT.items() if k not in os.environ]
-    if not (os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE") or os.environ.get("FASTDDS_DEFAULT_PROFILES_FILE")):
-        env.append(SetEnvironmentVariable("FASTRTPS_DEFAULT_PROFILES_FILE", file("fastdds.xml")))
     return LaunchDescription(args + env + [OpaqueFunction(function=nodes)])

@@ -216,6 +216,35 @@ def _launch(monkeypatch: pytest.MonkeyPatch, share: Path, **arguments: str) -> _
     return rec
 
 
+def test_launch_file_reads_the_config_folder_it_is_given(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """``config:=DIR`` as ``up --config DIR``: every node's parameter file, the cameras' settings the placer aims
+    with, the recorder's exclusions and the Fast DDS profile from that folder; one without placer.yaml refused by
+    name."""
+    for var in ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE"):
+        monkeypatch.delenv(var, raising=False)
+    (tmp_path / "share" / "config").mkdir(parents=True)
+    shutil.copy(REPO / "config" / "camera.yaml", tmp_path / "share" / "config")
+    mine = tmp_path / "mine"
+    shutil.copytree(REPO / "config", mine)
+    camera = (mine / "camera.yaml").read_text()
+    assert camera.count("hfov_deg: 80.0") == 1
+    (mine / "camera.yaml").write_text(camera.replace("hfov_deg: 80.0", "hfov_deg: 50.0"))
+    (mine / "recorder.yaml").write_text("/**:\n  ros__parameters:\n    exclude_regex: /mine$\n")
+    rec = _launch(monkeypatch, tmp_path / "share", config=str(mine), bag_images="jpeg")
+    assert {Path(n["parameters"][0]).parent for n in rec.nodes} == {mine}
+    assert rec.env["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(mine / DDS_PROFILE)
+    (placer,) = [n["parameters"][1] for n in rec.nodes if n["executable"] == "placer"]
+    assert placer["camera_hfov_deg"] == pytest.approx(50.0)  # aimed with this folder's cameras
+    (recorder,) = [n["parameters"][1] for n in rec.nodes if n["executable"] == "recorder"]
+    assert recorder["exclude_regex"] == f"(?:/mine$)|{BAG_RAW_IMAGES}"
+    default = _launch(monkeypatch, tmp_path / "share")
+    (placer,) = [n["parameters"][1] for n in default.nodes if n["executable"] == "placer"]
+    assert placer["camera_hfov_deg"] == pytest.approx(80.0)  # the package's cameras without config:=
+    (mine / "placer.yaml").unlink()
+    with pytest.raises(ParameterError, match=f"'config'.*{re.escape(str(mine))}.*placer.yaml"):
+        _launch(monkeypatch, tmp_path / "share", config=str(mine))
+
+
 def _locator_yaml(**changes: str) -> str:
     """The package's locator.yaml with each named parameter's value changed (each must be in it once)."""
     text = (REPO / "config" / "locator.yaml").read_text()
@@ -347,15 +376,18 @@ def test_launch_file_starts_what_up_starts(monkeypatch: pytest.MonkeyPatch, tmp_
                                                                                        if s.executable != "scorer"]
     assert [s.executable for s in graph_spec(UpConfig())] == [s.executable for s in up if s.executable != "locator"]
     share = tmp_path / "share" / "config"
-    assert rec.env == {"FASTRTPS_DEFAULT_PROFILES_FILE": str(share / "fastdds.xml"), **NODE_ENVIRONMENT}
+    assert rec.env == NODE_ENVIRONMENT  # no fastdds.xml in this share folder: as up, no profile named
     assert NODE_ENVIRONMENT == {"OMP_WAIT_POLICY": "PASSIVE"}
     # up gives its nodes the same, but what the caller set (its profile is set here, in this process, as up sets it)
     monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", str(REPO / "config" / DDS_PROFILE))
     assert _graph_environment(REPO / "config", None)["OMP_WAIT_POLICY"] == "PASSIVE"
     monkeypatch.setenv("OMP_WAIT_POLICY", "ACTIVE")
     assert _graph_environment(REPO / "config", None)["OMP_WAIT_POLICY"] == "ACTIVE"
-    assert "OMP_WAIT_POLICY" not in _launch(monkeypatch, tmp_path / "share").env  # the caller's kept there too
+    assert _launch(monkeypatch, tmp_path / "share").env == {}  # the caller's kept there too, its profile as well
+    monkeypatch.delenv("FASTRTPS_DEFAULT_PROFILES_FILE")
     assert dds_environment(share, {}) == {}  # no such file there: up leaves the environment alone
+    shutil.copy(REPO / "config" / DDS_PROFILE, share)  # with one, both name it
+    assert _launch(monkeypatch, tmp_path / "share").env == {"FASTRTPS_DEFAULT_PROFILES_FILE": str(share / DDS_PROFILE)}
     ours = str(REPO / "config" / DDS_PROFILE)
     assert dds_environment(REPO / "config", {}) == {"FASTRTPS_DEFAULT_PROFILES_FILE": ours}
     assert dds_environment(REPO / "config", {"FASTDDS_DEFAULT_PROFILES_FILE": "mine.xml"}) == \
