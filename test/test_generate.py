@@ -76,9 +76,10 @@ def test_a_folder_is_continued_only_with_the_settings_its_frames_were_written_wi
     """Continuing a folder with another frame size (or split, or placer setting) would mix two kinds of frame in
     one dataset: refused, naming the setting, every file left as it was. More frames and other workers continue
     it. The settings are recorded when a run starts, so a run cut short is checked as well; a record from before a
-    setting existed is read as having had its old value (no lens)."""
+    setting existed is read as having had its old value (no lens, the pinhole's aim)."""
     import shutil
 
+    from zebra_sim_ros.dataset.generate import _config_json
     from zebra_sim_ros.errors import ParameterError
 
     out = tmp_path / "more"
@@ -100,9 +101,18 @@ def test_a_folder_is_continued_only_with_the_settings_its_frames_were_written_wi
     old = tmp_path / "old"
     shutil.copytree(dataset, old)
     record = json.loads((old / "generate.json").read_text())
-    del record["config"]["lens"]
+    assert record["config"]["aim"] == "pinhole"  # no lens: the placer's aim is the pinhole's
+    del record["config"]["lens"], record["config"]["aim"]
     (old / "generate.json").write_text(json.dumps(record))
     assert generate(GenerateConfig(out=str(old), **SMALL), progress=lambda *a: None)["frames_written"] == 0
+    # a lens folder from before the placer aimed through the lens (its record has the lens, not the aim): refused
+    lens = {**SMALL, "lens": (-0.1, 0.0, 0.0, 0.0, 0.0)}
+    settings = _config_json(GenerateConfig(out=str(cut), **lens))
+    assert settings["aim"] == "lens"
+    del settings["aim"]
+    (cut / "generate.json").write_text(json.dumps({"config": settings, "stats": None}))
+    with pytest.raises(ParameterError, match="aim 'pinhole' there, 'lens' now"):
+        generate(GenerateConfig(out=str(cut), **lens), progress=lambda *a: None)
     (cut / "generate.json").write_text(json.dumps({"config": {"width": 320, "seed": 5}, "stats": None}))
     with pytest.raises(ParameterError, match=r"lens \[0.0, 0.0, 0.0, 0.0, 0.0\] there, \[-0.1, 0.0"):
         generate(GenerateConfig(out=str(cut), **{**SMALL, "lens": (-0.1, 0.0, 0.0, 0.0, 0.0)}),

@@ -491,7 +491,10 @@ def _check_same_asset(out: Path, have: list[str]) -> None:
 
 
 _RESUMABLE = ("frames", "workers", "shard", "out")  # settings a run may change when it continues a folder
-_ADDED = {"lens": [0.0] * 5}  # settings added since folders were first written: what a record without one had
+# settings added since folders were first written: what a record without one had. ``aim``: how the placer aimed
+# the cameras, through the lens ("lens") or with the pinhole of the same field of view ("pinhole", as before it
+# followed the lens): a lens folder from before cannot go on with the new aim
+_ADDED = {"lens": [0.0] * 5, "aim": "pinhole"}
 
 
 def _check_same_settings(out: Path, settings: dict[str, Any]) -> None:
@@ -561,6 +564,7 @@ def _config_json(cfg: GenerateConfig) -> dict[str, Any]:
     d = asdict(cfg)
     d["worlds"] = list(cfg.worlds)
     d["shard"] = f"{cfg.shard[0]}/{cfg.shard[1]}"
+    d["aim"] = "pinhole" if cfg.distortion.none else "lens"  # the placer aims through the lens (without one: alike)
     return d
 
 
