@@ -6,6 +6,7 @@ import os
 import re
 import signal
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -334,3 +335,89 @@ def test_replay_skips_a_topic_it_cannot_play_and_plays_the_rest(peer: Peer, tmp_
         peer.spin(lambda: len(got) == 20, 10)
     assert got == [f"tick {k}" for k in range(20)] and tocks == []
     assert "cannot play /odd (nope_msgs/msg/Thing)" in (tmp_path / "replay.log").read_text()
+
+
+def _trigger(peer: Peer, name: str) -> Any:
+    """A caller of the std_srvs/Trigger service ``name``: ready() once it answers, call() its answer."""
+    from std_srvs.srv import Trigger
+
+    client = peer.node.create_client(Trigger, name)
+
+    def call() -> Trigger.Response:
+        future = client.call_async(Trigger.Request())
+        assert peer.spin(future.done, 30), f"no answer from {name}"
+        return future.result()
+    call.ready = client.service_is_ready  # type: ignore[attr-defined]
+    return call
+
+
+def test_the_recorder_pauses_and_resumes_on_its_services(peer: Peer, tmp_path: Path) -> None:
+    """``paused:=true`` and ``~/pause`` / ``~/resume`` (std_srvs/Trigger), as ros2 bag record's: what arrives while
+    paused is counted (``paused`` on /diagnostics, and at exit), not written; what arrives after ~/resume is; the
+    answers say whether the state changed; rosbags reads back exactly the messages sent while it recorded."""
+    pub = peer.node.create_publisher(String, "/chatter",
+                                     QoSProfile(depth=50, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    status = collect_diagnostics(peer.node, "recorder: recorder")
+    pause, resume = _trigger(peer, "/recorder/pause"), _trigger(peer, "/recorder/resume")
+    bag, log = tmp_path / "paused.mcap", tmp_path / "rec.log"
+
+    def send(numbers: range) -> None:
+        for k in numbers:
+            pub.publish(String(data=str(k)))
+            peer.spin(lambda: False, 0.02)
+        peer.spin(lambda: False, 0.5)
+    params = {"output": str(bag), "discovery_period_s": 0.1, "paused": True, "diagnostics_period_s": 0.2, **ONLY_DATA}
+    with node_process("recorder", params, _domain(peer), log) as rec:
+        assert peer.spin(lambda: peer.node.count_subscribers("/chatter") > 0 and pause.ready() and resume.ready(),
+                         30), log.read_text()
+        peer.spin(lambda: False, 0.5)
+        send(range(0, 5))  # paused from the start
+        assert peer.spin(lambda: bool(status) and status[-1]["values"]["paused"] == "5", 10), status[-1:]
+        assert status[-1]["message"] == "paused" and status[-1]["values"]["messages"] == "0"
+        assert (resume().message, resume().message) == ("resumed", "not paused")
+        send(range(5, 10))
+        answer = pause()
+        assert answer.success and answer.message == "paused" and pause().message == "already paused"
+        send(range(10, 15))
+        assert peer.spin(lambda: status[-1]["values"]["paused"] == "10" and status[-1]["values"]["messages"] == "5",
+                         10), status[-1:]
+        rec.send_signal(signal.SIGINT)
+        assert rec.wait(timeout=30) == 0, log.read_text()
+    assert "5 messages, 0 dropped, 10 while paused" in log.read_text()
+    with AnyReader([bag]) as r:
+        assert [r.deserialize(raw, c.msgtype).data for c, _, raw in r.messages()] == [str(k) for k in range(5, 10)]
+
+
+def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path: Path) -> None:
+    """``paused:=true`` and ``~/pause`` / ``~/resume``, as ros2 bag play's: started paused nothing plays (its
+    /diagnostics say paused); resumed it plays; paused again it stops within a message, and /clock stands at the bag
+    time reached; resumed once more it plays the rest, every message once and in order, and ends."""
+    from rosgraph_msgs.msg import Clock
+
+    times = _timed_bag(tmp_path / "t.mcap", [0.0] + [0.1] * 19)  # 20 ticks over 1.9 s
+    got: list[str] = []
+    clocks: list[int] = []
+    peer.node.create_subscription(String, "/tick", lambda m: got.append(m.data), 100)
+    peer.node.create_subscription(Clock, "/clock", lambda m: clocks.append(m.clock.sec * 10**9 + m.clock.nanosec), 100)
+    status = collect_diagnostics(peer.node, "replay: replay")
+    pause, resume = _trigger(peer, "/replay/pause"), _trigger(peer, "/replay/resume")
+    log = tmp_path / "replay.log"
+    params = {"bags": [str(tmp_path / "t.mcap")], "paused": True, "wait_for_subscribers_s": 20.0, "clock": True,
+              "clock_rate_hz": 50.0, "diagnostics_period_s": 0.2}
+    with node_process("replay", params, _domain(peer), log) as proc:
+        assert peer.spin(lambda: pause.ready() and resume.ready() and bool(status), 30), log.read_text()
+        peer.spin(lambda: False, 1.5)
+        assert got == [] and status[-1]["message"] == "paused" and status[-1]["values"]["paused"] == "true"
+        assert resume().message == "resumed"
+        assert peer.spin(lambda: len(got) >= 4, 30), log.read_text()
+        assert pause().message == "paused"
+        held = len(got)
+        peer.spin(lambda: False, 1.0)
+        assert len(got) <= held + 1 < len(times), (held, got)  # at most the one already on its way
+        n, stood = len(got), clocks[-1]
+        peer.spin(lambda: False, 0.5)
+        assert len(got) == n and clocks[-1] == stood and times[0] <= stood <= times[n]  # /clock holds where it is
+        assert resume().message == "resumed"
+        assert peer.spin(lambda: len(got) == len(times), 30), (got, log.read_text())
+        assert proc.wait(timeout=20) == 0, log.read_text()
+    assert got == [f"tick {k}" for k in range(len(times))]

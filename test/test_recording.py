@@ -1177,3 +1177,22 @@ def test_bag_export_pairs_by_arrival_so_late_labels_and_a_run_without_labels_pai
             assert cv2.imread(str(tmp_path / "set" / "images" / "train" / f"{name}.png"))[0, 0, 0] == level, name
             label = (tmp_path / "set" / "labels" / "train" / f"{name}.txt").read_text().split()
             assert float(label[1]) == pytest.approx((x0 + 10) / 64), name
+
+
+def test_a_paused_recorder_core_counts_what_arrives_and_writes_none_of_it(tmp_path: Path) -> None:
+    """``RecorderCore.paused``: offered messages are counted per topic as paused (neither written nor dropped) and
+    none reaches the bag; after the pause the next ones are written, in order, as rosbags reads them back."""
+    from zebra_sim_ros.recording.recorder import RecorderCore
+
+    w = BagWriter(tmp_path / "p.mcap")
+    w.add_channel("/chatter", "std_msgs/msg/String", [profile_dict()])
+    core = RecorderCore(w, queue_size=10, paused=True)
+    assert [core.offer("/chatter", serialize_message(String(data=f"m{k}")), 10 + k) for k in range(3)] == [False] * 3
+    core.paused = False
+    assert all(core.offer("/chatter", serialize_message(String(data=f"m{k}")), 10 + k) for k in range(3, 5))
+    (path,) = core.close()
+    t = core.totals()
+    assert (t["messages"], t["dropped"], t["paused"]) == (2, 0, 3)
+    assert t["topics"]["/chatter"]["received"] == 5
+    with AnyReader([Path(path)]) as r:
+        assert [r.deserialize(raw, c.msgtype).data for c, _, raw in r.messages()] == ["m3", "m4"]

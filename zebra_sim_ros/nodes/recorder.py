@@ -10,8 +10,10 @@ one (``recording.stamps``), else the node's clock: run with ``use_sim_time`` (``
 simulated time, the stamps' time base. Each message's publish time is when it arrived (wall clock), which is
 what latencies are measured from. Callbacks only queue the bytes; one thread writes. A full
 queue counts drops per topic; a full disk or ``max_size_mb`` ends the recording with a finalised bag and an
-error. SIGINT, SIGTERM and node shutdown finalise the bag (summary and indexes); after SIGKILL use
-``zebra-sim bag recover``.
+error. ``paused`` (runtime; the ``~/pause`` and ``~/resume`` services, std_srvs/Trigger, set it, as ``ros2 bag
+record``'s) writes nothing while true: what arrives is counted as ``paused`` per topic, neither written nor dropped,
+and topics are still found and subscribed. SIGINT, SIGTERM and node shutdown finalise the bag (summary and indexes);
+after SIGKILL use ``zebra-sim bag recover``.
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ def _profile_of(info: Any) -> dict[str, Any]:
 
 class RecorderNode(ZebraNode[RecorderConfig]):
     """Thin adapter around :class:`zebra_sim_ros.recording.recorder.RecorderCore`; the topic selection (``topics``,
-    ``topic_regex``, ``exclude_regex``) may change while it records."""
+    ``topic_regex``, ``exclude_regex``) and ``paused`` may change while it records."""
 
     def __init__(self) -> None:
         super().__init__("recorder", RecorderConfig)
@@ -51,7 +53,8 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         reserve = -1 if c.disk_reserve_mb < 0 else int(c.disk_reserve_mb * MB)
         self.writer = BagWriter(c.output, c.compression, int(c.chunk_size_mb * MB),
                                 int(c.split_size_mb * MB), c.split_duration_s, int(c.max_size_mb * MB), reserve)
-        self.core = RecorderCore(self.writer, c.queue_size)
+        self.core = RecorderCore(self.writer, c.queue_size, paused=c.paused)
+        self.serve_pause()
         self.depth = c.qos_depth
         self.log_times = LogTimes()  # each message's log time: its stamp, reports at the latest one
         self.subs: dict[str, Any] = {}
@@ -62,11 +65,16 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         self.get_logger().info(
             f"recording to {self.writer.path} ({c.compression}, chunks {c.chunk_size_mb} MB, split "
             f"{c.split_size_mb} MB / {c.split_duration_s} s, cap {c.max_size_mb} MB); "
-            f"topics {c.topic_list or 'matching ' + c.topic_regex}")
+            f"topics {c.topic_list or 'matching ' + c.topic_regex}"
+            + (" (paused: ~/resume records)" if c.paused else ""))
         self._discover()
 
     def on_config(self, cfg: RecorderConfig) -> None:
-        """Record the new selection: topics it adds are subscribed at once, topics it drops are no longer recorded."""
+        """Record the new selection: topics it adds are subscribed at once, topics it drops are no longer recorded;
+        a pause or its end applies to the next message that arrives."""
+        if cfg.paused != self.core.paused:
+            self.core.paused = cfg.paused
+            self.get_logger().info("paused: what arrives is counted, not written" if cfg.paused else "recording again")
         self.cfg = cfg
         for topic in [t for t in self.subs if not cfg.records(t)]:
             sub = self.subs.pop(topic)
@@ -112,8 +120,8 @@ class RecorderNode(ZebraNode[RecorderConfig]):
 
     def _log_stats(self) -> None:
         t = self.core.totals()
-        self.get_logger().info(f"{t['messages']} messages written, {t['dropped']} dropped, {t['mb_per_s']} MB/s, "
-                               f"queue {t['queue']}; per topic {t['topics']}")
+        self.get_logger().info(f"{t['messages']} messages written, {t['dropped']} dropped, {t['paused']} while paused, "
+                               f"{t['mb_per_s']} MB/s, queue {t['queue']}; per topic {t['topics']}")
 
     def _check_error(self) -> None:
         if self.core.error is not None and not self.done:
@@ -123,9 +131,10 @@ class RecorderNode(ZebraNode[RecorderConfig]):
     def activity(self) -> Activity:
         """Messages written and dropped (the writer fell behind by ``queue_size``); an error ends the recording."""
         t = self.core.totals()
-        return Activity({"messages": t["messages"], "dropped": t["dropped"],
+        return Activity({"messages": t["messages"], "dropped": t["dropped"], "paused": t["paused"],
                          "topics": sum(s is not None for s in self.subs.values())}, "messages", ("dropped",),
                         error=f"recording ended: {t['error']}" if t["error"] is not None else "",
+                        waiting="paused" if self.core.paused else "",
                         info={"output": str(self.writer.path), "queue": str(t["queue"]), "MB/s": f"{t['mb_per_s']:g}"})
 
     def stop(self) -> None:
@@ -133,7 +142,8 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         t0 = time.perf_counter()
         files = self.core.close()
         t = self.core.totals()
-        msg = (f"bag {files}: {t['messages']} messages, {t['dropped']} dropped; per topic {t['topics']}; "
+        msg = (f"bag {files}: {t['messages']} messages, {t['dropped']} dropped, {t['paused']} while paused; per topic "
+               f"{t['topics']}; "
                f"writer {t['write_mb_per_s']} MB/s while writing; finalised in {time.perf_counter() - t0:.2f} s")
         print(f"[recorder] {msg}" + (f"; error: {self.core.error}" if self.core.error else ""), flush=True)
 

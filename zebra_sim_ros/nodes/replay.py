@@ -4,12 +4,15 @@ Publishes every message as recorded (raw CDR, no deserialisation) on its topic (
 the QoS its publishers offered when recorded (reliable and transient local only if they all were), keeping the
 recorded spacing of log times divided by ``rate``. ``start_offset_s`` and ``duration_s`` select a window,
 ``topics``/``topic_regex``/``exclude_regex`` select topics, ``loop`` plays again, ``clock`` publishes ``/clock``
-with the bag's time for ``use_sim_time`` consumers. A truncated or corrupt bag plays everything intact, then the
-node logs where and why it stopped. The node exits when done (unless looping).
+with the bag's time for ``use_sim_time`` consumers. ``paused`` (runtime; the ``~/pause`` and ``~/resume`` services,
+std_srvs/Trigger, set it, as ``ros2 bag play``'s) holds playback at the bag time reached and goes on from there;
+``rate`` changes apply at once. A truncated or corrupt bag plays everything intact, then the node logs where and why
+it stopped. The node exits when done (unless looping).
 """
 
 from __future__ import annotations
 
+import math
 import re
 import threading
 import time
@@ -42,7 +45,8 @@ MATCH_SETTLE_S = 0.3
 
 class _Pace:
     """When each bag time is due on the wall clock, at a ``rate`` that may change while playing: after a change
-    the bag goes on from where it is, at the new speed. Times in seconds from the bag's first message."""
+    the bag goes on from where it is, at the new speed; at rate 0 (paused) it stands where it is and nothing is due.
+    Times in seconds from the bag's first message."""
 
     def __init__(self, offset_s: float, rate: float) -> None:
         self.offset, self.start, self.rate = offset_s, time.monotonic(), rate  # bag time ``offset`` at ``start``
@@ -58,12 +62,13 @@ class _Pace:
             self.offset, self.start, self.rate = self.position(now), now, rate
 
     def due(self, rel: float) -> float:
-        """The wall time at which bag time ``rel`` is due."""
-        return self.start + (rel - self.offset) / self.rate
+        """The wall time at which bag time ``rel`` is due; while paused (rate 0) none is."""
+        return self.start + (rel - self.offset) / self.rate if self.rate > 0 else math.inf
 
 
 class ReplayNode(ZebraNode[ReplayConfig]):
-    """Plays bags from a thread of its own; the executor only serves the graph. ``rate`` may change while it plays."""
+    """Plays bags from a thread of its own; the executor only serves the graph. ``rate`` and ``paused`` may change
+    while it plays."""
 
     def __init__(self) -> None:
         super().__init__("replay", ReplayConfig)
@@ -85,14 +90,19 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         self.waiting = ""  # what the play thread waits for before it plays
         for topic, type_name, metadata in self.reader.channel_list():  # publishers up front: subscribers match
             self._publisher(topic, type_name, metadata)                    # before the first message is played
+        self.serve_pause()
         self.get_logger().info(f"playing {[str(p) for p in self.reader.paths]} at rate {c.rate}, "
                                f"offset {c.start_offset_s} s, duration {c.duration_s or 'all'}, "
-                               f"loop {c.loop}, clock {c.clock}, remap prefix '{c.remap_prefix}'")
+                               f"loop {c.loop}, clock {c.clock}, remap prefix '{c.remap_prefix}'"
+                               + (" (paused: ~/resume plays)" if c.paused else ""))
         self.thread = threading.Thread(target=self._play_all, name="replay", daemon=True)
         self.thread.start()
 
     def on_config(self, cfg: ReplayConfig) -> None:
-        """A new rate applies at once, also to the wait for the next message (the play thread reads ``cfg``)."""
+        """A new rate or pause applies at once, also to the wait for the next message (the play thread reads
+        ``cfg``)."""
+        if cfg.paused != self.cfg.paused:
+            self.get_logger().info("paused" if cfg.paused else "playing again")
         self.cfg = cfg
 
     def _wanted(self, topic: str) -> bool:
@@ -184,11 +194,12 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         self.get_logger().info(f"played {n} messages")
 
     def _wait(self, pace: _Pace, rel: float, t0_bag: int, log_time: int) -> None:
-        """Sleep in slices until bag time ``rel`` is due, publishing /clock on the way; a new rate applies at once."""
+        """Sleep in slices until bag time ``rel`` is due, publishing /clock on the way; a new rate applies at once,
+        and a pause holds the wait (and /clock) where the bag is until it ends."""
         period = 1.0 / self.cfg.clock_rate_hz
         while not self.done:  # stop() ends the wait too
             now = time.monotonic()
-            pace.set_rate(self.cfg.rate, now)
+            pace.set_rate(0.0 if self.cfg.paused else self.cfg.rate, now)
             if self.clock_pub is not None and now - pace.last_clock >= period:
                 sim = t0_bag + int(pace.position(now) * 1e9)
                 self.clock_pub.publish(Clock(clock=stamp(min(sim, log_time))))
@@ -203,8 +214,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         with self.pass_lock:
             damaged = self.damaged_before + len(self.reader.stopped)
         return Activity({"messages": self.published, "damaged": damaged}, "messages", ("damaged",),
-                        error=self.error, waiting=self.waiting,
-                        info={"bags": ", ".join(str(p) for p in self.reader.paths), "rate": f"{self.cfg.rate:g}"})
+                        error=self.error, waiting=self.waiting or ("paused" if self.cfg.paused else ""),
+                        info={"bags": ", ".join(str(p) for p in self.reader.paths), "rate": f"{self.cfg.rate:g}",
+                              "paused": str(self.cfg.paused).lower()})
 
     def stop(self) -> None:
         """End the play thread before the node's publishers go (it would publish through destroyed ones)."""

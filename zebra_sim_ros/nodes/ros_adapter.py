@@ -177,6 +177,27 @@ class ZebraNode(Node, Generic[C]):
         """Apply a config in which runtime parameters changed (already validated). By default: keep it."""
         self.cfg = cfg
 
+    def serve_pause(self) -> None:
+        """``~/pause`` and ``~/resume`` (std_srvs/Trigger), as ``ros2 bag``'s: each sets the node's runtime ``paused``
+        parameter, so ``ros2 param get`` shows the state and :meth:`on_config` applies it; the answer says whether it
+        changed (``already paused``)."""
+        from std_srvs.srv import Trigger
+
+        def setter(value: bool) -> Callable[[Any, Any], Any]:
+            word = "paused" if value else "resumed"
+
+            def handle(request: Any, response: Any) -> Any:
+                was = bool(self.get_parameter("paused").value)
+                result = self.set_parameters([Parameter("paused", Parameter.Type.BOOL, value)])[0]
+                response.success = bool(result.successful)
+                unchanged = "already paused" if value else "not paused"
+                response.message = (word if was != value else unchanged) if result.successful else result.reason
+                return response
+            return handle
+
+        self.create_service(Trigger, "~/pause", setter(True))
+        self.create_service(Trigger, "~/resume", setter(False))
+
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         specs = {s.name: s for s in self.config_class.specs()}
         changes = {p.name: p.value for p in params if p.name in specs}  # others (use_sim_time) are rclpy's

@@ -24,8 +24,8 @@ def _str_list(v: object) -> bool:
 
 @dataclass(frozen=True)
 class RecorderConfig(StageConfig):
-    """Validated recorder parameters; the topic selection (``topics``, ``topic_regex``, ``exclude_regex``) may
-    change while it records."""
+    """Validated recorder parameters; the topic selection (``topics``, ``topic_regex``, ``exclude_regex``) and
+    ``paused`` may change while it records."""
 
     output: str = param("bags/zebra_sim.mcap", "bag file to write (.mcap added to a name without it; split files "
                         "get _0, _1, ... before .mcap)",
@@ -50,6 +50,9 @@ class RecorderConfig(StageConfig):
     discovery_period_s: float = param(0.5, "how often new topics are looked for", "s", lo=0.05, hi=60.0)
     stats_period_s: float = param(10.0, "how often statistics are logged (0: never)", "s", lo=0.0, hi=3600.0)
     qos_depth: int = param(100, "history depth of the subscriptions", lo=1, hi=100000)
+    paused: bool = param(False, "write nothing while true: what arrives is counted (paused), not written, as ros2 "
+                         "bag record's pause; ~/pause and ~/resume (std_srvs/Trigger) set it; true at start: start "
+                         "paused", runtime=True)
     diagnostics_period_s: float = diagnostics_param()
 
     def check(self) -> None:
@@ -75,11 +78,14 @@ class RecorderConfig(StageConfig):
 
 @dataclass(frozen=True)
 class ReplayConfig(StageConfig):
-    """Validated replay parameters; ``rate`` may change while it plays."""
+    """Validated replay parameters; ``rate`` and ``paused`` may change while it plays."""
 
     bags: tuple[str, ...] = param(("",), "bag files (or folders of split files) to play, in order",
                                   allowed="a non-empty list of paths", check=lambda v: _str_list(v) and any(v))
     rate: float = param(1.0, "playback speed (2: twice as fast)", lo=0.01, hi=1000.0, runtime=True)
+    paused: bool = param(False, "hold playback where it is while true (/clock stays at the bag time reached), as ros2 "
+                         "bag play's pause; ~/pause and ~/resume (std_srvs/Trigger) set it; true at start: start "
+                         "paused", runtime=True)
     loop: bool = param(False, "play again from the start when done")
     start_offset_s: float = param(0.0, "skip this much of the bag's start (its first message played: topics not "
                                   "played do not count)", "s", lo=0.0, hi=1e9)

@@ -1,7 +1,8 @@
 """The recorder core: a bounded queue between the subscription callbacks and one writer thread.
 
 Callbacks never touch the disk: :meth:`RecorderCore.offer` puts the serialized message in the queue or, if it
-is full, counts a drop for that topic (never silent: drops are in the statistics and the logs). The writer
+is full, counts a drop for that topic (never silent: drops are in the statistics and the logs); while ``paused``
+it counts the message as ``paused`` instead, neither written nor dropped. The writer
 thread writes in arrival order. A full disk or the size cap ends the recording: the thread finalises what it
 can and keeps the error for the node to report.
 """
@@ -27,6 +28,7 @@ class TopicStats:
     received: int = 0
     written: int = 0
     dropped: int = 0
+    paused: int = 0  # received while the recording was paused: not written, not a drop
     bytes: int = 0
 
 
@@ -39,6 +41,7 @@ class RecorderCore:
     stats: dict[str, TopicStats] = field(default_factory=lambda: defaultdict(TopicStats))
     error: str | None = None
     write_seconds: float = 0.0  # time the writer thread spent inside BagWriter.write
+    paused: bool = False  # while true, offered messages are counted, not queued
 
     def __post_init__(self) -> None:
         self._q: queue.Queue[Any] = queue.Queue(maxsize=self.queue_size)
@@ -48,11 +51,14 @@ class RecorderCore:
         self.started = time.monotonic()
 
     def offer(self, topic: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None) -> bool:
-        """Queue one message without blocking; False (and a counted drop) when the queue is full or stopped.
-        ``publish_time_ns``: when it arrived (wall clock; None = the log time)."""
+        """Queue one message without blocking; False (and a counted drop) when the queue is full or stopped, False
+        (counted as paused) while paused. ``publish_time_ns``: when it arrived (wall clock; None = the log time)."""
         with self._lock:
             s = self.stats[topic]
             s.received += 1
+            if self.paused:
+                s.paused += 1
+                return False
             if self.error is not None:
                 s.dropped += 1
                 return False
@@ -108,6 +114,7 @@ class RecorderCore:
         elapsed = max(time.monotonic() - self.started, 1e-9)
         written = sum(s["bytes"] for s in per.values())
         return {"topics": per, "messages": sum(s["written"] for s in per.values()),
-                "dropped": sum(s["dropped"] for s in per.values()), "mb_per_s": round(written / elapsed / 1e6, 2),
+                "dropped": sum(s["dropped"] for s in per.values()), "paused": sum(s["paused"] for s in per.values()),
+                "mb_per_s": round(written / elapsed / 1e6, 2),
                 "queue": self._q.qsize(), "error": self.error,
                 "write_mb_per_s": round(written / max(self.write_seconds, 1e-9) / 1e6, 1)}
