@@ -108,7 +108,7 @@ def generate_launch_description():
         parameter files are the ``config`` argument's folder's."""
         given = LaunchConfiguration("config").perform(context).strip()
         try:
-            config = str(config_dir(given)) if given else share
+            config = str(config_dir(str(Path(given).expanduser()))) if given else share
         except ParameterError as exc:
             raise ParameterError("config", given, exc.allowed) from None
 

@@ -135,6 +135,7 @@ class _Recorder:
         self.args: dict[str, str] = {}
         self.env: dict[str, str] = {}
         self.functions: list[Any] = []  # OpaqueFunction's, called with the arguments' values (launch_configurations)
+        self.returned: list[Any] = []  # the actions they return, in order
         self.logs: list[str] = []  # LogInfo's messages
 
     def modules(self, share: Path) -> dict[str, types.ModuleType]:
@@ -212,7 +213,7 @@ def _launch(monkeypatch: pytest.MonkeyPatch, share: Path, **arguments: str) -> _
     ns["generate_launch_description"]()
     context = types.SimpleNamespace(launch_configurations={**rec.args, **arguments})
     for function in rec.functions:
-        function(context)
+        rec.returned += function(context) or []
     return rec
 
 
@@ -233,6 +234,9 @@ def test_launch_file_reads_the_config_folder_it_is_given(monkeypatch: pytest.Mon
     rec = _launch(monkeypatch, tmp_path / "share", config=str(mine), bag_images="jpeg")
     assert {Path(n["parameters"][0]).parent for n in rec.nodes} == {mine}
     assert rec.env["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(mine / DDS_PROFILE)
+    kinds = [type(a).__name__ for a in rec.returned]  # launch runs them in order: the profile before every node
+    assert "SetEnvironmentVariable" in kinds and kinds.index("Node") > max(
+        k for k, kind in enumerate(kinds) if kind == "SetEnvironmentVariable")
     (placer,) = [n["parameters"][1] for n in rec.nodes if n["executable"] == "placer"]
     assert placer["camera_hfov_deg"] == pytest.approx(50.0)  # aimed with this folder's cameras
     (recorder,) = [n["parameters"][1] for n in rec.nodes if n["executable"] == "recorder"]

@@ -509,11 +509,13 @@ def _check_same_settings(out: Path, settings: dict[str, Any]) -> None:
     if not isinstance(then, dict):
         return
     ours = json.loads(json.dumps(settings))  # tuples as lists, as the record holds them
+    recorded = set(then)
     then = {**_ADDED, **then}
     for key, value in ours.items():
         if key not in _RESUMABLE and key in then and then[key] != value:
+            there = "" if key in recorded else " (not recorded there: read as what it was before it was recorded)"
             raise ParameterError("--out", str(out), f"a new folder, or the settings its frames were written with "
-                                 f"({key} {then[key]!r} there, {value!r} now)")
+                                 f"({key} {then[key]!r} there, {value!r} now{there})")
 
 
 def generate(cfg: GenerateConfig, progress: Callable[[int, int, float], None] | None = None) -> dict[str, Any]:

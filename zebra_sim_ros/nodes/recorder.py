@@ -1,19 +1,19 @@
 """The ``recorder`` node: MCAP bags that ``ros2 bag``, Foxglove and ``rosbags`` read
 (``ros2 run zebra_sim_ros recorder``).
 
-Subscribes, as serialized messages (no deserialisation), to the topics in ``topics`` or, with ``topics``
-empty, to every topic matching ``topic_regex`` and not ``exclude_regex``, found again every
-``discovery_period_s`` (topics that appear later are recorded from then on). Each subscription takes the
-QoS its publishers offer (reliable and transient local only if they all are), and the offered profiles go
-into the bag as rosbag2's ``offered_qos_profiles``. Log times are the messages' header stamps where their type has
-one (``recording.stamps``), else the node's clock: run with ``use_sim_time`` (``up`` does) and every log time is
-simulated time, the stamps' time base. Each message's publish time is when it arrived (wall clock), which is
-what latencies are measured from. Callbacks only queue the bytes; one thread writes. A full
-queue counts drops per topic; a full disk or ``max_size_mb`` ends the recording with a finalised bag and an
-error. ``paused`` (runtime; the ``~/pause`` and ``~/resume`` services, std_srvs/Trigger, set it, as ``ros2 bag
-record``'s) writes nothing while true: what arrives is counted as ``paused`` per topic, neither written nor dropped,
-and topics are still found and subscribed. SIGINT, SIGTERM and node shutdown finalise the bag (summary and indexes);
-after SIGKILL use ``zebra-sim bag recover``.
+Subscribes, as serialized messages (no deserialisation), to the topics in ``topics`` or, with ``topics`` empty, to
+every topic matching ``topic_regex`` and not ``exclude_regex``, found again every ``discovery_period_s`` (topics
+that appear later are recorded from then on). Each subscription takes the QoS its publishers offer (reliable and
+transient local only if they all are), and the offered profiles go into the bag as rosbag2's
+``offered_qos_profiles``. Log times are the messages' header stamps where their type has one (``recording.stamps``),
+else the node's clock: run with ``use_sim_time`` (``up`` does) and every log time is simulated time, the stamps'
+time base. Each message's publish time is when it arrived (wall clock), which is what latencies are measured from.
+Callbacks only queue the bytes; one thread writes. A full queue counts drops per topic; a full disk or
+``max_size_mb`` ends the recording with a finalised bag and an error. ``paused`` (runtime; the ``~/pause`` and
+``~/resume`` services, std_srvs/Trigger, set it, as ``ros2 bag record``'s) writes nothing while true: what arrives
+is counted per topic (``paused_messages`` on /diagnostics), neither written nor dropped, and topics are still found
+and subscribed. SIGINT, SIGTERM and node shutdown finalise the bag (summary and indexes); after SIGKILL use
+``zebra-sim bag recover``.
 """
 
 from __future__ import annotations
@@ -75,7 +75,11 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         if cfg.paused != self.core.paused:
             self.core.paused = cfg.paused
             self.get_logger().info("paused: what arrives is counted, not written" if cfg.paused else "recording again")
+        selection = (cfg.topics, cfg.topic_regex, cfg.exclude_regex) != (self.cfg.topics, self.cfg.topic_regex,
+                                                                          self.cfg.exclude_regex)
         self.cfg = cfg
+        if not selection:
+            return
         for topic in [t for t in self.subs if not cfg.records(t)]:
             sub = self.subs.pop(topic)
             if sub is not None:
@@ -131,7 +135,7 @@ class RecorderNode(ZebraNode[RecorderConfig]):
     def activity(self) -> Activity:
         """Messages written and dropped (the writer fell behind by ``queue_size``); an error ends the recording."""
         t = self.core.totals()
-        return Activity({"messages": t["messages"], "dropped": t["dropped"], "paused": t["paused"],
+        return Activity({"messages": t["messages"], "dropped": t["dropped"], "paused_messages": t["paused"],
                          "topics": sum(s is not None for s in self.subs.values())}, "messages", ("dropped",),
                         error=f"recording ended: {t['error']}" if t["error"] is not None else "",
                         waiting="paused" if self.core.paused else "",

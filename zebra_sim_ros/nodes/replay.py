@@ -198,8 +198,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         and a pause holds the wait (and /clock) where the bag is until it ends."""
         period = 1.0 / self.cfg.clock_rate_hz
         while not self.done:  # stop() ends the wait too
-            now = time.monotonic()
-            pace.set_rate(0.0 if self.cfg.paused else self.cfg.rate, now)
+            now, c = time.monotonic(), self.cfg  # one config a pass: the executor may swap it meanwhile
+            pace.set_rate(0.0 if c.paused else c.rate, now)
             if self.clock_pub is not None and now - pace.last_clock >= period:
                 sim = t0_bag + int(pace.position(now) * 1e9)
                 self.clock_pub.publish(Clock(clock=stamp(min(sim, log_time))))

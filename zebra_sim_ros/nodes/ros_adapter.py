@@ -183,6 +183,9 @@ class ZebraNode(Node, Generic[C]):
         changed (``already paused``)."""
         from std_srvs.srv import Trigger
 
+        if "paused" not in {s.name for s in self.config_class.specs()}:
+            raise TypeError(f"{self.executable}: serve_pause needs a runtime 'paused' parameter in its config")
+
         def setter(value: bool) -> Callable[[Any, Any], Any]:
             word = "paused" if value else "resumed"
 

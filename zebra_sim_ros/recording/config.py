@@ -50,9 +50,9 @@ class RecorderConfig(StageConfig):
     discovery_period_s: float = param(0.5, "how often new topics are looked for", "s", lo=0.05, hi=60.0)
     stats_period_s: float = param(10.0, "how often statistics are logged (0: never)", "s", lo=0.0, hi=3600.0)
     qos_depth: int = param(100, "history depth of the subscriptions", lo=1, hi=100000)
-    paused: bool = param(False, "write nothing while true: what arrives is counted (paused), not written, as ros2 "
-                         "bag record's pause; ~/pause and ~/resume (std_srvs/Trigger) set it; true at start: start "
-                         "paused", runtime=True)
+    paused: bool = param(False, "write nothing while true: what arrives is counted (paused_messages), not "
+                         "written, as ros2 bag record's pause; ~/pause and ~/resume (std_srvs/Trigger) set it; true "
+                         "at start: start paused", runtime=True)
     diagnostics_period_s: float = diagnostics_param()
 
     def check(self) -> None:

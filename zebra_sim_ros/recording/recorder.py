@@ -56,11 +56,11 @@ class RecorderCore:
         with self._lock:
             s = self.stats[topic]
             s.received += 1
-            if self.paused:
-                s.paused += 1
-                return False
             if self.error is not None:
                 s.dropped += 1
+                return False
+            if self.paused:
+                s.paused += 1
                 return False
             try:
                 self._q.put_nowait((topic, data, log_time_ns, publish_time_ns))
