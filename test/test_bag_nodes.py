@@ -390,9 +390,11 @@ def test_the_recorder_pauses_and_resumes_on_its_services(peer: Peer, tmp_path: P
 
 
 def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path: Path) -> None:
-    """``paused:=true`` and ``~/pause`` / ``~/resume``, as ros2 bag play's: started paused nothing plays (its
-    /diagnostics say paused); resumed it plays; paused again it stops within a message, and /clock stands at the bag
-    time reached; resumed once more it plays the rest, every message once and in order, and ends."""
+    """``paused:=true`` and ``~/pause`` / ``~/resume`` / ``~/play_next``, as ros2 bag play's: started paused nothing
+    plays (its /diagnostics say paused); ``~/play_next`` plays one message at a time and names it, /clock moved to
+    its time; resumed it plays; paused again it stops within a message or two, and /clock stands at the bag time
+    reached; resumed once more it plays the rest, every message once and in order, and ends; ``~/play_next`` while
+    playing is refused."""
     from rosgraph_msgs.msg import Clock
 
     times = _timed_bag(tmp_path / "t.mcap", [0.0] + [0.1] * 19)  # 20 ticks over 1.9 s
@@ -402,6 +404,7 @@ def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path:
     peer.node.create_subscription(Clock, "/clock", lambda m: clocks.append(m.clock.sec * 10**9 + m.clock.nanosec), 100)
     status = collect_diagnostics(peer.node, "replay: replay")
     pause, resume = _trigger(peer, "/replay/pause"), _trigger(peer, "/replay/resume")
+    step = _trigger(peer, "/replay/play_next")
     log = tmp_path / "replay.log"
     params = {"bags": [str(tmp_path / "t.mcap")], "paused": True, "wait_for_subscribers_s": 20.0, "clock": True,
               "clock_rate_hz": 50.0, "diagnostics_period_s": 0.2}
@@ -411,8 +414,18 @@ def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path:
         # past its wait for subscribers, held by the pause
         peer.spin(lambda: False, 1.0)
         assert got == [] and status[-1]["message"] == "paused" and status[-1]["values"]["paused"] == "true"
+        for k in range(2):  # one message a call, named in the answer, /clock at its time
+            answer = step()
+            assert answer.success and answer.message == f"played /tick at {(times[k] - times[0]) / 1e9:.3f} s of the "\
+                "bag", answer.message
+            assert peer.spin(lambda k=k: len(got) == k + 1 and bool(clocks) and clocks[-1] == times[k], 10), \
+                (got, clocks)
+        peer.spin(lambda: False, 0.5)
+        assert got == ["tick 0", "tick 1"] and clocks[-1] == times[1]  # held there again
         assert resume().message == "resumed"
-        assert peer.spin(lambda: len(got) >= 4, 30), log.read_text()
+        assert peer.spin(lambda: len(got) >= 5, 30), log.read_text()
+        refused = step()
+        assert not refused.success and "not paused" in refused.message
         assert pause().message == "paused"
         held = len(got)
         peer.spin(lambda: False, 1.0)

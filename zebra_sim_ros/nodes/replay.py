@@ -1,13 +1,14 @@
 """The ``replay`` node: plays MCAP bags back as recorded (``ros2 run zebra_sim_ros replay``).
 
-Publishes every message as recorded (raw CDR, no deserialisation) on its topic (plus ``remap_prefix``), with
-the QoS its publishers offered when recorded (reliable and transient local only if they all were), keeping the
-recorded spacing of log times divided by ``rate``. ``start_offset_s`` and ``duration_s`` select a window,
+Publishes every message as recorded (raw CDR, no deserialisation) on its topic (plus ``remap_prefix``), with the QoS
+its publishers offered when recorded (reliable and transient local only if they all were), keeping the recorded
+spacing of log times divided by ``rate``. ``start_offset_s`` and ``duration_s`` select a window,
 ``topics``/``topic_regex``/``exclude_regex`` select topics, ``loop`` plays again, ``clock`` publishes ``/clock``
 with the bag's time for ``use_sim_time`` consumers. ``paused`` (runtime; the ``~/pause`` and ``~/resume`` services,
 std_srvs/Trigger, set it, as ``ros2 bag play``'s) holds playback at the bag time reached and goes on from there;
-``rate`` changes apply at once. A truncated or corrupt bag plays everything intact, then the node logs where and why
-it stopped. The node exits when done (unless looping).
+while paused, ``~/play_next`` plays the next message alone (/clock moves to its time) and answers with its topic and
+bag time; ``rate`` changes apply at once. A truncated or corrupt bag plays everything intact, then the node logs
+where and why it stopped. The node exits when done (unless looping).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from typing import Any
 
 import yaml
 from rosgraph_msgs.msg import Clock
+from std_srvs.srv import Trigger
 
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.nodes.ros_adapter import (
@@ -36,6 +38,8 @@ from zebra_sim_ros.nodes.ros_adapter import (
 from zebra_sim_ros.recording.config import REPLAY_PARAMS, ReplayConfig
 from zebra_sim_ros.recording.qos import from_yaml, replay_profile
 from zebra_sim_ros.recording.reader import BagReader
+
+_STEP_WAIT_S = 5.0  # how long ~/play_next waits for its message to be played before it withdraws the request
 
 # After waiting for subscribers, before the first message: the publisher sees a new subscriber before that
 # subscriber's side knows the publisher (discovery runs both ways), and what the subscriber drops meanwhile is lost
@@ -55,6 +59,10 @@ class _Pace:
     def position(self, now: float) -> float:
         """The bag time reached at wall time ``now``."""
         return self.offset + (now - self.start) * self.rate
+
+    def jump(self, rel: float, now: float) -> None:
+        """Stand at bag time ``rel`` from ``now`` (a message played alone while paused)."""
+        self.offset, self.start = rel, now
 
     def set_rate(self, rate: float, now: float) -> None:
         """Play on at ``rate`` from ``now``."""
@@ -84,6 +92,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         self.pubs: dict[str, Any] = {}
         self.clock_pub = self.create_publisher(Clock, "/clock", 10) if c.clock else None
         self.published = 0
+        self.last_played = ""  # the last message played: its topic and bag time, for ~/play_next's answer
+        self.steps = 0  # messages ~/play_next asked for, not yet played (the play thread takes them while paused)
+        self.step_lock = threading.Lock()
         self.error = ""  # why playing failed
         self.damaged_before = 0  # damaged parts skipped in earlier passes (looping reopens the reader)
         self.pass_lock = threading.Lock()  # a report never sees a pass counted twice, or not at all
@@ -91,6 +102,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         for topic, type_name, metadata in self.reader.channel_list():  # publishers up front: subscribers match
             self._publisher(topic, type_name, metadata)                    # before the first message is played
         self.serve_pause()
+        self.create_service(Trigger, "~/play_next", self._on_play_next)
         self.get_logger().info(f"playing {[str(p) for p in self.reader.paths]} at rate {c.rate}, "
                                f"offset {c.start_offset_s} s, duration {c.duration_s or 'all'}, "
                                f"loop {c.loop}, clock {c.clock}, remap prefix '{c.remap_prefix}'"
@@ -186,12 +198,44 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             if self.clock_pub is not None:
                 self.clock_pub.publish(Clock(clock=stamp(m.log_time)))
             pub.publish(m.data)
+            self.last_played = f"{m.topic} at {rel:.3f} s of the bag"
             n += 1
             self.published += 1
         for note in self.reader.stopped:
             self.get_logger().warning(f"bag damaged, played everything intact: {note}")
         flush(self, [p for p in self.pubs.values() if p is not None])
         self.get_logger().info(f"played {n} messages")
+
+    def _on_play_next(self, request: Any, response: Any) -> Any:
+        """``~/play_next``: while paused, the next message is played alone; answered once it is (its topic and bag
+        time), or refused (not paused, the bag played to its end, nothing played within ``_STEP_WAIT_S``: the
+        request is then withdrawn)."""
+        if not self.cfg.paused or self.done:
+            response.success, response.message = False, ("the bag has been played" if self.done else
+                                                         "not paused: ~/play_next plays one message while paused")
+            return response
+        before = self.published
+        with self.step_lock:
+            self.steps += 1
+        end = time.monotonic() + _STEP_WAIT_S
+        while self.published == before and not self.done and time.monotonic() < end:
+            time.sleep(0.005)
+        if self.published > before:
+            response.success, response.message = True, f"played {self.last_played}"
+        else:
+            with self.step_lock:
+                self.steps = max(0, self.steps - 1)
+            response.success, response.message = False, (f"nothing played within {_STEP_WAIT_S:g} s"
+                                                         + (f": {self.waiting}" if self.waiting else ""))
+        return response
+
+    def _take_step(self) -> bool:
+        """One of ~/play_next's requests, if any is waiting."""
+        with self.step_lock:
+            if self.steps <= 0:
+                return False
+            self.steps -= 1
+            return True
 
     def _wait(self, pace: _Pace, rel: float, t0_bag: int, log_time: int) -> None:
         """Sleep in slices until bag time ``rel`` is due, publishing /clock on the way; a new rate applies at once,
@@ -200,6 +244,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         while not self.done:  # stop() ends the wait too
             now, c = time.monotonic(), self.cfg  # one config a pass: the executor may swap it meanwhile
             pace.set_rate(0.0 if c.paused else c.rate, now)
+            if c.paused and self._take_step():  # ~/play_next: this message alone, /clock moved to it
+                pace.jump(rel, now)
+                return
             if self.clock_pub is not None and now - pace.last_clock >= period:
                 sim = t0_bag + int(pace.position(now) * 1e9)
                 self.clock_pub.publish(Clock(clock=stamp(min(sim, log_time))))
