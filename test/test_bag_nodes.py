@@ -397,7 +397,7 @@ def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path:
     playing is refused."""
     from rosgraph_msgs.msg import Clock
 
-    times = _timed_bag(tmp_path / "t.mcap", [0.0] + [0.1] * 19)  # 20 ticks over 1.9 s
+    times = _timed_bag(tmp_path / "t.mcap", [0.0] + [0.1000000013] * 19)  # 20 ticks over 1.9 s, odd nanoseconds
     got: list[str] = []
     clocks: list[int] = []
     peer.node.create_subscription(String, "/tick", lambda m: got.append(m.data), 100)
@@ -437,3 +437,4 @@ def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path:
         assert peer.spin(lambda: len(got) == len(times), 30), (got, log.read_text())
         assert proc.wait(timeout=20) == 0, log.read_text()
     assert got == [f"tick {k}" for k in range(len(times))]
+    assert all(b >= a for a, b in zip(clocks, clocks[1:], strict=False)), clocks  # /clock never went back

@@ -55,6 +55,7 @@ class _Pace:
     def __init__(self, offset_s: float, rate: float) -> None:
         self.offset, self.start, self.rate = offset_s, time.monotonic(), rate  # bag time ``offset`` at ``start``
         self.last_clock = 0.0  # wall time /clock was last published
+        self.clock_ns = 0  # the last /clock published (bag ns): it never goes back within a pass
 
     def position(self, now: float) -> float:
         """The bag time reached at wall time ``now``."""
@@ -92,9 +93,10 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         self.pubs: dict[str, Any] = {}
         self.clock_pub = self.create_publisher(Clock, "/clock", 10) if c.clock else None
         self.published = 0
-        self.last_played = ""  # the last message played: its topic and bag time, for ~/play_next's answer
-        self.steps = 0  # messages ~/play_next asked for, not yet played (the play thread takes them while paused)
-        self.step_lock = threading.Lock()
+        # ~/play_next: steps asked for and not yet taken (the play thread takes them while paused), messages played
+        # by a step and the last of them (topic and bag time); the condition guards all three
+        self.steps, self.stepped, self.step_note = 0, 0, ""
+        self.step_cond = threading.Condition()
         self.error = ""  # why playing failed
         self.damaged_before = 0  # damaged parts skipped in earlier passes (looping reopens the reader)
         self.pass_lock = threading.Lock()  # a report never sees a pass counted twice, or not at all
@@ -115,6 +117,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         ``cfg``)."""
         if cfg.paused != self.cfg.paused:
             self.get_logger().info("paused" if cfg.paused else "playing again")
+            with self.step_cond:  # a step asked for in the last pause is not carried into the next one
+                self.steps = 0
         self.cfg = cfg
 
     def _wanted(self, topic: str) -> bool:
@@ -161,6 +165,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             self.exit_code = 1
         finally:
             self.done = True
+            with self.step_cond:  # a ~/play_next waiting for its message hears that none will come
+                self.step_cond.notify_all()
 
     def _play_once(self) -> None:
         c = self.cfg  # what may change while playing (rate) is read from self.cfg where it is used
@@ -192,15 +198,20 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                     time.sleep(MATCH_SETTLE_S)
                 self.waiting = ""
                 pace = _Pace(rel, self.cfg.rate)
-            self._wait(pace, rel, t0_bag, m.log_time)
+            stepped = self._wait(pace, rel, t0_bag, m.log_time)
             if self.done:
                 return
             if self.clock_pub is not None:
-                self.clock_pub.publish(Clock(clock=stamp(m.log_time)))
+                pace.clock_ns = max(pace.clock_ns, m.log_time)
+                self.clock_pub.publish(Clock(clock=stamp(pace.clock_ns)))
             pub.publish(m.data)
-            self.last_played = f"{m.topic} at {rel:.3f} s of the bag"
             n += 1
             self.published += 1
+            if stepped:  # played for ~/play_next: its answer names it
+                with self.step_cond:
+                    self.stepped += 1
+                    self.step_note = f"{m.topic} at {rel:.3f} s of the bag"
+                    self.step_cond.notify_all()
         for note in self.reader.stopped:
             self.get_logger().warning(f"bag damaged, played everything intact: {note}")
         flush(self, [p for p in self.pubs.values() if p is not None])
@@ -208,53 +219,56 @@ class ReplayNode(ZebraNode[ReplayConfig]):
 
     def _on_play_next(self, request: Any, response: Any) -> Any:
         """``~/play_next``: while paused, the next message is played alone; answered once it is (its topic and bag
-        time), or refused (not paused, the bag played to its end, nothing played within ``_STEP_WAIT_S``: the
-        request is then withdrawn)."""
-        if not self.cfg.paused or self.done:
-            response.success, response.message = False, ("the bag has been played" if self.done else
-                                                         "not paused: ~/play_next plays one message while paused")
+        time), or refused: not paused, the bag played to its end or failed, or nothing played within
+        ``_STEP_WAIT_S`` (the step is then withdrawn, unless the play thread has just taken it)."""
+        response.success = False
+        if self.done or not self.cfg.paused:
+            response.message = (self.error or "the bag has been played") if self.done else \
+                "not paused: ~/play_next plays one message while paused"
             return response
-        before = self.published
-        with self.step_lock:
+        with self.step_cond:
+            before = self.stepped
             self.steps += 1
-        end = time.monotonic() + _STEP_WAIT_S
-        while self.published == before and not self.done and time.monotonic() < end:
-            time.sleep(0.005)
-        if self.published > before:
-            response.success, response.message = True, f"played {self.last_played}"
-        else:
-            with self.step_lock:
-                self.steps = max(0, self.steps - 1)
-            response.success, response.message = False, (f"nothing played within {_STEP_WAIT_S:g} s"
-                                                         + (f": {self.waiting}" if self.waiting else ""))
+            self.step_cond.wait_for(lambda: self.stepped > before or self.done or not self.context.ok(),
+                                    timeout=_STEP_WAIT_S)
+            if self.stepped > before:
+                response.success, response.message = True, f"played {self.step_note}"
+            elif self.steps > 0:  # not taken: withdrawn
+                self.steps -= 1
+                response.message = (self.error or "the bag has been played") if self.done else \
+                    f"nothing played within {_STEP_WAIT_S:g} s" + (f" ({self.waiting})" if self.waiting else "")
+            else:  # taken by the play thread just now: it plays, after this answer
+                response.message = f"the next message is playing (not within {_STEP_WAIT_S:g} s)"
         return response
 
     def _take_step(self) -> bool:
         """One of ~/play_next's requests, if any is waiting."""
-        with self.step_lock:
+        with self.step_cond:
             if self.steps <= 0:
                 return False
             self.steps -= 1
             return True
 
-    def _wait(self, pace: _Pace, rel: float, t0_bag: int, log_time: int) -> None:
+    def _wait(self, pace: _Pace, rel: float, t0_bag: int, log_time: int) -> bool:
         """Sleep in slices until bag time ``rel`` is due, publishing /clock on the way; a new rate applies at once,
-        and a pause holds the wait (and /clock) where the bag is until it ends."""
+        and a pause holds the wait (and /clock) where the bag is until it ends, or until ``~/play_next`` takes this
+        message (True: it plays for that step)."""
         period = 1.0 / self.cfg.clock_rate_hz
         while not self.done:  # stop() ends the wait too
             now, c = time.monotonic(), self.cfg  # one config a pass: the executor may swap it meanwhile
             pace.set_rate(0.0 if c.paused else c.rate, now)
             if c.paused and self._take_step():  # ~/play_next: this message alone, /clock moved to it
                 pace.jump(rel, now)
-                return
+                return True
             if self.clock_pub is not None and now - pace.last_clock >= period:
-                sim = t0_bag + int(pace.position(now) * 1e9)
-                self.clock_pub.publish(Clock(clock=stamp(min(sim, log_time))))
+                pace.clock_ns = max(pace.clock_ns, min(t0_bag + int(pace.position(now) * 1e9), log_time))
+                self.clock_pub.publish(Clock(clock=stamp(pace.clock_ns)))
                 pace.last_clock = now
             target = pace.due(rel)
             if now >= target:
-                return
+                return False
             time.sleep(min(target - now, period / 2 if self.clock_pub else 0.05))
+        return False
 
     def activity(self) -> Activity:
         """Messages played; damaged parts of the bags skipped (everything intact is played); an error ends it."""
