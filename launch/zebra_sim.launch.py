@@ -57,7 +57,7 @@ from zebra_sim_ros.graph.spec import (
     check_drones,
     cloud_topics,
     config_dir,
-    dds_environment,
+    dds_profile,
     node_config,
     placer_aim,
     recorder_excludes,
@@ -117,8 +117,7 @@ def generate_launch_description():
 
         # our Fast DDS profile (100 ms heartbeat: large images that lost a fragment arrive in 0.1 s, not 3 s) from
         # this folder, as zebra-sim up sets it, unless a profile file is already chosen
-        profile = [SetEnvironmentVariable(k, v) for k, v in dds_environment(Path(config), dict(os.environ)).items()
-                   if os.environ.get(k) != v]
+        profile = [SetEnvironmentVariable(k, v) for k, v in dds_profile(Path(config), os.environ).items()]
         count = LaunchConfiguration("drones").perform(context)
         if not count.isdigit():
             raise ParameterError("drones", count, "a number of cameras")

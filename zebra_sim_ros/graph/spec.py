@@ -9,7 +9,7 @@ import argparse
 import os
 import re
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
@@ -247,13 +247,18 @@ NODE_ENVIRONMENT = {"OMP_WAIT_POLICY": "PASSIVE"}
 _PROFILE_VARS = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
 
 
+def dds_profile(config: Path, environ: Mapping[str, str]) -> dict[str, str]:
+    """What our Fast DDS profile adds to ``environ`` (config/fastdds.xml: a 100 ms heartbeat, so a large image that
+    lost a fragment arrives within 0.1 s instead of 3 s): nothing where the user already chose a profile file or
+    ``config`` holds none. The launch file sets it."""
+    if any(environ.get(v) for v in _PROFILE_VARS) or not (config / DDS_PROFILE).is_file():
+        return {}
+    return {"FASTRTPS_DEFAULT_PROFILES_FILE": str(config / DDS_PROFILE)}
+
+
 def dds_environment(config: Path, environ: dict[str, str]) -> dict[str, str]:
-    """``environ`` with our Fast DDS profile (config/fastdds.xml: a 100 ms heartbeat, so a large image that lost a
-    fragment arrives within 0.1 s instead of 3 s) unless the user already chose a profile file."""
-    env = dict(environ)
-    if not any(env.get(v) for v in _PROFILE_VARS) and (config / DDS_PROFILE).is_file():
-        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(config / DDS_PROFILE)
-    return env
+    """``environ`` with our Fast DDS profile (:func:`dds_profile`)."""
+    return {**environ, **dds_profile(config, environ)}
 
 
 def global_remaps(namespace: str) -> tuple[tuple[str, str], ...]:

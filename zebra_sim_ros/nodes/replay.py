@@ -201,9 +201,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             stepped = self._wait(pace, rel, t0_bag, m.log_time)
             if self.done:
                 return
-            if self.clock_pub is not None:
-                pace.clock_ns = max(pace.clock_ns, m.log_time)
-                self.clock_pub.publish(Clock(clock=stamp(pace.clock_ns)))
+            self._publish_clock(pace, m.log_time)
             pub.publish(m.data)
             n += 1
             self.published += 1
@@ -222,9 +220,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         time), or refused: not paused, the bag played to its end or failed, or nothing played within
         ``_STEP_WAIT_S`` (the step is then withdrawn, unless the play thread has just taken it)."""
         response.success = False
+        ended = lambda: self.error or "the bag has been played"  # noqa: E731
         if self.done or not self.cfg.paused:
-            response.message = (self.error or "the bag has been played") if self.done else \
-                "not paused: ~/play_next plays one message while paused"
+            response.message = ended() if self.done else "not paused: ~/play_next plays one message while paused"
             return response
         with self.step_cond:
             before = self.stepped
@@ -235,7 +233,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                 response.success, response.message = True, f"played {self.step_note}"
             elif self.steps > 0:  # not taken: withdrawn
                 self.steps -= 1
-                response.message = (self.error or "the bag has been played") if self.done else \
+                response.message = ended() if self.done else \
                     f"nothing played within {_STEP_WAIT_S:g} s" + (f" ({self.waiting})" if self.waiting else "")
             else:  # taken by the play thread just now: it plays, after this answer
                 response.message = f"the next message is playing (not within {_STEP_WAIT_S:g} s)"
@@ -261,14 +259,20 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                 pace.jump(rel, now)
                 return True
             if self.clock_pub is not None and now - pace.last_clock >= period:
-                pace.clock_ns = max(pace.clock_ns, min(t0_bag + int(pace.position(now) * 1e9), log_time))
-                self.clock_pub.publish(Clock(clock=stamp(pace.clock_ns)))
+                self._publish_clock(pace, min(t0_bag + int(pace.position(now) * 1e9), log_time))
                 pace.last_clock = now
             target = pace.due(rel)
             if now >= target:
                 return False
             time.sleep(min(target - now, period / 2 if self.clock_pub else 0.05))
         return False
+
+    def _publish_clock(self, pace: _Pace, ns: int) -> None:
+        """/clock at bag time ``ns`` (with ``clock``), never under the last one this pass sent (the paced time, a
+        float, may fall a nanosecond under a message's stamp)."""
+        if self.clock_pub is not None:
+            pace.clock_ns = max(pace.clock_ns, ns)
+            self.clock_pub.publish(Clock(clock=stamp(pace.clock_ns)))
 
     def activity(self) -> Activity:
         """Messages played; damaged parts of the bags skipped (everything intact is played); an error ends it."""
