@@ -438,3 +438,87 @@ def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path:
         assert proc.wait(timeout=20) == 0, log.read_text()
     assert got == [f"tick {k}" for k in range(len(times))]
     assert all(b >= a for a, b in zip(clocks, clocks[1:], strict=False)), clocks  # /clock never went back
+
+
+def _set_double(peer: Peer, node: str, name: str) -> Any:
+    """A setter of the float parameter ``name`` of ``node`` over its set_parameters service: call(value) returns
+    the SetParametersResult."""
+    from rcl_interfaces.msg import Parameter as ParameterMsg
+    from rcl_interfaces.msg import ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+
+    client = peer.node.create_client(SetParameters, f"{node}/set_parameters")
+
+    def call(value: float) -> Any:
+        value_msg = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
+        future = client.call_async(SetParameters.Request(parameters=[ParameterMsg(name=name, value=value_msg)]))
+        assert peer.spin(future.done, 30), f"no answer from {node}/set_parameters"
+        return future.result().results[0]
+    call.ready = client.service_is_ready  # type: ignore[attr-defined]
+    return call
+
+
+def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_path: Path) -> None:
+    """Setting ``start_offset_s`` while playing seeks, as ros2 bag play's seek: paused, a seek forward plays the
+    first message at or after that bag time next; a seek back plays again from there, /clock back at the time sought;
+    the same value again seeks again. ``~/play_next`` while the replay waits for subscribers is refused at once,
+    not after its 5 s wait. Resumed, the rest plays in order and the replay ends; its /diagnostics count the seeks."""
+    import time
+
+    from rosgraph_msgs.msg import Clock
+
+    times = _timed_bag(tmp_path / "t.mcap", [0.0] + [0.1000000013] * 19)  # 20 ticks over 1.9 s
+    got: list[str] = []
+    clocks: list[int] = []
+    peer.node.create_subscription(Clock, "/clock", lambda m: clocks.append(m.clock.sec * 10**9 + m.clock.nanosec), 100)
+    status = collect_diagnostics(peer.node, "replay: replay")
+    resume, step = _trigger(peer, "/replay/resume"), _trigger(peer, "/replay/play_next")
+    seek = _set_double(peer, "/replay", "start_offset_s")
+    log = tmp_path / "replay.log"
+    params = {"bags": [str(tmp_path / "t.mcap")], "paused": True, "wait_for_subscribers_s": 60.0, "clock": True,
+              "clock_rate_hz": 50.0, "diagnostics_period_s": 0.2}
+    with node_process("replay", params, _domain(peer), log) as proc:
+        assert peer.spin(lambda: step.ready() and seek.ready() and resume.ready() and bool(status), 30), log.read_text()
+        assert peer.spin(lambda: "subscribers" in status[-1]["message"], 10), status[-1:]  # no /tick subscriber yet
+        t = time.monotonic()
+        refused = step()
+        assert not refused.success and "nothing to play yet (waiting up to 60 s for subscribers)" in refused.message
+        assert time.monotonic() - t < 3.0, "the refusal waited"
+        peer.node.create_subscription(String, "/tick", lambda m: got.append(m.data), 100)
+        assert peer.spin(lambda: status[-1]["message"] == "paused", 30), status[-1:]
+        for to, k in ((1.0, 10), (0.25, 3), (0.25, 3)):  # forward; back; the same value again
+            assert seek(to).successful
+            answer = step()
+            assert answer.success and answer.message == f"played /tick at {(times[k] - times[0]) / 1e9:.3f} s of the "\
+                "bag", (to, answer.message, log.read_text())
+            assert peer.spin(lambda k=k: bool(clocks) and clocks[-1] == times[k], 10), (to, clocks[-3:])
+        assert times[0] + 250_000_000 in clocks  # /clock went back to the time sought, before tick 3 played
+        assert got == ["tick 10", "tick 3", "tick 3"]
+        assert resume().message == "resumed"
+        assert proc.wait(timeout=30) == 0, log.read_text()
+        peer.spin(lambda: len(got) == 19, 10)
+    assert got == ["tick 10", "tick 3", "tick 3"] + [f"tick {k}" for k in range(4, 20)]
+    assert any(s["values"].get("seeks") == "3" for s in status), status[-1:]
+    assert "seeking to 0.25 s of the bag" in log.read_text()
+
+
+def test_a_seek_while_playing_cuts_the_wait_for_a_far_message(peer: Peer, tmp_path: Path) -> None:
+    """Playing at rate 1 with the next message 30 s away: a seek to 0.05 s before it plays it within seconds, the
+    spacing after it kept, and the replay ends."""
+    import time
+
+    _timed_bag(tmp_path / "t.mcap", [0.0, 30.0, 0.2])
+    got: list[tuple[str, float]] = []
+    peer.node.create_subscription(String, "/tick", lambda m: got.append((m.data, time.monotonic())), 10)
+    seek = _set_double(peer, "/replay", "start_offset_s")
+    log = tmp_path / "replay.log"
+    with node_process("replay", {"bags": [str(tmp_path / "t.mcap")], "wait_for_subscribers_s": 20.0}, _domain(peer),
+                      log) as proc:
+        assert peer.spin(lambda: bool(got) and seek.ready(), 30), log.read_text()
+        t = time.monotonic()
+        assert seek(29.95).successful
+        assert peer.spin(lambda: len(got) == 3, 10), (got, log.read_text())
+        assert proc.wait(timeout=20) == 0, log.read_text()
+    assert [g for g, _ in got] == ["tick 0", "tick 1", "tick 2"]
+    assert got[1][1] - t < 5.0, "tick 1 waited for its recorded time"
+    assert 0.1 < got[2][1] - got[1][1] < 1.5  # 0.2 s apart, as recorded

@@ -7,7 +7,9 @@ spacing of log times divided by ``rate``. ``start_offset_s`` and ``duration_s`` 
 with the bag's time for ``use_sim_time`` consumers. ``paused`` (runtime; the ``~/pause`` and ``~/resume`` services,
 std_srvs/Trigger, set it, as ``ros2 bag play``'s) holds playback at the bag time reached and goes on from there;
 while paused, ``~/play_next`` plays the next message alone (/clock moves to its time) and answers with its topic and
-bag time; ``rate`` changes apply at once. A truncated or corrupt bag plays everything intact, then the node logs
+bag time; ``rate`` changes apply at once. Setting ``start_offset_s`` while playing seeks there, as ``ros2 bag
+play``'s seek: the next message played is the first at or after that bag time (back or forth; a pause holds there).
+A truncated or corrupt bag plays everything intact, then the node logs
 where and why it stopped. The node exits when done (unless looping).
 """
 
@@ -21,6 +23,8 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 
@@ -47,6 +51,14 @@ _STEP_WAIT_S = 5.0  # how long ~/play_next waits for its message to be played be
 MATCH_SETTLE_S = 0.3
 
 
+class _Seek(Exception):
+    """Ends a pass to play again from bag time ``to`` (a seek back, or onto messages already played)."""
+
+    def __init__(self, to: float) -> None:
+        super().__init__(to)
+        self.to = to
+
+
 class _Pace:
     """When each bag time is due on the wall clock, at a ``rate`` that may change while playing: after a change
     the bag goes on from where it is, at the new speed; at rate 0 (paused) it stands where it is and nothing is due.
@@ -62,8 +74,9 @@ class _Pace:
         return self.offset + (now - self.start) * self.rate
 
     def jump(self, rel: float, now: float) -> None:
-        """Stand at bag time ``rel`` from ``now`` (a message played alone while paused)."""
-        self.offset, self.start = rel, now
+        """Stand at bag time ``rel`` from ``now`` (a message played alone while paused, a seek); /clock is due at
+        once."""
+        self.offset, self.start, self.last_clock = rel, now, 0.0
 
     def set_rate(self, rate: float, now: float) -> None:
         """Play on at ``rate`` from ``now``."""
@@ -77,7 +90,7 @@ class _Pace:
 
 class ReplayNode(ZebraNode[ReplayConfig]):
     """Plays bags from a thread of its own; the executor only serves the graph. ``rate`` and ``paused`` may change
-    while it plays."""
+    while it plays, and a new ``start_offset_s`` seeks."""
 
     def __init__(self) -> None:
         super().__init__("replay", ReplayConfig)
@@ -97,8 +110,11 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         # by a step and the last of them (topic and bag time); the condition guards all three
         self.steps, self.stepped, self.step_note = 0, 0, ""
         self.step_cond = threading.Condition()
+        self.seek_to: float | None = None  # a seek asked for and not yet taken (bag seconds); under step_cond
+        self.seeks = 0  # seeks taken
         self.error = ""  # why playing failed
         self.damaged_before = 0  # damaged parts skipped in earlier passes (looping reopens the reader)
+        self.damaged_pass: set[str] = set()  # this pass's, from readers a seek back replaced (the same parts again)
         self.pass_lock = threading.Lock()  # a report never sees a pass counted twice, or not at all
         self.waiting = ""  # what the play thread waits for before it plays
         for topic, type_name, metadata in self.reader.channel_list():  # publishers up front: subscribers match
@@ -120,6 +136,24 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             with self.step_cond:  # a step asked for in the last pause is not carried into the next one
                 self.steps = 0
         self.cfg = cfg
+
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        """As every node's, and every accepted set of ``start_offset_s`` seeks, even to the value it has (as a
+        repeated ``ros2 bag play`` seek plays again from there)."""
+        result = super()._on_set_parameters(params)
+        offsets = [p for p in params if p.name == "start_offset_s"]
+        if result.successful and offsets and hasattr(self, "step_cond"):  # not at declaration, before start()
+            to = float(offsets[-1].value)
+            with self.step_cond:
+                self.seek_to = to
+            self.get_logger().info(f"seeking to {to:g} s of the bag")
+        return result
+
+    def _take_seek(self) -> float | None:
+        """The seek asked for, if any (taken: asked once, done once)."""
+        with self.step_cond:
+            to, self.seek_to = self.seek_to, None
+            return to
 
     def _wanted(self, topic: str) -> bool:
         return ((not self.topics or topic in self.topics) and bool(self.regex.search(topic))
@@ -149,13 +183,22 @@ class ReplayNode(ZebraNode[ReplayConfig]):
 
     def _play_all(self) -> None:
         try:
+            origin: float | None = None  # where a seek back restarts the pass (None: at start_offset_s)
             while True:
-                self._play_once()
-                if not self.cfg.loop or self.done:
+                try:
+                    self._play_once(origin)
+                    origin = None
+                except _Seek as seek:  # read the bags again from their start, up to the bag time sought
+                    origin = seek.to
+                if self.done or (origin is None and not self.cfg.loop):
                     break
                 reader = BagReader.open(self.bags)
                 with self.pass_lock:
-                    self.damaged_before += len(self.reader.stopped)
+                    if origin is None:  # a new pass
+                        self.damaged_before += len(self.damaged_pass | set(self.reader.stopped))
+                        self.damaged_pass = set()
+                    else:  # the same pass again from the bag time sought: its damaged parts are not new ones
+                        self.damaged_pass |= set(self.reader.stopped)
                     self.reader = reader
         except Exception as exc:  # noqa: BLE001 - reported, and the node ends with an error status
             if self.done or not self.context.ok():  # Ctrl-C: rclpy's handler ended the context under this thread
@@ -168,11 +211,16 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             with self.step_cond:  # a ~/play_next waiting for its message hears that none will come
                 self.step_cond.notify_all()
 
-    def _play_once(self) -> None:
+    def _play_once(self, origin: float | None) -> None:
+        """One pass over the bags, from ``start_offset_s`` or, after a seek back, from bag time ``origin`` (the
+        spacing from it kept); raises :class:`_Seek` for a seek to a bag time at or before a message this pass has
+        played. A seek forward goes on in this pass."""
         c = self.cfg  # what may change while playing (rate) is read from self.cfg where it is used
         wait_until = time.monotonic() + c.wait_for_subscribers_s
         t0_bag: int | None = None
         pace: _Pace | None = None
+        begin = c.start_offset_s if origin is None else origin  # the window: [begin, begin + duration_s]
+        last = -math.inf  # bag time of the last message played this pass
         n = 0
         for m in self.reader.messages():
             if self.done:
@@ -183,37 +231,59 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             if t0_bag is None:
                 t0_bag = m.log_time
             rel = (m.log_time - t0_bag) / 1e9
-            if rel < c.start_offset_s:
-                continue
-            if c.duration_s and rel > c.start_offset_s + c.duration_s:
+            while True:  # until this message is played or skipped: a seek while it waits judges it again
+                to = self._take_seek()
+                if to is not None:
+                    self.seeks += 1
+                    if to <= last:
+                        raise _Seek(to)
+                    begin = to
+                    if pace is not None:  # the bag stands at ``to`` now, and plays on from there
+                        pace.jump(to, time.monotonic())
+                if rel < begin:
+                    break
+                if c.duration_s and rel > begin + c.duration_s:
+                    self._end_pass(n)
+                    return
+                if pace is None:  # every publisher known so far should have a subscriber (up to wait_for_subscribers_s)
+                    self._wait_for_subscribers(wait_until, c.wait_for_subscribers_s)
+                    c_now = self.cfg  # paused: the bag stands at its start from the first instant
+                    pace = _Pace(rel if origin is None else origin, 0.0 if c_now.paused else c_now.rate)
+                waited = self._wait(pace, rel, t0_bag, m.log_time)
+                if self.done:
+                    return
+                if waited == "seek":
+                    continue
+                self._publish_clock(pace, m.log_time)
+                pub.publish(m.data)
+                n += 1
+                self.published += 1
+                last = rel
+                if waited == "step":  # played for ~/play_next: its answer names it
+                    with self.step_cond:
+                        self.stepped += 1
+                        self.step_note = f"{m.topic} at {rel:.3f} s of the bag"
+                        self.step_cond.notify_all()
                 break
-            if pace is None:  # every publisher known so far should have a subscriber (up to wait_for_subscribers_s)
-                waited = False
-                while not self.done and time.monotonic() < wait_until and any(
-                        p is not None and p.get_subscription_count() == 0 for p in self.pubs.values()):
-                    self.waiting = f"waiting up to {c.wait_for_subscribers_s:g} s for subscribers"
-                    waited = True
-                    time.sleep(0.01)
-                if waited:  # a match just made: let the subscriber's side know this publisher too
-                    time.sleep(MATCH_SETTLE_S)
-                self.waiting = ""
-                pace = _Pace(rel, self.cfg.rate)
-            stepped = self._wait(pace, rel, t0_bag, m.log_time)
-            if self.done:
-                return
-            self._publish_clock(pace, m.log_time)
-            pub.publish(m.data)
-            n += 1
-            self.published += 1
-            if stepped:  # played for ~/play_next: its answer names it
-                with self.step_cond:
-                    self.stepped += 1
-                    self.step_note = f"{m.topic} at {rel:.3f} s of the bag"
-                    self.step_cond.notify_all()
+        self._end_pass(n)
+
+    def _wait_for_subscribers(self, until: float, wait_s: float) -> None:
+        """Before the first message: until every publisher known so far has a subscriber, or wall time ``until``."""
+        waited = False
+        while not self.done and time.monotonic() < until and any(
+                p is not None and p.get_subscription_count() == 0 for p in self.pubs.values()):
+            self.waiting = f"waiting up to {wait_s:g} s for subscribers"
+            waited = True
+            time.sleep(0.01)
+        if waited:  # a match just made: let the subscriber's side know this publisher too
+            time.sleep(MATCH_SETTLE_S)
+        self.waiting = ""
+
+    def _end_pass(self, n: int) -> None:
         for note in self.reader.stopped:
             self.get_logger().warning(f"bag damaged, played everything intact: {note}")
         flush(self, [p for p in self.pubs.values() if p is not None])
-        self.get_logger().info(f"played {n} messages")
+        self.get_logger().info(f"played {n} messages" + (f" ({self.seeks} seeks)" if self.seeks else ""))
 
     def _on_play_next(self, request: Any, response: Any) -> Any:
         """``~/play_next``: while paused, the next message is played alone; answered once it is (its topic and bag
@@ -223,6 +293,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         ended = lambda: self.error or "the bag has been played"  # noqa: E731
         if self.done or not self.cfg.paused:
             response.message = ended() if self.done else "not paused: ~/play_next plays one message while paused"
+            return response
+        if self.waiting:  # no message is near: refused at once rather than holding the executor for _STEP_WAIT_S
+            response.message = f"nothing to play yet ({self.waiting})"
             return response
         with self.step_cond:
             before = self.stepped
@@ -247,25 +320,28 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             self.steps -= 1
             return True
 
-    def _wait(self, pace: _Pace, rel: float, t0_bag: int, log_time: int) -> bool:
+    def _wait(self, pace: _Pace, rel: float, t0_bag: int, log_time: int) -> str:
         """Sleep in slices until bag time ``rel`` is due, publishing /clock on the way; a new rate applies at once,
-        and a pause holds the wait (and /clock) where the bag is until it ends, or until ``~/play_next`` takes this
-        message (True: it plays for that step)."""
+        and a pause holds the wait (and /clock) where the bag is until it ends. Returns "due", or "step" where
+        ``~/play_next`` took this message while paused (it plays alone), or "seek" where a seek came first (the
+        message is judged again)."""
         period = 1.0 / self.cfg.clock_rate_hz
         while not self.done:  # stop() ends the wait too
+            if self.seek_to is not None:
+                return "seek"
             now, c = time.monotonic(), self.cfg  # one config a pass: the executor may swap it meanwhile
             pace.set_rate(0.0 if c.paused else c.rate, now)
-            if c.paused and self._take_step():  # ~/play_next: this message alone, /clock moved to it
-                pace.jump(rel, now)
-                return True
-            if self.clock_pub is not None and now - pace.last_clock >= period:
+            if self.clock_pub is not None and now - pace.last_clock >= period:  # first: a seek's time is sent
                 self._publish_clock(pace, min(t0_bag + int(pace.position(now) * 1e9), log_time))
                 pace.last_clock = now
+            if c.paused and self._take_step():  # ~/play_next: this message alone, /clock moved to it
+                pace.jump(rel, now)
+                return "step"
             target = pace.due(rel)
             if now >= target:
-                return False
+                return "due"
             time.sleep(min(target - now, period / 2 if self.clock_pub else 0.05))
-        return False
+        return "due"
 
     def _publish_clock(self, pace: _Pace, ns: int) -> None:
         """/clock at bag time ``ns`` (with ``clock``), never under the last one this pass sent (the paced time, a
@@ -277,8 +353,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
     def activity(self) -> Activity:
         """Messages played; damaged parts of the bags skipped (everything intact is played); an error ends it."""
         with self.pass_lock:
-            damaged = self.damaged_before + len(self.reader.stopped)
-        return Activity({"messages": self.published, "damaged": damaged}, "messages", ("damaged",),
+            damaged = self.damaged_before + len(self.damaged_pass | set(self.reader.stopped))
+        return Activity({"messages": self.published, "damaged": damaged, "seeks": self.seeks}, "messages",
+                        ("damaged",),
                         error=self.error, waiting=self.waiting or ("paused" if self.cfg.paused else ""),
                         info={"bags": ", ".join(str(p) for p in self.reader.paths), "rate": f"{self.cfg.rate:g}",
                               "paused": str(self.cfg.paused).lower()})

@@ -78,7 +78,8 @@ class RecorderConfig(StageConfig):
 
 @dataclass(frozen=True)
 class ReplayConfig(StageConfig):
-    """Validated replay parameters; ``rate`` and ``paused`` may change while it plays."""
+    """Validated replay parameters; ``rate`` and ``paused`` may change while it plays, and ``start_offset_s``
+    seeks."""
 
     bags: tuple[str, ...] = param(("",), "bag files (or folders of split files) to play, in order",
                                   allowed="a non-empty list of paths", check=lambda v: _str_list(v) and any(v))
@@ -88,7 +89,9 @@ class ReplayConfig(StageConfig):
                          "paused", runtime=True)
     loop: bool = param(False, "play again from the start when done")
     start_offset_s: float = param(0.0, "skip this much of the bag's start (its first message played: topics not "
-                                  "played do not count)", "s", lo=0.0, hi=1e9)
+                                  "played do not count); set while playing, it seeks there, back or forth (as ros2 "
+                                  "bag play's seek; the same value again seeks again), and duration_s counts from it",
+                                  "s", lo=0.0, hi=1e9, runtime=True)
     duration_s: float = param(0.0, "play only this much of the bag (0: to the end)", "s", lo=0.0, hi=1e9)
     topics: tuple[str, ...] = param(("",), "play only these topics ([''] = all matching topic_regex)",
                                     allowed="a list of topic names", check=_str_list)
