@@ -522,3 +522,37 @@ def test_a_seek_while_playing_cuts_the_wait_for_a_far_message(peer: Peer, tmp_pa
     assert [g for g, _ in got] == ["tick 0", "tick 1", "tick 2"]
     assert got[1][1] - t < 5.0, "tick 1 waited for its recorded time"
     assert 0.1 < got[2][1] - got[1][1] < 1.5  # 0.2 s apart, as recorded
+
+
+def test_the_recorder_splits_its_bag_on_its_service(peer: Peer, tmp_path: Path) -> None:
+    """``~/split_bagfile`` (std_srvs/Trigger), as ros2 bag record's: the answer names the new file; what arrived
+    before goes into the first file, what comes after into the next, each read back alone by rosbags; /diagnostics
+    count the files."""
+    pub = peer.node.create_publisher(String, "/chatter",
+                                     QoSProfile(depth=50, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    status = collect_diagnostics(peer.node, "recorder: recorder")
+    split = _trigger(peer, "/recorder/split_bagfile")
+    bag, log = tmp_path / "run.mcap", tmp_path / "rec.log"
+
+    def send(numbers: range) -> None:
+        for k in numbers:
+            pub.publish(String(data=str(k)))
+            peer.spin(lambda: False, 0.02)
+
+    params = {"output": str(bag), "discovery_period_s": 0.1, "diagnostics_period_s": 0.2, **ONLY_DATA}
+    with node_process("recorder", params, _domain(peer), log) as rec:
+        assert peer.spin(lambda: peer.node.count_subscribers("/chatter") > 0 and split.ready() and bool(status),
+                         30), log.read_text()
+        peer.spin(lambda: False, 0.5)
+        send(range(0, 5))
+        assert peer.spin(lambda: status[-1]["values"]["messages"] == "5", 10), status[-1:]
+        answer = split()
+        assert answer.success and answer.message == f"now writing {tmp_path / 'run_1.mcap'}", answer.message
+        send(range(5, 8))
+        assert peer.spin(lambda: status[-1]["values"]["messages"] == "8" and status[-1]["values"]["files"] == "2",
+                         10), status[-1:]
+        rec.send_signal(signal.SIGINT)
+        assert rec.wait(timeout=30) == 0, log.read_text()
+    for path, want in ((bag, range(0, 5)), (tmp_path / "run_1.mcap", range(5, 8))):
+        with AnyReader([path]) as r:
+            assert [r.deserialize(raw, c.msgtype).data for c, _, raw in r.messages()] == [str(k) for k in want]

@@ -1196,3 +1196,72 @@ def test_a_paused_recorder_core_counts_what_arrives_and_writes_none_of_it(tmp_pa
     assert t["topics"]["/chatter"]["received"] == 5
     with AnyReader([Path(path)]) as r:
         assert [r.deserialize(raw, c.msgtype).data for c, _, raw in r.messages()] == ["m3", "m4"]
+
+
+def _texts(path: Path) -> list[str]:
+    with AnyReader([path]) as r:
+        return [r.deserialize(raw, c.msgtype).data for c, _, raw in r.messages()]
+
+
+def test_a_split_on_demand_goes_on_in_the_next_file_and_each_file_is_a_bag(tmp_path: Path) -> None:
+    """``RecorderCore.split`` (the recorder's ``~/split_bagfile``): what was queued before it goes into the open
+    file, what comes after into the next, each file complete on its own as rosbags reads it; a bag not split by size
+    or duration keeps its name for the first file and goes on in ``<stem>_1.mcap``; one split by size numbers on from
+    its own files; a split before any message leaves an empty, valid bag; after the recording ends a split is
+    refused, saying why. A folder of them replays in the order written."""
+    from zebra_sim_ros.recording.recorder import RecorderCore
+
+    def offer(core: RecorderCore, ks: range) -> None:
+        assert all(core.offer("/chatter", serialize_message(String(data=f"m{k}")), 10 + k) for k in ks)
+
+    w = BagWriter(tmp_path / "a" / "run.mcap")
+    w.add_channel("/chatter", "std_msgs/msg/String", [profile_dict()])
+    core = RecorderCore(w, queue_size=100)
+    offer(core, range(0, 3))
+    assert core.split() == (True, f"now writing {tmp_path / 'a' / 'run_1.mcap'}")
+    offer(core, range(3, 5))
+    assert core.split()[1].endswith("run_2.mcap") and core.split()[1].endswith("run_3.mcap")  # the first empty
+    offer(core, range(5, 6))
+    files = [Path(p) for p in core.close()]
+    assert [p.name for p in files] == ["run.mcap", "run_1.mcap", "run_2.mcap", "run_3.mcap"]
+    assert [_texts(p) for p in files] == [["m0", "m1", "m2"], ["m3", "m4"], [], ["m5"]]
+    assert [m.data for m in BagReader.open(tmp_path / "a").messages()] == \
+        [serialize_message(String(data=f"m{k}")) for k in range(6)]  # the folder, in the order written
+    ok, why = core.split()
+    assert not ok and why.startswith("the recording has ended")
+
+    w = BagWriter(tmp_path / "b" / "s.mcap", split_bytes=1 << 30)
+    w.add_channel("/chatter", "std_msgs/msg/String", [profile_dict()])
+    core = RecorderCore(w, queue_size=100)
+    offer(core, range(0, 2))
+    assert core.split()[1].endswith("s_1.mcap")
+    offer(core, range(2, 3))
+    assert [(Path(p).name, _texts(Path(p))) for p in core.close()] == [("s_0.mcap", ["m0", "m1"]), ("s_1.mcap", ["m2"])]
+
+
+def test_a_split_run_is_summarised_from_every_piece_in_the_order_written(tmp_path: Path) -> None:
+    """``up`` reads a recording the recorder split (by size, duration or ``~/split_bagfile``) from all its pieces:
+    ``UpConfig.bag_files`` lists the bag and its ``zebra_sim_<k>.mcap`` pieces by number (``_2`` before ``_10``),
+    nothing else of the folder; ``summarize_run`` over two pieces gives the figures of the same run in one file and
+    names both as its source."""
+    from zebra_sim_ros.graph.spec import UpConfig
+    from zebra_sim_ros.graph.summary import summarize_run
+
+    cfg = UpConfig(out=str(tmp_path / "run"))
+    assert cfg.bag_files() == []
+    Path(cfg.out).mkdir()
+    for name in ("zebra_sim.mcap", "zebra_sim_10.mcap", "zebra_sim_2.mcap", "zebra_sim_x.mcap", "other_1.mcap",
+                 "zebra_sim_1.jpg"):
+        (Path(cfg.out) / name).write_bytes(b"")
+    assert [p.name for p in cfg.bag_files()] == ["zebra_sim.mcap", "zebra_sim_2.mcap", "zebra_sim_10.mcap"]
+
+    rng = np.random.default_rng(9)
+    herd = np.column_stack([rng.uniform(-10, 10, (10, 2)), np.full(10, 0.7)])
+    views = {cam: {t * 10**9: herd[rng.permutation(10)[:8]] for t in (1, 2)} for cam in ("drone_0", "drone_1")}
+    whole = _census_bag(tmp_path / "whole.mcap", views, recorded={10**9: 9, 2 * 10**9: 7})
+    pieces = [_census_bag(tmp_path / f"piece_{t}.mcap", {c: {t * 10**9: v[t * 10**9]} for c, v in views.items()},
+                          recorded={t * 10**9: n}) for t, n in ((1, 9), (2, 7))]
+    one, split = summarize_run(whole), summarize_run(list(pieces))
+    assert split["bag"] == [str(p) for p in pieces] and one["bag"] == str(whole)
+    assert split["located"] == one["located"] and split["census"] == one["census"]
+    assert split["located"]["frames"] == 4

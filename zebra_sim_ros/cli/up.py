@@ -137,7 +137,7 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     view = _rviz_view(cfg, conf, located, cameras)
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
-    for old in (cfg.bag_path, out / "summary.json", out / "preview.jpg", out / RVIZ_FILE, out / CENSUS_MAP):
+    for old in (*cfg.bag_files(), out / "summary.json", out / "preview.jpg", out / RVIZ_FILE, out / CENSUS_MAP):
         old.unlink(missing_ok=True)
     env = _graph_environment(conf, args.domain_id)
     load_library()  # build the zebra cache once here, not in every node at the same time
@@ -155,15 +155,17 @@ def cmd_up(args: argparse.Namespace) -> Summary:
     recorder_log = out / "logs" / (next((s.label for s in specs if s.executable == "recorder"), "recorder")
                                    .replace("/", "_") + ".log")
     result.update(_recorder_report(recorder_log))
-    if cfg.record and cfg.bag_path.is_file():
+    if cfg.record and (bag := cfg.bag_files()):
         from zebra_sim_ros.detection.scoring import COUNT_CONF
         from zebra_sim_ros.graph.summary import summarize_run
 
         count_conf = scoring.count_conf if scoring is not None else COUNT_CONF  # as the scorer counts them live
+        # split (by size, duration or the recorder's ~/split_bagfile): every piece, in the order written
+        recorded: Path | list[str | Path] = bag[0] if len(bag) == 1 else list(bag)
         try:
-            result.update(summarize_run(cfg.bag_path, out / "preview.jpg", count_conf, out / CENSUS_MAP, located))
+            result.update(summarize_run(recorded, out / "preview.jpg", count_conf, out / CENSUS_MAP, located))
         except OSError as exc:  # a full disk: the scores still come, the preview does not
-            result.update(summarize_run(cfg.bag_path, None, count_conf, out / CENSUS_MAP, located))
+            result.update(summarize_run(recorded, None, count_conf, out / CENSUS_MAP, located))
             result["preview_error"] = f"{exc.strerror or exc}: {out / 'preview.jpg'}"
         _print_summary(result, cfg.drone_names)
     if (live := result.get("live_scores")) and "all" in live:

@@ -71,12 +71,13 @@ def _stage_seconds(scenes: dict[int, int], times: dict[str, dict[str, dict[int, 
     return out
 
 
-def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf: float = COUNT_CONF,
+def summarize_run(bag: str | Path | list[str | Path], preview: str | Path | None = None, count_conf: float = COUNT_CONF,
                   geojson: str | Path | None = None, locator: LocatorConfig | None = None) -> dict[str, Any]:
-    """Summary of the run recorded in ``bag``, the zebras counted at ``count_conf`` (the scorer's); writes
-    ``preview`` (one tile per drone) when given, and ``geojson``, the locator's census on the Earth by the scenes'
-    datum, when given and the run has a census (``census_geojson`` in the summary: its path). The placed detections
-    and the census are read from ``locator``'s topics (the graph's locator; default: the locator's defaults)."""
+    """Summary of the run recorded in ``bag`` (a file, or a split recording's files in order), the zebras counted
+    at ``count_conf`` (the scorer's); writes ``preview`` (one tile per drone) when given, and ``geojson``, the
+    locator's census on the Earth by the scenes' datum, when given and the run has a census (``census_geojson`` in
+    the summary: its path). The placed detections and the census are read from ``locator``'s topics (the graph's
+    locator; default: the locator's defaults)."""
     locator = locator or LocatorConfig()
     located_topics, census_topic = (locator.output,), census_topic_re(locator)
     scenes: dict[int, int] = {}  # stamp -> log time
@@ -114,6 +115,7 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
         except (*MALFORMED, ZebraSimError) as exc:
             unusable.append(skip_note(m, exc))
 
+    sources = [str(b) for b in bag] if isinstance(bag, list) else [str(bag)]  # a split recording's pieces
     collected = collect(bag, each=visit)  # one pass over the bag for the scores and the timings
     for drone, log_times in collected.arrivals.items():
         times[drone].update(log_times)
@@ -125,7 +127,7 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
     images = sum(f["detections"] for f in frames.values())
     scores = score(collected, count_conf)
     out: dict[str, Any] = {
-        "bag": str(bag), "steps": len(scenes), "frames": frames,
+        "bag": sources if len(sources) > 1 else sources[0], "steps": len(scenes), "frames": frames,
         "scores": {k: v for k, v in scores.items() if k not in ("damaged", "skipped")}, "damaged": scores["damaged"],
         "skipped": unusable + scores["skipped"],
         "seconds": round(span, 3), "frames_per_s": round(images / span, 3) if span > 0 else None,
@@ -156,7 +158,7 @@ def summarize_run(bag: str | Path, preview: str | Path | None = None, count_conf
         if geojson is not None:
             try:
                 out["census_geojson"] = str(write_geojson(geojson, census_geojson(
-                    census, run_datum(datums), {"source": [str(bag)], "census": "the locator's, as published",
+                    census, run_datum(datums), {"source": sources, "census": "the locator's, as published",
                                                 "pose": locator.pose})))
             except ParameterError as exc:  # scenes without their datum: the figures still come
                 out["census_geojson_error"] = str(exc)

@@ -12,8 +12,9 @@ Callbacks only queue the bytes; one thread writes. A full queue counts drops per
 ``max_size_mb`` ends the recording with a finalised bag and an error. ``paused`` (runtime; the ``~/pause`` and
 ``~/resume`` services, std_srvs/Trigger, set it, as ``ros2 bag record``'s) writes nothing while true: what arrives
 is counted per topic (``paused_messages`` on /diagnostics), neither written nor dropped, and topics are still found
-and subscribed. SIGINT, SIGTERM and node shutdown finalise the bag (summary and indexes); after SIGKILL use
-``zebra-sim bag recover``.
+and subscribed. ``~/split_bagfile`` (std_srvs/Trigger, as ``ros2 bag record``'s) finishes the open file after what
+is queued and goes on in the next (``<stem>_1.mcap``, ... for a bag not split by size or duration). SIGINT,
+SIGTERM and node shutdown finalise the bag (summary and indexes); after SIGKILL use ``zebra-sim bag recover``.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import time
 from typing import Any
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
+from std_srvs.srv import Trigger
 
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.health import Activity
@@ -55,6 +57,7 @@ class RecorderNode(ZebraNode[RecorderConfig]):
                                 int(c.split_size_mb * MB), c.split_duration_s, int(c.max_size_mb * MB), reserve)
         self.core = RecorderCore(self.writer, c.queue_size, paused=c.paused)
         self.serve_pause()
+        self.create_service(Trigger, "~/split_bagfile", self._on_split)
         self.depth = c.qos_depth
         self.log_times = LogTimes()  # each message's log time: its stamp, reports at the latest one
         self.subs: dict[str, Any] = {}
@@ -122,6 +125,13 @@ class RecorderNode(ZebraNode[RecorderConfig]):
             offer(topic, data, log_time(type_name, data, now), time.time_ns())
         return on_message
 
+    def _on_split(self, request: Any, response: Any) -> Any:
+        """``~/split_bagfile``: the open file is finished after what is queued, and the bag goes on in the next;
+        answered with its name (or how far behind the writer is), refused once the recording has ended."""
+        response.success, response.message = self.core.split()
+        self.get_logger().info(f"split_bagfile: {response.message}")
+        return response
+
     def _log_stats(self) -> None:
         t = self.core.totals()
         self.get_logger().info(f"{t['messages']} messages written, {t['dropped']} dropped, {t['paused']} while paused, "
@@ -139,7 +149,8 @@ class RecorderNode(ZebraNode[RecorderConfig]):
                          "topics": sum(s is not None for s in self.subs.values())}, "messages", ("dropped",),
                         error=f"recording ended: {t['error']}" if t["error"] is not None else "",
                         waiting="paused" if self.core.paused else "",
-                        info={"output": str(self.writer.path), "queue": str(t["queue"]), "MB/s": f"{t['mb_per_s']:g}"})
+                        info={"output": str(self.writer.path), "files": str(len(self.writer.files)),
+                              "queue": str(t["queue"]), "MB/s": f"{t['mb_per_s']:g}"})
 
     def stop(self) -> None:
         """Finalise the bag and print the statistics."""

@@ -2,9 +2,9 @@
 
 Callbacks never touch the disk: :meth:`RecorderCore.offer` puts the serialized message in the queue or, if it
 is full, counts a drop for that topic (never silent: drops are in the statistics and the logs); while ``paused``
-it counts the message as ``paused`` instead, neither written nor dropped. The writer
-thread writes in arrival order. A full disk or the size cap ends the recording: the thread finalises what it
-can and keeps the error for the node to report.
+it counts the message as ``paused`` instead, neither written nor dropped. The writer thread writes in arrival
+order; :meth:`RecorderCore.split` queues a split in that order too. A full disk or the size cap ends the
+recording: the thread finalises what it can and keeps the error for the node to report.
 """
 
 from __future__ import annotations
@@ -14,11 +14,13 @@ import threading
 import time
 from collections import defaultdict
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from zebra_sim_ros.recording.writer import BagFullError, BagWriter
 
 _STOP = object()
+_SPLIT = object()  # in the queue: what came before it goes into the open file, what comes after into the next
 
 
 @dataclass
@@ -46,6 +48,7 @@ class RecorderCore:
     def __post_init__(self) -> None:
         self._q: queue.Queue[Any] = queue.Queue(maxsize=self.queue_size)
         self._lock = threading.Lock()
+        self._closed = False  # close() has begun: no split is taken
         self._thread = threading.Thread(target=self._run, name="bag-writer", daemon=True)
         self._thread.start()
         self.started = time.monotonic()
@@ -69,11 +72,38 @@ class RecorderCore:
                 return False
             return True
 
+    def split(self, timeout: float = 2.0) -> tuple[bool, str]:
+        """Split the bag after what is queued now (as ``ros2 bag record``'s split_bagfile); waits up to ``timeout``
+        for the writer thread to make it. (True, the new file) once made; (True, how far behind) if still queued;
+        (False, why) when the recording has ended or the queue stays full."""
+        if self.error is not None or self._closed:
+            return False, f"the recording has ended: {self.error or 'the bag is closed'}"
+        made = threading.Event()
+        into: list[Path] = []
+        try:
+            self._q.put((_SPLIT, made, into), timeout=timeout)
+        except queue.Full:
+            return False, f"the writer's queue stayed full for {timeout:g} s: not split"
+        if not made.wait(timeout):
+            return True, f"split queued behind {self._q.qsize()} messages"
+        if not into:
+            return False, f"the recording has ended: {self.error}"
+        return True, f"now writing {into[0]}"
+
     def _run(self) -> None:
         while True:
             item = self._q.get()
             if item is _STOP:
                 return
+            if item[0] is _SPLIT:
+                _, made, into = item
+                if self.error is None:
+                    try:
+                        into.append(self.writer.split())
+                    except (BagFullError, OSError) as exc:
+                        self.error = str(exc)
+                made.set()
+                continue
             topic, data, t, pt = item
             if self.error is not None:  # the recording has ended: what is still queued is dropped, and counted
                 with self._lock:
@@ -95,6 +125,7 @@ class RecorderCore:
 
     def close(self, timeout: float = 60.0) -> list[str]:
         """Drain the queue, stop the thread, finalise the bag; returns its files."""
+        self._closed = True
         self._q.put(_STOP)
         self._thread.join(timeout)
         if self._thread.is_alive():  # still draining: drop the rest rather than write while the file is finished

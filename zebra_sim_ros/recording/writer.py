@@ -1,7 +1,8 @@
 """Writing MCAP bags the way rosbag2 does: profile ``ros2``, ``ros2msg`` schemas with every dependency,
 ``cdr`` messages, ``offered_qos_profiles`` channel metadata, chunk compression, message indexes and summary.
 
-A bag may be split by size or duration into ``<stem>_<k>.mcap`` files (k from 0), each complete on its own,
+A bag may be split by size or duration into ``<stem>_<k>.mcap`` files (k from 0), each complete on its own, or
+on demand (:meth:`BagWriter.split`: a bag not split by size or duration then goes on in ``<stem>_1.mcap``, ...),
 and may be capped in total size (``max_bytes``): the write that would pass the cap raises
 :class:`BagFullError` and the files written so far stay finalised. The disk is watched the same way: a write that
 would leave less free space than the reserve (``reserve_bytes``; by default what the open chunk holds so far, 256 KB
@@ -68,13 +69,15 @@ class BagWriter:
         self.messages = 0
         self._open()  # the file exists from the start, as with rosbag2: an empty recording is an empty, valid bag
 
-    def _file_path(self, k: int) -> Path:
+    def file_path(self, k: int) -> Path:
+        """The bag's ``k``-th file (from 0): ``<stem>_<k>.mcap`` when split by size or duration, else the path given
+        for the first and ``<stem>_<k>.mcap`` for those a :meth:`split` starts."""
         split = self.split_bytes > 0 or self.split_ns > 0
-        return self.path.with_name(f"{self.path.stem}_{k}.mcap") if split else self.path
+        return self.path.with_name(f"{self.path.stem}_{k}.mcap") if split or k > 0 else self.path
 
     def _open(self) -> None:
         k = len(self.files)
-        p = self._file_path(k)
+        p = self.file_path(k)
         try:
             p.parent.mkdir(parents=True, exist_ok=True)
             self._stream = open(p, "wb")  # noqa: SIM115 - closed in _close_file
@@ -164,6 +167,15 @@ class BagWriter:
             raise
         self.messages += 1
         self._unflushed = 0 if self.bytes_written != before else self._unflushed + len(data) + 64
+
+    def split(self) -> Path:
+        """Finish the open file and go on in the next (as ``ros2 bag record``'s split_bagfile service); returns its
+        path. A file split before any message is an empty, valid bag."""
+        if self._writer is None:
+            raise RuntimeError(f"split of {self.path} after close()")
+        self._close_file()
+        self._open()
+        return self.files[-1]
 
     def _check_free_space(self, incoming: int) -> None:
         """BagFullError while there is still room to finish the bag, rather than ENOSPC in the middle of a chunk."""
