@@ -556,3 +556,45 @@ def test_the_recorder_splits_its_bag_on_its_service(peer: Peer, tmp_path: Path) 
     for path, want in ((bag, range(0, 5)), (tmp_path / "run_1.mcap", range(5, 8))):
         with AnyReader([path]) as r:
             assert [r.deserialize(raw, c.msgtype).data for c, _, raw in r.messages()] == [str(k) for k in want]
+
+
+def test_the_recorder_in_snapshot_mode_writes_the_newest_messages_on_its_service(peer: Peer, tmp_path: Path) -> None:
+    """``snapshot_size_mb`` > 0, as ros2 bag record --snapshot-mode: nothing is written as it arrives; ``~/snapshot``
+    (std_srvs/Trigger) writes the newest messages that fit the cache, and rosbags reads back exactly those, in order;
+    /diagnostics count what the cache holds and what it let go; a second snapshot with nothing new writes nothing.
+    Outside snapshot mode the service refuses, saying why."""
+    pub = peer.node.create_publisher(String, "/chatter", QoSProfile(depth=50))
+    status = collect_diagnostics(peer.node, "recorder: recorder")
+    snap = _trigger(peer, "/recorder/snapshot")
+    bag, log = tmp_path / "snap.mcap", tmp_path / "rec.log"
+    params = {"output": str(bag), "discovery_period_s": 0.1, "diagnostics_period_s": 0.2,
+              "snapshot_size_mb": 0.001, **ONLY_DATA}  # 1,048 bytes: nine of these 112-byte messages
+    with node_process("recorder", params, _domain(peer), log) as rec:
+        assert peer.spin(lambda: peer.node.count_subscribers("/chatter") > 0 and snap.ready() and bool(status),
+                         30), log.read_text()
+        peer.spin(lambda: False, 0.5)
+        for k in range(30):
+            pub.publish(String(data=f"{k:03d}" + "x" * 97))
+            peer.spin(lambda: False, 0.02)
+        assert peer.spin(lambda: status[-1]["values"].get("cached") == "9"
+                         and status[-1]["values"].get("expired") == "21", 10), status[-1:]
+        assert status[-1]["values"]["messages"] == "0"
+        answer = snap()
+        assert answer.success and answer.message.startswith("writing 9 messages"), answer.message
+        assert peer.spin(lambda: status[-1]["values"]["messages"] == "9" and status[-1]["values"]["cached"] == "0",
+                         10), status[-1:]
+        assert snap().message == "the cache is empty: nothing to write"
+        rec.send_signal(signal.SIGINT)
+        assert rec.wait(timeout=30) == 0, log.read_text()
+    with AnyReader([bag]) as r:
+        assert [r.deserialize(raw, c.msgtype).data[:3] for c, _, raw in r.messages()] == \
+            [f"{k:03d}" for k in range(21, 30)]
+    assert peer.spin(lambda: not snap.ready(), 10)  # the first recorder's service gone before the next one's
+    plain = {"output": str(tmp_path / "plain.mcap"), **ONLY_DATA}
+    with node_process("recorder", plain, _domain(peer), tmp_path / "plain.log") as rec:
+        assert peer.spin(snap.ready, 30)
+        refused = snap()
+        assert not refused.success and refused.message == "not in snapshot mode: snapshot_size_mb is 0, so " \
+            "everything is written as it arrives"
+        rec.send_signal(signal.SIGINT)
+        assert rec.wait(timeout=30) == 0

@@ -1265,3 +1265,44 @@ def test_a_split_run_is_summarised_from_every_piece_in_the_order_written(tmp_pat
     assert split["bag"] == [str(p) for p in pieces] and one["bag"] == str(whole)
     assert split["located"] == one["located"] and split["census"] == one["census"]
     assert split["located"]["frames"] == 4
+
+
+def test_snapshot_mode_keeps_the_newest_messages_in_memory_and_writes_them_on_a_snapshot(tmp_path: Path) -> None:
+    """``RecorderCore`` in snapshot mode (the recorder's ``snapshot_size_mb`` and ``~/snapshot``): nothing reaches
+    the bag until a snapshot; the cache keeps the newest messages that fit its size, the older ones counted as
+    expired; a snapshot writes the cache, in order, and empties it; with a duration, only that much log time before
+    the newest is kept; an empty cache writes nothing and says so; outside snapshot mode, or after close, a snapshot
+    is refused; a duration without a size is refused, naming it (the node's parameter too)."""
+    from zebra_sim_ros.errors import ParameterError
+    from zebra_sim_ros.recording.config import RecorderConfig
+    from zebra_sim_ros.recording.recorder import RecorderCore
+
+    def msg(k: int) -> bytes:
+        return serialize_message(String(data=f"{k:03d}" + "x" * 97))  # 112 bytes each
+
+    size = len(msg(0))
+    w = BagWriter(tmp_path / "snap.mcap")
+    w.add_channel("/chatter", "std_msgs/msg/String", [profile_dict()])
+    core = RecorderCore(w, queue_size=10, snapshot_bytes=4 * size + 10, snapshot_ns=10**9)
+    assert all(core.offer("/chatter", msg(k), k * 10**8) for k in range(10))  # 0.1 s apart
+    t = core.totals()
+    assert (t["messages"], t["cached"], t["expired"], t["cached_mb"]) == (0, 4, 6, round(4 * size / 1e6, 2))
+    assert core.snapshot() == (True, f"writing 4 messages ({4 * size / 1e6:.2f} MB, 0.30 s of log time)")
+    assert core.snapshot() == (True, "the cache is empty: nothing to write")
+    for k in (20, 30, 45):  # 2.0, 3.0, 4.5 s: only the last is within 1 s of the newest
+        core.offer("/chatter", msg(k), k * 10**8)
+    assert core.snapshot()[1].startswith("writing 1 messages")
+    files = core.close()
+    t = core.totals()
+    assert (t["messages"], t["expired"], t["topics"]["/chatter"]["received"]) == (5, 8, 13)
+    assert [s[:3] for s in _texts(Path(files[0]))] == ["006", "007", "008", "009", "045"]
+    ok, why = core.snapshot()
+    assert not ok and "ended" in why
+
+    plain = RecorderCore(BagWriter(tmp_path / "plain.mcap"), queue_size=10)
+    assert plain.snapshot() == (False, "not in snapshot mode")
+    plain.close()
+    with pytest.raises(ValueError, match="a duration only with a size"):
+        RecorderCore(BagWriter(tmp_path / "bad.mcap"), snapshot_ns=10**9)
+    with pytest.raises(ParameterError, match="snapshot_duration_s"):
+        RecorderConfig(snapshot_duration_s=5.0).check()

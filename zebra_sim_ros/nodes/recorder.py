@@ -13,8 +13,11 @@ Callbacks only queue the bytes; one thread writes. A full queue counts drops per
 ``~/resume`` services, std_srvs/Trigger, set it, as ``ros2 bag record``'s) writes nothing while true: what arrives
 is counted per topic (``paused_messages`` on /diagnostics), neither written nor dropped, and topics are still found
 and subscribed. ``~/split_bagfile`` (std_srvs/Trigger, as ``ros2 bag record``'s) finishes the open file after what
-is queued and goes on in the next (``<stem>_1.mcap``, ... for a bag not split by size or duration). SIGINT,
-SIGTERM and node shutdown finalise the bag (summary and indexes); after SIGKILL use ``zebra-sim bag recover``.
+is queued and goes on in the next (``<stem>_1.mcap``, ... for a bag not split by size or duration). With
+``snapshot_size_mb`` > 0 (snapshot mode, as ``ros2 bag record --snapshot-mode``) the newest messages are kept in
+memory instead, up to that size (and ``snapshot_duration_s`` of log time), and ``~/snapshot`` (std_srvs/Trigger)
+writes them. SIGINT, SIGTERM and node shutdown finalise the bag (summary and indexes); after SIGKILL use
+``zebra-sim bag recover``.
 """
 
 from __future__ import annotations
@@ -55,9 +58,11 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         reserve = -1 if c.disk_reserve_mb < 0 else int(c.disk_reserve_mb * MB)
         self.writer = BagWriter(c.output, c.compression, int(c.chunk_size_mb * MB),
                                 int(c.split_size_mb * MB), c.split_duration_s, int(c.max_size_mb * MB), reserve)
-        self.core = RecorderCore(self.writer, c.queue_size, paused=c.paused)
+        cache, span = int(c.snapshot_size_mb * MB), int(c.snapshot_duration_s * 1e9)  # snapshot mode where > 0
+        self.core = RecorderCore(self.writer, c.queue_size, paused=c.paused, snapshot_bytes=cache, snapshot_ns=span)
         self.serve_pause()
         self.create_service(Trigger, "~/split_bagfile", self._on_split)
+        self.create_service(Trigger, "~/snapshot", self._on_snapshot)
         self.depth = c.qos_depth
         self.log_times = LogTimes()  # each message's log time: its stamp, reports at the latest one
         self.subs: dict[str, Any] = {}
@@ -69,6 +74,9 @@ class RecorderNode(ZebraNode[RecorderConfig]):
             f"recording to {self.writer.path} ({c.compression}, chunks {c.chunk_size_mb} MB, split "
             f"{c.split_size_mb} MB / {c.split_duration_s} s, cap {c.max_size_mb} MB); "
             f"topics {c.topic_list or 'matching ' + c.topic_regex}"
+            + (f"; snapshot mode: the last {c.snapshot_size_mb} MB" + (f" / {c.snapshot_duration_s} s" if
+                                                                        c.snapshot_duration_s else "")
+               + " kept in memory, written on ~/snapshot" if c.snapshot_size_mb else "")
             + (" (paused: ~/resume records)" if c.paused else ""))
         self._discover()
 
@@ -132,6 +140,15 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         self.get_logger().info(f"split_bagfile: {response.message}")
         return response
 
+    def _on_snapshot(self, request: Any, response: Any) -> Any:
+        """``~/snapshot``, in snapshot mode: what the cache holds is written to the bag, and it starts again empty;
+        refused outside snapshot mode (``snapshot_size_mb`` 0) or once the recording has ended."""
+        response.success, response.message = self.core.snapshot()
+        if not response.success and response.message == "not in snapshot mode":
+            response.message += ": snapshot_size_mb is 0, so everything is written as it arrives"
+        self.get_logger().info(f"snapshot: {response.message}")
+        return response
+
     def _log_stats(self) -> None:
         t = self.core.totals()
         self.get_logger().info(f"{t['messages']} messages written, {t['dropped']} dropped, {t['paused']} while paused, "
@@ -145,8 +162,11 @@ class RecorderNode(ZebraNode[RecorderConfig]):
     def activity(self) -> Activity:
         """Messages written and dropped (the writer fell behind by ``queue_size``); an error ends the recording."""
         t = self.core.totals()
-        return Activity({"messages": t["messages"], "dropped": t["dropped"], "paused_messages": t["paused"],
-                         "topics": sum(s is not None for s in self.subs.values())}, "messages", ("dropped",),
+        counts = {"messages": t["messages"], "dropped": t["dropped"], "paused_messages": t["paused"],
+                  "topics": sum(s is not None for s in self.subs.values())}
+        if self.cfg.snapshot_size_mb:  # what the cache holds now, and what it let go before a snapshot took it
+            counts |= {"cached": t["cached"], "expired": t["expired"]}
+        return Activity(counts, "messages", ("dropped",),
                         error=f"recording ended: {t['error']}" if t["error"] is not None else "",
                         waiting="paused" if self.core.paused else "",
                         info={"output": str(self.writer.path), "files": str(len(self.writer.files)),
@@ -157,8 +177,10 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         t0 = time.perf_counter()
         files = self.core.close()
         t = self.core.totals()
-        msg = (f"bag {files}: {t['messages']} messages, {t['dropped']} dropped, {t['paused']} while paused; per topic "
-               f"{t['topics']}; "
+        cache = (f", {t['cached']} in the snapshot cache not written, {t['expired']} expired from it"
+                 if self.cfg.snapshot_size_mb else "")
+        msg = (f"bag {files}: {t['messages']} messages, {t['dropped']} dropped, {t['paused']} while paused{cache}; "
+               f"per topic {t['topics']}; "
                f"writer {t['write_mb_per_s']} MB/s while writing; finalised in {time.perf_counter() - t0:.2f} s")
         print(f"[recorder] {msg}" + (f"; error: {self.core.error}" if self.core.error else ""), flush=True)
 

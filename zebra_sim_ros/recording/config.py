@@ -50,13 +50,23 @@ class RecorderConfig(StageConfig):
     discovery_period_s: float = param(0.5, "how often new topics are looked for", "s", lo=0.05, hi=60.0)
     stats_period_s: float = param(10.0, "how often statistics are logged (0: never)", "s", lo=0.0, hi=3600.0)
     qos_depth: int = param(100, "history depth of the subscriptions", lo=1, hi=100000)
+    snapshot_size_mb: float = param(0.0, "snapshot mode when more than 0, as ros2 bag record --snapshot-mode "
+                                    "--max-cache-size: keep the newest messages, up to this size, in memory and "
+                                    "write them only when ~/snapshot (std_srvs/Trigger) is called (0: record "
+                                    "everything)", "MB", lo=0.0, hi=1e5)
+    snapshot_duration_s: float = param(0.0, "in snapshot mode, keep only the messages of this much log time before "
+                                       "the newest (0: as many as snapshot_size_mb holds)", "s", lo=0.0, hi=1e6)
     paused: bool = param(False, "write nothing while true: what arrives is counted (paused_messages), not "
                          "written, as ros2 bag record's pause; ~/pause and ~/resume (std_srvs/Trigger) set it; true "
                          "at start: start paused", runtime=True)
     diagnostics_period_s: float = diagnostics_param()
 
     def check(self) -> None:
-        """A size cap must leave room for two chunks (the writer keeps them) and the summary."""
+        """A size cap must leave room for two chunks (the writer keeps them) and the summary; a snapshot duration
+        needs snapshot mode."""
+        if self.snapshot_duration_s and not self.snapshot_size_mb:
+            raise ParameterError("snapshot_duration_s", self.snapshot_duration_s, "0 unless snapshot_size_mb is "
+                                 "more than 0 (it sets snapshot mode and the cache's size)")
         least = least_cap(int(self.chunk_size_mb * MB)) / MB
         if 0 < self.max_size_mb < least:
             raise ParameterError("max_size_mb", self.max_size_mb, f"0 or more than {least:.3f} (2 x chunk_size_mb "

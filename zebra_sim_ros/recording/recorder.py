@@ -5,6 +5,11 @@ is full, counts a drop for that topic (never silent: drops are in the statistics
 it counts the message as ``paused`` instead, neither written nor dropped. The writer thread writes in arrival
 order; :meth:`RecorderCore.split` queues a split in that order too. A full disk or the size cap ends the
 recording: the thread finalises what it can and keeps the error for the node to report.
+
+In snapshot mode (``snapshot_bytes`` > 0, as ``ros2 bag record --snapshot-mode``) offered messages go into a cache
+in memory instead, the oldest let go (counted as ``expired``) past ``snapshot_bytes`` or, with ``snapshot_ns``, once
+older than that much log time before the newest; :meth:`RecorderCore.snapshot` hands the whole cache to the writer
+thread in one piece and empties it.
 """
 
 from __future__ import annotations
@@ -12,7 +17,7 @@ from __future__ import annotations
 import queue
 import threading
 import time
-from collections import defaultdict
+from collections import defaultdict, deque
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -21,6 +26,7 @@ from zebra_sim_ros.recording.writer import BagFullError, BagWriter
 
 _STOP = object()
 _SPLIT = object()  # in the queue: what came before it goes into the open file, what comes after into the next
+_SNAPSHOT = object()  # in the queue with the cache's messages: written in one piece
 
 
 @dataclass
@@ -31,6 +37,7 @@ class TopicStats:
     written: int = 0
     dropped: int = 0
     paused: int = 0  # received while the recording was paused: not written, not a drop
+    expired: int = 0  # snapshot mode: let go from the cache before a snapshot took it (too old, or no room)
     bytes: int = 0
 
 
@@ -44,8 +51,15 @@ class RecorderCore:
     error: str | None = None
     write_seconds: float = 0.0  # time the writer thread spent inside BagWriter.write
     paused: bool = False  # while true, offered messages are counted, not queued
+    snapshot_bytes: int = 0  # > 0: snapshot mode, a cache of this many bytes of messages written only by snapshot()
+    snapshot_ns: int = 0  # snapshot mode: the cache keeps only this much log time before its newest message (0: all)
 
     def __post_init__(self) -> None:
+        if self.snapshot_bytes < 0 or self.snapshot_ns < 0 or (self.snapshot_ns and not self.snapshot_bytes):
+            raise ValueError(f"snapshot_bytes {self.snapshot_bytes} and snapshot_ns {self.snapshot_ns}: both 0 or "
+                             "more, and a duration only with a size")
+        self._cache: deque[tuple[str, bytes, int, int | None]] = deque()
+        self._cache_bytes = 0
         self._q: queue.Queue[Any] = queue.Queue(maxsize=self.queue_size)
         self._lock = threading.Lock()
         self._closed = False  # close() has begun: no split is taken
@@ -65,12 +79,43 @@ class RecorderCore:
             if self.paused:
                 s.paused += 1
                 return False
+            if self.snapshot_bytes:
+                self._cache_put((topic, data, log_time_ns, publish_time_ns))
+                return True
             try:
                 self._q.put_nowait((topic, data, log_time_ns, publish_time_ns))
             except queue.Full:
                 s.dropped += 1
                 return False
             return True
+
+    def _cache_put(self, item: tuple[str, bytes, int, int | None]) -> None:
+        """Into the snapshot cache (under the lock); the oldest go while it holds more than ``snapshot_bytes`` or
+        spans more than ``snapshot_ns``. A message larger than the whole cache goes at once: it is expired."""
+        self._cache.append(item)
+        self._cache_bytes += len(item[1])
+        newest = item[2]
+        while self._cache and (self._cache_bytes > self.snapshot_bytes
+                               or (self.snapshot_ns and newest - self._cache[0][2] > self.snapshot_ns)):
+            old = self._cache.popleft()
+            self._cache_bytes -= len(old[1])
+            self.stats[old[0]].expired += 1
+
+    def snapshot(self) -> tuple[bool, str]:
+        """Snapshot mode: hand the cache to the writer thread (written after what is queued, in one piece) and
+        empty it; (False, why) outside snapshot mode or once the recording has ended."""
+        if not self.snapshot_bytes:
+            return False, "not in snapshot mode"
+        if self.error is not None or self._closed:
+            return False, f"the recording has ended: {self.error or 'the bag is closed'}"
+        with self._lock:
+            items, self._cache, n, size = list(self._cache), deque(), len(self._cache), self._cache_bytes
+            self._cache_bytes = 0
+        if not items:
+            return True, "the cache is empty: nothing to write"
+        self._q.put((_SNAPSHOT, items))  # one item, whatever its size (in snapshot mode only these and splits queue)
+        span = (items[-1][2] - items[0][2]) / 1e9
+        return True, f"writing {n} messages ({size / 1e6:.2f} MB, {span:.2f} s of log time)"
 
     def split(self, timeout: float = 2.0) -> tuple[bool, str]:
         """Split the bag after what is queued now (as ``ros2 bag record``'s split_bagfile); waits up to ``timeout``
@@ -104,24 +149,27 @@ class RecorderCore:
                         self.error = str(exc)
                 made.set()
                 continue
-            topic, data, t, pt = item
-            if self.error is not None:  # the recording has ended: what is still queued is dropped, and counted
-                with self._lock:
-                    self.stats[topic].dropped += 1
-                continue
-            t0 = time.perf_counter()
-            try:
-                self.writer.write(topic, data, t, pt)
-                self.write_seconds += time.perf_counter() - t0
-            except (BagFullError, OSError) as exc:
-                self.error = str(exc)
-                with self._lock:
-                    self.stats[topic].dropped += 1
-                continue
+            for message in (item[1] if item[0] is _SNAPSHOT else (item,)):
+                self._write(*message)
+
+    def _write(self, topic: str, data: bytes, t: int, pt: int | None) -> None:
+        if self.error is not None:  # the recording has ended: what is still queued is dropped, and counted
             with self._lock:
-                s = self.stats[topic]
-                s.written += 1
-                s.bytes += len(data)
+                self.stats[topic].dropped += 1
+            return
+        t0 = time.perf_counter()
+        try:
+            self.writer.write(topic, data, t, pt)
+            self.write_seconds += time.perf_counter() - t0
+        except (BagFullError, OSError) as exc:
+            self.error = str(exc)
+            with self._lock:
+                self.stats[topic].dropped += 1
+            return
+        with self._lock:
+            s = self.stats[topic]
+            s.written += 1
+            s.bytes += len(data)
 
     def close(self, timeout: float = 60.0) -> list[str]:
         """Drain the queue, stop the thread, finalise the bag; returns its files."""
@@ -142,10 +190,13 @@ class RecorderCore:
         """Summary counters over all topics, and the rate written so far."""
         with self._lock:
             per = {t: dict(vars(s)) for t, s in self.stats.items()}
+            cached, cached_bytes = len(self._cache), self._cache_bytes
         elapsed = max(time.monotonic() - self.started, 1e-9)
         written = sum(s["bytes"] for s in per.values())
         return {"topics": per, "messages": sum(s["written"] for s in per.values()),
                 "dropped": sum(s["dropped"] for s in per.values()), "paused": sum(s["paused"] for s in per.values()),
+                "expired": sum(s["expired"] for s in per.values()), "cached": cached,
+                "cached_mb": round(cached_bytes / 1e6, 2),
                 "mb_per_s": round(written / elapsed / 1e6, 2),
                 "queue": self._q.qsize(), "error": self.error,
                 "write_mb_per_s": round(written / max(self.write_seconds, 1e-9) / 1e6, 1)}
