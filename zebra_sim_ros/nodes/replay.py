@@ -4,13 +4,13 @@ Publishes every message as recorded (raw CDR, no deserialisation) on its topic (
 its publishers offered when recorded (reliable and transient local only if they all were), keeping the recorded
 spacing of log times divided by ``rate``. ``start_offset_s`` and ``duration_s`` select a window,
 ``topics``/``topic_regex``/``exclude_regex`` select topics, ``loop`` plays again, ``clock`` publishes ``/clock``
-with the bag's time for ``use_sim_time`` consumers. ``paused`` (runtime; the ``~/pause`` and ``~/resume`` services,
-std_srvs/Trigger, set it, as ``ros2 bag play``'s) holds playback at the bag time reached and goes on from there;
-while paused, ``~/play_next`` plays the next message alone (/clock moves to its time) and answers with its topic and
-bag time; ``rate`` changes apply at once. Setting ``start_offset_s`` while playing seeks there, as ``ros2 bag
-play``'s seek: the next message played is the first at or after that bag time (back or forth; a pause holds there).
-A truncated or corrupt bag plays everything intact, then the node logs
-where and why it stopped. The node exits when done (unless looping).
+with the bag's time for ``use_sim_time`` consumers. ``paused`` (runtime; the ``~/pause``, ``~/resume`` and
+``~/toggle_paused`` services, std_srvs/Trigger, set it, as ``ros2 bag play``'s) holds playback at the bag time
+reached and goes on from there; while paused, ``~/play_next`` plays the next message alone (/clock moves to its
+time) and answers with its topic and bag time; ``rate`` changes apply at once. Setting ``start_offset_s`` while
+playing seeks there, as ``ros2 bag play``'s seek: the next message played is the first at or after that bag time
+(back or forth; a pause holds there). A truncated or corrupt bag plays everything intact, then the node logs where
+and why it stopped. The node exits when done (unless looping).
 """
 
 from __future__ import annotations
@@ -67,16 +67,18 @@ class _Pace:
     def __init__(self, offset_s: float, rate: float) -> None:
         self.offset, self.start, self.rate = offset_s, time.monotonic(), rate  # bag time ``offset`` at ``start``
         self.last_clock = 0.0  # wall time /clock was last published
-        self.clock_ns = 0  # the last /clock published (bag ns): it never goes back within a pass
+        self.clock_ns = 0  # the last /clock published (bag ns): it never goes back within a pass but by a seek
 
     def position(self, now: float) -> float:
         """The bag time reached at wall time ``now``."""
         return self.offset + (now - self.start) * self.rate
 
-    def jump(self, rel: float, now: float) -> None:
+    def jump(self, rel: float, now: float, clock_ns: int | None = None) -> None:
         """Stand at bag time ``rel`` from ``now`` (a message played alone while paused, a seek); /clock is due at
-        once."""
+        once, and with ``clock_ns`` (a seek) goes there, back too."""
         self.offset, self.start, self.last_clock = rel, now, 0.0
+        if clock_ns is not None:
+            self.clock_ns = clock_ns
 
     def set_rate(self, rate: float, now: float) -> None:
         """Play on at ``rate`` from ``now``."""
@@ -117,6 +119,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         self.damaged_pass: set[str] = set()  # this pass's, from readers a seek back replaced (the same parts again)
         self.pass_lock = threading.Lock()  # a report never sees a pass counted twice, or not at all
         self.waiting = ""  # what the play thread waits for before it plays
+        self.reading = ""  # the bag time it reads on to, past what it does not play (an offset, a seek)
         for topic, type_name, metadata in self.reader.channel_list():  # publishers up front: subscribers match
             self._publisher(topic, type_name, metadata)                    # before the first message is played
         self.serve_pause()
@@ -214,14 +217,18 @@ class ReplayNode(ZebraNode[ReplayConfig]):
     def _play_once(self, origin: float | None) -> None:
         """One pass over the bags, from ``start_offset_s`` or, after a seek back, from bag time ``origin`` (the
         spacing from it kept); raises :class:`_Seek` for a seek to a bag time at or before a message this pass has
-        played. A seek forward goes on in this pass."""
+        already played or skipped, and for one that comes as the pass ends. A seek forward goes on in this pass."""
         c = self.cfg  # what may change while playing (rate) is read from self.cfg where it is used
-        wait_until = time.monotonic() + c.wait_for_subscribers_s
+        # a seek back reads the bags again with every subscriber matched already: no second wait for them
+        wait_until = time.monotonic() + (c.wait_for_subscribers_s if origin is None else 0.0)
         t0_bag: int | None = None
         pace: _Pace | None = None
         begin = c.start_offset_s if origin is None else origin  # the window: [begin, begin + duration_s]
-        last = -math.inf  # bag time of the last message played this pass
+        anchor = origin  # the bag time the pacing starts from: a seek's, else (None) the first message played
+        consumed = -math.inf  # bag time of the last message this pass has played or skipped
+        ended = False  # past the window's end
         n = 0
+        self.reading = f"reading the bags to {begin:g} s" if begin > 0 else ""
         for m in self.reader.messages():
             if self.done:
                 return
@@ -235,20 +242,24 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                 to = self._take_seek()
                 if to is not None:
                     self.seeks += 1
-                    if to <= last:
+                    if to <= consumed:  # what it wants has been played or skipped: read the bags again
                         raise _Seek(to)
-                    begin = to
-                    if pace is not None:  # the bag stands at ``to`` now, and plays on from there
-                        pace.jump(to, time.monotonic())
+                    begin = anchor = to
+                    if pace is not None:  # the bag stands at ``to`` now (/clock too), and plays on from there
+                        pace.jump(to, time.monotonic(), t0_bag + int(to * 1e9))
+                    if rel < to:
+                        self.reading = f"reading the bags to {to:g} s"
                 if rel < begin:
+                    consumed = rel
                     break
                 if c.duration_s and rel > begin + c.duration_s:
-                    self._end_pass(n)
-                    return
+                    ended = True
+                    break
+                self.reading = ""
                 if pace is None:  # every publisher known so far should have a subscriber (up to wait_for_subscribers_s)
                     self._wait_for_subscribers(wait_until, c.wait_for_subscribers_s)
                     c_now = self.cfg  # paused: the bag stands at its start from the first instant
-                    pace = _Pace(rel if origin is None else origin, 0.0 if c_now.paused else c_now.rate)
+                    pace = _Pace(rel if anchor is None else anchor, 0.0 if c_now.paused else c_now.rate)
                 waited = self._wait(pace, rel, t0_bag, m.log_time)
                 if self.done:
                     return
@@ -258,13 +269,20 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                 pub.publish(m.data)
                 n += 1
                 self.published += 1
-                last = rel
+                consumed = rel
                 if waited == "step":  # played for ~/play_next: its answer names it
                     with self.step_cond:
                         self.stepped += 1
                         self.step_note = f"{m.topic} at {rel:.3f} s of the bag"
                         self.step_cond.notify_all()
                 break
+            if ended:
+                break
+        self.reading = ""
+        to = self._take_seek()  # one that came as the pass ended: it is taken, not lost
+        if to is not None:
+            self.seeks += 1
+            raise _Seek(to)
         self._end_pass(n)
 
     def _wait_for_subscribers(self, until: float, wait_s: float) -> None:
@@ -306,8 +324,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                 response.success, response.message = True, f"played {self.step_note}"
             elif self.steps > 0:  # not taken: withdrawn
                 self.steps -= 1
+                busy = self.waiting or self.reading
                 response.message = ended() if self.done else \
-                    f"nothing played within {_STEP_WAIT_S:g} s" + (f" ({self.waiting})" if self.waiting else "")
+                    f"nothing played within {_STEP_WAIT_S:g} s" + (f" ({busy})" if busy else "")
             else:  # taken by the play thread just now: it plays, after this answer
                 response.message = f"the next message is playing (not within {_STEP_WAIT_S:g} s)"
         return response
@@ -356,7 +375,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             damaged = self.damaged_before + len(self.damaged_pass | set(self.reader.stopped))
         return Activity({"messages": self.published, "damaged": damaged, "seeks": self.seeks}, "messages",
                         ("damaged",),
-                        error=self.error, waiting=self.waiting or ("paused" if self.cfg.paused else ""),
+                        error=self.error,
+                        waiting=self.waiting or self.reading or ("paused" if self.cfg.paused else ""),
                         info={"bags": ", ".join(str(p) for p in self.reader.paths), "rate": f"{self.cfg.rate:g}",
                               "paused": str(self.cfg.paused).lower()})
 

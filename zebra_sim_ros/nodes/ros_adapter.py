@@ -178,28 +178,29 @@ class ZebraNode(Node, Generic[C]):
         self.cfg = cfg
 
     def serve_pause(self) -> None:
-        """``~/pause`` and ``~/resume`` (std_srvs/Trigger), as ``ros2 bag``'s: each sets the node's runtime ``paused``
-        parameter, so ``ros2 param get`` shows the state and :meth:`on_config` applies it; the answer says whether it
-        changed (``already paused``)."""
+        """``~/pause``, ``~/resume`` and ``~/toggle_paused`` (std_srvs/Trigger), as ``ros2 bag``'s: each sets the
+        node's runtime ``paused`` parameter, so ``ros2 param get`` shows the state and :meth:`on_config` applies it;
+        the answer says the state it leaves and whether it changed (``paused``, ``resumed``, ``already paused``,
+        ``not paused``)."""
         from std_srvs.srv import Trigger
 
         if "paused" not in {s.name for s in self.config_class.specs()}:
             raise TypeError(f"{self.executable}: serve_pause needs a runtime 'paused' parameter in its config")
 
-        def setter(value: bool) -> Callable[[Any, Any], Any]:
-            word = "paused" if value else "resumed"
-
+        def setter(to: bool | None) -> Callable[[Any, Any], Any]:  # None: the other state (~/toggle_paused)
             def handle(request: Any, response: Any) -> Any:
                 was = bool(self.get_parameter("paused").value)
+                value = not was if to is None else to
                 result = self.set_parameters([Parameter("paused", Parameter.Type.BOOL, value)])[0]
                 response.success = bool(result.successful)
-                unchanged = "already paused" if value else "not paused"
+                word, unchanged = ("paused", "already paused") if value else ("resumed", "not paused")
                 response.message = (word if was != value else unchanged) if result.successful else result.reason
                 return response
             return handle
 
         self.create_service(Trigger, "~/pause", setter(True))
         self.create_service(Trigger, "~/resume", setter(False))
+        self.create_service(Trigger, "~/toggle_paused", setter(None))
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         specs = {s.name: s for s in self.config_class.specs()}
