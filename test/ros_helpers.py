@@ -110,6 +110,28 @@ class Peer:
         rclpy.shutdown(context=self.ctx)
 
 
+def call_service(peer: Peer, srv_type: Any, name: str, request: Any, timeout: float = 30.0) -> Any:
+    """Call service ``name`` from ``peer`` (waiting for it up to ``timeout``) and return its answer."""
+    client = peer.node.create_client(srv_type, name)
+    try:
+        assert client.wait_for_service(timeout_sec=timeout), f"no service {name}"
+        future = client.call_async(request)
+        assert peer.spin(future.done, timeout), f"no answer from {name}"
+        return future.result()
+    finally:
+        peer.node.destroy_client(client)
+
+
+def set_parameter(peer: Peer, node: str, name: str, value: Any) -> Any:
+    """Set parameter ``name`` of ``node`` (``/replay``, say) through its set_parameters service; returns the
+    SetParametersResult. ``value``'s Python type gives the parameter type (a float for a double)."""
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.parameter import Parameter
+
+    request = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
+    return call_service(peer, SetParameters, f"{node}/set_parameters", request).results[0]
+
+
 def detection_array_class() -> Any:
     """The Detection2DArray class the detector publishes (vision_msgs where installed, else zebra_sim_msgs)."""
     from zebra_sim_ros.nodes.ros_adapter import detection_array_type, message_class

@@ -14,7 +14,7 @@ from cli_helpers import CliRun
 from mcap.reader import make_reader
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
-from ros_helpers import Peer, collect_diagnostics, fresh_domain_id, node_process
+from ros_helpers import Peer, collect_diagnostics, fresh_domain_id, node_process, set_parameter
 from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header, String
@@ -352,13 +352,15 @@ def _trigger(peer: Peer, name: str) -> Any:
 
 
 def test_the_recorder_pauses_and_resumes_on_its_services(peer: Peer, tmp_path: Path) -> None:
-    """``paused:=true`` and ``~/pause`` / ``~/resume`` (std_srvs/Trigger), as ros2 bag record's: what arrives while
-    paused is counted (``paused`` on /diagnostics, and at exit), not written; what arrives after ~/resume is; the
-    answers say whether the state changed; rosbags reads back exactly the messages sent while it recorded."""
+    """``paused:=true`` and ``~/pause`` / ``~/resume`` / ``~/toggle_paused`` (std_srvs/Trigger), as ros2 bag
+    record's: what arrives while paused is counted (``paused`` on /diagnostics, and at exit), not written; what
+    arrives after ~/resume is; the answers say whether the state changed (a toggle names the state it leaves);
+    rosbags reads back exactly the messages sent while it recorded."""
     pub = peer.node.create_publisher(String, "/chatter",
                                      QoSProfile(depth=50, durability=DurabilityPolicy.TRANSIENT_LOCAL))
     status = collect_diagnostics(peer.node, "recorder: recorder")
     pause, resume = _trigger(peer, "/recorder/pause"), _trigger(peer, "/recorder/resume")
+    toggle = _trigger(peer, "/recorder/toggle_paused")
     bag, log = tmp_path / "paused.mcap", tmp_path / "rec.log"
 
     def send(numbers: range) -> None:
@@ -382,11 +384,18 @@ def test_the_recorder_pauses_and_resumes_on_its_services(peer: Peer, tmp_path: P
         send(range(10, 15))
         assert peer.spin(lambda: status[-1]["values"]["paused_messages"] == "10"
                          and status[-1]["values"]["messages"] == "5", 10), status[-1:]
+        assert toggle().message == "resumed"  # ~/toggle_paused: the other state, named
+        send(range(15, 17))
+        assert peer.spin(lambda: status[-1]["values"]["messages"] == "7", 10), status[-1:]
+        assert toggle().message == "paused"
+        send(range(17, 18))
+        assert peer.spin(lambda: status[-1]["values"]["paused_messages"] == "11", 10), status[-1:]
         rec.send_signal(signal.SIGINT)
         assert rec.wait(timeout=30) == 0, log.read_text()
-    assert "5 messages, 0 dropped, 10 while paused" in log.read_text()
+    assert "7 messages, 0 dropped, 11 while paused" in log.read_text()
     with AnyReader([bag]) as r:
-        assert [r.deserialize(raw, c.msgtype).data for c, _, raw in r.messages()] == [str(k) for k in range(5, 10)]
+        assert [r.deserialize(raw, c.msgtype).data for c, _, raw in r.messages()] == \
+            [str(k) for k in (*range(5, 10), 15, 16)]
 
 
 def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path: Path) -> None:
@@ -440,24 +449,6 @@ def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path:
     assert all(b >= a for a, b in zip(clocks, clocks[1:], strict=False)), clocks  # /clock never went back
 
 
-def _set_double(peer: Peer, node: str, name: str) -> Any:
-    """A setter of the float parameter ``name`` of ``node`` over its set_parameters service: call(value) returns
-    the SetParametersResult."""
-    from rcl_interfaces.msg import Parameter as ParameterMsg
-    from rcl_interfaces.msg import ParameterType, ParameterValue
-    from rcl_interfaces.srv import SetParameters
-
-    client = peer.node.create_client(SetParameters, f"{node}/set_parameters")
-
-    def call(value: float) -> Any:
-        value_msg = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
-        future = client.call_async(SetParameters.Request(parameters=[ParameterMsg(name=name, value=value_msg)]))
-        assert peer.spin(future.done, 30), f"no answer from {node}/set_parameters"
-        return future.result().results[0]
-    call.ready = client.service_is_ready  # type: ignore[attr-defined]
-    return call
-
-
 def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_path: Path) -> None:
     """Setting ``start_offset_s`` while playing seeks, as ros2 bag play's seek: paused, a seek forward plays the
     first message at or after that bag time next; a seek back plays again from there, /clock back at the time sought;
@@ -473,12 +464,20 @@ def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_
     peer.node.create_subscription(Clock, "/clock", lambda m: clocks.append(m.clock.sec * 10**9 + m.clock.nanosec), 100)
     status = collect_diagnostics(peer.node, "replay: replay")
     resume, step = _trigger(peer, "/replay/resume"), _trigger(peer, "/replay/play_next")
-    seek = _set_double(peer, "/replay", "start_offset_s")
     log = tmp_path / "replay.log"
     params = {"bags": [str(tmp_path / "t.mcap")], "paused": True, "wait_for_subscribers_s": 60.0, "clock": True,
               "clock_rate_hz": 50.0, "diagnostics_period_s": 0.2}
+
+    def seek(to: float) -> int:  # how many /clock messages came before it
+        n = len(clocks)
+        assert set_parameter(peer, "/replay", "start_offset_s", to).successful
+        return n
+
+    def sought(to: float, n: int) -> bool:  # /clock went to the time sought (back too), after the seek
+        return times[0] + int(to * 1e9) in clocks[n:]
+
     with node_process("replay", params, _domain(peer), log) as proc:
-        assert peer.spin(lambda: step.ready() and seek.ready() and resume.ready() and bool(status), 30), log.read_text()
+        assert peer.spin(lambda: step.ready() and resume.ready() and bool(status), 30), log.read_text()
         assert peer.spin(lambda: "subscribers" in status[-1]["message"], 10), status[-1:]  # no /tick subscriber yet
         t = time.monotonic()
         refused = step()
@@ -487,18 +486,23 @@ def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_
         peer.node.create_subscription(String, "/tick", lambda m: got.append(m.data), 100)
         assert peer.spin(lambda: status[-1]["message"] == "paused", 30), status[-1:]
         for to, k in ((1.0, 10), (0.25, 3), (0.25, 3)):  # forward; back; the same value again
-            assert seek(to).successful
+            n = seek(to)
+            assert peer.spin(lambda to=to, n=n: sought(to, n), 10), (to, clocks[n:])
             answer = step()
             assert answer.success and answer.message == f"played /tick at {(times[k] - times[0]) / 1e9:.3f} s of the "\
                 "bag", (to, answer.message, log.read_text())
-            assert peer.spin(lambda k=k: bool(clocks) and clocks[-1] == times[k], 10), (to, clocks[-3:])
-        assert times[0] + 250_000_000 in clocks  # /clock went back to the time sought, before tick 3 played
-        assert got == ["tick 10", "tick 3", "tick 3"]
+            assert peer.spin(lambda k=k: clocks[-1] == times[k], 10), (to, clocks[-3:])
+        n = seek(1.55)  # forward, past ticks 4-15 (read and skipped, not played) ...
+        assert peer.spin(lambda: sought(1.55, n), 10), clocks[n:]
+        seek(0.55)  # ... then back among them: the bags are read again
+        answer = step()
+        assert answer.success and answer.message == f"played /tick at {(times[6] - times[0]) / 1e9:.3f} s of the bag"
+        assert got == ["tick 10", "tick 3", "tick 3", "tick 6"]
         assert resume().message == "resumed"
+        assert peer.spin(lambda: len(got) == 17, 30), (got, log.read_text())
         assert proc.wait(timeout=30) == 0, log.read_text()
-        peer.spin(lambda: len(got) == 19, 10)
-    assert got == ["tick 10", "tick 3", "tick 3"] + [f"tick {k}" for k in range(4, 20)]
-    assert any(s["values"].get("seeks") == "3" for s in status), status[-1:]
+    assert got == ["tick 10", "tick 3", "tick 3", "tick 6"] + [f"tick {k}" for k in range(7, 20)]
+    assert any(s["values"].get("seeks") == "5" for s in status), status[-1:]
     assert "seeking to 0.25 s of the bag" in log.read_text()
 
 
@@ -510,18 +514,17 @@ def test_a_seek_while_playing_cuts_the_wait_for_a_far_message(peer: Peer, tmp_pa
     _timed_bag(tmp_path / "t.mcap", [0.0, 30.0, 0.2])
     got: list[tuple[str, float]] = []
     peer.node.create_subscription(String, "/tick", lambda m: got.append((m.data, time.monotonic())), 10)
-    seek = _set_double(peer, "/replay", "start_offset_s")
     log = tmp_path / "replay.log"
     with node_process("replay", {"bags": [str(tmp_path / "t.mcap")], "wait_for_subscribers_s": 20.0}, _domain(peer),
                       log) as proc:
-        assert peer.spin(lambda: bool(got) and seek.ready(), 30), log.read_text()
+        assert peer.spin(lambda: bool(got), 30), log.read_text()
         t = time.monotonic()
-        assert seek(29.95).successful
+        assert set_parameter(peer, "/replay", "start_offset_s", 29.95).successful
         assert peer.spin(lambda: len(got) == 3, 10), (got, log.read_text())
         assert proc.wait(timeout=20) == 0, log.read_text()
     assert [g for g, _ in got] == ["tick 0", "tick 1", "tick 2"]
     assert got[1][1] - t < 5.0, "tick 1 waited for its recorded time"
-    assert 0.1 < got[2][1] - got[1][1] < 1.5  # 0.2 s apart, as recorded
+    assert 0.05 < got[2][1] - got[1][1] < 1.5  # 0.2 s apart, as recorded (received: the peer may lag)
 
 
 def test_the_recorder_splits_its_bag_on_its_service(peer: Peer, tmp_path: Path) -> None:
@@ -598,3 +601,45 @@ def test_the_recorder_in_snapshot_mode_writes_the_newest_messages_on_its_service
             "everything is written as it arrives"
         rec.send_signal(signal.SIGINT)
         assert rec.wait(timeout=30) == 0
+
+
+def test_seeks_across_a_damaged_chunk_count_it_once(peer: Peer, tmp_path: Path) -> None:
+    """A bag with a damaged chunk in the middle: a seek forward past it reads over it (damaged 1), a seek back reads
+    the bags again without it and a seek forward over it once more: /diagnostics keep damaged at 1 throughout (a
+    total that never goes down), and what is intact plays to the end."""
+    from mcap.reader import make_reader
+    from rosgraph_msgs.msg import Clock
+
+    times = _timed_bag(tmp_path / "full.mcap", [0.0] + [0.002] * 199)  # 200 ticks over 0.398 s, 4 KiB chunks
+    with open(tmp_path / "full.mcap", "rb") as f:
+        chunks = sorted(make_reader(f).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset)
+    bad = chunks[len(chunks) // 3]
+    data = bytearray((tmp_path / "full.mcap").read_bytes())
+    data[bad.chunk_start_offset + bad.chunk_length // 2] ^= 0xFF
+    (tmp_path / "hurt.mcap").write_bytes(bytes(data))
+    cut_at = (bad.message_end_time - times[0]) / 1e9 + 0.02  # past the damaged chunk
+    got: list[str] = []
+    clocks: list[int] = []
+    peer.node.create_subscription(String, "/tick", lambda m: got.append(m.data), 1000)
+    peer.node.create_subscription(Clock, "/clock", lambda m: clocks.append(m.clock.sec * 10**9 + m.clock.nanosec), 100)
+    status = collect_diagnostics(peer.node, "replay: replay")
+    resume = _trigger(peer, "/replay/resume")
+    log = tmp_path / "replay.log"
+    params = {"bags": [str(tmp_path / "hurt.mcap")], "paused": True, "wait_for_subscribers_s": 20.0, "clock": True,
+              "clock_rate_hz": 50.0, "diagnostics_period_s": 0.1}
+    with node_process("replay", params, _domain(peer), log) as proc:
+        assert peer.spin(lambda: resume.ready() and bool(status) and status[-1]["message"] == "paused", 30), \
+            log.read_text()
+        for to in (cut_at, 0.001, cut_at):
+            n = len(clocks)
+            assert set_parameter(peer, "/replay", "start_offset_s", to).successful
+            assert peer.spin(lambda to=to, n=n: times[0] + int(to * 1e9) in clocks[n:], 10), (to, clocks[n:])
+            peer.spin(lambda: False, 0.3)  # /diagnostics at 10 Hz: a count that went down would show
+            assert peer.spin(lambda: status[-1]["values"]["damaged"] == "1", 5), (to, status[-1:])
+        assert resume().message == "resumed"
+        assert proc.wait(timeout=30) == 0, log.read_text()
+        peer.spin(lambda: False, 0.5)
+    damaged = [int(s["values"]["damaged"]) for s in status]
+    assert damaged == sorted(damaged) and damaged[-1] == 1, damaged
+    first = next(k for k, t in enumerate(times) if t >= times[0] + int(cut_at * 1e9))
+    assert got == [f"tick {k}" for k in range(first, 200)], got[:3]

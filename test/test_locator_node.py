@@ -10,7 +10,15 @@ from typing import Any
 import numpy as np
 import pytest
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion
-from ros_helpers import Peer, collect_diagnostics, detection_array_class, fresh_domain_id, node_process, run_node_once
+from ros_helpers import (
+    Peer,
+    collect_diagnostics,
+    detection_array_class,
+    fresh_domain_id,
+    node_process,
+    run_node_once,
+    set_parameter,
+)
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Header
 from visualization_msgs.msg import Marker, MarkerArray
@@ -392,10 +400,6 @@ def test_the_locator_places_by_the_ground_without_depth_over_dds(tmp_path: Path)
     """``place_by: ground``: no depth subscribed; detections, camera_info and pose alone are placed where each box's
     ray meets the plane ``centre_height`` over ``ground_z``, which may change while it runs (the parameter service,
     as ``ros2 param set`` calls it); the diagnostics say how it places."""
-    from rcl_interfaces.msg import Parameter as ParameterMsg
-    from rcl_interfaces.msg import ParameterType, ParameterValue
-    from rcl_interfaces.srv import SetParameters
-
     r = optical_rotation(np.radians(10.0), np.radians(-35.0), 0.0)  # oblique
     position = np.array([5.0, 7.0, 40.0])
     box = [150.0, 100, 170, 112]
@@ -424,11 +428,7 @@ def test_the_locator_places_by_the_ground_without_depth_over_dds(tmp_path: Path)
                 if peer.spin(lambda: bool(got), 2):
                     break
             assert got, log.read_text()
-            client = node.create_client(SetParameters, "/locator/set_parameters")
-            assert client.wait_for_service(timeout_sec=20)
-            value = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=-3.0)
-            future = client.call_async(SetParameters.Request(parameters=[ParameterMsg(name="ground_z", value=value)]))
-            assert peer.spin(future.done, 20) and future.result().results[0].successful
+            assert set_parameter(peer, "/locator", "ground_z", -3.0).successful
             send(2)
             assert peer.spin(lambda: any(m.header.stamp.sec == 2 for m in got), 20), log.read_text()
             assert peer.spin(lambda: any("ground at z -3 m" in s["values"].get("place_by", "") for s in status),

@@ -322,19 +322,15 @@ def test_set_parameters_applies_runtime_ones_and_refuses_the_rest_with_a_reason(
 
 # -- the detector node as a process: `ros2 param set /detector conf 0.9` -----------------------------------------
 def _service(peer: Any, srv_type: Any, name: str, request: Any) -> Any:
-    client = peer.node.create_client(srv_type, name)
-    assert client.wait_for_service(timeout_sec=30), name
-    future = client.call_async(request)
-    assert peer.spin(future.done, 30), name
-    return future.result()
+    from ros_helpers import call_service
+
+    return call_service(peer, srv_type, name, request)
 
 
 def _set(peer: Any, name: str, value: Any) -> Any:
-    from rcl_interfaces.srv import SetParameters
-    from rclpy.parameter import Parameter
+    from ros_helpers import set_parameter
 
-    req = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
-    return _service(peer, SetParameters, "/detector/set_parameters", req).results[0]
+    return set_parameter(peer, "/detector", name, value)
 
 
 def _get_conf(peer: Any) -> float:
@@ -404,11 +400,9 @@ def test_param_set_changes_the_running_detector(tmp_path: Path) -> None:
 
 
 def _set_on(peer: Any, node: str, name: str, value: Any) -> Any:
-    from rcl_interfaces.srv import SetParameters
-    from rclpy.parameter import Parameter
+    from ros_helpers import set_parameter
 
-    req = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
-    return _service(peer, SetParameters, f"/{node}/set_parameters", req).results[0]
+    return set_parameter(peer, f"/{node}", name, value)
 
 
 @pytest.mark.integration

@@ -459,7 +459,9 @@ def _print_summary(r: dict[str, Any], drones: tuple[str, ...]) -> None:
         print(f"[up] throughput: {r['steps']} steps in {r['seconds']:.1f} s = {r['steps_per_s']:.2f} steps/s, "
               f"{r['frames_per_s']:.2f} frames/s; median per step: render {ms['render']} ms, label {ms['label']} ms,"
               f" detect {ms['detect']} ms, scene to detections {ms['end_to_end']} ms", flush=True)
-    print(f"[up] bag: {r['bag']}", flush=True)
+    more = r.get("bags", [])[1:]  # a split recording's later pieces
+    print(f"[up] bag: {r['bag']}" + (f" and {len(more)} more piece(s) of it, the last {more[-1]}" if more else ""),
+          flush=True)
     if "preview" in r:
         print(f"[up] preview (green: ground truth, red: detected): {r['preview']}", flush=True)
     for note in r["damaged"]:

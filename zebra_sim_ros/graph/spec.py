@@ -214,11 +214,9 @@ class UpConfig:
     def bag_files(self) -> list[Path]:
         """The recording's files in the order written: the bag, or its pieces (``zebra_sim_<k>.mcap``) where the
         recorder split it (by size, duration or its ``~/split_bagfile`` service)."""
-        from zebra_sim_ros.recording.reader import file_order
+        from zebra_sim_ros.recording.reader import recording_files
 
-        stem = self.bag_path.stem
-        pieces = [p for p in self.bag_path.parent.glob(f"{stem}_*.mcap") if p.stem[len(stem) + 1:].isdigit()]
-        return sorted([self.bag_path] * self.bag_path.is_file() + pieces, key=file_order)
+        return recording_files(self.bag_path)
 
     @property
     def detect_imgsz(self) -> int:

@@ -127,7 +127,7 @@ def summarize_run(bag: str | Path | list[str | Path], preview: str | Path | None
     images = sum(f["detections"] for f in frames.values())
     scores = score(collected, count_conf)
     out: dict[str, Any] = {
-        "bag": sources if len(sources) > 1 else sources[0], "steps": len(scenes), "frames": frames,
+        "bag": sources[0], "bags": sources, "steps": len(scenes), "frames": frames,
         "scores": {k: v for k, v in scores.items() if k not in ("damaged", "skipped")}, "damaged": scores["damaged"],
         "skipped": unusable + scores["skipped"],
         "seconds": round(span, 3), "frames_per_s": round(images / span, 3) if span > 0 else None,

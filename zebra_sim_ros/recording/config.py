@@ -27,8 +27,9 @@ class RecorderConfig(StageConfig):
     """Validated recorder parameters; the topic selection (``topics``, ``topic_regex``, ``exclude_regex``) and
     ``paused`` may change while it records."""
 
-    output: str = param("bags/zebra_sim.mcap", "bag file to write (.mcap added to a name without it; split files "
-                        "get _0, _1, ... before .mcap)",
+    output: str = param("bags/zebra_sim.mcap", "bag file to write (.mcap added to a name without it; files split "
+                        "by size or duration get _0, _1, ... before .mcap, and a split on ~/split_bagfile of a bag "
+                        "not split so goes on in _1, _2, ...)",
                         allowed="a path", check=lambda v: len(v) > 0)
     topics: tuple[str, ...] = param(("",), "topics to record; [''] (empty) records every topic that matches "
                                     "topic_regex", allowed="a list of topic names", check=_str_list, runtime=True)
@@ -57,13 +58,16 @@ class RecorderConfig(StageConfig):
     snapshot_duration_s: float = param(0.0, "in snapshot mode, keep only the messages of this much log time before "
                                        "the newest (0: as many as snapshot_size_mb holds)", "s", lo=0.0, hi=1e6)
     paused: bool = param(False, "write nothing while true: what arrives is counted (paused_messages), not "
-                         "written, as ros2 bag record's pause; ~/pause and ~/resume (std_srvs/Trigger) set it; true "
-                         "at start: start paused", runtime=True)
+                         "written, as ros2 bag record's pause; ~/pause, ~/resume and ~/toggle_paused "
+                         "(std_srvs/Trigger) set it; true at start: start paused", runtime=True)
     diagnostics_period_s: float = diagnostics_param()
 
     def check(self) -> None:
         """A size cap must leave room for two chunks (the writer keeps them) and the summary; a snapshot duration
         needs snapshot mode."""
+        if 0 < self.snapshot_size_mb < 1 / 1024:
+            raise ParameterError("snapshot_size_mb", self.snapshot_size_mb, "0 (record everything) or 1 KiB "
+                                 "(0.0009765625 MB) or more")
         if self.snapshot_duration_s and not self.snapshot_size_mb:
             raise ParameterError("snapshot_duration_s", self.snapshot_duration_s, "0 unless snapshot_size_mb is "
                                  "more than 0 (it sets snapshot mode and the cache's size)")
@@ -95,8 +99,8 @@ class ReplayConfig(StageConfig):
                                   allowed="a non-empty list of paths", check=lambda v: _str_list(v) and any(v))
     rate: float = param(1.0, "playback speed (2: twice as fast)", lo=0.01, hi=1000.0, runtime=True)
     paused: bool = param(False, "hold playback where it is while true (/clock stays at the bag time reached), as ros2 "
-                         "bag play's pause; ~/pause and ~/resume (std_srvs/Trigger) set it; true at start: start "
-                         "paused", runtime=True)
+                         "bag play's pause; ~/pause, ~/resume and ~/toggle_paused (std_srvs/Trigger) set it; true "
+                         "at start: start paused", runtime=True)
     loop: bool = param(False, "play again from the start when done")
     start_offset_s: float = param(0.0, "skip this much of the bag's start (its first message played: topics not "
                                   "played do not count); set while playing, it seeks there, back or forth (as ros2 "

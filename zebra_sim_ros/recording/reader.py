@@ -164,11 +164,22 @@ class BagReader:
             yield from inner
 
 
+_PIECE = re.compile(r"(.*)_(\d+)")  # a split recording's file stem: <name>_<n>
+
+
 def file_order(path: Path) -> tuple[str, int, str]:
     """Sort key of bag files: a split recording's ``<name>_<n>.mcap`` by name, then by the number ``n`` (``run_2``
     before ``run_10``); other names by name."""
-    m = re.fullmatch(r"(.*)_(\d+)", path.stem)
+    m = _PIECE.fullmatch(path.stem)
     return (m.group(1), int(m.group(2)), path.name) if m else (path.stem, -1, path.name)
+
+
+def recording_files(path: Path) -> list[Path]:
+    """The files of a recording written to ``path``, in the order written: ``path`` itself where it exists and the
+    pieces a split made of it (``<stem>_<n>.mcap`` beside it: by size, duration or ``~/split_bagfile``)."""
+    pieces = [p for p in path.parent.glob(f"{path.stem}_*.mcap")
+              if (m := _PIECE.fullmatch(p.stem)) is not None and m.group(1) == path.stem]
+    return sorted([path] * path.is_file() + pieces, key=file_order)
 
 
 def file_summary(path: Path) -> Summary | None:

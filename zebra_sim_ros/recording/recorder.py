@@ -22,7 +22,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from zebra_sim_ros.recording.writer import BagFullError, BagWriter
+from zebra_sim_ros.errors import ZebraSimError
+from zebra_sim_ros.recording.config import MB
+from zebra_sim_ros.recording.writer import BagWriter
 
 _STOP = object()
 _SPLIT = object()  # in the queue: what came before it goes into the open file, what comes after into the next
@@ -60,7 +62,9 @@ class RecorderCore:
                              "more, and a duration only with a size")
         self._cache: deque[tuple[str, bytes, int, int | None]] = deque()
         self._cache_bytes = 0
-        self._q: queue.Queue[Any] = queue.Queue(maxsize=self.queue_size)
+        self._cache_newest: int | None = None  # the latest log time the cache has held since the last snapshot
+        # unbounded: offer() holds messages to queue_size itself, so a split, a snapshot or the stop never wait
+        self._q: queue.Queue[Any] = queue.Queue()
         self._lock = threading.Lock()
         self._closed = False  # close() has begun: no split is taken
         self._thread = threading.Thread(target=self._run, name="bag-writer", daemon=True)
@@ -82,19 +86,19 @@ class RecorderCore:
             if self.snapshot_bytes:
                 self._cache_put((topic, data, log_time_ns, publish_time_ns))
                 return True
-            try:
-                self._q.put_nowait((topic, data, log_time_ns, publish_time_ns))
-            except queue.Full:
+            if self._q.qsize() >= self.queue_size:
                 s.dropped += 1
                 return False
+            self._q.put_nowait((topic, data, log_time_ns, publish_time_ns))
             return True
 
     def _cache_put(self, item: tuple[str, bytes, int, int | None]) -> None:
-        """Into the snapshot cache (under the lock); the oldest go while it holds more than ``snapshot_bytes`` or
-        spans more than ``snapshot_ns``. A message larger than the whole cache goes at once: it is expired."""
+        """Into the snapshot cache (under the lock); the oldest to arrive go while it holds more than
+        ``snapshot_bytes`` or the first is more than ``snapshot_ns`` of log time before the latest it has held. A
+        message larger than the whole cache goes at once: it is expired."""
         self._cache.append(item)
         self._cache_bytes += len(item[1])
-        newest = item[2]
+        newest = self._cache_newest = item[2] if self._cache_newest is None else max(self._cache_newest, item[2])
         while self._cache and (self._cache_bytes > self.snapshot_bytes
                                or (self.snapshot_ns and newest - self._cache[0][2] > self.snapshot_ns)):
             old = self._cache.popleft()
@@ -106,33 +110,36 @@ class RecorderCore:
         empty it; (False, why) outside snapshot mode or once the recording has ended."""
         if not self.snapshot_bytes:
             return False, "not in snapshot mode"
-        if self.error is not None or self._closed:
-            return False, f"the recording has ended: {self.error or 'the bag is closed'}"
+        if (ended := self._ended()) is not None:
+            return False, ended
         with self._lock:
             items, self._cache, n, size = list(self._cache), deque(), len(self._cache), self._cache_bytes
-            self._cache_bytes = 0
+            self._cache_bytes, self._cache_newest = 0, None
         if not items:
             return True, "the cache is empty: nothing to write"
-        self._q.put((_SNAPSHOT, items))  # one item, whatever its size (in snapshot mode only these and splits queue)
-        span = (items[-1][2] - items[0][2]) / 1e9
-        return True, f"writing {n} messages ({size / 1e6:.2f} MB, {span:.2f} s of log time)"
+        self._q.put((_SNAPSHOT, items))  # one item, whatever its size
+        times = [t for _, _, t, _ in items]
+        return True, f"writing {n} messages ({size / MB:.2f} MB, {(max(times) - min(times)) / 1e9:.2f} s of log time)"
 
-    def split(self, timeout: float = 2.0) -> tuple[bool, str]:
+    def _ended(self) -> str | None:
+        """Why no split or snapshot is taken any more, or None."""
+        if self.error is None and not self._closed:
+            return None
+        return f"the recording has ended: {self.error or 'the bag is closed'}"
+
+    def split(self, timeout: float = 0.5) -> tuple[bool, str]:
         """Split the bag after what is queued now (as ``ros2 bag record``'s split_bagfile); waits up to ``timeout``
-        for the writer thread to make it. (True, the new file) once made; (True, how far behind) if still queued;
-        (False, why) when the recording has ended or the queue stays full."""
-        if self.error is not None or self._closed:
-            return False, f"the recording has ended: {self.error or 'the bag is closed'}"
+        for the writer thread to make it (the caller's thread, an executor, waits with it). (True, the new file) once
+        made; (True, how far behind) if still queued; (False, why) when the recording has ended."""
+        if (ended := self._ended()) is not None:
+            return False, ended
         made = threading.Event()
         into: list[Path] = []
-        try:
-            self._q.put((_SPLIT, made, into), timeout=timeout)
-        except queue.Full:
-            return False, f"the writer's queue stayed full for {timeout:g} s: not split"
+        self._q.put((_SPLIT, made, into))
         if not made.wait(timeout):
-            return True, f"split queued behind {self._q.qsize()} messages"
+            return True, f"split queued behind {self._q.qsize() - 1} messages"
         if not into:
-            return False, f"the recording has ended: {self.error}"
+            return False, self._ended() or "the recording has ended"
         return True, f"now writing {into[0]}"
 
     def _run(self) -> None:
@@ -142,12 +149,13 @@ class RecorderCore:
                 return
             if item[0] is _SPLIT:
                 _, made, into = item
-                if self.error is None:
-                    try:
+                try:
+                    if self.error is None:
                         into.append(self.writer.split())
-                    except (BagFullError, OSError) as exc:
-                        self.error = str(exc)
-                made.set()
+                except Exception as exc:  # noqa: BLE001 - the recording ends, and the node reports why
+                    self._fail(exc)
+                finally:
+                    made.set()
                 continue
             for message in (item[1] if item[0] is _SNAPSHOT else (item,)):
                 self._write(*message)
@@ -161,8 +169,8 @@ class RecorderCore:
         try:
             self.writer.write(topic, data, t, pt)
             self.write_seconds += time.perf_counter() - t0
-        except (BagFullError, OSError) as exc:
-            self.error = str(exc)
+        except Exception as exc:  # noqa: BLE001 - a full disk, the cap, a next file that cannot be opened: it ends
+            self._fail(exc)
             with self._lock:
                 self.stats[topic].dropped += 1
             return
@@ -170,6 +178,11 @@ class RecorderCore:
             s = self.stats[topic]
             s.written += 1
             s.bytes += len(data)
+
+    def _fail(self, exc: Exception) -> None:
+        """End the recording with ``exc``: the thread goes on draining (and counting) what is queued."""
+        known = isinstance(exc, (ZebraSimError, OSError))  # their messages say what and where (a full disk, a path)
+        self.error = str(exc) if known else f"{type(exc).__name__}: {exc}"
 
     def close(self, timeout: float = 60.0) -> list[str]:
         """Drain the queue, stop the thread, finalise the bag; returns its files."""
@@ -196,7 +209,7 @@ class RecorderCore:
         return {"topics": per, "messages": sum(s["written"] for s in per.values()),
                 "dropped": sum(s["dropped"] for s in per.values()), "paused": sum(s["paused"] for s in per.values()),
                 "expired": sum(s["expired"] for s in per.values()), "cached": cached,
-                "cached_mb": round(cached_bytes / 1e6, 2),
+                "cached_mb": round(cached_bytes / MB, 2),
                 "mb_per_s": round(written / elapsed / 1e6, 2),
                 "queue": self._q.qsize(), "error": self.error,
                 "write_mb_per_s": round(written / max(self.write_seconds, 1e-9) / 1e6, 1)}
