@@ -351,6 +351,13 @@ def _trigger(peer: Peer, name: str) -> Any:
     return call
 
 
+def _send(peer: Peer, pub: Any, numbers: range) -> None:
+    """Publish each number as a String, 20 ms apart, spinning the peer between."""
+    for k in numbers:
+        pub.publish(String(data=str(k)))
+        peer.spin(lambda: False, 0.02)
+
+
 def test_the_recorder_pauses_and_resumes_on_its_services(peer: Peer, tmp_path: Path) -> None:
     """``paused:=true`` and ``~/pause`` / ``~/resume`` / ``~/toggle_paused`` (std_srvs/Trigger), as ros2 bag
     record's: what arrives while paused is counted (``paused`` on /diagnostics, and at exit), not written; what
@@ -364,9 +371,7 @@ def test_the_recorder_pauses_and_resumes_on_its_services(peer: Peer, tmp_path: P
     bag, log = tmp_path / "paused.mcap", tmp_path / "rec.log"
 
     def send(numbers: range) -> None:
-        for k in numbers:
-            pub.publish(String(data=str(k)))
-            peer.spin(lambda: False, 0.02)
+        _send(peer, pub, numbers)
         peer.spin(lambda: False, 0.5)
     params = {"output": str(bag), "discovery_period_s": 0.1, "paused": True, "diagnostics_period_s": 0.2, **ONLY_DATA}
     with node_process("recorder", params, _domain(peer), log) as rec:
@@ -538,9 +543,7 @@ def test_the_recorder_splits_its_bag_on_its_service(peer: Peer, tmp_path: Path) 
     bag, log = tmp_path / "run.mcap", tmp_path / "rec.log"
 
     def send(numbers: range) -> None:
-        for k in numbers:
-            pub.publish(String(data=str(k)))
-            peer.spin(lambda: False, 0.02)
+        _send(peer, pub, numbers)
 
     params = {"output": str(bag), "discovery_period_s": 0.1, "diagnostics_period_s": 0.2, **ONLY_DATA}
     with node_process("recorder", params, _domain(peer), log) as rec:
