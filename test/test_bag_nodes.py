@@ -535,11 +535,11 @@ def test_a_seek_while_playing_cuts_the_wait_for_a_far_message(peer: Peer, tmp_pa
 def test_the_recorder_splits_its_bag_on_its_service(peer: Peer, tmp_path: Path) -> None:
     """``~/split_bagfile`` (std_srvs/Trigger), as ros2 bag record's: the answer names the new file; what arrived
     before goes into the first file, what comes after into the next, each read back alone by rosbags; /diagnostics
-    count the files."""
+    count the files. Its ``~/snapshot``, outside snapshot mode, refuses, saying why."""
     pub = peer.node.create_publisher(String, "/chatter",
                                      QoSProfile(depth=50, durability=DurabilityPolicy.TRANSIENT_LOCAL))
     status = collect_diagnostics(peer.node, "recorder: recorder")
-    split = _trigger(peer, "/recorder/split_bagfile")
+    split, snap = _trigger(peer, "/recorder/split_bagfile"), _trigger(peer, "/recorder/snapshot")
     bag, log = tmp_path / "run.mcap", tmp_path / "rec.log"
 
     def send(numbers: range) -> None:
@@ -554,6 +554,9 @@ def test_the_recorder_splits_its_bag_on_its_service(peer: Peer, tmp_path: Path) 
         assert peer.spin(lambda: status[-1]["values"]["messages"] == "5", 10), status[-1:]
         answer = split()
         assert answer.success and answer.message == f"now writing {tmp_path / 'run_1.mcap'}", answer.message
+        refused = snap()  # not in snapshot mode: refused, saying why
+        assert not refused.success and refused.message == "not in snapshot mode: snapshot_size_mb is 0, so " \
+            "everything is written as it arrives"
         send(range(5, 8))
         assert peer.spin(lambda: status[-1]["values"]["messages"] == "8" and status[-1]["values"]["files"] == "2",
                          10), status[-1:]
@@ -568,7 +571,7 @@ def test_the_recorder_in_snapshot_mode_writes_the_newest_messages_on_its_service
     """``snapshot_size_mb`` > 0, as ros2 bag record --snapshot-mode: nothing is written as it arrives; ``~/snapshot``
     (std_srvs/Trigger) writes the newest messages that fit the cache, and rosbags reads back exactly those, in order;
     /diagnostics count what the cache holds and what it let go; a second snapshot with nothing new writes nothing.
-    Outside snapshot mode the service refuses, saying why."""
+    (Outside snapshot mode the service refuses: the split test's recorder checks it.)"""
     pub = peer.node.create_publisher(String, "/chatter", QoSProfile(depth=50))
     status = collect_diagnostics(peer.node, "recorder: recorder")
     snap = _trigger(peer, "/recorder/snapshot")
@@ -595,15 +598,6 @@ def test_the_recorder_in_snapshot_mode_writes_the_newest_messages_on_its_service
     with AnyReader([bag]) as r:
         assert [r.deserialize(raw, c.msgtype).data[:3] for c, _, raw in r.messages()] == \
             [f"{k:03d}" for k in range(21, 30)]
-    assert peer.spin(lambda: not snap.ready(), 10)  # the first recorder's service gone before the next one's
-    plain = {"output": str(tmp_path / "plain.mcap"), **ONLY_DATA}
-    with node_process("recorder", plain, _domain(peer), tmp_path / "plain.log") as rec:
-        assert peer.spin(snap.ready, 30)
-        refused = snap()
-        assert not refused.success and refused.message == "not in snapshot mode: snapshot_size_mb is 0, so " \
-            "everything is written as it arrives"
-        rec.send_signal(signal.SIGINT)
-        assert rec.wait(timeout=30) == 0
 
 
 def test_seeks_across_a_damaged_chunk_count_it_once(peer: Peer, tmp_path: Path) -> None:
@@ -646,3 +640,25 @@ def test_seeks_across_a_damaged_chunk_count_it_once(peer: Peer, tmp_path: Path) 
     assert damaged == sorted(damaged) and damaged[-1] == 1, damaged
     first = next(k for k, t in enumerate(times) if t >= times[0] + int(cut_at * 1e9))
     assert got == [f"tick {k}" for k in range(first, 200)], got[:3]
+
+
+def test_a_seek_back_among_stamps_out_of_order_plays_again_what_it_should(peer: Peer, tmp_path: Path) -> None:
+    """Log times out of order (header stamps in arrival order): after ticks at 0, 0.5 and 0.2 s have played, a seek
+    to 0.3 s is a seek back (0.5 s has played), so the next message played is the one at 0.5 s, not 0.6 s."""
+    _timed_bag(tmp_path / "t.mcap", [0.0, 0.5, -0.3, 0.4, 0.1])  # 0, 0.5, 0.2, 0.6, 0.7 s
+    got: list[str] = []
+    peer.node.create_subscription(String, "/tick", lambda m: got.append(m.data), 100)
+    step = _trigger(peer, "/replay/play_next")
+    status = collect_diagnostics(peer.node, "replay: replay")
+    log = tmp_path / "replay.log"
+    params = {"bags": [str(tmp_path / "t.mcap")], "paused": True, "wait_for_subscribers_s": 20.0,
+              "diagnostics_period_s": 0.2}
+    with node_process("replay", params, _domain(peer), log):
+        assert peer.spin(lambda: step.ready() and bool(status) and status[-1]["message"] == "paused", 30), \
+            log.read_text()  # past its wait for subscribers
+        assert [step().message for _ in range(3)] == [f"played /tick at {t} s of the bag"
+                                                      for t in ("0.000", "0.500", "0.200")], log.read_text()
+        assert set_parameter(peer, "/replay", "start_offset_s", 0.3).successful
+        assert step().message == "played /tick at 0.500 s of the bag", log.read_text()
+        assert peer.spin(lambda: len(got) == 4, 10)
+    assert got == ["tick 0", "tick 1", "tick 2", "tick 1"]

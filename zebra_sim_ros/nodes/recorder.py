@@ -151,8 +151,10 @@ class RecorderNode(ZebraNode[RecorderConfig]):
 
     def _log_stats(self) -> None:
         t = self.core.totals()
+        snap = self.cfg.snapshot_size_mb
+        cache = f"{t['cached']} in the snapshot cache, {t['expired']} expired from it, " if snap else ""
         self.get_logger().info(f"{t['messages']} messages written, {t['dropped']} dropped, {t['paused']} while paused, "
-                               f"{t['mb_per_s']} MB/s, queue {t['queue']}; per topic {t['topics']}")
+                               f"{cache}{t['mb_per_s']} MB/s, queue {t['queue']}; per topic {t['topics']}")
 
     def _check_error(self) -> None:
         if self.core.error is not None and not self.done:

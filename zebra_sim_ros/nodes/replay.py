@@ -143,8 +143,11 @@ class ReplayNode(ZebraNode[ReplayConfig]):
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         """As every node's, and every accepted set of ``start_offset_s`` seeks, even to the value it has (as a
         repeated ``ros2 bag play`` seek plays again from there)."""
-        result = super()._on_set_parameters(params)
         offsets = [p for p in params if p.name == "start_offset_s"]
+        if offsets and self.done and hasattr(self, "thread"):  # the play thread has ended: nothing takes a seek
+            return SetParametersResult(successful=False, reason="the bags have been played: no seek (loop:=true "
+                                       "keeps the replay playing)")
+        result = super()._on_set_parameters(params)
         if result.successful and offsets and hasattr(self, "step_cond"):  # not at declaration, before start()
             to = float(offsets[-1].value)
             with self.step_cond:
@@ -245,12 +248,13 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                     if to <= consumed:  # what it wants has been played or skipped: read the bags again
                         raise _Seek(to)
                     begin = anchor = to
-                    if pace is not None:  # the bag stands at ``to`` now (/clock too), and plays on from there
-                        pace.jump(to, time.monotonic(), t0_bag + int(to * 1e9))
-                    if rel < to:
+                    if rel < to:  # read on to it: the pacing starts again there, not while the bags are read
+                        pace = None
                         self.reading = f"reading the bags to {to:g} s"
+                    elif pace is not None:  # into the gap before this message: the bag (and /clock) stand at ``to``
+                        pace.jump(to, time.monotonic(), t0_bag + int(to * 1e9))
                 if rel < begin:
-                    consumed = rel
+                    consumed = max(consumed, rel)  # bag times may go back (bags in turn, stamps out of order)
                     break
                 if c.duration_s and rel > begin + c.duration_s:
                     ended = True
@@ -269,7 +273,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                 pub.publish(m.data)
                 n += 1
                 self.published += 1
-                consumed = rel
+                consumed = max(consumed, rel)
                 if waited == "step":  # played for ~/play_next: its answer names it
                     with self.step_cond:
                         self.stepped += 1
@@ -279,11 +283,16 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             if ended:
                 break
         self.reading = ""
-        to = self._take_seek()  # one that came as the pass ended: it is taken, not lost
+        self._seek_now()  # one that came as the pass ended ...
+        self._end_pass(n)
+        self._seek_now()  # ... or while its publishers flushed: taken, not lost
+
+    def _seek_now(self) -> None:
+        """Raise :class:`_Seek` for a seek asked for and not yet taken (at a pass's end: the bags are read again)."""
+        to = self._take_seek()
         if to is not None:
             self.seeks += 1
             raise _Seek(to)
-        self._end_pass(n)
 
     def _wait_for_subscribers(self, until: float, wait_s: float) -> None:
         """Before the first message: until every publisher known so far has a subscriber, or wall time ``until``."""
@@ -305,15 +314,16 @@ class ReplayNode(ZebraNode[ReplayConfig]):
 
     def _on_play_next(self, request: Any, response: Any) -> Any:
         """``~/play_next``: while paused, the next message is played alone; answered once it is (its topic and bag
-        time), or refused: not paused, the bag played to its end or failed, or nothing played within
-        ``_STEP_WAIT_S`` (the step is then withdrawn, unless the play thread has just taken it)."""
+        time), or refused: not paused, the bag played to its end or failed, at once while the replay waits for
+        subscribers or reads the bags on to a time sought, or nothing played within ``_STEP_WAIT_S`` (the step is
+        then withdrawn, unless the play thread has just taken it)."""
         response.success = False
         ended = lambda: self.error or "the bag has been played"  # noqa: E731
         if self.done or not self.cfg.paused:
             response.message = ended() if self.done else "not paused: ~/play_next plays one message while paused"
             return response
-        if self.waiting:  # no message is near: refused at once rather than holding the executor for _STEP_WAIT_S
-            response.message = f"nothing to play yet ({self.waiting})"
+        if busy := self.waiting or self.reading:  # no message is near: refused at once, not holding the executor
+            response.message = f"nothing to play yet ({busy})"
             return response
         with self.step_cond:
             before = self.stepped

@@ -28,8 +28,8 @@ class RecorderConfig(StageConfig):
     ``paused`` may change while it records."""
 
     output: str = param("bags/zebra_sim.mcap", "bag file to write (.mcap added to a name without it; files split "
-                        "by size or duration get _0, _1, ... before .mcap, and a split on ~/split_bagfile of a bag "
-                        "not split so goes on in _1, _2, ...)",
+                        "by size or duration get _0, _1, ... before .mcap; a bag split only by ~/split_bagfile keeps "
+                        "its name for the first file and goes on in _1, _2, ...)",
                         allowed="a path", check=lambda v: len(v) > 0)
     topics: tuple[str, ...] = param(("",), "topics to record; [''] (empty) records every topic that matches "
                                     "topic_regex", allowed="a list of topic names", check=_str_list, runtime=True)
@@ -101,7 +101,7 @@ class ReplayConfig(StageConfig):
     paused: bool = param(False, "hold playback where it is while true (/clock stays at the bag time reached), as ros2 "
                          "bag play's pause; ~/pause, ~/resume and ~/toggle_paused (std_srvs/Trigger) set it; true "
                          "at start: start paused", runtime=True)
-    loop: bool = param(False, "play again from the start when done")
+    loop: bool = param(False, "play again from start_offset_s (where the last seek went) when done")
     start_offset_s: float = param(0.0, "skip this much of the bag's start (its first message played: topics not "
                                   "played do not count); set while playing, it seeks there, back or forth (as ros2 "
                                   "bag play's seek; the same value again seeks again), and duration_s counts from it",

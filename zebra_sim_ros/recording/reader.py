@@ -8,6 +8,7 @@ schema; when a record cannot be read it stops and keeps where and why in ``stopp
 from __future__ import annotations
 
 import functools
+import glob
 import os
 import re
 from collections.abc import Iterator
@@ -177,7 +178,7 @@ def file_order(path: Path) -> tuple[str, int, str]:
 def recording_files(path: Path) -> list[Path]:
     """The files of a recording written to ``path``, in the order written: ``path`` itself where it exists and the
     pieces a split made of it (``<stem>_<n>.mcap`` beside it: by size, duration or ``~/split_bagfile``)."""
-    pieces = [p for p in path.parent.glob(f"{path.stem}_*.mcap")
+    pieces = [p for p in path.parent.glob(f"{glob.escape(path.stem)}_*.mcap")
               if (m := _PIECE.fullmatch(p.stem)) is not None and m.group(1) == path.stem]
     return sorted([path] * path.is_file() + pieces, key=file_order)
 

@@ -72,8 +72,10 @@ class RecorderCore:
         self.started = time.monotonic()
 
     def offer(self, topic: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None) -> bool:
-        """Queue one message without blocking; False (and a counted drop) when the queue is full or stopped, False
-        (counted as paused) while paused. ``publish_time_ns``: when it arrived (wall clock; None = the log time)."""
+        """Queue one message without blocking; False (and a counted drop) when the queue holds ``queue_size`` or the
+        recording has ended, False (counted as paused) while paused. In snapshot mode it goes into the cache instead
+        (True, even where the cache lets it go at once: it is counted as expired). ``publish_time_ns``: when it
+        arrived (wall clock; None = the log time)."""
         with self._lock:
             s = self.stats[topic]
             s.received += 1
@@ -136,8 +138,8 @@ class RecorderCore:
         made = threading.Event()
         into: list[Path] = []
         self._q.put((_SPLIT, made, into))
-        if not made.wait(timeout):
-            return True, f"split queued behind {self._q.qsize() - 1} messages"
+        if not made.wait(timeout) and not made.is_set():
+            return True, f"split queued: the writer's queue holds {self._q.qsize()} messages"
         if not into:
             return False, self._ended() or "the recording has ended"
         return True, f"now writing {into[0]}"
