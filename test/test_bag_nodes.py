@@ -351,6 +351,12 @@ def _trigger(peer: Peer, name: str) -> Any:
     return call
 
 
+def _texts(path: Path) -> list[str]:
+    """The data of every std_msgs/String in the bag file ``path``, as rosbags reads them."""
+    with AnyReader([path]) as r:
+        return [r.deserialize(raw, c.msgtype).data for c, _, raw in r.messages()]
+
+
 def _send(peer: Peer, pub: Any, numbers: range) -> None:
     """Publish each number as a String, 20 ms apart, spinning the peer between."""
     for k in numbers:
@@ -398,9 +404,7 @@ def test_the_recorder_pauses_and_resumes_on_its_services(peer: Peer, tmp_path: P
         rec.send_signal(signal.SIGINT)
         assert rec.wait(timeout=30) == 0, log.read_text()
     assert "7 messages, 0 dropped, 11 while paused" in log.read_text()
-    with AnyReader([bag]) as r:
-        assert [r.deserialize(raw, c.msgtype).data for c, _, raw in r.messages()] == \
-            [str(k) for k in (*range(5, 10), 15, 16)]
+    assert _texts(bag) == [str(k) for k in (*range(5, 10), 15, 16)]
 
 
 def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path: Path) -> None:
@@ -541,30 +545,25 @@ def test_the_recorder_splits_its_bag_on_its_service(peer: Peer, tmp_path: Path) 
     status = collect_diagnostics(peer.node, "recorder: recorder")
     split, snap = _trigger(peer, "/recorder/split_bagfile"), _trigger(peer, "/recorder/snapshot")
     bag, log = tmp_path / "run.mcap", tmp_path / "rec.log"
-
-    def send(numbers: range) -> None:
-        _send(peer, pub, numbers)
-
     params = {"output": str(bag), "discovery_period_s": 0.1, "diagnostics_period_s": 0.2, **ONLY_DATA}
     with node_process("recorder", params, _domain(peer), log) as rec:
         assert peer.spin(lambda: peer.node.count_subscribers("/chatter") > 0 and split.ready() and bool(status),
                          30), log.read_text()
         peer.spin(lambda: False, 0.5)
-        send(range(0, 5))
+        _send(peer, pub, range(0, 5))
         assert peer.spin(lambda: status[-1]["values"]["messages"] == "5", 10), status[-1:]
         answer = split()
         assert answer.success and answer.message == f"now writing {tmp_path / 'run_1.mcap'}", answer.message
         refused = snap()  # not in snapshot mode: refused, saying why
         assert not refused.success and refused.message == "not in snapshot mode: snapshot_size_mb is 0, so " \
             "everything is written as it arrives"
-        send(range(5, 8))
+        _send(peer, pub, range(5, 8))
         assert peer.spin(lambda: status[-1]["values"]["messages"] == "8" and status[-1]["values"]["files"] == "2",
                          10), status[-1:]
         rec.send_signal(signal.SIGINT)
         assert rec.wait(timeout=30) == 0, log.read_text()
     for path, want in ((bag, range(0, 5)), (tmp_path / "run_1.mcap", range(5, 8))):
-        with AnyReader([path]) as r:
-            assert [r.deserialize(raw, c.msgtype).data for c, _, raw in r.messages()] == [str(k) for k in want]
+        assert _texts(path) == [str(k) for k in want]
 
 
 def test_the_recorder_in_snapshot_mode_writes_the_newest_messages_on_its_service(peer: Peer, tmp_path: Path) -> None:
@@ -595,9 +594,7 @@ def test_the_recorder_in_snapshot_mode_writes_the_newest_messages_on_its_service
         assert snap().message == "the cache is empty: nothing to write"
         rec.send_signal(signal.SIGINT)
         assert rec.wait(timeout=30) == 0, log.read_text()
-    with AnyReader([bag]) as r:
-        assert [r.deserialize(raw, c.msgtype).data[:3] for c, _, raw in r.messages()] == \
-            [f"{k:03d}" for k in range(21, 30)]
+    assert [text[:3] for text in _texts(bag)] == [f"{k:03d}" for k in range(21, 30)]
 
 
 def test_seeks_across_a_damaged_chunk_count_it_once(peer: Peer, tmp_path: Path) -> None:

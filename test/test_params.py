@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from ros_helpers import call_service, set_parameter
 
 from zebra_sim_ros.detection.config import DetectorConfig
 from zebra_sim_ros.errors import ParameterError
@@ -321,22 +322,10 @@ def test_set_parameters_applies_runtime_ones_and_refuses_the_rest_with_a_reason(
 
 
 # -- the detector node as a process: `ros2 param set /detector conf 0.9` -----------------------------------------
-def _service(peer: Any, srv_type: Any, name: str, request: Any) -> Any:
-    from ros_helpers import call_service
-
-    return call_service(peer, srv_type, name, request)
-
-
-def _set(peer: Any, name: str, value: Any) -> Any:
-    from ros_helpers import set_parameter
-
-    return set_parameter(peer, "/detector", name, value)
-
-
 def _get_conf(peer: Any) -> float:
     from rcl_interfaces.srv import GetParameters
 
-    return float(_service(peer, GetParameters, "/detector/get_parameters",
+    return float(call_service(peer, GetParameters, "/detector/get_parameters",
                           GetParameters.Request(names=["conf"])).values[0].double_value)
 
 
@@ -379,30 +368,24 @@ def test_param_set_changes_the_running_detector(tmp_path: Path) -> None:
             assert peer.spin(lambda: peer.node.count_subscribers("/drone_0/image_raw") > 0, 60), log.read_text()
             before = detect(1)
             assert before and min(before) < 0.9  # conf 0: every candidate, up to max_det
-            assert _set(peer, "conf", 0.9).successful
+            assert set_parameter(peer, "/detector", "conf", 0.9).successful
             assert _get_conf(peer) == pytest.approx(0.9)
             after = detect(2)
             assert len(after) < len(before) and all(s >= 0.9 for s in after), after
             assert re.search(r"now conf 0\.9\b", log.read_text())
             for value in ("abc", 1.5):
-                refused = _set(peer, "conf", value)
+                refused = set_parameter(peer, "/detector", "conf", value)
                 assert not refused.successful and "conf" in refused.reason, refused.reason
-            refused = _set(peer, "weights", "/elsewhere.pt")
+            refused = set_parameter(peer, "/detector", "weights", "/elsewhere.pt")
             assert not refused.successful and "'weights' cannot change while the node runs" in refused.reason
             assert _get_conf(peer) == pytest.approx(0.9)
-            desc = _service(peer, DescribeParameters, "/detector/describe_parameters",
+            desc = call_service(peer, DescribeParameters, "/detector/describe_parameters",
                             DescribeParameters.Request(names=["conf", "max_det"])).descriptors
             assert (desc[0].floating_point_range[0].from_value, desc[0].floating_point_range[0].to_value) == (0, 1)
             assert desc[1].integer_range[0].to_value == 10000
             assert proc.poll() is None, log.read_text()
     finally:
         peer.close()
-
-
-def _set_on(peer: Any, node: str, name: str, value: Any) -> Any:
-    from ros_helpers import set_parameter
-
-    return set_parameter(peer, f"/{node}", name, value)
 
 
 @pytest.mark.integration
@@ -430,9 +413,9 @@ def test_replay_rate_changes_while_it_waits(tmp_path: Path) -> None:
     try:
         with node_process("replay", params, peer.ctx.get_domain_id(), log) as proc:
             assert peer.spin(lambda: len(got) == 1, 30), log.read_text()
-            assert not _set_on(peer, "replay", "loop", True).successful
-            assert not _set_on(peer, "replay", "rate", 0.0).successful
-            assert _set_on(peer, "replay", "rate", 50.0).successful
+            assert not set_parameter(peer, "/replay", "loop", True).successful
+            assert not set_parameter(peer, "/replay", "rate", 0.0).successful
+            assert set_parameter(peer, "/replay", "rate", 50.0).successful
             changed = time.monotonic()
             assert peer.spin(lambda: len(got) == 6, 10), log.read_text()
             assert got[-1][1] - changed < 2.0  # 8 s of bag at 50x, not the 80 s left at 0.1x
@@ -459,14 +442,14 @@ def test_recorder_records_topics_added_while_it_runs(tmp_path: Path) -> None:
                           peer.ctx.get_domain_id(), log) as rec:
             assert peer.spin(subscribed("/a"), 30), log.read_text()
             assert not peer.spin(subscribed("/b"), 0.5)
-            assert not _set_on(peer, "recorder", "output", str(tmp_path / "other.mcap")).successful
-            assert _set_on(peer, "recorder", "topics", ["/a", "/b"]).successful
+            assert not set_parameter(peer, "/recorder", "output", str(tmp_path / "other.mcap")).successful
+            assert set_parameter(peer, "/recorder", "topics", ["/a", "/b"]).successful
             assert peer.spin(subscribed("/b"), 10), log.read_text()
             for k in range(3):
                 pubs["/a"].publish(String(data=f"a {k}"))
                 pubs["/b"].publish(String(data=f"b {k}"))
                 peer.spin(lambda: False, 0.05)
-            assert _set_on(peer, "recorder", "topics", ["/b"]).successful
+            assert set_parameter(peer, "/recorder", "topics", ["/b"]).successful
             assert peer.spin(lambda: not subscribed("/a")(), 10), log.read_text()
             pubs["/b"].publish(String(data="b 3"))
             peer.spin(lambda: False, 0.5)

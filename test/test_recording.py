@@ -1179,6 +1179,12 @@ def test_bag_export_pairs_by_arrival_so_late_labels_and_a_run_without_labels_pai
             assert float(label[1]) == pytest.approx((x0 + 10) / 64), name
 
 
+def _texts(path: Path) -> list[str]:
+    """The data of every std_msgs/String in the bag file ``path``, as rosbags reads them."""
+    with AnyReader([path]) as r:
+        return [r.deserialize(raw, c.msgtype).data for c, _, raw in r.messages()]
+
+
 def test_a_paused_recorder_core_counts_what_arrives_and_writes_none_of_it(tmp_path: Path) -> None:
     """``RecorderCore.paused``: offered messages are counted per topic as paused (neither written nor dropped) and
     none reaches the bag; after the pause the next ones are written, in order, as rosbags reads them back."""
@@ -1194,13 +1200,7 @@ def test_a_paused_recorder_core_counts_what_arrives_and_writes_none_of_it(tmp_pa
     t = core.totals()
     assert (t["messages"], t["dropped"], t["paused"]) == (2, 0, 3)
     assert t["topics"]["/chatter"]["received"] == 5
-    with AnyReader([Path(path)]) as r:
-        assert [r.deserialize(raw, c.msgtype).data for c, _, raw in r.messages()] == ["m3", "m4"]
-
-
-def _texts(path: Path) -> list[str]:
-    with AnyReader([path]) as r:
-        return [r.deserialize(raw, c.msgtype).data for c, _, raw in r.messages()]
+    assert _texts(Path(path)) == ["m3", "m4"]
 
 
 def test_a_split_on_demand_goes_on_in_the_next_file_and_each_file_is_a_bag(tmp_path: Path) -> None:

@@ -161,7 +161,7 @@ def cmd_up(args: argparse.Namespace) -> Summary:
 
         count_conf = scoring.count_conf if scoring is not None else COUNT_CONF  # as the scorer counts them live
         # split (by size, duration or the recorder's ~/split_bagfile): every piece, in the order written
-        recorded: Path | list[str | Path] = bag[0] if len(bag) == 1 else list(bag)
+        recorded: list[str | Path] = list(bag)
         try:
             result.update(summarize_run(recorded, out / "preview.jpg", count_conf, out / CENSUS_MAP, located))
         except OSError as exc:  # a full disk: the scores still come, the preview does not

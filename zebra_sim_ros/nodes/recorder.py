@@ -144,7 +144,7 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         """``~/snapshot``, in snapshot mode: what the cache holds is written to the bag, and it starts again empty;
         refused outside snapshot mode (``snapshot_size_mb`` 0) or once the recording has ended."""
         response.success, response.message = self.core.snapshot()
-        if not response.success and response.message == "not in snapshot mode":
+        if not self.cfg.snapshot_size_mb:
             response.message += ": snapshot_size_mb is 0, so everything is written as it arrives"
         self.get_logger().info(f"snapshot: {response.message}")
         return response

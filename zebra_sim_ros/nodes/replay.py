@@ -144,11 +144,11 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         """As every node's, and every accepted set of ``start_offset_s`` seeks, even to the value it has (as a
         repeated ``ros2 bag play`` seek plays again from there)."""
         offsets = [p for p in params if p.name == "start_offset_s"]
-        if offsets and self.done and hasattr(self, "thread"):  # the play thread has ended: nothing takes a seek
+        if offsets and self.done:  # the play thread has ended: nothing takes a seek
             return SetParametersResult(successful=False, reason="the bags have been played: no seek (loop:=true "
                                        "keeps the replay playing)")
         result = super()._on_set_parameters(params)
-        if result.successful and offsets and hasattr(self, "step_cond"):  # not at declaration, before start()
+        if result.successful and offsets:  # sets come through the parameter service: after start()
             to = float(offsets[-1].value)
             with self.step_cond:
                 self.seek_to = to
@@ -156,9 +156,10 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         return result
 
     def _take_seek(self) -> float | None:
-        """The seek asked for, if any (taken: asked once, done once)."""
+        """The seek asked for, if any (taken and counted: asked once, done once)."""
         with self.step_cond:
             to, self.seek_to = self.seek_to, None
+            self.seeks += to is not None
             return to
 
     def _wanted(self, topic: str) -> bool:
@@ -244,7 +245,6 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             while True:  # until this message is played or skipped: a seek while it waits judges it again
                 to = self._take_seek()
                 if to is not None:
-                    self.seeks += 1
                     if to <= consumed:  # what it wants has been played or skipped: read the bags again
                         raise _Seek(to)
                     begin = anchor = to
@@ -289,9 +289,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
 
     def _seek_now(self) -> None:
         """Raise :class:`_Seek` for a seek asked for and not yet taken (at a pass's end: the bags are read again)."""
-        to = self._take_seek()
-        if to is not None:
-            self.seeks += 1
+        if (to := self._take_seek()) is not None:
             raise _Seek(to)
 
     def _wait_for_subscribers(self, until: float, wait_s: float) -> None:

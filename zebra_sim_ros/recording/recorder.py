@@ -115,13 +115,14 @@ class RecorderCore:
         if (ended := self._ended()) is not None:
             return False, ended
         with self._lock:
-            items, self._cache, n, size = list(self._cache), deque(), len(self._cache), self._cache_bytes
+            items, self._cache, size = self._cache, deque(), self._cache_bytes
             self._cache_bytes, self._cache_newest = 0, None
         if not items:
             return True, "the cache is empty: nothing to write"
         self._q.put((_SNAPSHOT, items))  # one item, whatever its size
         times = [t for _, _, t, _ in items]
-        return True, f"writing {n} messages ({size / MB:.2f} MB, {(max(times) - min(times)) / 1e9:.2f} s of log time)"
+        span = (max(times) - min(times)) / 1e9
+        return True, f"writing {len(items)} messages ({size / MB:.2f} MB, {span:.2f} s of log time)"
 
     def _ended(self) -> str | None:
         """Why no split or snapshot is taken any more, or None."""

@@ -69,7 +69,7 @@ class BagWriter:
         self.messages = 0
         self._open()  # the file exists from the start, as with rosbag2: an empty recording is an empty, valid bag
 
-    def file_path(self, k: int) -> Path:
+    def _file_path(self, k: int) -> Path:
         """The bag's ``k``-th file (from 0): ``<stem>_<k>.mcap`` when split by size or duration, else the path given
         for the first and ``<stem>_<k>.mcap`` for those a :meth:`split` starts."""
         split = self.split_bytes > 0 or self.split_ns > 0
@@ -77,7 +77,7 @@ class BagWriter:
 
     def _open(self) -> None:
         k = len(self.files)
-        p = self.file_path(k)
+        p = self._file_path(k)
         try:
             p.parent.mkdir(parents=True, exist_ok=True)
             self._stream = open(p, "wb")  # noqa: SIM115 - closed in _close_file
