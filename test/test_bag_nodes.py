@@ -567,13 +567,15 @@ def test_the_recorder_splits_its_bag_on_its_service(peer: Peer, tmp_path: Path) 
 
 
 def test_the_recorder_in_snapshot_mode_writes_the_newest_messages_on_its_service(peer: Peer, tmp_path: Path) -> None:
-    """``snapshot_size_mb`` > 0, as ros2 bag record --snapshot-mode: nothing is written as it arrives; ``~/snapshot``
-    (std_srvs/Trigger) writes the newest messages that fit the cache, and rosbags reads back exactly those, in order;
-    /diagnostics count what the cache holds and what it let go; a second snapshot with nothing new writes nothing.
-    (Outside snapshot mode the service refuses: the split test's recorder checks it.)"""
+    """``snapshot_size_mb`` > 0, as ros2 bag record --snapshot-mode: nothing is written as it arrives, and no file is
+    made; ``~/snapshot`` (std_srvs/Trigger) writes the newest messages that fit the cache into a file of its own,
+    complete at once (rosbags reads back exactly those, in order, while the recorder runs), and names it; the next
+    snapshot goes into the next file; /diagnostics count what arrives, what the cache holds and let go, and the
+    snapshots; an empty cache writes nothing; ``~/split_bagfile`` refuses. (Outside snapshot mode ``~/snapshot``
+    refuses: the split test's recorder checks it.)"""
     pub = peer.node.create_publisher(String, "/chatter", QoSProfile(depth=50))
     status = collect_diagnostics(peer.node, "recorder: recorder")
-    snap = _trigger(peer, "/recorder/snapshot")
+    snap, split = _trigger(peer, "/recorder/snapshot"), _trigger(peer, "/recorder/split_bagfile")
     bag, log = tmp_path / "snap.mcap", tmp_path / "rec.log"
     params = {"output": str(bag), "discovery_period_s": 0.1, "diagnostics_period_s": 0.2,
               "snapshot_size_mb": 0.001, **ONLY_DATA}  # 1,048 bytes: nine of these 112-byte messages
@@ -586,15 +588,24 @@ def test_the_recorder_in_snapshot_mode_writes_the_newest_messages_on_its_service
             peer.spin(lambda: False, 0.02)
         assert peer.spin(lambda: status[-1]["values"].get("cached") == "9"
                          and status[-1]["values"].get("expired") == "21", 10), status[-1:]
-        assert status[-1]["values"]["messages"] == "0"
+        assert (status[-1]["values"]["messages"], status[-1]["values"]["received"]) == ("0", "30")
+        assert not bag.exists()
         answer = snap()
-        assert answer.success and answer.message.startswith("writing 9 messages"), answer.message
-        assert peer.spin(lambda: status[-1]["values"]["messages"] == "9" and status[-1]["values"]["cached"] == "0",
-                         10), status[-1:]
+        assert answer.success and answer.message.startswith("wrote 9 messages") \
+            and answer.message.endswith(f"to {bag}"), answer.message
+        assert [text[:3] for text in _texts(bag)] == [f"{k:03d}" for k in range(21, 30)]  # complete: read now
         assert snap().message == "the cache is empty: nothing to write"
+        refused = split()
+        assert not refused.success and "a file of its own" in refused.message, refused.message
+        pub.publish(String(data="030" + "x" * 97))
+        assert peer.spin(lambda: status[-1]["values"]["cached"] == "1", 10), status[-1:]
+        assert snap().message.endswith(f"to {tmp_path / 'snap_1.mcap'}")
+        assert peer.spin(lambda: status[-1]["values"]["snapshots"] == "2" and status[-1]["values"]["messages"] == "10",
+                         10), status[-1:]
         rec.send_signal(signal.SIGINT)
         assert rec.wait(timeout=30) == 0, log.read_text()
-    assert [text[:3] for text in _texts(bag)] == [f"{k:03d}" for k in range(21, 30)]
+    assert [text[:3] for text in _texts(tmp_path / "snap_1.mcap")] == ["030"]
+    assert sorted(p.name for p in tmp_path.glob("*.mcap")) == ["snap.mcap", "snap_1.mcap"]  # none left empty
 
 
 def test_seeks_across_a_damaged_chunk_count_it_once(peer: Peer, tmp_path: Path) -> None:

@@ -1274,10 +1274,12 @@ def test_a_split_run_is_summarised_from_every_piece_in_the_order_written(tmp_pat
 
 def test_snapshot_mode_keeps_the_newest_messages_in_memory_and_writes_them_on_a_snapshot(tmp_path: Path) -> None:
     """``RecorderCore`` in snapshot mode (the recorder's ``snapshot_size_mb`` and ``~/snapshot``): nothing reaches
-    the bag until a snapshot; the cache keeps the newest messages that fit its size, the older ones counted as
-    expired; a snapshot writes the cache, in order, and empties it; with a duration, only that much log time before
-    the newest is kept; an empty cache writes nothing and says so; outside snapshot mode, or after close, a snapshot
-    is refused; a duration without a size is refused, naming it (the node's parameter too)."""
+    the disk until a snapshot (a deferred writer makes no file); the cache keeps the newest messages that fit its
+    size, the older ones counted as expired; a snapshot writes the cache, in order, into a file of its own that is
+    complete at once (read back while the recording goes on), names it, and empties the cache; with a duration, only
+    that much log time before the newest is kept; an empty cache writes nothing and says so; a split is refused;
+    outside snapshot mode, or after close, a snapshot is refused; a duration without a size is refused, naming it
+    (the node's parameter too)."""
     from zebra_sim_ros.errors import ParameterError
     from zebra_sim_ros.recording.config import RecorderConfig
     from zebra_sim_ros.recording.recorder import RecorderCore
@@ -1286,24 +1288,43 @@ def test_snapshot_mode_keeps_the_newest_messages_in_memory_and_writes_them_on_a_
         return serialize_message(String(data=f"{k:03d}" + "x" * 97))  # 112 bytes each
 
     size = len(msg(0))
-    w = BagWriter(tmp_path / "snap.mcap")
+    bag = tmp_path / "snaps" / "snap.mcap"
+    w = BagWriter(bag, defer_open=True)
+    assert bag.parent.is_dir() and w.files == [] and w.open_file is None
     w.add_channel("/chatter", "std_msgs/msg/String", [profile_dict()])
     core = RecorderCore(w, queue_size=10, snapshot_bytes=4 * size + 10, snapshot_ns=10**9)
     assert all(core.offer("/chatter", msg(k), k * 10**8) for k in range(10))  # 0.1 s apart
     t = core.totals()
-    assert (t["messages"], t["cached"], t["expired"]) == (0, 4, 6)
+    assert (t["messages"], t["cached"], t["expired"], t["received"]) == (0, 4, 6, 10)
     assert t["cached_mb"] == pytest.approx(4 * size / 2**20, abs=0.006)  # MiB, as every size of the recorder
-    assert core.snapshot() == (True, f"writing 4 messages ({4 * size / 2**20:.2f} MB, 0.30 s of log time)")
+    assert not bag.exists()
+    assert core.split() == (False, "snapshot mode writes each snapshot into a file of its own: nothing to split")
+    assert core.snapshot(timeout=10) == (True, f"wrote 4 messages ({4 * size / 2**20:.2f} MB, 0.30 s of log time) "
+                                               f"to {bag}")
+    assert [s[:3] for s in _texts(bag)] == ["006", "007", "008", "009"]  # complete now, not at close
     assert core.snapshot() == (True, "the cache is empty: nothing to write")
     for k in (20, 30, 45):  # 2.0, 3.0, 4.5 s: only the last is within 1 s of the newest
         core.offer("/chatter", msg(k), k * 10**8)
-    assert core.snapshot()[1].startswith("writing 1 messages")
+    assert core.snapshot(timeout=10)[1].endswith(f"to {bag.with_name('snap_1.mcap')}")
     files = core.close()
     t = core.totals()
-    assert (t["messages"], t["expired"], t["topics"]["/chatter"]["received"]) == (5, 8, 13)
-    assert [s[:3] for s in _texts(Path(files[0]))] == ["006", "007", "008", "009", "045"]
+    assert (t["messages"], t["expired"], t["snapshots"], t["topics"]["/chatter"]["received"]) == (5, 8, 2, 13)
+    assert files == [str(bag), str(bag.with_name("snap_1.mcap"))]  # no empty file after the last snapshot
+    assert [s[:3] for s in _texts(Path(files[1]))] == ["045"]
     ok, why = core.snapshot()
     assert not ok and "ended" in why
+    unused = BagWriter(tmp_path / "none.mcap", defer_open=True)
+    assert unused.close() == [] and not (tmp_path / "none.mcap").exists()
+    with pytest.raises(ParameterError, match="output"):  # a file where its folder should be: refused at once
+        BagWriter(bag / "x.mcap", defer_open=True)
+
+    # a writer with its file open already: the first snapshot goes into it
+    opened = BagWriter(tmp_path / "open.mcap")
+    opened.add_channel("/chatter", "std_msgs/msg/String", [profile_dict()])
+    core = RecorderCore(opened, snapshot_bytes=10 * size)
+    core.offer("/chatter", msg(1), 10**8)
+    assert core.snapshot(timeout=10)[1].endswith(f"to {tmp_path / 'open.mcap'}")
+    assert core.close() == [str(tmp_path / "open.mcap")]
 
     plain = RecorderCore(BagWriter(tmp_path / "plain.mcap"), queue_size=10)
     assert plain.snapshot() == (False, "not in snapshot mode")

@@ -16,8 +16,9 @@ and topics are still found and subscribed. ``~/split_bagfile`` (std_srvs/Trigger
 the open file after what is queued and goes on in the next (``<stem>_1.mcap``, ... for a bag not split by size or
 duration). With ``snapshot_size_mb`` > 0 (snapshot mode, as ``ros2 bag record --snapshot-mode``) the newest messages
 are kept in memory instead, up to that size (and ``snapshot_duration_s`` of log time), and ``~/snapshot``
-(std_srvs/Trigger) writes them. SIGINT, SIGTERM and node shutdown finalise the bag (summary and indexes); after
-SIGKILL use ``zebra-sim bag recover``.
+(std_srvs/Trigger) writes them into a file of their own, finished at once (``output``, then ``<stem>_1.mcap``, ...;
+no file before the first snapshot), and answers with its name. SIGINT, SIGTERM and node shutdown finalise the bag
+(summary and indexes); after SIGKILL use ``zebra-sim bag recover``.
 """
 
 from __future__ import annotations
@@ -57,7 +58,8 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         c = self.cfg
         reserve = -1 if c.disk_reserve_mb < 0 else int(c.disk_reserve_mb * MB)
         self.writer = BagWriter(c.output, c.compression, int(c.chunk_size_mb * MB),
-                                int(c.split_size_mb * MB), c.split_duration_s, int(c.max_size_mb * MB), reserve)
+                                int(c.split_size_mb * MB), c.split_duration_s, int(c.max_size_mb * MB), reserve,
+                                defer_open=c.snapshot_size_mb > 0)  # snapshot mode: a file per snapshot, none before
         cache, span = int(c.snapshot_size_mb * MB), int(c.snapshot_duration_s * 1e9)  # snapshot mode where > 0
         self.core = RecorderCore(self.writer, c.queue_size, paused=c.paused, snapshot_bytes=cache, snapshot_ns=span)
         self.serve_pause()
@@ -135,14 +137,17 @@ class RecorderNode(ZebraNode[RecorderConfig]):
 
     def _on_split(self, request: Any, response: Any) -> Any:
         """``~/split_bagfile``: the open file is finished after what is queued, and the bag goes on in the next;
-        answered with its name (or how far behind the writer is), refused once the recording has ended."""
+        answered with its name (or how far behind the writer is), refused once the recording has ended and in
+        snapshot mode (each snapshot is a file of its own)."""
         response.success, response.message = self.core.split()
         self.get_logger().info(f"split_bagfile: {response.message}")
         return response
 
     def _on_snapshot(self, request: Any, response: Any) -> Any:
-        """``~/snapshot``, in snapshot mode: what the cache holds is written to the bag, and it starts again empty;
-        refused outside snapshot mode (``snapshot_size_mb`` 0) or once the recording has ended."""
+        """``~/snapshot``, in snapshot mode: what the cache holds is written into a file of its own, finished at
+        once, and the cache starts again empty; answered with the file's name (or what is being written, where that
+        takes more than half a second); refused outside snapshot mode (``snapshot_size_mb`` 0) or once the recording
+        has ended."""
         response.success, response.message = self.core.snapshot()
         if not self.cfg.snapshot_size_mb:
             response.message += ": snapshot_size_mb is 0, so everything is written as it arrives"
@@ -166,9 +171,12 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         t = self.core.totals()
         counts = {"messages": t["messages"], "dropped": t["dropped"], "paused_messages": t["paused"],
                   "topics": sum(s is not None for s in self.subs.values())}
-        if self.cfg.snapshot_size_mb:  # what the cache holds now, and what it let go before a snapshot took it
-            counts |= {"cached": t["cached"], "expired": t["expired"]}
-        return Activity(counts, "messages", ("dropped",),
+        snapshot = self.cfg.snapshot_size_mb > 0
+        if snapshot:  # what arrives, what the cache holds now, what it let go before a snapshot took it, the files
+            counts |= {"received": t["received"], "cached": t["cached"], "expired": t["expired"],
+                       "snapshots": t["snapshots"]}
+        # in snapshot mode the work is taking messages in: writing waits for ~/snapshot
+        return Activity(counts, "received" if snapshot else "messages", ("dropped",),
                         error=f"recording ended: {t['error']}" if t["error"] is not None else "",
                         waiting="paused" if self.core.paused else "",
                         info={"output": str(self.writer.path), "files": str(len(self.writer.files)),
@@ -181,7 +189,8 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         t = self.core.totals()
         cache = (f", {t['cached']} in the snapshot cache not written, {t['expired']} expired from it"
                  if self.cfg.snapshot_size_mb else "")
-        msg = (f"bag {files}: {t['messages']} messages, {t['dropped']} dropped, {t['paused']} while paused{cache}; "
+        where = f"bag {files}" if files else f"no bag written (no snapshot taken; {self.writer.path} not made)"
+        msg = (f"{where}: {t['messages']} messages, {t['dropped']} dropped, {t['paused']} while paused{cache}; "
                f"per topic {t['topics']}; "
                f"writer {t['write_mb_per_s']} MB/s while writing; finalised in {time.perf_counter() - t0:.2f} s")
         print(f"[recorder] {msg}" + (f"; error: {self.core.error}" if self.core.error else ""), flush=True)

@@ -53,8 +53,8 @@ class RecorderConfig(StageConfig):
     qos_depth: int = param(100, "history depth of the subscriptions", lo=1, hi=100000)
     snapshot_size_mb: float = param(0.0, "snapshot mode when more than 0, as ros2 bag record --snapshot-mode "
                                     "--max-cache-size: keep the newest messages, up to this size, in memory and "
-                                    "write them only when ~/snapshot (std_srvs/Trigger) is called (0: record "
-                                    "everything)", "MB", lo=0.0, hi=1e5)
+                                    "write them only when ~/snapshot (std_srvs/Trigger) is called, each snapshot "
+                                    "into a file of its own (0: record everything)", "MB", lo=0.0, hi=1e5)
     snapshot_duration_s: float = param(0.0, "in snapshot mode, keep only the messages of this much log time before "
                                        "the newest (0: as many as snapshot_size_mb holds)", "s", lo=0.0, hi=1e6)
     paused: bool = param(False, "write nothing while true: what arrives is counted (paused_messages), not "

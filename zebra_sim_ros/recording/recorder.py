@@ -9,7 +9,9 @@ recording: the thread finalises what it can and keeps the error for the node to 
 In snapshot mode (``snapshot_bytes`` > 0, as ``ros2 bag record --snapshot-mode``) offered messages go into a cache
 in memory instead, the oldest let go (counted as ``expired``) past ``snapshot_bytes`` or, with ``snapshot_ns``, once
 older than that much log time before the newest; :meth:`RecorderCore.snapshot` hands the whole cache to the writer
-thread in one piece and empties it.
+thread in one piece and empties it, and the thread writes it into a file of its own, finished at once (as rosbag2
+does since it writes each snapshot to a new file): the bag's first file, then ``<stem>_1.mcap``, ...; a split has no
+meaning there and is refused.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from zebra_sim_ros.recording.writer import BagWriter
 
 _STOP = object()
 _SPLIT = object()  # in the queue: what came before it goes into the open file, what comes after into the next
-_SNAPSHOT = object()  # in the queue with the cache's messages: written in one piece
+_SNAPSHOT = object()  # in the queue with the cache's messages: written in one piece, into a file of its own
 
 
 @dataclass
@@ -55,6 +57,7 @@ class RecorderCore:
     paused: bool = False  # while true, offered messages are counted, not queued
     snapshot_bytes: int = 0  # > 0: snapshot mode, a cache of this many bytes of messages written only by snapshot()
     snapshot_ns: int = 0  # snapshot mode: the cache keeps only this much log time before its newest message (0: all)
+    snapshots: int = 0  # snapshots written, each a file of its own
 
     def __post_init__(self) -> None:
         if self.snapshot_bytes < 0 or self.snapshot_ns < 0 or (self.snapshot_ns and not self.snapshot_bytes):
@@ -107,9 +110,11 @@ class RecorderCore:
             self._cache_bytes -= len(old[1])
             self.stats[old[0]].expired += 1
 
-    def snapshot(self) -> tuple[bool, str]:
-        """Snapshot mode: hand the cache to the writer thread (written after what is queued, in one piece) and
-        empty it; (False, why) outside snapshot mode or once the recording has ended."""
+    def snapshot(self, timeout: float = 0.5) -> tuple[bool, str]:
+        """Snapshot mode: hand the cache to the writer thread (written after what is queued, in one piece, into a file
+        of its own that is finished at once) and empty it; waits up to ``timeout`` for the file, as :meth:`split`.
+        (True, what was written and where); (True, what is being written) if not finished by then; (False, why)
+        outside snapshot mode, once the recording has ended, or where the writing ended it."""
         if not self.snapshot_bytes:
             return False, "not in snapshot mode"
         if (ended := self._ended()) is not None:
@@ -119,10 +124,16 @@ class RecorderCore:
             self._cache_bytes, self._cache_newest = 0, None
         if not items:
             return True, "the cache is empty: nothing to write"
-        self._q.put((_SNAPSHOT, items))  # one item, whatever its size
         times = [t for _, _, t, _ in items]
-        span = (max(times) - min(times)) / 1e9
-        return True, f"writing {len(items)} messages ({size / MB:.2f} MB, {span:.2f} s of log time)"
+        what = f"{len(items)} messages ({size / MB:.2f} MB, {(max(times) - min(times)) / 1e9:.2f} s of log time)"
+        made = threading.Event()
+        into: list[Path] = []
+        self._q.put((_SNAPSHOT, items, made, into))  # one item, whatever its size
+        if not made.wait(timeout) and not made.is_set():
+            return True, f"writing {what}"
+        if not into:
+            return False, f"{what} not written: {self._ended() or 'the recording has ended'}"
+        return True, f"wrote {what} to {', '.join(str(f) for f in into)}"
 
     def _ended(self) -> str | None:
         """Why no split or snapshot is taken any more, or None."""
@@ -136,6 +147,8 @@ class RecorderCore:
         made; (True, how far behind) if still queued; (False, why) when the recording has ended."""
         if (ended := self._ended()) is not None:
             return False, ended
+        if self.snapshot_bytes:
+            return False, "snapshot mode writes each snapshot into a file of its own: nothing to split"
         made = threading.Event()
         into: list[Path] = []
         self._q.put((_SPLIT, made, into))
@@ -160,8 +173,27 @@ class RecorderCore:
                 finally:
                     made.set()
                 continue
-            for message in (item[1] if item[0] is _SNAPSHOT else (item,)):
+            if item[0] is _SNAPSHOT:
+                self._write_snapshot(*item[1:])
+                continue
+            self._write(*item)
+
+    def _write_snapshot(self, items: deque[tuple[str, bytes, int, int | None]], made: threading.Event,
+                        into: list[Path]) -> None:
+        """A snapshot's messages, into the file(s) they start (``into``, once finished; empty where the recording
+        ended on the way)."""
+        try:
+            first = len(self.writer.files) - (self.writer.open_file is not None)  # the file open now takes it first
+            for message in items:
                 self._write(*message)
+            if self.error is None:
+                self.writer.finish_file()
+                into += self.writer.files[first:]
+                self.snapshots += 1
+        except Exception as exc:  # noqa: BLE001 - the file could not be finished: the recording ends, and says why
+            self._fail(exc)
+        finally:
+            made.set()
 
     def _write(self, topic: str, data: bytes, t: int, pt: int | None) -> None:
         if self.error is not None:  # the recording has ended: what is still queued is dropped, and counted
@@ -212,6 +244,7 @@ class RecorderCore:
         return {"topics": per, "messages": sum(s["written"] for s in per.values()),
                 "dropped": sum(s["dropped"] for s in per.values()), "paused": sum(s["paused"] for s in per.values()),
                 "expired": sum(s["expired"] for s in per.values()), "cached": cached,
+                "received": sum(s["received"] for s in per.values()), "snapshots": self.snapshots,
                 "cached_mb": round(cached_bytes / MB, 2),
                 "mb_per_s": round(written / elapsed / 1e6, 2),
                 "queue": self._q.qsize(), "error": self.error,

@@ -8,11 +8,16 @@ and may be capped in total size (``max_bytes``): the write that would pass the c
 would leave less free space than the reserve (``reserve_bytes``; by default what the open chunk holds so far, 256 KB
 and 1% of what is written: room for that chunk, the indexes and the summary) raises :class:`BagFullError` before
 the disk is full, so closing still writes every message accepted so far and the summary.
+
+With ``defer_open`` no file is made until the first message, and :meth:`BagWriter.finish_file` finishes the open
+file without starting the next: the next message starts it. That is the recorder's snapshot mode, a complete file
+per snapshot and none before the first.
 """
 
 from __future__ import annotations
 
 import errno
+import os
 import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,7 +49,8 @@ class BagWriter:
     """An MCAP bag (possibly split); thread-compatible but not thread-safe: one writer thread."""
 
     def __init__(self, path: str | Path, compression: str = "zstd", chunk_size: int = 4 << 20,
-                 split_bytes: int = 0, split_seconds: float = 0.0, max_bytes: int = 0, reserve_bytes: int = -1) -> None:
+                 split_bytes: int = 0, split_seconds: float = 0.0, max_bytes: int = 0, reserve_bytes: int = -1,
+                 defer_open: bool = False) -> None:
         if compression not in COMPRESSIONS:
             raise ParameterError("compression", compression, f"one of {sorted(COMPRESSIONS)}")
         if chunk_size < 1024:
@@ -67,7 +73,18 @@ class BagWriter:
         self._file_start_ns: int | None = None
         self._closed_bytes = 0
         self.messages = 0
-        self._open()  # the file exists from the start, as with rosbag2: an empty recording is an empty, valid bag
+        self._idle = defer_open  # no file open, and the next message starts one (False once closed)
+        if not defer_open:
+            self._open()  # the file exists from the start, as with rosbag2: an empty recording is an empty, valid bag
+            return
+        try:  # no file yet: its folder is made, and checked, now rather than at the first message
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ParameterError("output", str(self.path), f"a bag file that can be written ({exc.strerror or exc})") \
+                from exc
+        if not os.access(self.path.parent, os.W_OK | os.X_OK) or self.path.is_dir():
+            raise ParameterError("output", str(self.path), "a bag file that can be written (a writable folder, "
+                                 "not a folder itself)")
 
     def _file_path(self, k: int) -> Path:
         """The bag's ``k``-th file (from 0): ``<stem>_<k>.mcap`` when split by size or duration, else the path given
@@ -132,6 +149,11 @@ class BagWriter:
         return ch.ids[k]
 
     @property
+    def open_file(self) -> Path | None:
+        """The file messages go into now; None before the first (deferred), after :meth:`finish_file` or close."""
+        return self.files[-1] if self._writer is not None else None
+
+    @property
     def bytes_written(self) -> int:
         """Bytes on disk so far (closed files plus the open one, up to its last completed chunk)."""
         return self._closed_bytes + (self._stream.tell() if self._stream is not None else 0)
@@ -139,7 +161,7 @@ class BagWriter:
     def write(self, topic: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None) -> None:
         """Append one serialized (CDR) message of a declared topic."""
         ch = self.channels[topic]
-        if self._writer is None:  # closed: reopening would truncate the finished file
+        if self._writer is None and not self._idle:  # closed: reopening would truncate the finished file
             raise RuntimeError(f"write to {self.path} after close()")
         if self.max_bytes:
             # Room kept for the open chunk, the summary and the indexes, so the finished bag stays under the cap.
@@ -148,6 +170,9 @@ class BagWriter:
             if written + len(data) + margin > self.max_bytes:
                 raise BagFullError(f"bag reached its size cap of {self.max_bytes} bytes ({written} written)")
         self._check_free_space(len(data))
+        if self._writer is None:  # deferred, or after finish_file(): this message starts the next file
+            self._open()
+            self._idle = False
         if self._file_start_ns is not None and (
                 (self.split_bytes and self._stream is not None and self._stream.tell() >= self.split_bytes)
                 or (self.split_ns and log_time_ns - self._file_start_ns >= self.split_ns)):
@@ -172,9 +197,21 @@ class BagWriter:
         """Finish the open file and go on in the next (as ``ros2 bag record``'s split_bagfile service); returns its
         path. A file split before any message is an empty, valid bag."""
         if self._writer is None:
-            raise RuntimeError(f"split of {self.path} after close()")
+            raise RuntimeError(f"split of {self.path} with no file open (" +
+                               ("each message starts its next file itself)" if self._idle else "after close())"))
         self._close_file()
         self._open()
+        return self.files[-1]
+
+    def finish_file(self) -> Path | None:
+        """Finish the open file (complete on disk from now on) without starting the next: the next message starts
+        it. Returns the file finished, or None where none was open."""
+        if self._writer is None:
+            if not self._idle:
+                raise RuntimeError(f"finish_file of {self.path} after close()")
+            return None
+        self._close_file()
+        self._idle = True
         return self.files[-1]
 
     def _check_free_space(self, incoming: int) -> None:
@@ -183,13 +220,15 @@ class BagWriter:
             self._unflushed + (256 << 10) + self.bytes_written // 100
         if reserve == 0:
             return
-        folder = self.files[-1].parent
+        folder = self.files[-1].parent if self.files else self.path.parent
         free = shutil.disk_usage(folder).free
         if free < incoming + reserve:
             raise BagFullError(f"disk nearly full at {folder}: {free / 1e6:.2f} MB free, {reserve / 1e6:.2f} MB kept "
                                f"to finish the bag; stopped after {self.messages} messages, all of them kept")
 
     def close(self) -> list[Path]:
-        """Finish the open file (summary, indexes, footer); returns every file of the bag."""
+        """Finish the open file (summary, indexes, footer); returns every file of the bag (none where it was
+        deferred and never written to)."""
+        self._idle = False
         self._close_file()
         return list(self.files)
