@@ -777,6 +777,46 @@ def test_a_folder_of_split_files_plays_in_the_order_they_were_written(tmp_path: 
     assert [m.log_time // 10**9 for m in reader.messages()] == list(range(1, 13))
 
 
+def test_a_seek_passes_over_chunks_before_it_and_gives_every_message_after_it(tmp_path: Path) -> None:
+    """``BagReader.messages(from_ns=T)`` (the replay's seek): chunks whose messages all come before T are passed
+    over unopened, and every message at or after T still comes, as a full read gives them; ``pass_before_ns`` moved
+    while reading (a seek forward) passes over what follows up to it. In a file without a summary (cut short) no
+    chunk is passed over until a reader has read it (its channels are known only so): the reader ``again()`` makes
+    from one that has does pass over them."""
+    w = BagWriter(tmp_path / "full.mcap", chunk_size=4096)
+    w.add_channel("/t", "std_msgs/msg/String", [profile_dict()])
+    w.add_channel("/u", "std_msgs/msg/String", [profile_dict()])
+    for k in range(400):  # /u defined only after the first chunks: its definition is in a chunk a seek passes
+        w.write("/t" if k < 100 or k % 2 else "/u", serialize_message(String(data=f"{k:03d}" + "x" * 60)),
+                10**9 + k * 10**7)
+    w.close()
+    full = list(BagReader.open(tmp_path / "full.mcap").messages())
+    t = full[300].log_time
+    after = [(m.topic, m.data) for m in full if m.log_time >= t]
+
+    def read(reader: BagReader, from_ns: int | None) -> list[tuple[str, bytes]]:
+        return [(m.topic, m.data) for m in reader.messages(from_ns=from_ns) if m.log_time >= t]
+
+    r = BagReader.open(tmp_path / "full.mcap")
+    got = list(r.messages(from_ns=t))
+    assert [(m.topic, m.data) for m in got if m.log_time >= t] == after and r.stopped == []
+    assert r.passed_chunks >= 5 and len(got) - len(after) < 100  # only the chunk holding t from before it
+    moved = BagReader.open(tmp_path / "full.mcap")
+    stream = moved.messages()
+    assert next(stream).log_time == full[0].log_time
+    moved.pass_before_ns = t
+    assert [(m.topic, m.data) for m in stream if m.log_time >= t] == after and moved.passed_chunks >= 4
+
+    with open(tmp_path / "full.mcap", "rb") as f:
+        last = max(make_reader(f).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset)
+    data = (tmp_path / "full.mcap").read_bytes()
+    (tmp_path / "cut.mcap").write_bytes(data[:last.chunk_start_offset + last.chunk_length])  # every chunk, no summary
+    first = BagReader.open(tmp_path / "cut.mcap")
+    assert read(first, t) == after and first.passed_chunks == 0  # nothing known of its chunks: all opened
+    second = first.again()
+    assert read(second, t) == after and second.passed_chunks >= 5 and second.stopped == first.stopped != []
+
+
 def test_run_summary_reads_a_cut_bag_once_and_notes_the_cut_once(tmp_path: Path) -> None:
     from zebra_sim_ros.graph.summary import summarize_run
 

@@ -114,6 +114,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         self.step_cond = threading.Condition()
         self.seek_to: float | None = None  # a seek asked for and not yet taken (bag seconds); under step_cond
         self.seeks = 0  # seeks taken
+        self.t0_bag: int | None = None  # log time of the first message played (bag time 0), once a pass has read it
         self.error = ""  # why playing failed
         self.damaged_before = 0  # damaged parts skipped in earlier passes (looping reopens the reader)
         self.damaged_pass: set[str] = set()  # this pass's, from readers a seek back replaced (the same parts again)
@@ -199,7 +200,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                     origin = seek.to
                 if self.done or (origin is None and not self.cfg.loop):
                     break
-                reader = BagReader.open(self.bags)
+                reader = self.reader.again()  # knows what this one read: a seek passes over chunks before it
                 with self.pass_lock:
                     if origin is None:  # a new pass
                         self.damaged_before += len(self.damaged_pass | set(self.reader.stopped))
@@ -225,22 +226,26 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         c = self.cfg  # what may change while playing (rate) is read from self.cfg where it is used
         # a seek back reads the bags again with every subscriber matched already: no second wait for them
         wait_until = time.monotonic() + (c.wait_for_subscribers_s if origin is None else 0.0)
-        t0_bag: int | None = None
+        t0_bag = self.t0_bag  # known after a first pass (the same bags, the same topics played)
         pace: _Pace | None = None
         begin = c.start_offset_s if origin is None else origin  # the window: [begin, begin + duration_s]
         anchor = origin  # the bag time the pacing starts from: a seek's, else (None) the first message played
         consumed = -math.inf  # bag time of the last message this pass has played or skipped
+        from_ns = None  # chunks wholly before it are passed over unread
+        if t0_bag is not None and begin > 0:
+            from_ns = t0_bag + int(begin * 1e9)
+            consumed = begin - 1e-9  # what came before may have been passed over: a seek to it reads again
         ended = False  # past the window's end
         n = 0
         self.reading = f"reading the bags to {begin:g} s" if begin > 0 else ""
-        for m in self.reader.messages():
+        for m in self.reader.messages(from_ns=from_ns):
             if self.done:
                 return
             pub = self._publisher(m.topic, m.type_name, m.metadata)
             if pub is None:  # not played: its log time does not set the start (a report on another clock, say)
                 continue
             if t0_bag is None:
-                t0_bag = m.log_time
+                t0_bag = self.t0_bag = m.log_time
             rel = (m.log_time - t0_bag) / 1e9
             while True:  # until this message is played or skipped: a seek while it waits judges it again
                 to = self._take_seek()
@@ -251,6 +256,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                     if rel < to:  # read on to it: the pacing starts again there, not while the bags are read
                         pace = None
                         self.reading = f"reading the bags to {to:g} s"
+                        self.reader.pass_before_ns = t0_bag + int(to * 1e9)  # chunks wholly before it: unread
+                        consumed = max(consumed, to - 1e-9)
                     elif pace is not None:  # into the gap before this message: the bag (and /clock) stand at ``to``
                         pace.jump(to, time.monotonic(), t0_bag + int(to * 1e9))
                 if rel < begin:

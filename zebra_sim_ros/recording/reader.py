@@ -74,6 +74,10 @@ class BagReader:
 
     paths: list[Path]
     stopped: list[str] = field(default_factory=list)
+    passed_chunks: int = 0  # chunks not opened: every message in them logged before ``pass_before_ns``
+    pass_before_ns: int | None = None  # messages()'s ``from_ns``; may be moved on while it reads (a seek forward)
+    known_to: dict[int, int] = field(default_factory=dict)  # file index -> bytes read from its start (by this reader
+    # or the one it was made :meth:`again` from): the channels and schemas defined there are known
     schemas: dict[int, Schema] = field(default_factory=dict)
     channels: dict[tuple[int, int], Channel] = field(default_factory=dict)
 
@@ -95,6 +99,13 @@ class BagReader:
             raise ParameterError(name, [str(i) for i in items], "at least one .mcap file")
         return cls(files)
 
+    def again(self) -> BagReader:
+        """A reader of the same files from their start that knows the channels and schemas this one has read, so
+        that :meth:`messages` may pass over chunks this one has read even in a file without a summary (cut short);
+        its damage notes start empty."""
+        return BagReader(self.paths, schemas=dict(self.schemas), channels=dict(self.channels),
+                         known_to=dict(self.known_to))
+
     def channel_list(self) -> list[tuple[str, str, dict[str, str]]]:
         """(topic, ``pkg/msg/Type``, channel metadata) of every channel in the files' summaries, without reading
         the messages; files without a readable summary (cut, still being written) contribute nothing."""
@@ -108,15 +119,22 @@ class BagReader:
                 out.setdefault(ch.topic, (ch.topic, sc.name if sc else "", dict(ch.metadata)))
         return list(out.values())
 
-    def messages(self, topics: set[str] | None = None) -> Iterator[BagMessage]:
-        """Every readable message. A chunk that fails its CRC or does not decompress is skipped and noted in
-        :attr:`stopped`, and reading goes on with the next one; damage that breaks the record stream itself
+    def messages(self, topics: set[str] | None = None, from_ns: int | None = None) -> Iterator[BagMessage]:
+        """Every readable message; with ``from_ns``, a chunk whose messages were all logged before it is passed
+        over without being opened (a seek's shortcut: no decompression, no CRC; counted in :attr:`passed_chunks`),
+        so what comes is every message at or after ``from_ns`` and some before it (those sharing a chunk with later
+        ones, and any not in a chunk). It is kept in :attr:`pass_before_ns`, which may be changed while reading (a
+        seek forward: the chunks from there on before it are passed over). A chunk is passed over only where the
+        channels it may define are known: the file has a readable summary, or this reader (or the one it was made
+        :meth:`again` from) has read past it. A chunk that fails its CRC or does not decompress is skipped and
+        noted in :attr:`stopped`, and reading goes on with the next one; damage that breaks the record stream itself
         (a cut file, a bad record length) ends that file's stream, also noted. The channels and schemas come from
         the records as they are read and, where the file has a readable summary, from it first: a damaged chunk
         that held a topic's first definition loses only its own messages. Messages whose channel was never read
         are counted in a note."""
+        self.pass_before_ns = from_ns
         for k, path in enumerate(self.paths):
-            schemas: dict[int, Schema] = {}
+            schemas = {key & 0xFFFF: sc for key, sc in self.schemas.items() if key >> 16 == k}  # read before
             summary = file_summary(path)
             if summary is not None:
                 schemas.update(summary.schemas)
@@ -125,7 +143,7 @@ class BagReader:
             with open(path, "rb") as f:
                 reader = StreamReader(f, emit_chunks=True, validate_crcs=True)
                 try:
-                    for rec in self._unchunked(reader.records, path, f):
+                    for rec in self._unchunked(reader.records, k, f, summary is not None):
                         if isinstance(rec, Schema):
                             schemas[rec.id] = rec
                             self.schemas[(k << 16) + rec.id] = rec
@@ -149,20 +167,32 @@ class BagReader:
                                     f"(it was in a damaged part, and the file has no readable summary)")
             self.schemas.update({(k << 16) + i: s for i, s in schemas.items()})
 
-    def _unchunked(self, records: Iterator[McapRecord], path: Path, f: IO[bytes]) -> Iterator[McapRecord]:
-        """The records with every chunk opened in place; a damaged chunk is skipped with a note."""
+    def _unchunked(self, records: Iterator[McapRecord], k: int, f: IO[bytes], summarised: bool) -> Iterator[McapRecord]:
+        """The records of file ``k`` with every chunk opened in place, but those :meth:`messages` passes over (all
+        their messages before :attr:`pass_before_ns`; ``summarised``: the file's summary gave every channel); a
+        damaged chunk is skipped with a note. Counts the bytes read in :attr:`known_to` as it goes."""
+        path = self.paths[k]
         for rec in records:
+            known = self.known_to.get(k, 0)
+            end = f.tell()  # where the record just read ends
             if not isinstance(rec, Chunk):
+                self.known_to[k] = max(known, end)
                 yield rec
+                continue
+            until = self.pass_before_ns
+            if until is not None and rec.message_end_time < until and (summarised or end <= known):
+                self.passed_chunks += 1
                 continue
             try:
                 inner = breakup_chunk(rec, validate_crc=True)
             except Exception as exc:  # noqa: BLE001 - CRC mismatch or a broken compressed payload
-                self.stopped.append(f"{path}: skipped a damaged chunk ending at byte {f.tell()} "
+                self.stopped.append(f"{path}: skipped a damaged chunk ending at byte {end} "
                                     f"({rec.message_start_time}..{rec.message_end_time} ns; {type(exc).__name__}: "
                                     f"{exc})")
+                self.known_to[k] = max(known, end)
                 continue
             yield from inner
+            self.known_to[k] = max(known, end)  # read to its end (a reader closed within it has not: not counted)
 
 
 _PIECE = re.compile(r"(.*)_(\d+)")  # a split recording's file stem: <name>_<n>
