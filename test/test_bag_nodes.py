@@ -293,6 +293,7 @@ def test_replay_remap_offset_loop_and_clock(peer: Peer, tmp_path: Path) -> None:
 @pytest.mark.parametrize(("node", "params", "named"), [
     ("recorder", {"max_size_mb": 5.0}, "'max_size_mb'"),  # below two 4 MB chunks: it would end at once
     ("recorder", {"exclude_regex": "(unclosed"}, "'exclude_regex'"),
+    ("recorder", {"qos_overrides_path": "/no/such/qos.yaml"}, "'qos_overrides_path'"),
     ("replay", {"bags": ["/no/such.mcap"]}, "'bags'"),
     ("replay", {"bags": ["x.mcap"], "remap_prefix": "/replay/"}, "'remap_prefix'"),
     ("replay", {"bags": ["x.mcap"], "exclude_regex": "[a-"}, "'exclude_regex'"),
@@ -539,16 +540,23 @@ def test_a_seek_while_playing_cuts_the_wait_for_a_far_message(peer: Peer, tmp_pa
 def test_the_recorder_splits_its_bag_on_its_service(peer: Peer, tmp_path: Path) -> None:
     """``~/split_bagfile`` (std_srvs/Trigger), as ros2 bag record's: the answer names the new file; what arrived
     before goes into the first file, what comes after into the next, each read back alone by rosbags; /diagnostics
-    count the files. Its ``~/snapshot``, outside snapshot mode, refuses, saying why."""
+    count the files. Its ``~/snapshot``, outside snapshot mode, refuses, saying why. Its ``qos_overrides_path``
+    subscribes /chatter volatile with depth 7, where it would take transient local (what the publisher offers) and
+    ``qos_depth`` (the graph shows the durability; the depth, which discovery does not carry, its log)."""
     pub = peer.node.create_publisher(String, "/chatter",
                                      QoSProfile(depth=50, durability=DurabilityPolicy.TRANSIENT_LOCAL))
     status = collect_diagnostics(peer.node, "recorder: recorder")
     split, snap = _trigger(peer, "/recorder/split_bagfile"), _trigger(peer, "/recorder/snapshot")
     bag, log = tmp_path / "run.mcap", tmp_path / "rec.log"
-    params = {"output": str(bag), "discovery_period_s": 0.1, "diagnostics_period_s": 0.2, **ONLY_DATA}
+    (tmp_path / "qos.yaml").write_text("/chatter:\n  durability: volatile\n  depth: 7\n")
+    params = {"output": str(bag), "discovery_period_s": 0.1, "diagnostics_period_s": 0.2,
+              "qos_overrides_path": str(tmp_path / "qos.yaml"), **ONLY_DATA}
     with node_process("recorder", params, _domain(peer), log) as rec:
         assert peer.spin(lambda: peer.node.count_subscribers("/chatter") > 0 and split.ready() and bool(status),
                          30), log.read_text()
+        [sub] = peer.node.get_subscriptions_info_by_topic("/chatter")  # discovery carries no depth: the log does
+        assert sub.qos_profile.durability == DurabilityPolicy.VOLATILE
+        assert "durability=volatile history=keep_last depth=7 (qos_overrides_path)" in log.read_text()
         peer.spin(lambda: False, 0.5)
         _send(peer, pub, range(0, 5))
         assert peer.spin(lambda: status[-1]["values"]["messages"] == "5", 10), status[-1:]
@@ -613,7 +621,7 @@ def test_seeks_across_a_damaged_chunk_count_it_once(peer: Peer, tmp_path: Path) 
     damaged chunk in the middle: a seek forward past it reads over it (damaged 1), a seek back reads the bags again
     and a seek forward passes over what was read before, the damaged chunk too: /diagnostics keep damaged at 1
     throughout; played on, the cut is found (2: a total that never goes down), and what is intact plays to the
-    end."""
+    end. Its ``qos_overrides_path`` publishes /tick transient local (recorded: volatile)."""
     from mcap.reader import make_reader
     from rosgraph_msgs.msg import Clock
 
@@ -633,11 +641,14 @@ def test_seeks_across_a_damaged_chunk_count_it_once(peer: Peer, tmp_path: Path) 
     status = collect_diagnostics(peer.node, "replay: replay")
     resume = _trigger(peer, "/replay/resume")
     log = tmp_path / "replay.log"
+    (tmp_path / "qos.yaml").write_text("/tick:\n  durability: transient_local\n  depth: 250\n")
     params = {"bags": [str(tmp_path / "hurt.mcap")], "paused": True, "wait_for_subscribers_s": 20.0, "clock": True,
-              "clock_rate_hz": 50.0, "diagnostics_period_s": 0.1}
+              "clock_rate_hz": 50.0, "diagnostics_period_s": 0.1, "qos_overrides_path": str(tmp_path / "qos.yaml")}
     with node_process("replay", params, _domain(peer), log) as proc:
         assert peer.spin(lambda: resume.ready() and bool(status) and status[-1]["message"] == "paused", 30), \
             log.read_text()
+        [tick] = peer.node.get_publishers_info_by_topic("/tick")
+        assert tick.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL  # discovery carries no depth
         for to in (cut_at, 0.001, cut_at):
             n = len(clocks)
             assert set_parameter(peer, "/replay", "start_offset_s", to).successful

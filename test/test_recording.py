@@ -239,6 +239,41 @@ def test_qos_yaml_and_replay_profile() -> None:
         "transient_local"
 
 
+def test_qos_overrides_file_sets_policies_per_topic_and_names_what_is_wrong(tmp_path: Path) -> None:
+    """``qos_overrides_path`` (the recorder's and the replay's, as ros2 bag's --qos-profile-overrides-path): topic
+    -> policies, laid over the profile the node chose; a bad file, topic, key or value is refused naming it."""
+    from zebra_sim_ros.errors import ParameterError
+    from zebra_sim_ros.nodes.ros_adapter import profile_qos
+    from zebra_sim_ros.recording.qos import load_overrides, overridden
+
+    good = tmp_path / "qos.yaml"
+    good.write_text("/tf_static:\n  durability: transient_local\n  depth: 1\n"
+                    "/scan:\n  reliability: best_effort\n  history: keep_all\n  depth: 0\n")
+    o = load_overrides(good)
+    assert o == {"/tf_static": {"durability": "transient_local", "depth": 1},
+                 "/scan": {"reliability": "best_effort", "history": "keep_all", "depth": 0}}
+    chosen = profile_dict(depth=100)
+    latched = overridden(chosen, o["/tf_static"])
+    assert (latched["durability"], latched["depth"], latched["reliability"]) == ("transient_local", 1, "reliable")
+    assert overridden(chosen, None) is chosen and chosen["durability"] == "volatile"  # the chosen one untouched
+    q = profile_qos(overridden(chosen, o["/scan"]))
+    assert (q.history.name, q.reliability.name, q.durability.name) == ("KEEP_ALL", "BEST_EFFORT", "VOLATILE")
+    assert load_overrides("") == {}
+    for text, named in (("/a:\n  reliability: sometimes\n", "reliability 'sometimes'"),
+                        ("/a:\n  deadline: 5\n", "/a: deadline"),
+                        ("a:\n  depth: 3\n", "a'"),
+                        ("/a:\n  depth: -1\n", "depth -1"),
+                        ("/a:\n  depth: 0\n", "depth 0"),
+                        ("- /a\n", "qos.yaml"),
+                        ("/a: [\n", "qos.yaml")):
+        good.write_text(text)
+        with pytest.raises(ParameterError, match="qos_overrides_path") as err:
+            load_overrides(good)
+        assert named in str(err.value), (text, str(err.value))
+    with pytest.raises(ParameterError, match="readable"):
+        load_overrides(tmp_path / "missing.yaml")
+
+
 def _labels(stamp: dict, zebras: list[dict]) -> dict:
     """A labels message with only what scoring reads and the zebras' ids (the typed reader fills in the rest)."""
     return {"schema": "zebra_sim_ros/labels", "version": 1, "stamp": stamp,

@@ -2,23 +2,24 @@
 (``ros2 run zebra_sim_ros recorder``).
 
 Subscribes, as serialized messages (no deserialisation), to the topics in ``topics`` or, with ``topics`` empty, to
-every topic matching ``topic_regex`` and not ``exclude_regex``, found again every ``discovery_period_s`` (topics
-that appear later are recorded from then on). Each subscription takes the QoS its publishers offer (reliable and
-transient local only if they all are), and the offered profiles go into the bag as rosbag2's
-``offered_qos_profiles``. Log times are the messages' header stamps where their type has one (``recording.stamps``),
-else the node's clock: run with ``use_sim_time`` (``up`` does) and every log time is simulated time, the stamps'
-time base. Each message's publish time is when it arrived (wall clock), which is what latencies are measured from.
-Callbacks only queue the bytes; one thread writes. A full queue counts drops per topic; a full disk or
+every topic matching ``topic_regex`` and not ``exclude_regex``, found again every ``discovery_period_s`` (topics that
+appear later are recorded from then on). Each subscription takes the QoS its publishers offer (reliable and transient
+local only if they all are), and the offered profiles go into the bag as rosbag2's ``offered_qos_profiles``;
+``qos_overrides_path`` sets policies per topic over that choice (the depth ``qos_depth``), as ``ros2 bag record
+--qos-profile-overrides-path``. Log times are the messages' header stamps where their type has one
+(``recording.stamps``), else the node's clock: run with ``use_sim_time`` (``up`` does) and every log time is simulated
+time, the stamps' time base. Each message's publish time is when it arrived (wall clock), which is what latencies are
+measured from. Callbacks only queue the bytes; one thread writes. A full queue counts drops per topic; a full disk or
 ``max_size_mb`` ends the recording with a finalised bag and an error. ``paused`` (runtime; the ``~/pause``,
-``~/resume`` and ``~/toggle_paused`` services, std_srvs/Trigger, set it, as ``ros2 bag record``'s) writes nothing
-while true: what arrives is counted per topic (``paused_messages`` on /diagnostics), neither written nor dropped,
-and topics are still found and subscribed. ``~/split_bagfile`` (std_srvs/Trigger, as ``ros2 bag record``'s) finishes
-the open file after what is queued and goes on in the next (``<stem>_1.mcap``, ... for a bag not split by size or
-duration). With ``snapshot_size_mb`` > 0 (snapshot mode, as ``ros2 bag record --snapshot-mode``) the newest messages
-are kept in memory instead, up to that size (and ``snapshot_duration_s`` of log time), and ``~/snapshot``
-(std_srvs/Trigger) writes them into a file of their own, finished at once (``output``, then ``<stem>_1.mcap``, ...;
-no file before the first snapshot), and answers with its name. SIGINT, SIGTERM and node shutdown finalise the bag
-(summary and indexes); after SIGKILL use ``zebra-sim bag recover``.
+``~/resume`` and ``~/toggle_paused`` services, std_srvs/Trigger, set it, as ``ros2 bag record``'s) writes nothing while
+true: what arrives is counted per topic (``paused_messages`` on /diagnostics), neither written nor dropped, and topics
+are still found and subscribed. ``~/split_bagfile`` (std_srvs/Trigger, as ``ros2 bag record``'s) finishes the open file
+after what is queued and goes on in the next (``<stem>_1.mcap``, ... for a bag not split by size or duration). With
+``snapshot_size_mb`` > 0 (snapshot mode, as ``ros2 bag record --snapshot-mode``) the newest messages are kept in memory
+instead, up to that size (and ``snapshot_duration_s`` of log time), and ``~/snapshot`` (std_srvs/Trigger) writes them
+into a file of their own, finished at once (``output``, then ``<stem>_1.mcap``, ...; no file before the first
+snapshot), and answers with its name. SIGINT, SIGTERM and node shutdown finalise the bag (summary and indexes); after
+SIGKILL use ``zebra-sim bag recover``.
 """
 
 from __future__ import annotations
@@ -31,9 +32,9 @@ from std_srvs.srv import Trigger
 
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.health import Activity
-from zebra_sim_ros.nodes.ros_adapter import ZebraNode, describe_qos, help_text, message_class, qos, run_node
+from zebra_sim_ros.nodes.ros_adapter import ZebraNode, describe_qos, help_text, message_class, profile_qos, run_node
 from zebra_sim_ros.recording.config import MB, RECORDER_PARAMS, RecorderConfig
-from zebra_sim_ros.recording.qos import profile_dict, replay_profile
+from zebra_sim_ros.recording.qos import load_overrides, overridden, profile_dict, replay_profile
 from zebra_sim_ros.recording.recorder import RecorderCore
 from zebra_sim_ros.recording.stamps import LogTimes
 from zebra_sim_ros.recording.writer import BagWriter
@@ -56,6 +57,7 @@ class RecorderNode(ZebraNode[RecorderConfig]):
     def start(self) -> None:
         """Open the bag; subscribe the topics to record now and look for new ones every discovery_period_s."""
         c = self.cfg
+        self.overrides = load_overrides(c.qos_overrides_path)  # a bad file stops the node here, naming it
         reserve = -1 if c.disk_reserve_mb < 0 else int(c.disk_reserve_mb * MB)
         self.writer = BagWriter(c.output, c.compression, int(c.chunk_size_mb * MB),
                                 int(c.split_size_mb * MB), c.split_duration_s, int(c.max_size_mb * MB), reserve,
@@ -117,10 +119,11 @@ class RecorderNode(ZebraNode[RecorderConfig]):
                 self.get_logger().error(f"cannot record {topic} ({type_name}): {exc}")
                 self.subs[topic] = None
                 continue
-            p = replay_profile(profiles)  # reliable and transient local only if every publisher is
-            q = qos(p["reliability"], self.depth, p["durability"] == "transient_local")
+            p = replay_profile(profiles) | {"depth": self.depth}  # reliable, transient local only if every one is
+            q = profile_qos(overridden(p, self.overrides.get(topic)))
             self.subs[topic] = self.create_subscription(cls, topic, self._callback(topic, type_name), q, raw=True)
-            self.get_logger().info(f"recording {topic} ({type_name}), QoS {describe_qos(q)}")
+            self.get_logger().info(f"recording {topic} ({type_name}), QoS {describe_qos(q)}"
+                                   + (" (qos_overrides_path)" if topic in self.overrides else ""))
 
     def _callback(self, topic: str, type_name: str) -> Any:
         """Queue each message with its log time (:class:`~zebra_sim_ros.recording.stamps.LogTimes`: its header

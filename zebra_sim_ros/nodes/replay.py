@@ -1,7 +1,8 @@
 """The ``replay`` node: plays MCAP bags back as recorded (``ros2 run zebra_sim_ros replay``).
 
 Publishes every message as recorded (raw CDR, no deserialisation) on its topic (plus ``remap_prefix``), with the QoS
-its publishers offered when recorded (reliable and transient local only if they all were), keeping the recorded
+its publishers offered when recorded (reliable and transient local only if they all were; ``qos_overrides_path``
+sets policies per topic over that, as ``ros2 bag play --qos-profile-overrides-path``), keeping the recorded
 spacing of log times divided by ``rate``. ``start_offset_s`` and ``duration_s`` select a window,
 ``topics``/``topic_regex``/``exclude_regex`` select topics, ``loop`` plays again, ``clock`` publishes ``/clock``
 with the bag's time for ``use_sim_time`` consumers. ``paused`` (runtime; the ``~/pause``, ``~/resume`` and
@@ -35,12 +36,12 @@ from zebra_sim_ros.nodes.ros_adapter import (
     flush,
     help_text,
     message_class,
-    qos,
+    profile_qos,
     run_node,
     stamp,
 )
 from zebra_sim_ros.recording.config import REPLAY_PARAMS, ReplayConfig
-from zebra_sim_ros.recording.qos import from_yaml, replay_profile
+from zebra_sim_ros.recording.qos import from_yaml, load_overrides, overridden, replay_profile
 from zebra_sim_ros.recording.reader import BagReader
 
 _STEP_WAIT_S = 5.0  # how long ~/play_next waits for its message to be played before it withdraws the request
@@ -102,6 +103,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         c = self.cfg
         self.bags: list[str | Path] = [b for b in c.bags if b]
         self.reader = BagReader.open(self.bags, name="bags")  # missing files stop the node here, naming them
+        self.overrides = load_overrides(c.qos_overrides_path)  # so does a bad overrides file
         self.regex = re.compile(c.topic_regex)  # checked by its ParamSpec
         self.exclude = re.compile(c.exclude_regex) if c.exclude_regex else None
         self.topics = {t for t in c.topics if t}
@@ -168,8 +170,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                 and not (self.exclude and self.exclude.search(topic)))
 
     def _publisher(self, topic: str, type_name: str, metadata: dict[str, str]) -> Any:
-        """The topic's publisher with its recorded QoS, made once; None for a topic not played or not playable
-        (type not installed, no schema, unreadable QoS metadata: logged once, and the rest of the bag plays)."""
+        """The topic's publisher with its recorded QoS (and overrides), made once; None for a topic not played or
+        not playable (type not installed, no schema, unreadable QoS metadata: logged once, and the rest of the bag
+        plays)."""
         if topic in self.pubs:
             return self.pubs[topic]
         pub = None
@@ -182,7 +185,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         elif self._wanted(topic):
             try:
                 p = replay_profile(from_yaml(metadata.get("offered_qos_profiles", "")))
-                q = qos(p["reliability"], int(p["depth"]), p["durability"] == "transient_local")
+                q = profile_qos(overridden(p, self.overrides.get(topic)))  # keyed by the topic as recorded
                 pub = self.create_publisher(message_class(type_name), self.cfg.remap_prefix + topic, q)
             except (ImportError, AttributeError, ValueError, yaml.YAMLError) as exc:
                 self.get_logger().error(f"cannot play {topic} ({type_name or 'no schema'}): {exc}; skipping it")

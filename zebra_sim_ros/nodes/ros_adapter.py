@@ -9,7 +9,7 @@ from __future__ import annotations
 import importlib
 import sys
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any, Generic, TypeVar
 
 import numpy as np
@@ -239,6 +239,20 @@ def qos(reliability: str = "reliable", depth: int = 10, transient_local: bool = 
         depth=depth,
         reliability=ReliabilityPolicy.RELIABLE if reliability == "reliable" else ReliabilityPolicy.BEST_EFFORT,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if transient_local else DurabilityPolicy.VOLATILE,
+    )
+
+
+def profile_qos(profile: Mapping[str, Any]) -> QoSProfile:
+    """The QoS profile of a profile dict in rosbag2's names (``recording.qos``: history, depth, reliability,
+    durability; what it does not name takes :func:`qos`'s defaults)."""
+    keep_all = profile.get("history") == "keep_all"
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_ALL if keep_all else HistoryPolicy.KEEP_LAST,
+        depth=int(profile.get("depth", 10)),
+        reliability=ReliabilityPolicy.BEST_EFFORT if profile.get("reliability") == "best_effort"
+        else ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if profile.get("durability") == "transient_local"
+        else DurabilityPolicy.VOLATILE,
     )
 
 

@@ -6,9 +6,12 @@ rosbag2's ``{sec: 2147483647, nsec: 4294967295}``.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import yaml
+
+from zebra_sim_ros.errors import ParameterError
 
 INFINITE = {"sec": 2147483647, "nsec": 4294967295}
 
@@ -50,3 +53,49 @@ def replay_profile(profiles: list[dict[str, Any]]) -> dict[str, Any]:
     depth = max(int(p.get("depth", 10) or 10) for p in profiles)
     return profile_dict("keep_last", depth, "reliable" if reliable else "best_effort",
                         "transient_local" if latched else "volatile")
+
+
+# What a QoS override may set, and the values each takes (rosbag2's names; depth: a whole number, 0 with keep_all)
+OVERRIDES: dict[str, tuple[str, ...]] = {"history": ("keep_last", "keep_all"), "depth": (),
+                                         "reliability": ("reliable", "best_effort"),
+                                         "durability": ("volatile", "transient_local")}
+
+
+def load_overrides(path: str | Path, name: str = "qos_overrides_path") -> dict[str, dict[str, Any]]:
+    """The QoS overrides file of ``ros2 bag record|play --qos-profile-overrides-path``: a YAML mapping of topic names
+    to the policies to use for them (``history``, ``depth``, ``reliability``, ``durability``), over what the node
+    would choose itself; empty ``path``: none. Errors name the parameter ``name``, the topic and the key."""
+    if not str(path):
+        return {}
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except OSError as exc:
+        raise ParameterError(name, str(path), f"a readable YAML file ({exc.strerror or exc})") from exc
+    except yaml.YAMLError as exc:
+        raise ParameterError(name, str(path), f"a YAML file ({type(exc).__name__}: {exc})") from exc
+    if not isinstance(data, dict):
+        raise ParameterError(name, str(path), "a YAML mapping of topic names to QoS policies")
+    out: dict[str, dict[str, Any]] = {}
+    for topic, policies in data.items():
+        where = f"{path}: {topic}"
+        if not isinstance(topic, str) or not topic.startswith("/"):
+            raise ParameterError(name, where, "topic names starting with /")
+        if not isinstance(policies, dict) or not policies:
+            raise ParameterError(name, where, f"a mapping of some of {sorted(OVERRIDES)} to values")
+        for key, value in policies.items():
+            if key not in OVERRIDES:
+                raise ParameterError(name, f"{where}: {key}", f"one of {sorted(OVERRIDES)} (the others are not set)")
+            if key == "depth":
+                if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 1_000_000:
+                    raise ParameterError(name, f"{where}: depth {value!r}", "a whole number 0..1000000")
+            elif value not in OVERRIDES[key]:
+                raise ParameterError(name, f"{where}: {key} {value!r}", f"one of {list(OVERRIDES[key])}")
+        if policies.get("history", "keep_last") == "keep_last" and policies.get("depth") == 0:
+            raise ParameterError(name, f"{where}: depth 0", "1 or more with keep_last (0 only with keep_all)")
+        out[topic] = dict(policies)
+    return out
+
+
+def overridden(profile: dict[str, Any], override: dict[str, Any] | None) -> dict[str, Any]:
+    """``profile`` with the policies ``override`` sets (a copy; ``profile`` itself where there is none)."""
+    return {**profile, **override} if override else profile
