@@ -852,6 +852,67 @@ def test_a_seek_passes_over_chunks_before_it_and_gives_every_message_after_it(tm
     assert read(second, t) == after and second.passed_chunks >= 5 and second.stopped == first.stopped != []
 
 
+def test_bag_filter_writes_the_topics_and_the_stretch_of_time_asked_for(tmp_path: Path, cli: CliRun) -> None:
+    """``zebra-sim bag filter`` (``rewrite``), as ros2 bag convert with a topic and time filter: two files read in
+    order, only the topics the options keep and the messages from --start to --end seconds after the first (both
+    ends inclusive), each under its own type; rosbags reads back exactly those, and the chunks before --start are not
+    opened. A cut input (no summary) gives the same window. Bad values are refused by name, nothing written."""
+    from zebra_sim_ros.recording.reader import first_log_time, rewrite
+
+    written: list[tuple[str, int, str]] = []
+    for k, name in enumerate(("a.mcap", "b.mcap")):
+        w = BagWriter(tmp_path / name, chunk_size=2048)
+        w.add_channel("/drone_0/labels", "std_msgs/msg/String", [profile_dict()])
+        w.add_channel("/drone_0/image_raw", "sensor_msgs/msg/Image", [profile_dict()])
+        w.add_channel("/rosout_like", "std_msgs/msg/String", [profile_dict()])
+        for i in range(100):
+            step = k * 100 + i
+            t = 10**9 + step * 10**8  # 0.1 s apart: 20 s over the two files
+            w.write("/drone_0/labels", serialize_message(String(data=f"L{step}")), t)
+            w.write("/rosout_like", serialize_message(String(data=f"R{step}")), t)
+            if step % 10 == 0:
+                img = Image(height=2, width=2, encoding="mono8", step=2, data=bytes([step % 256] * 4))
+                w.write("/drone_0/image_raw", serialize_message(img), t)
+                written.append(("/drone_0/image_raw", t, str(step)))
+            written.append(("/drone_0/labels", t, f"L{step}"))
+        w.close()
+    out = cli(["bag", "filter", tmp_path / "a.mcap", tmp_path / "b.mcap", "--out", tmp_path / "clip.mcap",
+               "--topic-regex", "^/drone_0/", "--exclude-regex", "image", "--start", "5", "--end", "12.5"])
+    assert out.returncode == 0, out.stderr
+    assert "wrote 76 messages of 1 topics (7.500 s)" in out.stdout, out.stdout
+    with AnyReader([tmp_path / "clip.mcap"]) as r:
+        got = [(c.topic, t, r.deserialize(raw, c.msgtype).data) for c, t, raw in r.messages()]
+    want = [(topic, t, data) for topic, t, data in written if topic == "/drone_0/labels" and 50 <= (t - 10**9) // 10**8
+            <= 125]
+    assert got == want
+
+    s = rewrite([tmp_path / "a.mcap", tmp_path / "b.mcap"], tmp_path / "imgs.mcap",
+                keep=lambda topic: topic == "/drone_0/image_raw", start_s=15.0)
+    assert (s["messages"], s["topics"], s["start_ns"]) == (5, {"/drone_0/image_raw": 5}, 10**9 + 150 * 10**8)
+    assert s["passed_chunks"] >= 8  # a.mcap's 6 chunks of 2 KiB and b.mcap's before 15 s (3 today): not opened
+    with AnyReader([tmp_path / "imgs.mcap"]) as r:
+        [conn] = r.connections
+        assert conn.msgtype == "sensor_msgs/msg/Image"
+        assert [r.deserialize(raw, conn.msgtype).data[0] for _, _, raw in r.messages()] == [150, 160, 170, 180, 190]
+
+    data = (tmp_path / "b.mcap").read_bytes()
+    with open(tmp_path / "b.mcap", "rb") as f:
+        last = max(make_reader(f).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset)
+    (tmp_path / "cut.mcap").write_bytes(data[:last.chunk_start_offset + last.chunk_length])
+    assert first_log_time([tmp_path / "cut.mcap"]) == 10**9 + 100 * 10**8
+    cut = rewrite(tmp_path / "cut.mcap", tmp_path / "cut_clip.mcap", start_s=2.0, end_s=2.0)
+    assert (cut["messages"], cut["start_ns"], cut["end_ns"]) == (3, 10**9 + 120 * 10**8, 10**9 + 120 * 10**8)
+
+    for bad, named in ((["--start", "-1"], "--start"), (["--start", "5", "--end", "2"], "'end'"),
+                       (["--topic-regex", "(x"], "--topic-regex"), (["--compression", "gzip"], "compression"),
+                       (["--out", tmp_path / "a.mcap"], "OUT")):
+        args = ["bag", "filter", tmp_path / "a.mcap", *(["--out", tmp_path / "bad.mcap"] if "--out" not in bad
+                                                         else []), *bad]
+        run = cli(args)
+        assert run.returncode == 2 and named in run.stderr, (bad, run.stderr)
+    assert not (tmp_path / "bad.mcap").exists() and (tmp_path / "a.mcap").stat().st_size > 0
+
+
 def test_run_summary_reads_a_cut_bag_once_and_notes_the_cut_once(tmp_path: Path) -> None:
     from zebra_sim_ros.graph.summary import summarize_run
 

@@ -1,8 +1,10 @@
-"""``zebra-sim bag ...``: info, recover, eval, census and export of MCAP bags."""
+"""``zebra-sim bag ...``: info, recover, filter, eval, census and export of MCAP bags."""
 
 from __future__ import annotations
 
 import argparse
+import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -13,7 +15,7 @@ from zebra_sim_ros.messages import Datum
 
 def register(sub: Any) -> None:
     """Add the ``bag`` subcommand group."""
-    p = sub.add_parser("bag", help="MCAP bags: info, recover, eval, census, export")
+    p = sub.add_parser("bag", help="MCAP bags: info, recover, filter, eval, census, export")
     bsub = p.add_subparsers(dest="bag_command", required=True, metavar="ACTION")
     i = bsub.add_parser("info", help="duration, message counts and types per topic (like ros2 bag info)")
     i.add_argument("bag", nargs="+", type=Path, help="bag files, or folders of split files")
@@ -27,6 +29,20 @@ def register(sub: Any) -> None:
     r.add_argument("output", type=Path)
     add_json_flag(r)
     r.set_defaults(func=cmd_recover)
+    f = bsub.add_parser("filter", help="some topics and a stretch of time of bags into a new bag (like ros2 bag "
+                        "convert with a topic and time filter)")
+    f.add_argument("bag", nargs="+", type=Path, help="bag files, or folders of split files (read in order)")
+    f.add_argument("--out", required=True, type=Path, help="the bag to write (a new file; not one of those read)")
+    f.add_argument("--topics", nargs="+", default=None, metavar="TOPIC", help="only these topics")
+    f.add_argument("--topic-regex", default=None, help="only topics matching this regular expression")
+    f.add_argument("--exclude-regex", default=None, help="no topic matching this regular expression")
+    f.add_argument("--start", type=float, default=None, metavar="S",
+                   help="from this many seconds after the bags' first message (the chunks before are not read)")
+    f.add_argument("--end", type=float, default=None, metavar="S",
+                   help="to this many seconds after the bags' first message (inclusive)")
+    f.add_argument("--compression", default="zstd", help="chunk compression: zstd, lz4 or none")
+    add_json_flag(f)
+    f.set_defaults(func=cmd_filter)
     e = bsub.add_parser("eval", help="mAP50 and mAP50-95 per drone: recorded detections against recorded labels")
     e.add_argument("bag", nargs="+", type=Path)
     e.add_argument("--detections", default="detections",
@@ -90,6 +106,37 @@ def cmd_recover(args: argparse.Namespace) -> Summary:
 
     s = recover(args.input, args.output)
     print(f"recovered {s['messages']} messages into {s['out']}" + (f"; damage: {s['damage']}" if s["damage"] else ""))
+    return s
+
+
+def _regex(name: str, text: str | None) -> re.Pattern[str] | None:
+    try:
+        return re.compile(text) if text is not None else None
+    except re.error as exc:
+        raise ParameterError(name, text, f"a regular expression ({exc})") from exc
+
+
+def cmd_filter(args: argparse.Namespace) -> Summary:
+    """Write the topics and the stretch of time asked for into a new bag."""
+    from zebra_sim_ros.recording.reader import rewrite
+
+    for name in ("start", "end"):
+        if (v := getattr(args, name)) is not None and not (math.isfinite(v) and v >= 0):
+            raise ParameterError(f"--{name}", v, "seconds after the first message: 0 or more")
+    names, regex = set(args.topics or ()), _regex("--topic-regex", args.topic_regex)
+    exclude = _regex("--exclude-regex", args.exclude_regex)
+
+    def keep(topic: str) -> bool:
+        return ((not names or topic in names) and (regex is None or bool(regex.search(topic)))
+                and not (exclude is not None and exclude.search(topic)))
+
+    s = rewrite(args.bag, args.out, keep=keep, start_s=args.start, end_s=args.end, compression=args.compression)
+    span = f" ({(s['end_ns'] - s['start_ns']) / 1e9:.3f} s)" if s["messages"] else ""
+    print(f"wrote {s['messages']} messages of {len(s['topics'])} topics{span} into {s['out']}")
+    for topic, count in s["topics"].items():
+        print(f"  {topic:<40} {count:>8} msgs")
+    for note in s["damage"]:
+        print(f"damaged: {note}")
     return s
 
 

@@ -11,7 +11,7 @@ import functools
 import glob
 import os
 import re
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -19,7 +19,7 @@ from typing import IO, Any
 from mcap.records import Channel, Chunk, McapRecord, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.summary import Summary
-from mcap.writer import CompressionType, Writer
+from mcap.writer import Writer
 
 from zebra_sim_ros.errors import ParameterError
 
@@ -224,6 +224,28 @@ def file_summary(path: Path) -> Summary | None:
         return None
 
 
+def first_log_time(paths: list[Path]) -> int | None:
+    """The earliest log time in the files: from their summaries' statistics, and in a file without one (cut short)
+    from its chunks' headers (their bytes read, none decompressed) and any message outside a chunk; None for none."""
+    times: list[int] = []
+    for path in paths:
+        summary = file_summary(path)
+        if summary is not None and summary.statistics is not None:
+            if summary.statistics.message_count:
+                times.append(summary.statistics.message_start_time)
+            continue
+        with open(path, "rb") as f:
+            try:
+                for rec in StreamReader(f, emit_chunks=True, validate_crcs=False).records:
+                    if isinstance(rec, Chunk) and (rec.message_start_time or rec.message_end_time):  # 0, 0: empty
+                        times.append(rec.message_start_time)
+                    elif isinstance(rec, Message):
+                        times.append(rec.log_time)
+            except Exception:  # noqa: BLE001 - the cut ends the file: what was read counts
+                pass
+    return min(times) if times else None
+
+
 def summarize(paths: list[str | Path] | str | Path, full: bool = False) -> dict[str, Any]:
     """``ros2 bag info``: files, size, duration, start and end, message count and type per topic.
 
@@ -270,22 +292,49 @@ def recover(src: str | Path, dst: str | Path, compression: str = "zstd") -> dict
     """Write every intact message of ``src`` (a bag cut short, e.g. by SIGKILL; a file or a folder of split files)
     into a complete bag ``dst``, each under the channel and schema it was written with; ``dst`` appears only once it
     is complete (written beside it, then renamed)."""
+    return rewrite(src, dst, compression=compression)
+
+
+def rewrite(src: list[str | Path] | str | Path, dst: str | Path, *, keep: Callable[[str], bool] | None = None,
+            start_s: float | None = None, end_s: float | None = None, compression: str = "zstd") -> dict[str, Any]:
+    """Write the intact messages of the bags ``src`` (files, or folders of split files, in order) whose topic
+    ``keep`` takes (all where None) and whose log time lies in [``start_s``, ``end_s``] seconds after the bags'
+    first message (either end open where None), into one complete bag ``dst``, each under the channel and schema it
+    was written with, in the order read (as ``ros2 bag convert`` with a topic and time filter). The chunks before
+    ``start_s`` are passed over unread. ``dst`` appears only once it is complete (written beside it, then renamed).
+    Returns the inputs, ``out``, the messages written in all and per topic, the window written (ns; None where
+    nothing was), the chunks passed over and the damage met."""
     from zebra_sim_ros.recording.writer import COMPRESSIONS
 
+    if compression not in COMPRESSIONS:
+        raise ParameterError("compression", compression, f"one of {sorted(COMPRESSIONS)}")
+    if start_s is not None and end_s is not None and end_s < start_s:
+        raise ParameterError("end", end_s, f"not before start ({start_s:g} s)")
     reader = BagReader.open(src)
     out = Path(dst)
-    if out.resolve() == Path(src).resolve():
-        raise ParameterError("OUT", str(dst), "a different file than IN")
+    if any(out.resolve() == p.resolve() for p in reader.paths):
+        raise ParameterError("OUT", str(dst), "a different file than the bags read")
+    from_ns = to_ns = None
+    if start_s is not None or end_s is not None:  # the window counts from the first message of them all
+        first = first_log_time(reader.paths)
+        if first is not None:
+            from_ns = first + int(round((start_s or 0.0) * 1e9))
+            to_ns = None if end_s is None else first + int(round(end_s * 1e9))
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
     n = 0
+    topics: dict[str, int] = {}
+    times: list[int] = []
     try:
         with open(tmp, "wb") as f:
-            w = Writer(f, compression=COMPRESSIONS.get(compression, CompressionType.ZSTD))
-            w.start(profile="ros2", library="zebra_sim_ros recover")
+            w = Writer(f, compression=COMPRESSIONS[compression])
+            w.start(profile="ros2", library="zebra_sim_ros rewrite")
             ids: dict[tuple[str, str], int] = {}
             schema_ids: dict[tuple[str, str, bytes], int] = {}
-            for m in reader.messages():
+            for m in reader.messages(from_ns=from_ns):
+                if (keep is not None and not keep(m.topic)) or (from_ns is not None and m.log_time < from_ns) \
+                        or (to_ns is not None and m.log_time > to_ns):
+                    continue
                 key = (m.topic, m.type_name)
                 if key not in ids:
                     sc, ch = m.schema, m.channel
@@ -296,8 +345,12 @@ def recover(src: str | Path, dst: str | Path, compression: str = "zstd") -> dict
                     ids[key] = w.register_channel(m.topic, ch.message_encoding, schema_ids[skey], m.metadata)
                 w.add_message(ids[key], m.log_time, m.data, m.publish_time, sequence=n)
                 n += 1
+                topics[m.topic] = topics.get(m.topic, 0) + 1
+                times.append(m.log_time)
             w.finish()
         tmp.replace(out)
     finally:
         tmp.unlink(missing_ok=True)
-    return {"in": str(src), "out": str(out), "messages": n, "damage": reader.stopped}
+    return {"in": str(src) if isinstance(src, str | Path) else [str(p) for p in src], "out": str(out),
+            "messages": n, "topics": dict(sorted(topics.items())), "start_ns": min(times) if times else None,
+            "end_ns": max(times) if times else None, "passed_chunks": reader.passed_chunks, "damage": reader.stopped}
