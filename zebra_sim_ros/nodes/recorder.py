@@ -18,7 +18,8 @@ after what is queued and goes on in the next (``<stem>_1.mcap``, ... for a bag n
 ``snapshot_size_mb`` > 0 (snapshot mode, as ``ros2 bag record --snapshot-mode``) the newest messages are kept in memory
 instead, up to that size (and ``snapshot_duration_s`` of log time), and ``~/snapshot`` (std_srvs/Trigger) writes them
 into a file of their own, finished at once (``output``, then ``<stem>_1.mcap``, ...; no file before the first
-snapshot), and answers with its name. SIGINT, SIGTERM and node shutdown finalise the bag (summary and indexes); after
+snapshot; with a size or duration split ``<stem>_0.mcap``, ..., and a large snapshot may fill several), and answers
+with its name. SIGINT, SIGTERM and node shutdown finalise the bag (summary and indexes); after
 SIGKILL use ``zebra-sim bag recover``.
 """
 

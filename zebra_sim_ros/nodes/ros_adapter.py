@@ -234,12 +234,8 @@ def message_module(type_name: str) -> Any:
 
 def qos(reliability: str = "reliable", depth: int = 10, transient_local: bool = False) -> QoSProfile:
     """A keep-last QoS profile from parameter values."""
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=depth,
-        reliability=ReliabilityPolicy.RELIABLE if reliability == "reliable" else ReliabilityPolicy.BEST_EFFORT,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL if transient_local else DurabilityPolicy.VOLATILE,
-    )
+    return profile_qos({"history": "keep_last", "depth": depth, "reliability": reliability,
+                        "durability": "transient_local" if transient_local else "volatile"})
 
 
 def profile_qos(profile: Mapping[str, Any]) -> QoSProfile:
@@ -249,8 +245,8 @@ def profile_qos(profile: Mapping[str, Any]) -> QoSProfile:
     return QoSProfile(
         history=HistoryPolicy.KEEP_ALL if keep_all else HistoryPolicy.KEEP_LAST,
         depth=int(profile.get("depth", 10)),
-        reliability=ReliabilityPolicy.BEST_EFFORT if profile.get("reliability") == "best_effort"
-        else ReliabilityPolicy.RELIABLE,
+        reliability=ReliabilityPolicy.RELIABLE if profile.get("reliability", "reliable") == "reliable"
+        else ReliabilityPolicy.BEST_EFFORT,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if profile.get("durability") == "transient_local"
         else DurabilityPolicy.VOLATILE,
     )

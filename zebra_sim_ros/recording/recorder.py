@@ -10,8 +10,9 @@ In snapshot mode (``snapshot_bytes`` > 0, as ``ros2 bag record --snapshot-mode``
 in memory instead, the oldest let go (counted as ``expired``) past ``snapshot_bytes`` or, with ``snapshot_ns``, once
 older than that much log time before the newest; :meth:`RecorderCore.snapshot` hands the whole cache to the writer
 thread in one piece and empties it, and the thread writes it into a file of its own, finished at once (as rosbag2
-does since it writes each snapshot to a new file): the bag's first file, then ``<stem>_1.mcap``, ...; a split has no
-meaning there and is refused.
+does since it writes each snapshot to a new file): the bag's first file, then ``<stem>_1.mcap``, ... (with a size or
+duration split, ``<stem>_0.mcap``, ..., and a large snapshot may fill several); a split on demand has no meaning
+there and is refused.
 """
 
 from __future__ import annotations
@@ -114,26 +115,29 @@ class RecorderCore:
         """Snapshot mode: hand the cache to the writer thread (written after what is queued, in one piece, into a file
         of its own that is finished at once) and empty it; waits up to ``timeout`` for the file, as :meth:`split`.
         (True, what was written and where); (True, what is being written) if not finished by then; (False, why)
-        outside snapshot mode, once the recording has ended, or where the writing ended it."""
+        outside snapshot mode, once the recording has ended, or where the writing ended it (with what of it was
+        written, and where)."""
         if not self.snapshot_bytes:
             return False, "not in snapshot mode"
-        if (ended := self._ended()) is not None:
-            return False, ended
-        with self._lock:
-            items, self._cache, size = self._cache, deque(), self._cache_bytes
-            self._cache_bytes, self._cache_newest = 0, None
-        if not items:
-            return True, "the cache is empty: nothing to write"
-        times = [t for _, _, t, _ in items]
-        what = f"{len(items)} messages ({size / MB:.2f} MB, {(max(times) - min(times)) / 1e9:.2f} s of log time)"
         made = threading.Event()
         into: list[Path] = []
-        self._q.put((_SNAPSHOT, items, made, into))  # one item, whatever its size
+        done = [0]  # messages of this snapshot written
+        with self._lock:  # close() takes the lock too: a snapshot queued is one the writer thread takes
+            if (ended := self._ended()) is not None:
+                return False, ended
+            items, self._cache, size = self._cache, deque(), self._cache_bytes
+            self._cache_bytes, self._cache_newest = 0, None
+            if not items:
+                return True, "the cache is empty: nothing to write"
+            self._q.put((_SNAPSHOT, items, made, into, done))  # one item, whatever its size
+        times = [t for _, _, t, _ in items]
+        what = f"{len(items)} messages ({size / MB:.2f} MB, {(max(times) - min(times)) / 1e9:.2f} s of log time)"
         if not made.wait(timeout) and not made.is_set():
             return True, f"writing {what}"
-        if not into:
-            return False, f"{what} not written: {self._ended() or 'the recording has ended'}"
-        return True, f"wrote {what} to {', '.join(str(f) for f in into)}"
+        where = f" to {', '.join(str(f) for f in into)}" if into else ""
+        if done[0] < len(items) or self.error is not None:
+            return False, f"{done[0]} of {what} written{where}; the recording has ended: {self.error}"
+        return True, f"wrote {what}{where}"
 
     def _ended(self) -> str | None:
         """Why no split or snapshot is taken any more, or None."""
@@ -145,13 +149,14 @@ class RecorderCore:
         """Split the bag after what is queued now (as ``ros2 bag record``'s split_bagfile); waits up to ``timeout``
         for the writer thread to make it (the caller's thread, an executor, waits with it). (True, the new file) once
         made; (True, how far behind) if still queued; (False, why) when the recording has ended."""
-        if (ended := self._ended()) is not None:
-            return False, ended
         if self.snapshot_bytes:
             return False, "snapshot mode writes each snapshot into a file of its own: nothing to split"
         made = threading.Event()
         into: list[Path] = []
-        self._q.put((_SPLIT, made, into))
+        with self._lock:  # as snapshot(): queued only while close() has not queued its stop
+            if (ended := self._ended()) is not None:
+                return False, ended
+            self._q.put((_SPLIT, made, into))
         if not made.wait(timeout) and not made.is_set():
             return True, f"split queued: the writer's queue holds {self._q.qsize()} messages"
         if not into:
@@ -179,27 +184,31 @@ class RecorderCore:
             self._write(*item)
 
     def _write_snapshot(self, items: deque[tuple[str, bytes, int, int | None]], made: threading.Event,
-                        into: list[Path]) -> None:
-        """A snapshot's messages, into the file(s) they start (``into``, once finished; empty where the recording
-        ended on the way)."""
+                        into: list[Path], done: list[int]) -> None:
+        """A snapshot's messages, into the file(s) they start, finished even where a write ended the recording on
+        the way (``into``: those it wrote to; ``done[0]``: the messages written)."""
+        first = len(self.writer.files) - (self.writer.open_file is not None)  # the file open now takes it first
         try:
-            first = len(self.writer.files) - (self.writer.open_file is not None)  # the file open now takes it first
             for message in items:
-                self._write(*message)
+                done[0] += self._write(*message)
+            self.writer.finish_file()  # complete on disk now, whatever came on the way
             if self.error is None:
-                self.writer.finish_file()
-                into += self.writer.files[first:]
                 self.snapshots += 1
         except Exception as exc:  # noqa: BLE001 - the file could not be finished: the recording ends, and says why
+            ended = self.error
             self._fail(exc)
+            why = self.error if ended is None else f"{ended}; finishing its file failed too ({exc})"
+            self.error = f"{why}; the file is unfinished: use 'zebra-sim bag recover' on it"
         finally:
+            into += self.writer.files[first:]
             made.set()
 
-    def _write(self, topic: str, data: bytes, t: int, pt: int | None) -> None:
+    def _write(self, topic: str, data: bytes, t: int, pt: int | None) -> bool:
+        """Write one message; False (a counted drop) once the recording has ended, or where this write ends it."""
         if self.error is not None:  # the recording has ended: what is still queued is dropped, and counted
             with self._lock:
                 self.stats[topic].dropped += 1
-            return
+            return False
         t0 = time.perf_counter()
         try:
             self.writer.write(topic, data, t, pt)
@@ -208,11 +217,12 @@ class RecorderCore:
             self._fail(exc)
             with self._lock:
                 self.stats[topic].dropped += 1
-            return
+            return False
         with self._lock:
             s = self.stats[topic]
             s.written += 1
             s.bytes += len(data)
+        return True
 
     def _fail(self, exc: Exception) -> None:
         """End the recording with ``exc``: the thread goes on draining (and counting) what is queued."""
@@ -221,8 +231,9 @@ class RecorderCore:
 
     def close(self, timeout: float = 60.0) -> list[str]:
         """Drain the queue, stop the thread, finalise the bag; returns its files."""
-        self._closed = True
-        self._q.put(_STOP)
+        with self._lock:  # a split or snapshot queued before this is taken; none is queued after it
+            self._closed = True
+            self._q.put(_STOP)
         self._thread.join(timeout)
         if self._thread.is_alive():  # still draining: drop the rest rather than write while the file is finished
             self.error = self.error or f"the writer did not drain its queue in {timeout:.0f} s; the rest was dropped"
