@@ -4,8 +4,8 @@ the time sought (``BagReader.messages(from_ns=...)``).
 Writes a zstd bag like a recorded run's (``bench_bag_info``'s: three drones, 1280x720 rgb8 images, labels, 10 Hz)
 of about ``--mb`` MB, then times how long each way takes to reach the first message at ``--at`` of the bag's
 duration (a seek there), ``--repeat`` times each, alternating, and reports the medians and their ratio; the same
-for the bag cut short after its last chunk (no summary), where the reader a first pass left (``again()``) passes
-over the chunks it read. Every way must give the same messages from there on.
+for the bag cut short after its last chunk (no summary), where a reader that takes what a first pass learnt
+(``carry_from``) passes over the chunks it read. Every way must give the same messages from there on.
 
     python benchmarks/bench_seek.py [--mb 300] [--at 0.9] [--repeat 5] [--json]
 """
@@ -69,12 +69,13 @@ def main() -> None:
         last = max(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
         with open(path, "rb") as src, open(cut, "wb") as dst:
             dst.write(src.read(last.chunk_start_offset + last.chunk_length))
-        whole, passing = median_pair(lambda: reach(BagReader([path]), at_ns, False),
-                                     lambda: reach(BagReader([path]), at_ns, True), args.repeat)
-        first_pass = BagReader([cut])
+        whole, passing = median_pair(lambda: reach(BagReader.open(path), at_ns, False),
+                                     lambda: reach(BagReader.open(path), at_ns, True), args.repeat)
+        first_pass = BagReader.open(cut)
         list(first_pass.messages())  # what the replay's first pass leaves: every chunk read
-        cut_whole, cut_passing = median_pair(lambda: reach(BagReader([cut]), at_ns, False),
-                                             lambda: reach(first_pass.again(), at_ns, True), args.repeat)
+        cut_whole, cut_passing = median_pair(lambda: reach(BagReader.open(cut), at_ns, False),
+                                             lambda: reach(BagReader.open(cut).carry_from(first_pass), at_ns, True),
+                                             args.repeat)
         result = {"machine": f"{platform.machine()} {platform.processor() or ''}".strip(), "steps": steps,
                   "chunks": len(summary.chunk_indexes), "bag_mb": round(path.stat().st_size / 1e6, 1),
                   "at": args.at, "reread_s": round(whole, 3), "pass_over_s": round(passing, 3),

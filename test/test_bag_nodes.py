@@ -124,13 +124,14 @@ def test_sigkill_then_recover(peer: Peer, tmp_path: Path, cli: CliRun) -> None:
     assert 100 <= survived <= 150  # every complete chunk survives; at most the last chunk is lost
 
 
-def _timed_bag(path: Path, gaps: list[float]) -> list[int]:
+def _timed_bag(path: Path, gaps: list[float], pad: int = 0) -> list[int]:
+    """Ticks ``tick k`` (``pad`` spaces after: 4096 or more, a chunk each) at the gaps given (s); their log times."""
     w = BagWriter(path, chunk_size=4096)
     w.add_channel("/tick", "std_msgs/msg/String", [profile_dict()])
     t, times = 5_000_000_000, []
     for k, g in enumerate(gaps):
         t += int(g * 1e9)
-        w.write("/tick", serialize_message(String(data=f"tick {k}")), t)
+        w.write("/tick", serialize_message(String(data=f"tick {k}" + " " * pad)), t)
         times.append(t)
     w.close()
     return times
@@ -462,13 +463,15 @@ def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path:
 def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_path: Path) -> None:
     """Setting ``start_offset_s`` while playing seeks, as ros2 bag play's seek: paused, a seek forward plays the
     first message at or after that bag time next; a seek back plays again from there, /clock back at the time sought;
-    the same value again seeks again. ``~/play_next`` while the replay waits for subscribers is refused at once,
-    not after its 5 s wait. Resumed, the rest plays in order and the replay ends; its /diagnostics count the seeks."""
+    the same value again seeks again. Each tick is a chunk of its own, so a seek forward passes over the chunks
+    before it unread, and a seek back among them reads the bags again. ``~/play_next`` while the replay waits for
+    subscribers is refused at once, not after its 5 s wait. Resumed, the rest plays in order and the replay ends; its
+    /diagnostics count the seeks."""
     import time
 
     from rosgraph_msgs.msg import Clock
 
-    times = _timed_bag(tmp_path / "t.mcap", [0.0] + [0.1000000013] * 19)  # 20 ticks over 1.9 s
+    times = _timed_bag(tmp_path / "t.mcap", [0.0] + [0.1000000013] * 19, pad=4100)  # 20 ticks over 1.9 s
     got: list[str] = []
     clocks: list[int] = []
     peer.node.create_subscription(Clock, "/clock", lambda m: clocks.append(m.clock.sec * 10**9 + m.clock.nanosec), 100)
@@ -493,7 +496,7 @@ def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_
         refused = step()
         assert not refused.success and "nothing to play yet (waiting up to 60 s for subscribers)" in refused.message
         assert time.monotonic() - t < 3.0, "the refusal waited"
-        peer.node.create_subscription(String, "/tick", lambda m: got.append(m.data), 100)
+        peer.node.create_subscription(String, "/tick", lambda m: got.append(m.data.rstrip()), 100)
         assert peer.spin(lambda: status[-1]["message"] == "paused", 30), status[-1:]
         for to, k in ((1.0, 10), (0.25, 3), (0.25, 3)):  # forward; back; the same value again
             n = seek(to)
@@ -502,9 +505,9 @@ def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_
             assert answer.success and answer.message == f"played /tick at {(times[k] - times[0]) / 1e9:.3f} s of the "\
                 "bag", (to, answer.message, log.read_text())
             assert peer.spin(lambda k=k: clocks[-1] == times[k], 10), (to, clocks[-3:])
-        n = seek(1.55)  # forward, past ticks 4-15 (read and skipped, not played) ...
+        n = seek(1.55)  # forward, past ticks 4-15 (their chunks passed over unread) ...
         assert peer.spin(lambda: sought(1.55, n), 10), clocks[n:]
-        seek(0.55)  # ... then back among them: the bags are read again
+        seek(0.55)  # ... then back among them, after the last tick read: the bags are read again
         answer = step()
         assert answer.success and answer.message == f"played /tick at {(times[6] - times[0]) / 1e9:.3f} s of the bag"
         assert got == ["tick 10", "tick 3", "tick 3", "tick 6"]

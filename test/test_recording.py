@@ -816,8 +816,9 @@ def test_a_seek_passes_over_chunks_before_it_and_gives_every_message_after_it(tm
     """``BagReader.messages(from_ns=T)`` (the replay's seek): chunks whose messages all come before T are passed
     over unopened, and every message at or after T still comes, as a full read gives them; ``pass_before_ns`` moved
     while reading (a seek forward) passes over what follows up to it. In a file without a summary (cut short) no
-    chunk is passed over until a reader has read it (its channels are known only so): the reader ``again()`` makes
-    from one that has does pass over them."""
+    chunk is passed over until a reader has read it (its channels are known only so): a reader that takes what one
+    that has learnt (``carry_from``) does pass over them, but not once the file has changed (a recording still
+    written). A summary without the channels (written without repeating them) passes over nothing either."""
     w = BagWriter(tmp_path / "full.mcap", chunk_size=4096)
     w.add_channel("/t", "std_msgs/msg/String", [profile_dict()])
     w.add_channel("/u", "std_msgs/msg/String", [profile_dict()])
@@ -848,15 +849,34 @@ def test_a_seek_passes_over_chunks_before_it_and_gives_every_message_after_it(tm
     (tmp_path / "cut.mcap").write_bytes(data[:last.chunk_start_offset + last.chunk_length])  # every chunk, no summary
     first = BagReader.open(tmp_path / "cut.mcap")
     assert read(first, t) == after and first.passed_chunks == 0  # nothing known of its chunks: all opened
-    second = first.again()
+    second = BagReader.open(tmp_path / "cut.mcap").carry_from(first)
     assert read(second, t) == after and second.passed_chunks >= 5 and second.stopped == first.stopped != []
+    with open(tmp_path / "cut.mcap", "ab") as f:  # it grew (a recording still written): nothing known of it
+        f.write(b"\0")
+    grown = BagReader.open(tmp_path / "cut.mcap").carry_from(first)
+    assert read(grown, t) == after and grown.passed_chunks == 0
+
+    from mcap.writer import Writer
+
+    with open(tmp_path / "bare.mcap", "wb") as f:  # a summary without its channels and schemas
+        mw = Writer(f, chunk_size=4096, repeat_channels=False, repeat_schemas=False)
+        mw.start(profile="ros2", library="test")
+        ids = {topic: mw.register_channel(topic, "cdr", mw.register_schema("std_msgs/msg/String", "ros2msg",
+                                                                             b"string data")) for topic in ("/t", "/u")}
+        for m in full:
+            mw.add_message(ids[m.topic], m.log_time, m.data, m.publish_time)
+        mw.finish()
+    bare = BagReader.open(tmp_path / "bare.mcap")
+    assert read(bare, t) == after and bare.passed_chunks == 0
 
 
 def test_bag_filter_writes_the_topics_and_the_stretch_of_time_asked_for(tmp_path: Path, cli: CliRun) -> None:
     """``zebra-sim bag filter`` (``rewrite``), as ros2 bag convert with a topic and time filter: two files read in
     order, only the topics the options keep and the messages from --start to --end seconds after the first (both
     ends inclusive), each under its own type; rosbags reads back exactly those, and the chunks before --start are not
-    opened. A cut input (no summary) gives the same window. Bad values are refused by name, nothing written."""
+    opened. A cut input (no summary) gives the same window. A folder of split files reads in order; ``--topics``
+    names topics, and one not found is said; nothing found exits 1. Bad values are refused naming the option, and
+    nothing is written (an output in a folder read would join its recording: refused too)."""
     from zebra_sim_ros.recording.reader import first_log_time, rewrite
 
     written: list[tuple[str, int, str]] = []
@@ -903,14 +923,26 @@ def test_bag_filter_writes_the_topics_and_the_stretch_of_time_asked_for(tmp_path
     cut = rewrite(tmp_path / "cut.mcap", tmp_path / "cut_clip.mcap", start_s=2.0, end_s=2.0)
     assert (cut["messages"], cut["start_ns"], cut["end_ns"]) == (3, 10**9 + 120 * 10**8, 10**9 + 120 * 10**8)
 
-    for bad, named in ((["--start", "-1"], "--start"), (["--start", "5", "--end", "2"], "'end'"),
-                       (["--topic-regex", "(x"], "--topic-regex"), (["--compression", "gzip"], "compression"),
-                       (["--out", tmp_path / "a.mcap"], "OUT")):
-        args = ["bag", "filter", tmp_path / "a.mcap", *(["--out", tmp_path / "bad.mcap"] if "--out" not in bad
-                                                         else []), *bad]
+    (tmp_path / "run").mkdir()
+    for k in (0, 1):  # a split recording's folder: read in order, and no output may go into it
+        (tmp_path / "run" / f"run_{k}.mcap").write_bytes((tmp_path / ("a.mcap", "b.mcap")[k]).read_bytes())
+    out = cli(["bag", "filter", tmp_path / "run", "--out", tmp_path / "img.mcap", "--topics", "/drone_0/image_raw",
+               "/nothing", "--end", "1.0"])
+    assert out.returncode == 0 and "wrote 2 messages of 1 topics (1.000 s)" in out.stdout, out.stdout
+    assert "not in the bags, or no message in the stretch asked for: /nothing" in out.stdout
+    empty = cli(["bag", "filter", tmp_path / "run", "--out", tmp_path / "none.mcap", "--start", "100"])
+    assert empty.returncode == 1 and "no message matched" in empty.stderr, empty.stderr
+
+    for bad, named in ((["--start", "-1"], "'--start'"), (["--start", "5", "--end", "2"], "'--end'"),
+                       (["--topic-regex", "(x"], "'--topic-regex'"), (["--compression", "gzip"], "--compression"),
+                       (["--out", tmp_path / "a.mcap"], "'--out'"), (["--out", tmp_path / "run" / "x.mcap"], "'--out'"),
+                       (["--out", tmp_path / "run"], "'--out'")):
+        args = ["bag", "filter", tmp_path / "a.mcap", tmp_path / "run",
+                *(["--out", tmp_path / "bad.mcap"] if "--out" not in bad else []), *bad]
         run = cli(args)
         assert run.returncode == 2 and named in run.stderr, (bad, run.stderr)
-    assert not (tmp_path / "bad.mcap").exists() and (tmp_path / "a.mcap").stat().st_size > 0
+    assert not (tmp_path / "bad.mcap").exists() and sorted(p.name for p in (tmp_path / "run").iterdir()) == \
+        ["run_0.mcap", "run_1.mcap"]
 
 
 def test_run_summary_reads_a_cut_bag_once_and_notes_the_cut_once(tmp_path: Path) -> None:

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import argparse
-import math
 import re
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -37,10 +37,11 @@ def register(sub: Any) -> None:
     f.add_argument("--topic-regex", default=None, help="only topics matching this regular expression")
     f.add_argument("--exclude-regex", default=None, help="no topic matching this regular expression")
     f.add_argument("--start", type=float, default=None, metavar="S",
-                   help="from this many seconds after the bags' first message (the chunks before are not read)")
+                   help="from this many seconds after the bags' first message (the chunks before are passed over "
+                        "undecompressed where a file's summary repeats its channels)")
     f.add_argument("--end", type=float, default=None, metavar="S",
                    help="to this many seconds after the bags' first message (inclusive)")
-    f.add_argument("--compression", default="zstd", help="chunk compression: zstd, lz4 or none")
+    f.add_argument("--compression", default="zstd", choices=("zstd", "lz4", "none"), help="chunk compression")
     add_json_flag(f)
     f.set_defaults(func=cmd_filter)
     e = bsub.add_parser("eval", help="mAP50 and mAP50-95 per drone: recorded detections against recorded labels")
@@ -120,9 +121,6 @@ def cmd_filter(args: argparse.Namespace) -> Summary:
     """Write the topics and the stretch of time asked for into a new bag."""
     from zebra_sim_ros.recording.reader import rewrite
 
-    for name in ("start", "end"):
-        if (v := getattr(args, name)) is not None and not (math.isfinite(v) and v >= 0):
-            raise ParameterError(f"--{name}", v, "seconds after the first message: 0 or more")
     names, regex = set(args.topics or ()), _regex("--topic-regex", args.topic_regex)
     exclude = _regex("--exclude-regex", args.exclude_regex)
 
@@ -130,13 +128,19 @@ def cmd_filter(args: argparse.Namespace) -> Summary:
         return ((not names or topic in names) and (regex is None or bool(regex.search(topic)))
                 and not (exclude is not None and exclude.search(topic)))
 
-    s = rewrite(args.bag, args.out, keep=keep, start_s=args.start, end_s=args.end, compression=args.compression)
+    s = rewrite(args.bag, args.out, keep=keep, start_s=args.start, end_s=args.end, compression=args.compression,
+                names=("--start", "--end", "--out"))
     span = f" ({(s['end_ns'] - s['start_ns']) / 1e9:.3f} s)" if s["messages"] else ""
     print(f"wrote {s['messages']} messages of {len(s['topics'])} topics{span} into {s['out']}")
     for topic, count in s["topics"].items():
         print(f"  {topic:<40} {count:>8} msgs")
+    if missing := sorted(names - set(s["topics"])):
+        print(f"not in the bags, or no message in the stretch asked for: {', '.join(missing)}")
     for note in s["damage"]:
         print(f"damaged: {note}")
+    if not s["messages"]:  # an empty bag is written, and the run says it found nothing
+        print("error: no message matched the topics and the stretch of time asked for", file=sys.stderr)
+        s["exit_code"] = 1
     return s
 
 

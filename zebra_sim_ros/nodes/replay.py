@@ -203,7 +203,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                     origin = seek.to
                 if self.done or (origin is None and not self.cfg.loop):
                     break
-                reader = self.reader.again()  # knows what this one read: a seek passes over chunks before it
+                # the bags listed again (a folder may have new files), knowing what the last reader learnt of the
+                # files unchanged since: a seek passes over the chunks read before, even without a summary
+                reader = BagReader.open(self.bags).carry_from(self.reader)
                 with self.pass_lock:
                     if origin is None:  # a new pass
                         self.damaged_before += len(self.damaged_pass | set(self.reader.stopped))

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import glob
+import math
 import os
 import re
 from collections.abc import Callable, Iterator
@@ -25,6 +26,12 @@ from zebra_sim_ros.errors import ParameterError
 
 # a camera's image: raw, or as image_transport's compressed transport sends it (up --bag-images jpeg records that)
 CAMERA_IMAGES = ("image_raw", "image_raw/compressed")
+
+
+def _stat(path: Path) -> tuple[int, int]:
+    """A file's size and modification time (ns): what tells that it changed."""
+    st = path.stat()
+    return st.st_size, st.st_mtime_ns
 
 
 @functools.cache
@@ -77,7 +84,8 @@ class BagReader:
     passed_chunks: int = 0  # chunks not opened: every message in them logged before ``pass_before_ns``
     pass_before_ns: int | None = None  # messages()'s ``from_ns``; may be moved on while it reads (a seek forward)
     known_to: dict[int, int] = field(default_factory=dict)  # file index -> bytes read from its start (by this reader
-    # or the one it was made :meth:`again` from): the channels and schemas defined there are known
+    # or one it took them from, :meth:`carry_from`): the channels and schemas defined there are known
+    stats: dict[int, tuple[int, int]] = field(default_factory=dict)  # file index -> (size, mtime ns) when opened
     schemas: dict[int, Schema] = field(default_factory=dict)
     channels: dict[tuple[int, int], Channel] = field(default_factory=dict)
 
@@ -97,14 +105,22 @@ class BagReader:
                 raise ParameterError(name, str(p), "an existing .mcap file or a folder of them")
         if not files:
             raise ParameterError(name, [str(i) for i in items], "at least one .mcap file")
-        return cls(files)
+        return cls(files, stats={k: _stat(f) for k, f in enumerate(files)})
 
-    def again(self) -> BagReader:
-        """A reader of the same files from their start that knows the channels and schemas this one has read, so
-        that :meth:`messages` may pass over chunks this one has read even in a file without a summary (cut short);
-        its damage notes start empty."""
-        return BagReader(self.paths, schemas=dict(self.schemas), channels=dict(self.channels),
-                         known_to=dict(self.known_to))
+    def carry_from(self, older: BagReader) -> BagReader:
+        """Take what ``older`` (a reader of the same bags, opened before) has learnt of each file that is still here
+        and unchanged (same size and modification time): its channels, schemas and how far it was read, so that
+        :meth:`messages` may pass over chunks read before even in a file without a summary (cut short). A file
+        that grew or changed since (a recording still being written) starts from nothing. Returns self."""
+        for k, path in enumerate(self.paths):
+            j = next((j for j, p in enumerate(older.paths) if p == path), None)
+            if j is None or older.stats.get(j) != _stat(path):
+                continue
+            self.channels.update({(k, cid): ch for (i, cid), ch in older.channels.items() if i == j})
+            self.schemas.update({(k << 16) + (key & 0xFFFF): sc for key, sc in older.schemas.items() if key >> 16 == j})
+            if j in older.known_to:
+                self.known_to[k] = older.known_to[j]
+        return self
 
     def channel_list(self) -> list[tuple[str, str, dict[str, str]]]:
         """(topic, ``pkg/msg/Type``, channel metadata) of every channel in the files' summaries, without reading
@@ -120,17 +136,17 @@ class BagReader:
         return list(out.values())
 
     def messages(self, topics: set[str] | None = None, from_ns: int | None = None) -> Iterator[BagMessage]:
-        """Every readable message; with ``from_ns``, a chunk whose messages were all logged before it is passed
-        over without being opened (a seek's shortcut: no decompression, no CRC; counted in :attr:`passed_chunks`),
-        so what comes is every message at or after ``from_ns`` and some before it (those sharing a chunk with later
-        ones, and any not in a chunk). It is kept in :attr:`pass_before_ns`, which may be changed while reading (a
-        seek forward: the chunks from there on before it are passed over). A chunk is passed over only where the
-        channels it may define are known: the file has a readable summary, or this reader (or the one it was made
-        :meth:`again` from) has read past it. A chunk that fails its CRC or does not decompress is skipped and
-        noted in :attr:`stopped`, and reading goes on with the next one; damage that breaks the record stream itself
-        (a cut file, a bad record length) ends that file's stream, also noted. The channels and schemas come from
-        the records as they are read and, where the file has a readable summary, from it first: a damaged chunk
-        that held a topic's first definition loses only its own messages. Messages whose channel was never read
+        """Every readable message; with ``from_ns``, a chunk whose messages were all logged before it is passed over
+        without being opened (a seek's shortcut: no decompression, no CRC; counted in :attr:`passed_chunks`), so what
+        comes is every message at or after ``from_ns`` and some before it (those sharing a chunk with later ones, and
+        any not in a chunk). It is kept in :attr:`pass_before_ns`, which may be changed while reading (a seek forward:
+        the chunks from there on before it are passed over). A chunk is passed over only where the channels it may
+        define are known: the file has a readable summary that repeats every channel and schema, or this reader (or the
+        one it took them from, :meth:`carry_from`) has read past it. A chunk that fails its CRC or does not decompress
+        is skipped and noted in :attr:`stopped`, and reading goes on with the next one; damage that breaks the record
+        stream itself (a cut file, a bad record length) ends that file's stream, also noted. The channels and schemas
+        come from the records as they are read and, where the file has a readable summary, from it first: a damaged
+        chunk that held a topic's first definition loses only its own messages. Messages whose channel was never read
         are counted in a note."""
         self.pass_before_ns = from_ns
         for k, path in enumerate(self.paths):
@@ -143,7 +159,7 @@ class BagReader:
             with open(path, "rb") as f:
                 reader = StreamReader(f, emit_chunks=True, validate_crcs=True)
                 try:
-                    for rec in self._unchunked(reader.records, k, f, summary is not None):
+                    for rec in self._unchunked(reader.records, k, f, _defines_all(summary)):
                         if isinstance(rec, Schema):
                             schemas[rec.id] = rec
                             self.schemas[(k << 16) + rec.id] = rec
@@ -169,7 +185,8 @@ class BagReader:
 
     def _unchunked(self, records: Iterator[McapRecord], k: int, f: IO[bytes], summarised: bool) -> Iterator[McapRecord]:
         """The records of file ``k`` with every chunk opened in place, but those :meth:`messages` passes over (all
-        their messages before :attr:`pass_before_ns`; ``summarised``: the file's summary gave every channel); a
+        their messages before :attr:`pass_before_ns`; ``summarised``: the file's summary gave every channel and
+        schema); a
         damaged chunk is skipped with a note. Counts the bytes read in :attr:`known_to` as it goes."""
         path = self.paths[k]
         for rec in records:
@@ -193,6 +210,14 @@ class BagReader:
                 continue
             yield from inner
             self.known_to[k] = max(known, end)  # read to its end (a reader closed within it has not: not counted)
+
+
+def _defines_all(summary: Summary | None) -> bool:
+    """Whether a file's summary repeats every channel and schema the file defines (a writer may leave them out:
+    rosbag2's presets without repeated channels or schemas), as its statistics count them."""
+    st = summary.statistics if summary is not None else None
+    return (summary is not None and st is not None and len(summary.channels) >= st.channel_count
+            and len(summary.schemas) >= st.schema_count)
 
 
 _PIECE = re.compile(r"(.*)_(\d+)")  # a split recording's file stem: <name>_<n>
@@ -292,28 +317,39 @@ def recover(src: str | Path, dst: str | Path, compression: str = "zstd") -> dict
     """Write every intact message of ``src`` (a bag cut short, e.g. by SIGKILL; a file or a folder of split files)
     into a complete bag ``dst``, each under the channel and schema it was written with; ``dst`` appears only once it
     is complete (written beside it, then renamed)."""
-    return rewrite(src, dst, compression=compression)
+    return rewrite(src, dst, compression=compression, library="zebra_sim_ros recover")
 
 
 def rewrite(src: list[str | Path] | str | Path, dst: str | Path, *, keep: Callable[[str], bool] | None = None,
-            start_s: float | None = None, end_s: float | None = None, compression: str = "zstd") -> dict[str, Any]:
+            start_s: float | None = None, end_s: float | None = None, compression: str = "zstd",
+            library: str = "zebra_sim_ros rewrite", names: tuple[str, str, str] = ("start", "end", "OUT")
+            ) -> dict[str, Any]:
     """Write the intact messages of the bags ``src`` (files, or folders of split files, in order) whose topic
     ``keep`` takes (all where None) and whose log time lies in [``start_s``, ``end_s``] seconds after the bags'
     first message (either end open where None), into one complete bag ``dst``, each under the channel and schema it
-    was written with, in the order read (as ``ros2 bag convert`` with a topic and time filter). The chunks before
-    ``start_s`` are passed over unread. ``dst`` appears only once it is complete (written beside it, then renamed).
-    Returns the inputs, ``out``, the messages written in all and per topic, the window written (ns; None where
-    nothing was), the chunks passed over and the damage met."""
+    was written with (per topic and type: the first file's), in the order read (as ``ros2 bag convert`` with a topic
+    and time filter). The chunks before ``start_s`` are passed over undecompressed in files whose summary repeats
+    their channels. ``dst`` appears only once it is complete (written beside it, then renamed); it may not be one of
+    the files read, nor in a folder read (it would join the recording), nor a folder. Errors name ``names`` (the
+    start, the end, the output: the caller's words for them). Returns the inputs, ``out``, the messages written in
+    all and per topic, the window written (ns; None where nothing was), the chunks passed over and the damage met."""
     from zebra_sim_ros.recording.writer import COMPRESSIONS
 
     if compression not in COMPRESSIONS:
         raise ParameterError("compression", compression, f"one of {sorted(COMPRESSIONS)}")
+    for name, v in zip(names[:2], (start_s, end_s), strict=True):
+        if v is not None and not (math.isfinite(v) and v >= 0):
+            raise ParameterError(name, v, "seconds after the first message: 0 or more")
     if start_s is not None and end_s is not None and end_s < start_s:
-        raise ParameterError("end", end_s, f"not before start ({start_s:g} s)")
+        raise ParameterError(names[1], end_s, f"not before {names[0]} ({start_s:g} s)")
     reader = BagReader.open(src)
     out = Path(dst)
-    if any(out.resolve() == p.resolve() for p in reader.paths):
-        raise ParameterError("OUT", str(dst), "a different file than the bags read")
+    inputs = [src] if isinstance(src, str | Path) else list(src)
+    folders = [Path(i).resolve() for i in inputs if Path(i).is_dir()]
+    if out.is_dir() or any(out.resolve() == p.resolve() for p in reader.paths) or \
+            (out.suffix == ".mcap" and out.resolve().parent in folders):
+        raise ParameterError(names[2], str(dst), "a new bag file: not a folder, not one of the bags read, nor in a "
+                             "folder read (it would join that recording)")
     from_ns = to_ns = None
     if start_s is not None or end_s is not None:  # the window counts from the first message of them all
         first = first_log_time(reader.paths)
@@ -324,11 +360,12 @@ def rewrite(src: list[str | Path] | str | Path, dst: str | Path, *, keep: Callab
     tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
     n = 0
     topics: dict[str, int] = {}
-    times: list[int] = []
+    lo: int | None = None
+    hi: int | None = None
     try:
         with open(tmp, "wb") as f:
             w = Writer(f, compression=COMPRESSIONS[compression])
-            w.start(profile="ros2", library="zebra_sim_ros rewrite")
+            w.start(profile="ros2", library=library)
             ids: dict[tuple[str, str], int] = {}
             schema_ids: dict[tuple[str, str, bytes], int] = {}
             for m in reader.messages(from_ns=from_ns):
@@ -346,11 +383,12 @@ def rewrite(src: list[str | Path] | str | Path, dst: str | Path, *, keep: Callab
                 w.add_message(ids[key], m.log_time, m.data, m.publish_time, sequence=n)
                 n += 1
                 topics[m.topic] = topics.get(m.topic, 0) + 1
-                times.append(m.log_time)
+                lo = m.log_time if lo is None else min(lo, m.log_time)
+                hi = m.log_time if hi is None else max(hi, m.log_time)
             w.finish()
         tmp.replace(out)
     finally:
         tmp.unlink(missing_ok=True)
     return {"in": str(src) if isinstance(src, str | Path) else [str(p) for p in src], "out": str(out),
-            "messages": n, "topics": dict(sorted(topics.items())), "start_ns": min(times) if times else None,
-            "end_ns": max(times) if times else None, "passed_chunks": reader.passed_chunks, "damage": reader.stopped}
+            "messages": n, "topics": dict(sorted(topics.items())), "start_ns": lo, "end_ns": hi,
+            "passed_chunks": reader.passed_chunks, "damage": reader.stopped}
