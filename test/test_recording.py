@@ -1486,6 +1486,19 @@ def test_snapshot_mode_keeps_the_newest_messages_in_memory_and_writes_them_on_a_
     with pytest.raises(ParameterError, match="output"):  # a file where its folder should be: refused at once
         BagWriter(bag / "x.mcap", defer_open=True)
 
+    # a snapshot that reaches the size cap on the way: what it wrote is in a finished file, and the answer says so
+    capped = BagWriter(tmp_path / "cap.mcap", chunk_size=1024, max_bytes=20_000, defer_open=True)
+    capped.add_channel("/chatter", "std_msgs/msg/String", [profile_dict()])
+    core = RecorderCore(capped, snapshot_bytes=1 << 20)
+    for k in range(50):
+        core.offer("/chatter", serialize_message(String(data=f"{k:03d}" + "y" * 997)), k * 10**8)
+    ok, why = core.snapshot(timeout=10)
+    k = int(why.split(" of ")[0])
+    assert not ok and 0 < k < 50 and f"written to {tmp_path / 'cap.mcap'}; the recording has ended: bag reached its " \
+        "size cap" in why, why
+    assert [text[:3] for text in _texts(tmp_path / "cap.mcap")] == [f"{i:03d}" for i in range(k)]  # finished
+    assert core.close() == [str(tmp_path / "cap.mcap")] and core.totals()["dropped"] == 50 - k
+
     # a writer with its file open already: the first snapshot goes into it
     opened = BagWriter(tmp_path / "open.mcap")
     opened.add_channel("/chatter", "std_msgs/msg/String", [profile_dict()])
