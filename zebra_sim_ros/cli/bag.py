@@ -119,15 +119,10 @@ def _regex(name: str, text: str | None) -> re.Pattern[str] | None:
 
 def cmd_filter(args: argparse.Namespace) -> Summary:
     """Write the topics and the stretch of time asked for into a new bag."""
-    from zebra_sim_ros.recording.reader import rewrite
+    from zebra_sim_ros.recording.reader import rewrite, topic_filter
 
-    names, regex = set(args.topics or ()), _regex("--topic-regex", args.topic_regex)
-    exclude = _regex("--exclude-regex", args.exclude_regex)
-
-    def keep(topic: str) -> bool:
-        return ((not names or topic in names) and (regex is None or bool(regex.search(topic)))
-                and not (exclude is not None and exclude.search(topic)))
-
+    names = set(args.topics or ())
+    keep = topic_filter(names, _regex("--topic-regex", args.topic_regex), _regex("--exclude-regex", args.exclude_regex))
     s = rewrite(args.bag, args.out, keep=keep, start_s=args.start, end_s=args.end, compression=args.compression,
                 names=("--start", "--end", "--out"))
     span = f" ({(s['end_ns'] - s['start_ns']) / 1e9:.3f} s)" if s["messages"] else ""

@@ -42,7 +42,7 @@ from zebra_sim_ros.nodes.ros_adapter import (
 )
 from zebra_sim_ros.recording.config import REPLAY_PARAMS, ReplayConfig
 from zebra_sim_ros.recording.qos import from_yaml, load_overrides, overridden, replay_profile
-from zebra_sim_ros.recording.reader import BagReader
+from zebra_sim_ros.recording.reader import BagReader, topic_filter
 
 _STEP_WAIT_S = 5.0  # how long ~/play_next waits for its message to be played before it withdraws the request
 
@@ -107,6 +107,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         self.regex = re.compile(c.topic_regex)  # checked by its ParamSpec
         self.exclude = re.compile(c.exclude_regex) if c.exclude_regex else None
         self.topics = {t for t in c.topics if t}
+        self.wanted = topic_filter(self.topics, self.regex, self.exclude)  # the topics played
         self.pubs: dict[str, Any] = {}
         self.clock_pub = self.create_publisher(Clock, "/clock", 10) if c.clock else None
         self.published = 0
@@ -165,10 +166,6 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             self.seeks += to is not None
             return to
 
-    def _wanted(self, topic: str) -> bool:
-        return ((not self.topics or topic in self.topics) and bool(self.regex.search(topic))
-                and not (self.exclude and self.exclude.search(topic)))
-
     def _publisher(self, topic: str, type_name: str, metadata: dict[str, str]) -> Any:
         """The topic's publisher with its recorded QoS (and overrides), made once; None for a topic not played or
         not playable (type not installed, no schema, unreadable QoS metadata: logged once, and the rest of the bag
@@ -182,7 +179,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         elif topic == DIAGNOSTICS_TOPIC and not self.cfg.remap_prefix and topic not in self.topics:
             self.get_logger().info(f"not playing the recorded {topic} under its own name: live nodes report there "
                                    "(name it in topics, or give a remap_prefix, to play it)")
-        elif self._wanted(topic):
+        elif self.wanted(topic):
             try:
                 p = replay_profile(from_yaml(metadata.get("offered_qos_profiles", "")))
                 q = profile_qos(overridden(p, self.overrides.get(topic)))  # keyed by the topic as recorded

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import Any
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.params import ParamSpec, StageConfig, diagnostics_param, is_regex, param
@@ -20,6 +21,12 @@ def least_cap(chunk_size: int) -> int:
 
 def _str_list(v: object) -> bool:
     return isinstance(v, list) and all(isinstance(x, str) for x in v)
+
+
+def _qos_overrides_param(applies: str) -> Any:
+    """The ``qos_overrides_path`` field of the recorder and the replay (``recording.qos.load_overrides`` reads it)."""
+    return param("", f"YAML file of QoS policies per topic (history, depth, reliability, durability) for the "
+                 f"{applies} ('': none)", allowed="empty or a YAML file")
 
 
 @dataclass(frozen=True)
@@ -51,10 +58,8 @@ class RecorderConfig(StageConfig):
     discovery_period_s: float = param(0.5, "how often new topics are looked for", "s", lo=0.05, hi=60.0)
     stats_period_s: float = param(10.0, "how often statistics are logged (0: never)", "s", lo=0.0, hi=3600.0)
     qos_depth: int = param(100, "history depth of the subscriptions", lo=1, hi=100000)
-    qos_overrides_path: str = param("", "YAML file of QoS policies per topic (history, depth, reliability, "
-                                    "durability) for the subscriptions, over what the publishers offer and qos_depth, "
-                                    "as ros2 bag record --qos-profile-overrides-path ('': none)",
-                                    allowed="empty or a YAML file")
+    qos_overrides_path: str = _qos_overrides_param("subscriptions, over what the publishers offer and qos_depth, as "
+                                                   "ros2 bag record --qos-profile-overrides-path")
     snapshot_size_mb: float = param(0.0, "snapshot mode when more than 0, as ros2 bag record --snapshot-mode "
                                     "--max-cache-size: keep the newest messages, up to this size, in memory and "
                                     "write them only when ~/snapshot (std_srvs/Trigger) is called, each snapshot "
@@ -122,9 +127,8 @@ class ReplayConfig(StageConfig):
                               check=lambda v: v == "" or (v.startswith("/") and not v.endswith("/")))
     clock: bool = param(False, "publish /clock (rosgraph_msgs/Clock) with the bag's time, for use_sim_time")
     clock_rate_hz: float = param(100.0, "how often /clock is published between messages", "Hz", lo=1.0, hi=10000.0)
-    qos_overrides_path: str = param("", "YAML file of QoS policies per topic (history, depth, reliability, "
-                                    "durability) for the publishers, over what was recorded, as ros2 bag play "
-                                    "--qos-profile-overrides-path ('': none)", allowed="empty or a YAML file")
+    qos_overrides_path: str = _qos_overrides_param("publishers, over what was recorded, as ros2 bag play "
+                                                   "--qos-profile-overrides-path")
     wait_for_subscribers_s: float = param(0.0, "wait up to this long, before playing, for every played topic to "
                                           "have a subscriber (after a wait, 0.3 s more: the new subscribers' side "
                                           "of the match)", "s", lo=0.0, hi=3600.0)

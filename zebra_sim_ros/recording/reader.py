@@ -54,6 +54,17 @@ def under_any_namespace(name: str) -> re.Pattern[str]:
     return re.compile(rf"^(?:/[^/]+)*/{re.escape(name)}$")
 
 
+def topic_filter(names: set[str] | frozenset[str], regex: re.Pattern[str] | None,
+                 exclude: re.Pattern[str] | None) -> Callable[[str], bool]:
+    """The rule that chooses topics to play or copy, as ``ros2 bag``'s ``--topics``, ``--regex`` and
+    ``--exclude-regex``: one of ``names`` where it names any, found by ``regex`` (None: any) and not by
+    ``exclude`` (None: none)."""
+    def keep(topic: str) -> bool:
+        return ((not names or topic in names) and (regex is None or bool(regex.search(topic)))
+                and not (exclude is not None and exclude.search(topic)))
+    return keep
+
+
 def last_name(name: str) -> str:
     """The last name of a ROS name: ``/g1/drone_0`` is ``drone_0``."""
     return name.rsplit("/", 1)[-1]
@@ -86,7 +97,7 @@ class BagReader:
     known_to: dict[int, int] = field(default_factory=dict)  # file index -> bytes read from its start (by this reader
     # or one it took them from, :meth:`carry_from`): the channels and schemas defined there are known
     stats: dict[int, tuple[int, int]] = field(default_factory=dict)  # file index -> (size, mtime ns) when opened
-    schemas: dict[int, Schema] = field(default_factory=dict)
+    schemas: dict[tuple[int, int], Schema] = field(default_factory=dict)  # (file index, schema id)
     channels: dict[tuple[int, int], Channel] = field(default_factory=dict)
 
     @classmethod
@@ -112,12 +123,13 @@ class BagReader:
         and unchanged (same size and modification time): its channels, schemas and how far it was read, so that
         :meth:`messages` may pass over chunks read before even in a file without a summary (cut short). A file
         that grew or changed since (a recording still being written) starts from nothing. Returns self."""
+        index = {p: j for j, p in enumerate(older.paths)}
         for k, path in enumerate(self.paths):
-            j = next((j for j, p in enumerate(older.paths) if p == path), None)
-            if j is None or older.stats.get(j) != _stat(path):
+            j = index.get(path)
+            if j is None or older.stats.get(j) != self.stats.get(k):
                 continue
             self.channels.update({(k, cid): ch for (i, cid), ch in older.channels.items() if i == j})
-            self.schemas.update({(k << 16) + (key & 0xFFFF): sc for key, sc in older.schemas.items() if key >> 16 == j})
+            self.schemas.update({(k, sid): sc for (i, sid), sc in older.schemas.items() if i == j})
             if j in older.known_to:
                 self.known_to[k] = older.known_to[j]
         return self
@@ -150,7 +162,7 @@ class BagReader:
         are counted in a note."""
         self.pass_before_ns = from_ns
         for k, path in enumerate(self.paths):
-            schemas = {key & 0xFFFF: sc for key, sc in self.schemas.items() if key >> 16 == k}  # read before
+            schemas = {sid: sc for (i, sid), sc in self.schemas.items() if i == k}  # read before
             summary = file_summary(path)
             if summary is not None:
                 schemas.update(summary.schemas)
@@ -162,7 +174,7 @@ class BagReader:
                     for rec in self._unchunked(reader.records, k, f, _defines_all(summary)):
                         if isinstance(rec, Schema):
                             schemas[rec.id] = rec
-                            self.schemas[(k << 16) + rec.id] = rec
+                            self.schemas[(k, rec.id)] = rec
                         elif isinstance(rec, Channel):
                             self.channels[(k, rec.id)] = rec
                         elif isinstance(rec, Message):
@@ -181,7 +193,7 @@ class BagReader:
             if orphans:
                 self.stopped.append(f"{path}: skipped {orphans} messages of channels whose definition was not read "
                                     f"(it was in a damaged part, and the file has no readable summary)")
-            self.schemas.update({(k << 16) + i: s for i, s in schemas.items()})
+            self.schemas.update({(k, sid): sc for sid, sc in schemas.items()})
 
     def _unchunked(self, records: Iterator[McapRecord], k: int, f: IO[bytes], summarised: bool) -> Iterator[McapRecord]:
         """The records of file ``k`` with every chunk opened in place, but those :meth:`messages` passes over (all
@@ -333,10 +345,9 @@ def rewrite(src: list[str | Path] | str | Path, dst: str | Path, *, keep: Callab
     the files read, nor in a folder read (it would join the recording), nor a folder. Errors name ``names`` (the
     start, the end, the output: the caller's words for them). Returns the inputs, ``out``, the messages written in
     all and per topic, the window written (ns; None where nothing was), the chunks passed over and the damage met."""
-    from zebra_sim_ros.recording.writer import COMPRESSIONS
+    from zebra_sim_ros.recording.writer import compression_type
 
-    if compression not in COMPRESSIONS:
-        raise ParameterError("compression", compression, f"one of {sorted(COMPRESSIONS)}")
+    kind = compression_type(compression)
     for name, v in zip(names[:2], (start_s, end_s), strict=True):
         if v is not None and not (math.isfinite(v) and v >= 0):
             raise ParameterError(name, v, "seconds after the first message: 0 or more")
@@ -364,7 +375,7 @@ def rewrite(src: list[str | Path] | str | Path, dst: str | Path, *, keep: Callab
     hi: int | None = None
     try:
         with open(tmp, "wb") as f:
-            w = Writer(f, compression=COMPRESSIONS[compression])
+            w = Writer(f, compression=kind)
             w.start(profile="ros2", library=library)
             ids: dict[tuple[str, str], int] = {}
             schema_ids: dict[tuple[str, str, bytes], int] = {}
@@ -389,6 +400,6 @@ def rewrite(src: list[str | Path] | str | Path, dst: str | Path, *, keep: Callab
         tmp.replace(out)
     finally:
         tmp.unlink(missing_ok=True)
-    return {"in": str(src) if isinstance(src, str | Path) else [str(p) for p in src], "out": str(out),
+    return {"in": str(src) if isinstance(src, str | Path) else [str(p) for p in inputs], "out": str(out),
             "messages": n, "topics": dict(sorted(topics.items())), "start_ns": lo, "end_ns": hi,
             "passed_chunks": reader.passed_chunks, "damage": reader.stopped}

@@ -33,6 +33,13 @@ from zebra_sim_ros.recording.schemas import schema_text
 COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 
 
+def compression_type(name: str) -> CompressionType:
+    """The chunk compression named ``name`` (zstd, lz4 or none); a ParameterError naming ``compression`` else."""
+    if name not in COMPRESSIONS:
+        raise ParameterError("compression", name, f"one of {sorted(COMPRESSIONS)}")
+    return COMPRESSIONS[name]
+
+
 class BagFullError(ZebraSimError):
     """The bag reached its size cap, or the disk is full."""
 
@@ -51,8 +58,7 @@ class BagWriter:
     def __init__(self, path: str | Path, compression: str = "zstd", chunk_size: int = 4 << 20,
                  split_bytes: int = 0, split_seconds: float = 0.0, max_bytes: int = 0, reserve_bytes: int = -1,
                  defer_open: bool = False) -> None:
-        if compression not in COMPRESSIONS:
-            raise ParameterError("compression", compression, f"one of {sorted(COMPRESSIONS)}")
+        compression_type(compression)
         if chunk_size < 1024:
             raise ParameterError("chunk_size", chunk_size, ">= 1024 bytes")
         if 0 < max_bytes < least_cap(chunk_size):  # the room write() keeps under the cap (the recorder checks too)
