@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from bag_helpers import cut_after_last_chunk, texts
 from cli_helpers import CliRun
 from mcap.reader import make_reader
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -353,12 +354,6 @@ def _trigger(peer: Peer, name: str) -> Any:
     return call
 
 
-def _texts(path: Path) -> list[str]:
-    """The data of every std_msgs/String in the bag file ``path``, as rosbags reads them."""
-    with AnyReader([path]) as r:
-        return [r.deserialize(raw, c.msgtype).data for c, _, raw in r.messages()]
-
-
 def _send(peer: Peer, pub: Any, numbers: range) -> None:
     """Publish each number as a String, 20 ms apart, spinning the peer between."""
     for k in numbers:
@@ -406,7 +401,7 @@ def test_the_recorder_pauses_and_resumes_on_its_services(peer: Peer, tmp_path: P
         rec.send_signal(signal.SIGINT)
         assert rec.wait(timeout=30) == 0, log.read_text()
     assert "7 messages, 0 dropped, 11 while paused" in log.read_text()
-    assert _texts(bag) == [str(k) for k in (*range(5, 10), 15, 16)]
+    assert texts(bag) == [str(k) for k in (*range(5, 10), 15, 16)]
 
 
 def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path: Path) -> None:
@@ -574,7 +569,7 @@ def test_the_recorder_splits_its_bag_on_its_service(peer: Peer, tmp_path: Path) 
         rec.send_signal(signal.SIGINT)
         assert rec.wait(timeout=30) == 0, log.read_text()
     for path, want in ((bag, range(0, 5)), (tmp_path / "run_1.mcap", range(5, 8))):
-        assert _texts(path) == [str(k) for k in want]
+        assert texts(path) == [str(k) for k in want]
 
 
 def test_the_recorder_in_snapshot_mode_writes_the_newest_messages_on_its_service(peer: Peer, tmp_path: Path) -> None:
@@ -604,7 +599,7 @@ def test_the_recorder_in_snapshot_mode_writes_the_newest_messages_on_its_service
         answer = snap()
         assert answer.success and answer.message.startswith("wrote 9 messages") \
             and answer.message.endswith(f"to {bag}"), answer.message
-        assert [text[:3] for text in _texts(bag)] == [f"{k:03d}" for k in range(21, 30)]  # complete: read now
+        assert [text[:3] for text in texts(bag)] == [f"{k:03d}" for k in range(21, 30)]  # complete: read now
         assert snap().message == "the cache is empty: nothing to write"
         refused = split()
         assert not refused.success and "a file of its own" in refused.message, refused.message
@@ -615,7 +610,7 @@ def test_the_recorder_in_snapshot_mode_writes_the_newest_messages_on_its_service
                          10), status[-1:]
         rec.send_signal(signal.SIGINT)
         assert rec.wait(timeout=30) == 0, log.read_text()
-    assert [text[:3] for text in _texts(tmp_path / "snap_1.mcap")] == ["030"]
+    assert [text[:3] for text in texts(tmp_path / "snap_1.mcap")] == ["030"]
     assert sorted(p.name for p in tmp_path.glob("*.mcap")) == ["snap.mcap", "snap_1.mcap"]  # none left empty
 
 
@@ -634,8 +629,7 @@ def test_seeks_across_a_damaged_chunk_count_it_once(peer: Peer, tmp_path: Path) 
     bad = chunks[len(chunks) // 3]
     data = bytearray((tmp_path / "full.mcap").read_bytes())
     data[bad.chunk_start_offset + bad.chunk_length // 2] ^= 0xFF
-    last = chunks[-1]
-    (tmp_path / "hurt.mcap").write_bytes(bytes(data[:last.chunk_start_offset + last.chunk_length]))
+    cut_after_last_chunk(tmp_path / "full.mcap", tmp_path / "hurt.mcap", bytes(data))
     cut_at = (bad.message_end_time - times[0]) / 1e9 + 0.02  # past the damaged chunk
     got: list[str] = []
     clocks: list[int] = []

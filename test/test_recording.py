@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from bag_helpers import cut_after_last_chunk, texts
 from cli_helpers import CliRun
 from mcap.reader import make_reader
 from rclpy.serialization import serialize_message
@@ -843,10 +844,7 @@ def test_a_seek_passes_over_chunks_before_it_and_gives_every_message_after_it(tm
     moved.pass_before_ns = t
     assert [(m.topic, m.data) for m in stream if m.log_time >= t] == after and moved.passed_chunks >= 4
 
-    with open(tmp_path / "full.mcap", "rb") as f:
-        last = max(make_reader(f).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset)
-    data = (tmp_path / "full.mcap").read_bytes()
-    (tmp_path / "cut.mcap").write_bytes(data[:last.chunk_start_offset + last.chunk_length])  # every chunk, no summary
+    cut_after_last_chunk(tmp_path / "full.mcap", tmp_path / "cut.mcap")  # every chunk, no summary
     first = BagReader.open(tmp_path / "cut.mcap")
     assert read(first, t) == after and first.passed_chunks == 0  # nothing known of its chunks: all opened
     second = BagReader.open(tmp_path / "cut.mcap").carry_from(first)
@@ -915,10 +913,7 @@ def test_bag_filter_writes_the_topics_and_the_stretch_of_time_asked_for(tmp_path
         assert conn.msgtype == "sensor_msgs/msg/Image"
         assert [r.deserialize(raw, conn.msgtype).data[0] for _, _, raw in r.messages()] == [150, 160, 170, 180, 190]
 
-    data = (tmp_path / "b.mcap").read_bytes()
-    with open(tmp_path / "b.mcap", "rb") as f:
-        last = max(make_reader(f).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset)
-    (tmp_path / "cut.mcap").write_bytes(data[:last.chunk_start_offset + last.chunk_length])
+    cut_after_last_chunk(tmp_path / "b.mcap", tmp_path / "cut.mcap")
     assert first_log_time([tmp_path / "cut.mcap"]) == 10**9 + 100 * 10**8
     cut = rewrite(tmp_path / "cut.mcap", tmp_path / "cut_clip.mcap", start_s=2.0, end_s=2.0)
     assert (cut["messages"], cut["start_ns"], cut["end_ns"]) == (3, 10**9 + 120 * 10**8, 10**9 + 120 * 10**8)
@@ -1347,12 +1342,6 @@ def test_bag_export_pairs_by_arrival_so_late_labels_and_a_run_without_labels_pai
             assert float(label[1]) == pytest.approx((x0 + 10) / 64), name
 
 
-def _texts(path: Path) -> list[str]:
-    """The data of every std_msgs/String in the bag file ``path``, as rosbags reads them."""
-    with AnyReader([path]) as r:
-        return [r.deserialize(raw, c.msgtype).data for c, _, raw in r.messages()]
-
-
 def test_a_paused_recorder_core_counts_what_arrives_and_writes_none_of_it(tmp_path: Path) -> None:
     """``RecorderCore.paused``: offered messages are counted per topic as paused (neither written nor dropped) and
     none reaches the bag; after the pause the next ones are written, in order, as rosbags reads them back."""
@@ -1368,7 +1357,7 @@ def test_a_paused_recorder_core_counts_what_arrives_and_writes_none_of_it(tmp_pa
     t = core.totals()
     assert (t["messages"], t["dropped"], t["paused"]) == (2, 0, 3)
     assert t["topics"]["/chatter"]["received"] == 5
-    assert _texts(Path(path)) == ["m3", "m4"]
+    assert texts(Path(path)) == ["m3", "m4"]
 
 
 def test_a_split_on_demand_goes_on_in_the_next_file_and_each_file_is_a_bag(tmp_path: Path) -> None:
@@ -1393,7 +1382,7 @@ def test_a_split_on_demand_goes_on_in_the_next_file_and_each_file_is_a_bag(tmp_p
     offer(core, range(5, 6))
     files = [Path(p) for p in core.close()]
     assert [p.name for p in files] == ["run.mcap", "run_1.mcap", "run_2.mcap", "run_3.mcap"]
-    assert [_texts(p) for p in files] == [["m0", "m1", "m2"], ["m3", "m4"], [], ["m5"]]
+    assert [texts(p) for p in files] == [["m0", "m1", "m2"], ["m3", "m4"], [], ["m5"]]
     assert [m.data for m in BagReader.open(tmp_path / "a").messages()] == \
         [serialize_message(String(data=f"m{k}")) for k in range(6)]  # the folder, in the order written
     ok, why = core.split()
@@ -1405,7 +1394,7 @@ def test_a_split_on_demand_goes_on_in_the_next_file_and_each_file_is_a_bag(tmp_p
     offer(core, range(0, 2))
     assert core.split(timeout=30)[1].endswith("s_1.mcap")
     offer(core, range(2, 3))
-    assert [(Path(p).name, _texts(Path(p))) for p in core.close()] == [("s_0.mcap", ["m0", "m1"]), ("s_1.mcap", ["m2"])]
+    assert [(Path(p).name, texts(Path(p))) for p in core.close()] == [("s_0.mcap", ["m0", "m1"]), ("s_1.mcap", ["m2"])]
 
 
 def test_a_split_run_is_summarised_from_every_piece_in_the_order_written(tmp_path: Path) -> None:
@@ -1469,7 +1458,7 @@ def test_snapshot_mode_keeps_the_newest_messages_in_memory_and_writes_them_on_a_
     assert core.split() == (False, "snapshot mode writes each snapshot into a file of its own: nothing to split")
     assert core.snapshot(timeout=10) == (True, f"wrote 4 messages ({4 * size / 2**20:.2f} MB, 0.30 s of log time) "
                                                f"to {bag}")
-    assert [s[:3] for s in _texts(bag)] == ["006", "007", "008", "009"]  # complete now, not at close
+    assert [s[:3] for s in texts(bag)] == ["006", "007", "008", "009"]  # complete now, not at close
     assert core.snapshot() == (True, "the cache is empty: nothing to write")
     for k in (20, 30, 45):  # 2.0, 3.0, 4.5 s: only the last is within 1 s of the newest
         core.offer("/chatter", msg(k), k * 10**8)
@@ -1478,7 +1467,7 @@ def test_snapshot_mode_keeps_the_newest_messages_in_memory_and_writes_them_on_a_
     t = core.totals()
     assert (t["messages"], t["expired"], t["snapshots"], t["topics"]["/chatter"]["received"]) == (5, 8, 2, 13)
     assert files == [str(bag), str(bag.with_name("snap_1.mcap"))]  # no empty file after the last snapshot
-    assert [s[:3] for s in _texts(Path(files[1]))] == ["045"]
+    assert [s[:3] for s in texts(Path(files[1]))] == ["045"]
     ok, why = core.snapshot()
     assert not ok and "ended" in why
     unused = BagWriter(tmp_path / "none.mcap", defer_open=True)
@@ -1496,7 +1485,7 @@ def test_snapshot_mode_keeps_the_newest_messages_in_memory_and_writes_them_on_a_
     k = int(why.split(" of ")[0])
     assert not ok and 0 < k < 50 and f"written to {tmp_path / 'cap.mcap'}; the recording has ended: bag reached its " \
         "size cap" in why, why
-    assert [text[:3] for text in _texts(tmp_path / "cap.mcap")] == [f"{i:03d}" for i in range(k)]  # finished
+    assert [text[:3] for text in texts(tmp_path / "cap.mcap")] == [f"{i:03d}" for i in range(k)]  # finished
     assert core.close() == [str(tmp_path / "cap.mcap")] and core.totals()["dropped"] == 50 - k
 
     # a writer with its file open already: the first snapshot goes into it
@@ -1539,4 +1528,4 @@ def test_a_next_file_that_cannot_be_opened_ends_the_recording_with_its_reason(tm
     assert time.monotonic() - t < 20
     totals = core.totals()
     assert (totals["messages"], totals["dropped"]) == (3, 1) and "run_1.mcap" in totals["error"]
-    assert files[0] == str(tmp_path / "run.mcap") and _texts(Path(files[0])) == ["m0", "m1", "m2"]
+    assert files[0] == str(tmp_path / "run.mcap") and texts(Path(files[0])) == ["m0", "m1", "m2"]
