@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 import re
 from pathlib import Path
@@ -17,6 +18,7 @@ from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header, String
 
+import zebra_sim_ros.recording.reader as reader_module
 from zebra_sim_ros.recording.cdr import cdr_string
 from zebra_sim_ros.recording.evaluate import collect, score
 from zebra_sim_ros.recording.qos import from_yaml, profile_dict, replay_profile, to_yaml
@@ -813,10 +815,12 @@ def test_a_folder_of_split_files_plays_in_the_order_they_were_written(tmp_path: 
     assert [m.log_time // 10**9 for m in reader.messages()] == list(range(1, 13))
 
 
-def test_a_seek_passes_over_chunks_before_it_and_gives_every_message_after_it(tmp_path: Path) -> None:
+def test_a_seek_passes_over_chunks_before_it_and_gives_every_message_after_it(tmp_path: Path,
+                                                                              monkeypatch: pytest.MonkeyPatch) -> None:
     """``BagReader.messages(from_ns=T)`` (the replay's seek): chunks whose messages all come before T are passed
-    over unopened, and every message at or after T still comes, as a full read gives them; ``pass_before_ns`` moved
-    while reading (a seek forward) passes over what follows up to it. In a file without a summary (cut short) no
+    over unread (of each, only its record header and its two times are read from the file), and every message at or
+    after T still comes, as a full read gives them; ``pass_before_ns`` moved while reading (a seek forward) passes
+    over what follows up to it. In a file without a summary (cut short) no
     chunk is passed over until a reader has read it (its channels are known only so): a reader that takes what one
     that has learnt (``carry_from``) does pass over them, but not once the file has changed (a recording still
     written). A summary without the channels (written without repeating them) passes over nothing either."""
@@ -834,10 +838,27 @@ def test_a_seek_passes_over_chunks_before_it_and_gives_every_message_after_it(tm
     def read(reader: BagReader, from_ns: int | None) -> list[tuple[str, bytes]]:
         return [(m.topic, m.data) for m in reader.messages(from_ns=from_ns) if m.log_time >= t]
 
+    counted = [0]  # bytes the reader reads from its files (the summary's included)
+
+    class Counted(io.BufferedReader):
+        def read(self, n: int = -1) -> bytes:
+            data = super().read(n)
+            counted[0] += len(data)
+            return data
+
+    monkeypatch.setattr(reader_module, "open", lambda path, mode="rb": Counted(io.FileIO(path, mode)), raising=False)
+    list(BagReader.open(tmp_path / "full.mcap").messages())
+    whole, counted[0] = counted[0], 0
     r = BagReader.open(tmp_path / "full.mcap")
     got = list(r.messages(from_ns=t))
     assert [(m.topic, m.data) for m in got if m.log_time >= t] == after and r.stopped == []
     assert r.passed_chunks >= 5 and len(got) - len(after) < 100  # only the chunk holding t from before it
+    with open(tmp_path / "full.mcap", "rb") as f:
+        chunks = make_reader(f).get_summary().chunk_indexes
+    passed = [c for c in chunks if c.message_end_time < t]  # read: opcode and length (9 bytes), the two times (16)
+    assert len(passed) == r.passed_chunks  # and each chunk read has its two times read twice (a look, then the read)
+    assert whole - counted[0] == sum(c.chunk_length - 9 - 16 for c in passed) - 16 * (len(chunks) - len(passed))
+    monkeypatch.undo()
     moved = BagReader.open(tmp_path / "full.mcap")
     stream = moved.messages()
     assert next(stream).log_time == full[0].log_time

@@ -38,7 +38,7 @@ def register(sub: Any) -> None:
     f.add_argument("--exclude-regex", default=None, help="no topic matching this regular expression")
     f.add_argument("--start", type=float, default=None, metavar="S",
                    help="from this many seconds after the bags' first message (the chunks before are passed over "
-                        "undecompressed where a file's summary repeats its channels)")
+                        "unread where a file's summary repeats its channels)")
     f.add_argument("--end", type=float, default=None, metavar="S",
                    help="to this many seconds after the bags' first message (inclusive)")
     f.add_argument("--compression", default="zstd", choices=("zstd", "lz4", "none"), help="chunk compression")

@@ -12,13 +12,34 @@ import glob
 import math
 import os
 import re
+import struct
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-from mcap.records import Channel, Chunk, McapRecord, Message, Schema
-from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.data_stream import ReadDataStream
+from mcap.exceptions import RecordLengthLimitExceeded
+from mcap.opcode import Opcode
+from mcap.records import (
+    Attachment,
+    AttachmentIndex,
+    Channel,
+    Chunk,
+    ChunkIndex,
+    DataEnd,
+    Footer,
+    Header,
+    McapRecord,
+    Message,
+    MessageIndex,
+    Metadata,
+    MetadataIndex,
+    Schema,
+    Statistics,
+    SummaryOffset,
+)
+from mcap.stream_reader import CRCValidationError, StreamReader, breakup_chunk, read_magic
 from mcap.summary import Summary
 from mcap.writer import Writer
 
@@ -149,7 +170,8 @@ class BagReader:
 
     def messages(self, topics: set[str] | None = None, from_ns: int | None = None) -> Iterator[BagMessage]:
         """Every readable message; with ``from_ns``, a chunk whose messages were all logged before it is passed over
-        without being opened (a seek's shortcut: no decompression, no CRC; counted in :attr:`passed_chunks`), so what
+        unread (a seek's shortcut: the file seeks past it, so no read, decompression or CRC of it; counted in
+        :attr:`passed_chunks`; the data section's CRC is then not checked in that file), so what
         comes is every message at or after ``from_ns`` and some before it (those sharing a chunk with later ones, and
         any not in a chunk). It is kept in :attr:`pass_before_ns`, which may be changed while reading (a seek forward:
         the chunks from there on before it are passed over). A chunk is passed over only where the channels it may
@@ -169,9 +191,8 @@ class BagReader:
                 self.channels.update({(k, cid): ch for cid, ch in summary.channels.items()})
             orphans = 0
             with open(path, "rb") as f:
-                reader = StreamReader(f, emit_chunks=True, validate_crcs=True)
                 try:
-                    for rec in self._unchunked(reader.records, k, f, _defines_all(summary)):
+                    for rec in self._records(f, k, _defines_all(summary)):
                         if isinstance(rec, Schema):
                             schemas[rec.id] = rec
                             self.schemas[(k, rec.id)] = rec
@@ -195,33 +216,68 @@ class BagReader:
                                     f"(it was in a damaged part, and the file has no readable summary)")
             self.schemas.update({(k, sid): sc for sid, sc in schemas.items()})
 
-    def _unchunked(self, records: Iterator[McapRecord], k: int, f: IO[bytes], summarised: bool) -> Iterator[McapRecord]:
-        """The records of file ``k`` with every chunk opened in place, but those :meth:`messages` passes over (all
-        their messages before :attr:`pass_before_ns`; ``summarised``: the file's summary gave every channel and
-        schema); a
-        damaged chunk is skipped with a note. Counts the bytes read in :attr:`known_to` as it goes."""
+    def _records(self, f: IO[bytes], k: int, summarised: bool) -> Iterator[McapRecord]:
+        """The records of file ``k`` (open as ``f``), as mcap's ``StreamReader`` gives them with ``validate_crcs``,
+        every chunk opened in place; but a chunk :meth:`messages` passes over (all its messages before
+        :attr:`pass_before_ns`; ``summarised``: the file's summary gave every channel and schema, or this reader knows
+        the file past it) is not read: its header's end time is, and the file seeks past it. The data section's CRC
+        covers those bytes, so in a file where a chunk was passed it is not checked (each chunk read still checks its
+        own). A damaged chunk is skipped with a note. Counts the bytes read in :attr:`known_to` as it goes."""
         path = self.paths[k]
-        for rec in records:
-            known = self.known_to.get(k, 0)
+        stream = ReadDataStream(f, calculate_crc=True)
+        read_magic(stream)
+        whole = True  # every byte of the data section so far went through the stream's CRC
+        while True:
+            crc = stream.checksum()  # of everything before this record (what DataEnd's CRC covers)
+            opcode, length = stream.read1(), stream.read8()
+            if length > _RECORD_LIMIT:
+                raise RecordLengthLimitExceeded(opcode, length, _RECORD_LIMIT)
+            start, known, until = f.tell(), self.known_to.get(k, 0), self.pass_before_ns
+            if (opcode == Opcode.CHUNK and until is not None and length >= 16
+                    and (summarised or start + length <= known)):
+                head = f.read(16)  # message_start_time, message_end_time: past the stream, so not in its CRC
+                if len(head) == 16 and struct.unpack("<QQ", head)[1] < until:
+                    f.seek(start + length)
+                    self.passed_chunks += 1
+                    self.known_to[k] = max(known, start + length)
+                    whole = False
+                    continue
+                f.seek(start)
+            count = stream.count
+            read = _READERS.get(opcode)
+            rec = Message.read(stream, length) if opcode == Opcode.MESSAGE else read(stream) if read else None
+            if length > stream.count - count:  # fields this reader does not know (a later MCAP version), or unknown
+                stream.read(length - (stream.count - count))
+            if isinstance(rec, DataEnd) and whole and rec.data_section_crc not in (0, crc):
+                raise CRCValidationError(expected=rec.data_section_crc, actual=crc, record=rec)
             end = f.tell()  # where the record just read ends
-            if not isinstance(rec, Chunk):
+            if isinstance(rec, Chunk):
+                try:
+                    inner = breakup_chunk(rec, validate_crc=True)
+                except Exception as exc:  # noqa: BLE001 - CRC mismatch or a broken compressed payload
+                    self.stopped.append(f"{path}: skipped a damaged chunk ending at byte {end} "
+                                        f"({rec.message_start_time}..{rec.message_end_time} ns; "
+                                        f"{type(exc).__name__}: {exc})")
+                    self.known_to[k] = max(known, end)
+                    continue
+                yield from inner
+                self.known_to[k] = max(known, end)  # read to its end (a reader closed within it has not: not counted)
+            elif rec is not None:
                 self.known_to[k] = max(known, end)
                 yield rec
-                continue
-            until = self.pass_before_ns
-            if until is not None and rec.message_end_time < until and (summarised or end <= known):
-                self.passed_chunks += 1
-                continue
-            try:
-                inner = breakup_chunk(rec, validate_crc=True)
-            except Exception as exc:  # noqa: BLE001 - CRC mismatch or a broken compressed payload
-                self.stopped.append(f"{path}: skipped a damaged chunk ending at byte {end} "
-                                    f"({rec.message_start_time}..{rec.message_end_time} ns; {type(exc).__name__}: "
-                                    f"{exc})")
-                self.known_to[k] = max(known, end)
-                continue
-            yield from inner
-            self.known_to[k] = max(known, end)  # read to its end (a reader closed within it has not: not counted)
+            if isinstance(rec, Footer):
+                read_magic(stream)
+                return
+
+
+_RECORD_LIMIT = 4 * 2**30  # as mcap's StreamReader: a longer record is taken as damage, not allocated
+_READERS: dict[int, Callable[[ReadDataStream], McapRecord]] = {
+    Opcode.ATTACHMENT: Attachment.read, Opcode.ATTACHMENT_INDEX: AttachmentIndex.read, Opcode.CHANNEL: Channel.read,
+    Opcode.CHUNK: Chunk.read, Opcode.CHUNK_INDEX: ChunkIndex.read, Opcode.DATA_END: DataEnd.read,
+    Opcode.FOOTER: Footer.read, Opcode.HEADER: Header.read, Opcode.MESSAGE_INDEX: MessageIndex.read,
+    Opcode.METADATA: Metadata.read, Opcode.METADATA_INDEX: MetadataIndex.read, Opcode.SCHEMA: Schema.read,
+    Opcode.STATISTICS: Statistics.read, Opcode.SUMMARY_OFFSET: SummaryOffset.read,
+}  # opcode -> record reader (Message's takes the record length too)
 
 
 def _defines_all(summary: Summary | None) -> bool:
