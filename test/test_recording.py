@@ -894,8 +894,9 @@ def test_bag_filter_writes_the_topics_and_the_stretch_of_time_asked_for(tmp_path
     order, only the topics the options keep and the messages from --start to --end seconds after the first (both
     ends inclusive), each under its own type; rosbags reads back exactly those, and the chunks before --start are not
     opened. A cut input (no summary) gives the same window. A folder of split files reads in order; ``--topics``
-    names topics, and one not found is said; nothing found exits 1. Bad values are refused naming the option, and
-    nothing is written (an output in a folder read would join its recording: refused too)."""
+    names topics, and one not found is said; nothing found exits 1; bags it took (given after it) are refused, naming
+    them, and ``--`` ends it. Bad values are refused naming the option, and nothing is written (an output in a
+    folder read would join its recording: refused too)."""
     from zebra_sim_ros.recording.reader import first_log_time, rewrite
 
     written: list[tuple[str, int, str]] = []
@@ -957,6 +958,13 @@ def test_bag_filter_writes_the_topics_and_the_stretch_of_time_asked_for(tmp_path
                 *(["--out", tmp_path / "bad.mcap"] if "--out" not in bad else []), *bad]
         run = cli(args)
         assert run.returncode == 2 and named in run.stderr, (bad, run.stderr)
+    swallowed = cli(["bag", "filter", "--out", tmp_path / "bad.mcap", "--topics", "/drone_0/labels", tmp_path / "run"])
+    assert swallowed.returncode == 2 and "'--topics'" in swallowed.stderr and "is a bag" in swallowed.stderr
+    ended = cli(["bag", "filter", "--out", tmp_path / "end.mcap", "--topics", "/drone_0/labels", "--",
+                 tmp_path / "run"])
+    assert ended.returncode == 0 and "/drone_0/labels" in ended.stdout, ended.stderr
+    none = cli(["bag", "filter", "--out", tmp_path / "bad.mcap", "--topics", "/drone_0/labels"])
+    assert none.returncode == 2 and "'bag'" in none.stderr
     assert not (tmp_path / "bad.mcap").exists() and sorted(p.name for p in (tmp_path / "run").iterdir()) == \
         ["run_0.mcap", "run_1.mcap"]
 

@@ -31,9 +31,11 @@ def register(sub: Any) -> None:
     r.set_defaults(func=cmd_recover)
     f = bsub.add_parser("filter", help="some topics and a stretch of time of bags into a new bag (like ros2 bag "
                         "convert with a topic and time filter)")
-    f.add_argument("bag", nargs="+", type=Path, help="bag files, or folders of split files (read in order)")
+    # nargs "*": bags that --topics took (it takes every word after it) are named in cmd_filter's error
+    f.add_argument("bag", nargs="*", type=Path, help="bag files, or folders of split files (read in order)")
     f.add_argument("--out", required=True, type=Path, help="the bag to write (a new file; not one of those read)")
-    f.add_argument("--topics", nargs="+", default=None, metavar="TOPIC", help="only these topics")
+    f.add_argument("--topics", nargs="+", default=None, metavar="TOPIC",
+                   help="only these topics (it takes every word after it: give the bags before it, or end it with --)")
     f.add_argument("--topic-regex", default=None, help="only topics matching this regular expression")
     f.add_argument("--exclude-regex", default=None, help="no topic matching this regular expression")
     f.add_argument("--start", type=float, default=None, metavar="S",
@@ -121,6 +123,12 @@ def cmd_filter(args: argparse.Namespace) -> Summary:
     """Write the topics and the stretch of time asked for into a new bag."""
     from zebra_sim_ros.recording.reader import rewrite, topic_filter
 
+    if not args.bag:
+        if taken := [t for t in args.topics or () if Path(t).exists()]:
+            raise ParameterError("--topics", args.topics, f"topic names only, but {taken} "
+                                 f"{'is a bag' if len(taken) == 1 else 'are bags'} (--topics takes every word after "
+                                 "it: give the bags before it, or end the topics with --)")
+        raise ParameterError("bag", [], "at least one bag file, or folder of split files")
     names = set(args.topics or ())
     keep = topic_filter(names, _regex("--topic-regex", args.topic_regex), _regex("--exclude-regex", args.exclude_regex))
     s = rewrite(args.bag, args.out, keep=keep, start_s=args.start, end_s=args.end, compression=args.compression,
