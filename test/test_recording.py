@@ -1481,7 +1481,7 @@ def test_snapshot_mode_keeps_the_newest_messages_in_memory_and_writes_them_on_a_
     core = RecorderCore(w, queue_size=10, snapshot_bytes=4 * size + 10, snapshot_ns=10**9)
     assert all(core.offer("/chatter", msg(k), k * 10**8) for k in range(10))  # 0.1 s apart
     t = core.totals()
-    assert (t["messages"], t["cached"], t["expired"], t["received"]) == (0, 4, 6, 10)
+    assert (t["messages"], t["cached"], t["expired"], t["received"], t["taken"]) == (0, 4, 6, 10, 10)
     assert t["cached_mb"] == pytest.approx(4 * size / 2**20, abs=0.006)  # MiB, as every size of the recorder
     assert not bag.exists()
     assert core.split() == (False, "snapshot mode writes each snapshot into a file of its own: nothing to split")
@@ -1489,12 +1489,16 @@ def test_snapshot_mode_keeps_the_newest_messages_in_memory_and_writes_them_on_a_
                                                f"to {bag}")
     assert [s[:3] for s in texts(bag)] == ["006", "007", "008", "009"]  # complete now, not at close
     assert core.snapshot() == (True, "the cache is empty: nothing to write")
+    core.paused = True  # counted as received and paused, not taken into the cache
+    assert not core.offer("/chatter", msg(11), 11 * 10**8) and core.totals()["taken"] == 10
+    core.paused = False
     for k in (20, 30, 45):  # 2.0, 3.0, 4.5 s: only the last is within 1 s of the newest
         core.offer("/chatter", msg(k), k * 10**8)
     assert core.snapshot(timeout=10)[1].endswith(f"to {bag.with_name('snap_1.mcap')}")
     files = core.close()
     t = core.totals()
-    assert (t["messages"], t["expired"], t["snapshots"], t["topics"]["/chatter"]["received"]) == (5, 8, 2, 13)
+    assert (t["messages"], t["expired"], t["snapshots"], t["paused"], t["taken"]) == (5, 8, 2, 1, 13)
+    assert t["topics"]["/chatter"]["received"] == 14
     assert files == [str(bag), str(bag.with_name("snap_1.mcap"))]  # no empty file after the last snapshot
     assert [s[:3] for s in texts(Path(files[1]))] == ["045"]
     ok, why = core.snapshot()

@@ -176,11 +176,12 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         counts = {"messages": t["messages"], "dropped": t["dropped"], "paused_messages": t["paused"],
                   "topics": sum(s is not None for s in self.subs.values())}
         snapshot = self.cfg.snapshot_size_mb > 0
-        if snapshot:  # what arrives, what the cache holds now, what it let go before a snapshot took it, the files
-            counts |= {"received": t["received"], "cached": t["cached"], "expired": t["expired"],
-                       "snapshots": t["snapshots"]}
-        # in snapshot mode the work is taking messages in: writing waits for ~/snapshot
-        return Activity(counts, "received" if snapshot else "messages", ("dropped",),
+        if snapshot:  # what arrives, what goes into the cache (not while paused), what it holds now, what it let go
+            # before a snapshot took it, the files written
+            counts |= {"received": t["received"], "taken": t["taken"], "cached": t["cached"],
+                       "expired": t["expired"], "snapshots": t["snapshots"]}
+        # in snapshot mode the work is taking messages into the cache (paused, none is): writing waits for ~/snapshot
+        return Activity(counts, "taken" if snapshot else "messages", ("dropped",),
                         error=f"recording ended: {t['error']}" if t["error"] is not None else "",
                         waiting="paused" if self.core.paused else "",
                         info={"output": str(self.writer.path), "files": str(len(self.writer.files)),

@@ -42,6 +42,7 @@ class TopicStats:
     written: int = 0
     dropped: int = 0
     paused: int = 0  # received while the recording was paused: not written, not a drop
+    taken: int = 0  # snapshot mode: put into the cache (received, not paused, before any error)
     expired: int = 0  # snapshot mode: let go from the cache before a snapshot took it (too old, or no room)
     bytes: int = 0
 
@@ -90,6 +91,7 @@ class RecorderCore:
                 s.paused += 1
                 return False
             if self.snapshot_bytes:
+                s.taken += 1
                 self._cache_put((topic, data, log_time_ns, publish_time_ns))
                 return True
             if self._q.qsize() >= self.queue_size:
@@ -255,7 +257,8 @@ class RecorderCore:
         return {"topics": per, "messages": sum(s["written"] for s in per.values()),
                 "dropped": sum(s["dropped"] for s in per.values()), "paused": sum(s["paused"] for s in per.values()),
                 "expired": sum(s["expired"] for s in per.values()), "cached": cached,
-                "received": sum(s["received"] for s in per.values()), "snapshots": self.snapshots,
+                "received": sum(s["received"] for s in per.values()), "taken": sum(s["taken"] for s in per.values()),
+                "snapshots": self.snapshots,
                 "cached_mb": round(cached_bytes / MB, 2),
                 "mb_per_s": round(written / elapsed / 1e6, 2),
                 "queue": self._q.qsize(), "error": self.error,
