@@ -658,7 +658,7 @@ def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any, savanna: 
     from zebra_sim_ros.messages import Datum
     from zebra_sim_ros.placement.config import PlacerConfig
     from zebra_sim_ros.placement.placer import Placer
-    from zebra_sim_ros.recording.census import bag_census
+    from zebra_sim_ros.recording.census import bag_census, iso_time
 
     rng = np.random.default_rng(9)
     herd = np.column_stack([rng.uniform(-10, 10, (12, 2)), np.full(12, 0.7)])
@@ -691,8 +691,12 @@ def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any, savanna: 
         joined = props["detections"].split(",")
         assert props["views"] == len({p.split(":")[0] for p in joined}) and props["class"] == "zebra"
         assert props["stamp_ns"] == s1 and props["time_s"] == pytest.approx(1.0)
+        assert props["time"] == "1970-01-01T00:00:01.000Z"
         ranks = [int(p.split(":")[1]) % 10 for p in joined]  # east's ids start at 10
         assert props["score"] == pytest.approx(0.9 - 0.1 * min(ranks), abs=1e-4)  # its best detection's
+    # a real flight's stamp (past 2^53 ns, where a JSON number loses its nanoseconds): to the millisecond, truncated
+    assert [iso_time(t) for t in (1_764_577_532_123_999_999, 10**18, 999_999)] == [
+        "2025-12-01T08:25:32.123Z", "2001-09-09T01:46:40.000Z", "1970-01-01T00:00:00.000Z"]
     # a bag whose scenes carry their datum: that one, the same animals elsewhere on the Earth
     world = savanna
     scene = Placer(PlacerConfig.from_params({"seed": 3, "count_max": 5}), world, library).scene(0)

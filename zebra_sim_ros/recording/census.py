@@ -16,6 +16,7 @@ import re
 from collections import defaultdict
 from collections.abc import Mapping, Sequence
 from dataclasses import astuple
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -53,9 +54,9 @@ def census_geojson(census: dict[int, list[Placed3D]], datum: Datum, about: dict[
     """A census as a GeoJSON FeatureCollection (RFC 7946: WGS84 longitude, latitude and height above the
     ellipsoid), for a GIS: per stamp (``census``: its animals, each placed in ``map`` with ``id`` the detections it
     joins, ``camera:index``) and animal a Point, its id ``<stamp_ns>:<k>``, with scalar properties (they survive a
-    shapefile or CSV export): its class, score, stamp, how many cameras saw it, the detections it joins and its
-    ``map`` position; ``datum`` puts ``map`` on the Earth; the datum, the animals per class and ``about`` (the
-    source, the rule) go beside the features, under ``zebra_sim``."""
+    shapefile or CSV export): its class, score, stamp (also :func:`iso_time`), how many cameras saw it, the
+    detections it joins and its ``map`` position; ``datum`` puts ``map`` on the Earth; the datum, the animals per
+    class and ``about`` (the source, the rule) go beside the features, under ``zebra_sim``."""
     rows = [(t, k, a) for t in sorted(census) for k, a in enumerate(census[t])]
     lla = enu_to_geodetic(np.array([a.center for _, _, a in rows], np.float64).reshape(-1, 3), datum)
     features = []
@@ -66,6 +67,7 @@ def census_geojson(census: dict[int, list[Placed3D]], datum: Datum, about: dict[
             "type": "Feature", "id": f"{t}:{k}",
             "geometry": {"type": "Point", "coordinates": [round(lon, 8), round(lat, 8), round(height, 3)]},
             "properties": {"class": a.class_id, "score": round(a.score, 4), "stamp_ns": t, "time_s": t / 1e9,
+                           "time": iso_time(t),
                            "views": len({p.rsplit(":", 1)[0] for p in parts}), "detections": ",".join(parts),
                            "map_x": x, "map_y": y, "map_z": z}})
     per_class: dict[str, int] = defaultdict(int)
@@ -74,6 +76,16 @@ def census_geojson(census: dict[int, list[Placed3D]], datum: Datum, about: dict[
     return {"type": "FeatureCollection", "features": features,
             "zebra_sim": {"datum": datum.to_dict(), "animals": len(rows), "per_class": dict(per_class),
                           "stamps": len(census), **about}}
+
+
+def iso_time(stamp_ns: int) -> str:
+    """A stamp as ISO 8601 UTC to the millisecond (``1970-01-01T00:00:01.250Z``), the form a GIS reads as a
+    date-time field (GDAL's GeoJSON driver types it so; QGIS's temporal controller plays it); truncated, not rounded,
+    so it never passes the next stamp's second. A JSON number holds ``stamp_ns`` exactly only below 2^53 ns (104
+    days): a reader in JavaScript or with doubles loses the nanoseconds of a real flight's stamp, which this and the
+    feature's id keep."""
+    seconds, ns = divmod(stamp_ns, 10**9)
+    return datetime.fromtimestamp(seconds, UTC).strftime("%Y-%m-%dT%H:%M:%S") + f".{ns // 10**6:03d}Z"
 
 
 def write_geojson(path: str | Path, collection: dict[str, Any]) -> Path:
