@@ -859,9 +859,12 @@ def test_a_seek_passes_over_chunks_before_it_and_gives_every_message_after_it(tm
     assert r.passed_chunks >= 5 and len(got) - len(after) < 100  # only the chunk holding t from before it
     with open(tmp_path / "full.mcap", "rb") as f:
         chunks = make_reader(f).get_summary().chunk_indexes
-    passed = [c for c in chunks if c.message_end_time < t]  # read: opcode and length (9 bytes), the two times (16)
-    assert len(passed) == r.passed_chunks  # and each chunk read has its two times read twice (a look, then the read)
-    assert whole - counted[0] == sum(c.chunk_length - 9 - 16 for c in passed) - 16 * (len(chunks) - len(passed))
+    # of a chunk passed over, its opcode and length (9 bytes) and its two times (16) are read, and of each of its
+    # message indexes after it only the opcode and length; of every other chunk, each byte once
+    passed = [c for c in chunks if c.message_end_time < t]
+    assert len(passed) == r.passed_chunks
+    assert whole - counted[0] == sum(c.chunk_length - 9 - 16 + c.message_index_length - 9 * len(c.message_index_offsets)
+                                     for c in passed)
     monkeypatch.undo()
     moved = BagReader.open(tmp_path / "full.mcap")
     stream = moved.messages()
@@ -891,6 +894,52 @@ def test_a_seek_passes_over_chunks_before_it_and_gives_every_message_after_it(tm
         mw.finish()
     bare = BagReader.open(tmp_path / "bare.mcap")
     assert read(bare, t) == after and bare.passed_chunks == 0
+
+
+def test_the_data_sections_crc_is_checked_where_every_byte_was_read(tmp_path: Path) -> None:
+    """A bag written with a data-section CRC (mcap's ``enable_data_crcs``; ours and rosbag2's write 0): a full read
+    checks it and finds it right (a chunk's bytes are read in two parts, its times and the rest), a read that passes
+    chunks over does not check it (no false mismatch), and a byte flipped outside any chunk is reported after every
+    message; a message record shorter than its fields ends the stream there, named with its byte."""
+    from mcap.writer import Writer
+
+    def write(path: Path, chunked: bool) -> Path:
+        with open(path, "wb") as f:
+            mw = Writer(f, chunk_size=2048, use_chunking=chunked, enable_data_crcs=True)
+            mw.start(profile="ros2", library="test")
+            cid = mw.register_channel("/t", "cdr", mw.register_schema("std_msgs/msg/String", "ros2msg", b"string data"))
+            for k in range(200):
+                mw.add_message(cid, 10**9 + k * 10**7, serialize_message(String(data=f"{k:03d}" + "x" * 40)), 0)
+            mw.finish()
+        return path
+
+    chunked = write(tmp_path / "chunked.mcap", True)
+    full = BagReader.open(chunked)
+    assert len(list(full.messages())) == 200 and full.stopped == []
+    seek = BagReader.open(chunked)
+    assert len([m for m in seek.messages(from_ns=10**9 + 150 * 10**7) if m.log_time >= 10**9 + 150 * 10**7]) == 50
+    assert seek.passed_chunks >= 3 and seek.stopped == []
+
+    plain = write(tmp_path / "plain.mcap", False)
+    data = bytearray(plain.read_bytes())
+    records, at = [], 8  # (opcode, offset) of each record after the magic
+    while at < len(data) - 8:
+        records.append((data[at], at))
+        at += 9 + int.from_bytes(data[at + 1:at + 9], "little")
+    messages = [at for op, at in records if op == 0x05]
+    assert len(messages) == 200
+    flipped = bytearray(data)
+    flipped[messages[100] + 9 + 22 + 6] ^= 0x01  # a character of message 100's text
+    (tmp_path / "flipped.mcap").write_bytes(bytes(flipped))
+    hurt = BagReader.open(tmp_path / "flipped.mcap")
+    got = list(hurt.messages())
+    assert len(got) == 200 and len(hurt.stopped) == 1 and "CRCValidationError" in hurt.stopped[0], hurt.stopped
+    short = bytearray(data)
+    short[messages[50] + 1:messages[50] + 9] = (10).to_bytes(8, "little")
+    (tmp_path / "short.mcap").write_bytes(bytes(short))
+    cut = BagReader.open(tmp_path / "short.mcap")
+    assert len(list(cut.messages())) == 50
+    assert len(cut.stopped) == 1 and f"a message record at byte {messages[50]} of 10 bytes" in cut.stopped[0]
 
 
 def test_bag_filter_writes_the_topics_and_the_stretch_of_time_asked_for(tmp_path: Path, cli: CliRun) -> None:

@@ -12,7 +12,6 @@ import glob
 import math
 import os
 import re
-import struct
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,7 +31,6 @@ from mcap.records import (
     Header,
     McapRecord,
     Message,
-    MessageIndex,
     Metadata,
     MetadataIndex,
     Schema,
@@ -218,34 +216,53 @@ class BagReader:
 
     def _records(self, f: IO[bytes], k: int, summarised: bool) -> Iterator[McapRecord]:
         """The records of file ``k`` (open as ``f``), as mcap's ``StreamReader`` gives them with ``validate_crcs``,
-        every chunk opened in place; but a chunk :meth:`messages` passes over (all its messages before
-        :attr:`pass_before_ns`; ``summarised``: the file's summary gave every channel and schema, or this reader knows
-        the file past it) is not read: its header's end time is, and the file seeks past it. The data section's CRC
-        covers those bytes, so in a file where a chunk was passed it is not checked (each chunk read still checks its
-        own). A damaged chunk is skipped with a note. Counts the bytes read in :attr:`known_to` as it goes."""
+        every chunk opened in place, less the message indexes (read, not parsed: :meth:`messages` has no use for
+        them); but a chunk :meth:`messages` passes over (all its messages before :attr:`pass_before_ns`;
+        ``summarised``: the file's summary gave every channel and schema, or this reader knows the file past it) is
+        not read, nor the message indexes after it: its header's two times are, and the file seeks past it. The data
+        section's CRC covers those bytes, so in a file where a chunk was passed it is not checked (each chunk read
+        still checks its own). A damaged chunk is skipped with a note; a record that does not fit in its length is
+        damage that ends the stream. Counts the bytes read in :attr:`known_to` as it goes."""
         path = self.paths[k]
         stream = ReadDataStream(f, calculate_crc=True)
         read_magic(stream)
         whole = True  # every byte of the data section so far went through the stream's CRC
+        passing = False  # the record before was a chunk passed over (or one of its message indexes)
         while True:
             crc = stream.checksum()  # of everything before this record (what DataEnd's CRC covers)
             opcode, length = stream.read1(), stream.read8()
             if length > _RECORD_LIMIT:
                 raise RecordLengthLimitExceeded(opcode, length, _RECORD_LIMIT)
             start, known, until = f.tell(), self.known_to.get(k, 0), self.pass_before_ns
-            if (opcode == Opcode.CHUNK and until is not None and length >= 16
-                    and (summarised or start + length <= known)):
-                head = f.read(16)  # message_start_time, message_end_time: past the stream, so not in its CRC
-                if len(head) == 16 and struct.unpack("<QQ", head)[1] < until:
+            if passing and opcode == Opcode.MESSAGE_INDEX and start + length <= os.fstat(f.fileno()).st_size:
+                f.seek(start + length)
+                self.known_to[k] = max(known, start + length)
+                continue
+            passing = False
+            count = stream.count
+            if opcode == Opcode.CHUNK and length >= 16:
+                first, last = stream.read8(), stream.read8()  # message_start_time, message_end_time
+                if (until is not None and last < until and (summarised or start + length <= known)
+                        and start + length <= os.fstat(f.fileno()).st_size):
                     f.seek(start + length)
                     self.passed_chunks += 1
                     self.known_to[k] = max(known, start + length)
-                    whole = False
+                    whole, passing = False, True
                     continue
-                f.seek(start)
-            count = stream.count
-            read = _READERS.get(opcode)
-            rec = Message.read(stream, length) if opcode == Opcode.MESSAGE else read(stream) if read else None
+                rec: McapRecord | None = _chunk_after_times(stream, first, last)
+            elif opcode == Opcode.MESSAGE:
+                if length < _MESSAGE_FIELDS:
+                    raise ValueError(f"a message record at byte {start - 9} of {length} bytes, fewer than its "
+                                     f"fields' {_MESSAGE_FIELDS}")
+                rec = Message.read(stream, length)
+            elif opcode == Opcode.MESSAGE_INDEX:
+                stream.read(length)
+                rec = None
+            else:
+                rec = read(stream) if (read := _READERS.get(opcode)) else None
+            if stream.count - count > length:
+                raise ValueError(f"a record (opcode {opcode:#04x}) at byte {start - 9} of {length} bytes whose "
+                                 f"fields take {stream.count - count}")
             if length > stream.count - count:  # fields this reader does not know (a later MCAP version), or unknown
                 stream.read(length - (stream.count - count))
             if isinstance(rec, DataEnd) and whole and rec.data_section_crc not in (0, crc):
@@ -262,22 +279,33 @@ class BagReader:
                     continue
                 yield from inner
                 self.known_to[k] = max(known, end)  # read to its end (a reader closed within it has not: not counted)
-            elif rec is not None:
+            else:
                 self.known_to[k] = max(known, end)
-                yield rec
+                if rec is not None:
+                    yield rec
             if isinstance(rec, Footer):
                 read_magic(stream)
                 return
 
 
+def _chunk_after_times(stream: ReadDataStream, first: int, last: int) -> Chunk:
+    """The rest of a chunk record whose two times were read (as mcap's ``Chunk.read``, which reads them first)."""
+    uncompressed_size, uncompressed_crc = stream.read8(), stream.read4()
+    compression = str(stream.read(stream.read4()), "utf-8")
+    data = stream.read(stream.read8())
+    return Chunk(compression=compression, data=data, message_end_time=last, message_start_time=first,
+                 uncompressed_crc=uncompressed_crc, uncompressed_size=uncompressed_size)
+
+
+_MESSAGE_FIELDS = 22  # channel id, sequence, log and publish times: the bytes of a message record before its data
 _RECORD_LIMIT = 4 * 2**30  # as mcap's StreamReader: a longer record is taken as damage, not allocated
 _READERS: dict[int, Callable[[ReadDataStream], McapRecord]] = {
     Opcode.ATTACHMENT: Attachment.read, Opcode.ATTACHMENT_INDEX: AttachmentIndex.read, Opcode.CHANNEL: Channel.read,
     Opcode.CHUNK: Chunk.read, Opcode.CHUNK_INDEX: ChunkIndex.read, Opcode.DATA_END: DataEnd.read,
-    Opcode.FOOTER: Footer.read, Opcode.HEADER: Header.read, Opcode.MESSAGE_INDEX: MessageIndex.read,
-    Opcode.METADATA: Metadata.read, Opcode.METADATA_INDEX: MetadataIndex.read, Opcode.SCHEMA: Schema.read,
-    Opcode.STATISTICS: Statistics.read, Opcode.SUMMARY_OFFSET: SummaryOffset.read,
-}  # opcode -> record reader (Message's takes the record length too)
+    Opcode.FOOTER: Footer.read, Opcode.HEADER: Header.read, Opcode.METADATA: Metadata.read,
+    Opcode.METADATA_INDEX: MetadataIndex.read, Opcode.SCHEMA: Schema.read, Opcode.STATISTICS: Statistics.read,
+    Opcode.SUMMARY_OFFSET: SummaryOffset.read,
+}  # opcode -> record reader (a chunk, a message and a message index are read in _records)
 
 
 def _defines_all(summary: Summary | None) -> bool:
