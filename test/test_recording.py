@@ -1013,6 +1013,13 @@ def test_bag_filter_writes_the_topics_and_the_stretch_of_time_asked_for(tmp_path
         assert run.returncode == 2 and named in run.stderr, (bad, run.stderr)
     swallowed = cli(["bag", "filter", "--out", tmp_path / "bad.mcap", "--topics", "/drone_0/labels", tmp_path / "run"])
     assert swallowed.returncode == 2 and "'--topics'" in swallowed.stderr and "is a bag" in swallowed.stderr
+    one_left = cli(["bag", "filter", tmp_path / "a.mcap", "--out", tmp_path / "bad.mcap", "--topics", "/drone_0/labels",
+                    tmp_path / "run"])  # a bag before it does not hide the one it took
+    assert one_left.returncode == 2 and "is a bag" in one_left.stderr and str(tmp_path / "run") in one_left.stderr
+    (tmp_path / "no_bags").mkdir()  # a topic name that is also a folder, but of no bags: a topic
+    folder = cli(["bag", "filter", tmp_path / "a.mcap", "--out", tmp_path / "folder.mcap", "--topics",
+                  str(tmp_path / "no_bags")])
+    assert folder.returncode == 1 and "not in the bags" in folder.stdout + folder.stderr, folder.stderr
     ended = cli(["bag", "filter", "--out", tmp_path / "end.mcap", "--topics", "/drone_0/labels", "--",
                  tmp_path / "run"])
     assert ended.returncode == 0 and "/drone_0/labels" in ended.stdout, ended.stderr

@@ -35,7 +35,8 @@ def register(sub: Any) -> None:
     f.add_argument("bag", nargs="*", type=Path, help="bag files, or folders of split files (read in order)")
     f.add_argument("--out", required=True, type=Path, help="the bag to write (a new file; not one of those read)")
     f.add_argument("--topics", nargs="+", default=None, metavar="TOPIC",
-                   help="only these topics (it takes every word after it: give the bags before it, or end it with --)")
+                   help="only these topics (it takes every word after it: give the bags before it, or end it "
+                        "with -- and give every option before that)")
     f.add_argument("--topic-regex", default=None, help="only topics matching this regular expression")
     f.add_argument("--exclude-regex", default=None, help="no topic matching this regular expression")
     f.add_argument("--start", type=float, default=None, metavar="S",
@@ -119,15 +120,21 @@ def _regex(name: str, text: str | None) -> re.Pattern[str] | None:
         raise ParameterError(name, text, f"a regular expression ({exc})") from exc
 
 
+def _is_bag(path: Path) -> bool:
+    """Whether a word names a bag: a file (a topic name has no dot, so a bag's name is never one), or a folder of
+    ``.mcap`` files (``/tmp`` or ``/run`` as a topic name are folders too, but without bags in them)."""
+    return path.is_file() or (path.is_dir() and any(path.glob("*.mcap")))
+
+
 def cmd_filter(args: argparse.Namespace) -> Summary:
     """Write the topics and the stretch of time asked for into a new bag."""
     from zebra_sim_ros.recording.reader import rewrite, topic_filter
 
+    if taken := [t for t in args.topics or () if _is_bag(Path(t))]:
+        raise ParameterError("--topics", args.topics, f"topic names only, but {taken} "
+                             f"{'is a bag' if len(taken) == 1 else 'are bags'} (--topics takes every word after it: "
+                             "give the bags before it, or end the topics with -- and give every option before it)")
     if not args.bag:
-        if taken := [t for t in args.topics or () if Path(t).exists()]:
-            raise ParameterError("--topics", args.topics, f"topic names only, but {taken} "
-                                 f"{'is a bag' if len(taken) == 1 else 'are bags'} (--topics takes every word after "
-                                 "it: give the bags before it, or end the topics with --)")
         raise ParameterError("bag", [], "at least one bag file, or folder of split files")
     names = set(args.topics or ())
     keep = topic_filter(names, _regex("--topic-regex", args.topic_regex), _regex("--exclude-regex", args.exclude_regex))
