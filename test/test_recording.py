@@ -658,7 +658,8 @@ def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any, savanna: 
     from zebra_sim_ros.messages import Datum
     from zebra_sim_ros.placement.config import PlacerConfig
     from zebra_sim_ros.placement.placer import Placer
-    from zebra_sim_ros.recording.census import bag_census, iso_time
+    from zebra_sim_ros.recording.census import bag_census
+    from zebra_sim_ros.recording.stamps import iso_time, stamp_text
 
     rng = np.random.default_rng(9)
     herd = np.column_stack([rng.uniform(-10, 10, (12, 2)), np.full(12, 0.7)])
@@ -697,6 +698,8 @@ def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any, savanna: 
     # a real flight's stamp (past 2^53 ns, where a JSON number loses its nanoseconds): to the millisecond, truncated
     assert [iso_time(t) for t in (1_764_577_532_123_999_999, 10**18, 999_999)] == [
         "2025-12-01T08:25:32.123Z", "2001-09-09T01:46:40.000Z", "1970-01-01T00:00:00.000Z"]
+    assert stamp_text(1_764_577_532_123_999_999) == "2025-12-01T08:25:32.123Z (1764577532.123999999)"  # bag info's
+    assert stamp_text(999_999) == "1970-01-01T00:00:00.000Z (0.000999999)"
     # a bag whose scenes carry their datum: that one, the same animals elsewhere on the Earth
     world = savanna
     scene = Placer(PlacerConfig.from_params({"seed": 3, "count_max": 5}), world, library).scene(0)
@@ -978,6 +981,9 @@ def test_bag_filter_writes_the_topics_and_the_stretch_of_time_asked_for(tmp_path
     want = [(topic, t, data) for topic, t, data in written if topic == "/drone_0/labels" and 50 <= (t - 10**9) // 10**8
             <= 125]
     assert got == want
+    info = cli(["bag", "info", tmp_path / "clip.mcap"])  # as ros2 bag info: its start and end, date and seconds
+    assert info.returncode == 0 and "start:     1970-01-01T00:00:06.000Z (6.000000000)\n" in info.stdout and \
+        "end:       1970-01-01T00:00:13.500Z (13.500000000)\n" in info.stdout, info.stdout
 
     s = rewrite([tmp_path / "a.mcap", tmp_path / "b.mcap"], tmp_path / "imgs.mcap",
                 keep=lambda topic: topic == "/drone_0/image_raw", start_s=15.0)

@@ -87,11 +87,15 @@ def register(sub: Any) -> None:
 def cmd_info(args: argparse.Namespace) -> Summary:
     """Print a bag summary."""
     from zebra_sim_ros.recording.reader import summarize
+    from zebra_sim_ros.recording.stamps import stamp_text
 
     s = summarize(args.bag, full=args.full)
     print(f"files:     {', '.join(s['files'])}")
     print(f"size:      {s['size_bytes'] / 1e6:.1f} MB")
     print(f"duration:  {s['duration_s']:.3f} s")
+    if s["start_ns"] is not None:
+        print(f"start:     {stamp_text(s['start_ns'])}")
+        print(f"end:       {stamp_text(s['end_ns'])}")
     print(f"messages:  {s['messages']}")
     print("topics:")
     for topic, t in s["topics"].items():

@@ -16,7 +16,6 @@ import re
 from collections import defaultdict
 from collections.abc import Mapping, Sequence
 from dataclasses import astuple
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +39,7 @@ from zebra_sim_ros.recording.cdr import (
 )
 from zebra_sim_ros.recording.evaluate import collect, skip_note
 from zebra_sim_ros.recording.reader import BagMessage, last_name, topic_owner, under_any_namespace
+from zebra_sim_ros.recording.stamps import iso_time
 
 
 def census_topic_re(locator: LocatorConfig) -> re.Pattern[str]:
@@ -76,16 +76,6 @@ def census_geojson(census: dict[int, list[Placed3D]], datum: Datum, about: dict[
     return {"type": "FeatureCollection", "features": features,
             "zebra_sim": {"datum": datum.to_dict(), "animals": len(rows), "per_class": dict(per_class),
                           "stamps": len(census), **about}}
-
-
-def iso_time(stamp_ns: int) -> str:
-    """A stamp as ISO 8601 UTC to the millisecond (``1970-01-01T00:00:01.250Z``), the form a GIS reads as a
-    date-time field (GDAL's GeoJSON driver types it so; QGIS's temporal controller plays it); truncated, not rounded,
-    so it never passes the next stamp's second. A JSON number holds ``stamp_ns`` exactly only below 2^53 ns (104
-    days): a reader in JavaScript or with doubles loses the nanoseconds of a real flight's stamp, which this and the
-    feature's id keep."""
-    seconds, ns = divmod(stamp_ns, 10**9)
-    return datetime.fromtimestamp(seconds, UTC).strftime("%Y-%m-%dT%H:%M:%S") + f".{ns // 10**6:03d}Z"
 
 
 def write_geojson(path: str | Path, collection: dict[str, Any]) -> Path:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import re
 import struct
 from collections.abc import Callable
+from datetime import UTC, datetime
 from functools import lru_cache
 
 from zebra_sim_ros.recording.schemas import SchemaError, msg_text
@@ -109,3 +110,20 @@ def _json_stamp_ns(data: bytes) -> int | None:
     if m is None or b'"schema"' not in data[8:200]:
         return None
     return int(m.group(1)) * NS_PER_S + int(m.group(2))
+
+
+def iso_time(stamp_ns: int) -> str:
+    """A stamp as ISO 8601 UTC to the millisecond (``1970-01-01T00:00:01.250Z``), the form a GIS reads as a
+    date-time field (GDAL's GeoJSON driver types it so; QGIS's temporal controller plays it); truncated, not rounded,
+    so it never passes the next stamp's second. A JSON number holds ``stamp_ns`` exactly only below 2^53 ns (104
+    days): a reader in JavaScript or with doubles loses the nanoseconds of a real flight's stamp, which this and the
+    feature's id keep."""
+    seconds, ns = divmod(stamp_ns, 10**9)
+    return datetime.fromtimestamp(seconds, UTC).strftime("%Y-%m-%dT%H:%M:%S") + f".{ns // 10**6:03d}Z"
+
+
+def stamp_text(stamp_ns: int) -> str:
+    """A stamp as ``ros2 bag info`` gives a bag's start and end, a date and the exact seconds since the epoch:
+    ``2025-12-01T08:25:32.123Z (1764577532.123999999)`` (:func:`iso_time`, then seconds.nanoseconds)."""
+    seconds, ns = divmod(stamp_ns, 10**9)
+    return f"{iso_time(stamp_ns)} ({seconds}.{ns:09d})"
