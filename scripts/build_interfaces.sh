@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Build the message packages under interfaces/ into the venv (prefix .venv: libraries in .venv/lib, Python in its
 # site-packages, .msg texts in .venv/share/<pkg>/msg), with CMake and the rosidl generators from PyPI. Idempotent:
-# a package is rebuilt only when its sources (or this script) change. tf2_msgs is built only where no other tf2_msgs
-# can be imported (a ROS 2 install that has geometry2 keeps its own). Only the C and Python code is generated
+# a package is rebuilt only when its sources (or this script) change. tf2_msgs and rosbag2_interfaces (the replay's
+# Seek, SetRate, GetRate, IsPaused and Burst services) are built only where no other can be imported (a ROS 2
+# install that has geometry2 or rosbag2 keeps its own). Only the C and Python code is generated
 # (-DZEBRA_SIM_PYTHON_ONLY=ON, interfaces/python_includes.cmake): rclpy loads the C typesupports, and the C++ ones
 # were a third of the build's time (benchmarks/bench_interfaces_build.py). Needs cmake and a C/C++ compiler
 # (scripts/setup.sh installs them). Usage: bash scripts/build_interfaces.sh [--force]
@@ -31,17 +32,20 @@ export AMENT_PREFIX_PATH="$BUILD/markers:$VENV"
 export CMAKE_PREFIX_PATH="$VENV"
 export PATH="$VENV/bin:$PATH"
 
-for pkg in tf2_msgs zebra_sim_msgs; do
+shopt -s nullglob
+for pkg in tf2_msgs rosbag2_interfaces zebra_sim_msgs; do
     src="$ROOT/interfaces/$pkg"
     stamp="$VENV/share/$pkg/.zebra_sim_build_stamp"
     want="$(cat "$ROOT/scripts/build_interfaces.sh" "$ROOT/interfaces/python_includes.cmake" "$src/CMakeLists.txt" \
-        "$src/package.xml" "$src"/msg/*.msg | sha256sum | cut -d' ' -f1)"
+        "$src/package.xml" "$src"/msg/*.msg "$src"/srv/*.srv | sha256sum | cut -d' ' -f1)"
+    kind=msg
+    [[ -d "$src/msg" ]] || kind=srv
     if ((force == 0)) && [[ "$(cat "$stamp" 2>/dev/null || true)" == "$want" ]]; then
         log "$pkg up to date"
         continue
     fi
-    if [[ "$pkg" == tf2_msgs && ! -f "$stamp" ]] && "$PY" -c "import tf2_msgs.msg" 2>/dev/null; then
-        log "tf2_msgs comes from this ROS 2 install: not built"
+    if [[ "$pkg" != zebra_sim_msgs && ! -f "$stamp" ]] && "$PY" -c "import $pkg.$kind" 2>/dev/null; then
+        log "$pkg comes from this ROS 2 install: not built"
         continue
     fi
     log "building $pkg"
@@ -59,7 +63,7 @@ for pkg in tf2_msgs zebra_sim_msgs; do
         echo "[interfaces] error: building $pkg failed (full log: $BUILD/$pkg.log)" >&2
         exit 1
     fi
-    "$PY" -c "import importlib; importlib.import_module('$pkg.msg')" \
+    "$PY" -c "import importlib; importlib.import_module('$pkg.$kind')" \
         || { echo "[interfaces] error: $pkg was built but does not import" >&2; exit 1; }
     echo "$want" >"$stamp"
 done

@@ -16,11 +16,13 @@ from mcap.reader import make_reader
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from ros_helpers import Peer, collect_diagnostics, fresh_domain_id, node_process, set_parameter
+from rosbag2_interfaces.srv import Burst, GetRate, IsPaused, Seek, SetRate
 from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header, String
 
 from zebra_sim_ros.recording.qos import profile_dict
+from zebra_sim_ros.recording.stamps import stamp_text
 from zebra_sim_ros.recording.writer import BagWriter
 
 pytestmark = pytest.mark.integration
@@ -340,18 +342,27 @@ def test_replay_skips_a_topic_it_cannot_play_and_plays_the_rest(peer: Peer, tmp_
     assert "cannot play /odd (nope_msgs/msg/Thing)" in (tmp_path / "replay.log").read_text()
 
 
-def _trigger(peer: Peer, name: str) -> Any:
-    """A caller of the std_srvs/Trigger service ``name``: ready() once it answers, call() its answer."""
+def _trigger(peer: Peer, name: str, srv: Any = None) -> Any:
+    """A caller of the service ``name`` (std_srvs/Trigger unless ``srv``): ready() once it answers, call(**fields)
+    its answer to a request with those fields."""
     from std_srvs.srv import Trigger
 
-    client = peer.node.create_client(Trigger, name)
+    srv = srv or Trigger
+    client = peer.node.create_client(srv, name)
 
-    def call() -> Trigger.Response:
-        future = client.call_async(Trigger.Request())
+    def call(**fields: Any) -> Any:
+        future = client.call_async(srv.Request(**fields))
         assert peer.spin(future.done, 30), f"no answer from {name}"
         return future.result()
     call.ready = client.service_is_ready  # type: ignore[attr-defined]
     return call
+
+
+def _stamp(ns: int) -> Any:
+    """builtin_interfaces/Time of ``ns`` nanoseconds since the epoch."""
+    from builtin_interfaces.msg import Time
+
+    return Time(sec=ns // 10**9, nanosec=ns % 10**9)
 
 
 def _send(peer: Peer, pub: Any, numbers: range) -> None:
@@ -362,15 +373,16 @@ def _send(peer: Peer, pub: Any, numbers: range) -> None:
 
 
 def test_the_recorder_pauses_and_resumes_on_its_services(peer: Peer, tmp_path: Path) -> None:
-    """``paused:=true`` and ``~/pause`` / ``~/resume`` / ``~/toggle_paused`` (std_srvs/Trigger), as ros2 bag
-    record's: what arrives while paused is counted (``paused`` on /diagnostics, and at exit), not written; what
-    arrives after ~/resume is; the answers say whether the state changed (a toggle names the state it leaves);
-    rosbags reads back exactly the messages sent while it recorded."""
+    """``paused:=true`` and ``~/pause`` / ``~/resume`` / ``~/toggle_paused`` (std_srvs/Trigger) and ``~/is_paused``
+    (rosbag2_interfaces/IsPaused), as ros2 bag record's: what arrives while paused is counted (``paused`` on
+    /diagnostics, and at exit), not written; what arrives after ~/resume is; the answers say whether the state
+    changed (a toggle names the state it leaves); rosbags reads back exactly the messages sent while it recorded."""
     pub = peer.node.create_publisher(String, "/chatter",
                                      QoSProfile(depth=50, durability=DurabilityPolicy.TRANSIENT_LOCAL))
     status = collect_diagnostics(peer.node, "recorder: recorder")
     pause, resume = _trigger(peer, "/recorder/pause"), _trigger(peer, "/recorder/resume")
     toggle = _trigger(peer, "/recorder/toggle_paused")
+    is_paused = _trigger(peer, "/recorder/is_paused", IsPaused)
     bag, log = tmp_path / "paused.mcap", tmp_path / "rec.log"
 
     def send(numbers: range) -> None:
@@ -384,7 +396,9 @@ def test_the_recorder_pauses_and_resumes_on_its_services(peer: Peer, tmp_path: P
         send(range(0, 5))  # paused from the start
         assert peer.spin(lambda: bool(status) and status[-1]["values"]["paused_messages"] == "5", 10), status[-1:]
         assert status[-1]["message"] == "paused" and status[-1]["values"]["messages"] == "0"
+        assert is_paused().paused  # rosbag2_interfaces/IsPaused, as ros2 bag record's
         assert (resume().message, resume().message) == ("resumed", "not paused")
+        assert not is_paused().paused
         send(range(5, 10))
         assert peer.spin(lambda: status[-1]["values"]["messages"] == "5", 10), status[-1:]  # all in before the pause
         answer = pause()
@@ -405,11 +419,12 @@ def test_the_recorder_pauses_and_resumes_on_its_services(peer: Peer, tmp_path: P
 
 
 def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path: Path) -> None:
-    """``paused:=true`` and ``~/pause`` / ``~/resume`` / ``~/play_next``, as ros2 bag play's: started paused nothing
-    plays (its /diagnostics say paused); ``~/play_next`` plays one message at a time and names it, /clock moved to
-    its time; resumed it plays; paused again it stops within a message or two, and /clock stands at the bag time
-    reached; resumed once more it plays the rest, every message once and in order, and ends; ``~/play_next`` while
-    playing is refused."""
+    """``paused:=true`` and ``~/pause`` / ``~/resume`` / ``~/play_next``, and rosbag2_interfaces' ``~/is_paused``,
+    ``~/burst``, ``~/set_rate`` and ``~/get_rate``, as ros2 bag play's: started paused nothing plays (its
+    /diagnostics say paused); ``~/play_next`` plays one message at a time and names it, /clock moved to its time;
+    ``~/burst`` plays the next three at once; a rate of 0 is refused, 1.5 is set; resumed it plays; paused again it
+    stops within a message or two, and /clock stands at the bag time reached; resumed once more it plays the rest,
+    every message once and in order, and ends; ``~/play_next`` and ``~/burst`` while playing are refused."""
     from rosgraph_msgs.msg import Clock
 
     times = _timed_bag(tmp_path / "t.mcap", [0.0] + [0.1000000013] * 19)  # 20 ticks over 1.9 s, odd nanoseconds
@@ -420,6 +435,8 @@ def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path:
     status = collect_diagnostics(peer.node, "replay: replay")
     pause, resume = _trigger(peer, "/replay/pause"), _trigger(peer, "/replay/resume")
     step = _trigger(peer, "/replay/play_next")
+    burst, is_paused = _trigger(peer, "/replay/burst", Burst), _trigger(peer, "/replay/is_paused", IsPaused)
+    set_rate, get_rate = _trigger(peer, "/replay/set_rate", SetRate), _trigger(peer, "/replay/get_rate", GetRate)
     log = tmp_path / "replay.log"
     params = {"bags": [str(tmp_path / "t.mcap")], "paused": True, "wait_for_subscribers_s": 20.0, "clock": True,
               "clock_rate_hz": 50.0, "diagnostics_period_s": 0.2}
@@ -437,10 +454,17 @@ def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path:
                 (got, clocks)
         peer.spin(lambda: False, 0.5)
         assert got == ["tick 0", "tick 1"] and clocks[-1] == times[1]  # held there again
-        assert resume().message == "resumed"
-        assert peer.spin(lambda: len(got) >= 5, 30), log.read_text()
+        assert is_paused().paused and burst(num_messages=3).actually_burst == 3
+        assert peer.spin(lambda: len(got) == 5 and clocks[-1] == times[4], 10), (got, clocks[-3:])
+        assert not set_rate(rate=0.0).success and get_rate().rate == pytest.approx(1.0)  # rate > 0, as rosbag2's
+        assert set_rate(rate=1.5).success and get_rate().rate == pytest.approx(1.5)
+        peer.spin(lambda: False, 0.5)
+        assert got == [f"tick {k}" for k in range(5)]  # still paused
+        assert resume().message == "resumed" and not is_paused().paused
+        assert peer.spin(lambda: len(got) >= 7, 30), log.read_text()
         refused = step()
         assert not refused.success and "not paused" in refused.message
+        assert burst(num_messages=2).actually_burst == 0
         assert pause().message == "paused"
         held = len(got)
         peer.spin(lambda: False, 1.0)
@@ -453,6 +477,7 @@ def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path:
         assert proc.wait(timeout=20) == 0, log.read_text()
     assert got == [f"tick {k}" for k in range(len(times))]
     assert all(b >= a for a, b in zip(clocks, clocks[1:], strict=False)), clocks  # /clock never went back
+    assert "set_rate to 0 refused: " in log.read_text() and "burst 0 of 2 messages: not paused" in log.read_text()
 
 
 def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_path: Path) -> None:
@@ -460,8 +485,9 @@ def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_
     first message at or after that bag time next; a seek back plays again from there, /clock back at the time sought;
     the same value again seeks again. Each tick is a chunk of its own, so a seek forward passes over the chunks
     before it unread, and a seek back among them reads the bags again. ``~/play_next`` while the replay waits for
-    subscribers is refused at once, not after its 5 s wait. Resumed, the rest plays in order and the replay ends; its
-    /diagnostics count the seeks."""
+    subscribers is refused at once, not after its 5 s wait. ``~/seek`` (rosbag2_interfaces/Seek) takes a stamp, and
+    refuses one past the last message. Resumed, the rest plays in order and the replay ends; its /diagnostics count
+    the seeks."""
     import time
 
     from rosgraph_msgs.msg import Clock
@@ -472,6 +498,7 @@ def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_
     peer.node.create_subscription(Clock, "/clock", lambda m: clocks.append(m.clock.sec * 10**9 + m.clock.nanosec), 100)
     status = collect_diagnostics(peer.node, "replay: replay")
     resume, step = _trigger(peer, "/replay/resume"), _trigger(peer, "/replay/play_next")
+    seek_stamp = _trigger(peer, "/replay/seek", Seek)
     log = tmp_path / "replay.log"
     params = {"bags": [str(tmp_path / "t.mcap")], "paused": True, "wait_for_subscribers_s": 60.0, "clock": True,
               "clock_rate_hz": 50.0, "diagnostics_period_s": 0.2}
@@ -505,13 +532,24 @@ def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_
         seek(0.55)  # ... then back among them, after the last tick read: the bags are read again
         answer = step()
         assert answer.success and answer.message == f"played /tick at {(times[6] - times[0]) / 1e9:.3f} s of the bag"
-        assert got == ["tick 10", "tick 3", "tick 3", "tick 6"]
+        # rosbag2_interfaces/Seek takes a stamp: past the last message it is refused, at a message's exact stamp
+        # (odd nanoseconds) that message plays next
+        assert not seek_stamp(time=_stamp(times[-1] + 1)).success
+        n = len(clocks)
+        assert seek_stamp(time=_stamp(times[8])).success
+        # /clock stands at the time sought (seconds after the first message: within a nanosecond of the stamp) ...
+        assert peer.spin(lambda: any(abs(c - times[8]) <= 1 for c in clocks[n:]), 10), clocks[n:]
+        assert step().message == f"played /tick at {(times[8] - times[0]) / 1e9:.3f} s of the bag"
+        assert peer.spin(lambda: clocks[-1] == times[8], 10), clocks[-3:]  # ... and at the stamp once it plays
+        assert got == ["tick 10", "tick 3", "tick 3", "tick 6", "tick 8"]
         assert resume().message == "resumed"
-        assert peer.spin(lambda: len(got) == 17, 30), (got, log.read_text())
+        assert peer.spin(lambda: len(got) == 16, 30), (got, log.read_text())
         assert proc.wait(timeout=30) == 0, log.read_text()
-    assert got == ["tick 10", "tick 3", "tick 3", "tick 6"] + [f"tick {k}" for k in range(7, 20)]
-    assert any(s["values"].get("seeks") == "5" for s in status), status[-1:]
+    assert got == ["tick 10", "tick 3", "tick 3", "tick 6", "tick 8"] + [f"tick {k}" for k in range(9, 20)]
+    assert any(s["values"].get("seeks") == "6" for s in status), status[-1:]
     assert "seeking to 0.25 s of the bag" in log.read_text()
+    assert f"seek to {stamp_text(times[-1] + 1)} refused: past the bags' last message at {stamp_text(times[-1])}" \
+        in log.read_text()
 
 
 def test_a_seek_while_playing_cuts_the_wait_for_a_far_message(peer: Peer, tmp_path: Path) -> None:

@@ -952,8 +952,9 @@ def test_bag_filter_writes_the_topics_and_the_stretch_of_time_asked_for(tmp_path
     opened. A cut input (no summary) gives the same window. A folder of split files reads in order; ``--topics``
     names topics, and one not found is said; nothing found exits 1; bags it took (given after it) are refused, naming
     them, and ``--`` ends it. Bad values are refused naming the option, and nothing is written (an output in a
-    folder read would join its recording: refused too)."""
-    from zebra_sim_ros.recording.reader import first_log_time, rewrite
+    folder read would join its recording: refused too). The files' last log time comes from their summaries, and is
+    not known where one is cut."""
+    from zebra_sim_ros.recording.reader import first_log_time, last_log_time, rewrite
 
     written: list[tuple[str, int, str]] = []
     for k, name in enumerate(("a.mcap", "b.mcap")):
@@ -996,6 +997,9 @@ def test_bag_filter_writes_the_topics_and_the_stretch_of_time_asked_for(tmp_path
 
     cut_after_last_chunk(tmp_path / "b.mcap", tmp_path / "cut.mcap")
     assert first_log_time([tmp_path / "cut.mcap"]) == 10**9 + 100 * 10**8
+    # the last from the summaries alone (the replay's ~/seek refuses past it); a cut file's is not known so
+    assert last_log_time([tmp_path / "b.mcap", tmp_path / "a.mcap"]) == 10**9 + 199 * 10**8
+    assert last_log_time([tmp_path / "a.mcap", tmp_path / "cut.mcap"]) is None
     cut = rewrite(tmp_path / "cut.mcap", tmp_path / "cut_clip.mcap", start_s=2.0, end_s=2.0)
     assert (cut["messages"], cut["start_ns"], cut["end_ns"]) == (3, 10**9 + 120 * 10**8, 10**9 + 120 * 10**8)
 

@@ -11,9 +11,10 @@ local only if they all are), and the offered profiles go into the bag as rosbag2
 time, the stamps' time base. Each message's publish time is when it arrived (wall clock), which is what latencies are
 measured from. Callbacks only queue the bytes; one thread writes. A full queue counts drops per topic; a full disk or
 ``max_size_mb`` ends the recording with a finalised bag and an error. ``paused`` (runtime; the ``~/pause``,
-``~/resume`` and ``~/toggle_paused`` services, std_srvs/Trigger, set it, as ``ros2 bag record``'s) writes nothing while
-true: what arrives is counted per topic (``paused_messages`` on /diagnostics), neither written nor dropped, and topics
-are still found and subscribed. ``~/split_bagfile`` (std_srvs/Trigger, as ``ros2 bag record``'s) finishes the open file
+``~/resume`` and ``~/toggle_paused`` services, std_srvs/Trigger, set it, and ``~/is_paused``,
+rosbag2_interfaces/IsPaused, gives it, as ``ros2 bag record``'s) writes nothing while true: what arrives is counted
+per topic (``paused_messages`` on /diagnostics), neither written nor dropped, and topics are still found and
+subscribed. ``~/split_bagfile`` (std_srvs/Trigger, as ``ros2 bag record``'s) finishes the open file
 after what is queued and goes on in the next (``<stem>_1.mcap``, ... for a bag not split by size or duration). With
 ``snapshot_size_mb`` > 0 (snapshot mode, as ``ros2 bag record --snapshot-mode``) the newest messages are kept in memory
 instead, up to that size (and ``snapshot_duration_s`` of log time), and ``~/snapshot`` (std_srvs/Trigger) writes them

@@ -10,12 +10,15 @@ with the bag's time for ``use_sim_time`` consumers. ``paused`` (runtime; the ``~
 reached and goes on from there; while paused, ``~/play_next`` plays the next message alone (/clock moves to its
 time) and answers with its topic and bag time; ``rate`` changes apply at once. Setting ``start_offset_s`` while
 playing seeks there, as ``ros2 bag play``'s seek: the next message played is the first at or after that bag time
-(back or forth; a pause holds there). A truncated or corrupt bag plays everything intact, then the node logs where
-and why it stopped. The node exits when done (unless looping).
+(back or forth; a pause holds there). rosbag2_interfaces services as ``ros2 bag play``'s: ``~/seek`` (a bag stamp),
+``~/set_rate``, ``~/get_rate``, ``~/is_paused`` and ``~/burst`` (while paused, the next N messages at once; 0: the
+rest of the pass). A truncated or corrupt bag plays everything intact, then the node logs where and why it stopped.
+The node exits when done (unless looping).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 import threading
@@ -26,6 +29,7 @@ from typing import Any
 import yaml
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
+from rosbag2_interfaces.srv import Burst, GetRate, Seek, SetRate
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 
@@ -42,9 +46,11 @@ from zebra_sim_ros.nodes.ros_adapter import (
 )
 from zebra_sim_ros.recording.config import REPLAY_PARAMS, ReplayConfig
 from zebra_sim_ros.recording.qos import from_yaml, load_overrides, overridden, replay_profile
-from zebra_sim_ros.recording.reader import BagReader, topic_filter
+from zebra_sim_ros.recording.reader import BagReader, last_log_time, topic_filter
+from zebra_sim_ros.recording.stamps import stamp_text
 
-_STEP_WAIT_S = 5.0  # how long ~/play_next waits for its message to be played before it withdraws the request
+_STEP_WAIT_S = 5.0  # how long ~/play_next (~/burst: each message) waits to be played before it withdraws the request
+_BURST_ALL = 2**64 - 1  # ~/burst's 0: every message to the end of the pass (a uint64 cannot ask for more)
 
 # After waiting for subscribers, before the first message: the publisher sees a new subscriber before that
 # subscriber's side knows the publisher (discovery runs both ways), and what the subscriber drops meanwhile is lost
@@ -114,6 +120,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         # ~/play_next: steps asked for and not yet taken (the play thread takes them while paused), messages played
         # by a step and the last of them (topic and bag time); the condition guards all three
         self.steps, self.stepped, self.step_note = 0, 0, ""
+        self.passes = 0  # passes ended (a ~/burst of the whole bag stops at the end of its pass)
         self.step_cond = threading.Condition()
         self.seek_to: float | None = None  # a seek asked for and not yet taken (bag seconds); under step_cond
         self.seeks = 0  # seeks taken
@@ -128,6 +135,10 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             self._publisher(topic, type_name, metadata)                    # before the first message is played
         self.serve_pause()
         self.create_service(Trigger, "~/play_next", self._on_play_next)
+        self.create_service(Burst, "~/burst", self._on_burst)
+        self.create_service(Seek, "~/seek", self._on_seek)
+        self.create_service(SetRate, "~/set_rate", self._on_set_rate)
+        self.create_service(GetRate, "~/get_rate", self._on_get_rate)
         self.get_logger().info(f"playing {[str(p) for p in self.reader.paths]} at rate {c.rate}, "
                                f"offset {c.start_offset_s} s, duration {c.duration_s or 'all'}, "
                                f"loop {c.loop}, clock {c.clock}, remap prefix '{c.remap_prefix}'"
@@ -318,34 +329,101 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             self.get_logger().warning(f"bag damaged, played everything intact: {note}")
         flush(self, [p for p in self.pubs.values() if p is not None])
         self.get_logger().info(f"played {n} messages" + (f" ({self.seeks} seeks)" if self.seeks else ""))
+        with self.step_cond:  # a ~/burst of the whole bag ends here
+            self.passes += 1
+            self.step_cond.notify_all()
 
     def _on_play_next(self, request: Any, response: Any) -> Any:
         """``~/play_next``: while paused, the next message is played alone; answered once it is (its topic and bag
-        time), or refused: not paused, the bag played to its end or failed, at once while the replay waits for
-        subscribers or reads the bags on to a time sought, or nothing played within ``_STEP_WAIT_S`` (the step is
-        then withdrawn, unless the play thread has just taken it)."""
-        response.success = False
+        time), or refused: see :meth:`_play_steps`."""
+        played, why = self._play_steps(1, "~/play_next")
+        response.success = played == 1
+        response.message = f"played {self.step_note}" if played else why
+        return response
+
+    def _on_burst(self, request: Any, response: Any) -> Any:
+        """``~/burst`` (rosbag2_interfaces/Burst): while paused, the next ``num_messages`` play at once, each as
+        soon as the one before (0: to the end of the pass); answers how many were (``actually_burst``), and logs
+        why where fewer were."""
+        n = int(request.num_messages) or _BURST_ALL
+        played, why = self._play_steps(n, "~/burst")
+        response.actually_burst = played
+        if played:
+            self.get_logger().info(f"burst {played} messages, the last {self.step_note}")
+        if why and (played == 0 or n != _BURST_ALL):
+            self.get_logger().warning(f"burst {played} of {request.num_messages} messages: {why}")
+        return response
+
+    def _play_steps(self, n: int, service: str) -> tuple[int, str]:
+        """Play the next ``n`` messages alone while paused, each as soon as the one before (the play thread takes
+        them as steps); returns how many were played and, where fewer, why: not paused, the bag played to its end
+        (or this pass, for a burst of the whole bag) or failed, at once while the replay waits for subscribers or
+        reads the bags on to a time sought, or no message played within ``_STEP_WAIT_S`` (the steps not taken are
+        withdrawn; one the play thread has just taken plays after the answer)."""
         ended = lambda: self.error or "the bag has been played"  # noqa: E731
         if self.done or not self.cfg.paused:
-            response.message = ended() if self.done else "not paused: ~/play_next plays one message while paused"
-            return response
+            return 0, ended() if self.done else f"not paused: {service} plays while paused"
         if busy := self.waiting or self.reading:  # no message is near: refused at once, not holding the executor
-            response.message = f"nothing to play yet ({busy})"
-            return response
+            return 0, f"nothing to play yet ({busy})"
         with self.step_cond:
-            before = self.stepped
-            self.steps += 1
-            self.step_cond.wait_for(lambda: self.stepped > before or self.done or not self.context.ok(),
-                                    timeout=_STEP_WAIT_S)
-            if self.stepped > before:
-                response.success, response.message = True, f"played {self.step_note}"
-            elif self.steps > 0:  # not taken: withdrawn
-                self.steps -= 1
+            before, passes = self.stepped, self.passes
+            self.steps += n
+            while self.stepped - before < n and self.passes == passes:
+                last = self.stepped
+                self.step_cond.wait_for(functools.partial(self._stepped_since, last, passes), timeout=_STEP_WAIT_S)
+                if self.stepped == last:
+                    break
+            played = self.stepped - before
+            if played >= n:
+                return played, ""
+            withdrawn = min(self.steps, n - played)
+            self.steps -= withdrawn
+            if self.done:
+                return played, ended()
+            if self.passes != passes:
+                return played, "the pass ended"
+            if withdrawn == n - played:
                 busy = self.waiting or self.reading
-                response.message = ended() if self.done else \
-                    f"nothing played within {_STEP_WAIT_S:g} s" + (f" ({busy})" if busy else "")
-            else:  # taken by the play thread just now: it plays, after this answer
-                response.message = f"the next message is playing (not within {_STEP_WAIT_S:g} s)"
+                return played, f"nothing played within {_STEP_WAIT_S:g} s" + (f" ({busy})" if busy else "")
+            return played, f"the next message is playing (not within {_STEP_WAIT_S:g} s)"
+
+    def _stepped_since(self, stepped: int, passes: int) -> bool:
+        """A message played after ``stepped`` had been, the pass ``passes`` ended, or the replay did (under
+        ``step_cond``)."""
+        return self.stepped > stepped or self.passes != passes or self.done or not self.context.ok()
+
+    def _on_seek(self, request: Any, response: Any) -> Any:
+        """``~/seek`` (rosbag2_interfaces/Seek): seek to a bag stamp, as setting ``start_offset_s`` to its seconds
+        after the first message played (a stamp before it seeks there). Refused (success false, the reason logged)
+        before a message is read, past the bags' last message where their summaries give it, and where the
+        offset is."""
+        ns = int(request.time.sec) * 10**9 + int(request.time.nanosec)
+        t0 = self.t0_bag
+        why = ""
+        if t0 is None:
+            why = "no message read yet: the bags' first played stamp is not known"
+        elif (end := last_log_time(self.reader.paths)) is not None and ns > end:
+            why = f"past the bags' last message at {stamp_text(end)}"
+        else:
+            result = self.set_parameters([Parameter("start_offset_s", Parameter.Type.DOUBLE,
+                                                    max(0.0, (ns - t0) / 1e9))])[0]
+            why = "" if result.successful else result.reason
+        response.success = not why
+        if why:
+            self.get_logger().warning(f"seek to {stamp_text(ns)} refused: {why}")
+        return response
+
+    def _on_set_rate(self, request: Any, response: Any) -> Any:
+        """``~/set_rate`` (rosbag2_interfaces/SetRate): sets ``rate`` (its bounds hold; a refusal is logged)."""
+        result = self.set_parameters([Parameter("rate", Parameter.Type.DOUBLE, float(request.rate))])[0]
+        response.success = bool(result.successful)
+        if not result.successful:
+            self.get_logger().warning(f"set_rate to {request.rate:g} refused: {result.reason}")
+        return response
+
+    def _on_get_rate(self, request: Any, response: Any) -> Any:
+        """``~/get_rate`` (rosbag2_interfaces/GetRate): the ``rate`` played at (paused or not)."""
+        response.rate = float(self.cfg.rate)
         return response
 
     def _take_step(self) -> bool:

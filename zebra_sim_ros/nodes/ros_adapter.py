@@ -181,7 +181,8 @@ class ZebraNode(Node, Generic[C]):
         """``~/pause``, ``~/resume`` and ``~/toggle_paused`` (std_srvs/Trigger), as ``ros2 bag``'s: each sets the
         node's runtime ``paused`` parameter, so ``ros2 param get`` shows the state and :meth:`on_config` applies it;
         the answer says the state it leaves and whether it changed (``paused``, ``resumed``, ``already paused``,
-        ``not paused``)."""
+        ``not paused``). ``~/is_paused`` (rosbag2_interfaces/IsPaused, as ``ros2 bag``'s) gives the state."""
+        from rosbag2_interfaces.srv import IsPaused
         from std_srvs.srv import Trigger
 
         if "paused" not in {s.name for s in self.config_class.specs()}:
@@ -201,6 +202,12 @@ class ZebraNode(Node, Generic[C]):
         self.create_service(Trigger, "~/pause", setter(True))
         self.create_service(Trigger, "~/resume", setter(False))
         self.create_service(Trigger, "~/toggle_paused", setter(None))
+
+        def is_paused(request: Any, response: Any) -> Any:
+            response.paused = bool(self.get_parameter("paused").value)
+            return response
+
+        self.create_service(IsPaused, "~/is_paused", is_paused)
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         specs = {s.name: s for s in self.config_class.specs()}

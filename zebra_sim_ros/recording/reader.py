@@ -367,6 +367,19 @@ def first_log_time(paths: list[Path]) -> int | None:
     return min(times) if times else None
 
 
+def last_log_time(paths: list[Path]) -> int | None:
+    """The latest log time in the files, from their summaries' statistics alone (no chunk read); None where a file
+    has none (cut short, still written: its end is not known without reading it all) or no file has a message."""
+    ends: list[int] = []
+    for path in paths:
+        summary = file_summary(path)
+        if summary is None or summary.statistics is None:
+            return None
+        if summary.statistics.message_count:
+            ends.append(summary.statistics.message_end_time)
+    return max(ends) if ends else None
+
+
 def summarize(paths: list[str | Path] | str | Path, full: bool = False) -> dict[str, Any]:
     """``ros2 bag info``: files, size, duration, start and end, message count and type per topic.
 
