@@ -21,6 +21,7 @@ from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header, String
 
+from zebra_sim_ros.nodes.ros_adapter import stamp
 from zebra_sim_ros.recording.qos import profile_dict
 from zebra_sim_ros.recording.stamps import stamp_text
 from zebra_sim_ros.recording.writer import BagWriter
@@ -358,13 +359,6 @@ def _trigger(peer: Peer, name: str, srv: Any = None) -> Any:
     return call
 
 
-def _stamp(ns: int) -> Any:
-    """builtin_interfaces/Time of ``ns`` nanoseconds since the epoch."""
-    from builtin_interfaces.msg import Time
-
-    return Time(sec=ns // 10**9, nanosec=ns % 10**9)
-
-
 def _send(peer: Peer, pub: Any, numbers: range) -> None:
     """Publish each number as a String, 20 ms apart, spinning the peer between."""
     for k in numbers:
@@ -423,8 +417,9 @@ def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path:
     ``~/burst``, ``~/set_rate`` and ``~/get_rate``, as ros2 bag play's: started paused nothing plays (its
     /diagnostics say paused); ``~/play_next`` plays one message at a time and names it, /clock moved to its time;
     ``~/burst`` plays the next three at once; a rate of 0 is refused, 1.5 is set; resumed it plays; paused again it
-    stops within a message or two, and /clock stands at the bag time reached; resumed once more it plays the rest,
-    every message once and in order, and ends; ``~/play_next`` and ``~/burst`` while playing are refused."""
+    stops within a message or two, and /clock stands at the bag time reached; a burst of 0 plays the rest at once,
+    every message once and in order, and the replay ends; ``~/play_next`` and ``~/burst`` while playing are
+    refused."""
     from rosgraph_msgs.msg import Clock
 
     times = _timed_bag(tmp_path / "t.mcap", [0.0] + [0.1000000013] * 19)  # 20 ticks over 1.9 s, odd nanoseconds
@@ -472,7 +467,7 @@ def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path:
         n, stood = len(got), clocks[-1]
         peer.spin(lambda: False, 0.5)
         assert len(got) == n and clocks[-1] == stood and times[0] <= stood <= times[n]  # /clock holds where it is
-        assert resume().message == "resumed"
+        assert burst(num_messages=0).actually_burst == len(times) - n  # 0: the rest of the pass, at once
         assert peer.spin(lambda: len(got) == len(times), 30), (got, log.read_text())
         assert proc.wait(timeout=20) == 0, log.read_text()
     assert got == [f"tick {k}" for k in range(len(times))]
@@ -534,9 +529,9 @@ def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_
         assert answer.success and answer.message == f"played /tick at {(times[6] - times[0]) / 1e9:.3f} s of the bag"
         # rosbag2_interfaces/Seek takes a stamp: past the last message it is refused, at a message's exact stamp
         # (odd nanoseconds) that message plays next
-        assert not seek_stamp(time=_stamp(times[-1] + 1)).success
+        assert not seek_stamp(time=stamp(times[-1] + 1)).success
         n = len(clocks)
-        assert seek_stamp(time=_stamp(times[8])).success
+        assert seek_stamp(time=stamp(times[8])).success
         # /clock stands at the time sought (seconds after the first message: within a nanosecond of the stamp) ...
         assert peer.spin(lambda: any(abs(c - times[8]) <= 1 for c in clocks[n:]), 10), clocks[n:]
         assert step().message == f"played /tick at {(times[8] - times[0]) / 1e9:.3f} s of the bag"

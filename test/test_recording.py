@@ -700,6 +700,7 @@ def test_a_recounted_census_on_the_earth(tmp_path: Path, library: Any, savanna: 
         "2025-12-01T08:25:32.123Z", "2001-09-09T01:46:40.000Z", "1970-01-01T00:00:00.000Z"]
     assert stamp_text(1_764_577_532_123_999_999) == "2025-12-01T08:25:32.123Z (1764577532.123999999)"  # bag info's
     assert stamp_text(999_999) == "1970-01-01T00:00:00.000Z (0.000999999)"
+    assert stamp_text(-1) == "1969-12-31T23:59:59.999Z (-0.000000001)"  # a Time's sec may be negative
     # a bag whose scenes carry their datum: that one, the same animals elsewhere on the Earth
     world = savanna
     scene = Placer(PlacerConfig.from_params({"seed": 3, "count_max": 5}), world, library).scene(0)

@@ -43,6 +43,7 @@ from zebra_sim_ros.nodes.ros_adapter import (
     profile_qos,
     run_node,
     stamp,
+    stamp_ns,
 )
 from zebra_sim_ros.recording.config import REPLAY_PARAMS, ReplayConfig
 from zebra_sim_ros.recording.qos import from_yaml, load_overrides, overridden, replay_profile
@@ -120,7 +121,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         # ~/play_next: steps asked for and not yet taken (the play thread takes them while paused), messages played
         # by a step and the last of them (topic and bag time); the condition guards all three
         self.steps, self.stepped, self.step_note = 0, 0, ""
-        self.passes = 0  # passes ended (a ~/burst of the whole bag stops at the end of its pass)
+        self.passes = 0  # passes ended (a ~/burst of the whole pass stops at the end of its pass)
+        self.burst_all = False  # a ~/burst of the whole pass runs: its steps not taken end with the pass
         self.step_cond = threading.Condition()
         self.seek_to: float | None = None  # a seek asked for and not yet taken (bag seconds); under step_cond
         self.seeks = 0  # seeks taken
@@ -329,14 +331,16 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             self.get_logger().warning(f"bag damaged, played everything intact: {note}")
         flush(self, [p for p in self.pubs.values() if p is not None])
         self.get_logger().info(f"played {n} messages" + (f" ({self.seeks} seeks)" if self.seeks else ""))
-        with self.step_cond:  # a ~/burst of the whole bag ends here
+        with self.step_cond:  # a ~/burst of the whole pass ends here: the next pass takes none of its steps
             self.passes += 1
+            if self.burst_all:
+                self.steps, self.burst_all = 0, False
             self.step_cond.notify_all()
 
     def _on_play_next(self, request: Any, response: Any) -> Any:
         """``~/play_next``: while paused, the next message is played alone; answered once it is (its topic and bag
         time), or refused: see :meth:`_play_steps`."""
-        played, why = self._play_steps(1, "~/play_next")
+        played, why, _ = self._play_steps(1, "~/play_next")
         response.success = played == 1
         response.message = f"played {self.step_note}" if played else why
         return response
@@ -346,58 +350,64 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         soon as the one before (0: to the end of the pass); answers how many were (``actually_burst``), and logs
         why where fewer were."""
         n = int(request.num_messages) or _BURST_ALL
-        played, why = self._play_steps(n, "~/burst")
+        played, why, at_end = self._play_steps(n, "~/burst")
         response.actually_burst = played
         if played:
             self.get_logger().info(f"burst {played} messages, the last {self.step_note}")
-        if why and (played == 0 or n != _BURST_ALL):
-            self.get_logger().warning(f"burst {played} of {request.num_messages} messages: {why}")
+        if why and not (n == _BURST_ALL and played and at_end):  # the whole pass, as asked
+            self.get_logger().warning(f"burst {played} of {request.num_messages or 'the pass'} messages: {why}")
         return response
 
-    def _play_steps(self, n: int, service: str) -> tuple[int, str]:
+    def _play_steps(self, n: int, service: str) -> tuple[int, str, bool]:
         """Play the next ``n`` messages alone while paused, each as soon as the one before (the play thread takes
-        them as steps); returns how many were played and, where fewer, why: not paused, the bag played to its end
-        (or this pass, for a burst of the whole bag) or failed, at once while the replay waits for subscribers or
-        reads the bags on to a time sought, or no message played within ``_STEP_WAIT_S`` (the steps not taken are
-        withdrawn; one the play thread has just taken plays after the answer)."""
+        them as steps; ``_BURST_ALL``: to the end of this pass); returns how many were played, where fewer why, and
+        whether the bag or (for ``_BURST_ALL``) the pass ended: not paused, the bag played to its end or failed, at
+        once while the replay waits for subscribers or reads the bags on to a time sought, or no message played
+        within ``_STEP_WAIT_S`` (the steps not taken are withdrawn; one the play thread has just taken plays after
+        the answer)."""
         ended = lambda: self.error or "the bag has been played"  # noqa: E731
         if self.done or not self.cfg.paused:
-            return 0, ended() if self.done else f"not paused: {service} plays while paused"
+            return 0, ended() if self.done else f"not paused: {service} plays while paused", self.done
         if busy := self.waiting or self.reading:  # no message is near: refused at once, not holding the executor
-            return 0, f"nothing to play yet ({busy})"
+            return 0, f"nothing to play yet ({busy})", False
+        whole = n == _BURST_ALL
         with self.step_cond:
             before, passes = self.stepped, self.passes
             self.steps += n
-            while self.stepped - before < n and self.passes == passes:
+            self.burst_all = whole
+            while self.stepped - before < n and (not whole or self.passes == passes):
                 last = self.stepped
-                self.step_cond.wait_for(functools.partial(self._stepped_since, last, passes), timeout=_STEP_WAIT_S)
+                self.step_cond.wait_for(functools.partial(self._stepped_since, last, passes if whole else None),
+                                        timeout=_STEP_WAIT_S)
                 if self.stepped == last:
                     break
             played = self.stepped - before
+            self.burst_all = False
             if played >= n:
-                return played, ""
+                return played, "", False
             withdrawn = min(self.steps, n - played)
             self.steps -= withdrawn
             if self.done:
-                return played, ended()
-            if self.passes != passes:
-                return played, "the pass ended"
+                return played, ended(), not self.error
+            if whole and self.passes != passes:
+                return played, "the pass ended", True
             if withdrawn == n - played:
                 busy = self.waiting or self.reading
-                return played, f"nothing played within {_STEP_WAIT_S:g} s" + (f" ({busy})" if busy else "")
-            return played, f"the next message is playing (not within {_STEP_WAIT_S:g} s)"
+                return played, f"nothing played within {_STEP_WAIT_S:g} s" + (f" ({busy})" if busy else ""), False
+            return played, f"the next message is playing (not within {_STEP_WAIT_S:g} s)", False
 
-    def _stepped_since(self, stepped: int, passes: int) -> bool:
-        """A message played after ``stepped`` had been, the pass ``passes`` ended, or the replay did (under
-        ``step_cond``)."""
-        return self.stepped > stepped or self.passes != passes or self.done or not self.context.ok()
+    def _stepped_since(self, stepped: int, passes: int | None) -> bool:
+        """A message played after ``stepped`` had been, the pass ``passes`` ended (where given), or the replay did
+        (under ``step_cond``)."""
+        return (self.stepped > stepped or (passes is not None and self.passes != passes) or self.done
+                or not self.context.ok())
 
     def _on_seek(self, request: Any, response: Any) -> Any:
         """``~/seek`` (rosbag2_interfaces/Seek): seek to a bag stamp, as setting ``start_offset_s`` to its seconds
         after the first message played (a stamp before it seeks there). Refused (success false, the reason logged)
-        before a message is read, past the bags' last message where their summaries give it, and where the
-        offset is."""
-        ns = int(request.time.sec) * 10**9 + int(request.time.nanosec)
+        before a message is read, past the bags' last message where their summaries give it, and where setting the
+        offset is (the replay has ended)."""
+        ns = stamp_ns(request.time)
         t0 = self.t0_bag
         why = ""
         if t0 is None:

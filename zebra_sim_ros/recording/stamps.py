@@ -123,7 +123,8 @@ def iso_time(stamp_ns: int) -> str:
 
 
 def stamp_text(stamp_ns: int) -> str:
-    """A stamp as ``ros2 bag info`` gives a bag's start and end, a date and the exact seconds since the epoch:
-    ``2025-12-01T08:25:32.123Z (1764577532.123999999)`` (:func:`iso_time`, then seconds.nanoseconds)."""
-    seconds, ns = divmod(stamp_ns, 10**9)
-    return f"{iso_time(stamp_ns)} ({seconds}.{ns:09d})"
+    """A stamp as a date and the exact seconds since the epoch, the pair ``ros2 bag info`` gives a bag's start and end:
+    ``2025-12-01T08:25:32.123Z (1764577532.123999999)`` (:func:`iso_time`, then seconds.nanoseconds; before the
+    epoch both signed as the stamp: ``-1`` ns is ``(-0.000000001)``)."""
+    seconds, ns = divmod(abs(stamp_ns), 10**9)
+    return f"{iso_time(stamp_ns)} ({'-' if stamp_ns < 0 else ''}{seconds}.{ns:09d})"
