@@ -1,13 +1,14 @@
 """Benchmark: how long the message packages under ``interfaces/`` take to build, Python-only against whole.
 
-Builds each package (``zebra_sim_msgs``, ``tf2_msgs``) from scratch with CMake as ``scripts/build_interfaces.sh``
-does, into a throwaway build folder and install prefix, once with ``-DZEBRA_SIM_PYTHON_ONLY=ON`` (what the set-up
-builds: the C and Python code) and once with it off (the whole ROS package: C++ headers and the three C++
-typesupports too), the two alternating ``--rounds`` times, and reports each one's median wall and CPU seconds (the
-children's user + system), their ratio, and the libraries each installed. Run it after ``scripts/setup.sh`` (it uses
+Builds each package (``zebra_sim_msgs``, ``tf2_msgs``, ``rosbag2_interfaces``; ``--packages`` names some) from
+scratch with CMake as ``scripts/build_interfaces.sh`` does, into a throwaway build folder and install prefix, once
+with ``-DZEBRA_SIM_PYTHON_ONLY=ON`` (what the set-up builds: the C and Python code) and once with it off (the whole
+ROS package: C++ headers and the three C++ typesupports too), the two alternating ``--rounds`` times, and reports
+each one's median wall and CPU seconds (the children's user + system), their ratio, and the libraries each
+installed. Run it after ``scripts/setup.sh`` (it uses
 the venv's rosidl generators and the typesupport markers the set-up registers under ``build/interfaces``).
 
-    python benchmarks/bench_interfaces_build.py [--rounds 3] [--jobs 2] [--json]
+    python benchmarks/bench_interfaces_build.py [--rounds 3] [--jobs 2] [--packages P ...] [--json]
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from typing import Any
 
 HERE = Path(__file__).resolve().parents[1]
 VENV = HERE / ".venv"
-PACKAGES = ("zebra_sim_msgs", "tf2_msgs")
+PACKAGES = ("zebra_sim_msgs", "tf2_msgs", "rosbag2_interfaces")
 
 
 def build(pkg: str, python_only: bool, jobs: int) -> tuple[float, float, list[str]]:
@@ -61,8 +62,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="cmake --build -j (the set-up: nproc)")
+    ap.add_argument("--packages", nargs="+", default=list(PACKAGES), help="the packages built (each round, in turn)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
+    if unknown := [p for p in args.packages if p not in PACKAGES]:
+        raise SystemExit(f"--packages: {unknown[0]!r} is not under interfaces/ (want some of {', '.join(PACKAGES)})")
     if args.rounds < 1:
         raise SystemExit(f"--rounds must be 1 or more, got {args.rounds}")
     if args.jobs < 1:
@@ -73,7 +77,7 @@ def main() -> None:
         for python_only in ((True, False) if r % 2 == 0 else (False, True)):
             wall = cpu = 0.0
             names: list[str] = []
-            for pkg in PACKAGES:
+            for pkg in args.packages:
                 w, c, n = build(pkg, python_only, args.jobs)
                 wall, cpu, names = wall + w, cpu + c, names + n
             times[python_only].append((wall, cpu))
@@ -82,14 +86,14 @@ def main() -> None:
     med = {k: (statistics.median(w for w, _ in v), statistics.median(c for _, c in v)) for k, v in times.items()}
     out: dict[str, Any] = {
         "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores", "jobs": args.jobs,
-        "rounds": args.rounds, "packages": list(PACKAGES),
+        "rounds": args.rounds, "packages": args.packages,
         "python_only": {"wall_s": round(med[True][0], 1), "cpu_s": round(med[True][1], 1), "libraries": libs[True]},
         "whole": {"wall_s": round(med[False][0], 1), "cpu_s": round(med[False][1], 1), "libraries": libs[False]},
         "wall_ratio": round(med[True][0] / med[False][0], 3), "cpu_ratio": round(med[True][1] / med[False][1], 3)}
     if args.json:
         print(json.dumps(out, indent=1))
         return
-    print(f"| build ({' + '.join(PACKAGES)}, -j {args.jobs}) | median wall (s) | median CPU (s) | libraries |")
+    print(f"| build ({' + '.join(args.packages)}, -j {args.jobs}) | median wall (s) | median CPU (s) | libraries |")
     print("| --- | --- | --- | --- |")
     for key, name in (("python_only", "C and Python (-DZEBRA_SIM_PYTHON_ONLY=ON, the set-up's)"),
                       ("whole", "whole package (off)")):
