@@ -340,7 +340,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
     def _on_play_next(self, request: Any, response: Any) -> Any:
         """``~/play_next``: while paused, the next message is played alone; answered once it is (its topic and bag
         time), or refused: see :meth:`_play_steps`."""
-        played, why, _ = self._play_steps(1, "~/play_next")
+        played, why = self._play_steps(1, "~/play_next")
         response.success = played == 1
         response.message = f"played {self.step_note}" if played else why
         return response
@@ -350,26 +350,25 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         soon as the one before (0: to the end of the pass); answers how many were (``actually_burst``), and logs
         why where fewer were."""
         n = int(request.num_messages) or _BURST_ALL
-        played, why, at_end = self._play_steps(n, "~/burst")
+        played, why = self._play_steps(n, "~/burst")
         response.actually_burst = played
         if played:
             self.get_logger().info(f"burst {played} messages, the last {self.step_note}")
-        if why and not (n == _BURST_ALL and played and at_end):  # the whole pass, as asked
+        if why:
             self.get_logger().warning(f"burst {played} of {request.num_messages or 'the pass'} messages: {why}")
         return response
 
-    def _play_steps(self, n: int, service: str) -> tuple[int, str, bool]:
+    def _play_steps(self, n: int, service: str) -> tuple[int, str]:
         """Play the next ``n`` messages alone while paused, each as soon as the one before (the play thread takes
-        them as steps; ``_BURST_ALL``: to the end of this pass); returns how many were played, where fewer why, and
-        whether the bag or (for ``_BURST_ALL``) the pass ended: not paused, the bag played to its end or failed, at
-        once while the replay waits for subscribers or reads the bags on to a time sought, or no message played
-        within ``_STEP_WAIT_S`` (the steps not taken are withdrawn; one the play thread has just taken plays after
-        the answer)."""
+        them as steps; ``_BURST_ALL``: to the end of this pass, which is then no shortfall); returns how many were
+        played and, where fewer, why: not paused, the bag played to its end or failed, at once while the replay
+        waits for subscribers or reads the bags on to a time sought, or no message played within ``_STEP_WAIT_S``
+        (the steps not taken are withdrawn; one the play thread has just taken plays after the answer)."""
         ended = lambda: self.error or "the bag has been played"  # noqa: E731
         if self.done or not self.cfg.paused:
-            return 0, ended() if self.done else f"not paused: {service} plays while paused", self.done
+            return 0, ended() if self.done else f"not paused: {service} plays while paused"
         if busy := self.waiting or self.reading:  # no message is near: refused at once, not holding the executor
-            return 0, f"nothing to play yet ({busy})", False
+            return 0, f"nothing to play yet ({busy})"
         whole = n == _BURST_ALL
         with self.step_cond:
             before, passes = self.stepped, self.passes
@@ -384,17 +383,19 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             played = self.stepped - before
             self.burst_all = False
             if played >= n:
-                return played, "", False
+                return played, ""
             withdrawn = min(self.steps, n - played)
             self.steps -= withdrawn
+            if whole and played and not self.error and (self.done or self.passes != passes):
+                return played, ""  # the whole pass, as asked
             if self.done:
-                return played, ended(), not self.error
+                return played, ended()
             if whole and self.passes != passes:
-                return played, "the pass ended", True
+                return played, "the pass ended"
             if withdrawn == n - played:
                 busy = self.waiting or self.reading
-                return played, f"nothing played within {_STEP_WAIT_S:g} s" + (f" ({busy})" if busy else ""), False
-            return played, f"the next message is playing (not within {_STEP_WAIT_S:g} s)", False
+                return played, f"nothing played within {_STEP_WAIT_S:g} s" + (f" ({busy})" if busy else "")
+            return played, f"the next message is playing (not within {_STEP_WAIT_S:g} s)"
 
     def _stepped_since(self, stepped: int, passes: int | None) -> bool:
         """A message played after ``stepped`` had been, the pass ``passes`` ended (where given), or the replay did
@@ -415,9 +416,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         elif (end := last_log_time(self.reader.paths)) is not None and ns > end:
             why = f"past the bags' last message at {stamp_text(end)}"
         else:
-            result = self.set_parameters([Parameter("start_offset_s", Parameter.Type.DOUBLE,
-                                                    max(0.0, (ns - t0) / 1e9))])[0]
-            why = "" if result.successful else result.reason
+            why = self.set_param("start_offset_s", max(0.0, (ns - t0) / 1e9))
         response.success = not why
         if why:
             self.get_logger().warning(f"seek to {stamp_text(ns)} refused: {why}")
@@ -425,10 +424,10 @@ class ReplayNode(ZebraNode[ReplayConfig]):
 
     def _on_set_rate(self, request: Any, response: Any) -> Any:
         """``~/set_rate`` (rosbag2_interfaces/SetRate): sets ``rate`` (its bounds hold; a refusal is logged)."""
-        result = self.set_parameters([Parameter("rate", Parameter.Type.DOUBLE, float(request.rate))])[0]
-        response.success = bool(result.successful)
-        if not result.successful:
-            self.get_logger().warning(f"set_rate to {request.rate:g} refused: {result.reason}")
+        refused = self.set_param("rate", float(request.rate))
+        response.success = not refused
+        if refused:
+            self.get_logger().warning(f"set_rate to {request.rate:g} refused: {refused}")
         return response
 
     def _on_get_rate(self, request: Any, response: Any) -> Any:

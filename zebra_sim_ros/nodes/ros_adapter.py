@@ -192,10 +192,10 @@ class ZebraNode(Node, Generic[C]):
             def handle(request: Any, response: Any) -> Any:
                 was = bool(self.get_parameter("paused").value)
                 value = not was if to is None else to
-                result = self.set_parameters([Parameter("paused", Parameter.Type.BOOL, value)])[0]
-                response.success = bool(result.successful)
+                refused = self.set_param("paused", value)
+                response.success = not refused
                 word, unchanged = ("paused", "already paused") if value else ("resumed", "not paused")
-                response.message = (word if was != value else unchanged) if result.successful else result.reason
+                response.message = refused or (word if was != value else unchanged)
                 return response
             return handle
 
@@ -208,6 +208,13 @@ class ZebraNode(Node, Generic[C]):
             return response
 
         self.create_service(IsPaused, "~/is_paused", is_paused)
+
+    def set_param(self, name: str, value: bool | float) -> str:
+        """Set one of the node's own parameters from inside the node (a service), through the same checks as
+        ``ros2 param set``; returns why it was refused, or "" where it was set."""
+        kind = Parameter.Type.BOOL if isinstance(value, bool) else Parameter.Type.DOUBLE
+        result = self.set_parameters([Parameter(name, kind, value)])[0]
+        return "" if result.successful else (result.reason or f"'{name}' refused")
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         specs = {s.name: s for s in self.config_class.specs()}
