@@ -955,7 +955,7 @@ def test_bag_filter_writes_the_topics_and_the_stretch_of_time_asked_for(tmp_path
     them, and ``--`` ends it. Bad values are refused naming the option, and nothing is written (an output in a
     folder read would join its recording: refused too). The files' last log time comes from their summaries, and is
     not known where one is cut."""
-    from zebra_sim_ros.recording.reader import first_log_time, last_log_time, rewrite
+    from zebra_sim_ros.recording.reader import file_summary, first_log_time, last_log_time, rewrite
 
     written: list[tuple[str, int, str]] = []
     for k, name in enumerate(("a.mcap", "b.mcap")):
@@ -1001,6 +1001,14 @@ def test_bag_filter_writes_the_topics_and_the_stretch_of_time_asked_for(tmp_path
     # the last from the summaries alone (the replay's ~/seek refuses past it); a cut file's is not known so
     assert last_log_time([tmp_path / "b.mcap", tmp_path / "a.mcap"]) == 10**9 + 199 * 10**8
     assert last_log_time([tmp_path / "a.mcap", tmp_path / "cut.mcap"]) is None
+    # each file's summary is parsed once per version of it: asked again, the same; changed in place, read again
+    summary = file_summary(tmp_path / "a.mcap")
+    assert summary is not None and file_summary(tmp_path / "a.mcap") is summary
+    changing = tmp_path / "changing.mcap"
+    for src, end in ((tmp_path / "a.mcap", 10**9 + 99 * 10**8), (tmp_path / "b.mcap", 10**9 + 199 * 10**8),
+                     (tmp_path / "cut.mcap", None)):  # the same path, each time other bytes (the last cut short)
+        changing.write_bytes(src.read_bytes())
+        assert last_log_time([changing]) == end, src.name
     cut = rewrite(tmp_path / "cut.mcap", tmp_path / "cut_clip.mcap", start_s=2.0, end_s=2.0)
     assert (cut["messages"], cut["start_ns"], cut["end_ns"]) == (3, 10**9 + 120 * 10**8, 10**9 + 120 * 10**8)
 
