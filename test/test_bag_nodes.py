@@ -278,6 +278,8 @@ def test_a_full_bag_ends_with_a_finalised_file_and_an_error(peer: Peer, tmp_path
 
 
 def test_replay_remap_offset_loop_and_clock(peer: Peer, tmp_path: Path) -> None:
+    """The offset skips the first half, looping plays the second again and again under the prefix, with /clock. Started
+    paused, a ``~/burst`` of 0 plays one pass (to its end, not on into the next) and the next burst the next pass."""
     from rosgraph_msgs.msg import Clock
 
     times = _timed_bag(tmp_path / "t.mcap", [0.0] + [0.05] * 19)  # 20 ticks over 0.95 s
@@ -285,12 +287,24 @@ def test_replay_remap_offset_loop_and_clock(peer: Peer, tmp_path: Path) -> None:
     clock: list[int] = []
     peer.node.create_subscription(String, "/replayed/tick", lambda m: got.append(m.data), 100)
     peer.node.create_subscription(Clock, "/clock", lambda m: clock.append(m.clock.sec * 10**9 + m.clock.nanosec), 100)
-    params = {"bags": [str(tmp_path / "t.mcap")], "remap_prefix": "/replayed", "start_offset_s": 0.5,
-              "loop": True, "clock": True, "wait_for_subscribers_s": 20.0}
-    with node_process("replay", params, _domain(peer), tmp_path / "replay.log"):
-        assert peer.spin(lambda: len(got) >= 25, 30), (tmp_path / "replay.log").read_text()
+    status = collect_diagnostics(peer.node, "replay: replay")
+    burst, resume = _trigger(peer, "/replay/burst", Burst), _trigger(peer, "/replay/resume")
+    params = {"bags": [str(tmp_path / "t.mcap")], "remap_prefix": "/replayed", "start_offset_s": 0.5, "paused": True,
+              "loop": True, "clock": True, "wait_for_subscribers_s": 20.0, "diagnostics_period_s": 0.2}
+    log = tmp_path / "replay.log"
+    with node_process("replay", params, _domain(peer), log):
+        assert peer.spin(lambda: burst.ready() and bool(status) and status[-1]["message"] == "paused", 30), \
+            (status[-1:], log.read_text())
+        for passes in (1, 2):
+            peer.spin(lambda: False, 0.3)  # the next pass read on to its offset (a burst meanwhile is refused)
+            assert burst(num_messages=0).actually_burst == 10, log.read_text()
+            assert peer.spin(lambda passes=passes: len(got) == 10 * passes, 10), got
+        peer.spin(lambda: False, 0.3)
+        assert len(got) == 20  # held at the end of the second pass
+        assert resume().message == "resumed"
+        assert peer.spin(lambda: len(got) >= 35, 30), log.read_text()
     # The offset skips ticks 0..9 (before 0.5 s); looping plays 10..19 again and again.
-    assert got[:10] == [f"tick {k}" for k in range(10, 20)] and got[10:20] == got[:10]
+    assert got[:10] == [f"tick {k}" for k in range(10, 20)] and got[10:20] == got[:10] and got[20:30] == got[:10]
     assert clock and min(clock) >= times[0] and max(clock) <= times[-1]
     assert all(b >= a for a, b in zip(clock[:5], clock[1:6], strict=True))
 
@@ -302,10 +316,17 @@ def test_replay_remap_offset_loop_and_clock(peer: Peer, tmp_path: Path) -> None:
     ("replay", {"bags": ["/no/such.mcap"]}, "'bags'"),
     ("replay", {"bags": ["x.mcap"], "remap_prefix": "/replay/"}, "'remap_prefix'"),
     ("replay", {"bags": ["x.mcap"], "exclude_regex": "[a-"}, "'exclude_regex'"),
+    # ticks 0.5 s apart, the last 1.5 s after the first: a window from 2 s holds none
+    ("replay", {"bags": ["ticks.mcap"], "start_offset_s": 2.0}, "'start_offset_s' = 2.0 is invalid: allowed a bag "
+     "time the bags reach (past the bags' last message at 1970-01-01T00:00:06.500Z (6.500000000), 1.5 s after their "
+     "first message)"),
 ])
 def test_a_bad_parameter_stops_the_node_naming_it(tmp_path: Path, node: str, params: dict[str, object],
                                                    named: str) -> None:
     params = {"output": str(tmp_path / "bag.mcap"), **params} if node == "recorder" else params
+    if params.get("bags") == ["ticks.mcap"]:  # a real bag, for a check that reads it
+        _timed_bag(tmp_path / "ticks.mcap", [0.0, 0.5, 0.5, 0.5])
+        params = {**params, "bags": [str(tmp_path / "ticks.mcap")]}
     with node_process(node, params, fresh_domain_id(), tmp_path / "log") as proc:
         assert proc.wait(timeout=60) == 2
     assert named in (tmp_path / "log").read_text()
@@ -481,7 +502,8 @@ def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_
     the same value again seeks again. Each tick is a chunk of its own, so a seek forward passes over the chunks
     before it unread, and a seek back among them reads the bags again. ``~/play_next`` while the replay waits for
     subscribers is refused at once, not after its 5 s wait. ``~/seek`` (rosbag2_interfaces/Seek) takes a stamp, and
-    refuses one past the last message. Resumed, the rest plays in order and the replay ends; its /diagnostics count
+    refuses one past the last message, as setting ``start_offset_s`` past it is refused; a stamp before the first
+    message seeks to it. Resumed, the rest plays in order and the replay ends; its /diagnostics count
     the seeks."""
     import time
 
@@ -530,21 +552,28 @@ def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_
         # rosbag2_interfaces/Seek takes a stamp: past the last message it is refused, at a message's exact stamp
         # (odd nanoseconds) that message plays next
         assert not seek_stamp(time=stamp(times[-1] + 1)).success
+        past = set_parameter(peer, "/replay", "start_offset_s", 1.91)
+        assert not past.successful and past.reason == f"past the bags' last message at {stamp_text(times[-1])}, " \
+            f"{(times[-1] - times[0]) / 1e9:g} s after the first message played", past.reason
+        n = len(clocks)
+        assert seek_stamp(time=stamp(times[0] - 10**9)).success  # a second before the first message: to it
+        assert peer.spin(lambda: sought(0.0, n), 10), clocks[n:]
+        assert step().message == "played /tick at 0.000 s of the bag"
         n = len(clocks)
         assert seek_stamp(time=stamp(times[8])).success
         # /clock stands at the time sought (seconds after the first message: within a nanosecond of the stamp) ...
         assert peer.spin(lambda: any(abs(c - times[8]) <= 1 for c in clocks[n:]), 10), clocks[n:]
         assert step().message == f"played /tick at {(times[8] - times[0]) / 1e9:.3f} s of the bag"
         assert peer.spin(lambda: clocks[-1] == times[8], 10), clocks[-3:]  # ... and at the stamp once it plays
-        assert got == ["tick 10", "tick 3", "tick 3", "tick 6", "tick 8"]
+        assert got == ["tick 10", "tick 3", "tick 3", "tick 6", "tick 0", "tick 8"]
         assert resume().message == "resumed"
-        assert peer.spin(lambda: len(got) == 16, 30), (got, log.read_text())
+        assert peer.spin(lambda: len(got) == 17, 30), (got, log.read_text())
         assert proc.wait(timeout=30) == 0, log.read_text()
-    assert got == ["tick 10", "tick 3", "tick 3", "tick 6", "tick 8"] + [f"tick {k}" for k in range(9, 20)]
-    assert any(s["values"].get("seeks") == "6" for s in status), status[-1:]
+    assert got == ["tick 10", "tick 3", "tick 3", "tick 6", "tick 0", "tick 8"] + [f"tick {k}" for k in range(9, 20)]
+    assert any(s["values"].get("seeks") == "7" for s in status), status[-1:]
     assert "seeking to 0.25 s of the bag" in log.read_text()
-    assert f"seek to {stamp_text(times[-1] + 1)} refused: past the bags' last message at {stamp_text(times[-1])}" \
-        in log.read_text()
+    assert f"seek to {stamp_text(times[-1] + 1)} refused: past the bags' last message at {stamp_text(times[-1])}, " \
+        f"{(times[-1] - times[0]) / 1e9:g} s after the first message played" in log.read_text()
 
 
 def test_a_seek_while_playing_cuts_the_wait_for_a_far_message(peer: Peer, tmp_path: Path) -> None:

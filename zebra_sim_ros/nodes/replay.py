@@ -10,10 +10,11 @@ with the bag's time for ``use_sim_time`` consumers. ``paused`` (runtime; the ``~
 reached and goes on from there; while paused, ``~/play_next`` plays the next message alone (/clock moves to its
 time) and answers with its topic and bag time; ``rate`` changes apply at once. Setting ``start_offset_s`` while
 playing seeks there, as ``ros2 bag play``'s seek: the next message played is the first at or after that bag time
-(back or forth; a pause holds there). rosbag2_interfaces services as ``ros2 bag play``'s: ``~/seek`` (a bag stamp),
-``~/set_rate``, ``~/get_rate``, ``~/is_paused`` and ``~/burst`` (while paused, the next N messages at once; 0: the
-rest of the pass). A truncated or corrupt bag plays everything intact, then the node logs where and why it stopped.
-The node exits when done (unless looping).
+(back or forth; a pause holds there; one past the bags' last message is refused, as it is at start).
+rosbag2_interfaces services as ``ros2 bag play``'s: ``~/seek`` (a bag stamp), ``~/set_rate``, ``~/get_rate``,
+``~/is_paused`` and ``~/burst`` (while paused, the next N messages at once; 0: the rest of the pass). A truncated
+or corrupt bag plays everything intact, then the node logs where and why it stopped. The node exits when done
+(unless looping).
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from rosbag2_interfaces.srv import Burst, GetRate, Seek, SetRate
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 
+from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.health import Activity
 from zebra_sim_ros.nodes.ros_adapter import (
     DIAGNOSTICS_TOPIC,
@@ -47,7 +49,7 @@ from zebra_sim_ros.nodes.ros_adapter import (
 )
 from zebra_sim_ros.recording.config import REPLAY_PARAMS, ReplayConfig
 from zebra_sim_ros.recording.qos import from_yaml, load_overrides, overridden, replay_profile
-from zebra_sim_ros.recording.reader import BagReader, last_log_time, topic_filter
+from zebra_sim_ros.recording.reader import BagReader, first_log_time, last_log_time, topic_filter
 from zebra_sim_ros.recording.stamps import stamp_text
 
 _STEP_WAIT_S = 5.0  # how long ~/play_next (~/burst: each message) waits to be played before it withdraws the request
@@ -110,6 +112,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         c = self.cfg
         self.bags: list[str | Path] = [b for b in c.bags if b]
         self.reader = BagReader.open(self.bags, name="bags")  # missing files stop the node here, naming them
+        self.t0_bag: int | None = None  # log time of the first message played (bag time 0), once a pass has read it
+        if why := self._past_end(c.start_offset_s):  # a window that holds no message stops the node here too
+            raise ParameterError("start_offset_s", c.start_offset_s, f"a bag time the bags reach ({why})")
         self.overrides = load_overrides(c.qos_overrides_path)  # so does a bad overrides file
         self.regex = re.compile(c.topic_regex)  # checked by its ParamSpec
         self.exclude = re.compile(c.exclude_regex) if c.exclude_regex else None
@@ -126,7 +131,6 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         self.step_cond = threading.Condition()
         self.seek_to: float | None = None  # a seek asked for and not yet taken (bag seconds); under step_cond
         self.seeks = 0  # seeks taken
-        self.t0_bag: int | None = None  # log time of the first message played (bag time 0), once a pass has read it
         self.error = ""  # why playing failed
         self.damaged_before = 0  # damaged parts skipped in earlier passes (looping reopens the reader)
         self.damaged_pass: set[str] = set()  # this pass's, from readers a seek back replaced (the same parts again)
@@ -164,6 +168,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         if offsets and self.done:  # the play thread has ended: nothing takes a seek
             return SetParametersResult(successful=False, reason="the bags have been played: no seek (loop:=true "
                                        "keeps the replay playing)")
+        if offsets and (why := self._past_end(float(offsets[-1].value))):
+            return SetParametersResult(successful=False, reason=why)
         result = super()._on_set_parameters(params)
         if result.successful and offsets:  # sets come through the parameter service: after start()
             to = float(offsets[-1].value)
@@ -171,6 +177,20 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                 self.seek_to = to
             self.get_logger().info(f"seeking to {to:g} s of the bag")
         return result
+
+    def _past_end(self, offset_s: float) -> str:
+        """Why bag time ``offset_s`` (seconds after the first message played) is past the bags' last message, or ""
+        where it is not or the bags' summaries do not say where they end (a cut file). Before a message is played
+        the bags' first message stands for the first played one, which is never earlier, so nothing the bags reach
+        is refused."""
+        end = last_log_time(self.reader.paths)
+        if end is None:
+            return ""
+        base = self.t0_bag if self.t0_bag is not None else first_log_time(self.reader.paths)
+        if base is None or base + round(offset_s * 1e9) <= end:
+            return ""
+        first = "the first message played" if self.t0_bag is not None else "their first message"
+        return f"past the bags' last message at {stamp_text(end)}, {(end - base) / 1e9:g} s after {first}"
 
     def _take_seek(self) -> float | None:
         """The seek asked for, if any (taken and counted: asked once, done once)."""
@@ -410,12 +430,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         offset is (the replay has ended)."""
         ns = stamp_ns(request.time)
         t0 = self.t0_bag
-        why = ""
         if t0 is None:
             why = "no message read yet: the bags' first played stamp is not known"
-        elif (end := last_log_time(self.reader.paths)) is not None and ns > end:
-            why = f"past the bags' last message at {stamp_text(end)}"
-        else:
+        else:  # past the bags' last message, setting the offset refuses it
             why = self.set_param("start_offset_s", max(0.0, (ns - t0) / 1e9))
         response.success = not why
         if why:

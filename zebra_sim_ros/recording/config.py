@@ -113,7 +113,8 @@ class ReplayConfig(StageConfig):
     loop: bool = param(False, "play again from start_offset_s (where the last seek went) when done")
     start_offset_s: float = param(0.0, "skip this much of the bag's start (its first message played: topics not "
                                   "played do not count); set while playing, it seeks there, back or forth (as ros2 "
-                                  "bag play's seek; the same value again seeks again), and duration_s counts from it",
+                                  "bag play's seek; the same value again seeks again), and duration_s counts from it; "
+                                  "past the bags' last message (where their summaries give it) refused, at start too",
                                   "s", lo=0.0, hi=1e9, runtime=True)
     duration_s: float = param(0.0, "play only this much of the bag (0: to the end)", "s", lo=0.0, hi=1e9)
     topics: tuple[str, ...] = param(("",), "play only these topics ([''] = all matching topic_regex)",
