@@ -1030,14 +1030,16 @@ def test_bag_filter_writes_the_topics_and_the_stretch_of_time_asked_for(tmp_path
                 *(["--out", tmp_path / "bad.mcap"] if "--out" not in bad else []), *bad]
         run = cli(args)
         assert run.returncode == 2 and named in run.stderr, (bad, run.stderr)
-    swallowed = cli(["bag", "filter", "--out", tmp_path / "bad.mcap", "--topics", "/drone_0/labels", tmp_path / "run"])
+    swallowed = cli(["bag", "filter", "--out", tmp_path / "bad.mcap", "--topics", "/drone_0/labels",
+                     tmp_path / "b.mcap"])
     assert swallowed.returncode == 2 and "'--topics'" in swallowed.stderr and "is a bag" in swallowed.stderr
     one_left = cli(["bag", "filter", tmp_path / "a.mcap", "--out", tmp_path / "bad.mcap", "--topics", "/drone_0/labels",
                     tmp_path / "run"])  # a bag before it does not hide the one it took
     assert one_left.returncode == 2 and "is a bag" in one_left.stderr and str(tmp_path / "run") in one_left.stderr
-    (tmp_path / "no_bags").mkdir()  # a topic name that is also a folder, but of no bags: a topic
+    (tmp_path / "no_bags").mkdir()  # topic names that are also a folder, but of no bags, and a file, but no MCAP one
+    (tmp_path / "notes.mcap").write_text("not a bag\n")
     folder = cli(["bag", "filter", tmp_path / "a.mcap", "--out", tmp_path / "folder.mcap", "--topics",
-                  str(tmp_path / "no_bags")])
+                  str(tmp_path / "no_bags"), str(tmp_path / "notes.mcap")])
     assert folder.returncode == 1 and "not in the bags" in folder.stdout + folder.stderr, folder.stderr
     ended = cli(["bag", "filter", "--out", tmp_path / "end.mcap", "--topics", "/drone_0/labels", "--",
                  tmp_path / "run"])

@@ -125,9 +125,18 @@ def _regex(name: str, text: str | None) -> re.Pattern[str] | None:
 
 
 def _is_bag(path: Path) -> bool:
-    """Whether a word names a bag: a file (a topic name has no dot, so a bag's name is never one), or a folder of
-    ``.mcap`` files (``/tmp`` or ``/run`` as a topic name are folders too, but without bags in them)."""
-    return path.is_file() or (path.is_dir() and any(path.glob("*.mcap")))
+    """Whether a word names a bag: a file that starts with MCAP's magic (a cut one does too), or a folder of
+    ``.mcap`` files (``/tmp`` or ``/run`` as a topic name are folders too, but without bags in them). A topic name
+    that is also some other file (``chatter`` beside a file of that name) stays a topic."""
+    from mcap.writer import MCAP0_MAGIC
+
+    if path.is_file():
+        try:
+            with open(path, "rb") as f:
+                return f.read(len(MCAP0_MAGIC)) == MCAP0_MAGIC
+        except OSError:  # unreadable: not a bag this command could take
+            return False
+    return path.is_dir() and any(path.glob("*.mcap"))
 
 
 def cmd_filter(args: argparse.Namespace) -> Summary:
