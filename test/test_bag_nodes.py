@@ -377,6 +377,7 @@ def _trigger(peer: Peer, name: str, srv: Any = None) -> Any:
         assert peer.spin(future.done, 30), f"no answer from {name}"
         return future.result()
     call.ready = client.service_is_ready  # type: ignore[attr-defined]
+    call.send = lambda **fields: client.call_async(srv.Request(**fields))  # type: ignore[attr-defined]
     return call
 
 
@@ -494,6 +495,38 @@ def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path:
     assert got == [f"tick {k}" for k in range(len(times))]
     assert all(b >= a for a, b in zip(clocks, clocks[1:], strict=False)), clocks  # /clock never went back
     assert "set_rate to 0 refused: " in log.read_text() and "burst 0 of 2 messages: not paused" in log.read_text()
+
+
+def test_a_long_burst_leaves_the_other_services_served_and_a_resume_ends_it(peer: Peer, tmp_path: Path) -> None:
+    """``~/burst`` waits for its messages on the executor's second thread: while a whole-pass burst of 100,000
+    messages plays, ``~/get_rate``, ``~/is_paused`` and a parameter set are answered and /diagnostics go on, and
+    ``~/resume`` ends the burst short, its answer counting what it played and its log saying why."""
+    import time
+
+    _timed_bag(tmp_path / "t.mcap", [0.0] + [0.0002] * 99_999)  # 100,000 ticks over 20 s
+    status = collect_diagnostics(peer.node, "replay: replay")
+    burst, resume = _trigger(peer, "/replay/burst", Burst), _trigger(peer, "/replay/resume")
+    get_rate, is_paused = _trigger(peer, "/replay/get_rate", GetRate), _trigger(peer, "/replay/is_paused", IsPaused)
+    log = tmp_path / "replay.log"
+    params = {"bags": [str(tmp_path / "t.mcap")], "paused": True, "diagnostics_period_s": 0.2}
+    with node_process("replay", params, _domain(peer), log):
+        ready = lambda: burst.ready() and resume.ready() and get_rate.ready() and is_paused.ready()  # noqa: E731
+        assert peer.spin(lambda: ready() and bool(status) and status[-1]["message"] == "paused", 30), log.read_text()
+        deadline = time.monotonic() + 10
+        while burst(num_messages=1).actually_burst != 1:  # refused while the play thread reads on to the first tick
+            assert time.monotonic() < deadline, log.read_text()
+            peer.spin(lambda: False, 0.1)
+        answer = burst.send(num_messages=0)  # the rest of the pass
+        t, reports = time.monotonic(), len(status)
+        assert peer.spin(lambda: len(status) > reports, 5) and not answer.done(), "no /diagnostics during the burst"
+        assert get_rate().rate == pytest.approx(1.0) and is_paused().paused and not answer.done()
+        assert set_parameter(peer, "/replay", "rate", 2.0).successful and not answer.done()
+        assert resume().message == "resumed", log.read_text()
+        assert peer.spin(answer.done, 10), log.read_text()
+        took = time.monotonic() - t
+        played = answer.result().actually_burst
+    assert 0 < played < 99_999, (played, took)
+    assert f"burst {played} of the pass messages: resumed while it played" in log.read_text(), log.read_text()
 
 
 def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_path: Path) -> None:

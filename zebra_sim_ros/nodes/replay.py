@@ -29,6 +29,7 @@ from typing import Any
 
 import yaml
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.parameter import Parameter
 from rosbag2_interfaces.srv import Burst, GetRate, Seek, SetRate
 from rosgraph_msgs.msg import Clock
@@ -102,7 +103,11 @@ class _Pace:
 
 class ReplayNode(ZebraNode[ReplayConfig]):
     """Plays bags from a thread of its own; the executor only serves the graph. ``rate`` and ``paused`` may change
-    while it plays, and a new ``start_offset_s`` seeks."""
+    while it plays, and a new ``start_offset_s`` seeks. ``~/play_next`` and ``~/burst`` wait for the messages they
+    play in a callback group of their own, on the second of the executor's two threads: /diagnostics, parameters and
+    the other services are served meanwhile (a ``~/resume`` ends a burst)."""
+
+    executor_threads = 2
 
     def __init__(self) -> None:
         super().__init__("replay", ReplayConfig)
@@ -140,8 +145,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         for topic, type_name, metadata in self.reader.channel_list():  # publishers up front: subscribers match
             self._publisher(topic, type_name, metadata)                    # before the first message is played
         self.serve_pause()
-        self.create_service(Trigger, "~/play_next", self._on_play_next)
-        self.create_service(Burst, "~/burst", self._on_burst)
+        steps = MutuallyExclusiveCallbackGroup()  # one step or burst at a time; the rest served beside it
+        self.create_service(Trigger, "~/play_next", self._on_play_next, callback_group=steps)
+        self.create_service(Burst, "~/burst", self._on_burst, callback_group=steps)
         self.create_service(Seek, "~/seek", self._on_seek)
         self.create_service(SetRate, "~/set_rate", self._on_set_rate)
         self.create_service(GetRate, "~/get_rate", self._on_get_rate)
@@ -157,8 +163,10 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         ``cfg``)."""
         if cfg.paused != self.cfg.paused:
             self.get_logger().info("paused" if cfg.paused else "playing again")
-            with self.step_cond:  # a step asked for in the last pause is not carried into the next one
-                self.steps = 0
+            with self.step_cond:  # a step asked for in the last pause is not carried into the next one, and a
+                self.steps = 0  # ~/burst waiting for its messages hears that the pause has ended
+                self.cfg = cfg
+                self.step_cond.notify_all()
         self.cfg = cfg
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
@@ -381,9 +389,10 @@ class ReplayNode(ZebraNode[ReplayConfig]):
     def _play_steps(self, n: int, service: str) -> tuple[int, str]:
         """Play the next ``n`` messages alone while paused, each as soon as the one before (the play thread takes
         them as steps; ``_BURST_ALL``: to the end of this pass, which is then no shortfall); returns how many were
-        played and, where fewer, why: not paused, the bag played to its end or failed, at once while the replay
-        waits for subscribers or reads the bags on to a time sought, or no message played within ``_STEP_WAIT_S``
-        (the steps not taken are withdrawn; one the play thread has just taken plays after the answer)."""
+        played and, where fewer, why: not paused (or resumed meanwhile), the bag played to its end or failed, at once
+        while the replay waits for subscribers or reads the bags on to a time sought, or no message played within
+        ``_STEP_WAIT_S`` (the steps not taken are withdrawn; one the play thread has just taken plays after the
+        answer)."""
         ended = lambda: self.error or "the bag has been played"  # noqa: E731
         if self.done or not self.cfg.paused:
             return 0, ended() if self.done else f"not paused: {service} plays while paused"
@@ -412,16 +421,18 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                 return played, ended()
             if whole and self.passes != passes:
                 return played, "the pass ended"
+            if not self.cfg.paused:
+                return played, "resumed while it played"
             if withdrawn == n - played:
                 busy = self.waiting or self.reading
                 return played, f"nothing played within {_STEP_WAIT_S:g} s" + (f" ({busy})" if busy else "")
             return played, f"the next message is playing (not within {_STEP_WAIT_S:g} s)"
 
     def _stepped_since(self, stepped: int, passes: int | None) -> bool:
-        """A message played after ``stepped`` had been, the pass ``passes`` ended (where given), or the replay did
-        (under ``step_cond``)."""
+        """A message played after ``stepped`` had been, the pass ``passes`` ended (where given), the pause did, or the
+        replay did (under ``step_cond``)."""
         return (self.stepped > stepped or (passes is not None and self.passes != passes) or self.done
-                or not self.context.ok())
+                or not self.cfg.paused or not self.context.ok())
 
     def _on_seek(self, request: Any, response: Any) -> Any:
         """``~/seek`` (rosbag2_interfaces/Seek): seek to a bag stamp, as setting ``start_offset_s`` to its seconds

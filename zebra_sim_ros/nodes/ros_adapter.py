@@ -20,7 +20,7 @@ from geometry_msgs.msg import Point, Pose, PoseStamped, PoseWithCovariance, Quat
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -91,6 +91,11 @@ class ZebraNode(Node, Generic[C]):
     :data:`DIAGNOSTICS_TOPIC` as one ``diagnostic_msgs/DiagnosticStatus`` named ``<node>: <executable>``
     (:mod:`zebra_sim_ros.health` says what the levels mean); a node that ends by itself reports once more first.
     """
+
+    #: threads of the executor :func:`run_node` spins the node with: one serves every callback in turn; a node whose
+    #: service answers only after a wait (the replay's ``~/burst``) takes two, that service in a callback group of its
+    #: own, so that its timers, parameters and other services are served meanwhile
+    executor_threads = 1
 
     def __init__(self, name: str, config: type[C], **node_args: Any) -> None:
         super().__init__(name, **node_args)  # node_args: rclpy Node's (context, cli_args, parameter_overrides)
@@ -456,7 +461,7 @@ def run_node(name: str, factory: Callable[[], ZebraNode[Any]], argv: list[str] |
         return 0
     rclpy.init(args=args)
     node: ZebraNode[Any] | None = None
-    executor: SingleThreadedExecutor | None = None
+    executor: Executor | None = None
     try:
         try:
             node = factory()
@@ -464,7 +469,8 @@ def run_node(name: str, factory: Callable[[], ZebraNode[Any]], argv: list[str] |
             rclpy.logging.get_logger(name).fatal(f"cannot start: {exc}")
             return 2
         # An executor of our own, built while the context is valid: rclpy's global one is rebuilt after a shutdown.
-        executor = SingleThreadedExecutor()
+        executor = (MultiThreadedExecutor(num_threads=node.executor_threads) if node.executor_threads > 1
+                    else SingleThreadedExecutor())
         executor.add_node(node)
         while rclpy.ok() and not node.done:
             try:
