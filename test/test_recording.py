@@ -1001,7 +1001,8 @@ def test_bag_filter_writes_the_topics_and_the_stretch_of_time_asked_for(tmp_path
     # the last from the summaries alone (the replay's ~/seek refuses past it); a cut file's is not known so
     assert last_log_time([tmp_path / "b.mcap", tmp_path / "a.mcap"]) == 10**9 + 199 * 10**8
     assert last_log_time([tmp_path / "a.mcap", tmp_path / "cut.mcap"]) is None
-    # each file's summary is parsed once per version of it: asked again, the same; changed in place, read again
+    # each file's summary is parsed once per version of it: asked again, the same; rewritten at the same path (each
+    # time with a size of its own), read again
     summary = file_summary(tmp_path / "a.mcap")
     assert summary is not None and file_summary(tmp_path / "a.mcap") is summary
     changing = tmp_path / "changing.mcap"
@@ -1037,9 +1038,9 @@ def test_bag_filter_writes_the_topics_and_the_stretch_of_time_asked_for(tmp_path
                     tmp_path / "run"])  # a bag before it does not hide the one it took
     assert one_left.returncode == 2 and "is a bag" in one_left.stderr and str(tmp_path / "run") in one_left.stderr
     (tmp_path / "no_bags").mkdir()  # topic names that are also a folder, but of no bags, and a file, but no MCAP one
-    (tmp_path / "notes.mcap").write_text("not a bag\n")
+    (tmp_path / "notes").write_text("not a bag\n")
     folder = cli(["bag", "filter", tmp_path / "a.mcap", "--out", tmp_path / "folder.mcap", "--topics",
-                  str(tmp_path / "no_bags"), str(tmp_path / "notes.mcap")])
+                  str(tmp_path / "no_bags"), str(tmp_path / "notes")])
     assert folder.returncode == 1 and "not in the bags" in folder.stdout + folder.stderr, folder.stderr
     ended = cli(["bag", "filter", "--out", tmp_path / "end.mcap", "--topics", "/drone_0/labels", "--",
                  tmp_path / "run"])

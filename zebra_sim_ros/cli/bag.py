@@ -125,12 +125,15 @@ def _regex(name: str, text: str | None) -> re.Pattern[str] | None:
 
 
 def _is_bag(path: Path) -> bool:
-    """Whether a word names a bag: a file that starts with MCAP's magic (a cut one does too), or a folder of
-    ``.mcap`` files (``/tmp`` or ``/run`` as a topic name are folders too, but without bags in them). A topic name
-    that is also some other file (``chatter`` beside a file of that name) stays a topic."""
+    """Whether a word names a bag: a file named ``*.mcap`` (a topic name has no dot) or starting with MCAP's magic
+    (a cut one does too), or a folder of ``.mcap`` files (``/tmp`` or ``/run`` as a topic name are folders too, but
+    without bags in them). A topic name that is also some other file (``chatter`` beside a file of that name)
+    stays a topic."""
     from mcap.writer import MCAP0_MAGIC
 
     if path.is_file():
+        if path.suffix == ".mcap":
+            return True
         try:
             with open(path, "rb") as f:
                 return f.read(len(MCAP0_MAGIC)) == MCAP0_MAGIC

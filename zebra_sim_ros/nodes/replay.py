@@ -177,7 +177,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             return SetParametersResult(successful=False, reason="the bags have been played: no seek (loop:=true "
                                        "keeps the replay playing)")
         if offsets and (why := self._past_end(float(offsets[-1].value))):
-            return SetParametersResult(successful=False, reason=why)
+            return SetParametersResult(successful=False, reason=f"start_offset_s {offsets[-1].value:g} s: {why}")
         result = super()._on_set_parameters(params)
         if result.successful and offsets:  # sets come through the parameter service: after start()
             to = float(offsets[-1].value)
@@ -515,6 +515,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
     def stop(self) -> None:
         """End the play thread before the node's publishers go (it would publish through destroyed ones)."""
         self.done = True
+        if hasattr(self, "step_cond"):
+            with self.step_cond:  # a ~/burst or ~/play_next waiting on the other executor thread answers now
+                self.step_cond.notify_all()
         thread = getattr(self, "thread", None)
         if thread is not None:
             thread.join(timeout=5.0)

@@ -337,19 +337,20 @@ def recording_files(path: Path) -> list[Path]:
 def file_summary(path: Path) -> Summary | None:
     """The summary section of one MCAP file, or None when it has none that reads (cut short, being written, gone).
 
-    Parsed once per version of the file: kept by path, size, modification time and inode, so that every pass of a
-    looping replay, every seek and every report asking again parse nothing, while a file that changed (a recording
-    still being written, a file rewritten in place) is read again. Callers must not change what it returns."""
+    Parsed once per version of the file: kept by path, device, inode, size and modification and change times, so
+    that every pass of a looping replay, every seek and every report asking again parse nothing, while a file that
+    changed (a recording still being written, a file rewritten in place) is read again. Callers must not change what
+    it returns."""
     try:
         st = os.stat(path)
     except OSError:
         return None
-    return _parsed_summary(os.fspath(path), st.st_size, st.st_mtime_ns, st.st_ino)
+    return _parsed_summary(os.fspath(path), (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns))
 
 
-@functools.lru_cache(maxsize=128)
-def _parsed_summary(path: str, size: int, mtime_ns: int, inode: int) -> Summary | None:
-    """:func:`file_summary`'s parse, for one version of the file (the key's last three)."""
+@functools.lru_cache(maxsize=1024)  # a folder of many split files stays parsed from pass to pass
+def _parsed_summary(path: str, version: tuple[int, ...]) -> Summary | None:
+    """:func:`file_summary`'s parse, for one version of the file (``version``: what ``os.stat`` says of it)."""
     from mcap.reader import make_reader
 
     try:
