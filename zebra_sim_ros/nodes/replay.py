@@ -167,7 +167,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                 self.steps = 0  # ~/burst waiting for its messages hears that the pause has ended
                 self.cfg = cfg
                 self.step_cond.notify_all()
-        self.cfg = cfg
+        else:
+            self.cfg = cfg
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         """As every node's, and every accepted set of ``start_offset_s`` seeks, even to the value it has (as a

@@ -47,10 +47,11 @@ from zebra_sim_ros.errors import ParameterError
 CAMERA_IMAGES = ("image_raw", "image_raw/compressed")
 
 
-def _stat(path: Path) -> tuple[int, int]:
-    """A file's size and modification time (ns): what tells that it changed."""
-    st = path.stat()
-    return st.st_size, st.st_mtime_ns
+def _stat(path: Path) -> tuple[int, ...]:
+    """What tells that a file changed: its device and inode (a file made again at the path), size, and modification
+    and change times (ns)."""
+    st = os.stat(path)
+    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns
 
 
 @functools.cache
@@ -115,7 +116,7 @@ class BagReader:
     pass_before_ns: int | None = None  # messages()'s ``from_ns``; may be moved on while it reads (a seek forward)
     known_to: dict[int, int] = field(default_factory=dict)  # file index -> bytes read from its start (by this reader
     # or one it took them from, :meth:`carry_from`): the channels and schemas defined there are known
-    stats: dict[int, tuple[int, int]] = field(default_factory=dict)  # file index -> (size, mtime ns) when opened
+    stats: dict[int, tuple[int, ...]] = field(default_factory=dict)  # file index -> its _stat when opened
     schemas: dict[tuple[int, int], Schema] = field(default_factory=dict)  # (file index, schema id)
     channels: dict[tuple[int, int], Channel] = field(default_factory=dict)
 
@@ -139,7 +140,7 @@ class BagReader:
 
     def carry_from(self, older: BagReader) -> BagReader:
         """Take what ``older`` (a reader of the same bags, opened before) has learnt of each file that is still here
-        and unchanged (same size and modification time): its channels, schemas and how far it was read, so that
+        and unchanged (the same :func:`_stat`): its channels, schemas and how far it was read, so that
         :meth:`messages` may pass over chunks read before even in a file without a summary (cut short). A file
         that grew or changed since (a recording still being written) starts from nothing. Returns self."""
         index = {p: j for j, p in enumerate(older.paths)}
@@ -337,20 +338,19 @@ def recording_files(path: Path) -> list[Path]:
 def file_summary(path: Path) -> Summary | None:
     """The summary section of one MCAP file, or None when it has none that reads (cut short, being written, gone).
 
-    Parsed once per version of the file: kept by path, device, inode, size and modification and change times, so
-    that every pass of a looping replay, every seek and every report asking again parse nothing, while a file that
-    changed (a recording still being written, a file rewritten in place) is read again. Callers must not change what
-    it returns."""
+    Parsed once per version of the file (kept by path and :func:`_stat`), so that every pass of a looping replay,
+    every seek and every report asking again parse nothing, while a file that changed (a recording still being
+    written, a file rewritten in place) is read again. Callers must not change what it returns."""
     try:
-        st = os.stat(path)
+        version = _stat(path)
     except OSError:
         return None
-    return _parsed_summary(os.fspath(path), (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns))
+    return _parsed_summary(os.fspath(path), version)
 
 
 @functools.lru_cache(maxsize=1024)  # a folder of many split files stays parsed from pass to pass
 def _parsed_summary(path: str, version: tuple[int, ...]) -> Summary | None:
-    """:func:`file_summary`'s parse, for one version of the file (``version``: what ``os.stat`` says of it)."""
+    """:func:`file_summary`'s parse, for one version of the file (``version``: its :func:`_stat`)."""
     from mcap.reader import make_reader
 
     try:
