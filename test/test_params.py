@@ -21,6 +21,7 @@ from zebra_sim_ros.params import (
     StageConfig,
     config_yaml,
     declaration,
+    diagnostics_param,
     load_params_file,
     node_pattern,
     param,
@@ -320,6 +321,60 @@ def test_set_parameters_applies_runtime_ones_and_refuses_the_rest_with_a_reason(
     finally:
         node.destroy_node()
 
+
+
+@dataclass(frozen=True)
+class ReportingConfig(StageConfig):
+    diagnostics_period_s: float = diagnostics_param()
+
+
+def test_reports_from_two_threads_are_made_one_at_a_time(ros_context: Any) -> None:
+    """A node spun by two executor threads (the replay) may make its last report while a timer's report runs; each
+    reads the activity and remembers its counters for the next, so the two must not interleave."""
+    import threading
+    import time
+
+    from zebra_sim_ros.health import Activity
+    from zebra_sim_ros.nodes.ros_adapter import ZebraNode
+
+    class Reporting(ZebraNode[ReportingConfig]):
+        def start(self) -> None:
+            self.steps = 0
+            self.inside = 0
+            self.most_inside = 0
+            self.reports: list[Any] = []
+
+        def activity(self) -> Activity:
+            self.inside += 1
+            self.most_inside = max(self.most_inside, self.inside)
+            self.steps += 1
+            time.sleep(0.02)  # the counters read, the report not yet made: where another thread's report would land
+            self.inside -= 1
+            return Activity(counters={"steps": self.steps}, work="steps")
+
+    from rclpy.parameter import Parameter
+
+    node = Reporting("reporting", ReportingConfig, context=ros_context,  # a period that never fires in the test
+                     parameter_overrides=[Parameter("diagnostics_period_s", value=3600.0)])
+    try:
+        go = threading.Barrier(2)
+
+        def report() -> None:
+            go.wait()
+            for _ in range(10):
+                node.reports.append(node.publish_diagnostics())
+
+        threads = [threading.Thread(target=report) for _ in range(2)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(timeout=30)
+        assert len(node.reports) == 20 and node.most_inside == 1
+        assert sorted(int(dict(h.values)["steps"]) for h in node.reports) == list(range(1, 21))
+        # each report counts from the one made before it: one step, never a later report's total (a negative rate)
+        assert all(float(dict(h.values)["steps per second"]) > 0 for h in node.reports)
+    finally:
+        node.destroy_node()
 
 # -- the detector node as a process: `ros2 param set /detector conf 0.9` -----------------------------------------
 def _get_conf(peer: Any) -> float:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import importlib
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any, Generic, TypeVar
@@ -103,6 +104,10 @@ class ZebraNode(Node, Generic[C]):
         self.config_class = config
         self.health: HealthMonitor | None = None
         self.diagnostics_pub: Any = None
+        # one report at a time: with two executor threads a timer's report may still run when the node's last one
+        # is made; each takes the activity and remembers its counters for the next, so two interleaved would count
+        # a period twice or from a later report's counters (a negative rate)
+        self._report_lock = threading.Lock()
         self.done = False  # set to end the spin
         self.exit_code = 0
         self.cfg: C = config.from_params(declare_and_read(self, config.specs()))
@@ -132,14 +137,15 @@ class ZebraNode(Node, Generic[C]):
         """Report the node's health since the last report on /diagnostics; the report (None: diagnostics off)."""
         if self.health is None or self.diagnostics_pub is None:
             return None
-        act = self.activity()
-        h = self.health.report(time.monotonic(), act)
-        status = DiagnosticStatus(level=bytes([int(h.level)]),
-                                  name=status_name(self.get_fully_qualified_name(), self.executable),
-                                  message=h.message, hardware_id=act.hardware,
-                                  values=[KeyValue(key=k, value=v) for k, v in h.values])
-        self.diagnostics_pub.publish(DiagnosticArray(header=Header(stamp=self.get_clock().now().to_msg()),
-                                                     status=[status]))
+        with self._report_lock:
+            act = self.activity()
+            h = self.health.report(time.monotonic(), act)
+            status = DiagnosticStatus(level=bytes([int(h.level)]),
+                                      name=status_name(self.get_fully_qualified_name(), self.executable),
+                                      message=h.message, hardware_id=act.hardware,
+                                      values=[KeyValue(key=k, value=v) for k, v in h.values])
+            self.diagnostics_pub.publish(DiagnosticArray(header=Header(stamp=self.get_clock().now().to_msg()),
+                                                         status=[status]))
         return h
 
     def _warn_unknown_parameters(self) -> None:
