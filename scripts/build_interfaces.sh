@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Build the message packages under interfaces/ into the venv (prefix .venv: libraries in .venv/lib, Python in its
 # site-packages, .msg texts in .venv/share/<pkg>/msg), with CMake and the rosidl generators from PyPI. Idempotent:
-# a package is rebuilt only when its sources (or this script) change. tf2_msgs and rosbag2_interfaces (five services:
-# the replay's Seek, SetRate, GetRate and Burst, and IsPaused, the recorder's too) are built only where no other can be imported (a ROS 2
-# install that has geometry2 or rosbag2 keeps its own). Only the C and Python code is generated
+# a package is rebuilt only when its sources (or this script) change. tf2_msgs and rosbag2_interfaces (the services
+# the replay and the recorder serve, as ros2 bag's) are built only where no other can be imported (a ROS 2 install
+# that has geometry2 or rosbag2 keeps its own). Only the C and Python code is generated
 # (-DZEBRA_SIM_PYTHON_ONLY=ON, interfaces/python_includes.cmake): rclpy loads the C typesupports, and the C++ ones
 # were a third of the build's time (benchmarks/bench_interfaces_build.py). Needs cmake and a C/C++ compiler
 # (scripts/setup.sh installs them). Usage: bash scripts/build_interfaces.sh [--force]

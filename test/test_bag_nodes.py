@@ -16,7 +16,20 @@ from mcap.reader import make_reader
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from ros_helpers import Peer, collect_diagnostics, fresh_domain_id, node_process, set_parameter
-from rosbag2_interfaces.srv import Burst, GetRate, IsPaused, Seek, SetRate
+from rosbag2_interfaces.srv import (
+    Burst,
+    GetRate,
+    IsPaused,
+    Pause,
+    PlayNext,
+    Resume,
+    Seek,
+    SetRate,
+    Snapshot,
+    SplitBagfile,
+    Stop,
+    TogglePaused,
+)
 from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import Image
 from std_msgs.msg import Header, String
@@ -279,7 +292,8 @@ def test_a_full_bag_ends_with_a_finalised_file_and_an_error(peer: Peer, tmp_path
 
 def test_replay_remap_offset_loop_and_clock(peer: Peer, tmp_path: Path) -> None:
     """The offset skips the first half, looping plays the second again and again under the prefix, with /clock. Started
-    paused, a ``~/burst`` of 0 plays one pass (to its end, not on into the next) and the next burst the next pass."""
+    paused, a ``~/burst`` of 0 plays one pass (to its end, not on into the next) and the next burst the next pass.
+    ``~/stop`` (rosbag2_interfaces/Stop) ends the looping replay, which exits cleanly."""
     import time
 
     from rosgraph_msgs.msg import Clock
@@ -290,11 +304,12 @@ def test_replay_remap_offset_loop_and_clock(peer: Peer, tmp_path: Path) -> None:
     peer.node.create_subscription(String, "/replayed/tick", lambda m: got.append(m.data), 100)
     peer.node.create_subscription(Clock, "/clock", lambda m: clock.append(m.clock.sec * 10**9 + m.clock.nanosec), 100)
     status = collect_diagnostics(peer.node, "replay: replay")
-    burst, resume = _trigger(peer, "/replay/burst", Burst), _trigger(peer, "/replay/resume")
+    burst, resume = _caller(peer, "/replay/burst", Burst), _caller(peer, "/replay/resume", Resume)
+    stop = _caller(peer, "/replay/stop", Stop)
     params = {"bags": [str(tmp_path / "t.mcap")], "remap_prefix": "/replayed", "start_offset_s": 0.5, "paused": True,
               "loop": True, "clock": True, "wait_for_subscribers_s": 20.0, "diagnostics_period_s": 0.2}
     log = tmp_path / "replay.log"
-    with node_process("replay", params, _domain(peer), log):
+    with node_process("replay", params, _domain(peer), log) as proc:
         assert peer.spin(lambda: burst.ready() and bool(status) and status[-1]["message"] == "paused", 30), \
             (status[-1:], log.read_text())
         for passes in (1, 2):
@@ -306,8 +321,14 @@ def test_replay_remap_offset_loop_and_clock(peer: Peer, tmp_path: Path) -> None:
             assert peer.spin(lambda passes=passes: len(got) == 10 * passes, 10), got
         peer.spin(lambda: False, 0.3)
         assert len(got) == 20  # held at the end of the second pass
-        assert resume().message == "resumed"
+        resume()
+        assert _says(peer, log, "~/resume", ["resumed"]), log.read_text()
         assert peer.spin(lambda: len(got) >= 35, 30), log.read_text()
+        stop()
+        assert proc.wait(timeout=10) == 0, log.read_text()  # looping, it would play on
+        n = len(got)
+        peer.spin(lambda: False, 0.3)
+        assert len(got) == n and _said(log, "~/stop") == [f"playback stopped after {n} messages"], log.read_text()
     # The offset skips ticks 0..9 (before 0.5 s); looping plays 10..19 again and again.
     assert got[:10] == [f"tick {k}" for k in range(10, 20)] and got[10:20] == got[:10] and got[20:30] == got[:10]
     assert clock and min(clock) >= times[0] and max(clock) <= times[-1]
@@ -369,12 +390,9 @@ def test_replay_skips_a_topic_it_cannot_play_and_plays_the_rest(peer: Peer, tmp_
     assert "cannot play /odd (nope_msgs/msg/Thing)" in (tmp_path / "replay.log").read_text()
 
 
-def _trigger(peer: Peer, name: str, srv: Any = None) -> Any:
-    """A caller of the service ``name`` (std_srvs/Trigger unless ``srv``): ready() once it answers, call(**fields)
-    its answer to a request with those fields."""
-    from std_srvs.srv import Trigger
-
-    srv = srv or Trigger
+def _caller(peer: Peer, name: str, srv: Any) -> Any:
+    """A caller of the service ``name`` of type ``srv``: ready() once it answers, call(**fields) its answer to a
+    request with those fields."""
     client = peer.node.create_client(srv, name)
 
     def call(**fields: Any) -> Any:
@@ -386,6 +404,18 @@ def _trigger(peer: Peer, name: str, srv: Any = None) -> Any:
     return call
 
 
+def _said(log: Path, service: str) -> list[str]:
+    """What the node's log says of each call of ``service`` so far, in order: ``~/pause: paused`` gives ``paused``,
+    ``~/play_next refused: not paused: ...`` gives ``not paused: ...`` (rosbag2's answers to most of these services
+    are empty or a bare success)."""
+    return re.findall(rf"{re.escape(service)}(?: refused)?: (.*)", log.read_text())
+
+
+def _says(peer: Peer, log: Path, service: str, want: list[str], timeout: float = 10.0) -> bool:
+    """Spin until the log's outcomes of ``service`` are ``want``."""
+    return peer.spin(lambda: _said(log, service) == want, timeout)
+
+
 def _send(peer: Peer, pub: Any, numbers: range) -> None:
     """Publish each number as a String, 20 ms apart, spinning the peer between."""
     for k in numbers:
@@ -394,16 +424,16 @@ def _send(peer: Peer, pub: Any, numbers: range) -> None:
 
 
 def test_the_recorder_pauses_and_resumes_on_its_services(peer: Peer, tmp_path: Path) -> None:
-    """``paused:=true`` and ``~/pause`` / ``~/resume`` / ``~/toggle_paused`` (std_srvs/Trigger) and ``~/is_paused``
-    (rosbag2_interfaces/IsPaused), as ros2 bag record's: what arrives while paused is counted (``paused`` on
-    /diagnostics, and at exit), not written; what arrives after ~/resume is; the answers say whether the state
-    changed (a toggle names the state it leaves); rosbags reads back exactly the messages sent while it recorded."""
+    """``paused:=true`` and ``~/pause`` / ``~/resume`` / ``~/is_paused`` (rosbag2_interfaces' types, as ros2 bag
+    record's) and ``~/toggle_paused``: what arrives while paused is counted (``paused`` on /diagnostics, and at exit),
+    not written; what arrives after ~/resume is; the log says whether each call changed the state (a toggle names the
+    state it leaves); rosbags reads back exactly the messages sent while it recorded."""
     pub = peer.node.create_publisher(String, "/chatter",
                                      QoSProfile(depth=50, durability=DurabilityPolicy.TRANSIENT_LOCAL))
     status = collect_diagnostics(peer.node, "recorder: recorder")
-    pause, resume = _trigger(peer, "/recorder/pause"), _trigger(peer, "/recorder/resume")
-    toggle = _trigger(peer, "/recorder/toggle_paused")
-    is_paused = _trigger(peer, "/recorder/is_paused", IsPaused)
+    pause, resume = _caller(peer, "/recorder/pause", Pause), _caller(peer, "/recorder/resume", Resume)
+    toggle = _caller(peer, "/recorder/toggle_paused", TogglePaused)
+    is_paused = _caller(peer, "/recorder/is_paused", IsPaused)
     bag, log = tmp_path / "paused.mcap", tmp_path / "rec.log"
 
     def send(numbers: range) -> None:
@@ -418,19 +448,22 @@ def test_the_recorder_pauses_and_resumes_on_its_services(peer: Peer, tmp_path: P
         assert peer.spin(lambda: bool(status) and status[-1]["values"]["paused_messages"] == "5", 10), status[-1:]
         assert status[-1]["message"] == "paused" and status[-1]["values"]["messages"] == "0"
         assert is_paused().paused  # rosbag2_interfaces/IsPaused, as ros2 bag record's
-        assert (resume().message, resume().message) == ("resumed", "not paused")
+        resume(), resume()
+        assert _says(peer, log, "~/resume", ["resumed", "not paused"]), log.read_text()
         assert not is_paused().paused
         send(range(5, 10))
         assert peer.spin(lambda: status[-1]["values"]["messages"] == "5", 10), status[-1:]  # all in before the pause
-        answer = pause()
-        assert answer.success and answer.message == "paused" and pause().message == "already paused"
+        pause(), pause()
+        assert _says(peer, log, "~/pause", ["paused", "already paused"]), log.read_text()
         send(range(10, 15))
         assert peer.spin(lambda: status[-1]["values"]["paused_messages"] == "10"
                          and status[-1]["values"]["messages"] == "5", 10), status[-1:]
-        assert toggle().message == "resumed"  # ~/toggle_paused: the other state, named
+        toggle()
+        assert _says(peer, log, "~/toggle_paused", ["resumed"]), log.read_text()  # the other state, named
         send(range(15, 17))
         assert peer.spin(lambda: status[-1]["values"]["messages"] == "7", 10), status[-1:]
-        assert toggle().message == "paused"
+        toggle()
+        assert _says(peer, log, "~/toggle_paused", ["resumed", "paused"]), log.read_text()
         send(range(17, 18))
         assert peer.spin(lambda: status[-1]["values"]["paused_messages"] == "11", 10), status[-1:]
         rec.send_signal(signal.SIGINT)
@@ -440,9 +473,9 @@ def test_the_recorder_pauses_and_resumes_on_its_services(peer: Peer, tmp_path: P
 
 
 def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path: Path) -> None:
-    """``paused:=true`` and ``~/pause`` / ``~/resume`` / ``~/play_next``, and rosbag2_interfaces' ``~/is_paused``,
+    """``paused:=true`` and rosbag2_interfaces' ``~/pause``, ``~/resume``, ``~/play_next``, ``~/is_paused``,
     ``~/burst``, ``~/set_rate`` and ``~/get_rate``, as ros2 bag play's: started paused nothing plays (its
-    /diagnostics say paused); ``~/play_next`` plays one message at a time and names it, /clock moved to its time;
+    /diagnostics say paused); ``~/play_next`` plays one message at a time (the log names it), /clock moved to its time;
     ``~/burst`` plays the next three at once; a rate of 0 is refused, 1.5 is set; resumed it plays; paused again it
     stops within a message or two, and /clock stands at the bag time reached; a burst of 0 plays the rest at once,
     every message once and in order, and the replay ends; ``~/play_next`` and ``~/burst`` while playing are
@@ -455,10 +488,10 @@ def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path:
     peer.node.create_subscription(String, "/tick", lambda m: got.append(m.data), 100)
     peer.node.create_subscription(Clock, "/clock", lambda m: clocks.append(m.clock.sec * 10**9 + m.clock.nanosec), 100)
     status = collect_diagnostics(peer.node, "replay: replay")
-    pause, resume = _trigger(peer, "/replay/pause"), _trigger(peer, "/replay/resume")
-    step = _trigger(peer, "/replay/play_next")
-    burst, is_paused = _trigger(peer, "/replay/burst", Burst), _trigger(peer, "/replay/is_paused", IsPaused)
-    set_rate, get_rate = _trigger(peer, "/replay/set_rate", SetRate), _trigger(peer, "/replay/get_rate", GetRate)
+    pause, resume = _caller(peer, "/replay/pause", Pause), _caller(peer, "/replay/resume", Resume)
+    step = _caller(peer, "/replay/play_next", PlayNext)
+    burst, is_paused = _caller(peer, "/replay/burst", Burst), _caller(peer, "/replay/is_paused", IsPaused)
+    set_rate, get_rate = _caller(peer, "/replay/set_rate", SetRate), _caller(peer, "/replay/get_rate", GetRate)
     log = tmp_path / "replay.log"
     params = {"bags": [str(tmp_path / "t.mcap")], "paused": True, "wait_for_subscribers_s": 20.0, "clock": True,
               "clock_rate_hz": 50.0, "diagnostics_period_s": 0.2}
@@ -468,10 +501,10 @@ def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path:
         # past its wait for subscribers, held by the pause
         peer.spin(lambda: False, 1.0)
         assert got == [] and status[-1]["message"] == "paused" and status[-1]["values"]["paused"] == "true"
-        for k in range(2):  # one message a call, named in the answer, /clock at its time
-            answer = step()
-            assert answer.success and answer.message == f"played /tick at {(times[k] - times[0]) / 1e9:.3f} s of the "\
-                "bag", answer.message
+        played = [f"played /tick at {(t - times[0]) / 1e9:.3f} s of the bag" for t in times]
+        for k in range(2):  # one message a call, named in the log, /clock at its time
+            assert step().success
+            assert _says(peer, log, "~/play_next", played[:k + 1]), log.read_text()
             assert peer.spin(lambda k=k: len(got) == k + 1 and bool(clocks) and clocks[-1] == times[k], 10), \
                 (got, clocks)
         peer.spin(lambda: False, 0.5)
@@ -482,12 +515,14 @@ def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path:
         assert set_rate(rate=1.5).success and get_rate().rate == pytest.approx(1.5)
         peer.spin(lambda: False, 0.5)
         assert got == [f"tick {k}" for k in range(5)]  # still paused
-        assert resume().message == "resumed" and not is_paused().paused
+        resume()
+        assert _says(peer, log, "~/resume", ["resumed"]) and not is_paused().paused
         assert peer.spin(lambda: len(got) >= 7, 30), log.read_text()
-        refused = step()
-        assert not refused.success and "not paused" in refused.message
+        assert not step().success
+        assert _says(peer, log, "~/play_next", played[:2] + ["not paused: ~/play_next plays while paused"])
         assert burst(num_messages=2).actually_burst == 0
-        assert pause().message == "paused"
+        pause()
+        assert _says(peer, log, "~/pause", ["paused"]), log.read_text()
         held = len(got)
         peer.spin(lambda: False, 1.0)
         assert len(got) <= held + 2 < len(times), (held, got)  # at most the ones already on their way
@@ -510,8 +545,8 @@ def test_a_long_burst_leaves_the_other_services_served_and_a_resume_ends_it(peer
 
     _timed_bag(tmp_path / "t.mcap", [0.0] + [0.0002] * 99_999)  # 100,000 ticks over 20 s
     status = collect_diagnostics(peer.node, "replay: replay")
-    burst, resume = _trigger(peer, "/replay/burst", Burst), _trigger(peer, "/replay/resume")
-    get_rate, is_paused = _trigger(peer, "/replay/get_rate", GetRate), _trigger(peer, "/replay/is_paused", IsPaused)
+    burst, resume = _caller(peer, "/replay/burst", Burst), _caller(peer, "/replay/resume", Resume)
+    get_rate, is_paused = _caller(peer, "/replay/get_rate", GetRate), _caller(peer, "/replay/is_paused", IsPaused)
     log = tmp_path / "replay.log"
     params = {"bags": [str(tmp_path / "t.mcap")], "paused": True, "diagnostics_period_s": 0.2}
     with node_process("replay", params, _domain(peer), log):
@@ -526,12 +561,13 @@ def test_a_long_burst_leaves_the_other_services_served_and_a_resume_ends_it(peer
         assert peer.spin(lambda: len(status) > reports, 5) and not answer.done(), "no /diagnostics during the burst"
         assert get_rate().rate == pytest.approx(1.0) and is_paused().paused and not answer.done()
         assert set_parameter(peer, "/replay", "rate", 2.0).successful and not answer.done()
-        assert resume().message == "resumed", log.read_text()
+        resume()
         assert peer.spin(answer.done, 10), log.read_text()
         took = time.monotonic() - t
         played = answer.result().actually_burst
     assert 0 < played < 99_999, (played, took)
     assert f"burst {played} of the pass messages: resumed while it played" in log.read_text(), log.read_text()
+    assert _said(log, "~/resume") == ["resumed"]
 
 
 def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_path: Path) -> None:
@@ -552,8 +588,8 @@ def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_
     clocks: list[int] = []
     peer.node.create_subscription(Clock, "/clock", lambda m: clocks.append(m.clock.sec * 10**9 + m.clock.nanosec), 100)
     status = collect_diagnostics(peer.node, "replay: replay")
-    resume, step = _trigger(peer, "/replay/resume"), _trigger(peer, "/replay/play_next")
-    seek_stamp = _trigger(peer, "/replay/seek", Seek)
+    resume, step = _caller(peer, "/replay/resume", Resume), _caller(peer, "/replay/play_next", PlayNext)
+    seek_stamp = _caller(peer, "/replay/seek", Seek)
     log = tmp_path / "replay.log"
     params = {"bags": [str(tmp_path / "t.mcap")], "paused": True, "wait_for_subscribers_s": 60.0, "clock": True,
               "clock_rate_hz": 50.0, "diagnostics_period_s": 0.2}
@@ -570,23 +606,26 @@ def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_
         assert peer.spin(lambda: step.ready() and resume.ready() and bool(status), 30), log.read_text()
         assert peer.spin(lambda: "subscribers" in status[-1]["message"], 10), status[-1:]  # no /tick subscriber yet
         t = time.monotonic()
-        refused = step()
-        assert not refused.success and "nothing to play yet (waiting up to 60 s for subscribers)" in refused.message
+        assert not step().success
         assert time.monotonic() - t < 3.0, "the refusal waited"
+        said = ["nothing to play yet (waiting up to 60 s for subscribers)"]
+        assert _says(peer, log, "~/play_next", said), log.read_text()
+        played = [f"played /tick at {(t - times[0]) / 1e9:.3f} s of the bag" for t in times]
         peer.node.create_subscription(String, "/tick", lambda m: got.append(m.data.rstrip()), 100)
         assert peer.spin(lambda: status[-1]["message"] == "paused", 30), status[-1:]
         for to, k in ((1.0, 10), (0.25, 3), (0.25, 3)):  # forward; back; the same value again
             n = seek(to)
             assert peer.spin(lambda to=to, n=n: sought(to, n), 10), (to, clocks[n:])
-            answer = step()
-            assert answer.success and answer.message == f"played /tick at {(times[k] - times[0]) / 1e9:.3f} s of the "\
-                "bag", (to, answer.message, log.read_text())
+            assert step().success
+            said.append(played[k])
+            assert _says(peer, log, "~/play_next", said), (to, log.read_text())
             assert peer.spin(lambda k=k: clocks[-1] == times[k], 10), (to, clocks[-3:])
         n = seek(1.55)  # forward, past ticks 4-15 (their chunks passed over unread) ...
         assert peer.spin(lambda: sought(1.55, n), 10), clocks[n:]
         seek(0.55)  # ... then back among them, after the last tick read: the bags are read again
-        answer = step()
-        assert answer.success and answer.message == f"played /tick at {(times[6] - times[0]) / 1e9:.3f} s of the bag"
+        assert step().success
+        said.append(played[6])
+        assert _says(peer, log, "~/play_next", said), log.read_text()
         # rosbag2_interfaces/Seek takes a stamp: past the last message it is refused, at a message's exact stamp
         # (odd nanoseconds) that message plays next
         assert not seek_stamp(time=stamp(times[-1] + 1)).success
@@ -596,15 +635,19 @@ def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_
         n = len(clocks)
         assert seek_stamp(time=stamp(times[0] - 10**9)).success  # a second before the first message: to it
         assert peer.spin(lambda: sought(0.0, n), 10), clocks[n:]
-        assert step().message == "played /tick at 0.000 s of the bag"
+        assert step().success
+        said.append("played /tick at 0.000 s of the bag")
+        assert _says(peer, log, "~/play_next", said), log.read_text()
         n = len(clocks)
         assert seek_stamp(time=stamp(times[8])).success
         # /clock stands at the time sought (seconds after the first message: within a nanosecond of the stamp) ...
         assert peer.spin(lambda: any(abs(c - times[8]) <= 1 for c in clocks[n:]), 10), clocks[n:]
-        assert step().message == f"played /tick at {(times[8] - times[0]) / 1e9:.3f} s of the bag"
+        assert step().success
+        said.append(played[8])
+        assert _says(peer, log, "~/play_next", said), log.read_text()
         assert peer.spin(lambda: clocks[-1] == times[8], 10), clocks[-3:]  # ... and at the stamp once it plays
         assert got == ["tick 10", "tick 3", "tick 3", "tick 6", "tick 0", "tick 8"]
-        assert resume().message == "resumed"
+        resume()
         assert peer.spin(lambda: len(got) == 17, 30), (got, log.read_text())
         assert proc.wait(timeout=30) == 0, log.read_text()
     assert got == ["tick 10", "tick 3", "tick 3", "tick 6", "tick 0", "tick 8"] + [f"tick {k}" for k in range(9, 20)]
@@ -636,15 +679,16 @@ def test_a_seek_while_playing_cuts_the_wait_for_a_far_message(peer: Peer, tmp_pa
 
 
 def test_the_recorder_splits_its_bag_on_its_service(peer: Peer, tmp_path: Path) -> None:
-    """``~/split_bagfile`` (std_srvs/Trigger), as ros2 bag record's: the answer names the new file; what arrived
-    before goes into the first file, what comes after into the next, each read back alone by rosbags; /diagnostics
-    count the files. Its ``~/snapshot``, outside snapshot mode, refuses, saying why. Its ``qos_overrides_path``
-    subscribes /chatter volatile with depth 7, where it would take transient local (what the publisher offers) and
-    ``qos_depth`` (the graph shows the durability; the depth, which discovery does not carry, its log)."""
+    """``~/split_bagfile`` (rosbag2_interfaces/SplitBagfile), as ros2 bag record's: the log names the new file;
+    what arrived before goes into the first file, what comes after into the next, each read back alone by rosbags;
+    /diagnostics count the files. Its ``~/snapshot``, outside snapshot mode, refuses, the log saying why. Its
+    ``qos_overrides_path`` subscribes /chatter volatile with depth 7, where it would take transient local (what the
+    publisher offers) and ``qos_depth`` (the graph shows the durability; the depth, which discovery does not carry,
+    its log)."""
     pub = peer.node.create_publisher(String, "/chatter",
                                      QoSProfile(depth=50, durability=DurabilityPolicy.TRANSIENT_LOCAL))
     status = collect_diagnostics(peer.node, "recorder: recorder")
-    split, snap = _trigger(peer, "/recorder/split_bagfile"), _trigger(peer, "/recorder/snapshot")
+    split, snap = _caller(peer, "/recorder/split_bagfile", SplitBagfile), _caller(peer, "/recorder/snapshot", Snapshot)
     bag, log = tmp_path / "run.mcap", tmp_path / "rec.log"
     (tmp_path / "qos.yaml").write_text("/chatter:\n  durability: volatile\n  depth: 7\n")
     params = {"output": str(bag), "discovery_period_s": 0.1, "diagnostics_period_s": 0.2,
@@ -658,11 +702,11 @@ def test_the_recorder_splits_its_bag_on_its_service(peer: Peer, tmp_path: Path) 
         peer.spin(lambda: False, 0.5)
         _send(peer, pub, range(0, 5))
         assert peer.spin(lambda: status[-1]["values"]["messages"] == "5", 10), status[-1:]
-        answer = split()
-        assert answer.success and answer.message == f"now writing {tmp_path / 'run_1.mcap'}", answer.message
-        refused = snap()  # not in snapshot mode: refused, saying why
-        assert not refused.success and refused.message == "not in snapshot mode: snapshot_size_mb is 0, so " \
-            "everything is written as it arrives"
+        split()  # rosbag2's SplitBagfile answers nothing: the log names the new file
+        assert _says(peer, log, "~/split_bagfile", [f"now writing {tmp_path / 'run_1.mcap'}"]), log.read_text()
+        assert not snap().success  # not in snapshot mode: refused, the log says why
+        assert _says(peer, log, "~/snapshot", ["not in snapshot mode: snapshot_size_mb is 0, so everything is "
+                                               "written as it arrives"]), log.read_text()
         _send(peer, pub, range(5, 8))
         assert peer.spin(lambda: status[-1]["values"]["messages"] == "8" and status[-1]["values"]["files"] == "2",
                          10), status[-1:]
@@ -674,14 +718,14 @@ def test_the_recorder_splits_its_bag_on_its_service(peer: Peer, tmp_path: Path) 
 
 def test_the_recorder_in_snapshot_mode_writes_the_newest_messages_on_its_service(peer: Peer, tmp_path: Path) -> None:
     """``snapshot_size_mb`` > 0, as ros2 bag record --snapshot-mode: nothing is written as it arrives, and no file is
-    made; ``~/snapshot`` (std_srvs/Trigger) writes the newest messages that fit the cache into a file of its own,
-    complete at once (rosbags reads back exactly those, in order, while the recorder runs), and names it; the next
-    snapshot goes into the next file; /diagnostics count what arrives, what the cache holds and let go, and the
-    snapshots; an empty cache writes nothing; ``~/split_bagfile`` refuses. (Outside snapshot mode ``~/snapshot``
-    refuses: the split test's recorder checks it.)"""
+    made; ``~/snapshot`` (rosbag2_interfaces/Snapshot) writes the newest messages that fit the cache into a file of
+    its own, complete at once (rosbags reads back exactly those, in order, while the recorder runs; the log names
+    it); the next snapshot goes into the next file; /diagnostics count what arrives, what the cache holds and let go,
+    and the snapshots; an empty cache writes nothing; ``~/split_bagfile`` refuses. (Outside snapshot mode
+    ``~/snapshot`` refuses: the split test's recorder checks it.)"""
     pub = peer.node.create_publisher(String, "/chatter", QoSProfile(depth=50))
     status = collect_diagnostics(peer.node, "recorder: recorder")
-    snap, split = _trigger(peer, "/recorder/snapshot"), _trigger(peer, "/recorder/split_bagfile")
+    snap, split = _caller(peer, "/recorder/snapshot", Snapshot), _caller(peer, "/recorder/split_bagfile", SplitBagfile)
     bag, log = tmp_path / "snap.mcap", tmp_path / "rec.log"
     params = {"output": str(bag), "discovery_period_s": 0.1, "diagnostics_period_s": 0.2,
               "snapshot_size_mb": 0.001, **ONLY_DATA}  # 1,048 bytes: nine of these 112-byte messages
@@ -696,16 +740,21 @@ def test_the_recorder_in_snapshot_mode_writes_the_newest_messages_on_its_service
                          and status[-1]["values"].get("expired") == "21", 10), status[-1:]
         assert [status[-1]["values"][k] for k in ("messages", "received", "taken")] == ["0", "30", "30"]
         assert not bag.exists()
-        answer = snap()
-        assert answer.success and answer.message.startswith("wrote 9 messages") \
-            and answer.message.endswith(f"to {bag}"), answer.message
+        assert snap().success
+        assert peer.spin(lambda: len(_said(log, "~/snapshot")) == 1, 10), log.read_text()
+        [wrote] = _said(log, "~/snapshot")
+        assert wrote.startswith("wrote 9 messages") and wrote.endswith(f"to {bag}"), wrote
         assert [text[:3] for text in texts(bag)] == [f"{k:03d}" for k in range(21, 30)]  # complete: read now
-        assert snap().message == "the cache is empty: nothing to write"
-        refused = split()
-        assert not refused.success and "a file of its own" in refused.message, refused.message
+        assert snap().success
+        assert _says(peer, log, "~/snapshot", [wrote, "the cache is empty: nothing to write"]), log.read_text()
+        split()
+        assert peer.spin(lambda: len(_said(log, "~/split_bagfile")) == 1, 10), log.read_text()
+        assert "~/split_bagfile refused: snapshot mode writes each snapshot into a file of its own" in log.read_text()
         pub.publish(String(data="030" + "x" * 97))
         assert peer.spin(lambda: status[-1]["values"]["cached"] == "1", 10), status[-1:]
-        assert snap().message.endswith(f"to {tmp_path / 'snap_1.mcap'}")
+        assert snap().success
+        assert peer.spin(lambda: len(_said(log, "~/snapshot")) == 3, 10), log.read_text()
+        assert _said(log, "~/snapshot")[-1].endswith(f"to {tmp_path / 'snap_1.mcap'}"), log.read_text()
         assert peer.spin(lambda: status[-1]["values"]["snapshots"] == "2" and status[-1]["values"]["messages"] == "10",
                          10), status[-1:]
         rec.send_signal(signal.SIGINT)
@@ -736,7 +785,7 @@ def test_seeks_across_a_damaged_chunk_count_it_once(peer: Peer, tmp_path: Path) 
     peer.node.create_subscription(String, "/tick", lambda m: got.append(m.data), 1000)
     peer.node.create_subscription(Clock, "/clock", lambda m: clocks.append(m.clock.sec * 10**9 + m.clock.nanosec), 100)
     status = collect_diagnostics(peer.node, "replay: replay")
-    resume = _trigger(peer, "/replay/resume")
+    resume = _caller(peer, "/replay/resume", Resume)
     log = tmp_path / "replay.log"
     (tmp_path / "qos.yaml").write_text("/tick:\n  durability: transient_local\n  depth: 250\n")
     params = {"bags": [str(tmp_path / "hurt.mcap")], "paused": True, "wait_for_subscribers_s": 20.0, "clock": True,
@@ -752,7 +801,7 @@ def test_seeks_across_a_damaged_chunk_count_it_once(peer: Peer, tmp_path: Path) 
             assert peer.spin(lambda to=to, n=n: times[0] + int(to * 1e9) in clocks[n:], 10), (to, clocks[n:])
             peer.spin(lambda: False, 0.3)  # /diagnostics at 10 Hz: a count that went down would show
             assert peer.spin(lambda: status[-1]["values"]["damaged"] == "1", 5), (to, status[-1:])
-        assert resume().message == "resumed"
+        resume()
         assert proc.wait(timeout=30) == 0, log.read_text()
         peer.spin(lambda: False, 0.5)
     damaged = [int(s["values"]["damaged"]) for s in status]
@@ -767,7 +816,7 @@ def test_a_seek_back_among_stamps_out_of_order_plays_again_what_it_should(peer: 
     _timed_bag(tmp_path / "t.mcap", [0.0, 0.5, -0.3, 0.4, 0.1])  # 0, 0.5, 0.2, 0.6, 0.7 s
     got: list[str] = []
     peer.node.create_subscription(String, "/tick", lambda m: got.append(m.data), 100)
-    step = _trigger(peer, "/replay/play_next")
+    step = _caller(peer, "/replay/play_next", PlayNext)
     status = collect_diagnostics(peer.node, "replay: replay")
     log = tmp_path / "replay.log"
     params = {"bags": [str(tmp_path / "t.mcap")], "paused": True, "wait_for_subscribers_s": 20.0,
@@ -775,9 +824,11 @@ def test_a_seek_back_among_stamps_out_of_order_plays_again_what_it_should(peer: 
     with node_process("replay", params, _domain(peer), log):
         assert peer.spin(lambda: step.ready() and bool(status) and status[-1]["message"] == "paused", 30), \
             log.read_text()  # past its wait for subscribers
-        assert [step().message for _ in range(3)] == [f"played /tick at {t} s of the bag"
-                                                      for t in ("0.000", "0.500", "0.200")], log.read_text()
+        assert all(step().success for _ in range(3))
+        said = [f"played /tick at {t} s of the bag" for t in ("0.000", "0.500", "0.200")]
+        assert _says(peer, log, "~/play_next", said), log.read_text()
         assert set_parameter(peer, "/replay", "start_offset_s", 0.3).successful
-        assert step().message == "played /tick at 0.500 s of the bag", log.read_text()
+        assert step().success
+        assert _says(peer, log, "~/play_next", said + ["played /tick at 0.500 s of the bag"]), log.read_text()
         assert peer.spin(lambda: len(got) == 4, 10)
     assert got == ["tick 0", "tick 1", "tick 2", "tick 1"]

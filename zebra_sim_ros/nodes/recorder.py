@@ -11,16 +11,16 @@ local only if they all are), and the offered profiles go into the bag as rosbag2
 time, the stamps' time base. Each message's publish time is when it arrived (wall clock), which is what latencies are
 measured from. Callbacks only queue the bytes; one thread writes. A full queue counts drops per topic; a full disk or
 ``max_size_mb`` ends the recording with a finalised bag and an error. ``paused`` (runtime; the ``~/pause``,
-``~/resume`` and ``~/toggle_paused`` services, std_srvs/Trigger, set it, and ``~/is_paused``,
-rosbag2_interfaces/IsPaused, gives it, as ``ros2 bag record``'s) writes nothing while true: what arrives is counted
-per topic (``paused_messages`` on /diagnostics), neither written nor dropped, and topics are still found and
-subscribed. ``~/split_bagfile`` (std_srvs/Trigger, as ``ros2 bag record``'s) finishes the open file
-after what is queued and goes on in the next (``<stem>_1.mcap``, ... for a bag not split by size or duration). With
-``snapshot_size_mb`` > 0 (snapshot mode, as ``ros2 bag record --snapshot-mode``) the newest messages are kept in memory
-instead, up to that size (and ``snapshot_duration_s`` of log time), and ``~/snapshot`` (std_srvs/Trigger) writes them
-into a file of their own, finished at once (``output``, then ``<stem>_1.mcap``, ...; no file before the first
-snapshot; with a size or duration split ``<stem>_0.mcap``, ..., and a large snapshot may fill several), and answers
-with its name. SIGINT, SIGTERM and node shutdown finalise the bag (summary and indexes); after
+``~/resume`` and ``~/toggle_paused`` services set it, and ``~/is_paused`` gives it) writes nothing while true: what
+arrives is counted per topic (``paused_messages`` on /diagnostics), neither written nor dropped, and topics are still
+found and subscribed. ``~/split_bagfile`` finishes the open file after what is queued and goes on in the next
+(``<stem>_1.mcap``, ... for a bag not split by size or duration). With ``snapshot_size_mb`` > 0 (snapshot mode, as
+``ros2 bag record --snapshot-mode``) the newest messages are kept in memory instead, up to that size (and
+``snapshot_duration_s`` of log time), and ``~/snapshot`` writes them into a file of their own, finished at once
+(``output``, then ``<stem>_1.mcap``, ...; no file before the first snapshot; with a size or duration split
+``<stem>_0.mcap``, ..., and a large snapshot may fill several); the log names it. The services are ``ros2 bag
+record``'s, with rosbag2_interfaces' types (Jazzy's; ``~/toggle_paused`` as the player's), so its clients work
+unchanged. SIGINT, SIGTERM and node shutdown finalise the bag (summary and indexes); after
 SIGKILL use ``zebra-sim bag recover``.
 """
 
@@ -30,7 +30,7 @@ import time
 from typing import Any
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
-from std_srvs.srv import Trigger
+from rosbag2_interfaces.srv import Snapshot, SplitBagfile
 
 from zebra_sim_ros.errors import ZebraSimError
 from zebra_sim_ros.health import Activity
@@ -67,8 +67,8 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         cache, span = int(c.snapshot_size_mb * MB), int(c.snapshot_duration_s * 1e9)  # snapshot mode where > 0
         self.core = RecorderCore(self.writer, c.queue_size, paused=c.paused, snapshot_bytes=cache, snapshot_ns=span)
         self.serve_pause()
-        self.create_service(Trigger, "~/split_bagfile", self._on_split)
-        self.create_service(Trigger, "~/snapshot", self._on_snapshot)
+        self.create_service(SplitBagfile, "~/split_bagfile", self._on_split)
+        self.create_service(Snapshot, "~/snapshot", self._on_snapshot)
         self.depth = c.qos_depth
         self.log_times = LogTimes()  # each message's log time: its stamp, reports at the latest one
         self.subs: dict[str, Any] = {}
@@ -141,22 +141,25 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         return on_message
 
     def _on_split(self, request: Any, response: Any) -> Any:
-        """``~/split_bagfile``: the open file is finished after what is queued, and the bag goes on in the next;
-        answered with its name (or how far behind the writer is), refused once the recording has ended and in
-        snapshot mode (each snapshot is a file of its own)."""
-        response.success, response.message = self.core.split()
-        self.get_logger().info(f"split_bagfile: {response.message}")
+        """``~/split_bagfile`` (rosbag2_interfaces/srv/SplitBagfile, whose answer is empty): the open file is
+        finished after what is queued, and the bag goes on in the next; the log names it (or says how far behind
+        the writer is), or says why it was refused: once the recording has ended, and in snapshot mode (each
+        snapshot is a file of its own)."""
+        ok, message = self.core.split()
+        log = self.get_logger().info if ok else self.get_logger().warning
+        log(f"~/split_bagfile: {message}" if ok else f"~/split_bagfile refused: {message}")
         return response
 
     def _on_snapshot(self, request: Any, response: Any) -> Any:
-        """``~/snapshot``, in snapshot mode: what the cache holds is written into a file of its own, finished at
-        once, and the cache starts again empty; answered with the file's name (or what is being written, where that
-        takes more than half a second); refused outside snapshot mode (``snapshot_size_mb`` 0) or once the recording
-        has ended."""
-        response.success, response.message = self.core.snapshot()
+        """``~/snapshot`` (rosbag2_interfaces/srv/Snapshot), in snapshot mode: what the cache holds is written into a
+        file of its own, finished at once, and the cache starts again empty; ``success``, and the log names the
+        file (or what is being written, where that takes more than half a second); refused outside snapshot mode
+        (``snapshot_size_mb`` 0) or once the recording has ended."""
+        response.success, message = self.core.snapshot()
         if not self.cfg.snapshot_size_mb:
-            response.message += ": snapshot_size_mb is 0, so everything is written as it arrives"
-        self.get_logger().info(f"snapshot: {response.message}")
+            message += ": snapshot_size_mb is 0, so everything is written as it arrives"
+        log = self.get_logger().info if response.success else self.get_logger().warning
+        log(f"~/snapshot: {message}" if response.success else f"~/snapshot refused: {message}")
         return response
 
     def _log_stats(self) -> None:

@@ -6,15 +6,16 @@ sets policies per topic over that, as ``ros2 bag play --qos-profile-overrides-pa
 spacing of log times divided by ``rate``. ``start_offset_s`` and ``duration_s`` select a window,
 ``topics``/``topic_regex``/``exclude_regex`` select topics, ``loop`` plays again, ``clock`` publishes ``/clock``
 with the bag's time for ``use_sim_time`` consumers. ``paused`` (runtime; the ``~/pause``, ``~/resume`` and
-``~/toggle_paused`` services, std_srvs/Trigger, set it, as ``ros2 bag play``'s) holds playback at the bag time
-reached and goes on from there; while paused, ``~/play_next`` plays the next message alone (/clock moves to its
-time) and answers with its topic and bag time; ``rate`` changes apply at once. Setting ``start_offset_s`` while
-playing seeks there, as ``ros2 bag play``'s seek: the next message played is the first at or after that bag time
-(back or forth; a pause holds there; one past the bags' last message is refused, as it is at start).
-rosbag2_interfaces services as ``ros2 bag play``'s: ``~/seek`` (a bag stamp), ``~/set_rate``, ``~/get_rate``,
-``~/is_paused`` and ``~/burst`` (while paused, the next N messages at once; 0: the rest of the pass). A truncated
-or corrupt bag plays everything intact, then the node logs where and why it stopped. The node exits when done
-(unless looping).
+``~/toggle_paused`` services set it) holds playback at the bag time reached and goes on from there; while paused,
+``~/play_next`` plays the next message alone (/clock moves to its time; the log names its topic and bag time);
+``rate`` changes apply at once. Setting ``start_offset_s`` while playing seeks there, as ``ros2 bag play``'s seek: the
+next message played is the first at or after that bag time (back or forth; a pause holds there; one past the bags'
+last message is refused, as it is at start). Every service is ``ros2 bag play``'s, with rosbag2_interfaces' types
+(Jazzy's), so its clients work unchanged: ``~/pause``, ``~/resume``, ``~/toggle_paused``, ``~/is_paused``,
+``~/play_next``, ``~/burst`` (while paused, the next N messages at once; 0: the rest of the pass), ``~/seek`` (a
+bag stamp), ``~/set_rate``, ``~/get_rate`` and ``~/stop`` (playback ends, and the node with it). A truncated or
+corrupt bag plays everything intact, then the node logs where and why it stopped. The node exits when done (unless
+looping).
 """
 
 from __future__ import annotations
@@ -31,9 +32,8 @@ import yaml
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.parameter import Parameter
-from rosbag2_interfaces.srv import Burst, GetRate, Seek, SetRate
+from rosbag2_interfaces.srv import Burst, GetRate, PlayNext, Seek, SetRate, Stop
 from rosgraph_msgs.msg import Clock
-from std_srvs.srv import Trigger
 
 from zebra_sim_ros.errors import ParameterError
 from zebra_sim_ros.health import Activity
@@ -137,6 +137,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         self.seek_to: float | None = None  # a seek asked for and not yet taken (bag seconds); under step_cond
         self.seeks = 0  # seeks taken
         self.error = ""  # why playing failed
+        self.stop_asked = False  # ~/stop ended playback
         self.damaged_before = 0  # damaged parts skipped in earlier passes (looping reopens the reader)
         self.damaged_pass: set[str] = set()  # this pass's, from readers a seek back replaced (the same parts again)
         self.pass_lock = threading.Lock()  # a report never sees a pass counted twice, or not at all
@@ -146,11 +147,12 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             self._publisher(topic, type_name, metadata)                    # before the first message is played
         self.serve_pause()
         steps = MutuallyExclusiveCallbackGroup()  # one step or burst at a time; the rest served beside it
-        self.create_service(Trigger, "~/play_next", self._on_play_next, callback_group=steps)
+        self.create_service(PlayNext, "~/play_next", self._on_play_next, callback_group=steps)
         self.create_service(Burst, "~/burst", self._on_burst, callback_group=steps)
         self.create_service(Seek, "~/seek", self._on_seek)
         self.create_service(SetRate, "~/set_rate", self._on_set_rate)
         self.create_service(GetRate, "~/get_rate", self._on_get_rate)
+        self.create_service(Stop, "~/stop", self._on_stop)
         self.get_logger().info(f"playing {[str(p) for p in self.reader.paths]} at rate {c.rate}, "
                                f"offset {c.start_offset_s} s, duration {c.duration_s or 'all'}, "
                                f"loop {c.loop}, clock {c.clock}, remap prefix '{c.remap_prefix}'"
@@ -367,11 +369,15 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             self.step_cond.notify_all()
 
     def _on_play_next(self, request: Any, response: Any) -> Any:
-        """``~/play_next``: while paused, the next message is played alone; answered once it is (its topic and bag
-        time), or refused: see :meth:`_play_steps`."""
+        """``~/play_next`` (rosbag2_interfaces/srv/PlayNext): while paused, the next message is played alone;
+        answered once it is (``success``; the log names its topic and bag time), or refused (the log says why: see
+        :meth:`_play_steps`)."""
         played, why = self._play_steps(1, "~/play_next")
         response.success = played == 1
-        response.message = f"played {self.step_note}" if played else why
+        if played:
+            self.get_logger().info(f"~/play_next: played {self.step_note}")
+        else:
+            self.get_logger().warning(f"~/play_next refused: {why}")
         return response
 
     def _on_burst(self, request: Any, response: Any) -> Any:
@@ -394,7 +400,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         while the replay waits for subscribers or reads the bags on to a time sought, or no message played within
         ``_STEP_WAIT_S`` (the steps not taken are withdrawn; one the play thread has just taken plays after the
         answer)."""
-        ended = lambda: self.error or "the bag has been played"  # noqa: E731
+        def ended() -> str:
+            return self.error or ("playback was stopped (~/stop)" if self.stop_asked else "the bag has been played")
+
         if self.done or not self.cfg.paused:
             return 0, ended() if self.done else f"not paused: {service} plays while paused"
         if busy := self.waiting or self.reading:  # no message is near: refused at once, not holding the executor
@@ -462,6 +470,17 @@ class ReplayNode(ZebraNode[ReplayConfig]):
     def _on_get_rate(self, request: Any, response: Any) -> Any:
         """``~/get_rate`` (rosbag2_interfaces/GetRate): the ``rate`` played at (paused or not)."""
         response.rate = float(self.cfg.rate)
+        return response
+
+    def _on_stop(self, request: Any, response: Any) -> Any:
+        """``~/stop`` (rosbag2_interfaces/srv/Stop), as ``ros2 bag play``'s: playback ends where it is, paused or not
+        (looping too), and the node ends as it does when the bags have been played."""
+        if not self.done:
+            self.get_logger().info(f"~/stop: playback stopped after {self.published} messages")
+        self.stop_asked = True
+        self.done = True  # the play thread and the spin end; run_node stops the node
+        with self.step_cond:  # a ~/burst or ~/play_next waiting on the other executor thread answers now
+            self.step_cond.notify_all()
         return response
 
     def _take_step(self) -> bool:

@@ -189,30 +189,31 @@ class ZebraNode(Node, Generic[C]):
         self.cfg = cfg
 
     def serve_pause(self) -> None:
-        """``~/pause``, ``~/resume`` and ``~/toggle_paused`` (std_srvs/Trigger), as ``ros2 bag``'s: each sets the
-        node's runtime ``paused`` parameter, so ``ros2 param get`` shows the state and :meth:`on_config` applies it;
-        the answer says the state it leaves and whether it changed (``paused``, ``resumed``, ``already paused``,
-        ``not paused``). ``~/is_paused`` (rosbag2_interfaces/IsPaused, as ``ros2 bag``'s) gives the state."""
-        from rosbag2_interfaces.srv import IsPaused
-        from std_srvs.srv import Trigger
+        """``~/pause``, ``~/resume`` and ``~/toggle_paused`` (rosbag2_interfaces/srv/Pause, Resume and TogglePaused,
+        as ``ros2 bag``'s: their answers are empty): each sets the node's runtime ``paused`` parameter, so ``ros2
+        param get`` shows the state and :meth:`on_config` applies it, and the node logs the state it leaves and
+        whether it changed (``~/pause: paused``, ``already paused``, ``~/resume: resumed``, ``not paused``) or why
+        the change was refused. ``~/is_paused`` (rosbag2_interfaces/srv/IsPaused) gives the state."""
+        from rosbag2_interfaces.srv import IsPaused, Pause, Resume, TogglePaused
 
         if "paused" not in {s.name for s in self.config_class.specs()}:
             raise TypeError(f"{self.executable}: serve_pause needs a runtime 'paused' parameter in its config")
 
-        def setter(to: bool | None) -> Callable[[Any, Any], Any]:  # None: the other state (~/toggle_paused)
+        def setter(service: str, to: bool | None) -> Callable[[Any, Any], Any]:  # None: the other state
             def handle(request: Any, response: Any) -> Any:
                 was = bool(self.get_parameter("paused").value)
                 value = not was if to is None else to
-                refused = self.set_param("paused", value)
-                response.success = not refused
+                if refused := self.set_param("paused", value):
+                    self.get_logger().warning(f"{service} refused: {refused}")
+                    return response
                 word, unchanged = ("paused", "already paused") if value else ("resumed", "not paused")
-                response.message = refused or (word if was != value else unchanged)
+                self.get_logger().info(f"{service}: {word if was != value else unchanged}")
                 return response
             return handle
 
-        self.create_service(Trigger, "~/pause", setter(True))
-        self.create_service(Trigger, "~/resume", setter(False))
-        self.create_service(Trigger, "~/toggle_paused", setter(None))
+        self.create_service(Pause, "~/pause", setter("~/pause", True))
+        self.create_service(Resume, "~/resume", setter("~/resume", False))
+        self.create_service(TogglePaused, "~/toggle_paused", setter("~/toggle_paused", None))
 
         def is_paused(request: Any, response: Any) -> Any:
             response.paused = bool(self.get_parameter("paused").value)

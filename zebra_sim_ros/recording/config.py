@@ -62,13 +62,14 @@ class RecorderConfig(StageConfig):
                                                    "ros2 bag record --qos-profile-overrides-path")
     snapshot_size_mb: float = param(0.0, "snapshot mode when more than 0, as ros2 bag record --snapshot-mode "
                                     "--max-cache-size: keep the newest messages, up to this size, in memory and "
-                                    "write them only when ~/snapshot (std_srvs/Trigger) is called, each snapshot "
-                                    "into a file of its own (0: record everything)", "MB", lo=0.0, hi=1e5)
+                                    "write them only when ~/snapshot (rosbag2_interfaces/srv/Snapshot) is called, "
+                                    "each snapshot into a file of its own (0: record everything)", "MB", lo=0.0,
+                                    hi=1e5)
     snapshot_duration_s: float = param(0.0, "in snapshot mode, keep only the messages of this much log time before "
                                        "the newest (0: as many as snapshot_size_mb holds)", "s", lo=0.0, hi=1e6)
     paused: bool = param(False, "write nothing while true: what arrives is counted (paused_messages), not "
                          "written, as ros2 bag record's pause; ~/pause, ~/resume and ~/toggle_paused "
-                         "(std_srvs/Trigger) set it; true at start: start paused", runtime=True)
+                         "(rosbag2_interfaces' services) set it; true at start: start paused", runtime=True)
     diagnostics_period_s: float = diagnostics_param()
 
     def check(self) -> None:
@@ -108,8 +109,8 @@ class ReplayConfig(StageConfig):
                                   allowed="a non-empty list of paths", check=lambda v: _str_list(v) and any(v))
     rate: float = param(1.0, "playback speed (2: twice as fast)", lo=0.01, hi=1000.0, runtime=True)
     paused: bool = param(False, "hold playback where it is while true (/clock stays at the bag time reached), as ros2 "
-                         "bag play's pause; ~/pause, ~/resume and ~/toggle_paused (std_srvs/Trigger) set it; true "
-                         "at start: start paused", runtime=True)
+                         "bag play's pause; ~/pause, ~/resume and ~/toggle_paused (rosbag2_interfaces' services) "
+                         "set it; true at start: start paused", runtime=True)
     loop: bool = param(False, "play again from start_offset_s (where the last seek went) when done")
     start_offset_s: float = param(0.0, "skip this much of the bag's start (its first message played: topics not "
                                   "played do not count); set while playing, it seeks there, back or forth (as ros2 "
