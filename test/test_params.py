@@ -322,7 +322,6 @@ def test_set_parameters_applies_runtime_ones_and_refuses_the_rest_with_a_reason(
         node.destroy_node()
 
 
-
 @dataclass(frozen=True)
 class ReportingConfig(StageConfig):
     diagnostics_period_s: float = diagnostics_param()
@@ -373,8 +372,12 @@ def test_reports_from_two_threads_are_made_one_at_a_time(ros_context: Any) -> No
         assert sorted(int(dict(h.values)["steps"]) for h in node.reports) == list(range(1, 21))
         # each report counts from the one made before it: one step, never a later report's total (a negative rate)
         assert all(float(dict(h.values)["steps per second"]) > 0 for h in node.reports)
+        # the node's last report (run_node's, as it ends) is the last: a timer's report after it makes none
+        assert node.publish_diagnostics(last=True) is not None and node.publish_diagnostics() is None
+        assert node.steps == 21
     finally:
         node.destroy_node()
+
 
 # -- the detector node as a process: `ros2 param set /detector conf 0.9` -----------------------------------------
 def _get_conf(peer: Any) -> float:

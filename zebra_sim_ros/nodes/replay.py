@@ -176,7 +176,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         """As every node's, and every accepted set of ``start_offset_s`` seeks, even to the value it has (as a
         repeated ``ros2 bag play`` seek plays again from there)."""
         offsets = [p for p in params if p.name == "start_offset_s"]
-        if offsets and self.done:  # the play thread has ended: nothing takes a seek
+        if offsets and self._ending():  # the play thread has ended: nothing takes a seek
             return SetParametersResult(successful=False, reason="the bags have been played: no seek (loop:=true "
                                        "keeps the replay playing)")
         if offsets and (why := self._past_end(float(offsets[-1].value))):
@@ -242,7 +242,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                     origin = None
                 except _Seek as seek:  # read the bags again from their start, up to the bag time sought
                     origin = seek.to
-                if self.done or (origin is None and not self.cfg.loop):
+                if self._ending() or (origin is None and not self.cfg.loop):
                     break
                 # the bags listed again (a folder may have new files), knowing what the last reader learnt of the
                 # files unchanged since: a seek passes over the chunks read before, even without a summary
@@ -255,12 +255,15 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                         self.damaged_pass |= set(self.reader.stopped)
                     self.reader = reader
         except Exception as exc:  # noqa: BLE001 - reported, and the node ends with an error status
-            if self.done or not self.context.ok():  # Ctrl-C: rclpy's handler ended the context under this thread
+            if self._ending() or not self.context.ok():  # Ctrl-C: rclpy's handler ended the context under it
                 return
             self.error = f"replay failed: {type(exc).__name__}: {exc}"
             self.get_logger().error(self.error)
             self.exit_code = 1
         finally:
+            if self.stop_asked and self.context.ok():  # ~/stop: what was published reaches subscribers; the count
+                flush(self, [p for p in self.pubs.values() if p is not None])
+                self.get_logger().info(f"~/stop: playback stopped after {self.published} messages")
             self.done = True
             with self.step_cond:  # a ~/play_next waiting for its message hears that none will come
                 self.step_cond.notify_all()
@@ -285,7 +288,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         n = 0
         self.reading = f"reading the bags to {begin:g} s" if begin > 0 else ""
         for m in self.reader.messages(from_ns=from_ns):
-            if self.done:
+            if self._ending():
                 return
             pub = self._publisher(m.topic, m.type_name, m.metadata)
             if pub is None:  # not played: its log time does not set the start (a report on another clock, say)
@@ -318,7 +321,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                     c_now = self.cfg  # paused: the bag stands at its start from the first instant
                     pace = _Pace(rel if anchor is None else anchor, 0.0 if c_now.paused else c_now.rate)
                 waited = self._wait(pace, rel, t0_bag, m.log_time)
-                if self.done:
+                if self._ending():
                     return
                 if waited == "seek":
                     continue
@@ -348,7 +351,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
     def _wait_for_subscribers(self, until: float, wait_s: float) -> None:
         """Before the first message: until every publisher known so far has a subscriber, or wall time ``until``."""
         waited = False
-        while not self.done and time.monotonic() < until and any(
+        while not self._ending() and time.monotonic() < until and any(
                 p is not None and p.get_subscription_count() == 0 for p in self.pubs.values()):
             self.waiting = f"waiting up to {wait_s:g} s for subscribers"
             waited = True
@@ -403,8 +406,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         def ended() -> str:
             return self.error or ("playback was stopped (~/stop)" if self.stop_asked else "the bag has been played")
 
-        if self.done or not self.cfg.paused:
-            return 0, ended() if self.done else f"not paused: {service} plays while paused"
+        if self._ending() or not self.cfg.paused:
+            return 0, ended() if self._ending() else f"not paused: {service} plays while paused"
         if busy := self.waiting or self.reading:  # no message is near: refused at once, not holding the executor
             return 0, f"nothing to play yet ({busy})"
         whole = n == _BURST_ALL
@@ -424,9 +427,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                 return played, ""
             withdrawn = min(self.steps, n - played)
             self.steps -= withdrawn
-            if whole and played and not self.error and (self.done or self.passes != passes):
+            if whole and played and not self.error and not self.stop_asked and (self.done or self.passes != passes):
                 return played, ""  # the whole pass, as asked
-            if self.done:
+            if self._ending():
                 return played, ended()
             if whole and self.passes != passes:
                 return played, "the pass ended"
@@ -440,7 +443,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
     def _stepped_since(self, stepped: int, passes: int | None) -> bool:
         """A message played after ``stepped`` had been, the pass ``passes`` ended (where given), the pause did, or the
         replay did (under ``step_cond``)."""
-        return (self.stepped > stepped or (passes is not None and self.passes != passes) or self.done
+        return (self.stepped > stepped or (passes is not None and self.passes != passes) or self._ending()
                 or not self.cfg.paused or not self.context.ok())
 
     def _on_seek(self, request: Any, response: Any) -> Any:
@@ -474,12 +477,13 @@ class ReplayNode(ZebraNode[ReplayConfig]):
 
     def _on_stop(self, request: Any, response: Any) -> Any:
         """``~/stop`` (rosbag2_interfaces/srv/Stop), as ``ros2 bag play``'s: playback ends where it is, paused or not
-        (looping too), and the node ends as it does when the bags have been played."""
-        if not self.done:
-            self.get_logger().info(f"~/stop: playback stopped after {self.published} messages")
-        self.stop_asked = True
-        self.done = True  # the play thread and the spin end; run_node stops the node
+        (looping too), and the node ends as it does when the bags have been played: the play thread flushes what it
+        published, logs the count and sets ``done`` (so the answer goes out before the node ends)."""
+        if self._ending():
+            self.get_logger().info("~/stop: playback has ended already")
+            return response
         with self.step_cond:  # a ~/burst or ~/play_next waiting on the other executor thread answers now
+            self.stop_asked = True
             self.step_cond.notify_all()
         return response
 
@@ -497,7 +501,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         ``~/play_next`` took this message while paused (it plays alone), or "seek" where a seek came first (the
         message is judged again)."""
         period = 1.0 / self.cfg.clock_rate_hz
-        while not self.done:  # stop() ends the wait too
+        while not self._ending():  # stop() ends the wait too
             if self.seek_to is not None:
                 return "seek"
             now, c = time.monotonic(), self.cfg  # one config a pass: the executor may swap it meanwhile
@@ -531,6 +535,10 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                         waiting=self.waiting or self.reading or ("paused" if self.cfg.paused else ""),
                         info={"bags": ", ".join(str(p) for p in self.reader.paths), "rate": f"{self.cfg.rate:g}",
                               "paused": str(self.cfg.paused).lower()})
+
+    def _ending(self) -> bool:
+        """The play thread has ended (``done``) or is asked to end by ``~/stop``."""
+        return self.done or self.stop_asked
 
     def stop(self) -> None:
         """End the play thread before the node's publishers go (it would publish through destroyed ones)."""

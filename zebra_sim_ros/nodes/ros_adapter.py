@@ -106,8 +106,9 @@ class ZebraNode(Node, Generic[C]):
         self.diagnostics_pub: Any = None
         # one report at a time: with two executor threads a timer's report may still run when the node's last one
         # is made; each takes the activity and remembers its counters for the next, so two interleaved would count
-        # a period twice or from a later report's counters (a negative rate)
+        # a period twice or from a later report's counters (a negative rate). After the last, none.
         self._report_lock = threading.Lock()
+        self._reports_closed = False
         self.done = False  # set to end the spin
         self.exit_code = 0
         self.cfg: C = config.from_params(declare_and_read(self, config.specs()))
@@ -133,11 +134,15 @@ class ZebraNode(Node, Generic[C]):
     def _diagnostics_tick(self) -> None:
         self.publish_diagnostics()
 
-    def publish_diagnostics(self) -> Health | None:
-        """Report the node's health since the last report on /diagnostics; the report (None: diagnostics off)."""
+    def publish_diagnostics(self, last: bool = False) -> Health | None:
+        """Report the node's health since the last report on /diagnostics; the report (None: diagnostics off, or
+        the node's ``last`` report made already: a timer's report waiting for the lock then makes none)."""
         if self.health is None or self.diagnostics_pub is None:
             return None
         with self._report_lock:
+            if self._reports_closed:
+                return None
+            self._reports_closed = last
             act = self.activity()
             h = self.health.report(time.monotonic(), act)
             status = DiagnosticStatus(level=bytes([int(h.level)]),
@@ -489,7 +494,7 @@ def run_node(name: str, factory: Callable[[], ZebraNode[Any]], argv: list[str] |
                 # was built, which then fails (RCLError): a Ctrl-C like any other.
                 break
         try:
-            if node.done and rclpy.ok() and node.publish_diagnostics() is not None:  # ended by itself: say how
+            if node.done and rclpy.ok() and node.publish_diagnostics(last=True) is not None:  # ended by itself: say how
                 flush(node, [node.diagnostics_pub], timeout_s=1.0)
         except Exception:
             if rclpy.ok():
