@@ -632,6 +632,8 @@ def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_
         past = set_parameter(peer, "/replay", "start_offset_s", 1.91)
         assert not past.successful and past.reason == "start_offset_s 1.91 s: past the bags' last message at " \
             f"{stamp_text(times[-1])}, {(times[-1] - times[0]) / 1e9:g} s after the first message played", past.reason
+        bad = set_parameter(peer, "/replay", "start_offset_s", "abc")  # validated before it is weighed as a seek
+        assert not bad.successful and "'start_offset_s' = 'abc' is invalid" in bad.reason, bad.reason
         n = len(clocks)
         assert seek_stamp(time=stamp(times[0] - 10**9)).success  # a second before the first message: to it
         assert peer.spin(lambda: sought(0.0, n), 10), clocks[n:]

@@ -25,6 +25,7 @@ import math
 import re
 import threading
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -172,18 +173,21 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         else:
             self.cfg = cfg
 
+    def refuse_config(self, cfg: ReplayConfig, changes: Mapping[str, Any]) -> str:
+        """A seek (``start_offset_s`` set) once the bags have been played, or to a time past their last message."""
+        if "start_offset_s" not in changes:
+            return ""
+        if self._ending():  # the play thread has ended: nothing takes a seek
+            return "the bags have been played: no seek (loop:=true keeps the replay playing)"
+        why = self._past_end(cfg.start_offset_s)
+        return f"start_offset_s {cfg.start_offset_s:g} s: {why}" if why else ""
+
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         """As every node's, and every accepted set of ``start_offset_s`` seeks, even to the value it has (as a
         repeated ``ros2 bag play`` seek plays again from there)."""
-        offsets = [p for p in params if p.name == "start_offset_s"]
-        if offsets and self._ending():  # the play thread has ended: nothing takes a seek
-            return SetParametersResult(successful=False, reason="the bags have been played: no seek (loop:=true "
-                                       "keeps the replay playing)")
-        if offsets and (why := self._past_end(float(offsets[-1].value))):
-            return SetParametersResult(successful=False, reason=f"start_offset_s {offsets[-1].value:g} s: {why}")
         result = super()._on_set_parameters(params)
-        if result.successful and offsets:  # sets come through the parameter service: after start()
-            to = float(offsets[-1].value)
+        if result.successful and any(p.name == "start_offset_s" for p in params):  # after start(): the service's
+            to = self.cfg.start_offset_s
             with self.step_cond:
                 self.seek_to = to
             self.get_logger().info(f"seeking to {to:g} s of the bag")

@@ -193,6 +193,12 @@ class ZebraNode(Node, Generic[C]):
         """Apply a config in which runtime parameters changed (already validated). By default: keep it."""
         self.cfg = cfg
 
+    def refuse_config(self, cfg: C, changes: Mapping[str, Any]) -> str:
+        """Why a validated config set at run time (``changes``: the parameters set, changed or not) cannot be
+        taken now, or "" where it can. By default every valid one can; a node whose state bounds a value (the
+        replay: a time past its bags' end) says why not."""
+        return ""
+
     def serve_pause(self) -> None:
         """``~/pause``, ``~/resume`` and ``~/toggle_paused`` (rosbag2_interfaces/srv/Pause, Resume and TogglePaused,
         as ``ros2 bag``'s: their answers are empty): each sets the node's runtime ``paused`` parameter, so ``ros2
@@ -243,6 +249,8 @@ class ZebraNode(Node, Generic[C]):
                                        "restart it")
         try:
             cfg = self.cfg.with_changes(changes)
+            if why := self.refuse_config(cfg, changes):
+                return SetParametersResult(successful=False, reason=why)
             if cfg != self.cfg:
                 self.on_config(cfg)
                 self.get_logger().info(f"parameters changed: {changes}")
