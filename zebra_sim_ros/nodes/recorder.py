@@ -145,9 +145,7 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         finished after what is queued, and the bag goes on in the next; the log names it (or says how far behind
         the writer is), or says why it was refused: once the recording has ended, and in snapshot mode (each
         snapshot is a file of its own)."""
-        ok, message = self.core.split()
-        log = self.get_logger().info if ok else self.get_logger().warning
-        log(f"~/split_bagfile: {message}" if ok else f"~/split_bagfile refused: {message}")
+        self.log_service("~/split_bagfile", *self.core.split())
         return response
 
     def _on_snapshot(self, request: Any, response: Any) -> Any:
@@ -155,11 +153,10 @@ class RecorderNode(ZebraNode[RecorderConfig]):
         file of its own, finished at once, and the cache starts again empty; ``success``, and the log names the
         file (or what is being written, where that takes more than half a second); refused outside snapshot mode
         (``snapshot_size_mb`` 0) or once the recording has ended."""
-        response.success, message = self.core.snapshot()
+        ok, message = self.core.snapshot()
         if not self.cfg.snapshot_size_mb:
             message += ": snapshot_size_mb is 0, so everything is written as it arrives"
-        log = self.get_logger().info if response.success else self.get_logger().warning
-        log(f"~/snapshot: {message}" if response.success else f"~/snapshot refused: {message}")
+        response.success = self.log_service("~/snapshot", ok, message)
         return response
 
     def _log_stats(self) -> None:

@@ -164,14 +164,13 @@ class ReplayNode(ZebraNode[ReplayConfig]):
     def on_config(self, cfg: ReplayConfig) -> None:
         """A new rate or pause applies at once, also to the wait for the next message (the play thread reads
         ``cfg``)."""
-        if cfg.paused != self.cfg.paused:
+        if changed := cfg.paused != self.cfg.paused:
             self.get_logger().info("paused" if cfg.paused else "playing again")
-            with self.step_cond:  # a step asked for in the last pause is not carried into the next one, and a
-                self.steps = 0  # ~/burst waiting for its messages hears that the pause has ended
-                self.cfg = cfg
-                self.step_cond.notify_all()
-        else:
+        with self.step_cond:  # a step asked for in the last pause is not carried into the next one, and a
+            if changed:  # ~/burst waiting for its messages hears that the pause has ended
+                self.steps = 0
             self.cfg = cfg
+            self.step_cond.notify_all()
 
     def refuse_config(self, cfg: ReplayConfig, changes: Mapping[str, Any]) -> str:
         """A seek (``start_offset_s`` set) once the bags have been played, or to a time past their last message."""
@@ -380,11 +379,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         answered once it is (``success``; the log names its topic and bag time), or refused (the log says why: see
         :meth:`_play_steps`)."""
         played, why = self._play_steps(1, "~/play_next")
-        response.success = played == 1
-        if played:
-            self.get_logger().info(f"~/play_next: played {self.step_note}")
-        else:
-            self.get_logger().warning(f"~/play_next refused: {why}")
+        response.success = self.log_service("~/play_next", played == 1, f"played {self.step_note}" if played else why)
         return response
 
     def _on_burst(self, request: Any, response: Any) -> Any:
@@ -547,9 +542,8 @@ class ReplayNode(ZebraNode[ReplayConfig]):
     def stop(self) -> None:
         """End the play thread before the node's publishers go (it would publish through destroyed ones)."""
         self.done = True
-        if hasattr(self, "step_cond"):
-            with self.step_cond:  # a ~/burst or ~/play_next waiting on the other executor thread answers now
-                self.step_cond.notify_all()
+        with self.step_cond:  # a ~/burst or ~/play_next waiting on the other executor thread answers now
+            self.step_cond.notify_all()
         thread = getattr(self, "thread", None)
         if thread is not None:
             thread.join(timeout=5.0)

@@ -214,11 +214,9 @@ class ZebraNode(Node, Generic[C]):
             def handle(request: Any, response: Any) -> Any:
                 was = bool(self.get_parameter("paused").value)
                 value = not was if to is None else to
-                if refused := self.set_param("paused", value):
-                    self.get_logger().warning(f"{service} refused: {refused}")
-                    return response
+                refused = self.set_param("paused", value)
                 word, unchanged = ("paused", "already paused") if value else ("resumed", "not paused")
-                self.get_logger().info(f"{service}: {word if was != value else unchanged}")
+                self.log_service(service, not refused, refused or (word if was != value else unchanged))
                 return response
             return handle
 
@@ -231,6 +229,16 @@ class ZebraNode(Node, Generic[C]):
             return response
 
         self.create_service(IsPaused, "~/is_paused", is_paused)
+
+    def log_service(self, service: str, ok: bool, message: str) -> bool:
+        """Log a service call's outcome, one line: ``~/pause: paused`` (info), or ``~/pause refused: why``
+        (warning) where the call did nothing. rosbag2's services answer with no words (or a bare success), so the
+        log is where a caller reads them. Returns ``ok``."""
+        if ok:
+            self.get_logger().info(f"{service}: {message}")
+        else:
+            self.get_logger().warning(f"{service} refused: {message}")
+        return ok
 
     def set_param(self, name: str, value: bool | float) -> str:
         """Set one of the node's own parameters from inside the node (a service), through the same checks as
