@@ -80,7 +80,7 @@ def test_placer_and_three_cameras_in_lockstep(tmp_path: Path) -> None:
                 return all(len(got.get((f"drone_{i}", t), {})) >= STEPS for i in range(3)
                            for t in ("image_raw", "depth", "instances", "camera_info")) and \
                     all(len(got.get((f"drone_{i}", "compressed"), {})) >= STEPS for i in compressed) and \
-                    len(got.get(("drone_0", "points"), {})) >= STEPS
+                    len(got.get(("drone_0", "points"), {})) >= STEPS and len(scenes) >= STEPS
 
             ok = spin_until(node, ex, complete, 180)
             logs = "\n".join(p.read_text()[-2000:] for p in sorted(tmp_path.glob("*.log")))

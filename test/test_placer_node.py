@@ -189,11 +189,11 @@ def test_rate_mode_publishes_scene_and_three_poses(domain: int, tmp_path: Path, 
 def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tmp_path: Path) -> None:
     """``mode:=service``: each call of ``/placer/step`` (std_srvs/Trigger) publishes one step and answers with its
     index and stamp; a call while subscribers are still awaited publishes nothing and says so; after ``max_steps``
-    the node ends by itself. With GNSS noise asked for (wandering, a time constant of 3 steps, half of it shared by
-    the drones), each drone's fix is its camera's position moved by the error the scene's seed and step give
-    (recomputed here from each scene alone: step 1's sums step 0's draws too), with that covariance, known, and its
-    camera/pose_nav is at that fix, turned from its exact pose by the attitude error of the scene's seed and step
-    (0.5 deg of tilt, 2 deg of heading)."""
+    the node ends by itself. A reader that matches after two steps gets both scenes. With GNSS noise asked for
+    (wandering, a time constant of 3 steps, half of it shared by the drones), each drone's fix is its camera's
+    position moved by the error the scene's seed and step give (recomputed here from each scene alone: step 1's sums
+    step 0's draws too), with that covariance, known, and its camera/pose_nav is at that fix, turned from its exact
+    pose by the attitude error of the scene's seed and step (0.5 deg of tilt, 2 deg of heading)."""
     from std_srvs.srv import Trigger
 
     listener = Listener(domain)
@@ -205,7 +205,7 @@ def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tm
         assert listener.spin_until(future.done, 30), "no answer"
         return future.result()
     try:
-        params = dict(SMALL, mode="service", max_steps=2, seed=9, wait_for_subscribers=2, fix_sigma_m=2.5,
+        params = dict(SMALL, mode="service", max_steps=3, seed=9, wait_for_subscribers=2, fix_sigma_m=2.5,
                       fix_vertical_sigma_m=5.0, fix_correlation_s=3.0, fix_common_fraction=0.5, nav_tilt_sigma_deg=0.5,
                       nav_heading_sigma_deg=2.0)
         with node_process("placer", params, domain, tmp_path / "placer.log") as proc:
@@ -223,13 +223,25 @@ def test_service_mode_publishes_one_step_per_call_and_says_which(domain: int, tm
             answers.append(call())
             assert [a.success for a in answers] == [True, True], [a.message for a in answers]
             assert listener.spin_until(lambda: len(listener.scenes) == 2, 30)
+            # a reader that matches after both steps still gets both (the last qos_depth scenes are kept), where
+            # a scene history of 1 gave it step 1 alone
+            late = Listener(domain, "test_late_listener")
+            try:
+                late.spin_until(lambda: len(late.scenes) >= 2, 15)
+                late_steps = [s["step"] for s in late.scenes]
+            finally:
+                late.close()
+            assert late_steps == [0, 1], late_steps
+            answers.append(call())
+            assert answers[-1].success, answers[-1].message
+            assert listener.spin_until(lambda: len(listener.scenes) == 3, 30)
             assert proc.wait(timeout=20) == 0  # ends by itself after max_steps
         for answer, scene in zip(answers, listener.scenes, strict=True):
             stamp = f"{scene['stamp']['sec']}.{scene['stamp']['nanosec']:09d}"
             assert answer.message.startswith(f"step {scene['step']}, stamp {stamp}: {scene['placed']}/"), answer.message
-        assert [s["step"] for s in listener.scenes] == [0, 1]
-        assert "published 2 steps on request; stopping" in (tmp_path / "placer.log").read_text()
-        assert listener.spin_until(lambda: all(len(f) == 2 for f in (*listener.fixes.values(),
+        assert [s["step"] for s in listener.scenes] == [0, 1, 2]
+        assert "published 3 steps on request; stopping" in (tmp_path / "placer.log").read_text()
+        assert listener.spin_until(lambda: all(len(f) == 3 for f in (*listener.fixes.values(),
                                                                      *listener.nav_poses.values())), 10)
         for scene in listener.scenes:
             cams = scene["cameras"]  # the draw's order: the scene's cameras

@@ -4,7 +4,8 @@ Topics (all stamped with the scene's simulated time, frame ``map`` = ENU; names 
 the whole graph, except the conventional ``/tf``, ``/tf_static`` and ``/clock``, which ``up --namespace`` remaps):
 
 - ``zebra_sim/scene`` (std_msgs/String): the scene JSON (schema in ``zebra_sim_ros.placement.scene``);
-  reliable, transient local, so a camera that starts late still gets the current step.
+  reliable, transient local, the last ``qos_depth`` scenes kept: a reader that falls behind (a recorder busy with
+  images) or matches late still gets each step, and a camera that starts late (history 1) the current one.
 - ``zebra_sim/zebras`` (vision_msgs/Detection3DArray where installed, else zebra_sim_msgs/Detection3DArray, the
   same fields): every placed animal's species, pose and oriented 3D box, ``id`` its scene id (the typed ground
   truth in 3D, for trackers and counters); ``publish_animals:=false`` leaves it out.
@@ -117,8 +118,10 @@ class PlacerNode(ZebraNode[PlacerConfig]):
             f"world '{world.name}' ({world.source}), asset {self.placer.library.manifest['digest']}, seed {c.seed}, "
             f"strategy {c.strategy}, mode {c.mode}, ready in {time.perf_counter() - t0:.1f} s")
         # the scene is always reliable (as /clock and /tf): the cameras and the labeller subscribe reliable and need
-        # every step; a best-effort scene would match none of them
-        latched = qos("reliable", 1, transient_local=True)
+        # every step; a best-effort scene would match none of them. The last qos_depth scenes are kept, as the poses:
+        # kept alone, step k was lost to a reader that had not acknowledged it when step k+1 went out (a lost packet
+        # is resent at the next heartbeat, after the cameras had rendered step k and the lockstep had moved on)
+        latched = qos("reliable", c.qos_depth, transient_local=True)
         stream = qos(c.qos_reliability, c.qos_depth)
         # the cameras' poses kept for late readers (the last qos_depth steps): a node that subscribes as the first
         # step goes out may match the placer only after its first pose has gone; volatile readers match too
