@@ -20,8 +20,8 @@ randomisation, other species), and scored with our COCO metrics at the shipped f
 (1280x720 frames at 2176 and 640 px frames at 1088: a scale of 1.7), zebras seen but below
 the label filters as don't-care regions:
 
-- 640x360 frames of six worlds (four of them new in stage 8), far, close-by, low and nadir: a regression floor
-  under what the weights measured when they were shipped;
+- 640x360 frames of six worlds (four of them new in stage 8), far, close-by, low and nadir, one drone's view of
+  each placement: a regression floor under what the weights measured when they were shipped;
 - a default ``generate`` (1280x720, savanna, far and close-by): what ``val`` on a default set gives, a floor under
   the measured figure (the issue's goal, 0.85, is not reached: see README "Shipped weights").
 
@@ -91,11 +91,14 @@ def test_shipped_weights_are_ours_and_say_how_they_were_trained() -> None:
 
 
 def test_shipped_weights_on_new_seeds_of_six_worlds_and_four_views(tmp_path: Path) -> None:
-    data = _held_out_set(tmp_path / "six_worlds", 24, worlds=SIX_WORLDS, strategy="all", width=640, height=360)
+    # one drone (num_cameras 1): a placement per world and view, 24 frames, where three drones made 72 frames
+    # and took 2.1x as long (123 s against 59 s on a 2-core EPYC without AVX-512), 0.660 / 0.327 on them
+    data = _held_out_set(tmp_path / "six_worlds", 24, worlds=SIX_WORLDS, strategy="all", width=640, height=360,
+                         placer={"num_cameras": 1})
     m, facts = evaluate(None, data, split="train")
-    assert facts["imgsz"] == 1088 and m.images == 72 and m.instances > 1500
-    assert m.map50 >= 0.60, m.to_dict()  # measured when shipped: 0.660 (README "Shipped weights"; stage 16: 0.668)
-    assert m.map50_95 >= 0.27, m.to_dict()  # measured: 0.327 (stage 16: 0.334)
+    assert facts["imgsz"] == 1088 and m.images == 24 and m.instances > 700
+    assert m.map50 >= 0.60, m.to_dict()  # measured: 0.664 (the 72 frames when shipped: 0.660; stage 16: 0.668)
+    assert m.map50_95 >= 0.27, m.to_dict()  # measured: 0.331 (72 frames: 0.327; stage 16: 0.334)
 
 
 def test_shipped_weights_on_a_default_generate(tmp_path: Path) -> None:
