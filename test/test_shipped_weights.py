@@ -50,7 +50,8 @@ TRAINING_STREAMS = ({100, 1_000_103} | {stream_seed(s, w, k) for s in (200, 400)
 
 def _held_out_set(root: Path, frames: int, **kw: object) -> Path:
     # two workers: the frames are the same as one worker's (each job has its own seeded streams), in about half
-    # the time on two cores (24 frames of six worlds: 103 s against 188 s, the same mAP to the last digit)
+    # the time on two cores (24 placements of six worlds, 72 images: 103 s against 188 s, the same mAP to the last
+    # digit)
     cfg = GenerateConfig(out=str(root), frames=frames, seed=HELD_OUT_SEED, val_fraction=0.0, depth="none",
                          workers=2, **kw)  # type: ignore[arg-type]
     generate(cfg, progress=lambda *a: None)
@@ -91,8 +92,8 @@ def test_shipped_weights_are_ours_and_say_how_they_were_trained() -> None:
 
 
 def test_shipped_weights_on_new_seeds_of_six_worlds_and_four_views(tmp_path: Path) -> None:
-    # one drone (num_cameras 1): a placement per world and view, 24 frames, where three drones made 72 frames
-    # and took 2.1x as long (123 s against 59 s on a 2-core EPYC without AVX-512), 0.660 / 0.327 on them
+    # one drone (num_cameras 1): a placement per world and view, 24 frames with 974 zebras, where three drones made
+    # 72 frames and took twice as long (123 s against 61-63 s on a 2-core EPYC without AVX-512), 0.660 / 0.327 on them
     data = _held_out_set(tmp_path / "six_worlds", 24, worlds=SIX_WORLDS, strategy="all", width=640, height=360,
                          placer={"num_cameras": 1})
     m, facts = evaluate(None, data, split="train")

@@ -119,10 +119,10 @@ def test_overfits_four_images(four: Path, tmp_path: Path) -> None:
     # by ~0.01; after 150 steps eval mode still normalised them by 2.4x their variance and scored 0. After 250
     # (0.97^250 = 5e-4), four images a step: the loss 0.11 of its first and mAP50 1.0, on a 2-core EPYC without
     # AVX-512 in 99-133 s. Two a step, in 77-103 s there: the loss 0.20, 0.21 and 0.31 of its first (seeds 0, 1, 2),
-    # mAP50 and recall 1.0 each time (one a step: 0.26, its batch statistics too noisy).
+    # mAP50 and recall 1.0 each time (one a step did not learn: mAP50 0.26, its batch statistics too noisy).
     gts = sum(len(p.read_text().splitlines()) for p in (four / "labels").glob("*.txt"))
     assert gts >= 12, "the fixture should hold a dozen zebras or more"
-    # last.pt once a minute, not after each of the 125 two-batch epochs (57 ms a write: a third of the test).
+    # last.pt once a minute, not after each of the 125 two-batch epochs (57 ms a write).
     summary = train(TrainConfig(data=str(four / "four.yaml"), out=str(tmp_path / "run"), model="n", imgsz=256,
                                 batch=2, epochs=125, lr0=0.02, device="cpu", workers=0, val_every=125, close_mosaic=0,
                                 augment=False, save_period=60.0), log=io.StringIO())

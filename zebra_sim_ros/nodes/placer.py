@@ -5,7 +5,7 @@ the whole graph, except the conventional ``/tf``, ``/tf_static`` and ``/clock``,
 
 - ``zebra_sim/scene`` (std_msgs/String): the scene JSON (schema in ``zebra_sim_ros.placement.scene``);
   reliable, transient local, the last ``qos_depth`` scenes kept: a reader that falls behind (a recorder busy with
-  images) or matches late still gets each step, and a camera that starts late (history 1) the current one.
+  images) or matches late still gets those steps, and a camera that starts late (history 1) usually the current one.
 - ``zebra_sim/zebras`` (vision_msgs/Detection3DArray where installed, else zebra_sim_msgs/Detection3DArray, the
   same fields): every placed animal's species, pose and oriented 3D box, ``id`` its scene id (the typed ground
   truth in 3D, for trackers and counters); ``publish_animals:=false`` leaves it out.
