@@ -539,18 +539,19 @@ def test_replay_pauses_where_it_is_and_plays_on_from_there(peer: Peer, tmp_path:
 
 def test_a_long_burst_leaves_the_other_services_served_and_a_resume_ends_it(peer: Peer, tmp_path: Path) -> None:
     """``~/burst`` waits for its messages on the executor's second thread: while a whole-pass burst of 100,000
-    messages plays, ``~/get_rate``, ``~/is_paused`` and a parameter set are answered and /diagnostics go on, and
-    ``~/resume`` ends the burst short, its answer counting what it played and its log saying why."""
+    messages plays, ``~/get_rate``, ``~/is_paused`` and a parameter set are answered and /diagnostics go on, and a
+    resume ends the burst short, its answer counting what it played and its log saying why: at once, also where the
+    replay is paused again before the burst's thread wakes (two ``~/toggle_paused`` calls back to back)."""
     import time
 
     _timed_bag(tmp_path / "t.mcap", [0.0] + [0.0002] * 99_999)  # 100,000 ticks over 20 s
     status = collect_diagnostics(peer.node, "replay: replay")
-    burst, resume = _caller(peer, "/replay/burst", Burst), _caller(peer, "/replay/resume", Resume)
+    burst, toggle = _caller(peer, "/replay/burst", Burst), _caller(peer, "/replay/toggle_paused", TogglePaused)
     get_rate, is_paused = _caller(peer, "/replay/get_rate", GetRate), _caller(peer, "/replay/is_paused", IsPaused)
     log = tmp_path / "replay.log"
     params = {"bags": [str(tmp_path / "t.mcap")], "paused": True, "diagnostics_period_s": 0.2}
     with node_process("replay", params, _domain(peer), log):
-        ready = lambda: burst.ready() and resume.ready() and get_rate.ready() and is_paused.ready()  # noqa: E731
+        ready = lambda: burst.ready() and toggle.ready() and get_rate.ready() and is_paused.ready()  # noqa: E731
         assert peer.spin(lambda: ready() and bool(status) and status[-1]["message"] == "paused", 30), log.read_text()
         deadline = time.monotonic() + 10
         while burst(num_messages=1).actually_burst != 1:  # refused while the play thread reads on to the first tick
@@ -561,13 +562,16 @@ def test_a_long_burst_leaves_the_other_services_served_and_a_resume_ends_it(peer
         assert peer.spin(lambda: len(status) > reports, 5) and not answer.done(), "no /diagnostics during the burst"
         assert get_rate().rate == pytest.approx(1.0) and is_paused().paused and not answer.done()
         assert set_parameter(peer, "/replay", "rate", 2.0).successful and not answer.done()
-        resume()
-        assert peer.spin(answer.done, 10), log.read_text()
-        took = time.monotonic() - t
+        resumed = time.monotonic()
+        toggles = [toggle.send(), toggle.send()]  # resumed, then paused again (one service's requests: in order)
+        assert peer.spin(lambda: answer.done() and all(f.done() for f in toggles), 10), log.read_text()
+        took, ended_in = time.monotonic() - t, time.monotonic() - resumed
         played = answer.result().actually_burst
+        assert is_paused().paused
     assert 0 < played < 99_999, (played, took)
     assert f"burst {played} of the pass messages: resumed while it played" in log.read_text(), log.read_text()
-    assert _said(log, "~/resume") == ["resumed"]
+    assert _said(log, "~/toggle_paused") == ["resumed", "paused"]
+    assert ended_in < 3.0, ended_in  # at the resume, not after the 5 s a burst waits for its next message
 
 
 def test_replay_seeks_back_and_forth_when_start_offset_s_is_set(peer: Peer, tmp_path: Path) -> None:

@@ -133,6 +133,7 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         # by a step and the last of them (topic and bag time); the condition guards all three
         self.steps, self.stepped, self.step_note = 0, 0, ""
         self.passes = 0  # passes ended (a ~/burst of the whole pass stops at the end of its pass)
+        self.pause_changes = 0  # pauses and resumes so far: one that comes while a ~/burst waits ends it
         self.burst_all = False  # a ~/burst of the whole pass runs: its steps not taken end with the pass
         self.step_cond = threading.Condition()
         self.seek_to: float | None = None  # a seek asked for and not yet taken (bag seconds); under step_cond
@@ -167,8 +168,9 @@ class ReplayNode(ZebraNode[ReplayConfig]):
         if changed := cfg.paused != self.cfg.paused:
             self.get_logger().info("paused" if cfg.paused else "playing again")
         with self.step_cond:  # a step asked for in the last pause is not carried into the next one, and a
-            if changed:  # ~/burst waiting for its messages hears that the pause has ended
-                self.steps = 0
+            if changed:  # ~/burst waiting for its messages hears that the pause has ended (also where it has
+                self.steps = 0  # begun again before the burst's thread woke: the count says so)
+                self.pause_changes += 1
             self.cfg = cfg
             self.step_cond.notify_all()
 
@@ -411,13 +413,14 @@ class ReplayNode(ZebraNode[ReplayConfig]):
             return 0, f"nothing to play yet ({busy})"
         whole = n == _BURST_ALL
         with self.step_cond:
-            before, passes = self.stepped, self.passes
+            before, passes, pause = self.stepped, self.passes, self.pause_changes
             self.steps += n
             self.burst_all = whole
             while self.stepped - before < n and (not whole or self.passes == passes):
                 last = self.stepped
-                self.step_cond.wait_for(functools.partial(self._stepped_since, last, passes if whole else None),
-                                        timeout=_STEP_WAIT_S)
+                self.step_cond.wait_for(
+                    functools.partial(self._stepped_since, last, passes if whole else None, pause),
+                    timeout=_STEP_WAIT_S)
                 if self.stepped == last:
                     break
             played = self.stepped - before
@@ -432,18 +435,18 @@ class ReplayNode(ZebraNode[ReplayConfig]):
                 return played, ended()
             if whole and self.passes != passes:
                 return played, "the pass ended"
-            if not self.cfg.paused:
+            if self.pause_changes != pause or not self.cfg.paused:  # resumed (maybe paused again): its burst ended
                 return played, "resumed while it played"
             if withdrawn == n - played:
                 busy = self.waiting or self.reading
                 return played, f"nothing played within {_STEP_WAIT_S:g} s" + (f" ({busy})" if busy else "")
             return played, f"the next message is playing (not within {_STEP_WAIT_S:g} s)"
 
-    def _stepped_since(self, stepped: int, passes: int | None) -> bool:
-        """A message played after ``stepped`` had been, the pass ``passes`` ended (where given), the pause did, or the
-        replay did (under ``step_cond``)."""
+    def _stepped_since(self, stepped: int, passes: int | None, pause: int) -> bool:
+        """A message played after ``stepped`` had been, the pass ``passes`` ended (where given), the pause did (its
+        count of changes is no longer ``pause``), or the replay did (under ``step_cond``)."""
         return (self.stepped > stepped or (passes is not None and self.passes != passes) or self._ending()
-                or not self.cfg.paused or not self.context.ok())
+                or self.pause_changes != pause or not self.cfg.paused or not self.context.ok())
 
     def _on_seek(self, request: Any, response: Any) -> Any:
         """``~/seek`` (rosbag2_interfaces/Seek): seek to a bag stamp, as setting ``start_offset_s`` to its seconds
